@@ -1,0 +1,48 @@
+# wiretape's entry points. `make demo` and `make test` work on a fresh Debian
+# machine: everything missing is installed by these targets (pip into .venv).
+
+VENV      ?= .venv
+PYTHON    := $(VENV)/bin/python
+BUILD     ?= build
+GENERATOR ?= Ninja
+CMAKE_ARGS ?=
+export PATH := $(abspath $(VENV))/bin:$(PATH)
+
+.PHONY: all cpp python test test-cpp test-python demo bench fuzz test-sanitize soak clean
+
+all: python
+
+# pip and the build tools of the extension, once per pyproject change.
+$(VENV)/.deps: pyproject.toml
+	test -x $(PYTHON) || python3 -m venv $(VENV)
+	$(PYTHON) -m pip install -q --upgrade pip
+	$(PYTHON) -m pip install -q "scikit-build-core>=0.10" "nanobind>=2.0" \
+	  "pyserial>=3.5" "rich>=13" "mcap>=1.1" "pytest>=7" "hypothesis>=6"
+	touch $@
+
+$(BUILD)/build.ninja: $(VENV)/.deps CMakeLists.txt
+	cmake -S . -B $(BUILD) -G $(GENERATOR) -DWIRETAPE_PYTHON=ON \
+	  -DPython_EXECUTABLE=$(abspath $(PYTHON)) $(CMAKE_ARGS)
+
+cpp: $(BUILD)/build.ninja
+	cmake --build $(BUILD)
+
+# The editable install reuses the extension built in $(BUILD) (see pyproject).
+$(VENV)/.installed: $(VENV)/.deps pyproject.toml
+	WIRETAPE_PREBUILT=1 $(PYTHON) -m pip install -q --no-build-isolation --no-deps -e .
+	touch $@
+
+python: cpp $(VENV)/.installed
+
+test: python
+	cd $(BUILD) && ctest --output-on-failure -j2 --timeout 300
+	$(PYTHON) -m pytest -q
+
+demo: python
+	$(VENV)/bin/wiretape demo
+
+bench: python
+	$(PYTHON) bench/run.py --build $(BUILD)
+
+clean:
+	rm -rf $(BUILD)

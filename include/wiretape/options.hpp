@@ -1,0 +1,80 @@
+// Option strings: `type=serial,device=/dev/ttyUSB0,baud=115200,timeout=1`.
+//
+// Syntax (flexiport's): `key=value` pairs separated by commas, spaces, tabs or
+// newlines; a bare `key` means `key=1`; a value containing separators is
+// written in double quotes, with `\"` and `\\` inside. Keys are consumed by
+// the typed take_* accessors; finish() then rejects whatever was not consumed,
+// naming the key and listing the keys that are valid for the port type.
+#pragma once
+
+#include <cstdint>
+#include <initializer_list>
+#include <map>
+#include <optional>
+#include <set>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "wiretape/timeout.hpp"
+
+namespace wiretape {
+
+class Options {
+ public:
+  struct Entry {
+    std::string key;
+    std::string value;
+  };
+
+  Options() = default;
+  // Throws OptionError on bad syntax (unterminated quote, empty key, duplicate
+  // key), naming the position in the text.
+  static Options parse(std::string_view text);
+
+  const std::vector<Entry>& entries() const noexcept { return entries_; }
+  bool has(std::string_view key) const;
+  // The raw value, without consuming it.
+  std::optional<std::string> peek(std::string_view key) const;
+  void set(std::string_view key, std::string value);
+  void erase(std::string_view key);
+
+  // Treats `alias` as another spelling of `canonical` (flexiport names);
+  // giving both is an error.
+  void alias(std::string_view alias, std::string_view canonical);
+
+  // Typed accessors: each declares `key` valid for this port type and consumes
+  // it; a bad value throws OptionError naming the key and what is valid.
+  std::optional<std::string> take(std::string_view key);
+  std::string take_string(std::string_view key, std::string fallback);
+  std::string take_required(std::string_view key);
+  bool take_bool(std::string_view key, bool fallback);
+  std::int64_t take_int(std::string_view key, std::int64_t fallback,
+                        std::int64_t min, std::int64_t max);
+  double take_double(std::string_view key, double fallback, double min,
+                     double max);
+  std::string take_choice(std::string_view key, std::string fallback,
+                          std::initializer_list<std::string_view> choices);
+  // Seconds as a float; `-1` or `none` means forever.
+  Timeout take_timeout(std::string_view key, Timeout fallback);
+  // Every `PREFIX*` key, with the prefix removed (meta_KEY=VALUE).
+  std::map<std::string, std::string> take_prefixed(std::string_view prefix);
+
+  // Throws OptionError for the first key never consumed: unknown keys and
+  // keys that do not apply to `type` get different messages, both listing the
+  // valid keys.
+  void finish(std::string_view type) const;
+
+  // Canonical text: parse(to_string()) gives back the same entries.
+  std::string to_string() const;
+  // A value quoted if it needs to be.
+  static std::string quote(std::string_view value);
+
+ private:
+  const Entry* find(std::string_view key) const;
+  std::vector<Entry> entries_;
+  std::set<std::string, std::less<>> consumed_;
+  std::vector<std::string> declared_;
+};
+
+}  // namespace wiretape

@@ -1,0 +1,36 @@
+// The port types' constructors, called by open_port() once the common keys
+// have been taken. Each consumes the keys of its type from `options`.
+#pragma once
+
+#include <map>
+#include <memory>
+#include <string>
+
+#include "wiretape/options.hpp"
+#include "wiretape/port.hpp"
+
+namespace wiretape::detail {
+
+std::unique_ptr<Port> open_serial(Options& options);
+std::unique_ptr<Port> open_tcp(Options& options);
+std::unique_ptr<Port> open_udp(Options& options);
+std::unique_ptr<Port> open_pty(Options& options);
+std::unique_ptr<Port> open_loopback(Options& options);
+std::unique_ptr<Port> open_replay(Options& options);
+
+// What `log=FILE` asks for: a recording of the port into a session file.
+struct RecordingConfig {
+  std::string path;
+  std::string options_text;  // the option string as the user gave it
+  std::string port_type;
+  int flush_ms = 100;
+  bool fsync = false;
+  bool raise_errors = true;  // log_errors=raise (else warn on stderr)
+  std::map<std::string, std::string> metadata;  // meta_KEY=VALUE
+};
+
+// Wraps `inner` so that everything crossing it is recorded (capture=client).
+std::unique_ptr<Port> record_port(std::unique_ptr<Port> inner,
+                                  RecordingConfig config);
+
+}  // namespace wiretape::detail

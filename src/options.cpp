@@ -1,0 +1,343 @@
+#include "wiretape/options.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+
+#include "wiretape/errors.hpp"
+
+namespace wiretape {
+
+namespace {
+
+bool is_separator(char c) {
+  return c == ',' || c == ' ' || c == '\t' || c == '\n' || c == '\r';
+}
+
+std::string lower(std::string_view text) {
+  std::string out(text);
+  std::transform(out.begin(), out.end(), out.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return out;
+}
+
+std::string join(const std::vector<std::string>& items) {
+  std::string out;
+  for (const auto& item : items) {
+    if (!out.empty()) out += ", ";
+    out += item;
+  }
+  return out;
+}
+
+// Printable rendering of user text inside an error message.
+std::string shown(std::string_view text) {
+  std::string out = "'";
+  for (unsigned char c : text) {
+    if (c >= 0x20 && c < 0x7f) {
+      out += static_cast<char>(c);
+    } else {
+      static const char hex[] = "0123456789abcdef";
+      out += "\\x";
+      out += hex[c >> 4];
+      out += hex[c & 15];
+    }
+  }
+  return out + "'";
+}
+
+// Every key some port type understands, to tell "does not apply to this type"
+// apart from "unknown".
+const std::vector<std::string_view>& all_known_keys() {
+  static const std::vector<std::string_view> keys = {
+      "type", "timeout", "access", "readonly", "writeonly", "readwrite", "log",
+      "flush_ms", "fsync", "log_errors", "debug", "device", "baud", "databits",
+      "stopbits", "parity", "flow", "hwflowctrl", "exclusive", "host", "ip",
+      "port", "listen", "nodelay", "bind_host", "bind_port", "dest_ip",
+      "dest_port", "recv_ip", "recv_port", "link", "file", "timing", "speed",
+      "check", "strictness", "tolerance", "jitter", "ignoretimes", "match",
+      "unmatched", "repeat", "unused", "at_end"};
+  return keys;
+}
+
+}  // namespace
+
+Options Options::parse(std::string_view text) {
+  Options options;
+  std::size_t i = 0;
+  const std::size_t n = text.size();
+  while (i < n) {
+    if (is_separator(text[i])) {
+      ++i;
+      continue;
+    }
+    const std::size_t key_start = i;
+    while (i < n && !is_separator(text[i]) && text[i] != '=') {
+      if (text[i] == '"') {
+        throw OptionError("", "option string: unexpected '\"' in a key at "
+                              "position " + std::to_string(i));
+      }
+      ++i;
+    }
+    std::string key(text.substr(key_start, i - key_start));
+    if (key.empty()) {
+      throw OptionError("", "option string: '=' with no key before it at "
+                            "position " + std::to_string(key_start));
+    }
+    std::string value = "1";
+    if (i < n && text[i] == '=') {
+      ++i;
+      value.clear();
+      if (i < n && text[i] == '"') {
+        const std::size_t quote_start = i;
+        ++i;
+        bool closed = false;
+        while (i < n) {
+          if (text[i] == '\\' && i + 1 < n &&
+              (text[i + 1] == '"' || text[i + 1] == '\\')) {
+            value += text[i + 1];
+            i += 2;
+          } else if (text[i] == '"') {
+            closed = true;
+            ++i;
+            break;
+          } else {
+            value += text[i++];
+          }
+        }
+        if (!closed) {
+          throw OptionError(key, "option string: the quoted value of '" + key +
+                                     "' opened at position " +
+                                     std::to_string(quote_start) +
+                                     " is never closed");
+        }
+        if (i < n && !is_separator(text[i])) {
+          throw OptionError(key, "option string: text after the closing quote "
+                                 "of '" + key + "' at position " +
+                                 std::to_string(i) +
+                                 "; separate options with commas");
+        }
+      } else {
+        while (i < n && !is_separator(text[i])) {
+          if (text[i] == '"') {
+            throw OptionError(key, "option string: a '\"' inside the value of '" +
+                                       key + "' at position " + std::to_string(i) +
+                                       "; quote the whole value instead");
+          }
+          value += text[i++];
+        }
+      }
+    }
+    if (options.find(key)) {
+      throw OptionError(key, "option '" + key + "' is given twice");
+    }
+    options.entries_.push_back({std::move(key), std::move(value)});
+  }
+  return options;
+}
+
+const Options::Entry* Options::find(std::string_view key) const {
+  for (const auto& entry : entries_) {
+    if (entry.key == key) return &entry;
+  }
+  return nullptr;
+}
+
+bool Options::has(std::string_view key) const { return find(key) != nullptr; }
+
+std::optional<std::string> Options::peek(std::string_view key) const {
+  if (const Entry* entry = find(key)) return entry->value;
+  return std::nullopt;
+}
+
+void Options::set(std::string_view key, std::string value) {
+  for (auto& entry : entries_) {
+    if (entry.key == key) {
+      entry.value = std::move(value);
+      return;
+    }
+  }
+  entries_.push_back({std::string(key), std::move(value)});
+}
+
+void Options::erase(std::string_view key) {
+  entries_.erase(std::remove_if(entries_.begin(), entries_.end(),
+                                [&](const Entry& e) { return e.key == key; }),
+                 entries_.end());
+}
+
+void Options::alias(std::string_view alias, std::string_view canonical) {
+  declared_.emplace_back(alias);
+  const Entry* old_name = find(alias);
+  if (!old_name) return;
+  if (has(canonical)) {
+    throw OptionError(std::string(alias),
+                      "options '" + std::string(alias) + "' and '" +
+                          std::string(canonical) +
+                          "' mean the same thing; give only one");
+  }
+  std::string value = old_name->value;
+  erase(alias);
+  set(canonical, std::move(value));
+}
+
+std::optional<std::string> Options::take(std::string_view key) {
+  declared_.emplace_back(key);
+  const Entry* entry = find(key);
+  if (!entry) return std::nullopt;
+  consumed_.emplace(key);
+  return entry->value;
+}
+
+std::string Options::take_string(std::string_view key, std::string fallback) {
+  auto value = take(key);
+  return value ? *value : std::move(fallback);
+}
+
+std::string Options::take_required(std::string_view key) {
+  auto value = take(key);
+  if (!value || value->empty()) {
+    throw OptionError(std::string(key),
+                      "missing option '" + std::string(key) + "' (" +
+                          std::string(key) + "=...)");
+  }
+  return *value;
+}
+
+bool Options::take_bool(std::string_view key, bool fallback) {
+  auto value = take(key);
+  if (!value) return fallback;
+  const std::string v = lower(*value);
+  if (v == "1" || v == "true" || v == "yes" || v == "on") return true;
+  if (v == "0" || v == "false" || v == "no" || v == "off") return false;
+  throw OptionError(std::string(key),
+                    "option '" + std::string(key) + "': " + shown(*value) +
+                        " is not a boolean; use true/false, yes/no, on/off or "
+                        "1/0");
+}
+
+std::int64_t Options::take_int(std::string_view key, std::int64_t fallback,
+                               std::int64_t min, std::int64_t max) {
+  auto value = take(key);
+  if (!value) return fallback;
+  errno = 0;
+  char* end = nullptr;
+  const long long parsed = std::strtoll(value->c_str(), &end, 10);
+  if (value->empty() || *end != '\0' || errno == ERANGE || parsed < min ||
+      parsed > max) {
+    throw OptionError(std::string(key),
+                      "option '" + std::string(key) + "': " + shown(*value) +
+                          " is not a whole number from " + std::to_string(min) +
+                          " to " + std::to_string(max));
+  }
+  return parsed;
+}
+
+double Options::take_double(std::string_view key, double fallback, double min,
+                            double max) {
+  auto value = take(key);
+  if (!value) return fallback;
+  char* end = nullptr;
+  const double parsed = std::strtod(value->c_str(), &end);
+  if (value->empty() || *end != '\0' || !std::isfinite(parsed) ||
+      parsed < min || parsed > max) {
+    throw OptionError(std::string(key),
+                      "option '" + std::string(key) + "': " + shown(*value) +
+                          " is not a number from " + std::to_string(min) +
+                          " to " + std::to_string(max));
+  }
+  return parsed;
+}
+
+std::string Options::take_choice(std::string_view key, std::string fallback,
+                                 std::initializer_list<std::string_view> choices) {
+  auto value = take(key);
+  if (!value) return fallback;
+  const std::string v = lower(*value);
+  for (auto choice : choices) {
+    if (v == choice) return v;
+  }
+  std::vector<std::string> valid(choices.begin(), choices.end());
+  throw OptionError(std::string(key), "option '" + std::string(key) + "': " +
+                                          shown(*value) + " is not one of " +
+                                          join(valid));
+}
+
+Timeout Options::take_timeout(std::string_view key, Timeout fallback) {
+  auto value = take(key);
+  if (!value) return fallback;
+  const std::string v = lower(*value);
+  if (v == "none" || v == "-1" || v == "forever") return forever;
+  char* end = nullptr;
+  const double seconds = std::strtod(v.c_str(), &end);
+  if (v.empty() || *end != '\0' || !std::isfinite(seconds) || seconds < 0 ||
+      seconds > 1e9) {
+    throw OptionError(std::string(key),
+                      "option '" + std::string(key) + "': " + shown(*value) +
+                          " is not a timeout; give seconds (e.g. 0.5), 0 to "
+                          "poll, or -1/none to block");
+  }
+  return std::chrono::nanoseconds(static_cast<std::int64_t>(seconds * 1e9));
+}
+
+std::map<std::string, std::string> Options::take_prefixed(
+    std::string_view prefix) {
+  declared_.push_back(std::string(prefix) + "KEY");
+  std::map<std::string, std::string> out;
+  for (const auto& entry : entries_) {
+    if (entry.key.size() > prefix.size() &&
+        std::string_view(entry.key).substr(0, prefix.size()) == prefix) {
+      consumed_.insert(entry.key);
+      out[entry.key.substr(prefix.size())] = entry.value;
+    }
+  }
+  return out;
+}
+
+void Options::finish(std::string_view type) const {
+  for (const auto& entry : entries_) {
+    if (consumed_.count(entry.key)) continue;
+    std::vector<std::string> valid;
+    for (const auto& key : declared_) {
+      if (std::find(valid.begin(), valid.end(), key) == valid.end()) {
+        valid.push_back(key);
+      }
+    }
+    const auto& known = all_known_keys();
+    const bool elsewhere =
+        std::find(known.begin(), known.end(), entry.key) != known.end();
+    throw OptionError(entry.key,
+                      (elsewhere ? "option '" + entry.key +
+                                       "' does not apply to type=" +
+                                       std::string(type)
+                                 : "unknown option " + shown(entry.key)) +
+                          "; valid keys for type=" + std::string(type) +
+                          ": " + join(valid));
+  }
+}
+
+std::string Options::quote(std::string_view value) {
+  const bool plain =
+      !value.empty() &&
+      std::none_of(value.begin(), value.end(),
+                   [](char c) { return is_separator(c) || c == '"' || c == '='; });
+  if (plain) return std::string(value);
+  std::string out = "\"";
+  for (char c : value) {
+    if (c == '"' || c == '\\') out += '\\';
+    out += c;
+  }
+  return out + "\"";
+}
+
+std::string Options::to_string() const {
+  std::string out;
+  for (const auto& entry : entries_) {
+    if (!out.empty()) out += ',';
+    out += entry.key + "=" + quote(entry.value);
+  }
+  return out;
+}
+
+}  // namespace wiretape

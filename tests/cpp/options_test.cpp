@@ -1,0 +1,99 @@
+#include <gtest/gtest.h>
+
+#include "wiretape/errors.hpp"
+#include "wiretape/options.hpp"
+
+using wiretape::OptionError;
+using wiretape::Options;
+
+TEST(OptionsParse, KeyValuePairsSeparatedByCommasAndSpace) {
+  auto options = Options::parse("type=serial, device=/dev/ttyS0\tbaud=115200\ntimeout=1");
+  ASSERT_EQ(options.entries().size(), 4u);
+  EXPECT_EQ(options.peek("device").value(), "/dev/ttyS0");
+  EXPECT_EQ(options.peek("baud").value(), "115200");
+}
+
+TEST(OptionsParse, BareKeyMeansOne) {
+  auto options = Options::parse("type=serial,readonly");
+  EXPECT_EQ(options.peek("readonly").value(), "1");
+}
+
+TEST(OptionsParse, QuotedValueKeepsSeparatorsAndEscapes) {
+  auto options = Options::parse(R"(log="/home/me/My Runs/a,b.wtape",meta_note="say \"hi\"")");
+  EXPECT_EQ(options.peek("log").value(), "/home/me/My Runs/a,b.wtape");
+  EXPECT_EQ(options.peek("meta_note").value(), "say \"hi\"");
+}
+
+TEST(OptionsParse, RoundTripsThroughToString) {
+  auto options = Options::parse(R"(type=tcp,log="a b",x="q\"\\")");
+  auto again = Options::parse(options.to_string());
+  ASSERT_EQ(again.entries().size(), options.entries().size());
+  for (std::size_t i = 0; i < again.entries().size(); ++i) {
+    EXPECT_EQ(again.entries()[i].key, options.entries()[i].key);
+    EXPECT_EQ(again.entries()[i].value, options.entries()[i].value);
+  }
+}
+
+TEST(OptionsParse, SyntaxErrorsNamePosition) {
+  EXPECT_THROW(Options::parse("log=\"unterminated"), OptionError);
+  EXPECT_THROW(Options::parse("=value"), OptionError);
+  EXPECT_THROW(Options::parse("baud=1,baud=2"), OptionError);
+  try {
+    Options::parse("type=serial,log=\"abc");
+    FAIL();
+  } catch (const OptionError& e) {
+    EXPECT_EQ(e.key(), "log");
+    EXPECT_NE(std::string(e.what()).find("position 16"), std::string::npos) << e.what();
+  }
+}
+
+TEST(OptionsTake, TypedValuesAndErrors) {
+  auto options = Options::parse("a=yes,b=off,n=42,f=2.5,t=none,c=even");
+  EXPECT_TRUE(options.take_bool("a", false));
+  EXPECT_FALSE(options.take_bool("b", true));
+  EXPECT_EQ(options.take_int("n", 0, 0, 100), 42);
+  EXPECT_DOUBLE_EQ(options.take_double("f", 0, 0, 10), 2.5);
+  EXPECT_EQ(options.take_timeout("t", std::chrono::seconds(1)), wiretape::forever);
+  EXPECT_EQ(options.take_choice("c", "none", {"none", "even", "odd"}), "even");
+  EXPECT_NO_THROW(options.finish("serial"));
+}
+
+TEST(OptionsTake, BadValueNamesKeyAndValid) {
+  auto options = Options::parse("parity=sometimes");
+  try {
+    options.take_choice("parity", "none", {"none", "even", "odd"});
+    FAIL();
+  } catch (const OptionError& e) {
+    EXPECT_EQ(e.key(), "parity");
+    EXPECT_NE(std::string(e.what()).find("none, even, odd"), std::string::npos);
+  }
+}
+
+TEST(OptionsFinish, UnknownAndInapplicableKeysAreErrors) {
+  auto unknown = Options::parse("bod=9600");
+  unknown.take("device");
+  try {
+    unknown.finish("serial");
+    FAIL();
+  } catch (const OptionError& e) {
+    EXPECT_EQ(e.key(), "bod");
+    EXPECT_NE(std::string(e.what()).find("unknown option"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("device"), std::string::npos);
+  }
+  auto inapplicable = Options::parse("baud=9600");
+  inapplicable.take("host");
+  try {
+    inapplicable.finish("tcp");
+    FAIL();
+  } catch (const OptionError& e) {
+    EXPECT_NE(std::string(e.what()).find("does not apply to type=tcp"), std::string::npos);
+  }
+}
+
+TEST(OptionsAlias, OldNameMapsAndBothIsError) {
+  auto options = Options::parse("ip=10.0.0.1");
+  options.alias("ip", "host");
+  EXPECT_EQ(options.take_string("host", ""), "10.0.0.1");
+  auto both = Options::parse("ip=1,host=2");
+  EXPECT_THROW(both.alias("ip", "host"), OptionError);
+}
