@@ -1,0 +1,130 @@
+// Session files (.wtape): one file per session with both directions and
+// events in the order they happened. The byte layout is specified in
+// docs/session-format.md. Readers also accept flexiport's two-file logs
+// (`name.log` meaning `name.logr` + `name.logw`), detected automatically.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "wiretape/errors.hpp"
+
+namespace wiretape {
+
+// What a record is. Payloads: the bytes for rx/tx; a JSON object for events
+// (may be empty). Unknown kinds read from a newer file are skipped.
+enum class RecordKind : std::uint8_t {
+  rx = 0x01,  // device -> host
+  tx = 0x02,  // host -> device
+  open = 0x10,
+  close = 0x11,
+  flush_input = 0x12,
+  flush_output = 0x13,
+  drain = 0x14,
+  settings = 0x15,     // {"baud":115200,"databits":8,"parity":"none",...}
+  modem_lines = 0x16,  // {"dtr":true} / {"rts":false}
+  line_break = 0x17,   // {"duration_ms":250}
+  client_connect = 0x18,
+  client_disconnect = 0x19,
+  device_lost = 0x1a,  // the device went away (EOF, ENXIO, ECONNRESET)
+};
+
+// "rx", "tx", "open", ... "line_break" is spelled "break".
+std::string_view to_string(RecordKind kind);
+std::optional<RecordKind> record_kind_from_string(std::string_view name);
+
+struct Record {
+  std::uint64_t t_ns = 0;  // since the device was opened, monotonic
+  RecordKind kind = RecordKind::rx;
+  std::string data;
+};
+
+enum class Capture {
+  client,  // library recording: rx stamped when the client's read returned
+  wire,    // proxy: every byte, stamped on arrival
+};
+
+struct SessionHeader {
+  std::uint16_t version_major = 1;
+  std::uint16_t version_minor = 0;
+  std::string metadata_json;  // the header's JSON object, as stored
+  // Fields of metadata_json, parsed:
+  std::string port_options;
+  std::string port_type;
+  std::string start_utc;  // ISO 8601, e.g. 2026-11-23T10:00:00.123456Z
+  std::string wiretape_version;
+  std::string host;
+  Capture capture = Capture::client;
+  std::string source_format = "wiretape";  // or "flexiport"
+  std::map<std::string, std::string> user_metadata;
+};
+
+// Streams records with memory independent of the file's size.
+class SessionReader {
+ public:
+  // Throws SessionError (with the byte offset) when the file cannot be used
+  // at all: missing, empty, wrong magic, newer major version, bad header.
+  explicit SessionReader(const std::string& path);
+  ~SessionReader();
+  SessionReader(SessionReader&&) noexcept;
+  SessionReader& operator=(SessionReader&&) noexcept;
+
+  const SessionHeader& header() const;
+  // The next record; false at the end of the file, or at the first damaged
+  // or truncated record (then damage() says where and why).
+  bool next(Record& record);
+  // Set once reading stopped at a damaged record: everything before it was
+  // returned.
+  const std::optional<SessionError>& damage() const;
+  // Back to the first record.
+  void rewind();
+  const std::string& path() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+struct SessionWriterOptions {
+  Capture capture = Capture::client;
+  std::string port_options;
+  std::string port_type;
+  std::map<std::string, std::string> metadata;  // free user metadata
+  // Bound on what a crash may lose: buffered records reach the OS at most
+  // this long after they were written, even when the recorder goes idle.
+  int flush_ms = 100;
+  bool fsync = false;
+};
+
+// Appends records to a new session file. Thread-safe: a reader thread and a
+// writer thread of a port may record at once.
+class SessionWriter {
+ public:
+  // Truncates/creates `path`; throws PortError (errno) if it cannot.
+  SessionWriter(const std::string& path, SessionWriterOptions options);
+  ~SessionWriter();  // closes; never throws
+  SessionWriter(const SessionWriter&) = delete;
+  SessionWriter& operator=(const SessionWriter&) = delete;
+
+  // Throws PortError when the file cannot be written (full disk, file-size
+  // limit); what was written before stays readable.
+  void write(RecordKind kind, std::uint64_t t_ns, std::string_view data);
+  void write(const Record& record) { write(record.kind, record.t_ns, record.data); }
+  void flush();
+  void close();
+  const std::string& path() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// flexiport's two-file logs. `prefix` is "name.log" for name.logr/name.logw.
+// Import (reading) is done by SessionReader; this writes the new format.
+void export_flexiport(const std::string& session_path, const std::string& prefix);
+
+}  // namespace wiretape
