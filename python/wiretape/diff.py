@@ -1,0 +1,5 @@
+"""Comparing two sessions. Placeholder."""
+
+
+def diff(a, b):
+    raise NotImplementedError

@@ -1,0 +1,5 @@
+"""pyserial URL handlers wiretape:// and wiretape+record://. Placeholder."""
+
+
+def register():
+    pass
