@@ -4,6 +4,7 @@
 // (`name.log` meaning `name.logr` + `name.logw`), detected automatically.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -98,6 +99,11 @@ struct SessionWriterOptions {
   // this long after they were written, even when the recorder goes idle.
   int flush_ms = 100;
   bool fsync = false;
+  // Header fields normally taken from the machine; set them to write a
+  // reproducible file (golden files, conversions that keep the original's).
+  std::string start_utc;         // empty: now
+  std::string host;              // empty: this machine's host name
+  std::string wiretape_version;  // empty: this library's version
 };
 
 // Appends records to a new session file. Thread-safe: a reader thread and a
@@ -114,9 +120,18 @@ class SessionWriter {
   // limit); what was written before stays readable.
   void write(RecordKind kind, std::uint64_t t_ns, std::string_view data);
   void write(const Record& record) { write(record.kind, record.t_ns, record.data); }
+  // Hands everything buffered to the OS now (and fsyncs if asked).
   void flush();
+  // Flushes and closes; throws PortError if the last data could not be
+  // written. Further writes throw.
   void close();
   const std::string& path() const;
+  // The first write failure (full disk, file-size limit), if any. After a
+  // failure the file holds every whole record written before it and nothing
+  // after it, and write() throws.
+  std::optional<PortError> failure() const;
+  // Bytes in the file so far, flushed or buffered.
+  std::uint64_t size() const;
 
  private:
   struct Impl;
@@ -125,6 +140,13 @@ class SessionWriter {
 
 // flexiport's two-file logs. `prefix` is "name.log" for name.logr/name.logw.
 // Import (reading) is done by SessionReader; this writes the new format.
+// Events are not representable there and are dropped; times are truncated to
+// microseconds. Throws SessionError if the source cannot be read (or is
+// damaged: what was written up to the damage stays), PortError on I/O errors.
 void export_flexiport(const std::string& session_path, const std::string& prefix);
+
+// The CRC32C (Castagnoli) of `data`, continuing from `crc` (0 to start): the
+// checksum of every header and record of a .wtape file.
+std::uint32_t crc32c(const void* data, std::size_t size, std::uint32_t crc = 0);
 
 }  // namespace wiretape

@@ -1,0 +1,199 @@
+// Reading sessions: .wtape files (specified in docs/session-format.md) and,
+// through session_flexiport.cpp, flexiport's two-file logs.
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstring>
+#include <string>
+
+#include "session_format.hpp"
+#include "wiretape/session.hpp"
+
+namespace wiretape {
+
+namespace detail {
+namespace {
+
+std::string hex32(std::uint32_t value) {
+  char text[16];
+  std::snprintf(text, sizeof text, "0x%08x", value);
+  return text;
+}
+
+class WtapeSource final : public RecordSource {
+ public:
+  WtapeSource(const std::string& path, SessionHeader& header) : file_(path) {
+    read_header(header);
+    first_record_ = file_.position();
+  }
+
+  bool next(Record& record) override {
+    for (;;) {
+      if (damage_) return false;
+      const std::uint64_t offset = file_.position();
+      char head[record_header_size];
+      const std::uint64_t left = file_.remaining();
+      if (left == 0) return false;
+      if (!file_.read(head, sizeof head)) {
+        return stop(offset, "truncated record at byte " + std::to_string(offset) +
+                                ": a record header needs 16 bytes, the file ends " +
+                                std::to_string(left) + " bytes later");
+      }
+      const std::uint32_t length = get_u32le(head);
+      if (static_cast<std::uint64_t>(length) + crc_size > file_.remaining()) {
+        return stop(offset, "record at byte " + std::to_string(offset) +
+                                " claims a payload of " + std::to_string(length) +
+                                " bytes, but the file holds only " +
+                                std::to_string(file_.remaining()) +
+                                " more bytes (truncated, or a corrupt length)");
+      }
+      std::uint32_t crc = crc32c(head, sizeof head);
+      std::string& payload = record.data;
+      if (!file_.read_into(payload, length)) {
+        return stop(offset, "truncated record at byte " + std::to_string(offset));
+      }
+      crc = crc32c(payload.data(), payload.size(), crc);
+      char stored_bytes[crc_size];
+      if (!file_.read(stored_bytes, crc_size)) {
+        return stop(offset, "truncated record at byte " + std::to_string(offset));
+      }
+      const std::uint32_t stored = get_u32le(stored_bytes);
+      if (stored != crc) {
+        return stop(offset, "record at byte " + std::to_string(offset) +
+                                " is corrupt: CRC32C " + hex32(crc) +
+                                " does not match the stored " + hex32(stored));
+      }
+      const auto kind_byte = static_cast<std::uint8_t>(head[4]);
+      if (!known_kind(kind_byte)) continue;  // newer kind: skipped
+      record.kind = static_cast<RecordKind>(kind_byte);
+      record.t_ns = get_u64le(head + 8);
+      ++records_;
+      return true;
+    }
+  }
+
+  void rewind() override {
+    file_.seek(first_record_);
+    damage_.reset();
+    records_ = 0;
+  }
+
+  const std::optional<SessionError>& damage() const override { return damage_; }
+
+ private:
+  static bool known_kind(std::uint8_t kind) {
+    return kind == 0x01 || kind == 0x02 || (kind >= 0x10 && kind <= 0x1a);
+  }
+
+  bool stop(std::uint64_t offset, const std::string& what) {
+    damage_.emplace(file_.path() + ": " + what + "; reading stopped there, the " +
+                        std::to_string(records_) + " records before it are intact",
+                    offset);
+    return false;
+  }
+
+  [[noreturn]] void fail(std::uint64_t offset, const std::string& what) {
+    throw SessionError(file_.path() + ": " + what, offset);
+  }
+
+  void read_header(SessionHeader& header) {
+    const std::uint64_t size = file_.remaining();
+    if (size == 0) fail(0, "empty file (0 bytes): not a wiretape session");
+    char fixed[file_header_fixed_size];
+    const bool complete = file_.read(fixed, sizeof fixed);
+    const std::size_t have =
+        complete ? sizeof fixed : static_cast<std::size_t>(size);
+    if (!complete) file_.read(fixed, have);
+    const std::size_t magic_bytes = std::min(have, sizeof session_magic);
+    if (std::memcmp(fixed, session_magic, magic_bytes) != 0) {
+      fail(0, "not a wiretape session file (wrong magic number at byte 0)");
+    }
+    if (!complete) {
+      fail(have, "truncated header: the file ends at byte " +
+                     std::to_string(have) + ", inside the 16-byte file header");
+    }
+    header.version_major = get_u16le(fixed + 8);
+    header.version_minor = get_u16le(fixed + 10);
+    if (header.version_major > session_version_major) {
+      fail(8, "written in session format " + std::to_string(header.version_major) +
+                  "." + std::to_string(header.version_minor) +
+                  ", newer than this reader's " +
+                  std::to_string(session_version_major) + "." +
+                  std::to_string(session_version_minor) +
+                  ": upgrade wiretape to read it");
+    }
+    if (header.version_major == 0) fail(8, "invalid format version 0");
+    const std::uint32_t json_length = get_u32le(fixed + 12);
+    if (json_length > max_header_json ||
+        static_cast<std::uint64_t>(json_length) + crc_size > file_.remaining()) {
+      fail(12, "truncated or corrupt header: its metadata claims " +
+                   std::to_string(json_length) + " bytes, the file holds " +
+                   std::to_string(file_.remaining()) + " after byte 16");
+    }
+    std::string json;
+    char stored_bytes[crc_size];
+    if (!file_.read_into(json, json_length) || !file_.read(stored_bytes, crc_size)) {
+      fail(16, "truncated header");
+    }
+    std::uint32_t crc = crc32c(fixed, sizeof fixed);
+    crc = crc32c(json.data(), json.size(), crc);
+    if (crc != get_u32le(stored_bytes)) {
+      fail(0, "the file header (bytes 0.." +
+                  std::to_string(file_header_fixed_size + json_length + crc_size) +
+                  ") is corrupt: CRC32C " + hex32(crc) + " does not match the stored " +
+                  hex32(get_u32le(stored_bytes)));
+    }
+    parse_header_json(json, file_.path(), file_header_fixed_size, header);
+    header.source_format = "wiretape";
+  }
+
+  BufferedFile file_;
+  std::uint64_t first_record_ = 0;
+  std::uint64_t records_ = 0;
+  std::optional<SessionError> damage_;
+};
+
+bool starts_with_magic(const std::string& path) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return false;
+  char head[sizeof session_magic] = {};
+  const ssize_t n = ::read(fd, head, sizeof head);
+  ::close(fd);
+  return n == static_cast<ssize_t>(sizeof head) &&
+         std::memcmp(head, session_magic, sizeof head) == 0;
+}
+
+}  // namespace
+}  // namespace detail
+
+struct SessionReader::Impl {
+  std::string path;
+  SessionHeader header;
+  std::unique_ptr<detail::RecordSource> source;
+};
+
+SessionReader::SessionReader(const std::string& path) : impl_(std::make_unique<Impl>()) {
+  impl_->path = path;
+  if (!detail::starts_with_magic(path)) {
+    if (auto prefix = detail::flexiport_prefix(path)) {
+      impl_->source = detail::open_flexiport(*prefix, impl_->header);
+      return;
+    }
+  }
+  impl_->source = std::make_unique<detail::WtapeSource>(path, impl_->header);
+}
+
+SessionReader::~SessionReader() = default;
+SessionReader::SessionReader(SessionReader&&) noexcept = default;
+SessionReader& SessionReader::operator=(SessionReader&&) noexcept = default;
+
+const SessionHeader& SessionReader::header() const { return impl_->header; }
+bool SessionReader::next(Record& record) { return impl_->source->next(record); }
+const std::optional<SessionError>& SessionReader::damage() const {
+  return impl_->source->damage();
+}
+void SessionReader::rewind() { impl_->source->rewind(); }
+const std::string& SessionReader::path() const { return impl_->path; }
+
+}  // namespace wiretape

@@ -1,0 +1,262 @@
+// Writing .wtape files: append-only, buffered, with a flusher thread that
+// hands buffered records to the OS at most flush_ms after they were written,
+// so that a killed recorder loses at most that much.
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <condition_variable>
+#include <cstring>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "session_format.hpp"
+#include "wiretape/session.hpp"
+
+namespace wiretape {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// Above this much buffered data, write() hands it to the OS itself.
+constexpr std::size_t flush_threshold = 256 * 1024;
+
+}  // namespace
+
+struct SessionWriter::Impl {
+  std::string path;
+  SessionWriterOptions options;
+  int fd = -1;
+
+  // Serialises writes to the file and keeps their order.
+  std::mutex io_mutex;
+  std::uint64_t committed = 0;  // bytes in the file, all whole records
+
+  // Guards everything below.
+  mutable std::mutex mutex;
+  std::condition_variable wake;
+  std::string buffer;
+  std::vector<std::size_t> record_ends;  // end offset of each buffered record
+  std::uint64_t buffered_total = 0;      // committed + buffer.size() + in flight
+  std::optional<Clock::time_point> oldest_unflushed;
+  std::optional<PortError> failure;
+  bool closing = false;
+  bool closed = false;
+  std::thread flusher;
+
+  ~Impl() {
+    if (fd >= 0) ::close(fd);
+  }
+
+  void fail_locked(int error, const std::string& what) {
+    if (!failure) {
+      failure.emplace(error, path + ": " + what + ": " + std::strerror(error) +
+                                 "; the records written before are intact");
+    }
+  }
+
+  // Writes what is buffered. On a failure the file is cut back to the last
+  // whole record, so a half-written record never hides good ones.
+  void flush_now() {
+    std::lock_guard<std::mutex> io(io_mutex);
+    std::string data;
+    std::vector<std::size_t> ends;
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      if (failure || buffer.empty()) {
+        // Nothing more will reach the file after a failure.
+        buffer.clear();
+        record_ends.clear();
+        oldest_unflushed.reset();
+        return;
+      }
+      data.swap(buffer);
+      ends.swap(record_ends);
+      oldest_unflushed.reset();
+    }
+    std::size_t written = 0;
+    int error = 0;
+    while (written < data.size()) {
+      const ssize_t n = ::write(fd, data.data() + written, data.size() - written);
+      if (n < 0) {
+        if (errno == EINTR) continue;
+        error = errno;
+        break;
+      }
+      if (n == 0) {
+        error = ENOSPC;
+        break;
+      }
+      written += static_cast<std::size_t>(n);
+    }
+    if (error == 0 && options.fsync && ::fsync(fd) != 0 && errno != EINVAL) {
+      error = errno;
+      written = 0;  // nothing is known to be on the disk
+    }
+    if (error == 0) {
+      committed += data.size();
+      return;
+    }
+    // Keep the records that made it whole.
+    std::size_t whole = 0;
+    for (const std::size_t end : ends) {
+      if (end <= written) whole = end;
+    }
+    committed += whole;
+    if (::ftruncate(fd, static_cast<off_t>(committed)) == 0) {
+      ::lseek(fd, static_cast<off_t>(committed), SEEK_SET);
+    }
+    std::lock_guard<std::mutex> lock(mutex);
+    fail_locked(error, "cannot write the session file");
+    buffered_total = committed;
+  }
+
+  void run_flusher() {
+    std::unique_lock<std::mutex> lock(mutex);
+    for (;;) {
+      if (closing) return;
+      if (!oldest_unflushed) {
+        wake.wait(lock);
+        continue;
+      }
+      const auto due = *oldest_unflushed + std::chrono::milliseconds(options.flush_ms);
+      if (Clock::now() < due) {
+        wake.wait_until(lock, due);
+        continue;
+      }
+      lock.unlock();
+      flush_now();
+      lock.lock();
+    }
+  }
+};
+
+SessionWriter::SessionWriter(const std::string& path, SessionWriterOptions options)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->path = path;
+  impl_->options = std::move(options);
+  if (impl_->options.flush_ms < 0) impl_->options.flush_ms = 0;
+  do {
+    impl_->fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  } while (impl_->fd < 0 && errno == EINTR);
+  if (impl_->fd < 0) {
+    const int error = errno;
+    throw PortError(error, path + ": cannot create the session file: " +
+                               std::strerror(error));
+  }
+  const std::string json = detail::header_json(impl_->options);
+  std::string header(detail::file_header_fixed_size, '\0');
+  std::memcpy(&header[0], detail::session_magic, sizeof detail::session_magic);
+  detail::put_u16le(&header[8], detail::session_version_major);
+  detail::put_u16le(&header[10], detail::session_version_minor);
+  detail::put_u32le(&header[12], static_cast<std::uint32_t>(json.size()));
+  header += json;
+  char crc[detail::crc_size];
+  detail::put_u32le(crc, crc32c(header.data(), header.size()));
+  header.append(crc, sizeof crc);
+  // The header reaches the OS at once: a file that exists is readable.
+  impl_->buffer = header;
+  impl_->record_ends.push_back(header.size());
+  impl_->buffered_total = header.size();
+  impl_->flush_now();
+  if (impl_->failure) throw *impl_->failure;
+  impl_->flusher = std::thread([impl = impl_.get()] { impl->run_flusher(); });
+}
+
+SessionWriter::~SessionWriter() {
+  try {
+    close();
+  } catch (...) {
+    // Destructors never throw; close() reports failures to those who call it.
+  }
+}
+
+void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view data) {
+  if (data.size() > 0xFFFFFFFFull) {
+    throw PortError(EFBIG, impl_->path + ": a record of " + std::to_string(data.size()) +
+                               " bytes is larger than the 4 GiB a record can hold");
+  }
+  char head[detail::record_header_size] = {};
+  detail::put_u32le(head, static_cast<std::uint32_t>(data.size()));
+  head[4] = static_cast<char>(kind);
+  detail::put_u64le(head + 8, t_ns);
+  std::uint32_t crc = crc32c(head, sizeof head);
+  crc = crc32c(data.data(), data.size(), crc);
+  char tail[detail::crc_size];
+  detail::put_u32le(tail, crc);
+
+  bool flush_here = false;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    if (impl_->failure) throw *impl_->failure;
+    if (impl_->closed) {
+      throw PortError(EBADF, impl_->path + ": the session writer is closed");
+    }
+    std::string& buffer = impl_->buffer;
+    buffer.append(head, sizeof head);
+    buffer.append(data.data(), data.size());
+    buffer.append(tail, sizeof tail);
+    impl_->record_ends.push_back(buffer.size());
+    impl_->buffered_total += sizeof head + data.size() + sizeof tail;
+    if (!impl_->oldest_unflushed) {
+      impl_->oldest_unflushed = Clock::now();
+      impl_->wake.notify_one();
+    }
+    flush_here = buffer.size() >= flush_threshold || impl_->options.flush_ms == 0;
+  }
+  if (flush_here) {
+    impl_->flush_now();
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    if (impl_->failure) throw *impl_->failure;
+  }
+}
+
+void SessionWriter::flush() {
+  impl_->flush_now();
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  if (impl_->failure) throw *impl_->failure;
+}
+
+void SessionWriter::close() {
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    if (impl_->closed) return;
+    impl_->closing = true;
+    impl_->wake.notify_all();
+  }
+  if (impl_->flusher.joinable()) impl_->flusher.join();
+  impl_->flush_now();
+  std::optional<PortError> failure;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    impl_->closed = true;
+    failure = impl_->failure;
+  }
+  {
+    std::lock_guard<std::mutex> io(impl_->io_mutex);
+    if (impl_->fd >= 0) {
+      ::close(impl_->fd);
+      impl_->fd = -1;
+    }
+  }
+  if (failure) throw *failure;
+}
+
+const std::string& SessionWriter::path() const { return impl_->path; }
+
+std::optional<PortError> SessionWriter::failure() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->failure;
+}
+
+std::uint64_t SessionWriter::size() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->buffered_total;
+}
+
+}  // namespace wiretape
