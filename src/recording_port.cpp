@@ -1,13 +1,288 @@
-// Placeholder until recording lands.
-#include <cerrno>
+// The recording port (`log=FILE`): a decorator that forwards every call to
+// the port under it unchanged and records what crossed it into a session
+// file (capture=client): each successful read's bytes as rx when the read
+// returned, each write's bytes as tx stamped when the write call entered,
+// and the events (open, close, flushes, drain, settings, modem lines, break,
+// device loss). Reads that time out are not recorded.
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <mutex>
+#include <string>
 
+#include "detail/json.hpp"
 #include "detail/open.hpp"
 #include "wiretape/errors.hpp"
+#include "wiretape/session.hpp"
 
 namespace wiretape::detail {
 
-std::unique_ptr<Port> record_port(std::unique_ptr<Port>, RecordingConfig) {
-  throw PortError(ENOSYS, "recording: not built yet");
+namespace {
+
+const char* parity_name(Parity parity) {
+  switch (parity) {
+    case Parity::none: return "none";
+    case Parity::even: return "even";
+    case Parity::odd: return "odd";
+    case Parity::mark: return "mark";
+    case Parity::space: return "space";
+  }
+  return "none";
+}
+
+const char* flow_name(FlowControl flow) {
+  switch (flow) {
+    case FlowControl::none: return "none";
+    case FlowControl::rtscts: return "rtscts";
+    case FlowControl::xonxoff: return "xonxoff";
+  }
+  return "none";
+}
+
+class RecordingPort final : public Port {
+ public:
+  RecordingPort(std::unique_ptr<Port> inner, RecordingConfig config)
+      : inner_(std::move(inner)),
+        config_(std::move(config)),
+        writer_(config_.path, writer_options(config_, *inner_)),
+        opened_(std::chrono::steady_clock::now()) {
+    set_timeout(inner_->timeout());
+    set_access(inner_->access());
+    record(RecordKind::open, 0,
+           json::ObjectWriter().add("description", inner_->description()).str());
+  }
+
+  ~RecordingPort() override {
+    try {
+      finish_recording();
+    } catch (...) {
+      // A destructor never throws; the file keeps what was written.
+    }
+  }
+
+  std::size_t available() override {
+    report_failure();
+    return inner_->available();
+  }
+
+  void flush_input() override {
+    report_failure();
+    inner_->flush_input();
+    record(RecordKind::flush_input, now_ns(), "{}");
+  }
+
+  void flush_output() override {
+    report_failure();
+    inner_->flush_output();
+    record(RecordKind::flush_output, now_ns(), "{}");
+  }
+
+  void drain() override {
+    report_failure();
+    inner_->drain();
+    record(RecordKind::drain, now_ns(), "{}");
+  }
+
+  void close() override {
+    closing_ = true;
+    inner_->close();
+    finish_recording();
+  }
+
+  bool is_open() const override { return inner_->is_open(); }
+  std::string description() const override { return inner_->description(); }
+  std::string type() const override { return inner_->type(); }
+  int native_handle() const override { return inner_->native_handle(); }
+
+  void set_baud(unsigned baud) override {
+    report_failure();
+    inner_->set_baud(baud);
+    record(RecordKind::settings, now_ns(),
+           json::ObjectWriter().add("baud", baud).str());
+  }
+
+  void configure(const SerialSettings& settings) override {
+    report_failure();
+    inner_->configure(settings);
+    record(RecordKind::settings, now_ns(),
+           json::ObjectWriter()
+               .add("baud", settings.baud)
+               .add("databits", settings.data_bits)
+               .add("stopbits", settings.stop_bits)
+               .add("parity", parity_name(settings.parity))
+               .add("flow", flow_name(settings.flow))
+               .str());
+  }
+
+  SerialSettings serial_settings() const override { return inner_->serial_settings(); }
+
+  void set_dtr(bool level) override {
+    report_failure();
+    inner_->set_dtr(level);
+    record(RecordKind::modem_lines, now_ns(), json::ObjectWriter().add("dtr", level).str());
+  }
+
+  void set_rts(bool level) override {
+    report_failure();
+    inner_->set_rts(level);
+    record(RecordKind::modem_lines, now_ns(), json::ObjectWriter().add("rts", level).str());
+  }
+
+  bool cts() override { return inner_->cts(); }
+  bool dsr() override { return inner_->dsr(); }
+  bool ri() override { return inner_->ri(); }
+  bool cd() override { return inner_->cd(); }
+
+  void send_break(std::chrono::milliseconds duration) override {
+    report_failure();
+    inner_->send_break(duration);
+    record(RecordKind::line_break, now_ns(),
+           json::ObjectWriter()
+               .add("duration_ms", static_cast<std::int64_t>(duration.count()))
+               .str());
+  }
+
+ protected:
+  std::size_t read_some(void* buffer, std::size_t size, Deadline deadline) override {
+    report_failure();
+    std::size_t n = 0;
+    try {
+      n = read_some_of(*inner_, buffer, size, deadline);
+    } catch (const PortClosed& e) {
+      device_lost(e);
+      throw;
+    }
+    if (n > 0) {
+      record(RecordKind::rx, now_ns(),
+             std::string_view(static_cast<const char*>(buffer), n));
+    }
+    return n;
+  }
+
+  std::size_t write_some(const void* data, std::size_t size, Deadline deadline) override {
+    report_failure();
+    const std::uint64_t entered = now_ns();
+    std::size_t n = 0;
+    try {
+      n = write_some_of(*inner_, data, size, deadline);
+    } catch (const PortClosed& e) {
+      device_lost(e);
+      throw;
+    }
+    if (n > 0) {
+      record(RecordKind::tx, entered, std::string_view(static_cast<const char*>(data), n));
+    }
+    return n;
+  }
+
+  bool wait_readable_until(Deadline deadline) override {
+    report_failure();
+    return wait_readable_until_of(*inner_, deadline);
+  }
+
+ private:
+  static SessionWriterOptions writer_options(const RecordingConfig& config,
+                                             const Port& inner) {
+    SessionWriterOptions options;
+    options.capture = Capture::client;
+    options.port_options = config.options_text;
+    options.port_type = config.port_type.empty() ? inner.type() : config.port_type;
+    options.metadata = config.metadata;
+    options.flush_ms = config.flush_ms;
+    options.fsync = config.fsync;
+    return options;
+  }
+
+  std::uint64_t now_ns() const {
+    return static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                          std::chrono::steady_clock::now() - opened_)
+                                          .count());
+  }
+
+  // A device that went away is recorded once (replays as PortClosed there);
+  // a close() of ours is recorded as close instead.
+  void device_lost(const PortClosed& error) {
+    if (closing_) return;
+    bool expected = false;
+    if (!lost_.compare_exchange_strong(expected, true)) return;
+    record(RecordKind::device_lost, now_ns(),
+           json::ObjectWriter()
+               .add("error", error.what())
+               .add("errno", error.code().value())
+               .str());
+  }
+
+  void record(RecordKind kind, std::uint64_t t_ns, std::string_view data) {
+    if (!recording_.load(std::memory_order_acquire)) return;
+    try {
+      writer_.write(kind, t_ns, data);
+    } catch (const PortError& e) {
+      recording_failed(e);
+    }
+  }
+
+  // Stops recording; the failure is raised once from the next port call
+  // (log_errors=raise) or printed once (log_errors=warn).
+  void recording_failed(const PortError& error) {
+    std::lock_guard<std::mutex> lock(failure_mutex_);
+    if (!recording_.exchange(false)) return;
+    if (config_.raise_errors) {
+      pending_failure_.emplace(error);
+      has_pending_failure_.store(true, std::memory_order_release);
+    } else {
+      std::fprintf(stderr,
+                   "wiretape: warning: recording stopped: %s (the port goes on; "
+                   "log_errors=warn)\n",
+                   error.what());
+    }
+  }
+
+  void report_failure() {
+    if (recording_.load(std::memory_order_acquire)) {
+      // A failure in the writer's background flush shows up here.
+      if (auto failure = writer_.failure()) recording_failed(*failure);
+    }
+    if (!has_pending_failure_.load(std::memory_order_acquire)) return;
+    std::lock_guard<std::mutex> lock(failure_mutex_);
+    if (!pending_failure_) return;
+    const PortError error = *pending_failure_;
+    pending_failure_.reset();
+    has_pending_failure_.store(false, std::memory_order_release);
+    throw error;
+  }
+
+  void finish_recording() {
+    std::lock_guard<std::mutex> lock(finish_mutex_);
+    if (finished_) return;
+    finished_ = true;
+    record(RecordKind::close, now_ns(), "{}");
+    if (!recording_.load()) return;
+    try {
+      writer_.close();
+    } catch (const PortError& e) {
+      recording_failed(e);
+      report_failure();
+    }
+  }
+
+  std::unique_ptr<Port> inner_;
+  RecordingConfig config_;
+  SessionWriter writer_;
+  std::chrono::steady_clock::time_point opened_;
+  std::atomic<bool> recording_{true};
+  std::atomic<bool> closing_{false};
+  std::atomic<bool> lost_{false};
+  std::mutex failure_mutex_;
+  std::atomic<bool> has_pending_failure_{false};
+  std::optional<PortError> pending_failure_;
+  std::mutex finish_mutex_;
+  bool finished_ = false;
+};
+
+}  // namespace
+
+std::unique_ptr<Port> record_port(std::unique_ptr<Port> inner, RecordingConfig config) {
+  return std::make_unique<RecordingPort>(std::move(inner), std::move(config));
 }
 
 }  // namespace wiretape::detail
