@@ -1,0 +1,500 @@
+// The .wtape format: writing, reading, damage detection, flush policy,
+// file-size limits and crash safety.
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "session_format.hpp"
+#include "wiretape/errors.hpp"
+#include "wiretape/session.hpp"
+#include "wiretape/version.hpp"
+
+using namespace wiretape;
+using namespace std::chrono_literals;
+
+namespace {
+
+class TempDir {
+ public:
+  TempDir() {
+    char pattern[] = "/tmp/wiretape-session-test-XXXXXX";
+    const char* made = ::mkdtemp(pattern);
+    if (made == nullptr) throw std::runtime_error("mkdtemp failed");
+    path_ = made;
+  }
+  ~TempDir() { std::system(("rm -rf '" + path_ + "'").c_str()); }
+  std::string file(const std::string& name) const { return path_ + "/" + name; }
+
+ private:
+  std::string path_;
+};
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream out;
+  out << in.rdbuf();
+  return out.str();
+}
+
+void spit(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+std::vector<Record> read_all(SessionReader& reader) {
+  std::vector<Record> records;
+  Record record;
+  while (reader.next(record)) records.push_back(record);
+  return records;
+}
+
+SessionWriterOptions fixed_options() {
+  SessionWriterOptions options;
+  options.port_options = "type=loopback,log=x.wtape";
+  options.port_type = "loopback";
+  options.start_utc = "2026-01-02T03:04:05.000006Z";
+  options.host = "testhost";
+  options.wiretape_version = "9.9.9";
+  options.metadata = {{"driver", "hokuyo"}, {"note", "a \"quoted\" word"}};
+  return options;
+}
+
+std::string write_sample(const std::string& path, int records = 3) {
+  SessionWriter writer(path, fixed_options());
+  for (int i = 0; i < records; ++i) {
+    writer.write(i % 2 ? RecordKind::rx : RecordKind::tx, 1000u * i,
+                 "record " + std::to_string(i));
+  }
+  writer.close();
+  return slurp(path);
+}
+
+}  // namespace
+
+TEST(Crc32c, MatchesTheStandardCheckValue) {
+  EXPECT_EQ(crc32c("123456789", 9), 0xE3069283u);
+  EXPECT_EQ(crc32c("", 0), 0u);
+  // Continuing a CRC over pieces equals one pass over the whole.
+  const std::string text = "The quick brown fox jumps over the lazy dog, twice over.";
+  EXPECT_EQ(crc32c(text.data() + 10, text.size() - 10, crc32c(text.data(), 10)),
+            crc32c(text.data(), text.size()));
+}
+
+TEST(RecordKinds, NamesRoundTrip) {
+  for (int value = 0; value < 256; ++value) {
+    const auto kind = static_cast<RecordKind>(value);
+    const std::string_view name = to_string(kind);
+    if (name == "unknown") continue;
+    EXPECT_EQ(record_kind_from_string(name), kind) << name;
+  }
+  EXPECT_EQ(to_string(RecordKind::line_break), "break");
+  EXPECT_FALSE(record_kind_from_string("nonsense"));
+}
+
+TEST(SessionFile, WritesAndReadsBackEveryKindAndTheHeader) {
+  TempDir dir;
+  const std::string path = dir.file("all.wtape");
+  const std::vector<RecordKind> kinds = {
+      RecordKind::open, RecordKind::tx, RecordKind::rx, RecordKind::flush_input,
+      RecordKind::flush_output, RecordKind::drain, RecordKind::settings,
+      RecordKind::modem_lines, RecordKind::line_break, RecordKind::client_connect,
+      RecordKind::client_disconnect, RecordKind::device_lost, RecordKind::close};
+  {
+    SessionWriter writer(path, fixed_options());
+    std::uint64_t t = 0;
+    for (RecordKind kind : kinds) writer.write(kind, t += 17, std::string(to_string(kind)) + std::string(1, '\0') + "\xff");
+    writer.write(RecordKind::rx, t + 1, "");
+  }
+  SessionReader reader(path);
+  const SessionHeader& header = reader.header();
+  EXPECT_EQ(header.version_major, 1);
+  EXPECT_EQ(header.port_options, "type=loopback,log=x.wtape");
+  EXPECT_EQ(header.port_type, "loopback");
+  EXPECT_EQ(header.start_utc, "2026-01-02T03:04:05.000006Z");
+  EXPECT_EQ(header.host, "testhost");
+  EXPECT_EQ(header.wiretape_version, "9.9.9");
+  EXPECT_EQ(header.capture, Capture::client);
+  EXPECT_EQ(header.source_format, "wiretape");
+  EXPECT_EQ(header.user_metadata.at("note"), "a \"quoted\" word");
+  EXPECT_EQ(header.user_metadata.at("driver"), "hokuyo");
+  const auto records = read_all(reader);
+  ASSERT_EQ(records.size(), kinds.size() + 1);
+  std::uint64_t t = 0;
+  for (std::size_t i = 0; i < kinds.size(); ++i) {
+    EXPECT_EQ(records[i].kind, kinds[i]);
+    EXPECT_EQ(records[i].t_ns, t += 17);
+    EXPECT_EQ(records[i].data, std::string(to_string(kinds[i])) + std::string(1, '\0') + "\xff");
+  }
+  EXPECT_TRUE(records.back().data.empty());
+  EXPECT_FALSE(reader.damage());
+  reader.rewind();
+  EXPECT_EQ(read_all(reader).size(), records.size());
+}
+
+TEST(SessionFile, DefaultHeaderFieldsComeFromTheMachine) {
+  TempDir dir;
+  const std::string path = dir.file("now.wtape");
+  SessionWriterOptions options;
+  options.capture = Capture::wire;
+  { SessionWriter writer(path, options); }
+  SessionReader reader(path);
+  EXPECT_EQ(reader.header().capture, Capture::wire);
+  EXPECT_EQ(reader.header().wiretape_version, wiretape::version);
+  ASSERT_EQ(reader.header().start_utc.size(), 27u) << reader.header().start_utc;
+  EXPECT_EQ(reader.header().start_utc.back(), 'Z');
+  EXPECT_FALSE(reader.header().host.empty());
+}
+
+TEST(SessionFile, LargePayloadsRoundTrip) {
+  TempDir dir;
+  const std::string path = dir.file("large.wtape");
+  std::string big(3 * 1024 * 1024 + 7, '\0');
+  for (std::size_t i = 0; i < big.size(); ++i) big[i] = static_cast<char>(i * 31 + 7);
+  {
+    SessionWriter writer(path, {});
+    writer.write(RecordKind::rx, 1, "small");
+    writer.write(RecordKind::rx, 2, big);
+    writer.write(RecordKind::tx, 3, "after");
+  }
+  SessionReader reader(path);
+  const auto records = read_all(reader);
+  ASSERT_EQ(records.size(), 3u);
+  EXPECT_EQ(records[1].data, big);
+  EXPECT_EQ(records[2].data, "after");
+}
+
+TEST(SessionFile, MissingEmptyAndForeignFilesAreClearErrors) {
+  TempDir dir;
+  auto expect_error = [](const std::string& path, const std::string& words,
+                         std::uint64_t offset) {
+    try {
+      SessionReader reader(path);
+      ADD_FAILURE() << "no error for " << path;
+    } catch (const SessionError& e) {
+      EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+      EXPECT_EQ(e.offset(), offset) << e.what();
+    }
+  };
+  expect_error(dir.file("missing.wtape"), "No such file", 0);
+  spit(dir.file("empty.wtape"), "");
+  expect_error(dir.file("empty.wtape"), "empty file", 0);
+  spit(dir.file("text.wtape"), "hello, I am a text file and no session\n");
+  expect_error(dir.file("text.wtape"), "wrong magic", 0);
+
+  const std::string good = write_sample(dir.file("good.wtape"));
+  spit(dir.file("short.wtape"), good.substr(0, 11));
+  expect_error(dir.file("short.wtape"), "truncated header", 11);
+  spit(dir.file("cut-header.wtape"), good.substr(0, 40));
+  expect_error(dir.file("cut-header.wtape"), "truncated or corrupt header", 12);
+
+  std::string future = good;
+  detail::put_u16le(&future[8], 2);
+  spit(dir.file("future.wtape"), future);
+  expect_error(dir.file("future.wtape"), "newer than this reader", 8);
+
+  std::string absurd = good;
+  detail::put_u32le(&absurd[12], 0xFFFFFFF0u);
+  spit(dir.file("absurd-header.wtape"), absurd);
+  expect_error(dir.file("absurd-header.wtape"), "claims 4294967280 bytes", 12);
+}
+
+TEST(SessionFile, NewerMinorVersionIsRead) {
+  TempDir dir;
+  std::string bytes = write_sample(dir.file("a.wtape"));
+  // Re-seal the header with minor version 7.
+  const std::uint32_t json_length = detail::get_u32le(&bytes[12]);
+  detail::put_u16le(&bytes[10], 7);
+  const std::size_t header_end = 16 + json_length;
+  detail::put_u32le(&bytes[header_end], crc32c(bytes.data(), header_end));
+  spit(dir.file("minor.wtape"), bytes);
+  SessionReader reader(dir.file("minor.wtape"));
+  EXPECT_EQ(reader.header().version_minor, 7);
+  EXPECT_EQ(read_all(reader).size(), 3u);
+}
+
+TEST(SessionFile, EveryBitFlipIsDetectedAndEverythingBeforeItKept) {
+  TempDir dir;
+  const std::string good = write_sample(dir.file("good.wtape"), 4);
+  SessionReader clean(dir.file("good.wtape"));
+  const std::size_t header_end = 16 + detail::get_u32le(&good[12]) + 4;
+  // Record boundaries, to know which record a flipped byte belongs to.
+  std::vector<std::size_t> starts;
+  for (std::size_t at = header_end; at < good.size();
+       at += 16 + detail::get_u32le(&good[at]) + 4) {
+    starts.push_back(at);
+  }
+  ASSERT_EQ(starts.size(), 4u);
+  const std::string path = dir.file("flipped.wtape");
+  for (std::size_t byte = 0; byte < good.size(); ++byte) {
+    for (int bit : {0, 5}) {
+      std::string bad = good;
+      bad[byte] = static_cast<char>(bad[byte] ^ (1 << bit));
+      spit(path, bad);
+      if (byte < header_end) {
+        EXPECT_THROW(SessionReader{path}, SessionError) << "byte " << byte;
+        continue;
+      }
+      SessionReader reader(path);
+      const auto records = read_all(reader);
+      std::size_t damaged = 0;
+      while (damaged + 1 < starts.size() && starts[damaged + 1] <= byte) ++damaged;
+      ASSERT_TRUE(reader.damage()) << "byte " << byte;
+      EXPECT_EQ(reader.damage()->offset(), starts[damaged]) << "byte " << byte;
+      EXPECT_EQ(records.size(), damaged) << "byte " << byte;
+    }
+  }
+}
+
+TEST(SessionFile, TruncationAtEveryByteKeepsTheWholeRecordsBefore) {
+  TempDir dir;
+  const std::string good = write_sample(dir.file("good.wtape"), 3);
+  const std::size_t header_end = 16 + detail::get_u32le(&good[12]) + 4;
+  const std::string path = dir.file("cut.wtape");
+  for (std::size_t size = header_end; size < good.size(); ++size) {
+    spit(path, good.substr(0, size));
+    SessionReader reader(path);
+    const auto records = read_all(reader);
+    std::size_t whole = 0;
+    std::size_t at = header_end;
+    while (at + 16 <= size) {
+      const std::size_t end = at + 16 + detail::get_u32le(&good[at]) + 4;
+      if (end > size) break;
+      ++whole;
+      at = end;
+    }
+    EXPECT_EQ(records.size(), whole) << "size " << size;
+    // A cut at a record boundary is a clean end; anywhere else is damage.
+    ASSERT_EQ(reader.damage().has_value(), at != size) << "size " << size;
+    if (reader.damage()) EXPECT_EQ(reader.damage()->offset(), at);
+  }
+}
+
+TEST(SessionFile, HostileLengthIsAnErrorNotAnAllocation) {
+  TempDir dir;
+  std::string bytes = write_sample(dir.file("a.wtape"), 2);
+  const std::size_t header_end = 16 + detail::get_u32le(&bytes[12]) + 4;
+  detail::put_u32le(&bytes[header_end], 0xFFFFFFFFu);
+  spit(dir.file("hostile.wtape"), bytes);
+  SessionReader reader(dir.file("hostile.wtape"));
+  EXPECT_TRUE(read_all(reader).empty());
+  ASSERT_TRUE(reader.damage());
+  EXPECT_EQ(reader.damage()->offset(), header_end);
+  EXPECT_NE(std::string(reader.damage()->what()).find("claims a payload of 4294967295"),
+            std::string::npos)
+      << reader.damage()->what();
+}
+
+TEST(SessionFile, UnknownRecordKindsAreSkipped) {
+  TempDir dir;
+  const std::string path = dir.file("future-kind.wtape");
+  {
+    SessionWriter writer(path, {});
+    writer.write(RecordKind::tx, 1, "before");
+    writer.write(static_cast<RecordKind>(0x7f), 2, "{\"from\":\"the future\"}");
+    writer.write(RecordKind::rx, 3, "after");
+  }
+  SessionReader reader(path);
+  const auto records = read_all(reader);
+  ASSERT_EQ(records.size(), 2u);
+  EXPECT_EQ(records[0].data, "before");
+  EXPECT_EQ(records[1].data, "after");
+  EXPECT_FALSE(reader.damage());
+}
+
+TEST(SessionWriter, BufferedRecordsReachTheFileWithinFlushMsWhenIdle) {
+  TempDir dir;
+  const std::string path = dir.file("idle.wtape");
+  SessionWriterOptions options;
+  options.flush_ms = 50;
+  SessionWriter writer(path, options);
+  const std::uint64_t header_size = writer.size();
+  EXPECT_EQ(slurp(path).size(), header_size) << "the header is written at once";
+  const auto written = std::chrono::steady_clock::now();
+  writer.write(RecordKind::rx, 5, "idle data");
+  // No flush() call: the flusher must get it to the file on its own.
+  const auto deadline = written + 5s;
+  std::size_t seen = 0;
+  while (std::chrono::steady_clock::now() < deadline) {
+    seen = slurp(path).size();
+    if (seen == writer.size()) break;
+    std::this_thread::yield();
+  }
+  const auto elapsed = std::chrono::steady_clock::now() - written;
+  ASSERT_EQ(seen, writer.size());
+  EXPECT_LT(elapsed, 2s);  // loose: 50 ms flush policy, a busy machine
+  SessionReader reader(path);
+  const auto records = read_all(reader);
+  ASSERT_EQ(records.size(), 1u);
+  EXPECT_EQ(records[0].data, "idle data");
+}
+
+TEST(SessionWriter, ThreadsWritingAtOnceLoseNothing) {
+  TempDir dir;
+  const std::string path = dir.file("threads.wtape");
+  constexpr int per_thread = 2000;
+  {
+    SessionWriterOptions options;
+    options.flush_ms = 1;
+    SessionWriter writer(path, options);
+    auto work = [&](RecordKind kind) {
+      for (int i = 0; i < per_thread; ++i) writer.write(kind, i, std::to_string(i));
+    };
+    std::thread reader_thread(work, RecordKind::rx);
+    std::thread writer_thread(work, RecordKind::tx);
+    reader_thread.join();
+    writer_thread.join();
+  }
+  SessionReader reader(path);
+  int next_rx = 0;
+  int next_tx = 0;
+  Record record;
+  while (reader.next(record)) {
+    int& next = record.kind == RecordKind::rx ? next_rx : next_tx;
+    EXPECT_EQ(record.data, std::to_string(next));
+    ++next;
+  }
+  EXPECT_FALSE(reader.damage());
+  EXPECT_EQ(next_rx, per_thread);
+  EXPECT_EQ(next_tx, per_thread);
+}
+
+TEST(SessionWriter, CannotCreateIsAPortErrorNamingThePath) {
+  try {
+    SessionWriter writer("/nonexistent-dir/x.wtape", {});
+    FAIL() << "no error";
+  } catch (const PortError& e) {
+    EXPECT_EQ(e.code().value(), ENOENT);
+    EXPECT_NE(std::string(e.what()).find("/nonexistent-dir/x.wtape"), std::string::npos);
+  }
+}
+
+TEST(SessionWriter, FileSizeLimitIsAClearErrorAndTheFileStaysReadable) {
+  TempDir dir;
+  const std::string path = dir.file("limited.wtape");
+  int pipe_fds[2];
+  ASSERT_EQ(::pipe(pipe_fds), 0);
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    ::close(pipe_fds[0]);
+    ::signal(SIGXFSZ, SIG_IGN);
+    rlimit limit{};
+    limit.rlim_cur = limit.rlim_max = 4096;
+    ::setrlimit(RLIMIT_FSIZE, &limit);
+    std::string report;
+    int written = 0;
+    try {
+      SessionWriterOptions options;
+      options.flush_ms = 1000;
+      SessionWriter writer(path, options);
+      for (; written < 1000; ++written) {
+        writer.write(RecordKind::rx, static_cast<std::uint64_t>(written),
+                     std::string(100, static_cast<char>('a' + written % 26)));
+        if (written % 5 == 4) writer.flush();
+      }
+      report = "no error";
+    } catch (const PortError& e) {
+      report = std::to_string(e.code().value()) + " " + std::to_string(written) + " " + e.what();
+    }
+    (void)!::write(pipe_fds[1], report.data(), report.size());
+    ::_exit(0);
+  }
+  ::close(pipe_fds[1]);
+  std::string report;
+  char chunk[512];
+  ssize_t n;
+  while ((n = ::read(pipe_fds[0], chunk, sizeof chunk)) > 0) report.append(chunk, n);
+  ::close(pipe_fds[0]);
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status)) << "the writer died of a signal";
+  ASSERT_EQ(report.rfind(std::to_string(EFBIG) + " ", 0), 0u) << report;
+  EXPECT_NE(report.find(path), std::string::npos) << report;
+  const int failed_at = std::atoi(report.c_str() + report.find(' ') + 1);
+  // The file holds whole records only, as many as fit in 4096 bytes.
+  EXPECT_LE(slurp(path).size(), 4096u);
+  SessionReader reader(path);
+  const auto records = read_all(reader);
+  EXPECT_FALSE(reader.damage()) << reader.damage()->what();
+  EXPECT_GT(records.size(), 20u);
+  EXPECT_LE(static_cast<int>(records.size()), failed_at + 1);
+  for (std::size_t i = 0; i < records.size(); ++i) {
+    EXPECT_EQ(records[i].t_ns, i);
+    EXPECT_EQ(records[i].data, std::string(100, static_cast<char>('a' + i % 26)));
+  }
+}
+
+// A recorder killed with SIGKILL loses at most the last flush_ms: the child
+// reports each record it has handed to the writer (with the time), and
+// everything reported more than flush_ms (plus slack for a loaded machine)
+// before the kill must be in the file.
+TEST(SessionWriter, KilledRecorderLosesAtMostTheLastFlushMs) {
+  TempDir dir;
+  const std::string path = dir.file("killed.wtape");
+  constexpr int flush_ms = 100;
+  int pipe_fds[2];
+  ASSERT_EQ(::pipe(pipe_fds), 0);
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    ::close(pipe_fds[0]);
+    SessionWriterOptions options;
+    options.flush_ms = flush_ms;
+    SessionWriter writer(path, options);
+    for (std::uint32_t i = 0;; ++i) {
+      writer.write(RecordKind::rx, i, "sample " + std::to_string(i));
+      if (::write(pipe_fds[1], &i, sizeof i) != sizeof i) ::_exit(1);
+      // A steady recorder: a few hundred records a second.
+      ::poll(nullptr, 0, 3);
+    }
+  }
+  ::close(pipe_fds[1]);
+  using Clock = std::chrono::steady_clock;
+  std::vector<std::pair<std::uint32_t, Clock::time_point>> reported;
+  const auto start = Clock::now();
+  while (Clock::now() - start < 800ms) {
+    std::uint32_t i;
+    if (::read(pipe_fds[0], &i, sizeof i) != sizeof i) break;
+    reported.emplace_back(i, Clock::now());
+  }
+  ::kill(child, SIGKILL);
+  const auto killed = Clock::now();
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  ::close(pipe_fds[0]);
+  ASSERT_FALSE(reported.empty());
+  // The newest record reported at least flush_ms + slack before the kill.
+  const auto slack = 400ms;
+  std::int64_t must_have = -1;
+  for (const auto& [index, at] : reported) {
+    if (killed - at >= std::chrono::milliseconds(flush_ms) + slack) must_have = index;
+  }
+  ASSERT_GE(must_have, 0) << "the child reported too little before the kill";
+  SessionReader reader(path);
+  const auto records = read_all(reader);
+  ASSERT_GT(static_cast<std::int64_t>(records.size()), must_have);
+  for (std::size_t i = 0; i < records.size(); ++i) {
+    ASSERT_EQ(records[i].data, "sample " + std::to_string(i));
+  }
+  // Everything in the file is whole, or the one record cut by the kill.
+  if (reader.damage()) {
+    EXPECT_NE(std::string(reader.damage()->what()).find("truncated"), std::string::npos);
+  }
+}
