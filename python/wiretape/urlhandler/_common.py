@@ -1,0 +1,204 @@
+"""What the wiretape URL handlers share: URL parsing, option-string quoting
+and a pyserial ``Serial`` over a wiretape Port."""
+
+import urllib.parse
+
+from serial.serialutil import (
+    PortNotOpenError,
+    SerialBase,
+    SerialException,
+    SerialTimeoutException,
+)
+
+_OPTION_SEPARATORS = set(", \t\r\n\"\\=")
+
+
+def quote_option(value) -> str:
+    """A value for a wiretape option string, double-quoted if it needs to be."""
+    text = str(value)
+    if text and not (set(text) & _OPTION_SEPARATORS):
+        return text
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def option_string(pairs) -> str:
+    return ",".join(f"{key}={quote_option(value)}" for key, value in pairs)
+
+
+def parse_url(url, scheme):
+    """(path, [(key, value)...]) of ``scheme://PATH?k=v&...``; SerialException
+    naming the problem otherwise."""
+    parts = urllib.parse.urlsplit(url)
+    if parts.scheme.lower() != scheme:
+        raise SerialException(f"expected a URL of the form {scheme}://PATH?KEY=VALUE&...; got {url!r}")
+    path = urllib.parse.unquote(parts.netloc + parts.path)
+    if not path:
+        raise SerialException(f"{url!r}: no session file path after {scheme}://")
+    pairs = []
+    seen = set()
+    for key, value in urllib.parse.parse_qsl(parts.query, keep_blank_values=True):
+        if not key:
+            raise SerialException(f"{url!r}: empty key in the query")
+        if key in seen:
+            raise SerialException(f"{url!r}: key {key!r} given twice")
+        seen.add(key)
+        pairs.append((key, value))
+    return path, pairs
+
+
+class PortSerial(SerialBase):
+    """A pyserial ``Serial`` over a wiretape Port, with pyserial's semantics:
+    ``read(n)`` waits for n bytes until ``timeout`` (None blocks, 0 polls),
+    ``write`` writes everything or raises ``SerialTimeoutException``.
+    A replay mismatch propagates as ``wiretape.ReplayMismatch`` (an
+    AssertionError with the full report); a device that went away or a port
+    error becomes a ``SerialException`` naming it."""
+
+    scheme = ""
+
+    def __init__(self, *args, **kwargs):
+        self._wiretape_port = None
+        super().__init__(*args, **kwargs)
+
+    # -- what subclasses provide -------------------------------------------
+    def _open_wiretape_port(self, url):
+        raise NotImplementedError
+
+    # -- pyserial's interface ----------------------------------------------
+    def open(self):
+        if self.is_open:
+            raise SerialException("Port is already open.")
+        if self._port is None:
+            raise SerialException("Port must be configured before it can be used.")
+        self._wiretape_port = self._convert_errors(self._open_wiretape_port, self._port)
+        self.is_open = True
+        try:
+            self._reconfigure_port()
+        except BaseException:
+            self.close()
+            raise
+
+    def close(self):
+        port, self._wiretape_port = self._wiretape_port, None
+        self.is_open = False
+        if port is not None:
+            # unused=error raises ReplayMismatch here: let it reach the test.
+            self._convert_errors(port.close)
+
+    def _reconfigure_port(self):
+        port = self._wiretape_port
+        if port is None:
+            return
+        # Line settings mean nothing to a replay; a real serial port follows
+        # the baud rate.
+        if port.type == "serial" and self._baudrate:
+            try:
+                port.set_baud(int(self._baudrate))
+            except Exception as error:
+                raise SerialException(f"cannot set baud rate {self._baudrate}: {error}") from error
+
+    def _require_open(self):
+        if not self.is_open or self._wiretape_port is None:
+            raise PortNotOpenError()
+        return self._wiretape_port
+
+    def _convert_errors(self, call, *args, **kwargs):
+        import wiretape
+
+        try:
+            return call(*args, **kwargs)
+        except wiretape.OptionError as error:
+            raise SerialException(f"{self._port}: {error}") from error
+        except wiretape.PortError as error:
+            raise SerialException(f"{self._port}: {error}") from error
+
+    @property
+    def in_waiting(self):
+        port = self._require_open()
+        return self._convert_errors(port.available)
+
+    def read(self, size=1):
+        port = self._require_open()
+        if size <= 0:
+            return b""
+        return bytes(self._convert_errors(port.read_exactly, size, timeout=self._timeout))
+
+    def read_until(self, expected=b"\n", size=None):
+        port = self._require_open()
+        return bytes(self._convert_errors(port.read_until, bytes(expected), size,
+                                          timeout=self._timeout))
+
+    def write(self, data):
+        port = self._require_open()
+        data = bytes(data)
+        if not data:
+            return 0
+        port.timeout = self._write_timeout
+        written = self._convert_errors(port.write_all, data)
+        if written < len(data):
+            raise SerialTimeoutException("Write timeout")
+        return written
+
+    def flush(self):
+        port = self._require_open()
+        self._convert_errors(port.drain)
+
+    def reset_input_buffer(self):
+        port = self._require_open()
+        self._convert_errors(port.flush_input)
+
+    def reset_output_buffer(self):
+        port = self._require_open()
+        self._convert_errors(port.flush_output)
+
+    def fileno(self):
+        port = self._require_open()
+        return port.fileno()
+
+    def _line(self, name, default):
+        port = self._require_open()
+        try:
+            return bool(getattr(port, name)())
+        except Exception:  # no modem lines on this kind of port
+            return default
+
+    def _set_line(self, name, value):
+        port = self._wiretape_port
+        if port is None:
+            return
+        try:
+            setattr(port, name, bool(value))
+        except Exception:  # no modem lines on this kind of port
+            pass
+
+    def _update_dtr_state(self):
+        self._set_line("dtr", self._dtr_state)
+
+    def _update_rts_state(self):
+        self._set_line("rts", self._rts_state)
+
+    def _update_break_state(self):
+        pass
+
+    def send_break(self, duration=0.25):
+        port = self._require_open()
+        try:
+            port.send_break(duration)
+        except Exception:
+            pass
+
+    @property
+    def cts(self):
+        return self._line("cts", False)
+
+    @property
+    def dsr(self):
+        return self._line("dsr", False)
+
+    @property
+    def ri(self):
+        return self._line("ri", False)
+
+    @property
+    def cd(self):
+        return self._line("cd", False)
