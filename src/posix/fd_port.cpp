@@ -1,0 +1,228 @@
+#include "posix/fd_port.hpp"
+
+#include <sys/ioctl.h>
+
+#include <cerrno>
+#include <chrono>
+#include <climits>
+#include <cstring>
+
+#include "wiretape/errors.hpp"
+
+namespace wiretape::detail {
+
+bool is_disconnect(int errno_value) {
+  switch (errno_value) {
+    case ENXIO:
+    case ENODEV:
+    case EIO:
+    case EPIPE:
+    case ECONNRESET:
+    case ECONNABORTED:
+    case ENOTCONN:
+    case ESHUTDOWN:
+      return true;
+    default:
+      return false;
+  }
+}
+
+void raise_os_error(int errno_value, const std::string& where,
+                    const std::string& operation) {
+  std::string message = where + ": " + operation + " failed";
+  if (is_disconnect(errno_value)) {
+    throw PortClosed(message + ", the device went away (" +
+                         std::strerror(errno_value) + ")",
+                     errno_value);
+  }
+  throw PortError(errno_value, message);
+}
+
+int poll_timeout_ms(Deadline deadline) {
+  if (!deadline) return -1;
+  const auto left = *remaining(deadline);
+  const auto ms = std::chrono::ceil<std::chrono::milliseconds>(left).count();
+  return ms > INT_MAX ? INT_MAX : static_cast<int>(ms);
+}
+
+void make_nonblocking(int fd, const std::string& where) {
+  const int flags = sys::fcntl(fd, F_GETFL);
+  if (flags < 0 || sys::fcntl(fd, F_SETFL, flags | O_NONBLOCK) < 0) {
+    raise_os_error(errno, where, "making the descriptor non-blocking");
+  }
+  const int fd_flags = sys::fcntl(fd, F_GETFD);
+  if (fd_flags >= 0) sys::fcntl(fd, F_SETFD, fd_flags | FD_CLOEXEC);
+}
+
+FdPort::FdPort(sys::UniqueFd fd, std::string description)
+    : fd_(std::move(fd)), description_(std::move(description)) {
+  make_nonblocking(fd_.get(), description_);
+  int fds[2];
+  if (sys::pipe(fds) != 0) {
+    raise_os_error(errno, description_, "creating the wake-up pipe");
+  }
+  wake_read_.reset(fds[0]);
+  wake_write_.reset(fds[1]);
+  make_nonblocking(fds[0], description_);
+  make_nonblocking(fds[1], description_);
+}
+
+FdPort::~FdPort() {
+  // Concrete ports with an on_close() close in their own destructor; this
+  // one closes what is left.
+  fd_.reset();
+  wake_read_.reset();
+  wake_write_.reset();
+}
+
+void FdPort::set_description(std::string description) {
+  description_ = std::move(description);
+}
+
+int FdPort::native_handle() const { return closed_ ? -1 : fd_.get(); }
+
+FdPort::Call::Call(FdPort& port) : port_(port) {
+  std::lock_guard<std::mutex> lock(port_.mutex_);
+  if (port_.closed_) port_.raise_closed();
+  ++port_.calls_in_flight_;
+}
+
+FdPort::Call::~Call() {
+  std::lock_guard<std::mutex> lock(port_.mutex_);
+  if (--port_.calls_in_flight_ == 0) port_.idle_.notify_all();
+}
+
+void FdPort::raise_closed() const {
+  throw PortClosed(description_ + ": the port is closed");
+}
+
+void FdPort::fail(int errno_value, const std::string& operation) {
+  if (is_disconnect(errno_value)) gone_ = true;
+  raise_os_error(errno_value, description_, operation);
+}
+
+void FdPort::close() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (closed_) return;
+    closed_ = true;
+  }
+  const char token = 'x';
+  while (sys::write(wake_write_.get(), &token, 1) < 0 && errno == EINTR) {
+  }
+  {
+    std::unique_lock<std::mutex> lock(mutex_);
+    idle_.wait(lock, [this] { return calls_in_flight_ == 0; });
+  }
+  on_close();
+  fd_.reset();
+  wake_read_.reset();
+  wake_write_.reset();
+}
+
+ssize_t FdPort::transfer_in(void* buffer, std::size_t size) {
+  return sys::read(fd_.get(), buffer, size);
+}
+
+ssize_t FdPort::transfer_out(const void* data, std::size_t size) {
+  return sys::write(fd_.get(), data, size);
+}
+
+bool FdPort::wait_for(short events, Deadline deadline) {
+  for (;;) {
+    pollfd fds[2] = {{fd_.get(), events, 0}, {wake_read_.get(), POLLIN, 0}};
+    const int ready = sys::poll(fds, 2, poll_timeout_ms(deadline));
+    if (closed_) raise_closed();
+    if (ready < 0) {
+      if (errno == EINTR) continue;
+      fail(errno, "poll");
+    }
+    if (ready == 0) {
+      if (deadline && std::chrono::steady_clock::now() >= *deadline) {
+        return false;
+      }
+      continue;
+    }
+    if (fds[0].revents & POLLNVAL) fail(EBADF, "poll");
+    if (fds[0].revents & (events | POLLHUP | POLLERR)) return true;
+  }
+}
+
+std::size_t FdPort::read_some(void* buffer, std::size_t size,
+                              Deadline deadline) {
+  Call call(*this);
+  for (;;) {
+    if (gone_) {
+      throw PortClosed(description_ + ": the device went away");
+    }
+    const ssize_t n = transfer_in(buffer, size);
+    if (n > 0) return static_cast<std::size_t>(n);
+    if (n == 0) {
+      if (size == 0) return 0;
+      if (zero_read_is_end_of_file()) {
+        gone_ = true;
+        throw PortClosed(description_ +
+                         ": the device closed the connection (end of file)");
+      }
+      continue;  // an empty datagram: nothing to return
+    }
+    const int err = errno;
+    if (err == EINTR) continue;
+    if (err == EAGAIN || err == EWOULDBLOCK) {
+      if (!wait_for(POLLIN, deadline)) return 0;
+      continue;
+    }
+    fail(err, "read");
+  }
+}
+
+std::size_t FdPort::write_some(const void* data, std::size_t size,
+                               Deadline deadline) {
+  Call call(*this);
+  for (;;) {
+    if (gone_) {
+      throw PortClosed(description_ + ": the device went away");
+    }
+    const ssize_t n = transfer_out(data, size);
+    if (n > 0 || (n == 0 && size == 0)) return static_cast<std::size_t>(n);
+    const int err = n == 0 ? EAGAIN : errno;
+    if (err == EINTR) continue;
+    if (err == EAGAIN || err == EWOULDBLOCK || err == ENOBUFS) {
+      if (!wait_for(POLLOUT, deadline)) return 0;
+      continue;
+    }
+    fail(err, "write");
+  }
+}
+
+bool FdPort::wait_readable_until(Deadline deadline) {
+  Call call(*this);
+  if (gone_) return true;
+  return wait_for(POLLIN, deadline);
+}
+
+std::size_t FdPort::available() {
+  Call call(*this);
+  int count = 0;
+  if (sys::ioctl(fd_.get(), FIONREAD, &count) != 0) fail(errno, "FIONREAD");
+  return count > 0 ? static_cast<std::size_t>(count) : 0;
+}
+
+void FdPort::flush_input() {
+  Call call(*this);
+  if (sys::tcflush(fd_.get(), TCIFLUSH) != 0) fail(errno, "flush_input");
+}
+
+void FdPort::flush_output() {
+  Call call(*this);
+  if (sys::tcflush(fd_.get(), TCOFLUSH) != 0) fail(errno, "flush_output");
+}
+
+void FdPort::drain() {
+  Call call(*this);
+  while (sys::tcdrain(fd_.get()) != 0) {
+    if (errno != EINTR) fail(errno, "drain");
+  }
+}
+
+}  // namespace wiretape::detail

@@ -1,0 +1,86 @@
+// Non-POSIX calls, one system at a time. Linux is complete; other systems get
+// the portable fallbacks.
+#include "posix/platform.hpp"
+
+#include <cerrno>
+#include <cstdlib>
+#include <mutex>
+
+#if defined(__linux__)
+// <asm/termbits.h> declares its own struct termios, so this file must not
+// include <termios.h> (nor the seam header that does).
+#include <asm/ioctls.h>
+#include <asm/termbits.h>
+#include <sys/socket.h>
+
+namespace wiretape::detail::sys {
+int ioctl_through_seam(int fd, unsigned long request, void* argument);
+}
+#else
+#include <stdlib.h>
+#include <sys/socket.h>
+#endif
+
+namespace wiretape::detail::platform {
+
+#if defined(__linux__)
+
+int set_custom_baud(int fd, unsigned baud) {
+  struct termios2 settings {};
+  if (sys::ioctl_through_seam(fd, TCGETS2, &settings) != 0) return errno;
+  settings.c_cflag &= ~static_cast<tcflag_t>(CBAUD);
+  settings.c_cflag |= BOTHER;
+  settings.c_cflag &= ~static_cast<tcflag_t>(CBAUD << IBSHIFT);
+  settings.c_cflag |= BOTHER << IBSHIFT;
+  settings.c_ispeed = baud;
+  settings.c_ospeed = baud;
+  if (sys::ioctl_through_seam(fd, TCSETS2, &settings) != 0) return errno;
+  return 0;
+}
+
+int get_baud(int fd, unsigned& baud) {
+  struct termios2 settings {};
+  if (sys::ioctl_through_seam(fd, TCGETS2, &settings) != 0) return errno;
+  baud = settings.c_ospeed;
+  return 0;
+}
+
+std::string terminal_path(int master_fd) {
+  char name[256];
+  const int err = ::ptsname_r(master_fd, name, sizeof name);
+  if (err != 0) {
+    errno = err;
+    return {};
+  }
+  return name;
+}
+
+int no_sigpipe_send_flags() { return MSG_NOSIGNAL; }
+void prevent_sigpipe(int) {}
+
+#else
+
+int set_custom_baud(int, unsigned) { return ENOTSUP; }
+int get_baud(int, unsigned&) { return ENOTSUP; }
+
+std::string terminal_path(int master_fd) {
+  // ptsname() returns a static buffer.
+  static std::mutex guard;
+  std::lock_guard<std::mutex> lock(guard);
+  const char* name = ::ptsname(master_fd);
+  return name ? std::string(name) : std::string();
+}
+
+int no_sigpipe_send_flags() { return 0; }
+void prevent_sigpipe(int socket_fd) {
+#if defined(SO_NOSIGPIPE)
+  int on = 1;
+  ::setsockopt(socket_fd, SOL_SOCKET, SO_NOSIGPIPE, &on, sizeof on);
+#else
+  (void)socket_fd;
+#endif
+}
+
+#endif
+
+}  // namespace wiretape::detail::platform

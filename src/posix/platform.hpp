@@ -1,0 +1,29 @@
+// The few operating-system calls that are not plain POSIX live behind this
+// header, in platform.cpp alone, so that other systems need only a new
+// implementation of these functions.
+#pragma once
+
+#include <string>
+
+namespace wiretape::detail::platform {
+
+// Programs `baud` as both input and output rate of terminal `fd`, for rates
+// that have no standard Bxxx constant (Linux: termios2 with BOTHER). Returns
+// 0, or an errno value (ENOTSUP where the system cannot do it).
+int set_custom_baud(int fd, unsigned baud);
+
+// The output rate terminal `fd` is programmed with, including custom rates.
+// Returns 0 and sets `baud`, or an errno value (ENOTSUP: ask cfgetospeed).
+int get_baud(int fd, unsigned& baud);
+
+// The path of the terminal side of pseudo-terminal master `master_fd`, or ""
+// with errno set.
+std::string terminal_path(int master_fd);
+
+// Flags for send()/sendto() so that writing to a dropped connection gives
+// EPIPE instead of killing the process with SIGPIPE.
+int no_sigpipe_send_flags();
+// Per-socket equivalent where the system has no send flag for it.
+void prevent_sigpipe(int socket_fd);
+
+}  // namespace wiretape::detail::platform

@@ -1,0 +1,189 @@
+// The operating-system seam. Every transport reaches the OS through these
+// functions instead of calling libc directly, so tests can replace any of
+// them (inject EINTR, EAGAIN, short writes, disconnects, or watch the termios
+// a serial port programs) without a device.
+//
+// The calls keep the libc signatures and errno convention. The table they
+// dispatch to is process-wide; tests swap it with a ScopedOverride before
+// starting any threads that use ports, and restore it on scope exit.
+#pragma once
+
+#include <fcntl.h>
+#include <netdb.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <sys/types.h>
+#include <termios.h>
+
+#include <functional>
+
+namespace wiretape::detail::sys {
+
+struct Table {
+  std::function<int(const char* path, int flags, mode_t mode)> open;
+  std::function<int(int fd)> close;
+  std::function<ssize_t(int fd, void* buffer, size_t size)> read;
+  std::function<ssize_t(int fd, const void* data, size_t size)> write;
+  std::function<int(pollfd* fds, nfds_t count, int timeout_ms)> poll;
+  // ioctl's third argument is always a pointer here (or nullptr).
+  std::function<int(int fd, unsigned long request, void* argument)> ioctl;
+  std::function<int(int fd, int command, int argument)> fcntl;
+  std::function<int(int fd, int operation)> flock;
+  std::function<int(int fds[2])> pipe;
+  std::function<int(int fd, termios* settings)> tcgetattr;
+  std::function<int(int fd, int when, const termios* settings)> tcsetattr;
+  std::function<int(int fd, int queue)> tcflush;
+  std::function<int(int fd)> tcdrain;
+  std::function<int(int fd, int duration)> tcsendbreak;
+  std::function<int(int flags)> posix_openpt;
+  std::function<int(int domain, int type, int protocol)> socket;
+  std::function<int(int fd, const sockaddr* address, socklen_t length)> connect;
+  std::function<int(int fd, const sockaddr* address, socklen_t length)> bind;
+  std::function<int(int fd, int backlog)> listen;
+  std::function<int(int fd, sockaddr* address, socklen_t* length)> accept;
+  std::function<ssize_t(int fd, const void* data, size_t size, int flags)> send;
+  std::function<ssize_t(int fd, void* buffer, size_t size, int flags)> recv;
+  std::function<ssize_t(int fd, const void* data, size_t size, int flags,
+                        const sockaddr* to, socklen_t length)>
+      sendto;
+  std::function<ssize_t(int fd, void* buffer, size_t size, int flags,
+                        sockaddr* from, socklen_t* length)>
+      recvfrom;
+  std::function<int(int fd, int level, int name, const void* value,
+                    socklen_t length)>
+      setsockopt;
+  std::function<int(int fd, int level, int name, void* value,
+                    socklen_t* length)>
+      getsockopt;
+  std::function<int(int fd, sockaddr* address, socklen_t* length)> getsockname;
+  std::function<int(int fd, int how)> shutdown;
+};
+
+// The real libc calls.
+const Table& real();
+// The table in force now.
+Table& current();
+
+// Replaces the table for its lifetime: copy of the table in force, edit the
+// members to fake, restore on destruction.
+class ScopedOverride {
+ public:
+  ScopedOverride();
+  ~ScopedOverride();
+  ScopedOverride(const ScopedOverride&) = delete;
+  ScopedOverride& operator=(const ScopedOverride&) = delete;
+  Table* operator->() { return &current(); }
+  Table& table() { return current(); }
+
+ private:
+  Table saved_;
+};
+
+inline int open(const char* path, int flags, mode_t mode = 0) {
+  return current().open(path, flags, mode);
+}
+inline int close(int fd) { return current().close(fd); }
+inline ssize_t read(int fd, void* buffer, size_t size) {
+  return current().read(fd, buffer, size);
+}
+inline ssize_t write(int fd, const void* data, size_t size) {
+  return current().write(fd, data, size);
+}
+inline int poll(pollfd* fds, nfds_t count, int timeout_ms) {
+  return current().poll(fds, count, timeout_ms);
+}
+inline int ioctl(int fd, unsigned long request, void* argument = nullptr) {
+  return current().ioctl(fd, request, argument);
+}
+inline int fcntl(int fd, int command, int argument = 0) {
+  return current().fcntl(fd, command, argument);
+}
+inline int flock(int fd, int operation) {
+  return current().flock(fd, operation);
+}
+inline int pipe(int fds[2]) { return current().pipe(fds); }
+inline int tcgetattr(int fd, termios* settings) {
+  return current().tcgetattr(fd, settings);
+}
+inline int tcsetattr(int fd, int when, const termios* settings) {
+  return current().tcsetattr(fd, when, settings);
+}
+inline int tcflush(int fd, int queue) { return current().tcflush(fd, queue); }
+inline int tcdrain(int fd) { return current().tcdrain(fd); }
+inline int tcsendbreak(int fd, int duration) {
+  return current().tcsendbreak(fd, duration);
+}
+inline int posix_openpt(int flags) { return current().posix_openpt(flags); }
+inline int socket(int domain, int type, int protocol) {
+  return current().socket(domain, type, protocol);
+}
+inline int connect(int fd, const sockaddr* address, socklen_t length) {
+  return current().connect(fd, address, length);
+}
+inline int bind(int fd, const sockaddr* address, socklen_t length) {
+  return current().bind(fd, address, length);
+}
+inline int listen(int fd, int backlog) { return current().listen(fd, backlog); }
+inline int accept(int fd, sockaddr* address, socklen_t* length) {
+  return current().accept(fd, address, length);
+}
+inline ssize_t send(int fd, const void* data, size_t size, int flags) {
+  return current().send(fd, data, size, flags);
+}
+inline ssize_t recv(int fd, void* buffer, size_t size, int flags) {
+  return current().recv(fd, buffer, size, flags);
+}
+inline ssize_t sendto(int fd, const void* data, size_t size, int flags,
+                      const sockaddr* to, socklen_t length) {
+  return current().sendto(fd, data, size, flags, to, length);
+}
+inline ssize_t recvfrom(int fd, void* buffer, size_t size, int flags,
+                        sockaddr* from, socklen_t* length) {
+  return current().recvfrom(fd, buffer, size, flags, from, length);
+}
+inline int setsockopt(int fd, int level, int name, const void* value,
+                      socklen_t length) {
+  return current().setsockopt(fd, level, name, value, length);
+}
+inline int getsockopt(int fd, int level, int name, void* value,
+                      socklen_t* length) {
+  return current().getsockopt(fd, level, name, value, length);
+}
+inline int getsockname(int fd, sockaddr* address, socklen_t* length) {
+  return current().getsockname(fd, address, length);
+}
+inline int shutdown(int fd, int how) { return current().shutdown(fd, how); }
+
+// Closes a descriptor once, keeping errno (for clean-up paths).
+void close_quietly(int fd);
+
+// An owned file descriptor, closed through the seam.
+class UniqueFd {
+ public:
+  UniqueFd() = default;
+  explicit UniqueFd(int fd) : fd_(fd) {}
+  ~UniqueFd() { reset(); }
+  UniqueFd(UniqueFd&& other) noexcept : fd_(other.release()) {}
+  UniqueFd& operator=(UniqueFd&& other) noexcept {
+    if (this != &other) reset(other.release());
+    return *this;
+  }
+  UniqueFd(const UniqueFd&) = delete;
+  UniqueFd& operator=(const UniqueFd&) = delete;
+  int get() const noexcept { return fd_; }
+  explicit operator bool() const noexcept { return fd_ >= 0; }
+  int release() noexcept {
+    const int fd = fd_;
+    fd_ = -1;
+    return fd;
+  }
+  void reset(int fd = -1) {
+    if (fd_ >= 0) close_quietly(fd_);
+    fd_ = fd;
+  }
+
+ private:
+  int fd_ = -1;
+};
+
+}  // namespace wiretape::detail::sys
