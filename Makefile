@@ -41,8 +41,32 @@ test: python
 demo: python
 	$(VENV)/bin/wiretape demo
 
+# Benchmarks, sanitizers, fuzzing and soak (docs/benchmarks.md).
+BENCH_TOOLS   := clang-14 libclang-rt-14-dev socat libbenchmark-dev tshark
+FUZZ_SECONDS  ?= 300
+SOAK_MINUTES  ?= 30
+
 bench: python
+	bench/install-tools.sh $(BENCH_TOOLS)
 	$(PYTHON) bench/run.py --build $(BUILD)
+
+# ASan+UBSan and TSan trees next to the main one, C++ tests only.
+test-sanitize:
+	bench/install-tools.sh clang-14 libclang-rt-14-dev
+	bench/sanitize.sh $(BUILD)/sanitize
+
+# libFuzzer needs clang: its own tree, fuzz targets only.
+fuzz:
+	bench/install-tools.sh clang-14 libclang-rt-14-dev
+	cmake -S . -B $(BUILD)/fuzz -G $(GENERATOR) -DCMAKE_CXX_COMPILER=clang++-14 \
+	  -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWIRETAPE_FUZZ=ON -DWIRETAPE_TESTS=OFF \
+	  -DWIRETAPE_EXAMPLES=OFF -DWIRETAPE_PYTHON=OFF -DWIRETAPE_INSTALL=OFF
+	cmake --build $(BUILD)/fuzz
+	bench/fuzz.sh $(BUILD)/fuzz $(FUZZ_SECONDS)
+
+# Record+replay loop for SOAK_MINUTES; fails if RSS or open fds grow.
+soak: python
+	$(PYTHON) bench/soak.py --minutes $(SOAK_MINUTES) --work $(BUILD)/soak
 
 clean:
 	rm -rf $(BUILD)

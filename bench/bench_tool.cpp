@@ -1,0 +1,268 @@
+// The measuring tool behind `make bench` (bench/run.py). Each subcommand
+// measures one figure in this process and prints one JSON object on stdout:
+//
+//   make-session FILE BYTES           a session of 4 KiB rx records
+//   replay FILE BYTES                 timing=none replay in 64 KiB reads
+//   timing RECORDS PERIOD_US          timing=session lateness + naive player
+//   record-throughput BYTES ROUNDS    64 KiB TCP writes, recorded vs not
+//   record-latency ROUNDTRIPS ROUNDS  64-byte ping-pong, recorded vs not
+//   record-rss BYTES FILE             peak RSS while recording BYTES
+//
+// Errors go to stderr with exit status 1 (run.py reports the figure as
+// missing with that message).
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <exception>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bench_support.hpp"
+#include "wiretape/errors.hpp"
+#include "wiretape/port.hpp"
+
+namespace wb = wiretape::bench;
+using wb::Clock;
+
+namespace {
+
+std::uint64_t parse_count(const char* text, const char* what) {
+  char* end = nullptr;
+  const unsigned long long value = std::strtoull(text, &end, 10);
+  if (end == text || *end != '\0' || value == 0) {
+    throw std::invalid_argument(std::string(what) + ": expected a positive integer, got '" + text + "'");
+  }
+  return value;
+}
+
+std::string temp_path(const std::string& stem) {
+  const char* dir = std::getenv("WIRETAPE_BENCH_DIR");
+  return std::string(dir ? dir : "/tmp") + "/" + stem + "-" + std::to_string(::getpid()) + ".wtape";
+}
+
+// Reads `expected` bytes from a timing=none replay of `path` in 64 KiB calls.
+int replay(const std::string& path, std::uint64_t expected) {
+  const auto start = Clock::now();
+  auto port = wiretape::open_port("type=replay,file=" + path +
+                                  ",timing=none,unused=ignore,timeout=10");
+  std::vector<char> buffer(64 * 1024);
+  std::uint64_t total = 0;
+  while (total < expected) {
+    const std::size_t got = port->read(buffer.data(), buffer.size());
+    if (got == 0) {
+      throw std::runtime_error("replay: timed out after " + std::to_string(total) +
+                               " of " + std::to_string(expected) + " bytes");
+    }
+    total += got;
+  }
+  const double seconds = wb::seconds_since(start);
+  port->close();
+  std::printf("{\"bytes\": %llu, \"seconds\": %.6f, \"MBps\": %.3f, \"peak_rss_MB\": %.2f}\n",
+              static_cast<unsigned long long>(total), seconds,
+              static_cast<double>(total) / seconds / 1e6, wb::peak_rss_mib());
+  return 0;
+}
+
+// timing=session: how late each record becomes readable compared with its
+// due time (open + recorded time), and the same for a player that sleeps the
+// recorded gap after each record (the reference that drifts).
+int timing(std::uint64_t records, std::uint64_t period_us) {
+  const std::string path = temp_path("wiretape-bench-timing");
+  const std::uint64_t period_ns = period_us * 1000;
+  constexpr std::size_t record_bytes = 8;
+  {
+    wiretape::SessionWriterOptions options;
+    options.port_type = "serial";
+    options.port_options = "type=serial,device=/dev/bench";
+    wiretape::SessionWriter writer(path, options);
+    writer.write(wiretape::RecordKind::open, 0, "{}");
+    for (std::uint64_t i = 0; i < records; ++i) {
+      char payload[record_bytes] = {};
+      std::memcpy(payload, &i, sizeof i);
+      writer.write(wiretape::RecordKind::rx, (i + 1) * period_ns,
+                   std::string_view(payload, record_bytes));
+    }
+    writer.close();
+  }
+  auto due_offset = [&](std::uint64_t i) { return std::chrono::nanoseconds((i + 1) * period_ns); };
+
+  std::vector<Clock::time_point> available(records);
+  const auto open_start = Clock::now();
+  auto port = wiretape::open_port("type=replay,file=" + path +
+                                  ",timing=session,unused=ignore,timeout=10");
+  const auto open_end = Clock::now();
+  std::vector<char> buffer(4096);
+  std::uint64_t bytes = 0;
+  const std::uint64_t expected = records * record_bytes;
+  while (bytes < expected) {
+    const std::size_t got = port->read(buffer.data(), buffer.size());
+    const auto now = Clock::now();
+    if (got == 0) throw std::runtime_error("timing: replay read timed out at byte " + std::to_string(bytes));
+    // Every record completed by this read became readable no later than now.
+    for (std::uint64_t end = bytes + got, b = bytes; b < end; ++b) {
+      if ((b + 1) % record_bytes == 0) available[b / record_bytes] = now;
+    }
+    bytes += got;
+  }
+  port->close();
+  std::remove(path.c_str());
+
+  std::vector<double> lateness_us;
+  lateness_us.reserve(records);
+  for (std::uint64_t i = 0; i < records; ++i) {
+    const auto late = available[i] - (open_start + due_offset(i));
+    lateness_us.push_back(std::chrono::duration<double, std::micro>(late).count());
+  }
+  const double span_ns = static_cast<double>((records - 1) * period_ns);
+  auto drift_pct = [&](const std::vector<Clock::time_point>& times) {
+    const double actual = std::chrono::duration<double, std::nano>(times.back() - times.front()).count();
+    return (actual - span_ns) / span_ns * 100.0;
+  };
+
+  // The naive player: sleep the recorded gap, then deliver; errors add up.
+  std::vector<Clock::time_point> naive(records);
+  const auto naive_start = Clock::now();
+  for (std::uint64_t i = 0; i < records; ++i) {
+    std::this_thread::sleep_for(std::chrono::nanoseconds(period_ns));
+    naive[i] = Clock::now();
+  }
+  const double naive_end_late_ms =
+      std::chrono::duration<double, std::milli>(naive.back() - (naive_start + due_offset(records - 1))).count();
+
+  std::printf(
+      "{\"records\": %llu, \"period_us\": %llu, \"p50_us\": %.3f, \"p99_us\": %.3f, "
+      "\"max_us\": %.3f, \"min_us\": %.3f, \"drift_pct\": %.5f, \"open_us\": %.1f, "
+      "\"naive_drift_pct\": %.4f, \"naive_last_late_ms\": %.3f}\n",
+      static_cast<unsigned long long>(records), static_cast<unsigned long long>(period_us),
+      wb::percentile(lateness_us, 0.5), wb::percentile(lateness_us, 0.99),
+      wb::percentile(lateness_us, 1.0), wb::percentile(lateness_us, 0.0), drift_pct(available),
+      std::chrono::duration<double, std::micro>(open_end - open_start).count(),
+      drift_pct(naive), naive_end_late_ms);
+  return 0;
+}
+
+// Seconds to push `bytes` in 64 KiB writes to a sink over loopback TCP.
+double tcp_push_seconds(std::uint64_t bytes, const std::string& log_path) {
+  wb::TcpSink sink;
+  std::string options = sink.client_options();
+  if (!log_path.empty()) options += ",log=" + log_path;
+  std::vector<char> chunk(64 * 1024, 'x');
+  const auto start = Clock::now();
+  {
+    auto port = wiretape::open_port(options);
+    std::uint64_t sent = 0;
+    while (sent < bytes) {
+      const std::size_t n = port->write_all(chunk.data(), chunk.size());
+      if (n != chunk.size()) throw std::runtime_error("record-throughput: write timed out");
+      sent += n;
+    }
+    port->close();  // the recorder's file is complete once close returns
+  }
+  const auto deadline = Clock::now() + std::chrono::seconds(60);
+  while (sink.received() < bytes) {
+    if (Clock::now() > deadline) throw std::runtime_error("record-throughput: sink never got every byte");
+    std::this_thread::yield();
+  }
+  return wb::seconds_since(start);
+}
+
+int record_throughput(std::uint64_t bytes, std::uint64_t rounds) {
+  const std::string log_path = temp_path("wiretape-bench-record");
+  std::vector<double> plain, recorded;
+  for (std::uint64_t r = 0; r < rounds; ++r) {  // interleaved: same conditions
+    plain.push_back(tcp_push_seconds(bytes, ""));
+    recorded.push_back(tcp_push_seconds(bytes, log_path));
+    std::remove(log_path.c_str());
+  }
+  const double plain_MBps = static_cast<double>(bytes) / wb::percentile(plain, 0.5) / 1e6;
+  const double recorded_MBps = static_cast<double>(bytes) / wb::percentile(recorded, 0.5) / 1e6;
+  std::printf("{\"bytes\": %llu, \"rounds\": %llu, \"plain_MBps\": %.2f, \"recorded_MBps\": %.2f, \"ratio\": %.4f}\n",
+              static_cast<unsigned long long>(bytes), static_cast<unsigned long long>(rounds),
+              plain_MBps, recorded_MBps, recorded_MBps / plain_MBps);
+  return 0;
+}
+
+void ping_pong(std::uint64_t roundtrips, const std::string& log_path, std::vector<double>& rtts_us) {
+  wb::TcpEcho echo;
+  std::string options = echo.client_options();
+  if (!log_path.empty()) options += ",log=" + log_path;
+  auto port = wiretape::open_port(options);
+  const std::string message(64, 'p');
+  for (std::uint64_t i = 0; i < roundtrips; ++i) {
+    const auto start = Clock::now();
+    port->write_all(message);
+    const std::string answer = port->read_exactly(message.size());
+    const auto end = Clock::now();
+    if (answer.size() != message.size()) throw std::runtime_error("record-latency: echo timed out");
+    rtts_us.push_back(std::chrono::duration<double, std::micro>(end - start).count());
+  }
+  port->close();
+}
+
+int record_latency(std::uint64_t roundtrips, std::uint64_t rounds) {
+  const std::string log_path = temp_path("wiretape-bench-latency");
+  std::vector<double> plain, recorded;
+  for (std::uint64_t r = 0; r < rounds; ++r) {
+    ping_pong(roundtrips, "", plain);
+    ping_pong(roundtrips, log_path, recorded);
+    std::remove(log_path.c_str());
+  }
+  const double plain_us = wb::percentile(plain, 0.5);
+  const double recorded_us = wb::percentile(recorded, 0.5);
+  std::printf("{\"roundtrips\": %llu, \"plain_median_us\": %.3f, \"recorded_median_us\": %.3f, "
+              "\"plain_p99_us\": %.3f, \"recorded_p99_us\": %.3f, \"ratio\": %.4f}\n",
+              static_cast<unsigned long long>(roundtrips * rounds), plain_us, recorded_us,
+              wb::percentile(plain, 0.99), wb::percentile(recorded, 0.99), recorded_us / plain_us);
+  return 0;
+}
+
+int record_rss(std::uint64_t bytes, const std::string& path) {
+  const double seconds = tcp_push_seconds(bytes, path);
+  struct stat info {};
+  const bool exists = ::stat(path.c_str(), &info) == 0;
+  std::printf("{\"bytes\": %llu, \"seconds\": %.3f, \"file_bytes\": %lld, \"peak_rss_MB\": %.2f}\n",
+              static_cast<unsigned long long>(bytes), seconds,
+              exists ? static_cast<long long>(info.st_size) : -1LL, wb::peak_rss_mib());
+  return 0;
+}
+
+int usage() {
+  std::cerr << "usage: wiretape_bench_tool make-session FILE BYTES | replay FILE BYTES |\n"
+               "       timing RECORDS PERIOD_US | record-throughput BYTES ROUNDS |\n"
+               "       record-latency ROUNDTRIPS ROUNDS | record-rss BYTES FILE\n";
+  return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc != 4) return usage();
+  const std::string command = argv[1];
+  try {
+    if (command == "make-session") {
+      wb::write_rx_session(argv[2], parse_count(argv[3], "BYTES"));
+      std::printf("{\"path\": \"%s\"}\n", argv[2]);
+      return 0;
+    }
+    if (command == "replay") return replay(argv[2], parse_count(argv[3], "BYTES"));
+    if (command == "timing") return timing(parse_count(argv[2], "RECORDS"), parse_count(argv[3], "PERIOD_US"));
+    if (command == "record-throughput") {
+      return record_throughput(parse_count(argv[2], "BYTES"), parse_count(argv[3], "ROUNDS"));
+    }
+    if (command == "record-latency") {
+      return record_latency(parse_count(argv[2], "ROUNDTRIPS"), parse_count(argv[3], "ROUNDS"));
+    }
+    if (command == "record-rss") return record_rss(parse_count(argv[2], "BYTES"), argv[3]);
+  } catch (const std::exception& error) {
+    std::cerr << "wiretape_bench_tool " << command << ": " << error.what() << "\n";
+    return 1;
+  }
+  return usage();
+}
