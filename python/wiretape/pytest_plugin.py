@@ -149,9 +149,9 @@ def _marker_settings(item) -> Dict[str, Any]:
     merged: Dict[str, Any] = {}
     for marker in reversed(list(item.iter_markers("wiretape"))):  # closest last: wins
         if len(marker.args) > 1:
-            raise pytest.UsageError(
+            pytest.fail(
                 f"{item.nodeid}: @pytest.mark.wiretape takes at most one positional "
-                f"argument (the cassette), got {marker.args!r}")
+                f"argument (the cassette), got {marker.args!r}", pytrace=False)
         if marker.args:
             merged["cassette"] = marker.args[0]
         merged.update(marker.kwargs)
@@ -180,9 +180,9 @@ class WiretapeCassette:
         record = _first_given(*where.values()) or "none"
         if record not in RECORD_MODES:
             source = next(k for k, v in where.items() if v not in (None, ""))
-            raise pytest.UsageError(
+            pytest.fail(
                 f"{item.nodeid}: wiretape record mode {record!r} (from the {source}) "
-                f"is not one of {', '.join(RECORD_MODES)}")
+                f"is not one of {', '.join(RECORD_MODES)}", pytrace=False)
         self.record_mode = record
         self.device = _first_given(config.getoption("wiretape_device"),
                                    marker.pop("device", None),
