@@ -1,0 +1,166 @@
+// Golden session files (tests/data/golden): each .wtape is read back as its
+// .jsonl says, and the writer re-creates it byte for byte from the .jsonl
+// (so a change of the byte layout cannot go unnoticed). See make_jsonl.py
+// for the .jsonl layout; WIRETAPE_REGENERATE_GOLDEN=1 rewrites the .wtape
+// files after a deliberate format change.
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "detail/json.hpp"
+#include "wiretape/errors.hpp"
+#include "wiretape/session.hpp"
+
+using namespace wiretape;
+namespace json = wiretape::detail::json;
+
+namespace {
+
+const std::string golden_dir = std::string(WIRETAPE_TEST_DATA_DIR) + "/golden/";
+
+std::string slurp(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream out;
+  out << in.rdbuf();
+  return out.str();
+}
+
+void spit(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+std::string from_hex(const std::string& hex) {
+  std::string bytes;
+  for (std::size_t i = 0; i + 1 < hex.size(); i += 2) {
+    bytes.push_back(static_cast<char>(std::stoi(hex.substr(i, 2), nullptr, 16)));
+  }
+  return bytes;
+}
+
+struct Line {
+  std::uint64_t t_ns = 0;
+  int kind_code = 0;
+  std::string data;
+  bool skipped = false;
+  bool readable = true;
+};
+
+struct Golden {
+  SessionWriterOptions options;
+  std::vector<Line> lines;
+  std::optional<std::pair<std::size_t, int>> corrupt;  // byte, xor
+  std::optional<std::uint64_t> damage_offset;
+};
+
+Golden load(const std::string& name) {
+  std::ifstream in(golden_dir + name + ".jsonl");
+  if (!in) throw std::runtime_error("cannot read " + name + ".jsonl");
+  Golden golden;
+  std::string text;
+  while (std::getline(in, text)) {
+    if (text.empty()) continue;
+    const json::Value line = json::parse(text);
+    if (const json::Value* header = line.find("header")) {
+      SessionWriterOptions& o = golden.options;
+      o.port_options = header->string_member("port_options").value_or("");
+      o.port_type = header->string_member("port_type").value_or("");
+      o.start_utc = header->string_member("start_utc").value_or("");
+      o.wiretape_version = header->string_member("wiretape_version").value_or("");
+      o.host = header->string_member("host").value_or("");
+      o.capture = header->string_member("capture") == "wire" ? Capture::wire : Capture::client;
+      for (const auto& [key, value] : header->find("metadata")->members) {
+        o.metadata[key] = value.text;
+      }
+      continue;
+    }
+    if (const json::Value* corrupt = line.find("corrupt")) {
+      golden.corrupt.emplace(static_cast<std::size_t>(corrupt->find("byte")->number),
+                             static_cast<int>(corrupt->find("xor")->number));
+      golden.damage_offset = static_cast<std::uint64_t>(line.find("damage_offset")->number);
+      continue;
+    }
+    Line record;
+    record.t_ns = std::stoull(line.find("t_ns")->text);
+    if (const auto kind = line.string_member("kind")) {
+      const auto known = record_kind_from_string(*kind);
+      if (!known) throw std::runtime_error("unknown kind " + *kind + " in " + name);
+      record.kind_code = static_cast<int>(*known);
+    } else {
+      record.kind_code = static_cast<int>(line.find("kind_code")->number);
+    }
+    record.data = from_hex(line.string_member("data_hex").value_or(""));
+    if (const json::Value* skipped = line.find("skipped")) record.skipped = skipped->boolean;
+    if (const json::Value* readable = line.find("readable")) record.readable = readable->boolean;
+    golden.lines.push_back(record);
+  }
+  return golden;
+}
+
+class GoldenFile : public ::testing::TestWithParam<std::string> {};
+
+}  // namespace
+
+TEST_P(GoldenFile, WriterRecreatesItByteForByte) {
+  const Golden golden = load(GetParam());
+  char pattern[] = "/tmp/wiretape-golden-XXXXXX";
+  ASSERT_NE(::mkstemp(pattern), -1);
+  const std::string path = pattern;
+  {
+    SessionWriter writer(path, golden.options);
+    for (const Line& line : golden.lines) {
+      writer.write(static_cast<RecordKind>(line.kind_code), line.t_ns, line.data);
+    }
+  }
+  std::string bytes = slurp(path);
+  ::unlink(path.c_str());
+  if (golden.corrupt) {
+    ASSERT_LT(golden.corrupt->first, bytes.size());
+    bytes[golden.corrupt->first] =
+        static_cast<char>(bytes[golden.corrupt->first] ^ golden.corrupt->second);
+  }
+  const std::string golden_path = golden_dir + GetParam() + ".wtape";
+  if (std::getenv("WIRETAPE_REGENERATE_GOLDEN") != nullptr) spit(golden_path, bytes);
+  EXPECT_EQ(bytes, slurp(golden_path))
+      << "the writer no longer produces " << golden_path
+      << " (a format change needs a new format version, see docs/session-format.md)";
+}
+
+TEST_P(GoldenFile, ReaderReturnsTheExpectedRecords) {
+  const Golden golden = load(GetParam());
+  SessionReader reader(golden_dir + GetParam() + ".wtape");
+  const SessionHeader& header = reader.header();
+  EXPECT_EQ(header.version_major, 1);
+  EXPECT_EQ(header.port_options, golden.options.port_options);
+  EXPECT_EQ(header.port_type, golden.options.port_type);
+  EXPECT_EQ(header.start_utc, golden.options.start_utc);
+  EXPECT_EQ(header.wiretape_version, golden.options.wiretape_version);
+  EXPECT_EQ(header.host, golden.options.host);
+  EXPECT_EQ(header.capture, golden.options.capture);
+  EXPECT_EQ(header.user_metadata, golden.options.metadata);
+  std::vector<Line> expected;
+  for (const Line& line : golden.lines) {
+    if (!line.skipped && line.readable) expected.push_back(line);
+  }
+  Record record;
+  std::size_t index = 0;
+  while (reader.next(record)) {
+    ASSERT_LT(index, expected.size());
+    EXPECT_EQ(record.t_ns, expected[index].t_ns) << index;
+    EXPECT_EQ(static_cast<int>(record.kind), expected[index].kind_code) << index;
+    EXPECT_EQ(record.data, expected[index].data) << index;
+    ++index;
+  }
+  EXPECT_EQ(index, expected.size());
+  ASSERT_EQ(reader.damage().has_value(), golden.damage_offset.has_value());
+  if (golden.damage_offset) EXPECT_EQ(reader.damage()->offset(), *golden.damage_offset);
+}
+
+INSTANTIATE_TEST_SUITE_P(Golden, GoldenFile,
+                         ::testing::Values("all_kinds", "wire", "unknown_kind", "damaged"));

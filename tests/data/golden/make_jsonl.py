@@ -1,0 +1,120 @@
+"""Writes the .jsonl descriptions of the golden session files.
+
+The .jsonl files are the source of truth: tests/cpp/session_golden_test.cpp
+writes each .wtape from its .jsonl with SessionWriter and requires the result
+to equal the committed file byte for byte (run it with
+WIRETAPE_REGENERATE_GOLDEN=1 to rewrite the .wtape files after a deliberate
+format change). Each .jsonl holds:
+
+  line 1: {"header": {...}}    the header fields given to the writer
+  then one line per record written, in file order:
+    {"t_ns": N, "kind": "rx", "data_hex": "..."}       (events add "event": {...})
+    {"t_ns": N, "kind_code": 127, "data_hex": "...", "skipped": true}
+        a kind this reader does not know: written, skipped when read
+    {..., "readable": false}  a record at or after the damage
+  and for a damaged file a last line
+    {"corrupt": {"byte": B, "xor": X}, "damage_offset": D}
+        byte B of the written file is XORed with X; reading stops at D.
+"""
+import json
+import pathlib
+
+HERE = pathlib.Path(__file__).parent
+
+
+def header(capture="client", **extra):
+    h = {
+        "port_options": "type=loopback,log=golden.wtape,meta_robot=r2",
+        "port_type": "loopback",
+        "start_utc": "2026-11-23T10:00:00.000000Z",
+        "wiretape_version": "0.1.0",
+        "host": "golden-host",
+        "capture": capture,
+        "metadata": {"robot": "r2"},
+    }
+    h.update(extra)
+    return h
+
+
+def rec(t_ns, kind, data=b"", event=None, **extra):
+    if event is not None:
+        data = json.dumps(event, separators=(",", ":")).encode()
+    line = {"t_ns": t_ns, "kind": kind, "data_hex": data.hex()}
+    if event is not None:
+        line["event"] = event
+    line.update(extra)
+    return line
+
+
+def write(name, lines):
+    with open(HERE / f"{name}.jsonl", "w") as out:
+        for line in lines:
+            out.write(json.dumps(line, separators=(",", ":")) + "\n")
+
+
+ALL_KINDS = [
+    rec(0, "open", event={"description": "loopback"}),
+    rec(1_000, "tx", b"VV\n"),
+    rec(2_500_000, "rx", b"VV\n00P\n"),
+    rec(3_000_000, "rx", bytes(range(256))),
+    rec(4_000_000, "flush_input", event={}),
+    rec(4_100_000, "flush_output", event={}),
+    rec(4_200_000, "drain", event={}),
+    rec(5_000_000, "settings", event={"baud": 115200}),
+    rec(5_100_000, "settings", event={"baud": 57600, "databits": 8, "stopbits": 1,
+                                      "parity": "even", "flow": "none"}),
+    rec(6_000_000, "modem_lines", event={"dtr": True}),
+    rec(6_100_000, "modem_lines", event={"rts": False}),
+    rec(7_000_000, "break", event={"duration_ms": 250}),
+    rec(8_000_000, "client_connect", event={"peer": "127.0.0.1:50000"}),
+    rec(8_500_000, "client_disconnect", event={}),
+    rec(9_000_000, "tx", b""),
+    rec(9_500_000, "device_lost", event={"error": "device went away", "errno": 6}),
+    rec(10_000_000, "close", event={}),
+]
+
+write("all_kinds", [{"header": header()}] + ALL_KINDS)
+
+write("wire", [{"header": header(capture="wire", port_type="serial",
+                                 port_options="type=serial,device=/dev/ttyACM0,baud=115200",
+                                 metadata={})}] + [
+    rec(0, "open", event={"description": "serial /dev/ttyACM0 @ 115200 8N1"}),
+    rec(10_000, "client_connect", event={"peer": "pty /tmp/ttyV0"}),
+    rec(20_000, "tx", b"V"),
+    rec(20_100, "tx", b"V\n"),
+    rec(1_020_000, "rx", b"VV\n00P\nVEND:Hokuyo;"),
+    rec(1_020_500, "rx", b"[\n\n"),
+    rec(2_000_000, "client_disconnect", event={}),
+    rec(2_000_001, "close", event={}),
+])
+
+write("unknown_kind", [{"header": header()}] + [
+    rec(0, "open", event={}),
+    rec(100, "tx", b"ping"),
+    {"t_ns": 150, "kind_code": 127, "data_hex": b'{"from":"a newer writer"}'.hex(),
+     "skipped": True},
+    rec(200, "rx", b"pong"),
+    {"t_ns": 250, "kind_code": 0, "data_hex": "", "skipped": True},
+    rec(300, "close", event={}),
+])
+
+# Damage: one bit of the third record's payload flipped. Records are 16 bytes
+# of header, the payload and a 4-byte CRC; the header is 16 + JSON + 4 bytes.
+damaged_header = header()
+json_len = len(json.dumps(damaged_header, separators=(",", ":")).encode())
+damaged_records = [
+    rec(0, "open", event={}),
+    rec(1_000, "tx", b"GD0044072501\n"),
+    rec(2_000, "rx", b"GD0044072501\n00P\n"),
+    rec(3_000, "rx", b"0C0C0C0C"),
+    rec(4_000, "close", event={}),
+]
+offset = 16 + json_len + 4
+for r in damaged_records[:2]:
+    offset += 16 + len(bytes.fromhex(r["data_hex"])) + 4
+damage_offset = offset
+for r in damaged_records[2:]:
+    r["readable"] = False
+write("damaged", [{"header": damaged_header}] + damaged_records +
+      [{"corrupt": {"byte": damage_offset + 16 + 3, "xor": 4},
+        "damage_offset": damage_offset}])
