@@ -7,6 +7,7 @@
 //   record-throughput BYTES ROUNDS    64 KiB TCP writes, recorded vs not
 //   record-latency ROUNDTRIPS ROUNDS  64-byte ping-pong, recorded vs not
 //   record-rss BYTES FILE             peak RSS while recording BYTES
+//   make-exchanges FILE COUNT         COUNT request/response pairs (below)
 //
 // Errors go to stderr with exit status 1 (run.py reports the figure as
 // missing with that message).
@@ -233,10 +234,33 @@ int record_rss(std::uint64_t bytes, const std::string& path) {
   return 0;
 }
 
+// Request i is "REQ%05d\n", its response "RSP%05d,OK\n" (bench_devices.py
+// writes the same exchanges in pytest-reserial's format).
+int make_exchanges(const std::string& path, std::uint64_t count) {
+  wiretape::SessionWriterOptions options;
+  options.port_type = "serial";
+  options.port_options = "type=serial,device=/dev/bench";
+  wiretape::SessionWriter writer(path, options);
+  writer.write(wiretape::RecordKind::open, 0, "{}");
+  std::uint64_t t_ns = 1000;
+  for (std::uint64_t i = 0; i < count; ++i) {
+    char request[32], response[32];
+    const int request_size = std::snprintf(request, sizeof request, "REQ%05llu\n", static_cast<unsigned long long>(i));
+    const int response_size = std::snprintf(response, sizeof response, "RSP%05llu,OK\n", static_cast<unsigned long long>(i));
+    writer.write(wiretape::RecordKind::tx, t_ns, std::string_view(request, static_cast<std::size_t>(request_size)));
+    writer.write(wiretape::RecordKind::rx, t_ns + 500, std::string_view(response, static_cast<std::size_t>(response_size)));
+    t_ns += 1000;
+  }
+  writer.close();
+  std::printf("{\"path\": \"%s\", \"exchanges\": %llu}\n", path.c_str(), static_cast<unsigned long long>(count));
+  return 0;
+}
+
 int usage() {
   std::cerr << "usage: wiretape_bench_tool make-session FILE BYTES | replay FILE BYTES |\n"
                "       timing RECORDS PERIOD_US | record-throughput BYTES ROUNDS |\n"
-               "       record-latency ROUNDTRIPS ROUNDS | record-rss BYTES FILE\n";
+               "       record-latency ROUNDTRIPS ROUNDS | record-rss BYTES FILE |\n"
+               "       make-exchanges FILE COUNT\n";
   return 2;
 }
 
@@ -259,6 +283,7 @@ int main(int argc, char** argv) {
     if (command == "record-latency") {
       return record_latency(parse_count(argv[2], "ROUNDTRIPS"), parse_count(argv[3], "ROUNDS"));
     }
+    if (command == "make-exchanges") return make_exchanges(argv[2], parse_count(argv[3], "COUNT"));
     if (command == "record-rss") return record_rss(parse_count(argv[2], "BYTES"), argv[3]);
   } catch (const std::exception& error) {
     std::cerr << "wiretape_bench_tool " << command << ": " << error.what() << "\n";

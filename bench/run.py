@@ -1,0 +1,367 @@
+#!/usr/bin/env python3
+"""Runs wiretape's benchmarks and writes BUILD/bench/results.json.
+
+Usage: bench/run.py --build DIR [--only NAME[,NAME...]] [--quick]
+
+Each figure is measured side by side with its anchor (cat, an unrecorded
+port, socat, pytest-reserial) in the same run and reported as a ratio; see
+docs/benchmarks.md for what each key means. A figure whose subject or tool is
+missing is skipped with the reason (printed, and kept in notes.json).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import time
+import traceback
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import bench_devices  # noqa: E402  (bench/bench_devices.py)
+from bench_devices import Skip  # noqa: E402
+
+MiB = 1 << 20
+GiB = 1 << 30
+
+# key -> (target, "higher"/"lower" is better, unit/explanation)
+TARGETS = {
+    "replay_throughput_cpp_MBps": (None, "higher", "MB/s, timing=none, 64 KiB reads"),
+    "replay_vs_cat_ratio": (0.5, "higher", "C++ replay time vs cat, same file"),
+    "replay_python_vs_cat_ratio": (0.25, "higher", "Python replay vs cat"),
+    "replay_rss_MB_100MiB": (None, "lower", "MiB peak RSS, 100 MiB session"),
+    "replay_rss_MB_1GiB": (None, "lower", "MiB peak RSS, 1 GiB session"),
+    "timing_session_p50_us": (20, "lower", "µs late, median"),
+    "timing_session_p99_us": (200, "lower", "µs late, 99th percentile"),
+    "timing_session_drift_pct": (0.1, "lower", "% over 10 s"),
+    "naive_player_drift_pct": (None, "info", "% over 10 s (reference)"),
+    "record_throughput_ratio": (0.9, "higher", "recorded / unrecorded TCP"),
+    "record_latency_ratio": (1.1, "lower", "recorded / unrecorded RTT"),
+    "record_rss_MB_1GiB": (None, "lower", "MiB peak RSS recording 1 GiB"),
+    "pty_proxy_vs_socat_throughput_ratio": (None, "higher", "record --pty / socat"),
+    "serve_vs_socat_throughput_ratio": (1.0, "higher", "serve / socat"),
+    "serve_vs_socat_latency_ratio": (1.0, "lower", "serve RTT / socat RTT"),
+    "reserial_replay_s": (None, "info", "s, 10,000 exchanges, pytest-reserial"),
+    "wiretape_pyserial_replay_s": (None, "info", "s, same, wiretape:// URL"),
+    "wiretape_vs_reserial_time_ratio": (None, "lower", "wiretape time / reserial"),
+}
+
+
+def free_bytes(path: Path) -> int:
+    stat = os.statvfs(path)
+    return stat.f_bavail * stat.f_frsize
+
+
+def need_disk(path: Path, needed: int, what: str) -> None:
+    free = free_bytes(path)
+    if free < needed:
+        raise Skip(f"{what}: needs {needed / GiB:.1f} GiB free in {path}, "
+                   f"only {free / GiB:.1f} GiB")
+
+
+class Bench:
+    def __init__(self, build: Path, quick: bool):
+        self.build = build
+        self.quick = quick
+        self.work = build / "bench"
+        self.work.mkdir(parents=True, exist_ok=True)
+        self.tool = build / "bin" / "wiretape_bench_tool"
+        self.gbench = build / "bin" / "wiretape_bench"
+        self.python = ROOT / ".venv" / "bin" / "python"
+        if not self.python.exists():
+            self.python = Path(sys.executable)
+        self.results: dict[str, float] = {}
+        self.notes: dict[str, str] = {}
+        self.env = dict(os.environ, WIRETAPE_BENCH_DIR=str(self.work))
+
+    # --- helpers ----------------------------------------------------------
+    def run_tool(self, *args: str, timeout: float = 600) -> dict:
+        proc = subprocess.run([str(self.tool), *args], capture_output=True, text=True,
+                              timeout=timeout, env=self.env)
+        if proc.returncode != 0:
+            raise Skip(proc.stderr.strip().splitlines()[-1] if proc.stderr.strip()
+                       else f"exit status {proc.returncode}")
+        return json.loads(proc.stdout.strip().splitlines()[-1])
+
+    def session(self, size: int) -> Path:
+        path = self.work / f"rx-{size // MiB}MiB.wtape"
+        if not path.exists():
+            self.run_tool("make-session", str(path), str(size))
+        return path
+
+    @staticmethod
+    def cat_seconds(path: Path) -> float:
+        start = time.perf_counter()
+        subprocess.run(["cat", str(path)], stdout=subprocess.DEVNULL, check=True)
+        return time.perf_counter() - start
+
+    def python_replay(self, path: Path, size: int) -> dict:
+        code = (
+            "import json, resource, sys, time, wiretape\n"
+            "path, expected = sys.argv[1], int(sys.argv[2])\n"
+            "start = time.perf_counter()\n"
+            "port = wiretape.open_port(f'type=replay,file={path},timing=none,unused=ignore,timeout=10')\n"
+            "total = 0\n"
+            "while total < expected:\n"
+            "    data = port.read(65536)\n"
+            "    if not data:\n"
+            "        sys.exit(f'replay timed out after {total} bytes')\n"
+            "    total += len(data)\n"
+            "seconds = time.perf_counter() - start\n"
+            "port.close()\n"
+            "print(json.dumps({'seconds': seconds,"
+            " 'peak_rss_MB': resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))\n")
+        proc = subprocess.run([str(self.python), "-c", code, str(path), str(size)],
+                              capture_output=True, text=True, timeout=600)
+        if proc.returncode != 0:
+            raise Skip("Python replay: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        return json.loads(proc.stdout.strip().splitlines()[-1])
+
+    # --- figures ----------------------------------------------------------
+    def replay(self) -> None:
+        """timing=none replay vs cat, C++ and Python; RSS at 100 MiB."""
+        need_disk(self.work, 300 * MiB, "replay 100 MiB")
+        size = 100 * MiB
+        path = self.session(size)
+        rounds = 3 if self.quick else 5
+        cat, cpp, py = [], [], []
+        for _ in range(2):
+            self.cat_seconds(path)  # warm the page cache
+        cpp_rss = 0.0
+        py_error = None
+        for _ in range(rounds):  # interleaved, so both see the same machine
+            cat.append(self.cat_seconds(path))
+            result = self.run_tool("replay", str(path), str(size))
+            cpp.append(result["seconds"])
+            cpp_rss = max(cpp_rss, result["peak_rss_MB"])
+            if py_error is None:
+                try:
+                    py.append(self.python_replay(path, size)["seconds"])
+                except Skip as error:
+                    py_error = str(error)
+        cat_s = statistics.median(cat)
+        self.results["replay_throughput_cpp_MBps"] = round(size / statistics.median(cpp) / 1e6, 1)
+        self.results["replay_vs_cat_ratio"] = round(cat_s / statistics.median(cpp), 3)
+        self.results["replay_rss_MB_100MiB"] = round(cpp_rss, 1)
+        self.notes["cat_100MiB_MBps"] = f"{size / cat_s / 1e6:.0f} MB/s"
+        if py:
+            self.results["replay_python_vs_cat_ratio"] = round(cat_s / statistics.median(py), 3)
+        else:
+            self.notes["replay_python_vs_cat_ratio"] = py_error or "not measured"
+
+    def replay_1gib(self) -> None:
+        """Peak RSS replaying a 1 GiB session (file size must not matter)."""
+        size = GiB
+        path = self.work / "rx-1024MiB.wtape"
+        if not path.exists():
+            need_disk(self.work, 2 * GiB + 512 * MiB, "replay 1 GiB")
+        try:
+            path = self.session(size)
+            result = self.run_tool("replay", str(path), str(size))
+            self.results["replay_rss_MB_1GiB"] = round(result["peak_rss_MB"], 1)
+            self.notes["replay_1GiB_MBps"] = f"{result['MBps']:.0f} MB/s"
+        finally:
+            path.unlink(missing_ok=True)  # a GiB is too much to leave behind
+
+    def timing(self) -> None:
+        """timing=session lateness of 10,000 records 1 ms apart; naive player."""
+        records = 2000 if self.quick else 10000
+        result = self.run_tool("timing", str(records), "1000", timeout=120)
+        self.results["timing_session_p50_us"] = round(result["p50_us"], 2)
+        self.results["timing_session_p99_us"] = round(result["p99_us"], 2)
+        self.results["timing_session_drift_pct"] = round(result["drift_pct"], 5)
+        self.results["naive_player_drift_pct"] = round(result["naive_drift_pct"], 3)
+        self.notes["timing_session"] = (
+            f"max {result['max_us']:.0f} µs, open took {result['open_us']:.0f} µs "
+            f"(lateness is measured from the start of open), naive player ends "
+            f"{result['naive_last_late_ms']:.0f} ms late")
+
+    def record(self) -> None:
+        """Recording overhead on a loopback TCP pair: throughput and RTT."""
+        need_disk(self.work, GiB, "record throughput")
+        size = (64 if self.quick else 256) * MiB
+        result = self.run_tool("record-throughput", str(size), "3" if self.quick else "5")
+        self.results["record_throughput_ratio"] = round(result["ratio"], 3)
+        self.notes["record_throughput"] = (
+            f"unrecorded {result['plain_MBps']:.0f} MB/s, recorded {result['recorded_MBps']:.0f} MB/s")
+        result = self.run_tool("record-latency", "2000", "3" if self.quick else "5")
+        self.results["record_latency_ratio"] = round(result["ratio"], 3)
+        self.notes["record_latency"] = (
+            f"median RTT unrecorded {result['plain_median_us']:.1f} µs, "
+            f"recorded {result['recorded_median_us']:.1f} µs")
+
+    def record_1gib(self) -> None:
+        """Peak RSS while recording 1 GiB (buffers must stay bounded)."""
+        need_disk(self.work, 2 * GiB, "record 1 GiB")
+        path = self.work / "record-1GiB.wtape"
+        try:
+            result = self.run_tool("record-rss", str(GiB), str(path))
+            self.results["record_rss_MB_1GiB"] = round(result["peak_rss_MB"], 1)
+        finally:
+            path.unlink(missing_ok=True)
+
+    def pty_proxy(self) -> None:
+        """wiretape record --pty vs socat's pty relay on the same device."""
+        size = (16 if self.quick else 64) * MiB
+        rounds = 1 if self.quick else 3
+        ours, theirs = [], []
+        for _ in range(rounds):
+            ours.append(bench_devices.pty_relay_throughput(
+                "wiretape", size, self.work, self.python))
+            theirs.append(bench_devices.pty_relay_throughput(
+                "socat", size, self.work, self.python))
+        self.results["pty_proxy_vs_socat_throughput_ratio"] = round(
+            statistics.median(ours) / statistics.median(theirs), 3)
+        self.notes["pty_proxy"] = (f"wiretape {statistics.median(ours) / 1e6:.0f} MB/s, "
+                                   f"socat {statistics.median(theirs) / 1e6:.0f} MB/s")
+
+    def serve(self) -> None:
+        """wiretape serve (raw) vs socat TCP-LISTEN … FILE:pty."""
+        size = (16 if self.quick else 64) * MiB
+        rounds = 1 if self.quick else 3
+        ours_bps, theirs_bps, ours_rtt, theirs_rtt = [], [], [], []
+        for _ in range(rounds):
+            for name, bps, rtt in (("wiretape", ours_bps, ours_rtt),
+                                   ("socat", theirs_bps, theirs_rtt)):
+                b, r = bench_devices.tcp_relay_figures(name, size, 1000, self.work, self.python)
+                bps.append(b)
+                rtt.append(r)
+        self.results["serve_vs_socat_throughput_ratio"] = round(
+            statistics.median(ours_bps) / statistics.median(theirs_bps), 3)
+        self.results["serve_vs_socat_latency_ratio"] = round(
+            statistics.median(ours_rtt) / statistics.median(theirs_rtt), 3)
+        self.notes["serve"] = (
+            f"throughput wiretape {statistics.median(ours_bps) / 1e6:.0f} MB/s, socat "
+            f"{statistics.median(theirs_bps) / 1e6:.0f} MB/s; median RTT wiretape "
+            f"{statistics.median(ours_rtt):.0f} µs, socat {statistics.median(theirs_rtt):.0f} µs")
+
+    def reserial(self) -> None:
+        """10,000 request/response exchanges through pyserial: wiretape:// vs
+        pytest-reserial, in one pytest run of a bench-only venv."""
+        result = bench_devices.reserial_comparison(self.work, self.tool, self.python,
+                                                   1000 if self.quick else 10000)
+        self.results["reserial_replay_s"] = round(result["reserial"], 4)
+        self.results["wiretape_pyserial_replay_s"] = round(result["wiretape"], 4)
+        self.results["wiretape_vs_reserial_time_ratio"] = round(
+            result["wiretape"] / result["reserial"], 3)
+        self.notes["reserial"] = (
+            f"exchange loops only; whole pytest runs took {result['wiretape_wall']:.2f} s "
+            f"(wiretape) and {result['reserial_wall']:.2f} s (reserial)")
+
+    def gbench(self) -> None:
+        """The Google Benchmark program, for the per-call view (not in the table)."""
+        if not self.gbench_path_ok():
+            raise Skip("wiretape_bench not built (Google Benchmark missing: "
+                       "apt-get install libbenchmark-dev)")
+        out = self.work / "gbench.json"
+        proc = subprocess.run([str(self.gbench), f"--benchmark_out={out}",
+                               "--benchmark_out_format=json", "--benchmark_min_time=0.2"],
+                              capture_output=True, text=True, timeout=900, env=self.env)
+        if proc.returncode != 0:
+            raise Skip("wiretape_bench: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        self.notes["gbench"] = f"per-call figures in {out}"
+
+    def gbench_path_ok(self) -> bool:
+        return self.gbench.exists()
+
+
+FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
+           "serve", "reserial", "gbench"]
+
+
+def build_programs(build: Path) -> None:
+    subprocess.run(["cmake", "-S", str(ROOT), "-B", str(build), "-DWIRETAPE_BENCH=ON"],
+                   check=True, stdout=subprocess.DEVNULL)
+    targets = ["wiretape_bench_tool"]
+    # wiretape_bench exists only when Google Benchmark was found.
+    listing = subprocess.run(["cmake", "--build", str(build), "--target", "help"],
+                             capture_output=True, text=True).stdout
+    if "wiretape_bench:" in listing or "wiretape_bench " in listing:
+        targets.append("wiretape_bench")
+    subprocess.run(["cmake", "--build", str(build), "--target", *targets], check=True)
+
+
+def print_table(results: dict, notes: dict, skipped: dict) -> None:
+    rows = []
+    for key, (target, better, what) in TARGETS.items():
+        value = results.get(key)
+        if value is None:
+            verdict = "skipped"
+        elif target is None or better == "info":
+            verdict = ""
+        elif better == "higher":
+            verdict = "ok" if value >= target else "MISSED"
+        else:
+            verdict = "ok" if value <= target else "MISSED"
+        goal = "" if target is None else (f"≥ {target}" if better == "higher" else f"≤ {target}")
+        rows.append((key, "-" if value is None else f"{value:g}", goal, verdict, what))
+    try:
+        from rich.console import Console
+        from rich.table import Table
+    except ImportError:
+        for row in rows:
+            print("  ".join(f"{cell:<36}" if i == 0 else f"{cell:<10}" for i, cell in enumerate(row)))
+    else:
+        table = Table(title="wiretape benchmarks")
+        for column in ("figure", "value", "target", "", "what"):
+            table.add_column(column)
+        for key, value, goal, verdict, what in rows:
+            style = {"ok": "green", "MISSED": "red", "skipped": "yellow"}.get(verdict, "")
+            table.add_row(key, value, goal, f"[{style}]{verdict}[/]" if style else verdict, what)
+        Console(width=max(130, shutil.get_terminal_size().columns)).print(table)
+    for key, note in notes.items():
+        print(f"  {key}: {note}")
+    for name, reason in skipped.items():
+        print(f"  skipped {name}: {reason}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--build", required=True, type=Path, help="the CMake build tree")
+    parser.add_argument("--only", help="comma-separated figure groups: " + ",".join(FIGURES))
+    parser.add_argument("--quick", action="store_true", help="smaller sizes, fewer rounds")
+    parser.add_argument("--no-build", action="store_true", help="use the programs as built")
+    args = parser.parse_args(argv)
+    build = args.build.resolve()
+    groups = FIGURES if not args.only else args.only.split(",")
+    unknown = [g for g in groups if g not in FIGURES]
+    if unknown:
+        parser.error(f"unknown figure group(s) {', '.join(unknown)}; valid: {', '.join(FIGURES)}")
+    if not args.no_build:
+        build_programs(build)
+    bench = Bench(build, args.quick)
+    results_path = bench.work / "results.json"
+    # --only updates the figures it measures and keeps the others.
+    if args.only and results_path.exists():
+        bench.results.update(json.loads(results_path.read_text()))
+    skipped: dict[str, str] = {}
+    for name in groups:
+        print(f"bench: {name} ...", flush=True)
+        started = time.perf_counter()
+        try:
+            getattr(bench, name)()
+        except Skip as reason:
+            skipped[name] = str(reason)
+            print(f"bench: {name} skipped: {reason}", flush=True)
+        except Exception as error:  # a broken figure must not hide the others
+            skipped[name] = f"error: {error}"
+            traceback.print_exc()
+        else:
+            print(f"bench: {name} done in {time.perf_counter() - started:.1f} s", flush=True)
+    results_path.write_text(json.dumps(bench.results, indent=2, sort_keys=True) + "\n")
+    (bench.work / "notes.json").write_text(
+        json.dumps({"notes": bench.notes, "skipped": skipped}, indent=2, ensure_ascii=False) + "\n")
+    print_table(bench.results, bench.notes, skipped)
+    print(f"results: {results_path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
