@@ -76,7 +76,13 @@ FdPort::~FdPort() {
 }
 
 void FdPort::set_description(std::string description) {
+  std::lock_guard<std::mutex> lock(description_mutex_);
   description_ = std::move(description);
+}
+
+std::string FdPort::description() const {
+  std::lock_guard<std::mutex> lock(description_mutex_);
+  return description_;
 }
 
 int FdPort::native_handle() const { return closed_ ? -1 : fd_.get(); }
@@ -93,12 +99,12 @@ FdPort::Call::~Call() {
 }
 
 void FdPort::raise_closed() const {
-  throw PortClosed(description_ + ": the port is closed");
+  throw PortClosed(description() + ": the port is closed");
 }
 
 void FdPort::fail(int errno_value, const std::string& operation) {
   if (is_disconnect(errno_value)) gone_ = true;
-  raise_os_error(errno_value, description_, operation);
+  raise_os_error(errno_value, description(), operation);
 }
 
 void FdPort::close() {
@@ -153,7 +159,7 @@ std::size_t FdPort::read_some(void* buffer, std::size_t size,
   Call call(*this);
   for (;;) {
     if (gone_) {
-      throw PortClosed(description_ + ": the device went away");
+      throw PortClosed(description() + ": the device went away");
     }
     const ssize_t n = transfer_in(buffer, size);
     if (n > 0) return static_cast<std::size_t>(n);
@@ -161,7 +167,7 @@ std::size_t FdPort::read_some(void* buffer, std::size_t size,
       if (size == 0) return 0;
       if (zero_read_is_end_of_file()) {
         gone_ = true;
-        throw PortClosed(description_ +
+        throw PortClosed(description() +
                          ": the device closed the connection (end of file)");
       }
       continue;  // an empty datagram: nothing to return
@@ -181,7 +187,7 @@ std::size_t FdPort::write_some(const void* data, std::size_t size,
   Call call(*this);
   for (;;) {
     if (gone_) {
-      throw PortClosed(description_ + ": the device went away");
+      throw PortClosed(description() + ": the device went away");
     }
     const ssize_t n = transfer_out(data, size);
     if (n > 0 || (n == 0 && size == 0)) return static_cast<std::size_t>(n);

@@ -36,7 +36,7 @@ class FdPort : public Port {
   void drain() override;
   void close() override;
   bool is_open() const override { return !closed_.load(); }
-  std::string description() const override { return description_; }
+  std::string description() const override;
   int native_handle() const override;
 
  protected:
@@ -86,6 +86,7 @@ class FdPort : public Port {
   sys::UniqueFd fd_;
   sys::UniqueFd wake_read_;
   sys::UniqueFd wake_write_;
+  mutable std::mutex description_mutex_;
   std::string description_;
   mutable std::mutex mutex_;
   std::condition_variable idle_;

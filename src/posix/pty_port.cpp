@@ -1,13 +1,124 @@
-// Placeholder until the transport lands.
+// type=pty: a pseudo-terminal whose device side this port is. A program
+// opens the terminal (the path in description(), or `link`) as if it were a
+// serial device; what it writes is read here and vice versa.
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <cerrno>
+#include <cstdlib>
 
 #include "detail/open.hpp"
+#include "posix/fd_port.hpp"
+#include "posix/platform.hpp"
+#include "posix/termios_settings.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail {
 
-std::unique_ptr<Port> open_pty(Options&) {
-  throw PortError(ENOSYS, "open_pty: not built yet");
+namespace {
+
+class PtyPort final : public FdPort {
+ public:
+  PtyPort(sys::UniqueFd master, sys::UniqueFd terminal, std::string path,
+          std::string link)
+      : FdPort(std::move(master), describe(path, link)),
+        terminal_(std::move(terminal)),
+        path_(std::move(path)),
+        link_(std::move(link)) {}
+  ~PtyPort() override { close(); }
+
+  std::string type() const override { return "pty"; }
+
+  // What the client set on the terminal. Linux forces 8 data bits and no
+  // parity on a pty, so only the rate and stop bits carry information there.
+  SerialSettings serial_settings() const override {
+    termios settings{};
+    if (sys::tcgetattr(terminal_.get(), &settings) != 0) {
+      raise_os_error(errno, description(), "reading the terminal settings");
+    }
+    return line_settings_of(settings, current_baud(terminal_.get(), settings));
+  }
+
+  void set_dtr(bool) override { no_modem_lines(); }
+  void set_rts(bool) override { no_modem_lines(); }
+  bool cts() override { no_modem_lines(); }
+  bool dsr() override { no_modem_lines(); }
+  bool ri() override { no_modem_lines(); }
+  bool cd() override { no_modem_lines(); }
+
+ protected:
+  void on_close() override {
+    if (!link_.empty()) {
+      // Remove the link only if it is still ours.
+      char target[4096];
+      const ssize_t n = ::readlink(link_.c_str(), target, sizeof target - 1);
+      if (n > 0 && std::string(target, static_cast<std::size_t>(n)) == path_) {
+        ::unlink(link_.c_str());
+      }
+    }
+    terminal_.reset();
+  }
+
+ private:
+  static std::string describe(const std::string& path,
+                              const std::string& link) {
+    return "pty " + path + (link.empty() ? "" : " (link " + link + ")");
+  }
+
+  [[noreturn]] void no_modem_lines() const {
+    throw PortError(ENOTTY, description() +
+                                ": a pseudo-terminal has no modem lines "
+                                "(DTR, RTS, CTS, DSR, RI, CD)");
+  }
+
+  // Held open so that a client closing and reopening the terminal does not
+  // hang up the device side.
+  sys::UniqueFd terminal_;
+  std::string path_;
+  std::string link_;
+};
+
+}  // namespace
+
+std::unique_ptr<Port> open_pty(Options& options) {
+  const std::string link = options.take_string("link", "");
+
+  sys::UniqueFd master(sys::posix_openpt(O_RDWR | O_NOCTTY));
+  if (!master) raise_os_error(errno, "pty", "creating a pseudo-terminal");
+  if (::grantpt(master.get()) != 0 || ::unlockpt(master.get()) != 0) {
+    raise_os_error(errno, "pty", "unlocking the pseudo-terminal");
+  }
+  const std::string path = platform::terminal_path(master.get());
+  if (path.empty()) raise_os_error(errno, "pty", "naming the terminal");
+
+  sys::UniqueFd terminal(
+      sys::open(path.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC));
+  if (!terminal) raise_os_error(errno, "pty " + path, "opening the terminal");
+  termios settings{};
+  if (sys::tcgetattr(terminal.get(), &settings) != 0) {
+    raise_os_error(errno, "pty " + path, "reading the terminal settings");
+  }
+  make_raw(settings);
+  if (sys::tcsetattr(terminal.get(), TCSANOW, &settings) != 0) {
+    raise_os_error(errno, "pty " + path, "putting the terminal in raw mode");
+  }
+
+  if (!link.empty()) {
+    struct stat existing {};
+    if (::lstat(link.c_str(), &existing) == 0) {
+      if (!S_ISLNK(existing.st_mode)) {
+        throw PortError(EEXIST, "pty: link=" + link +
+                                    " exists and is not a symbolic link; "
+                                    "refusing to replace it");
+      }
+      ::unlink(link.c_str());  // a stale link from an earlier run
+    }
+    if (::symlink(path.c_str(), link.c_str()) != 0) {
+      raise_os_error(errno, "pty: link=" + link, "creating the symbolic link");
+    }
+  }
+  return std::make_unique<PtyPort>(std::move(master), std::move(terminal),
+                                   path, link);
 }
 
 }  // namespace wiretape::detail

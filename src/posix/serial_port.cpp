@@ -1,13 +1,182 @@
-// Placeholder until the transport lands.
+// type=serial: a serial device through termios.
+#include <sys/file.h>
+#include <sys/ioctl.h>
+
 #include <cerrno>
+#include <chrono>
+#include <mutex>
+#include <thread>
 
 #include "detail/open.hpp"
+#include "posix/fd_port.hpp"
+#include "posix/termios_settings.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail {
 
-std::unique_ptr<Port> open_serial(Options&) {
-  throw PortError(ENOSYS, "open_serial: not built yet");
+namespace {
+
+std::string describe(const std::string& device, const SerialSettings& s) {
+  return "serial " + device + " @ " + std::to_string(s.baud) + " " +
+         frame_name(s);
+}
+
+class SerialPort final : public FdPort {
+ public:
+  SerialPort(sys::UniqueFd fd, std::string device, SerialSettings settings)
+      : FdPort(std::move(fd), describe(device, settings)),
+        device_(std::move(device)),
+        settings_(settings) {
+    configure(settings);
+  }
+  ~SerialPort() override { close(); }
+
+  std::string type() const override { return "serial"; }
+
+  void configure(const SerialSettings& wanted) override {
+    Call call(*this);
+    std::lock_guard<std::mutex> lock(settings_mutex_);
+    termios settings{};
+    if (sys::tcgetattr(fd(), &settings) != 0) fail(errno, "tcgetattr");
+    make_raw(settings);
+    apply_line_settings(settings, wanted, description());
+    program_terminal(fd(), settings, wanted.baud, description());
+    settings_ = wanted;
+    set_description(describe(device_, settings_));
+  }
+
+  void set_baud(unsigned baud) override {
+    SerialSettings wanted = serial_settings();
+    wanted.baud = baud;
+    configure(wanted);
+  }
+
+  SerialSettings serial_settings() const override {
+    std::lock_guard<std::mutex> lock(settings_mutex_);
+    return settings_;
+  }
+
+  void set_dtr(bool level) override { set_line(TIOCM_DTR, level, "set_dtr"); }
+  void set_rts(bool level) override { set_line(TIOCM_RTS, level, "set_rts"); }
+  bool cts() override { return line(TIOCM_CTS, "cts"); }
+  bool dsr() override { return line(TIOCM_DSR, "dsr"); }
+  bool ri() override { return line(TIOCM_RI, "ri"); }
+  bool cd() override { return line(TIOCM_CD, "cd"); }
+
+  void send_break(std::chrono::milliseconds duration) override {
+    Call call(*this);
+    if (sys::ioctl(fd(), TIOCSBRK) == 0) {
+      std::this_thread::sleep_for(duration);
+      if (sys::ioctl(fd(), TIOCCBRK) != 0) fail(errno, "send_break (TIOCCBRK)");
+      return;
+    }
+    // No break ioctl (e.g. a pty): the POSIX call sends a default-length one.
+    if (sys::tcsendbreak(fd(), 0) != 0) fail(errno, "send_break");
+  }
+
+ private:
+  int modem_bits(const char* operation) {
+    int bits = 0;
+    if (sys::ioctl(fd(), TIOCMGET, &bits) != 0) no_modem_lines(errno, operation);
+    return bits;
+  }
+
+  bool line(int bit, const char* operation) {
+    Call call(*this);
+    return (modem_bits(operation) & bit) != 0;
+  }
+
+  void set_line(int bit, bool level, const char* operation) {
+    Call call(*this);
+    int bits = modem_bits(operation);
+    bits = level ? (bits | bit) : (bits & ~bit);
+    if (sys::ioctl(fd(), TIOCMSET, &bits) != 0) no_modem_lines(errno, operation);
+  }
+
+  [[noreturn]] void no_modem_lines(int err, const char* operation) {
+    if (err == ENOTTY || err == EINVAL || err == ENOTSUP || err == ENOSYS) {
+      throw PortError(err, description() + ": " + operation +
+                               ": the device has no modem lines (a "
+                               "pseudo-terminal or a port without them)");
+    }
+    fail(err, operation);
+  }
+
+  const std::string device_;
+  mutable std::mutex settings_mutex_;
+  SerialSettings settings_;
+};
+
+Parity parse_parity(const std::string& text) {
+  if (text == "even") return Parity::even;
+  if (text == "odd") return Parity::odd;
+  if (text == "mark") return Parity::mark;
+  if (text == "space") return Parity::space;
+  return Parity::none;
+}
+
+}  // namespace
+
+std::unique_ptr<Port> open_serial(Options& options) {
+  const std::string device = options.take_required("device");
+  SerialSettings settings;
+  settings.baud = static_cast<unsigned>(
+      options.take_int("baud", 9600, 1, 100'000'000));
+  settings.data_bits = static_cast<int>(options.take_int("databits", 8, 5, 8));
+  settings.stop_bits = static_cast<int>(options.take_int("stopbits", 1, 1, 2));
+  settings.parity = parse_parity(options.take_choice(
+      "parity", "none", {"none", "even", "odd", "mark", "space"}));
+  // flexiport's spelling of RTS/CTS flow control.
+  if (options.has("hwflowctrl")) {
+    if (options.has("flow")) {
+      throw OptionError("hwflowctrl", "options 'hwflowctrl' and 'flow' mean "
+                                      "the same thing; give only one");
+    }
+    const bool hardware = options.take_bool("hwflowctrl", false);
+    options.set("flow", hardware ? "rtscts" : "none");
+  } else {
+    options.take("hwflowctrl");  // declares it valid for the error messages
+  }
+  const std::string flow =
+      options.take_choice("flow", "none", {"none", "rtscts", "xonxoff"});
+  settings.flow = flow == "rtscts"    ? FlowControl::rtscts
+                  : flow == "xonxoff" ? FlowControl::xonxoff
+                                      : FlowControl::none;
+  const bool exclusive = options.take_bool("exclusive", true);
+
+  const std::string where = "serial " + device;
+  sys::UniqueFd fd(
+      sys::open(device.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC));
+  if (!fd) {
+    const int err = errno;
+    std::string hint;
+    if (err == EACCES) hint = " (is the user in the group that owns it, e.g. dialout?)";
+    if (err == ENOENT) hint = " (no such device; is it plugged in?)";
+    throw PortError(err, where + ": cannot open" + hint);
+  }
+  if (exclusive) {
+    if (sys::flock(fd.get(), LOCK_EX | LOCK_NB) != 0) {
+      const int err = errno;
+      if (err == EWOULDBLOCK) {
+        throw PortError(EBUSY, where + ": in use by another program "
+                                       "(exclusive=true; give exclusive=false "
+                                       "to share it)");
+      }
+      raise_os_error(err, where, "locking the device (flock)");
+    }
+    if (sys::ioctl(fd.get(), TIOCEXCL) != 0 && errno != ENOTTY) {
+      raise_os_error(errno, where, "TIOCEXCL");
+    }
+  }
+  termios probe{};
+  if (sys::tcgetattr(fd.get(), &probe) != 0) {
+    const int err = errno;
+    if (err == ENOTTY) {
+      throw PortError(err, where + ": not a terminal device");
+    }
+    raise_os_error(err, where, "tcgetattr");
+  }
+  return std::make_unique<SerialPort>(std::move(fd), device, settings);
 }
 
 }  // namespace wiretape::detail

@@ -1,13 +1,131 @@
-// Placeholder until the transport lands.
+// type=udp: datagrams. Each read returns at most one datagram (truncated to
+// the buffer, as recv does); each write sends one datagram to host:port, or,
+// when no destination is given, to whoever sent the last datagram received.
+#include <netinet/in.h>
+
 #include <cerrno>
+#include <cstring>
+#include <mutex>
 
 #include "detail/open.hpp"
+#include "posix/platform.hpp"
+#include "posix/socket_port.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail {
 
-std::unique_ptr<Port> open_udp(Options&) {
-  throw PortError(ENOSYS, "open_udp: not built yet");
+namespace {
+
+class UdpPort final : public SocketPort {
+ public:
+  UdpPort(sys::UniqueFd fd, std::string description,
+          std::optional<sockaddr_storage> destination, socklen_t length)
+      : SocketPort(std::move(fd), std::move(description)),
+        fixed_destination_(destination.has_value()),
+        destination_(destination),
+        destination_length_(length) {}
+  ~UdpPort() override { close(); }
+  std::string type() const override { return "udp"; }
+
+ protected:
+  bool zero_read_is_end_of_file() const override { return false; }
+
+  ssize_t transfer_in(void* buffer, std::size_t size) override {
+    sockaddr_storage from{};
+    socklen_t length = sizeof from;
+    const ssize_t n = sys::recvfrom(fd(), buffer, size, 0,
+                                    reinterpret_cast<sockaddr*>(&from), &length);
+    if (n >= 0 && !fixed_destination_) {
+      std::lock_guard<std::mutex> lock(peer_mutex_);
+      destination_ = from;
+      destination_length_ = length;
+    }
+    return n;
+  }
+
+  ssize_t transfer_out(const void* data, std::size_t size) override {
+    sockaddr_storage to{};
+    socklen_t length = 0;
+    {
+      std::lock_guard<std::mutex> lock(peer_mutex_);
+      if (!destination_) {
+        errno = EDESTADDRREQ;
+        return -1;
+      }
+      to = *destination_;
+      length = destination_length_;
+    }
+    return sys::sendto(fd(), data, size, platform::no_sigpipe_send_flags(),
+                       reinterpret_cast<const sockaddr*>(&to), length);
+  }
+
+ private:
+  // host/port given: every datagram goes there; otherwise to the last sender.
+  const bool fixed_destination_;
+  std::mutex peer_mutex_;
+  std::optional<sockaddr_storage> destination_;
+  socklen_t destination_length_;
+};
+
+}  // namespace
+
+std::unique_ptr<Port> open_udp(Options& options) {
+  options.alias("dest_ip", "host");
+  options.alias("dest_port", "port");
+  options.alias("recv_ip", "bind_host");
+  options.alias("recv_port", "bind_port");
+  const std::string host = options.take_string("host", "127.0.0.1");
+  const int port = static_cast<int>(options.take_int("port", 0, 0, 65535));
+  const std::string bind_host = options.take_string("bind_host", "0.0.0.0");
+  const int bind_port =
+      static_cast<int>(options.take_int("bind_port", 0, 0, 65535));
+  if (port == 0 && options.has("host")) {
+    throw OptionError("port", "option 'host' for type=udp needs 'port' (the "
+                              "destination port, 1 to 65535)");
+  }
+
+  const std::string where = "udp " + bind_host + ":" + std::to_string(bind_port);
+  const AddrInfoList local = resolve(bind_host, bind_port, SOCK_DGRAM, true, where);
+  sys::UniqueFd fd(sys::socket(local->ai_family, local->ai_socktype,
+                               local->ai_protocol));
+  if (!fd) raise_os_error(errno, where, "socket");
+  const int on = 1;
+  sys::setsockopt(fd.get(), SOL_SOCKET, SO_REUSEADDR, &on, sizeof on);
+  if (sys::bind(fd.get(), local->ai_addr, local->ai_addrlen) != 0) {
+    raise_os_error(errno, where, "bind");
+  }
+  sockaddr_storage bound{};
+  socklen_t bound_length = sizeof bound;
+  std::string description = "udp ";
+  if (sys::getsockname(fd.get(), reinterpret_cast<sockaddr*>(&bound),
+                       &bound_length) == 0) {
+    description += address_text(reinterpret_cast<sockaddr*>(&bound), bound_length);
+  } else {
+    description += bind_host + ":" + std::to_string(bind_port);
+  }
+
+  std::optional<sockaddr_storage> destination;
+  socklen_t destination_length = 0;
+  if (port != 0) {
+    const AddrInfoList remote = resolve(host, port, SOCK_DGRAM, false, where);
+    // Prefer the family of the bound socket.
+    const addrinfo* chosen = remote.get();
+    for (const addrinfo* info = remote.get(); info; info = info->ai_next) {
+      if (info->ai_family == local->ai_family) {
+        chosen = info;
+        break;
+      }
+    }
+    sockaddr_storage to{};
+    std::memcpy(&to, chosen->ai_addr, chosen->ai_addrlen);
+    destination = to;
+    destination_length = chosen->ai_addrlen;
+    description += " -> " + address_text(chosen->ai_addr, chosen->ai_addrlen);
+  } else {
+    description += " (replies to the last sender)";
+  }
+  return std::make_unique<UdpPort>(std::move(fd), std::move(description),
+                                   destination, destination_length);
 }
 
 }  // namespace wiretape::detail

@@ -44,3 +44,73 @@ int free_port(bool udp) {
 }
 
 }  // namespace wiretape::test
+
+#include <pty.h>
+#include <termios.h>
+
+#include <cerrno>
+#include <cstdlib>
+#include <filesystem>
+
+namespace wiretape::test {
+
+BlockedPollSignal::BlockedPollSignal() {
+  const auto real_poll = detail::sys::real().poll;
+  override_->poll = [this, real_poll](pollfd* fds, nfds_t count, int timeout) {
+    if (timeout < 0) blocked.set();
+    return real_poll(fds, count, timeout);
+  };
+}
+
+PtyPair::PtyPair() {
+  char name[256];
+  if (::openpty(&master, &terminal, name, nullptr, nullptr) != 0) {
+    throw std::runtime_error("openpty failed");
+  }
+  path = name;
+  termios raw{};
+  ::tcgetattr(terminal, &raw);
+  ::cfmakeraw(&raw);
+  ::tcsetattr(terminal, TCSANOW, &raw);
+}
+
+PtyPair::~PtyPair() {
+  if (master >= 0) ::close(master);
+  if (terminal >= 0) ::close(terminal);
+}
+
+void PtyPair::write_master(const std::string& data) const {
+  std::size_t sent = 0;
+  while (sent < data.size()) {
+    const ssize_t n = ::write(master, data.data() + sent, data.size() - sent);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) throw std::runtime_error("write to pty master failed");
+    sent += static_cast<std::size_t>(n);
+  }
+}
+
+std::string PtyPair::read_master(std::size_t count) const {
+  std::string out;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+  while (out.size() < count && std::chrono::steady_clock::now() < deadline) {
+    if (!fd_readable(master, std::chrono::milliseconds(100))) continue;
+    char buffer[256];
+    const ssize_t n = ::read(master, buffer, std::min(sizeof buffer, count - out.size()));
+    if (n > 0) out.append(buffer, static_cast<std::size_t>(n));
+    if (n == 0 || (n < 0 && errno != EINTR && errno != EAGAIN)) break;
+  }
+  return out;
+}
+
+TempDir::TempDir() {
+  char pattern[] = "/tmp/wiretape-test-XXXXXX";
+  if (!::mkdtemp(pattern)) throw std::runtime_error("mkdtemp failed");
+  path = pattern;
+}
+
+TempDir::~TempDir() {
+  std::error_code ignored;
+  std::filesystem::remove_all(path, ignored);
+}
+
+}  // namespace wiretape::test

@@ -32,3 +32,46 @@ class Event {
 int free_port(bool udp = false);
 
 }  // namespace wiretape::test
+
+#include <atomic>
+#include <string>
+
+#include "posix/syscalls.hpp"
+
+namespace wiretape::test {
+
+// Replaces poll() in the OS-call seam with one that sets `blocked` the first
+// time a call waits without a timeout (-1): proof that a read is blocked.
+class BlockedPollSignal {
+ public:
+  BlockedPollSignal();
+  Event blocked;
+
+ private:
+  detail::sys::ScopedOverride override_;
+};
+
+// A pseudo-terminal pair made with openpty(); the terminal side's path is
+// what a serial port opens.
+struct PtyPair {
+  PtyPair();
+  ~PtyPair();
+  PtyPair(const PtyPair&) = delete;
+  PtyPair& operator=(const PtyPair&) = delete;
+  int master = -1;
+  int terminal = -1;
+  std::string path;
+  // Writes all of `data` to the master side.
+  void write_master(const std::string& data) const;
+  // Reads from the master side until `count` bytes came or 5 s passed.
+  std::string read_master(std::size_t count) const;
+};
+
+// A fresh directory under /tmp, removed with its content at destruction.
+struct TempDir {
+  TempDir();
+  ~TempDir();
+  std::string path;
+};
+
+}  // namespace wiretape::test
