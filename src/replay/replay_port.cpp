@@ -1,13 +1,355 @@
-// Placeholder until the transport lands.
+// type=replay: a session file plays the device. The engine decides what may
+// be read when; this port adds blocking with deadlines, close from another
+// thread, and a pollable handle that is readable exactly when available() > 0
+// (a scheduler thread raises it when timed data falls due).
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <cerrno>
+#include <condition_variable>
+#include <cstdio>
+#include <mutex>
+#include <thread>
 
 #include "detail/open.hpp"
+#include "replay/record_source.hpp"
+#include "replay/replay_engine.hpp"
+#include "replay/replay_port.hpp"
 #include "wiretape/errors.hpp"
+#include "wiretape/session.hpp"
 
 namespace wiretape::detail {
 
-std::unique_ptr<Port> open_replay(Options&) {
-  throw PortError(ENOSYS, "open_replay: not built yet");
+namespace {
+
+class OwnedFd {
+ public:
+  OwnedFd() = default;
+  explicit OwnedFd(int fd) : fd_(fd) {}
+  ~OwnedFd() { reset(); }
+  OwnedFd(const OwnedFd&) = delete;
+  OwnedFd& operator=(const OwnedFd&) = delete;
+  int get() const { return fd_; }
+  void reset(int fd = -1) {
+    if (fd_ >= 0) ::close(fd_);
+    fd_ = fd;
+  }
+
+ private:
+  int fd_ = -1;
+};
+
+class SessionRecordSource final : public RecordSource {
+ public:
+  SessionRecordSource(const std::string& path, std::shared_ptr<bool> warned)
+      : reader_(path), warned_(std::move(warned)) {}
+  bool next(Record& record) override {
+    if (reader_.next(record)) return true;
+    if (reader_.damage() && !*warned_) {
+      *warned_ = true;
+      std::fprintf(stderr,
+                   "wiretape: %s is damaged; replaying what comes before the "
+                   "damage: %s\n",
+                   reader_.path().c_str(), reader_.damage()->what());
+    }
+    return false;
+  }
+
+ private:
+  SessionReader reader_;
+  std::shared_ptr<bool> warned_;
+};
+
+std::string describe(const ReplayConfig& config) {
+  const char* timing = config.timing == ReplayTiming::none      ? "none"
+                       : config.timing == ReplayTiming::session ? "session"
+                                                                : "causal";
+  const char* match =
+      config.match == ReplayMatch::sequence ? "sequence" : "request";
+  return "replay " + config.file + " (timing=" + timing + ", match=" + match +
+         ")";
+}
+
+class ReplayPort final : public Port {
+ public:
+  ReplayPort(ReplayConfig config, RecordSourceFactory sources)
+      : description_(describe(config)),
+        engine_(std::move(config), std::move(sources), ReplayClock::now()) {
+    int fds[2];
+    if (::pipe(fds) != 0) {
+      throw PortError(errno, description_ + ": creating the readiness pipe");
+    }
+    signal_read_.reset(fds[0]);
+    signal_write_.reset(fds[1]);
+    for (int fd : fds) {
+      ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) | O_NONBLOCK);
+      ::fcntl(fd, F_SETFD, FD_CLOEXEC);
+    }
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      update_signal(ReplayClock::now());
+    }
+    if (engine_.config().timing != ReplayTiming::none) {
+      scheduler_ = std::thread([this] { schedule(); });
+    }
+  }
+
+  ~ReplayPort() override {
+    try {
+      shut(/*may_throw=*/false);
+    } catch (...) {
+      // A destructor reports through stderr only (shut does).
+    }
+  }
+
+  std::size_t available() override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    check_open();
+    return engine_.available(ReplayClock::now());
+  }
+
+  void flush_input() override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    check_open();
+    const auto now = ReplayClock::now();
+    engine_.flush_input(now);
+    update_signal(now);
+    changed_.notify_all();
+  }
+  void flush_output() override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    check_open();
+  }
+  void drain() override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    check_open();
+  }
+
+  void close() override { shut(/*may_throw=*/true); }
+  bool is_open() const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return !closed_;
+  }
+  std::string description() const override { return description_; }
+  std::string type() const override { return "replay"; }
+  int native_handle() const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return signal_read_.get();
+  }
+
+  // The emulated device accepts line settings and keeps them; recorded
+  // settings events are not checked.
+  void set_baud(unsigned baud) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    check_open();
+    settings_.baud = baud;
+  }
+  void configure(const SerialSettings& settings) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    check_open();
+    settings_ = settings;
+  }
+  SerialSettings serial_settings() const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return settings_;
+  }
+  void set_dtr(bool) override {}
+  void set_rts(bool) override {}
+  bool cts() override { return true; }
+  bool dsr() override { return true; }
+  bool ri() override { return false; }
+  bool cd() override { return true; }
+  void send_break(std::chrono::milliseconds) override {}
+
+ protected:
+  std::size_t read_some(void* buffer, std::size_t size,
+                        Deadline deadline) override {
+    std::unique_lock<std::mutex> lock(mutex_);
+    for (;;) {
+      check_open();
+      const auto now = ReplayClock::now();
+      const std::size_t n =
+          engine_.read(static_cast<char*>(buffer), size, now);
+      const ReplayEngine::Outlook outlook = update_signal(now);
+      if (n > 0) {
+        if (scheduler_.joinable()) changed_.notify_all();
+        return n;
+      }
+      if (outlook.state == ReplayEngine::ReadState::ended) {
+        if (engine_.config().at_end == ReplayAtEnd::closed) {
+          throw PortClosed(description_ +
+                           ": the recording has ended (at_end=closed)");
+        }
+        if (!deadline) {
+          throw PortClosed(description_ +
+                           ": the recording has ended and nothing more will "
+                           "come; a read without a timeout would block forever");
+        }
+      }
+      if (deadline && now >= *deadline) return 0;
+      wait(lock, deadline, outlook);
+    }
+  }
+
+  std::size_t write_some(const void* data, std::size_t size,
+                         Deadline) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    check_open();
+    const auto now = ReplayClock::now();
+    try {
+      engine_.write(static_cast<const char*>(data), size, now);
+    } catch (...) {
+      update_signal(now);
+      changed_.notify_all();
+      throw;
+    }
+    update_signal(now);
+    changed_.notify_all();
+    return size;
+  }
+
+  bool wait_readable_until(Deadline deadline) override {
+    std::unique_lock<std::mutex> lock(mutex_);
+    for (;;) {
+      if (closed_) return true;  // a read raises PortClosed at once
+      const auto now = ReplayClock::now();
+      const ReplayEngine::Outlook outlook = update_signal(now);
+      switch (outlook.state) {
+        case ReplayEngine::ReadState::readable:
+        case ReplayEngine::ReadState::device_gone:
+          return true;
+        case ReplayEngine::ReadState::ended:
+          // at_end=closed, or a read that would block forever: both raise.
+          if (engine_.config().at_end == ReplayAtEnd::closed || !deadline) {
+            return true;
+          }
+          break;
+        case ReplayEngine::ReadState::waiting:
+          break;
+      }
+      if (deadline && now >= *deadline) return false;
+      wait(lock, deadline, outlook);
+    }
+  }
+
+ private:
+  void check_open() const {
+    if (closed_) throw PortClosed(description_ + " is closed");
+  }
+
+  void wait(std::unique_lock<std::mutex>& lock, Deadline deadline,
+            const ReplayEngine::Outlook& outlook) {
+    Deadline wake = deadline;
+    if (outlook.state == ReplayEngine::ReadState::waiting && outlook.wake &&
+        (!wake || *outlook.wake < *wake)) {
+      wake = outlook.wake;
+    }
+    if (wake) {
+      changed_.wait_until(lock, *wake);
+    } else {
+      changed_.wait(lock);
+    }
+  }
+
+  // Keeps the pipe readable exactly when a read would not block on data.
+  ReplayEngine::Outlook update_signal(ReplayTime now) {
+    const ReplayEngine::Outlook outlook = engine_.outlook(now);
+    const bool readable =
+        outlook.state == ReplayEngine::ReadState::readable ||
+        outlook.state == ReplayEngine::ReadState::device_gone ||
+        (outlook.state == ReplayEngine::ReadState::ended &&
+         engine_.config().at_end == ReplayAtEnd::closed);
+    if (readable && !signalled_) {
+      const char byte = 1;
+      while (::write(signal_write_.get(), &byte, 1) < 0 && errno == EINTR) {
+      }
+      signalled_ = true;
+    } else if (!readable && signalled_) {
+      char scratch[64];
+      for (;;) {
+        const ssize_t n = ::read(signal_read_.get(), scratch, sizeof scratch);
+        if (n > 0 || (n < 0 && errno == EINTR)) continue;
+        break;
+      }
+      signalled_ = false;
+    }
+    return outlook;
+  }
+
+  // Raises the pipe when timed data falls due, with nobody reading.
+  void schedule() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    while (!closed_) {
+      const ReplayEngine::Outlook outlook = update_signal(ReplayClock::now());
+      if (outlook.state == ReplayEngine::ReadState::waiting && outlook.wake) {
+        changed_.wait_until(lock, *outlook.wake);
+      } else {
+        changed_.wait(lock);
+      }
+    }
+  }
+
+  void shut(bool may_throw) {
+    std::string unused;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (closed_) return;
+      closed_ = true;
+      changed_.notify_all();
+    }
+    if (scheduler_.joinable()) scheduler_.join();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      signal_read_.reset();
+      signal_write_.reset();
+      const ReplayUnused policy = engine_.config().unused;
+      if (policy != ReplayUnused::ignore) unused = engine_.unused_report();
+      if (unused.empty()) return;
+      if (policy == ReplayUnused::warn || !may_throw) {
+        std::fprintf(stderr, "wiretape: %s\n", unused.c_str());
+        return;
+      }
+    }
+    throw ReplayMismatch(unused + " (unused=error)", 0, 0, -1);
+  }
+
+  const std::string description_;
+  mutable std::mutex mutex_;
+  std::condition_variable changed_;
+  ReplayEngine engine_;
+  SerialSettings settings_;
+  bool closed_ = false;
+  OwnedFd signal_read_;
+  OwnedFd signal_write_;
+  bool signalled_ = false;
+  std::thread scheduler_;
+};
+
+}  // namespace
+
+RecordSourceFactory session_source_factory(const std::string& path) {
+  auto warned = std::make_shared<bool>(false);
+  return [path, warned] {
+    return std::make_unique<SessionRecordSource>(path, warned);
+  };
+}
+
+std::unique_ptr<Port> open_replay_session(ReplayConfig config,
+                                          RecordSourceFactory sources) {
+  return std::make_unique<ReplayPort>(std::move(config), std::move(sources));
+}
+
+std::unique_ptr<Port> open_replay(Options& options) {
+  ReplayConfig config = take_replay_config(options);
+  // The file is opened here once, so that a missing or unreadable session
+  // fails at open with the reason.
+  {
+    SessionReader reader(config.file);
+    config.datagrams = reader.header().port_type == "udp";
+  }
+  RecordSourceFactory sources = session_source_factory(config.file);
+  return open_replay_session(std::move(config), std::move(sources));
 }
 
 }  // namespace wiretape::detail

@@ -1,0 +1,38 @@
+// The keys of type=replay (DESIGN.md section 7), parsed once into a value.
+#pragma once
+
+#include <chrono>
+#include <string>
+
+#include "wiretape/options.hpp"
+
+namespace wiretape::detail {
+
+enum class ReplayTiming { none, session, causal };
+enum class ReplayCheck { off, data, timing };
+enum class ReplayMatch { sequence, request };
+enum class ReplayUnmatched { error, silent };
+enum class ReplayRepeat { none, last, cycle };
+enum class ReplayUnused { ignore, warn, error };
+enum class ReplayAtEnd { silent, closed };
+
+struct ReplayConfig {
+  std::string file;
+  ReplayTiming timing = ReplayTiming::causal;
+  double speed = 1.0;
+  ReplayCheck check = ReplayCheck::data;
+  std::chrono::nanoseconds tolerance = std::chrono::milliseconds(100);
+  ReplayMatch match = ReplayMatch::sequence;
+  ReplayUnmatched unmatched = ReplayUnmatched::error;
+  ReplayRepeat repeat = ReplayRepeat::none;
+  ReplayUnused unused = ReplayUnused::warn;
+  ReplayAtEnd at_end = ReplayAtEnd::silent;
+  // Datagram sessions (recorded from udp) keep record boundaries.
+  bool datagrams = false;
+};
+
+// Consumes the replay keys of `options` (and flexiport's spellings:
+// strictness, ignoretimes, jitter). Throws OptionError naming the key.
+ReplayConfig take_replay_config(Options& options);
+
+}  // namespace wiretape::detail
