@@ -1,0 +1,265 @@
+// GoogleTest helper: driver tests that record a device once and replay it in
+// CI. Header-only; include it in test programs that link GoogleTest (it is
+// not part of <wiretape/wiretape.hpp>).
+//
+//   #include <wiretape/testing.hpp>
+//
+//   class ScannerTest : public wiretape::testing::CassetteTest {};
+//
+//   TEST_F(ScannerTest, ReadsOneScan) {
+//     wiretape::Port& device = port();          // or port("match=request")
+//     MyDriver driver(device);
+//     EXPECT_EQ(driver.scan().size(), 682u);
+//   }
+//
+// Each test has a cassette, a session file next to its source:
+//   <dir of the .cpp>/recordings/<source file stem>/<Suite>.<Test>.wtape
+// By default the test replays it (type=replay,timing=none, plus the keys given
+// to port()); a missing cassette fails the test with the command that records
+// it. With the environment
+//   WIRETAPE_RECORD=1 WIRETAPE_DEVICE=OPTS ./my_test --gtest_filter=...
+// the port is the real device (OPTS is an option string; a bare path means
+// type=serial,device=PATH) recording to the cassette. A recording is kept only
+// when the test passes; a failing test leaves the previous cassette as it was.
+// WIRETAPE_RECORD=once records only the missing cassettes.
+// WIRETAPE_CASSETTE_DIR=DIR puts cassettes under DIR instead of next to the
+// source (for sources compiled with relative __FILE__ paths, or read-only
+// trees).
+#pragma once
+
+#include <gtest/gtest.h>
+
+#include <cctype>
+#include <cstdlib>
+#include <exception>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <system_error>
+#include <utility>
+
+#include <unistd.h>
+
+#include "wiretape/options.hpp"
+#include "wiretape/port.hpp"
+
+namespace wiretape::testing {
+
+enum class RecordMode {
+  none,     // replay only
+  once,     // record the cassettes that are missing, replay the others
+  rewrite,  // record every cassette anew
+};
+
+// Where the mode and the device come from (the environment, for tests).
+struct CassetteSettings {
+  RecordMode record = RecordMode::none;
+  std::string device;     // the device's option string, when recording
+  std::string directory;  // replaces the directory of cassettes ("" = next to the source)
+
+  // WIRETAPE_RECORD (unset/0/none, 1/rewrite, once), WIRETAPE_DEVICE,
+  // WIRETAPE_CASSETTE_DIR. `lookup` is getenv unless a test gives another.
+  static CassetteSettings from_environment(
+      const std::function<const char*(const char*)>& lookup = [](const char* name) {
+        return std::getenv(name);
+      }) {
+    CassetteSettings settings;
+    const char* record = lookup("WIRETAPE_RECORD");
+    const std::string mode = record ? record : "";
+    if (mode.empty() || mode == "0" || mode == "none") {
+      settings.record = RecordMode::none;
+    } else if (mode == "1" || mode == "rewrite") {
+      settings.record = RecordMode::rewrite;
+    } else if (mode == "once") {
+      settings.record = RecordMode::once;
+    } else {
+      throw std::invalid_argument("WIRETAPE_RECORD=" + mode +
+                                  " is not one of 0, 1, none, once, rewrite");
+    }
+    if (const char* device = lookup("WIRETAPE_DEVICE")) settings.device = device;
+    if (const char* directory = lookup("WIRETAPE_CASSETTE_DIR")) settings.directory = directory;
+    return settings;
+  }
+};
+
+// `name` with every character but letters, digits and `._-=+` replaced by
+// `_` (GoogleTest's parameterized names hold `/`).
+inline std::string safe_file_name(std::string_view name) {
+  std::string safe;
+  safe.reserve(name.size());
+  for (char c : name) {
+    const bool keep = std::isalnum(static_cast<unsigned char>(c)) || c == '.' ||
+                      c == '_' || c == '-' || c == '=' || c == '+';
+    if (keep) {
+      safe += c;
+    } else if (safe.empty() || safe.back() != '_') {
+      safe += '_';
+    }
+  }
+  while (!safe.empty() && (safe.back() == '_' || safe.back() == '.')) safe.pop_back();
+  std::size_t first = 0;
+  while (first < safe.size() && (safe[first] == '_' || safe[first] == '.')) ++first;
+  safe.erase(0, first);
+  return safe.empty() ? std::string("test") : safe;
+}
+
+// <dir of source_file>/recordings/<stem of source_file>/<suite>.<test>.wtape,
+// or under `directory` when one is given.
+inline std::string default_cassette_path(std::string_view source_file, std::string_view suite,
+                                         std::string_view test,
+                                         const std::string& directory = {}) {
+  const std::filesystem::path source{std::string(source_file)};
+  const std::filesystem::path base =
+      directory.empty() ? source.parent_path() / "recordings" : std::filesystem::path(directory);
+  const std::string name = safe_file_name(std::string(suite) + "." + std::string(test));
+  return (base / source.stem() / (name + ".wtape")).string();
+}
+
+// One test's cassette: whether it records or replays, the option string, the
+// port, and what happens to the recording when the test ends.
+class Cassette {
+ public:
+  Cassette(std::string path, CassetteSettings settings, std::string replay_keys = {},
+           std::string test_name = {})
+      : path_(std::move(path)),
+        settings_(std::move(settings)),
+        replay_keys_(std::move(replay_keys)),
+        test_name_(std::move(test_name)) {
+    const bool exists = std::filesystem::exists(path_);
+    recording_ = settings_.record == RecordMode::rewrite ||
+                 (settings_.record == RecordMode::once && !exists);
+    partial_path_ = path_ + ".recording-" + std::to_string(::getpid());
+  }
+  ~Cassette() {
+    try {
+      finish(false);
+    } catch (...) {
+      // Destructors must not throw; finish(false) only cleans up.
+    }
+  }
+  Cassette(const Cassette&) = delete;
+  Cassette& operator=(const Cassette&) = delete;
+
+  const std::string& path() const noexcept { return path_; }
+  bool recording() const noexcept { return recording_; }
+
+  // The option string that opens the device (recording) or the replay.
+  // Throws std::runtime_error, naming the cassette and the way out, when the
+  // test cannot run: no cassette to replay, or no device to record from.
+  std::string options() const {
+    if (recording_) {
+      if (settings_.device.empty()) {
+        throw std::runtime_error("wiretape: cassette " + path_ +
+                                 " must be recorded (WIRETAPE_RECORD is set) but "
+                                 "WIRETAPE_DEVICE names no device");
+      }
+      std::string device = settings_.device;
+      if (device.find('=') == std::string::npos) {
+        device = "type=serial,device=" + Options::quote(device);
+      }
+      std::string text = device + ",log=" + Options::quote(partial_path_);
+      if (!test_name_.empty()) text += ",meta_gtest=" + Options::quote(test_name_);
+      return text;
+    }
+    if (!std::filesystem::exists(path_)) {
+      throw std::runtime_error(
+          "wiretape: no recording " + path_ + "; record it from the device with\n"
+          "    WIRETAPE_RECORD=once WIRETAPE_DEVICE='OPTS' <this test program>" +
+          (test_name_.empty() ? std::string() : " --gtest_filter='" + test_name_ + "'"));
+    }
+    std::string text = "type=replay,file=" + Options::quote(path_);
+    if (!Options::parse(replay_keys_).has("timing")) text += ",timing=none";
+    if (!replay_keys_.empty()) text += "," + replay_keys_;
+    return text;
+  }
+
+  // The port (opened on first use).
+  Port& port() {
+    if (!port_) port_ = open_port(options());
+    return *port_;
+  }
+
+  // Ends the test: closes the port, letting what close() raises through (a
+  // replay with unused=error reports unused data there); keeps the recording
+  // when `passed`, otherwise removes it and leaves any previous cassette.
+  void finish(bool passed) {
+    if (finished_) return;
+    finished_ = true;
+    std::exception_ptr close_error;
+    if (port_) {
+      try {
+        if (port_->is_open()) port_->close();
+      } catch (...) {
+        close_error = std::current_exception();
+      }
+      port_.reset();
+    }
+    if (recording_) {
+      std::error_code ignored;
+      if (passed && !close_error && std::filesystem::exists(partial_path_)) {
+        std::filesystem::create_directories(std::filesystem::path(path_).parent_path());
+        std::filesystem::rename(partial_path_, path_);
+      } else {
+        std::filesystem::remove(partial_path_, ignored);
+      }
+    }
+    if (close_error) std::rethrow_exception(close_error);
+  }
+
+ private:
+  std::string path_;
+  std::string partial_path_;
+  CassetteSettings settings_;
+  std::string replay_keys_;
+  std::string test_name_;
+  bool recording_ = false;
+  bool finished_ = false;
+  std::unique_ptr<Port> port_;
+};
+
+// A GoogleTest fixture whose tests get a port from their cassette.
+class CassetteTest : public ::testing::Test {
+ protected:
+  // The port of this test's cassette, opened on first call. `replay_keys`
+  // (e.g. "match=request,unused=error") apply when replaying; timing=none
+  // unless they say otherwise. `source_file` locates the cassette: the
+  // default is the file of the calling test (GCC, Clang and MSVC support
+  // __builtin_FILE()).
+  Port& port(std::string_view replay_keys = {},
+             const char* source_file = __builtin_FILE()) {
+    if (!cassette_) {
+      const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+      const std::string suite = info->test_suite_name();
+      const std::string test = info->name();
+      CassetteSettings settings = CassetteSettings::from_environment();
+      std::string path = default_cassette_path(source_file, suite, test, settings.directory);
+      if (settings.record != RecordMode::none) {
+        std::filesystem::create_directories(std::filesystem::path(path).parent_path());
+      }
+      cassette_ = std::make_unique<Cassette>(std::move(path), std::move(settings),
+                                             std::string(replay_keys), suite + "." + test);
+    }
+    return cassette_->port();
+  }
+
+  // The cassette, once port() was called (nullptr before).
+  Cassette* cassette() const noexcept { return cassette_.get(); }
+
+  void TearDown() override {
+    if (!cassette_) return;
+    try {
+      cassette_->finish(!HasFailure());
+    } catch (const std::exception& error) {
+      ADD_FAILURE() << "closing the port of cassette " << cassette_->path()
+                    << " failed: " << error.what();
+    }
+  }
+
+ private:
+  std::unique_ptr<Cassette> cassette_;
+};
+
+}  // namespace wiretape::testing

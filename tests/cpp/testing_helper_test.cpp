@@ -1,0 +1,259 @@
+// wiretape/testing.hpp: the GoogleTest helper records from a device when
+// asked to and replays otherwise, keeping recordings of passing tests only.
+#include "wiretape/testing.hpp"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <string>
+
+#include "wiretape/errors.hpp"
+#include "wiretape/session.hpp"
+
+namespace fs = std::filesystem;
+using wiretape::testing::Cassette;
+using wiretape::testing::CassetteSettings;
+using wiretape::testing::RecordMode;
+
+namespace {
+
+using namespace std::chrono_literals;
+
+class TemporaryDirectory {
+ public:
+  TemporaryDirectory() {
+    std::string pattern = (fs::temp_directory_path() / "wiretape-testing-XXXXXX").string();
+    if (!::mkdtemp(pattern.data())) throw std::runtime_error("mkdtemp failed");
+    path_ = pattern;
+  }
+  ~TemporaryDirectory() {
+    std::error_code ignored;
+    fs::remove_all(path_, ignored);
+  }
+  const fs::path& path() const { return path_; }
+
+ private:
+  fs::path path_;
+};
+
+std::string file_bytes(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// All tx bytes and all rx bytes of a session, in order.
+std::pair<std::string, std::string> streams(const fs::path& path) {
+  wiretape::SessionReader reader(path.string());
+  std::pair<std::string, std::string> tx_rx;
+  wiretape::Record record;
+  while (reader.next(record)) {
+    if (record.kind == wiretape::RecordKind::tx) tx_rx.first += record.data;
+    if (record.kind == wiretape::RecordKind::rx) tx_rx.second += record.data;
+  }
+  return tx_rx;
+}
+
+void echo(wiretape::Port& port, const std::string& text) {
+  ASSERT_EQ(port.write_all(text), text.size());
+  EXPECT_EQ(port.read_exactly(text.size(), 5s), text);
+}
+
+CassetteSettings recording_from_loopback() {
+  CassetteSettings settings;
+  settings.record = RecordMode::rewrite;
+  settings.device = "type=loopback";
+  return settings;
+}
+
+std::size_t leftovers(const fs::path& directory) {
+  std::size_t count = 0;
+  for (const auto& entry : fs::directory_iterator(directory)) {
+    if (entry.path().filename().string().find(".recording-") != std::string::npos) ++count;
+  }
+  return count;
+}
+
+TEST(Cassette, RecordsFromTheDeviceThenReplaysWithoutIt) {
+  TemporaryDirectory directory;
+  const fs::path path = directory.path() / "echo.wtape";
+  {
+    Cassette cassette(path.string(), recording_from_loopback(), {}, "Suite.Echo");
+    EXPECT_TRUE(cassette.recording());
+    echo(cassette.port(), "hello\n");
+    cassette.finish(true);
+  }
+  ASSERT_TRUE(fs::exists(path));
+  EXPECT_EQ(streams(path), std::make_pair(std::string("hello\n"), std::string("hello\n")));
+  EXPECT_EQ(leftovers(directory.path()), 0u);
+  wiretape::SessionReader reader(path.string());
+  EXPECT_NE(reader.header().metadata_json.find("Suite.Echo"), std::string::npos);
+
+  Cassette replay(path.string(), CassetteSettings{}, "unused=error");
+  EXPECT_FALSE(replay.recording());
+  EXPECT_NE(replay.options().find("type=replay"), std::string::npos);
+  EXPECT_NE(replay.options().find("timing=none"), std::string::npos);
+  echo(replay.port(), "hello\n");
+  EXPECT_NO_THROW(replay.finish(true));
+}
+
+TEST(Cassette, ReplayReallyServesTheRecording) {
+  TemporaryDirectory directory;
+  const fs::path path = directory.path() / "echo.wtape";
+  {
+    Cassette cassette(path.string(), recording_from_loopback());
+    echo(cassette.port(), "hello\n");
+    cassette.finish(true);
+  }
+  Cassette replay(path.string(), CassetteSettings{}, "unused=ignore");
+  wiretape::Port& port = replay.port();
+  EXPECT_THROW(
+      {
+        port.write_all(std::string("howdy\n"));
+        port.read_exactly(6, 1s);
+      },
+      wiretape::ReplayMismatch);
+}
+
+TEST(Cassette, UnusedRecordedDataFailsAtTheEndUnderUnusedError) {
+  TemporaryDirectory directory;
+  const fs::path path = directory.path() / "two.wtape";
+  {
+    Cassette cassette(path.string(), recording_from_loopback());
+    echo(cassette.port(), "one\n");
+    echo(cassette.port(), "two\n");
+    cassette.finish(true);
+  }
+  Cassette replay(path.string(), CassetteSettings{}, "unused=error");
+  echo(replay.port(), "one\n");
+  EXPECT_THROW(replay.finish(true), wiretape::ReplayMismatch);
+}
+
+TEST(Cassette, AFailedRecordingLeavesThePreviousCassette) {
+  TemporaryDirectory directory;
+  const fs::path path = directory.path() / "echo.wtape";
+  {
+    Cassette cassette(path.string(), recording_from_loopback());
+    echo(cassette.port(), "first\n");
+    cassette.finish(true);
+  }
+  const std::string previous = file_bytes(path);
+  {
+    Cassette cassette(path.string(), recording_from_loopback());
+    echo(cassette.port(), "second\n");
+    cassette.finish(false);
+  }
+  EXPECT_EQ(file_bytes(path), previous);
+  EXPECT_EQ(leftovers(directory.path()), 0u);
+  {
+    // A cassette left unfinished (the test threw) is not kept either.
+    Cassette cassette(path.string(), recording_from_loopback());
+    echo(cassette.port(), "third\n");
+  }
+  EXPECT_EQ(file_bytes(path), previous);
+  EXPECT_EQ(leftovers(directory.path()), 0u);
+}
+
+TEST(Cassette, OnceRecordsOnlyMissingCassettes) {
+  TemporaryDirectory directory;
+  const fs::path path = directory.path() / "echo.wtape";
+  CassetteSettings once = recording_from_loopback();
+  once.record = RecordMode::once;
+  {
+    Cassette cassette(path.string(), once);
+    EXPECT_TRUE(cassette.recording());
+    echo(cassette.port(), "hi\n");
+    cassette.finish(true);
+  }
+  Cassette again(path.string(), once);
+  EXPECT_FALSE(again.recording());
+}
+
+TEST(Cassette, MissingCassetteOrDeviceIsAClearError) {
+  TemporaryDirectory directory;
+  const fs::path path = directory.path() / "missing.wtape";
+  Cassette replay(path.string(), CassetteSettings{}, {}, "Suite.Name");
+  try {
+    replay.port();
+    FAIL() << "expected an error";
+  } catch (const std::runtime_error& error) {
+    const std::string message = error.what();
+    EXPECT_NE(message.find(path.string()), std::string::npos) << message;
+    EXPECT_NE(message.find("WIRETAPE_RECORD=once WIRETAPE_DEVICE="), std::string::npos) << message;
+    EXPECT_NE(message.find("--gtest_filter='Suite.Name'"), std::string::npos) << message;
+  }
+  CassetteSettings no_device;
+  no_device.record = RecordMode::rewrite;
+  Cassette recording(path.string(), no_device);
+  try {
+    recording.port();
+    FAIL() << "expected an error";
+  } catch (const std::runtime_error& error) {
+    EXPECT_NE(std::string(error.what()).find("WIRETAPE_DEVICE"), std::string::npos);
+  }
+}
+
+TEST(Cassette, BarePathDeviceMeansASerialPort) {
+  CassetteSettings settings = recording_from_loopback();
+  settings.device = "/dev/ttyUSB0";
+  Cassette cassette("/tmp/never.wtape", settings);
+  EXPECT_EQ(cassette.options().rfind("type=serial,device=/dev/ttyUSB0,log=", 0), 0u)
+      << cassette.options();
+}
+
+TEST(Cassette, ReplayKeysOverrideTheDefaultTiming) {
+  TemporaryDirectory directory;
+  const fs::path path = directory.path() / "x.wtape";
+  std::ofstream(path) << "placeholder";
+  Cassette cassette(path.string(), CassetteSettings{}, "timing=causal,match=request");
+  const std::string options = cassette.options();
+  EXPECT_EQ(options.find("timing=none"), std::string::npos) << options;
+  EXPECT_NE(options.find("timing=causal,match=request"), std::string::npos) << options;
+}
+
+TEST(CassetteSettings, ComeFromTheEnvironment) {
+  std::map<std::string, std::string> environment{{"WIRETAPE_RECORD", "1"},
+                                                 {"WIRETAPE_DEVICE", "type=loopback"},
+                                                 {"WIRETAPE_CASSETTE_DIR", "/tmp/c"}};
+  auto lookup = [&](const char* name) -> const char* {
+    auto found = environment.find(name);
+    return found == environment.end() ? nullptr : found->second.c_str();
+  };
+  auto settings = CassetteSettings::from_environment(lookup);
+  EXPECT_EQ(settings.record, RecordMode::rewrite);
+  EXPECT_EQ(settings.device, "type=loopback");
+  EXPECT_EQ(settings.directory, "/tmp/c");
+  environment["WIRETAPE_RECORD"] = "once";
+  EXPECT_EQ(CassetteSettings::from_environment(lookup).record, RecordMode::once);
+  environment.erase("WIRETAPE_RECORD");
+  EXPECT_EQ(CassetteSettings::from_environment(lookup).record, RecordMode::none);
+  environment["WIRETAPE_RECORD"] = "sometimes";
+  EXPECT_THROW(CassetteSettings::from_environment(lookup), std::invalid_argument);
+}
+
+TEST(CassettePath, IsNextToTheSourceWithSafeNames) {
+  EXPECT_EQ(wiretape::testing::default_cassette_path("/src/tests/cpp/scan_test.cpp",
+                                                     "Models/ScanTest", "Reads/3"),
+            "/src/tests/cpp/recordings/scan_test/Models_ScanTest.Reads_3.wtape");
+  EXPECT_EQ(wiretape::testing::default_cassette_path("/src/a_test.cpp", "S", "T", "/elsewhere"),
+            "/elsewhere/a_test/S.T.wtape");
+  EXPECT_EQ(wiretape::testing::safe_file_name("../x y"), "x_y");
+}
+
+// The fixture itself, on a cassette recorded from type=loopback and kept in
+// tests/cpp/recordings/testing_helper_test/ (record it again with
+// WIRETAPE_RECORD=1 WIRETAPE_DEVICE=type=loopback).
+class CassetteFixture : public wiretape::testing::CassetteTest {};
+
+TEST_F(CassetteFixture, EchoesThroughTheCassette) {
+  wiretape::Port& device = port("unused=error");
+  echo(device, "PING\r");
+  echo(device, "VV\n");
+  ASSERT_NE(cassette(), nullptr);
+  EXPECT_EQ(fs::path(cassette()->path()).filename(), "CassetteFixture.EchoesThroughTheCassette.wtape");
+  EXPECT_EQ(fs::path(cassette()->path()).parent_path().filename(), "testing_helper_test");
+}
+
+}  // namespace
