@@ -108,7 +108,7 @@ class Device:
 
     # --- time -----------------------------------------------------------
     def timestamp_ms(self, now):
-        elapsed = int((now - self.opened_at) * 1000)
+        elapsed = int(round((now - self.opened_at) * 1000))
         return (self.start_time_ms + elapsed) & 0xFFFFFF
 
     def next_boundary(self, now):

@@ -1,0 +1,182 @@
+"""hokuyo-scan end to end: against the simulator (pty and TCP), against the
+real URG-04LX and UTM-30LX recordings replayed in request mode, and against
+the recordings checked in under examples/hokuyo/recordings."""
+import json
+import pathlib
+
+import pytest
+
+from conftest import EXAMPLE, run_scan
+
+RECORDINGS = EXAMPLE / "recordings"
+
+
+def scans_of(result):
+    assert result.returncode == 0, result.stderr
+    return [json.loads(line) for line in result.stdout.splitlines() if line.strip()]
+
+
+def replay(path, *extra):
+    return ",".join([f"type=replay,file={path}", *extra])
+
+
+# --- the real devices -----------------------------------------------------------
+
+def test_real_urg04lx_gd_scan(hokuyo_scan, shared_data):
+    result = run_scan(hokuyo_scan,
+                      replay(shared_data / "urg04lx_2011.log", "match=request", "timing=none"),
+                      "--first", 44, "--last", 725, "--json")
+    [scan] = scans_of(result)
+    assert scan["model"] == "URG-04LX"
+    assert scan["serial"] == "H0706400"
+    assert scan["timestamp_ms"] == 6968830
+    assert scan["timestamp_unwrapped_ms"] == 6968830
+    assert (scan["first"], scan["last"], scan["cluster"]) == (44, 725, 1)
+    assert len(scan["ranges"]) == 682
+    assert scan["ranges"][:5] == [392, 392, 391, 385, 381]
+    assert "intensities" not in scan
+
+
+def test_real_utm30lx_me_stream(hokuyo_scan, shared_data):
+    result = run_scan(hokuyo_scan,
+                      replay(shared_data / "utm30lx_2011.log", "match=request", "timing=none"),
+                      "--mode", "me", "--json")
+    [scan] = scans_of(result)
+    assert scan["model"] == "UTM-30LX"
+    assert scan["serial"] == "00903971"
+    assert scan["timestamp_ms"] == 4821609
+    assert (scan["first"], scan["last"]) == (0, 1080)
+    assert len(scan["ranges"]) == 1081 and len(scan["intensities"]) == 1081
+    assert list(zip(scan["ranges"], scan["intensities"]))[:2] == [(45, 1809), (48, 1780)]
+
+
+def test_broken_driver_is_caught_by_replay(hokuyo_scan, shared_data):
+    result = run_scan(hokuyo_scan,
+                      replay(shared_data / "urg04lx_2011.log", "match=request", "timing=none"),
+                      "--first", 44, "--last", 725, "--inject-bug")
+    assert result.returncode == 1, result.stderr
+    report = result.stderr
+    assert "mismatch" in report
+    # The report points at the GD request the driver got wrong.
+    assert "GD0044072501" in report
+    assert "|5072501.|" in report and "|4072501.|" in report
+
+
+# --- the simulator --------------------------------------------------------------
+
+def test_simulated_urg_switches_from_scip11_and_scans(hokuyo_scan, simulator):
+    sim = simulator("--model", "urg04lx")
+    scans = scans_of(run_scan(hokuyo_scan, f"type=serial,device={sim.where}", "--json",
+                              "--scans", 2))
+    assert len(scans) == 2
+    for scan in scans:
+        assert (scan["model"], scan["serial"]) == ("URG-04LX", "H0706400")
+        assert (scan["first"], scan["last"], scan["cluster"]) == (44, 725, 1)
+        assert len(scan["ranges"]) == 682
+        assert all(20 <= r <= 5600 for r in scan["ranges"])
+    # Answers come on 100 ms scan boundaries.
+    assert scans[1]["timestamp_ms"] > scans[0]["timestamp_ms"]
+    assert (scans[1]["timestamp_ms"] - scans[0]["timestamp_ms"]) % 100 in (0, 1, 99)
+
+
+def test_simulated_md_stream_with_cluster(hokuyo_scan, simulator):
+    sim = simulator("--model", "urg04lx", "--scip2")
+    scans = scans_of(run_scan(hokuyo_scan, sim.where, "--mode", "md", "--scans", 3,
+                              "--first", 100, "--last", 199, "--cluster", 10, "--json"))
+    assert [len(s["ranges"]) for s in scans] == [10, 10, 10]
+    stamps = [s["timestamp_ms"] for s in scans]
+    assert stamps == sorted(stamps) and len(set(stamps)) == 3
+
+
+def test_simulated_endless_stream_is_stopped(hokuyo_scan, simulator):
+    # More scans than the device can count: an endless stream, then QT.
+    sim = simulator("--model", "utm30lx")
+    result = run_scan(hokuyo_scan, sim.where, "--mode", "ms", "--scans", 100,
+                      "--first", 0, "--last", 9, "--json")
+    assert len(scans_of(result)) == 100
+
+
+def test_simulated_utm_over_tcp_me_with_intensities(hokuyo_scan, simulator):
+    sim = simulator("--model", "utm30lx", "--listen", "127.0.0.1:0")
+    host, port = sim.where.rsplit(":", 1)
+    scans = scans_of(run_scan(hokuyo_scan, f"type=tcp,host={host},port={port}",
+                              "--mode", "me", "--scans", 2, "--json"))
+    assert len(scans) == 2
+    assert all(len(s["ranges"]) == 1081 == len(s["intensities"]) for s in scans)
+
+
+def test_timestamp_wrap_is_unwrapped(hokuyo_scan, simulator):
+    sim = simulator("--model", "utm30lx", "--start-time-ms", str(0xFFFFFF - 400))
+    scans = scans_of(run_scan(hokuyo_scan, sim.where, "--mode", "md", "--scans", 30,
+                              "--first", 0, "--last", 9, "--json"))
+    raw = [s["timestamp_ms"] for s in scans]
+    unwrapped = [s["timestamp_unwrapped_ms"] for s in scans]
+    assert raw != sorted(raw), "the device clock never wrapped"
+    assert unwrapped == sorted(unwrapped)
+    assert unwrapped[-1] > 0xFFFFFF
+    assert all(u % (1 << 24) == r for u, r in zip(unwrapped, raw))
+
+
+def test_wrong_sum_is_a_clear_error(hokuyo_scan, simulator):
+    sim = simulator("--model", "urg04lx", "--scip2", "--bad-sum", "GD")
+    result = run_scan(hokuyo_scan, sim.where)
+    assert result.returncode == 3
+    assert "wrong sum" in result.stderr and "GD0044072501" in result.stderr
+
+
+def test_garbage_before_vv_falls_back_and_recovers(hokuyo_scan, simulator):
+    sim = simulator("--model", "urg04lx", "--scip2", "--garbage", "VV")
+    scans = scans_of(run_scan(hokuyo_scan, sim.where, "--json"))
+    assert len(scans[0]["ranges"]) == 682
+
+
+def test_hardware_fault_is_reported(hokuyo_scan, simulator):
+    sim = simulator("--model", "urg04lx", "--scip2", "--fault", "55")
+    result = run_scan(hokuyo_scan, sim.where)
+    assert result.returncode == 3
+    assert "BM" in result.stderr and "status 01" in result.stderr
+
+
+def test_usage_errors_name_the_problem(hokuyo_scan, simulator):
+    result = run_scan(hokuyo_scan, "type=serial", "--mode", "xx")
+    assert result.returncode == 2 and "--mode" in result.stderr
+    result = run_scan(hokuyo_scan, "type=loopback,bogus=1")
+    assert result.returncode == 2 and "bogus" in result.stderr
+    sim = simulator("--model", "urg04lx", "--scip2")
+    result = run_scan(hokuyo_scan, sim.where, "--first", 10)
+    assert result.returncode == 2 and "--first 10" in result.stderr
+
+
+def test_missing_device_is_a_runtime_error(hokuyo_scan, tmp_path):
+    result = run_scan(hokuyo_scan, f"type=serial,device={tmp_path / 'nothing'}")
+    assert result.returncode == 3 and "nothing" in result.stderr
+
+
+# --- checked-in recordings ---------------------------------------------------------
+
+def checked_in_recordings():
+    return sorted(RECORDINGS.glob("*.wtape"))
+
+
+@pytest.mark.parametrize("recording", checked_in_recordings(), ids=lambda p: p.stem)
+def test_checked_in_recording_replays(hokuyo_scan, recording):
+    meta = json.loads(recording.with_suffix(".json").read_text())
+    result = run_scan(hokuyo_scan, replay(recording, "timing=none", "unused=error"),
+                      *meta["args"])
+    assert scans_of(result) == meta["scans"]
+
+
+def test_checked_in_recordings_exist():
+    assert len(checked_in_recordings()) >= 3, \
+        "run examples/hokuyo/recordings/make_recordings.py"
+
+
+def test_checked_in_recording_catches_a_broken_driver(hokuyo_scan):
+    recording = RECORDINGS / "urg04lx_gd.wtape"
+    if not recording.exists():
+        pytest.skip(f"SKIPPED LOUDLY: {recording} missing")
+    meta = json.loads(recording.with_suffix(".json").read_text())
+    result = run_scan(hokuyo_scan, replay(recording, "timing=none"), *meta["args"],
+                      "--inject-bug")
+    assert result.returncode == 1
+    assert "GD0044" in result.stderr or "|GD00" in result.stderr or "4072501" in result.stderr
