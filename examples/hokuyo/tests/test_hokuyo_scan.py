@@ -180,3 +180,15 @@ def test_checked_in_recording_catches_a_broken_driver(hokuyo_scan):
                       "--inject-bug")
     assert result.returncode == 1
     assert "GD0044" in result.stderr or "|GD00" in result.stderr or "4072501" in result.stderr
+
+
+def test_wrap_recording_crosses_the_device_clock_wrap(hokuyo_scan):
+    recording = RECORDINGS / "urg04lx_gs_wrap.wtape"
+    if not recording.exists():
+        pytest.skip(f"SKIPPED LOUDLY: {recording} missing")
+    meta = json.loads(recording.with_suffix(".json").read_text())
+    scans = scans_of(run_scan(hokuyo_scan, replay(recording, "timing=none"), *meta["args"]))
+    raw = [s["timestamp_ms"] for s in scans]
+    unwrapped = [s["timestamp_unwrapped_ms"] for s in scans]
+    assert raw != sorted(raw)
+    assert unwrapped == sorted(unwrapped) and unwrapped[-1] > 0xFFFFFF
