@@ -97,6 +97,7 @@ class Device:
         self.baud = 19200
         self.baud_changed = None  # set by SS; the transport applies it
         self.power_on(scip2)
+        self.laser = laser_on
 
     def power_on(self, scip2=None):
         self.scip2 = (not self.model["scip1_at_power_on"]) if scip2 is None else scip2
@@ -370,8 +371,9 @@ class LineSplitter:
         return lines
 
 
-def run_session(device, read_fd, write, wait_fd, log, stop):
-    """Serves one connection until `stop()` or the peer goes away."""
+def run_session(device, read_fd, write, wait_fd, log, stop, apply_baud=None):
+    """Serves one connection until `stop()` or the peer goes away. A line
+    speed change (SS) is applied once its reply has been written."""
     splitter = LineSplitter()
     pending = []  # (due, seq, bytes), sent in order of due time
     seq = 0
@@ -386,6 +388,8 @@ def run_session(device, read_fd, write, wait_fd, log, stop):
             write(data)
             if device.baud_changed is not None:
                 log("line speed %d" % device.baud_changed)
+                if apply_baud is not None:
+                    apply_baud(device.baud_changed)
                 device.baud_changed = None
         deadlines = [p[0] for p in pending]
         if device.next_stream_time() is not None:
@@ -435,11 +439,18 @@ def serve_pty(device, link, log, stop, ready):
                 continue
             view = view[n:]
 
-    def apply_baud(_):
-        pass
+    def apply_baud(baud):
+        # The terminal's speed is what a driver on the other side sees.
+        speed = getattr(termios, "B%d" % baud, None)
+        if speed is None:
+            log("no termios speed for %d; left unchanged" % baud)
+            return
+        attrs = termios.tcgetattr(slave)
+        attrs[4] = attrs[5] = speed
+        termios.tcsetattr(slave, termios.TCSADRAIN, attrs)
 
     try:
-        run_session(device, read_fd, write, master, log, stop)
+        run_session(device, read_fd, write, master, log, stop, apply_baud)
     finally:
         if link:
             try:

@@ -158,3 +158,30 @@ def test_line_splitter_takes_lf_or_cr_and_drops_noise():
 
 def test_encode_matches_the_real_timestamp():
     assert encode(6968830, 4) == b"JUGn"
+
+
+def test_pty_line_speed_changes_after_the_ss_reply(simulator):
+    import os
+    import select
+    import termios
+    import time
+    import tty
+
+    sim = simulator("--model", "urg04lx", "--scip2")
+    fd = os.open(sim.where, os.O_RDWR | os.O_NOCTTY)
+    try:
+        tty.setraw(fd)
+        assert termios.tcgetattr(fd)[4] != termios.B115200
+        os.write(fd, b"SS115200\n")
+        reply = b""
+        end = time.monotonic() + 10
+        while not reply.endswith(b"\n\n") and time.monotonic() < end:
+            if select.select([fd], [], [], 1)[0]:
+                reply += os.read(fd, 100)
+        assert reply == b"SS115200\n00P\n\n"
+        # The simulator applies the speed right after writing the reply.
+        while termios.tcgetattr(fd)[4] != termios.B115200 and time.monotonic() < end:
+            select.select([], [], [], 0.01)
+        assert termios.tcgetattr(fd)[4] == termios.B115200
+    finally:
+        os.close(fd)
