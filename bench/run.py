@@ -179,8 +179,10 @@ class Bench:
         self.results["timing_session_drift_pct"] = round(result["drift_pct"], 5)
         self.results["naive_player_drift_pct"] = round(result["naive_drift_pct"], 3)
         self.notes["timing_session"] = (
-            f"max {result['max_us']:.0f} µs, open took {result['open_us']:.0f} µs "
-            f"(lateness is measured from the start of open), naive player ends "
+            f"lateness min {result['min_us']:.0f} µs, max {result['max_us']:.0f} µs; "
+            f"open took {result['open_us']:.0f} µs, t=0 taken {result['anchor_after_open_start_us']:.0f} µs "
+            f"into it (median {result['p50_from_open_start_us']:.0f} µs if due times count "
+            f"from the start of open); naive player ends "
             f"{result['naive_last_late_ms']:.0f} ms late")
 
     def record(self) -> None:
