@@ -138,7 +138,7 @@ def test_unused_recorded_data_fails_the_test_under_unused_error(pytester):
             wiretape_port.write_all(b"one\\n")
             assert wiretape_port.read_exactly(4, timeout=5) == b"one\\n"
     """)
-    result = pytester.runpytest("--wiretape-record=once", LOOPBACK, "-k", "test_two")
+    result = pytester.runpytest("--wiretape-record=once", LOOPBACK, "test_two.py::test_two")
     result.assert_outcomes(passed=1)
     result = pytester.runpytest("-k", "only_first")
     result.assert_outcomes(passed=1, failed=1)
@@ -217,7 +217,9 @@ def test_parametrized_ids_become_safe_distinct_file_names(pytester):
 
         LONG = "x" * 150
 
-        @pytest.mark.parametrize("word", ["a/b c", LONG + "1", LONG + "2"])
+        WORDS = ["a/b c", LONG + "1", LONG + "2"]
+
+        @pytest.mark.parametrize("word", WORDS, ids=WORDS)
         def test_word(wiretape_port, word):
             data = word.encode()[:20] + b"\\n"
             wiretape_port.write_all(data)
