@@ -1,0 +1,157 @@
+// The bridge: forwards bytes between a device port and a client side (a
+// pseudo-terminal a program opens, or a TCP listener), optionally recording
+// everything that crosses into a session file (capture=wire: every byte,
+// stamped on arrival, time zero at the device's open). It is the engine of
+// `wiretape record` (transparent proxy), `wiretape replay --pty/--listen`
+// (virtual devices) and `wiretape serve` (port server, raw or RFC 2217).
+//
+// Buffers are bounded (BridgeOptions::buffer_limit per direction and client):
+//   - client -> device: when full, the bridge stops reading that client, so
+//     TCP flow control (or the terminal's buffer) holds the client back;
+//   - device -> the controlling client (or the pty): when full, the bridge
+//     stops reading the device; the device's own buffer then fills (a serial
+//     device that keeps sending may overrun in the kernel);
+//   - device -> read-only monitor clients (--shared): when a monitor falls
+//     behind by more than the bound, the new data is dropped for it (and
+//     counted in BridgeStats::bytes_dropped); the device is never held back
+//     for a monitor.
+#pragma once
+
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "wiretape/timeout.hpp"
+
+namespace wiretape {
+
+enum class BridgeClientSide {
+  pty,  // a pseudo-terminal; a program opens it as if it were the device
+  tcp,  // a TCP listener; programs connect to it
+};
+
+enum class BridgeProtocol {
+  raw,      // bytes both ways, unchanged
+  rfc2217,  // Telnet COM-PORT-CONTROL (RFC 2217): clients set the line
+};
+
+struct BridgeOptions {
+  // The device: a port option string ("type=serial,device=/dev/ttyUSB0",
+  // "type=replay,file=a.wtape", ...). Reopened from this string by `reopen`
+  // and `restart`.
+  std::string device;
+
+  BridgeClientSide client_side = BridgeClientSide::pty;
+  // pty: a symbolic link to the terminal ("" for none; the terminal's own
+  // path is in Bridge::pty_path()).
+  std::string pty_link;
+  // tcp: where to listen. 127.0.0.1 unless told otherwise; port 0 picks a
+  // free port (see Bridge::listen_address()).
+  std::string listen_host = "127.0.0.1";
+  int listen_port = 0;
+  BridgeProtocol protocol = BridgeProtocol::raw;
+  // tcp: a client that connects while another one controls the device gets
+  // read-only monitoring (device data, its input ignored) instead of being
+  // refused.
+  bool shared = false;
+
+  // Session file to record into ("" records nothing), with free metadata.
+  std::string output;
+  std::map<std::string, std::string> metadata;
+  int flush_ms = 100;
+
+  // pty: apply the terminal settings the client sets (baud, stop bits...) to
+  // the device, recording a settings event.
+  bool mirror_settings = true;
+  // When the device goes away: reopen it once it is back (retrying every
+  // reopen_interval) instead of ending.
+  bool reopen = false;
+  std::chrono::milliseconds reopen_interval{250};
+  // tcp: each new client starts the device over (closes and reopens it; for
+  // a replay, the session restarts). Otherwise a client that reconnects
+  // continues where the previous one left off.
+  bool restart = false;
+  // End by itself after this long (record --duration).
+  Timeout duration = forever;
+  std::size_t buffer_limit = 1 << 20;
+  // Diagnostics (client connects, device loss, settings) go to stderr
+  // prefixed "wiretape: " unless quiet; Bridge::messages() keeps them too.
+  bool quiet = false;
+};
+
+struct BridgeStats {
+  std::uint64_t bytes_to_device = 0;    // client -> device, delivered
+  std::uint64_t bytes_from_device = 0;  // device -> bridge
+  std::uint64_t bytes_dropped = 0;      // for monitors that fell behind
+  std::uint64_t clients_accepted = 0;
+  std::uint64_t clients_refused = 0;
+  std::uint64_t settings_changes = 0;
+  std::uint64_t device_losses = 0;
+  std::uint64_t device_reopens = 0;
+  std::uint64_t records_written = 0;
+};
+
+enum class BridgeOutcome {
+  running,
+  stopped,        // stop() was called
+  finished,       // the duration elapsed
+  device_closed,  // the device went away (or a replay's recorded close) and
+                  // reopen was off
+  mismatch,       // the replayed client diverged from the recording
+  failed,         // a runtime error (device or file I/O)
+};
+
+std::string_view to_string(BridgeOutcome outcome);
+
+struct BridgeResult {
+  BridgeOutcome outcome = BridgeOutcome::running;
+  // The mismatch report, the error, or why the device closed.
+  std::string message;
+  BridgeStats stats;
+  // True unless outcome is mismatch or failed.
+  bool ok() const {
+    return outcome != BridgeOutcome::mismatch && outcome != BridgeOutcome::failed;
+  }
+};
+
+class Bridge {
+ public:
+  // Checks the options (OptionError naming the problem); opens nothing yet.
+  explicit Bridge(BridgeOptions options);
+  ~Bridge();  // stops and waits; never throws
+  Bridge(const Bridge&) = delete;
+  Bridge& operator=(const Bridge&) = delete;
+
+  // Opens the device, the client side and the session file, then forwards on
+  // a thread of its own. Throws OptionError / PortError / SessionError when
+  // something cannot be opened (nothing is left running then).
+  void start();
+  // Ends forwarding; the session file is closed complete. Thread-safe,
+  // idempotent, may be called before start().
+  void stop();
+  // True once the bridge has ended (by stop(), the duration, a mismatch, an
+  // error); false if `timeout` expired first.
+  bool wait(Timeout timeout = forever);
+  bool running() const;
+  BridgeResult result() const;
+  BridgeStats stats() const;
+
+  // The terminal a client opens (pty side), e.g. "/dev/pts/7".
+  std::string pty_path() const;
+  // The address clients connect to (tcp side), e.g. "127.0.0.1:5000".
+  std::string listen_address() const;
+  std::string device_description() const;
+  // The diagnostics so far (the most recent 1000).
+  std::vector<std::string> messages() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace wiretape
