@@ -142,7 +142,8 @@ class LoopbackPort final : public Port {
 
 }  // namespace
 
-std::unique_ptr<Port> open_loopback(Options&) {
+std::unique_ptr<Port> open_loopback(Options& options) {
+  options.finish("loopback");
   return std::make_unique<LoopbackPort>();
 }
 

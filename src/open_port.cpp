@@ -63,6 +63,10 @@ std::unique_ptr<Port> open_port(Options options) {
       options.take_choice("log_errors", "raise", {"raise", "warn"}) == "raise";
   recording.metadata = options.take_prefixed("meta_");
 
+  if (recorded && log->empty()) {
+    throw OptionError("log", "option 'log' needs a file name (log=FILE)");
+  }
+
   std::unique_ptr<Port> port;
   if (type == "serial") port = detail::open_serial(options);
   else if (type == "tcp") port = detail::open_tcp(options);
@@ -78,9 +82,6 @@ std::unique_ptr<Port> open_port(Options options) {
     std::fprintf(stderr, "wiretape: opened %s\n", port->description().c_str());
   }
   if (recorded) {
-    if (log->empty()) {
-      throw OptionError("log", "option 'log' needs a file name (log=FILE)");
-    }
     recording.path = *log;
     recording.options_text = given;
     recording.port_type = type;

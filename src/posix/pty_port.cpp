@@ -82,6 +82,7 @@ class PtyPort final : public FdPort {
 
 std::unique_ptr<Port> open_pty(Options& options) {
   const std::string link = options.take_string("link", "");
+  options.finish("pty");
 
   sys::UniqueFd master(sys::posix_openpt(O_RDWR | O_NOCTTY));
   if (!master) raise_os_error(errno, "pty", "creating a pseudo-terminal");

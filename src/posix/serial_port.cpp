@@ -143,6 +143,7 @@ std::unique_ptr<Port> open_serial(Options& options) {
                   : flow == "xonxoff" ? FlowControl::xonxoff
                                       : FlowControl::none;
   const bool exclusive = options.take_bool("exclusive", true);
+  options.finish("serial");  // reject bad keys before touching the device
 
   const std::string where = "serial " + device;
   sys::UniqueFd fd(

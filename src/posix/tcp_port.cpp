@@ -133,6 +133,7 @@ std::unique_ptr<Port> open_tcp(Options& options) {
   const bool listen = options.take_bool("listen", false);
   const bool nodelay = options.take_bool("nodelay", true);
   const Timeout timeout = options.take_timeout("timeout", forever);
+  options.finish("tcp");  // reject bad keys before connecting or listening
 
   const std::string endpoint = host + ":" + std::to_string(port);
   std::string description;

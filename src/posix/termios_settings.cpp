@@ -177,6 +177,34 @@ SerialSettings line_settings_of(const termios& settings, unsigned baud) {
   return out;
 }
 
+namespace {
+
+// glibc reports EINVAL when the terminal silently changed the data bits or
+// parity it was given, which a pseudo-terminal always does (Linux forces 8N
+// on a pty). Everything else having been applied, that is not a failure:
+// the device has no framing to program.
+bool only_framing_was_forced(int fd, const termios& wanted) {
+  if (errno != EINVAL) return false;
+  const int saved = errno;
+  termios applied{};
+  if (sys::tcgetattr(fd, &applied) != 0) {
+    errno = saved;
+    return false;
+  }
+  tcflag_t framing = CSIZE | PARENB | PARODD;
+#ifdef CMSPAR
+  framing |= CMSPAR;
+#endif
+  const bool same = (applied.c_cflag & ~framing) == (wanted.c_cflag & ~framing) &&
+                    applied.c_iflag == wanted.c_iflag &&
+                    applied.c_lflag == wanted.c_lflag &&
+                    cfgetospeed(&applied) == cfgetospeed(&wanted);
+  errno = saved;
+  return same;
+}
+
+}  // namespace
+
 void program_terminal(int fd, termios settings, unsigned baud,
                       const std::string& where) {
   const auto speed = standard_speed(baud);
@@ -187,7 +215,8 @@ void program_terminal(int fd, termios settings, unsigned baud,
                                   " is not accepted");
     }
   }
-  if (sys::tcsetattr(fd, TCSANOW, &settings) != 0) {
+  if (sys::tcsetattr(fd, TCSANOW, &settings) != 0 &&
+      !only_framing_was_forced(fd, settings)) {
     raise_os_error(errno, where, "programming the line settings (tcsetattr)");
   }
   if (!speed) {

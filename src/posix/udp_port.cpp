@@ -84,6 +84,8 @@ std::unique_ptr<Port> open_udp(Options& options) {
                               "destination port, 1 to 65535)");
   }
 
+  options.finish("udp");
+
   const std::string where = "udp " + bind_host + ":" + std::to_string(bind_port);
   const AddrInfoList local = resolve(bind_host, bind_port, SOCK_DGRAM, true, where);
   sys::UniqueFd fd(sys::socket(local->ai_family, local->ai_socktype,
