@@ -8,9 +8,11 @@
 //   record-latency ROUNDTRIPS ROUNDS  64-byte ping-pong, recorded vs not
 //   record-rss BYTES FILE             peak RSS while recording BYTES
 //   make-exchanges FILE COUNT         COUNT request/response pairs (below)
+//   soak SECONDS DIR                  record+replay loop; one JSON line a second
 //
 // Errors go to stderr with exit status 1 (run.py reports the figure as
 // missing with that message).
+#include <dirent.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -271,11 +273,74 @@ int make_exchanges(const std::string& path, std::uint64_t count) {
   return 0;
 }
 
+// Current (not peak) resident set size, MiB, and open file descriptors.
+double current_rss_mib() {
+  long pages_total = 0, pages_resident = 0;
+  if (FILE* statm = std::fopen("/proc/self/statm", "r")) {
+    if (std::fscanf(statm, "%ld %ld", &pages_total, &pages_resident) != 2) pages_resident = 0;
+    std::fclose(statm);
+  }
+  return static_cast<double>(pages_resident) * static_cast<double>(::sysconf(_SC_PAGESIZE)) / (1 << 20);
+}
+
+int open_fds() {
+  int count = 0;
+  if (DIR* dir = ::opendir("/proc/self/fd")) {
+    while (const dirent* entry = ::readdir(dir)) {
+      if (entry->d_name[0] != '.') ++count;
+    }
+    ::closedir(dir);
+    --count;  // the directory stream itself
+  }
+  return count;
+}
+
+// Records a loopback session, then replays it with check=data, again and
+// again; prints RSS and open fds once a second so a leak shows as growth.
+int soak(std::uint64_t seconds, const std::string& dir) {
+  const std::string path = dir + "/soak-" + std::to_string(::getpid()) + ".wtape";
+  std::vector<std::string> messages;
+  for (int i = 0; i < 100; ++i) messages.push_back("message " + std::to_string(i) + std::string(1000, 'a' + i % 26));
+  const auto start = Clock::now();
+  auto next_sample = start;
+  std::uint64_t iterations = 0;
+  while (Clock::now() - start < std::chrono::seconds(seconds)) {
+    {
+      auto port = wiretape::open_port("type=loopback,timeout=5,log=" + path);
+      for (const auto& message : messages) {
+        port->write_all(message);
+        if (port->read_exactly(message.size()) != message) throw std::runtime_error("soak: loopback lost data");
+      }
+      port->close();
+    }
+    {
+      auto port = wiretape::open_port("type=replay,timing=none,check=data,unused=error,timeout=5,file=" + path);
+      for (const auto& message : messages) {
+        port->write_all(message);
+        if (port->read_exactly(message.size()) != message) {
+          throw std::runtime_error("soak: replay differs at iteration " + std::to_string(iterations));
+        }
+      }
+      port->close();
+    }
+    ++iterations;
+    if (Clock::now() >= next_sample) {
+      std::printf("{\"t\": %.1f, \"iterations\": %llu, \"rss_MB\": %.2f, \"fds\": %d}\n",
+                  wb::seconds_since(start), static_cast<unsigned long long>(iterations),
+                  current_rss_mib(), open_fds());
+      std::fflush(stdout);
+      next_sample += std::chrono::seconds(1);
+    }
+  }
+  std::remove(path.c_str());
+  return 0;
+}
+
 int usage() {
   std::cerr << "usage: wiretape_bench_tool make-session FILE BYTES | replay FILE BYTES |\n"
                "       timing RECORDS PERIOD_US | record-throughput BYTES ROUNDS |\n"
                "       record-latency ROUNDTRIPS ROUNDS | record-rss BYTES FILE |\n"
-               "       make-exchanges FILE COUNT\n";
+               "       make-exchanges FILE COUNT | soak SECONDS DIR\n";
   return 2;
 }
 
@@ -298,6 +363,7 @@ int main(int argc, char** argv) {
     if (command == "record-latency") {
       return record_latency(parse_count(argv[2], "ROUNDTRIPS"), parse_count(argv[3], "ROUNDS"));
     }
+    if (command == "soak") return soak(parse_count(argv[2], "SECONDS"), argv[3]);
     if (command == "make-exchanges") return make_exchanges(argv[2], parse_count(argv[3], "COUNT"));
     if (command == "record-rss") return record_rss(parse_count(argv[2], "BYTES"), argv[3]);
   } catch (const std::exception& error) {
