@@ -4,6 +4,9 @@ against the recording through wiretape://."""
 
 import os
 import select
+import subprocess
+import sys
+import textwrap
 import threading
 import tty
 
@@ -78,11 +81,29 @@ def read_thermometer(port):
     return {"id": ident, "celsius": float(line.strip()[:-1].decode())}
 
 
-def test_wiretape_schemes_resolve_after_import():
+def test_import_wiretape_registers_the_schemes():
+    # In a fresh interpreter: inside pytest the plugin registers them too.
+    program = textwrap.dedent("""
+        import serial, wiretape
+        for url in ("wiretape:///nonexistent/x.wtape", "wiretape+record:///tmp/x.wtape"):
+            try:
+                serial.serial_for_url(url)
+            except serial.SerialException as error:
+                print("handled:", error)
+    """)
+    result = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True,
+                            timeout=60)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert len(lines) == 2, result.stdout
+    assert "x.wtape" in lines[0]
+    assert "device=" in lines[1]
+
+
+def test_register_is_idempotent():
     assert urlhandler.register() is True
-    assert "wiretape.urlhandler" in serial.protocol_handler_packages
-    with pytest.raises(serial.SerialException, match="device="):
-        serial.serial_for_url("wiretape+record:///tmp/nothing.wtape")
+    assert urlhandler.register() is True
+    assert serial.protocol_handler_packages.count("wiretape.urlhandler") == 1
 
 
 def test_driver_records_through_pyserial_then_replays(thermometer, tmp_path):
