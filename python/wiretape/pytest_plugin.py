@@ -80,6 +80,12 @@ def quote_option(value) -> str:
     return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
+def _plain(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value)
+
+
 def device_options(device: str) -> str:
     """The option string for a device setting: a bare path means a serial
     device (``type=serial,device=PATH``)."""
@@ -226,7 +232,7 @@ class WiretapeCassette:
         if self.recording:
             query = urllib.parse.urlencode({"options": device_options(self.device)})
             return f"wiretape+record://{urllib.parse.quote(str(self.partial_path))}?{query}"
-        query = urllib.parse.urlencode({key: quote_option(value)
+        query = urllib.parse.urlencode({key: _plain(value)
                                         for key, value in self.replay_keys.items()})
         return f"wiretape://{urllib.parse.quote(str(self.path))}?{query}"
 
