@@ -1,7 +1,260 @@
+// wiretape.SessionReader, SessionWriter, Record and export_flexiport: session
+// files from Python. Records carry bytes; kinds are their names ("rx", "tx",
+// "open", ... "break"); times are integer nanoseconds since the open.
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include <nanobind/stl/map.h>
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/string.h>
+
 #include "python/bindings.hpp"
+#include "wiretape/errors.hpp"
+#include "wiretape/session.hpp"
+
+namespace nb = nanobind;
+using namespace nb::literals;
 
 namespace wiretape::python {
 
-void bind_session(nanobind::module_&) {}
+namespace {
+
+// str, bytes or os.PathLike, as open() takes.
+std::string path_from_python(nb::handle value) {
+  PyObject* fspath = PyOS_FSPath(value.ptr());
+  if (fspath == nullptr) throw nb::python_error();
+  nb::object path = nb::steal(fspath);
+  if (PyBytes_Check(path.ptr())) {
+    return std::string(PyBytes_AS_STRING(path.ptr()),
+                       static_cast<std::size_t>(PyBytes_GET_SIZE(path.ptr())));
+  }
+  return nb::cast<std::string>(path);
+}
+
+nb::bytes to_bytes(const std::string& data) { return nb::bytes(data.data(), data.size()); }
+
+// A kind given as its name, or as its numeric code (for kinds this version
+// does not name: conversions keep them).
+RecordKind kind_from_python(nb::handle kind) {
+  if (PyLong_Check(kind.ptr())) {
+    const long code = PyLong_AsLong(kind.ptr());
+    if (code < 0 || code > 255) throw nb::value_error("a record kind code is 0..255");
+    return static_cast<RecordKind>(code);
+  }
+  const std::string name = nb::cast<std::string>(kind);
+  if (auto known = record_kind_from_string(name)) return *known;
+  throw nb::value_error(
+      ("unknown record kind '" + name +
+       "': one of rx, tx, open, close, flush_input, flush_output, drain, settings, "
+       "modem_lines, break, client_connect, client_disconnect, device_lost")
+          .c_str());
+}
+
+Capture capture_from_python(const std::string& capture) {
+  if (capture == "client") return Capture::client;
+  if (capture == "wire") return Capture::wire;
+  throw nb::value_error(("capture must be 'client' or 'wire', not '" + capture + "'").c_str());
+}
+
+struct PyRecord {
+  Record record;
+};
+
+// The reader, closable from Python (closing releases the file).
+struct PyReader {
+  std::unique_ptr<SessionReader> reader;
+
+  SessionReader& get() {
+    if (!reader) throw nb::value_error("the session reader is closed");
+    return *reader;
+  }
+};
+
+struct PyWriter {
+  std::unique_ptr<SessionWriter> writer;
+  std::string path;
+
+  SessionWriter& get() {
+    if (!writer) throw nb::value_error("the session writer is closed");
+    return *writer;
+  }
+  void close() {
+    if (!writer) return;
+    std::unique_ptr<SessionWriter> closing = std::move(writer);
+    nb::gil_scoped_release release;
+    closing->close();
+  }
+};
+
+nb::dict header_dict(const SessionHeader& header) {
+  nb::dict out;
+  out["version_major"] = header.version_major;
+  out["version_minor"] = header.version_minor;
+  out["port_options"] = header.port_options;
+  out["port_type"] = header.port_type;
+  out["start_utc"] = header.start_utc;
+  out["wiretape_version"] = header.wiretape_version;
+  out["host"] = header.host;
+  out["capture"] = header.capture == Capture::wire ? "wire" : "client";
+  out["source_format"] = header.source_format;
+  nb::dict metadata;
+  for (const auto& [key, value] : header.user_metadata) metadata[key.c_str()] = value;
+  out["metadata"] = metadata;
+  out["metadata_json"] = header.metadata_json;
+  return out;
+}
+
+}  // namespace
+
+void bind_session(nb::module_& m) {
+  nb::class_<PyRecord>(m, "Record", "One record of a session: t_ns, kind, data.")
+      .def(
+          "__init__",
+          [](PyRecord* self, std::uint64_t t_ns, nb::handle kind, nb::bytes data) {
+            new (self) PyRecord{};
+            self->record.t_ns = t_ns;
+            self->record.kind = kind_from_python(kind);
+            self->record.data.assign(data.c_str(), data.size());
+          },
+          "t_ns"_a, "kind"_a, "data"_a = nb::bytes("", 0))
+      .def_prop_ro("t_ns", [](const PyRecord& r) { return r.record.t_ns; },
+                   "nanoseconds since the device was opened")
+      .def_prop_ro("kind", [](const PyRecord& r) { return std::string(to_string(r.record.kind)); },
+                   "'rx' (device to host), 'tx' (host to device), or an event name")
+      .def_prop_ro("kind_code", [](const PyRecord& r) { return static_cast<int>(r.record.kind); })
+      .def_prop_ro("data", [](const PyRecord& r) { return to_bytes(r.record.data); },
+                   "the bytes (rx, tx) or the event's JSON object as bytes")
+      .def("__eq__",
+           [](const PyRecord& a, const PyRecord& b) {
+             return a.record.t_ns == b.record.t_ns && a.record.kind == b.record.kind &&
+                    a.record.data == b.record.data;
+           })
+      .def("__repr__", [](const PyRecord& r) {
+        nb::object data = to_bytes(r.record.data);
+        return "Record(t_ns=" + std::to_string(r.record.t_ns) + ", kind='" +
+               std::string(to_string(r.record.kind)) + "', data=" +
+               std::string(nb::repr(data).c_str()) + ")";
+      });
+
+  nb::class_<PyReader>(m, "SessionReader",
+                       "Reads a .wtape file or a flexiport log (name.log) record by record, "
+                       "with memory independent of its size. Iterating yields Record objects; "
+                       "at a damaged record iteration ends and .damage says where.")
+      .def(
+          "__init__",
+          [](PyReader* self, nb::handle path) {
+            const std::string p = path_from_python(path);
+            new (self) PyReader{};
+            nb::gil_scoped_release release;
+            self->reader = std::make_unique<SessionReader>(p);
+          },
+          "path"_a)
+      .def("__iter__", [](nb::handle self) { return self; })
+      .def("__next__",
+           [](PyReader& self) {
+             PyRecord out;
+             bool more = false;
+             SessionReader& reader = self.get();
+             {
+               nb::gil_scoped_release release;
+               more = reader.next(out.record);
+             }
+             if (!more) throw nb::stop_iteration();
+             return out;
+           })
+      .def_prop_ro("header", [](PyReader& self) { return header_dict(self.get().header()); },
+                   "the header as a dict: capture, port_options, port_type, start_utc, "
+                   "wiretape_version, host, metadata, source_format, version_major, ...")
+      .def_prop_ro(
+          "damage",
+          [](PyReader& self) -> nb::object {
+            const auto& damage = self.get().damage();
+            if (!damage) return nb::none();
+            // The class bind_errors() registered, looked up when needed.
+            nb::object cls = nb::module_::import_("wiretape._core").attr("SessionError");
+            nb::object error = cls(std::string(damage->what()), damage->offset());
+            error.attr("message") = std::string(damage->what());
+            return error;
+          },
+          "None, or a SessionError (not raised) with .offset and .message: where "
+          "reading stopped and why")
+      .def("rewind", [](PyReader& self) { self.get().rewind(); }, "back to the first record")
+      .def_prop_ro("path", [](PyReader& self) { return self.get().path(); })
+      .def("close", [](PyReader& self) { self.reader.reset(); })
+      .def("__enter__", [](nb::handle self) { return self; })
+      .def("__exit__", [](PyReader& self, nb::args) { self.reader.reset(); });
+
+  nb::class_<PyWriter>(m, "SessionWriter",
+                       "Writes a new .wtape file (truncating PATH). Buffered; buffered records "
+                       "reach the OS at most flush_ms after they were written. A full disk or "
+                       "file-size limit raises PortError; what was written before stays "
+                       "readable.")
+      .def(
+          "__init__",
+          [](PyWriter* self, nb::handle path, const std::string& capture,
+             const std::string& port_options, const std::string& port_type,
+             std::optional<std::map<std::string, std::string>> metadata, int flush_ms,
+             bool fsync, const std::string& start_utc, const std::string& host,
+             const std::string& wiretape_version) {
+            SessionWriterOptions options;
+            options.capture = capture_from_python(capture);
+            options.port_options = port_options;
+            options.port_type = port_type;
+            if (metadata) options.metadata = *metadata;
+            if (flush_ms < 0) throw nb::value_error("flush_ms must be >= 0");
+            options.flush_ms = flush_ms;
+            options.fsync = fsync;
+            options.start_utc = start_utc;
+            options.host = host;
+            options.wiretape_version = wiretape_version;
+            const std::string p = path_from_python(path);
+            new (self) PyWriter{};
+            self->path = p;
+            nb::gil_scoped_release release;
+            self->writer = std::make_unique<SessionWriter>(p, std::move(options));
+          },
+          "path"_a, nb::kw_only(), "capture"_a = "client", "port_options"_a = "",
+          "port_type"_a = "", "metadata"_a = nb::none(), "flush_ms"_a = 100,
+          "fsync"_a = false, "start_utc"_a = "", "host"_a = "", "wiretape_version"_a = "")
+      .def(
+          "write",
+          [](PyWriter& self, nb::handle kind, std::uint64_t t_ns, nb::bytes data) {
+            const RecordKind k = kind_from_python(kind);
+            SessionWriter& writer = self.get();
+            writer.write(k, t_ns, std::string_view(data.c_str(), data.size()));
+          },
+          "kind"_a, "t_ns"_a, "data"_a = nb::bytes("", 0),
+          "Appends a record: kind is a name ('rx', 'tx', 'open', ...) or a code.")
+      .def("flush",
+           [](PyWriter& self) {
+             SessionWriter& writer = self.get();
+             nb::gil_scoped_release release;
+             writer.flush();
+           })
+      .def("close", [](PyWriter& self) { self.close(); })
+      .def_prop_ro("path", [](PyWriter& self) { return self.path; })
+      .def("__enter__", [](nb::handle self) { return self; })
+      .def("__exit__", [](PyWriter& self, nb::args) { self.close(); });
+
+  m.def(
+      "export_flexiport",
+      [](nb::handle source, nb::handle prefix) {
+        const std::string s = path_from_python(source);
+        const std::string p = path_from_python(prefix);
+        nb::gil_scoped_release release;
+        export_flexiport(s, p);
+      },
+      "source"_a, "prefix"_a,
+      "Writes a session (.wtape or flexiport) as flexiport's new-format logs "
+      "PREFIX + 'r' (reads) and PREFIX + 'w' (writes); events are dropped.");
+
+  m.def(
+      "crc32c",
+      [](nb::bytes data, std::uint32_t crc) { return crc32c(data.c_str(), data.size(), crc); },
+      "data"_a, "crc"_a = 0, "The CRC32C (Castagnoli) of data, continuing from crc.");
+}
 
 }  // namespace wiretape::python
