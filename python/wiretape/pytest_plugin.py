@@ -422,10 +422,18 @@ def wiretape_pty(wiretape_cassette, tmp_path_factory) -> str:
         handle.stop()
         handle.wait(10)
         result = handle.result() if hasattr(handle, "result") else None
-        error = (result or {}).get("error") if isinstance(result, dict) else None
-        if error:
-            raise AssertionError(f"wiretape_pty: {error}")
+        if isinstance(result, dict):
+            outcome = result.get("outcome")
+            ok = result.get("ok", outcome not in ("mismatch", "failed"))
+            if not ok:
+                raise AssertionError(
+                    f"wiretape_pty ({outcome}): {result.get('message') or result}")
 
     wiretape_cassette.add_cleanup(stop)
-    path = getattr(handle, "pty", None) or getattr(handle, "pty_path", None) or str(link)
-    return str(path)
+    for name in ("pty_path", "pty"):
+        path = getattr(handle, name, None)
+        if callable(path):
+            path = path()
+        if path:
+            break
+    return str(path or link)
