@@ -28,9 +28,10 @@ def main(argv=None):
     parser.add_argument("--start-time-ms", type=int, default=0,
                         help="the device clock at power-on (24-bit, wraps)")
     parser.add_argument("--bad-sum", action="append", default=[], metavar="CMD",
-                        help="corrupt one data-line sum in the first reply to CMD (e.g. GD)")
+                        help="corrupt one data-line sum in the next reply to CMD (e.g. GD); "
+                             "repeat to spoil several replies")
     parser.add_argument("--garbage", action="append", default=[], metavar="CMD",
-                        help="send garbage before the first reply to CMD")
+                        help="send garbage before the next reply to CMD; repeatable")
     parser.add_argument("--fault", metavar="NN",
                         help="power on with hardware fault status NN (as DBNN does)")
     parser.add_argument("--verbose", action="store_true", help="log commands on stderr")

@@ -41,6 +41,14 @@ def encode(value: int, digits: int) -> bytes:
     return bytes(out)
 
 
+def data_line(data: bytes, spoil=False) -> bytes:
+    """A data line with its sum (a wrong one when `spoil`)."""
+    sum_byte = checksum(data)
+    if spoil:
+        sum_byte = bytes([0x30 + ((sum_byte[0] - 0x30 + 1) & 0x3F)])
+    return data + sum_byte + b"\n"
+
+
 def status_line(status: bytes) -> bytes:
     return status + checksum(status) + b"\n"
 
@@ -92,8 +100,9 @@ class Device:
         self.opened_at = time.monotonic() if now is None else now
         self.period = 60.0 / self.model["scan_rpm"]
         self.start_time_ms = start_time_ms
-        self.bad_sum = {c.upper().encode() for c in bad_sum}
-        self.garbage = {c.upper().encode() for c in garbage}
+        # Each entry spoils one reply; repeat a command to spoil several.
+        self.bad_sum = [c.upper().encode() for c in bad_sum]
+        self.garbage = [c.upper().encode() for c in garbage]
         self.baud = 19200
         self.baud_changed = None  # set by SS; the transport applies it
         self.power_on(scip2)
@@ -149,17 +158,14 @@ class Device:
                 data += encode(r, 3)
             if kind == b"ME":
                 data += encode(1000 + (first + i * cluster) * 7 % 900, 3)
-        body = self.data_line(kind, encode(self.timestamp_ms(now), 4))
-        for at in range(0, len(data), SCAN_LINE):
-            body += self.data_line(kind, bytes(data[at:at + SCAN_LINE]))
-        return body + b"\n"
-
-    def data_line(self, kind, data):
-        sum_byte = checksum(data)
-        if kind in self.bad_sum:
-            self.bad_sum.discard(kind)
-            sum_byte = bytes([0x30 + ((sum_byte[0] - 0x30 + 1) & 0x3F)])
-        return data + sum_byte + b"\n"
+        spoil = kind in self.bad_sum
+        if spoil:
+            self.bad_sum.remove(kind)
+        chunks = [encode(self.timestamp_ms(now), 4)]
+        chunks += [bytes(data[at:at + SCAN_LINE]) for at in range(0, len(data), SCAN_LINE)]
+        # A spoiled reply breaks in its middle, with more lines still to come.
+        spoiled = len(chunks) // 2 if spoil else -1
+        return b"".join(data_line(c, i == spoiled) for i, c in enumerate(chunks)) + b"\n"
 
     # --- commands ---------------------------------------------------------
     def handle_line(self, line: bytes, now):
@@ -168,7 +174,7 @@ class Device:
         replies = self.answer(line, now)
         cmd = line[:2].upper()
         if replies and cmd in self.garbage:
-            self.garbage.discard(cmd)
+            self.garbage.remove(cmd)
             due, data = replies[0]
             replies[0] = (due, b"\x00\xff#!garbage\n" + data)
         return replies

@@ -36,6 +36,7 @@ constexpr const char* usage_text =
     "  --mode M      gd (default), gs: one request per scan; md, ms, me: a stream\n"
     "  --json        one JSON object per scan on stdout\n"
     "  --timeout S   how long to wait for each reply line (default 2)\n"
+    "  --retries N   broken replies to recover from (QT, then again) (default 2)\n"
     "Exit codes: 0 ok, 1 replay mismatch, 2 usage error, 3 device or I/O error.\n";
 
 struct UsageError : std::runtime_error {
@@ -50,6 +51,7 @@ struct Arguments {
   hokuyo::ScanMode mode = hokuyo::ScanMode::gd;
   bool json = false;
   double timeout_s = 2.0;
+  int retries = 2;
   bool inject_bug = false;
 };
 
@@ -100,6 +102,8 @@ Arguments parse_arguments(int argc, char** argv) {
       args.timeout_s = std::strtod(text.c_str(), &end);
       if (text.empty() || *end != '\0' || !(args.timeout_s > 0) || args.timeout_s > 3600)
         throw UsageError("--timeout: \"" + text + "\" is not a number of seconds in (0, 3600]");
+    } else if (option == "--retries") {
+      args.retries = parse_int(option, value(), 0, 100);
     } else if (option == "--inject-bug") {
       // Hidden: a deliberately broken driver, for the replay tests.
       args.inject_bug = true;
@@ -191,18 +195,44 @@ int run(const Arguments& args) {
     throw UsageError("--last " + std::to_string(last) + " must be in " + std::to_string(first) +
                      ".." + std::to_string(params.last_step));
 
+  // A broken reply (wrong sum, garbage, a cut-off line) is survived up to
+  // --retries times: QT and drain, laser on again, then carry on.
+  int retries_left = args.retries;
+  auto recover = [&](const hokuyo::ProtocolError& error) {
+    if (retries_left-- <= 0) throw;
+    std::cerr << "hokuyo-scan: " << error.what() << "; recovering with QT\n";
+    driver.recover();
+    driver.laser_on();
+  };
+
   if (args.mode == hokuyo::ScanMode::gd || args.mode == hokuyo::ScanMode::gs) {
-    for (int i = 0; i < args.scans; ++i)
-      print_scan(args, params.model, version.serial,
-                 driver.get_scan(args.mode, first, last, args.cluster), i + 1);
+    for (int i = 0; i < args.scans;) {
+      try {
+        print_scan(args, params.model, version.serial,
+                   driver.get_scan(args.mode, first, last, args.cluster), i + 1);
+        ++i;
+      } catch (const hokuyo::ProtocolError& error) {
+        recover(error);
+      }
+    }
     return 0;
   }
   // Streams: a count the device can hold, else "until stopped" and QT.
-  const int count = args.scans <= 99 ? args.scans : 0;
   const int interval = args.mode == hokuyo::ScanMode::me ? 1 : 0;
-  driver.start_stream(args.mode, first, last, args.cluster, interval, count);
-  for (int i = 0; i < args.scans; ++i)
-    print_scan(args, params.model, version.serial, driver.read_stream_scan(), i + 1);
+  auto start = [&](int scans_left) {
+    driver.start_stream(args.mode, first, last, args.cluster, interval,
+                        scans_left <= 99 ? scans_left : 0);
+  };
+  start(args.scans);
+  for (int i = 0; i < args.scans;) {
+    try {
+      print_scan(args, params.model, version.serial, driver.read_stream_scan(), i + 1);
+      ++i;
+    } catch (const hokuyo::ProtocolError& error) {
+      recover(error);
+      start(args.scans - i);
+    }
+  }
   if (driver.streaming()) driver.stop_stream();
   return 0;
 }

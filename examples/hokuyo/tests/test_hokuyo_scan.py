@@ -117,11 +117,31 @@ def test_timestamp_wrap_is_unwrapped(hokuyo_scan, simulator):
     assert all(u % (1 << 24) == r for u, r in zip(unwrapped, raw))
 
 
-def test_wrong_sum_is_a_clear_error(hokuyo_scan, simulator):
-    sim = simulator("--model", "urg04lx", "--scip2", "--bad-sum", "GD")
-    result = run_scan(hokuyo_scan, sim.where)
+def test_wrong_sum_is_recovered_with_qt(hokuyo_scan, simulator):
+    sim = simulator("--model", "urg04lx", "--scip2", "--bad-sum", "GD", "--verbose")
+    scans = scans_of(run_scan(hokuyo_scan, sim.where, "--json", "--scans", 2))
+    assert len(scans) == 2 and all(len(s["ranges"]) == 682 for s in scans)
+    sim.stop()
+    commands = [line.split("<- ")[1] for line in sim.process.stderr.read().splitlines()
+                if "<- " in line]
+    # The broken reply is dropped with QT; the laser is turned on again.
+    assert commands[-5:] == ["b'GD0044072501'", "b'QT'", "b'BM'", "b'GD0044072501'",
+                             "b'GD0044072501'"]
+
+
+def test_wrong_sum_beyond_the_retries_is_a_clear_error(hokuyo_scan, simulator):
+    sim = simulator("--model", "urg04lx", "--scip2", "--bad-sum", "GD", "--bad-sum", "GD")
+    result = run_scan(hokuyo_scan, sim.where, "--retries", 1)
     assert result.returncode == 3
     assert "wrong sum" in result.stderr and "GD0044072501" in result.stderr
+    assert "recovering with QT" in result.stderr
+
+
+def test_broken_stream_scan_restarts_the_stream(hokuyo_scan, simulator):
+    sim = simulator("--model", "utm30lx", "--bad-sum", "MD")
+    scans = scans_of(run_scan(hokuyo_scan, sim.where, "--mode", "md", "--scans", 4,
+                              "--json"))
+    assert len(scans) == 4 and all(len(s["ranges"]) == 1081 for s in scans)
 
 
 def test_garbage_before_vv_falls_back_and_recovers(hokuyo_scan, simulator):
