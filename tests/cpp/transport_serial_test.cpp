@@ -420,3 +420,25 @@ TEST(Serial, NotATerminalIsRefused) {
         << error.what();
   }
 }
+
+TEST(Serial, CloseFromAnotherThreadWakesABlockedWrite) {
+  PtyPair pty;  // nobody reads the device side: the terminal fills up
+  wiretape::test::BlockedPollSignal signal;
+  auto port = open_port(serial(pty));
+  std::thread closer([&] {
+    ASSERT_TRUE(signal.blocked.wait());
+    port->close();
+  });
+  const std::string block(1 << 20, 'w');
+  EXPECT_THROW(port->write_all(block), wiretape::PortClosed);
+  closer.join();
+}
+
+TEST(Serial, WriteTimesOutReturningWhatWasSent) {
+  PtyPair pty;
+  auto port = open_port(serial(pty, ",timeout=0.05"));
+  const std::string block(1 << 20, 'w');
+  const std::size_t sent = port->write_all(block);
+  EXPECT_GT(sent, 0u);
+  EXPECT_LT(sent, block.size());
+}
