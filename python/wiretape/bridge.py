@@ -1,14 +1,191 @@
 """Bridges between a device and a client: the record proxy, the port server
-and virtual devices (replay on a pty or TCP). Placeholder until it lands."""
+and virtual devices (replay on a pty or TCP).
+
+Each function starts the bridge and returns a running :class:`BridgeHandle`
+at once; the caller waits on it in short slices (so Ctrl-C works) and stops
+it::
+
+    handle = record("/dev/ttyUSB0", "run.wtape", pty="/tmp/ttyV0")
+    try:
+        while not handle.wait(0.2):
+            pass
+    except KeyboardInterrupt:
+        handle.stop()
+        handle.wait()
+    print(handle.result())
+
+``result()`` is a dict: ``outcome`` (``running``, ``stopped``, ``finished``,
+``device_closed``, ``mismatch``, ``failed``), ``ok`` (False for a mismatch or
+a failure: the CLI exits 1 or 3), ``message`` (the mismatch report or error)
+and ``stats``.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Dict, List, Mapping, Optional, Tuple, Union
+
+from . import _core
+
+__all__ = [
+    "BridgeHandle",
+    "device_options",
+    "parse_listen",
+    "record",
+    "serve",
+    "serve_replay",
+]
 
 
-def record(device, output, *, pty=None, listen=None, duration=None, meta=None):
-    raise NotImplementedError("wiretape record is not built yet")
+def device_options(device: str) -> str:
+    """The port option string for ``--device``: a bare path means a serial
+    device (``type=serial,device=PATH``)."""
+    device = device.strip()
+    if not device:
+        raise ValueError("--device needs a port option string or a device path")
+    if "=" not in device:
+        return "type=serial,device=" + _quote(device)
+    return device
 
 
-def serve(device, listen, *, output=None, protocol="raw", shared=False, reopen=False):
-    raise NotImplementedError("wiretape serve is not built yet")
+def _quote(value: str) -> str:
+    if any(c in value for c in ', \t\n"'):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    return value
 
 
-def serve_replay(file, *, pty=None, listen=None, replay_options="", restart=False):
-    raise NotImplementedError("wiretape replay is not built yet")
+def parse_listen(listen: Union[str, int]) -> Tuple[str, int]:
+    """``HOST:PORT``, ``[v6]:PORT`` or ``PORT`` (on 127.0.0.1) as (host, port).
+    Port 0 picks a free port."""
+    text = str(listen).strip()
+    host = "127.0.0.1"
+    port_text = text
+    if text.startswith("["):
+        close = text.find("]")
+        if close < 0 or not text[close + 1:].startswith(":"):
+            raise ValueError(f"listen address {text!r}: expected [HOST]:PORT")
+        host, port_text = text[1:close], text[close + 2:]
+    elif ":" in text:
+        host, port_text = text.rsplit(":", 1)
+        host = host or "127.0.0.1"
+    try:
+        port = int(port_text)
+    except ValueError:
+        raise ValueError(
+            f"listen address {text!r}: the port must be a number (HOST:PORT)"
+        ) from None
+    if not 0 <= port <= 65535:
+        raise ValueError(f"listen address {text!r}: port {port} is out of range (0-65535)")
+    return host, port
+
+
+class BridgeHandle:
+    """A running bridge."""
+
+    def __init__(self, bridge: "_core.Bridge"):
+        self._bridge = bridge
+
+    def wait(self, timeout: Optional[float] = None) -> bool:
+        """True once the bridge has ended; False if ``timeout`` seconds
+        passed first. Interruptible by Ctrl-C."""
+        return self._bridge.wait(timeout)
+
+    def stop(self) -> None:
+        """Ends the bridge (thread-safe); the session file is left complete."""
+        self._bridge.stop()
+
+    def result(self) -> Dict[str, object]:
+        return self._bridge.result()
+
+    def stats(self) -> Dict[str, int]:
+        return self._bridge.stats()
+
+    @property
+    def running(self) -> bool:
+        return self._bridge.running
+
+    @property
+    def pty_path(self) -> Optional[str]:
+        """The terminal a client opens (pty side), e.g. ``/dev/pts/7``."""
+        return self._bridge.pty_path or None
+
+    @property
+    def address(self) -> Optional[str]:
+        """``HOST:PORT`` clients connect to (TCP side)."""
+        return self._bridge.listen_address or None
+
+    listen_address = address
+
+    @property
+    def device_description(self) -> str:
+        return self._bridge.device_description
+
+    def messages(self) -> List[str]:
+        """The diagnostics printed so far (client connects, device loss...)."""
+        return self._bridge.messages()
+
+    def __enter__(self) -> "BridgeHandle":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+        self.wait()
+
+
+def _start(device: str, *, pty, listen, **options) -> BridgeHandle:
+    if (pty is None) == (listen is None):
+        raise ValueError("give exactly one client side: pty=PATH or listen=HOST:PORT")
+    if pty is not None:
+        link = "" if pty is True else os.fspath(pty)
+        bridge = _core.Bridge(device, client_side="pty", pty_link=link, **options)
+    else:
+        host, port = parse_listen(listen)
+        bridge = _core.Bridge(device, client_side="tcp", listen_host=host,
+                              listen_port=port, **options)
+    bridge.start()
+    return BridgeHandle(bridge)
+
+
+def record(device: str, output, *, pty=None, listen=None,
+           duration: Optional[float] = None,
+           meta: Optional[Mapping[str, str]] = None,
+           quiet: bool = False) -> BridgeHandle:
+    """``wiretape record``: a transparent proxy between ``device`` and a pty
+    at ``pty`` (a symlink path; True for none) or a TCP listener at
+    ``listen``; every byte both ways is recorded to ``output``
+    (capture=wire). On a pty, the terminal settings the client sets are
+    applied to the device."""
+    return _start(device_options(device), pty=pty, listen=listen,
+                  output=os.fspath(output), metadata=dict(meta or {}),
+                  duration=duration, quiet=quiet)
+
+
+def serve(device: str, listen, *, output=None, protocol: str = "raw",
+          shared: bool = False, reopen: bool = False,
+          quiet: bool = False) -> BridgeHandle:
+    """``wiretape serve``: shares ``device`` with TCP clients at ``listen``
+    (127.0.0.1 unless a host is given), raw or RFC 2217, one controlling
+    client at a time (``shared``: later ones get read-only monitoring),
+    recording server-side to ``output`` if given; ``reopen`` waits for a
+    device that went away to come back."""
+    return _start(device_options(device), pty=None, listen=listen,
+                  output=os.fspath(output) if output else "", protocol=protocol,
+                  shared=shared, reopen=reopen, quiet=quiet)
+
+
+def serve_replay(file, *, pty=None, listen=None, replay_options: str = "",
+                 restart: bool = False, output=None,
+                 quiet: bool = False) -> BridgeHandle:
+    """``wiretape replay --pty/--listen``: the recording ``file`` becomes a
+    virtual device. ``replay_options`` are replay keys (``"timing=none,
+    check=data"``). A client that reconnects continues the session;
+    ``restart`` starts it over for each new TCP client. The result is ok,
+    or ``outcome == "mismatch"`` with the report in ``message``."""
+    options = "type=replay,file=" + _quote(os.fspath(file))
+    if replay_options.strip():
+        options += "," + replay_options.strip()
+    # A pty cannot tell the bridge when a client reopens it; the terminal
+    # settings of a replayed device are not applied anywhere.
+    return _start(options, pty=pty, listen=listen, restart=restart,
+                  output=os.fspath(output) if output else "",
+                  mirror_settings=False, quiet=quiet)
