@@ -12,6 +12,8 @@
 
 #include "hokuyo/scip.hpp"
 #include "wiretape/errors.hpp"
+#include "wiretape/port.hpp"
+#include <memory>
 
 namespace {
 
@@ -454,3 +456,69 @@ TEST(ScipRealDevice, Utm30lxMeScan) {
 }
 
 }  // namespace
+
+// --- through wiretape's replaying port ---------------------------------------
+
+namespace replayed {
+
+std::unique_ptr<wiretape::Port> open_or_skip(const std::string& options, const std::string& file) {
+  if (!std::ifstream(file)) return nullptr;
+  return wiretape::open_port(options);
+}
+
+TEST(ScipReplay, RealUrg04lxInRequestMode) {
+  const std::string log = WIRETAPE_SHARED_DATA_DIR "/flexiport/urg04lx_2011.log";
+  auto port = open_or_skip("type=replay,file=" + log + ",match=request,timing=none,unused=ignore",
+                           WIRETAPE_SHARED_DATA_DIR "/flexiport/urg04lx_2011.logr");
+  if (!port) GTEST_SKIP() << "shared data missing: " << log;
+  hokuyo::Driver driver(*port, fast_options());
+  driver.open();
+  driver.parameters();
+  driver.state();
+  driver.laser_on();
+  const auto scan = driver.get_scan(hokuyo::ScanMode::gd, 44, 725, 1);
+  EXPECT_EQ(scan.timestamp_ms, 6968830u);
+  ASSERT_EQ(scan.ranges.size(), 682u);
+  EXPECT_EQ(scan.ranges[4], 381u);
+}
+
+TEST(ScipReplay, BrokenDriverIsAMismatchAtTheScanRequest) {
+  const std::string log = WIRETAPE_SHARED_DATA_DIR "/flexiport/urg04lx_2011.log";
+  auto port = open_or_skip("type=replay,file=" + log + ",match=request,timing=none,unused=ignore",
+                           WIRETAPE_SHARED_DATA_DIR "/flexiport/urg04lx_2011.logr");
+  if (!port) GTEST_SKIP() << "shared data missing: " << log;
+  auto options = fast_options();
+  options.inject_bug = true;
+  hokuyo::Driver driver(*port, options);
+  driver.open();
+  driver.laser_on();
+  try {
+    driver.get_scan(hokuyo::ScanMode::gd, 44, 725, 1);
+    FAIL() << "the replay accepted a request the device was never sent";
+  } catch (const wiretape::ReplayMismatch& mismatch) {
+    EXPECT_EQ(mismatch.exchange(), 9);  // GD0044072501 is the tenth exchange
+    EXPECT_NE(std::string(mismatch.what()).find("GD0044072501"), std::string::npos)
+        << mismatch.what();
+  }
+}
+
+TEST(ScipReplay, CheckedInStreamRecordingInSequence) {
+  const std::string file = HOKUYO_RECORDINGS_DIR "/urg04lx_md.wtape";
+  auto port = open_or_skip("type=replay,timing=none,unused=error,file=" + file, file);
+  if (!port) GTEST_SKIP() << "recording missing: " << file;
+  hokuyo::Driver driver(*port, fast_options());
+  driver.open();
+  const auto params = driver.parameters();
+  driver.state();
+  driver.laser_on();
+  driver.start_stream(hokuyo::ScanMode::md, params.first_step, params.last_step, 3, 0, 3);
+  for (int remaining = 2; remaining >= 0; --remaining) {
+    const auto scan = driver.read_stream_scan();
+    EXPECT_EQ(scan.remaining, remaining);
+    EXPECT_EQ(scan.ranges.size(), 228u);
+  }
+  EXPECT_FALSE(driver.streaming());
+  port->close();
+}
+
+}  // namespace replayed
