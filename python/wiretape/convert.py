@@ -1,5 +1,282 @@
-"""Conversions between session formats. Placeholder."""
+"""Conversions between session formats.
+
+Formats:
+  ``wiretape``  a ``.wtape`` file (docs/session-format.md);
+  ``flexiport`` flexiport's two-file log: ``name.log`` stands for
+                ``name.logr`` + ``name.logw`` (read: both of its formats;
+                written: the new format, events dropped);
+  ``jsonl``     one JSON object per line: first ``{"header": {...}}``, then
+                one record per line as ``wiretape show --format jsonl``
+                prints it (``t_ns``, ``kind``, ``data_hex``, ``event``...);
+  ``pcapng``, ``mcap``  exports for Wireshark and Foxglove (written only).
+
+A format not given is taken from the file name: ``.wtape``; ``.log``,
+``.logr``, ``.logw``; ``.jsonl``; ``.pcapng``; ``.mcap``. A source with
+another name is sniffed (a ``.wtape`` file starts with its magic number).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import tempfile
+import time
+from typing import Iterator, Optional
+
+from . import _core
+from .inspect import record_to_json
+
+__all__ = ["convert", "detect_format", "FORMATS"]
+
+FORMATS = ("wiretape", "flexiport", "jsonl", "pcapng", "mcap")
+_READABLE = ("wiretape", "flexiport", "jsonl")
+_SUFFIXES = {
+    ".wtape": "wiretape",
+    ".log": "flexiport",
+    ".logr": "flexiport",
+    ".logw": "flexiport",
+    ".jsonl": "jsonl",
+    ".pcapng": "pcapng",
+    ".mcap": "mcap",
+}
+_MAGIC = b"\x89WTAPE\r\n"
 
 
-def convert(src, dst, from_format=None, to_format=None, progress=False):
-    raise NotImplementedError
+def detect_format(path, reading: bool) -> str:
+    """The format `path` names by its suffix (or, for a source, its magic)."""
+    path = os.fspath(path)
+    suffix = os.path.splitext(path)[1].lower()
+    if suffix in _SUFFIXES:
+        return _SUFFIXES[suffix]
+    if reading:
+        try:
+            with open(path, "rb") as handle:
+                if handle.read(len(_MAGIC)) == _MAGIC:
+                    return "wiretape"
+        except OSError:
+            pass
+        if os.path.exists(path + "r") or os.path.exists(path + "w"):
+            return "flexiport"
+    known = ", ".join(sorted(_SUFFIXES))
+    raise ValueError(
+        f"{path}: cannot tell the format from the name (known suffixes: {known}); "
+        f"say it with --{'from' if reading else 'to'} "
+        f"({'|'.join(_READABLE if reading else FORMATS)})"
+    )
+
+
+def _flexiport_prefix(path: str) -> str:
+    return path[:-1] if path.endswith((".logr", ".logw")) else path
+
+
+def _check_format(name: str, allowed) -> str:
+    if name not in allowed:
+        raise ValueError(f"unknown format {name!r}: one of {', '.join(allowed)}")
+    return name
+
+
+# --- jsonl -------------------------------------------------------------------
+
+def _jsonl_records(path: str) -> Iterator[tuple]:
+    """(header dict or None) first, then (kind, t_ns, data) per record."""
+    with open(path, "r", encoding="utf-8") as handle:
+        header_seen = False
+        for number, line in enumerate(handle, start=1):
+            line = line.strip()
+            if not line:
+                continue
+            try:
+                item = json.loads(line)
+            except ValueError as error:
+                raise ValueError(f"{path}:{number}: not JSON: {error}") from None
+            if not isinstance(item, dict):
+                raise ValueError(f"{path}:{number}: expected a JSON object")
+            if "header" in item:
+                if header_seen:
+                    raise ValueError(f"{path}:{number}: a second header line")
+                header_seen = True
+                yield ("header", item["header"])
+                continue
+            if not header_seen:
+                header_seen = True
+                yield ("header", None)
+            try:
+                t_ns = int(item["t_ns"])
+                kind = item["kind"] if "kind" in item else int(item["kind_code"])
+                if "data_hex" in item:
+                    data = bytes.fromhex(item["data_hex"])
+                elif "event" in item:
+                    data = json.dumps(item["event"], separators=(",", ":")).encode()
+                else:
+                    data = b""
+            except (KeyError, TypeError, ValueError) as error:
+                raise ValueError(
+                    f"{path}:{number}: a record needs t_ns, kind and data_hex ({error!r})"
+                ) from None
+            if t_ns < 0:
+                raise ValueError(f"{path}:{number}: t_ns must be >= 0")
+            yield ("record", (kind, t_ns, data))
+        if not header_seen:
+            yield ("header", None)
+
+
+def _header_of_reader(reader) -> dict:
+    header = reader.header
+    return {
+        "port_options": header["port_options"],
+        "port_type": header["port_type"],
+        "start_utc": header["start_utc"],
+        "wiretape_version": header["wiretape_version"],
+        "host": header["host"],
+        "capture": header["capture"],
+        "metadata": dict(header["metadata"]),
+        "source_format": header["source_format"],
+    }
+
+
+# --- progress ----------------------------------------------------------------
+
+class _Progress:
+    """A one-line progress report on stderr: records and bytes so far, and
+    the share of the source read (estimated from record sizes)."""
+
+    def __init__(self, enabled: bool, total_bytes: int):
+        self.enabled = enabled
+        self.total = max(total_bytes, 1)
+        self.done = 0
+        self.records = 0
+        self.last = 0.0
+
+    def step(self, size: int) -> None:
+        self.records += 1
+        self.done += size + 20  # a record's header and CRC
+        if self.enabled and time.monotonic() - self.last > 0.2:
+            self.last = time.monotonic()
+            share = min(100.0, 100.0 * self.done / self.total)
+            print(f"\r{self.records} records, {share:5.1f}%", end="", file=sys.stderr, flush=True)
+
+    def finish(self) -> None:
+        if self.enabled:
+            print(f"\r{self.records} records, 100.0%", file=sys.stderr, flush=True)
+
+
+def _source_size(path: str, fmt: str) -> int:
+    if fmt == "flexiport":
+        prefix = _flexiport_prefix(path)
+        return sum(os.path.getsize(prefix + s) for s in "rw" if os.path.exists(prefix + s))
+    return os.path.getsize(path) if os.path.exists(path) else 0
+
+
+# --- the conversion ----------------------------------------------------------
+
+def _records_of(src: str, fmt: str):
+    """(header dict, record iterator of (kind, t_ns, data), damage getter)."""
+    if fmt == "jsonl":
+        items = _jsonl_records(src)
+        _, header = next(items)
+
+        def records():
+            for _, (kind, t_ns, data) in items:
+                yield kind, t_ns, data
+
+        return header or {}, records(), lambda: None
+    reader = _core.SessionReader(src)
+
+    def records():
+        for record in reader:
+            yield record.kind, record.t_ns, record.data
+
+    return _header_of_reader(reader), records(), lambda: reader.damage
+
+
+def _write_wiretape(dst: str, header: dict, records, progress: _Progress) -> int:
+    metadata = {str(k): str(v) for k, v in (header.get("metadata") or {}).items()}
+    with _core.SessionWriter(
+        dst,
+        capture=header.get("capture") or "client",
+        port_options=header.get("port_options") or "",
+        port_type=header.get("port_type") or "",
+        metadata=metadata,
+        start_utc=header.get("start_utc") or "",
+        host=header.get("host") or "",
+        wiretape_version=header.get("wiretape_version") or "",
+        flush_ms=1000,
+    ) as writer:
+        for kind, t_ns, data in records:
+            writer.write(kind, t_ns, data)
+            progress.step(len(data))
+    return progress.records
+
+
+def _write_jsonl(dst: str, header: dict, records, progress: _Progress) -> int:
+    with open(dst, "w", encoding="utf-8") as out:
+        out.write(json.dumps({"header": header}, separators=(",", ":")) + "\n")
+        for kind, t_ns, data in records:
+            record = _core.Record(t_ns, kind, data)
+            out.write(json.dumps(record_to_json(record), separators=(",", ":")) + "\n")
+            progress.step(len(data))
+    return progress.records
+
+
+def convert(src, dst, from_format: Optional[str] = None, to_format: Optional[str] = None,
+            progress: bool = False) -> dict:
+    """Converts the session `src` into `dst`.
+
+    Returns ``{"records": N, "from": FORMAT, "to": FORMAT}``. A damaged
+    source is converted up to the damage, then its SessionError is raised
+    (``dst`` keeps everything before the damage). Header fields (start time,
+    host, capture, metadata...) are carried over where the target format
+    has them.
+    """
+    src = os.fspath(src)
+    dst = os.fspath(dst)
+    source_format = _check_format(from_format, _READABLE) if from_format else detect_format(src, True)
+    if source_format not in _READABLE:
+        raise ValueError(f"{src}: {source_format} files cannot be read, only written")
+    target_format = _check_format(to_format, FORMATS) if to_format else detect_format(dst, False)
+    if source_format == "flexiport":
+        src = _flexiport_prefix(src)
+    report = _Progress(progress, _source_size(src, source_format))
+    result = {"from": source_format, "to": target_format, "records": 0}
+
+    if target_format in ("pcapng", "mcap"):
+        from . import exports
+
+        session = src
+        with tempfile.TemporaryDirectory(prefix="wiretape-convert-") as scratch:
+            if source_format == "jsonl":
+                session = os.path.join(scratch, "session.wtape")
+                header, records, _ = _records_of(src, "jsonl")
+                _write_wiretape(session, header, records, _Progress(False, 0))
+            writer = exports.write_pcapng if target_format == "pcapng" else exports.write_mcap
+            writer(session, dst)
+            result["records"] = sum(1 for _ in _core.SessionReader(session))
+        return result
+
+    if target_format == "flexiport":
+        prefix = _flexiport_prefix(dst)
+        if source_format == "jsonl":
+            with tempfile.TemporaryDirectory(prefix="wiretape-convert-") as scratch:
+                session = os.path.join(scratch, "session.wtape")
+                header, records, _ = _records_of(src, "jsonl")
+                result["records"] = _write_wiretape(session, header, records, report)
+                _core.export_flexiport(session, prefix)
+        else:
+            _core.export_flexiport(src, prefix)
+            result["records"] = sum(
+                1 for record in _core.SessionReader(prefix) if record.kind in ("rx", "tx")
+            )
+        report.finish()
+        return result
+
+    header, records, damage = _records_of(src, source_format)
+    if target_format == "wiretape":
+        result["records"] = _write_wiretape(dst, header, records, report)
+    else:
+        result["records"] = _write_jsonl(dst, header, records, report)
+    report.finish()
+    problem = damage()
+    if problem is not None:
+        raise problem
+    return result
