@@ -1,5 +1,227 @@
-"""Comparing two sessions. Placeholder."""
+"""Comparing two sessions, direction by direction.
+
+``diff(a, b)`` compares the rx (device to host) and tx (host to device) byte
+streams of two sessions. How the bytes were split into records does not
+matter (a recording made by another program, or converted from flexiport's
+one-byte chunks, compares equal if the bytes are the same); events are
+counted in the summary but not compared. Both sessions are streamed: memory
+does not depend on their size.
+
+``a`` and ``b`` are paths of session files (``.wtape`` or a flexiport
+``name.log``) or iterables of records (objects with ``t_ns``, ``kind`` and
+``data``, such as ``wiretape.Record``).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import Iterable, Iterator, List, Optional, Tuple, Union
+
+DIRECTIONS = ("rx", "tx")
+_CONTEXT = 16
+
+SessionLike = Union[str, "os.PathLike[str]", Iterable]
 
 
-def diff(a, b):
-    raise NotImplementedError
+def _hex_ascii(data: bytes) -> str:
+    if not data:
+        return "(none)"
+    text = "".join(chr(b) if 0x20 <= b < 0x7F else "." for b in data)
+    return data.hex(" ") + "  |" + text + "|"
+
+
+def _seconds(t_ns: Optional[int]) -> str:
+    return "-" if t_ns is None else f"{t_ns / 1e9:.6f} s"
+
+
+def _kind_name(kind) -> str:
+    return kind if isinstance(kind, str) else str(getattr(kind, "name", kind))
+
+
+class _Records:
+    """The records of one session, once, with the damage (if any) noted."""
+
+    def __init__(self, source: SessionLike):
+        self.name = str(source) if isinstance(source, (str, os.PathLike)) else "<records>"
+        self.damage: Optional[str] = None
+        self.events = 0
+        self._source = source
+
+    def __iter__(self) -> Iterator:
+        if isinstance(self._source, (str, os.PathLike)):
+            from ._core import SessionReader
+
+            with SessionReader(os.fspath(self._source)) as reader:
+                yield from reader
+                damage = reader.damage
+                if damage is not None:
+                    self.damage = str(getattr(damage, "message", damage))
+        else:
+            yield from self._source
+
+
+class _Cursor:
+    """The byte stream of one direction, consumed record by record."""
+
+    def __init__(self, records: Iterator, kind: str):
+        self._records = records
+        self._kind = kind
+        self.data = b""  # what is left of the current record
+        self.t_ns: Optional[int] = None
+        self.bytes = 0
+        self.records = 0
+        self.ended = False
+
+    def fill(self) -> bool:
+        while not self.data and not self.ended:
+            try:
+                record = next(self._records)
+            except StopIteration:
+                self.ended = True
+                break
+            if _kind_name(record.kind) != self._kind or not record.data:
+                continue
+            self.data = bytes(record.data)
+            self.t_ns = record.t_ns
+            self.bytes += len(self.data)
+            self.records += 1
+        return bool(self.data)
+
+    def consume(self, n: int) -> None:
+        self.data = self.data[n:]
+
+    def drain(self) -> None:
+        while self.fill():
+            self.data = b""
+
+
+@dataclass
+class DirectionDiff:
+    """One direction of a comparison."""
+
+    direction: str
+    identical: bool = True
+    offset: Optional[int] = None  # first differing byte, or where one ended
+    time_a_ns: Optional[int] = None
+    time_b_ns: Optional[int] = None
+    before: bytes = b""
+    at_a: bytes = b""
+    at_b: bytes = b""
+    bytes_a: int = 0
+    bytes_b: int = 0
+    records_a: int = 0
+    records_b: int = 0
+
+    def report(self) -> str:
+        counts = (
+            f"A {self.bytes_a} bytes in {self.records_a} records, "
+            f"B {self.bytes_b} bytes in {self.records_b} records"
+        )
+        if self.identical:
+            return f"{self.direction}: identical ({counts})"
+        if not self.at_a or not self.at_b:
+            shorter = "A" if not self.at_a else "B"
+            headline = f"{self.direction}: {shorter} ends at byte {self.offset}"
+        else:
+            headline = f"{self.direction}: first difference at byte {self.offset}"
+        return "\n".join(
+            [
+                f"{headline} (A at {_seconds(self.time_a_ns)}, B at {_seconds(self.time_b_ns)})",
+                f"  before: {_hex_ascii(self.before)}",
+                f"  A:      {_hex_ascii(self.at_a)}",
+                f"  B:      {_hex_ascii(self.at_b)}",
+                f"  {counts}",
+            ]
+        )
+
+
+@dataclass
+class DiffResult:
+    """The outcome of diff(): identical, per-direction details, report()."""
+
+    a: str
+    b: str
+    directions: List[DirectionDiff] = field(default_factory=list)
+    damage_a: Optional[str] = None
+    damage_b: Optional[str] = None
+
+    @property
+    def identical(self) -> bool:
+        return all(d.identical for d in self.directions)
+
+    def __bool__(self) -> bool:  # truthy when the sessions differ, like a diff
+        return not self.identical
+
+    def __getitem__(self, direction: str) -> DirectionDiff:
+        for d in self.directions:
+            if d.direction == direction:
+                return d
+        raise KeyError(direction)
+
+    def report(self) -> str:
+        lines = [f"A: {self.a}", f"B: {self.b}"]
+        lines += [d.report() for d in self.directions]
+        for name, damage in (("A", self.damage_a), ("B", self.damage_b)):
+            if damage:
+                lines.append(f"{name} is damaged; compared up to the damage: {damage}")
+        lines.append("sessions are identical" if self.identical else "sessions differ")
+        return "\n".join(lines)
+
+
+def _compare(a: _Records, b: _Records, direction: str) -> DirectionDiff:
+    ca, cb = _Cursor(iter(a), direction), _Cursor(iter(b), direction)
+    result = DirectionDiff(direction)
+    history = b""
+    offset = 0
+    while True:
+        has_a, has_b = ca.fill(), cb.fill()
+        if not has_a and not has_b:
+            break
+        n = min(len(ca.data), len(cb.data))
+        if n and ca.data[:n] == cb.data[:n]:
+            history = (history + ca.data[:n])[-_CONTEXT:]
+            offset += n
+            ca.consume(n)
+            cb.consume(n)
+            continue
+        same = 0
+        while same < n and ca.data[same] == cb.data[same]:
+            same += 1
+        history = (history + ca.data[:same])[-_CONTEXT:]
+        ca.consume(same)
+        cb.consume(same)
+        result.identical = False
+        result.offset = offset + same
+        result.before = history
+        result.at_a = ca.data[:_CONTEXT]
+        result.at_b = cb.data[:_CONTEXT]
+        result.time_a_ns = ca.t_ns if ca.data else None
+        result.time_b_ns = cb.t_ns if cb.data else None
+        break
+    ca.drain()
+    cb.drain()
+    result.bytes_a, result.bytes_b = ca.bytes, cb.bytes
+    result.records_a, result.records_b = ca.records, cb.records
+    return result
+
+
+def diff(a: SessionLike, b: SessionLike) -> DiffResult:
+    """Compares sessions ``a`` and ``b``: the first divergence per direction.
+
+    Raises wiretape.SessionError if a file cannot be read at all; a damaged
+    file is compared up to its damage, which the report mentions.
+    """
+    if not isinstance(a, (str, os.PathLike)):
+        a = list(a)
+    if not isinstance(b, (str, os.PathLike)):
+        b = list(b)
+    records_a, records_b = _Records(a), _Records(b)
+    result = DiffResult(records_a.name, records_b.name)
+    for direction in DIRECTIONS:
+        result.directions.append(_compare(records_a, records_b, direction))
+    result.damage_a, result.damage_b = records_a.damage, records_b.damage
+    return result
+
+
+__all__ = ["diff", "DiffResult", "DirectionDiff"]
