@@ -1,0 +1,194 @@
+"""Session files from Python: SessionReader, SessionWriter, Record,
+export_flexiport, and the golden files of tests/data/golden."""
+
+import json
+import pathlib
+import struct
+
+import pytest
+
+from wiretape import _core
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+GOLDEN = ROOT / "tests" / "data" / "golden"
+FLEXIPORT = ROOT.parent / "shared" / "data" / "flexiport"
+GOLDEN_NAMES = ["all_kinds", "wire", "unknown_kind", "damaged"]
+
+
+def load_jsonl(name):
+    lines = [json.loads(line) for line in (GOLDEN / f"{name}.jsonl").read_text().splitlines() if line]
+    header = lines[0]["header"]
+    records = [line for line in lines[1:] if "t_ns" in line]
+    corrupt = next((line for line in lines if "corrupt" in line), None)
+    return header, records, corrupt
+
+
+@pytest.mark.parametrize("name", GOLDEN_NAMES)
+def test_golden_file_reads_as_its_jsonl_says(name):
+    header, records, corrupt = load_jsonl(name)
+    reader = _core.SessionReader(GOLDEN / f"{name}.wtape")
+    got = reader.header
+    for key in ("port_options", "port_type", "start_utc", "wiretape_version", "host", "capture"):
+        assert got[key] == header[key], key
+    assert got["metadata"] == header["metadata"]
+    expected = [r for r in records if not r.get("skipped") and r.get("readable", True)]
+    actual = [(r.t_ns, r.kind, r.data.hex()) for r in reader]
+    assert actual == [(r["t_ns"], r["kind"], r["data_hex"]) for r in expected]
+    if corrupt:
+        assert reader.damage is not None
+        assert reader.damage.offset == corrupt["damage_offset"]
+        assert "corrupt" in reader.damage.message
+    else:
+        assert reader.damage is None
+
+
+@pytest.mark.parametrize("name", GOLDEN_NAMES)
+def test_writer_recreates_golden_file_byte_for_byte(tmp_path, name):
+    header, records, corrupt = load_jsonl(name)
+    path = tmp_path / "out.wtape"
+    with _core.SessionWriter(
+        path,
+        capture=header["capture"],
+        port_options=header["port_options"],
+        port_type=header["port_type"],
+        metadata=header["metadata"],
+        start_utc=header["start_utc"],
+        host=header["host"],
+        wiretape_version=header["wiretape_version"],
+    ) as writer:
+        for r in records:
+            kind = r["kind"] if "kind" in r else r["kind_code"]
+            writer.write(kind, r["t_ns"], bytes.fromhex(r["data_hex"]))
+    data = bytearray(path.read_bytes())
+    if corrupt:
+        data[corrupt["corrupt"]["byte"]] ^= corrupt["corrupt"]["xor"]
+    assert bytes(data) == (GOLDEN / f"{name}.wtape").read_bytes()
+
+
+def test_record_fields_and_equality():
+    record = _core.Record(12, "rx", b"\x00\xff")
+    assert (record.t_ns, record.kind, record.data, record.kind_code) == (12, "rx", b"\x00\xff", 1)
+    assert record == _core.Record(12, "rx", b"\x00\xff")
+    assert _core.Record(0, "break").kind == "break"
+    assert "kind='rx'" in repr(record)
+    with pytest.raises(ValueError, match="unknown record kind 'nope'"):
+        _core.Record(0, "nope")
+
+
+def test_writer_and_reader_round_trip_with_paths_and_rewind(tmp_path):
+    path = tmp_path / "s.wtape"
+    writer = _core.SessionWriter(str(path), capture="wire", port_type="tcp", metadata={"k": "v"})
+    writer.write("open", 0, b"{}")
+    writer.write("tx", 10, b"hello")
+    writer.write("rx", 20, bytes(range(256)) * 10)
+    writer.close()
+    writer.close()  # closing twice is harmless
+    with pytest.raises(ValueError, match="closed"):
+        writer.write("rx", 30, b"late")
+    reader = _core.SessionReader(path)
+    assert reader.header["capture"] == "wire"
+    assert reader.header["port_type"] == "tcp"
+    assert reader.header["metadata"] == {"k": "v"}
+    assert reader.header["source_format"] == "wiretape"
+    first = [(r.kind, r.t_ns, r.data) for r in reader]
+    assert first == [("open", 0, b"{}"), ("tx", 10, b"hello"), ("rx", 20, bytes(range(256)) * 10)]
+    reader.rewind()
+    assert [(r.kind, r.t_ns, r.data) for r in reader] == first
+
+
+def test_bad_arguments_are_clear_errors(tmp_path):
+    with pytest.raises(ValueError, match="capture must be 'client' or 'wire'"):
+        _core.SessionWriter(tmp_path / "x.wtape", capture="proxy")
+    with pytest.raises(_core.PortError) as info:
+        _core.SessionWriter(tmp_path / "no" / "such" / "dir.wtape")
+    assert "no/such/dir.wtape" in str(info.value)
+
+
+@pytest.mark.parametrize(
+    "content, words, offset",
+    [
+        (None, "No such file", 0),
+        (b"", "empty file", 0),
+        (b"not a session at all, just text\n", "wrong magic", 0),
+        (b"\x89WTAPE\r\n\x01\x00", "truncated header", 10),
+        (b"\x89WTAPE\r\n\x02\x00\x00\x00\x02\x00\x00\x00{}\x00\x00\x00\x00", "newer than this reader", 8),
+    ],
+)
+def test_unusable_files_raise_session_error_with_offset(tmp_path, content, words, offset):
+    path = tmp_path / "bad.wtape"
+    if content is not None:
+        path.write_bytes(content)
+    with pytest.raises(_core.SessionError) as info:
+        _core.SessionReader(path)
+    assert words in str(info.value)
+    assert info.value.offset == offset
+    assert isinstance(info.value, ValueError)
+
+
+def test_truncated_file_keeps_every_whole_record(tmp_path):
+    path = tmp_path / "s.wtape"
+    with _core.SessionWriter(path) as writer:
+        for i in range(10):
+            writer.write("rx", i, b"x" * i)
+    data = path.read_bytes()
+    path.write_bytes(data[:-3])
+    reader = _core.SessionReader(path)
+    assert [r.t_ns for r in reader] == list(range(9))
+    assert reader.damage is not None
+    assert "truncated" in reader.damage.message
+
+
+def flexiport_chunks(path):
+    data = path.read_bytes()
+    at, chunks = 0, []
+    while at < len(data):
+        sec, usec, length = struct.unpack(">III", data[at:at + 12])
+        chunks.append((sec * 10**9 + usec * 1000, data[at + 12:at + 12 + length]))
+        at += 12 + length
+    return chunks
+
+
+@pytest.mark.parametrize("name", ["urg04lx_2011", "utm30lx_2011"])
+def test_flexiport_import_keeps_every_byte_and_time(name):
+    prefix = FLEXIPORT / f"{name}.log"
+    reader = _core.SessionReader(prefix)
+    assert reader.header["source_format"] == "flexiport"
+    records = list(reader)
+    assert reader.damage is None
+    assert [(r.t_ns, r.data) for r in records if r.kind == "rx"] == flexiport_chunks(FLEXIPORT / f"{name}.logr")
+    assert [(r.t_ns, r.data) for r in records if r.kind == "tx"] == flexiport_chunks(FLEXIPORT / f"{name}.logw")
+    times = [r.t_ns for r in records]
+    assert times == sorted(times)
+
+
+@pytest.mark.parametrize("name", ["urg04lx_2011", "utm30lx_2011"])
+def test_flexiport_round_trip_through_wtape_is_byte_for_byte(tmp_path, name):
+    prefix = FLEXIPORT / f"{name}.log"
+    session = tmp_path / "s.wtape"
+    with _core.SessionWriter(session) as writer:
+        for record in _core.SessionReader(prefix):
+            writer.write(record.kind, record.t_ns, record.data)
+    _core.export_flexiport(session, tmp_path / "out.log")
+    assert (tmp_path / "out.logr").read_bytes() == (FLEXIPORT / f"{name}.logr").read_bytes()
+    assert (tmp_path / "out.logw").read_bytes() == (FLEXIPORT / f"{name}.logw").read_bytes()
+
+
+def test_crc32c_check_value():
+    assert _core.crc32c(b"123456789") == 0xE3069283
+    assert _core.crc32c(b"6789", _core.crc32c(b"12345")) == 0xE3069283
+
+
+def test_port_with_log_option_records_what_crossed(tmp_path):
+    path = tmp_path / "loop.wtape"
+    port = _core.open_port(f"type=loopback,timeout=2,log={path},meta_robot=r2")
+    port.write(b"ping")
+    assert port.read_exactly(4) == b"ping"
+    port.close()
+    reader = _core.SessionReader(path)
+    assert reader.header["port_type"] == "loopback"
+    assert reader.header["metadata"] == {"robot": "r2"}
+    records = list(reader)
+    assert records[0].kind == "open" and records[0].t_ns == 0
+    assert records[-1].kind == "close"
+    assert b"".join(r.data for r in records if r.kind == "tx") == b"ping"
+    assert b"".join(r.data for r in records if r.kind == "rx") == b"ping"
