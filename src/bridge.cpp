@@ -206,9 +206,10 @@ struct Bridge::Impl {
         std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - t0_).count());
   }
 
-  void record(RecordKind kind, std::string_view data) {
+  void record(RecordKind kind, std::string_view data) { record_at(kind, now_ns(), data); }
+  void record_at(RecordKind kind, std::uint64_t t_ns, std::string_view data) {
     if (!writer_) return;
-    writer_->write(kind, now_ns(), data);
+    writer_->write(kind, t_ns, data);
     update_stats([](BridgeStats& s) { ++s.records_written; });
   }
 
@@ -435,7 +436,8 @@ void Bridge::Impl::open_device(bool first, const char* why) {
   json::ObjectWriter event;
   event.add("description", description);
   if (why) event.add(why, true);
-  record(RecordKind::open, event.str());
+  // Time zero is the device's first open.
+  record_at(RecordKind::open, first ? 0 : now_ns(), event.str());
 }
 
 void Bridge::Impl::open_listener() {
