@@ -1,9 +1,13 @@
 // The recording port (log=FILE): what it records, that it forwards
 // everything unchanged, and what happens when recording fails.
+#include <arpa/inet.h>
 #include <fcntl.h>
+#include <netinet/in.h>
 #include <signal.h>
 #include <sys/resource.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
+#include <stdlib.h>
 #include <unistd.h>
 
 #include <gtest/gtest.h>
@@ -434,4 +438,89 @@ TEST(RecordingPort, RecordingFailureWithWarnPrintsOnceAndNeverRaises) {
   while (reader.next(record)) {
   }
   EXPECT_FALSE(reader.damage());
+}
+
+// flexiport's logging port types: the named transport wrapped in a recorder,
+// `file` as `log`. flexiport's LogWriter crashed when an option key sorted
+// after `file`; here keys come in any order.
+TEST(FlexiportLoggingTypes, TcplogWithKeysAfterFileRecordsTheSession) {
+  TempDir dir;
+  const std::string path = dir.file("tcp.wtape");
+  const int listener = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  ASSERT_GE(listener, 0);
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  ASSERT_EQ(::bind(listener, reinterpret_cast<sockaddr*>(&address), sizeof address), 0);
+  ASSERT_EQ(::listen(listener, 1), 0);
+  socklen_t length = sizeof address;
+  ASSERT_EQ(::getsockname(listener, reinterpret_cast<sockaddr*>(&address), &length), 0);
+  const int port_number = ntohs(address.sin_port);
+
+  auto port = open_port("type=tcplog,file=" + path + ",host=127.0.0.1,port=" +
+                        std::to_string(port_number) + ",timeout=5,nodelay=1");
+  const int peer = ::accept(listener, nullptr, nullptr);
+  ASSERT_GE(peer, 0);
+  EXPECT_EQ(port->type(), "tcp");
+  ASSERT_EQ(port->write_all("VV\n"), 3u);
+  char request[3];
+  ASSERT_EQ(::recv(peer, request, sizeof request, MSG_WAITALL), 3);
+  ASSERT_EQ(::send(peer, "VV\n00P\n\n", 8, 0), 8);
+  EXPECT_EQ(port->read_until("\n\n"), "VV\n00P\n\n");
+  port->close();
+  ::close(peer);
+  ::close(listener);
+
+  SessionReader reader(path);
+  EXPECT_EQ(reader.header().port_type, "tcp");
+  std::string tx;
+  std::string rx;
+  Record record;
+  while (reader.next(record)) {
+    if (record.kind == RecordKind::tx) tx += record.data;
+    if (record.kind == RecordKind::rx) rx += record.data;
+  }
+  EXPECT_FALSE(reader.damage());
+  EXPECT_EQ(tx, "VV\n");
+  EXPECT_EQ(rx, "VV\n00P\n\n");
+}
+
+TEST(FlexiportLoggingTypes, SeriallogOnAPseudoTerminalRecordsSettings) {
+  TempDir dir;
+  const std::string path = dir.file("serial.wtape");
+  const int master = ::posix_openpt(O_RDWR | O_NOCTTY | O_CLOEXEC);
+  ASSERT_GE(master, 0);
+  ASSERT_EQ(::grantpt(master), 0);
+  ASSERT_EQ(::unlockpt(master), 0);
+  const std::string device = ::ptsname(master);
+  std::unique_ptr<Port> port;
+  try {
+    port = open_port("type=seriallog,device=" + device + ",file=" + path +
+                     ",baud=115200,timeout=5");
+  } catch (const PortError& e) {
+    ::close(master);
+    GTEST_SKIP() << "a pty cannot be opened as a serial port here: " << e.what();
+  }
+  port->set_baud(57600);
+  ASSERT_EQ(port->write_all("ping"), 4u);
+  char got[4];
+  std::size_t have = 0;
+  while (have < 4) {
+    const ssize_t n = ::read(master, got + have, 4 - have);
+    ASSERT_GT(n, 0);
+    have += static_cast<std::size_t>(n);
+  }
+  port->close();
+  ::close(master);
+  SessionReader reader(path);
+  EXPECT_EQ(reader.header().port_type, "serial");
+  std::vector<std::string> kinds;
+  Record record;
+  std::string settings;
+  while (reader.next(record)) {
+    kinds.emplace_back(to_string(record.kind));
+    if (record.kind == RecordKind::settings) settings = record.data;
+  }
+  EXPECT_EQ(kinds, (std::vector<std::string>{"open", "settings", "tx", "close"}));
+  EXPECT_EQ(settings, "{\"baud\":57600}");
 }
