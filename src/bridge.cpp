@@ -470,6 +470,15 @@ void Bridge::Impl::open_listener() {
     listen_address_ = address_of(reinterpret_cast<sockaddr*>(&bound), length);
   }
   listener_ = std::move(fd);
+  const std::string host = options_.listen_host;
+  if (host == "127.0.0.1" || host == "::1" || host == "localhost") {
+    message("listening on " + listen_address_ +
+            " (this machine only; give HOST:PORT, e.g. 0.0.0.0:" +
+            listen_address_.substr(listen_address_.rfind(':') + 1) +
+            ", to accept other machines)");
+  } else {
+    message("listening on " + listen_address_);
+  }
 }
 
 void Bridge::Impl::open_all() {

@@ -1,0 +1,236 @@
+"""wiretape serve, raw protocol: one controlling client at a time, refused or
+read-only (--shared) extra clients, a device that stays open across clients,
+device loss reported and survived with --reopen, server-side recording."""
+
+import json
+import select
+import socket
+import threading
+import time
+
+import pytest
+
+from wiretape import _core, bridge
+
+DEADLINE = 10.0
+
+
+class TcpDevice:
+    """A device on TCP answering each chunk in upper case; ``drop()`` closes
+    the current connection as a device that goes away would."""
+
+    def __init__(self):
+        self.server = socket.socket()
+        self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.server.bind(("127.0.0.1", 0))
+        self.server.listen(4)
+        self.port = self.server.getsockname()[1]
+        self.options = f"type=tcp,port={self.port}"
+        self.received = bytearray()
+        self.connections = 0
+        self.accepting = threading.Event()
+        self.accepting.set()
+        self._drop = threading.Event()
+        self._stop = threading.Event()
+        self._conn = None
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self):
+        while not self._stop.is_set():
+            ready, _, _ = select.select([self.server], [], [], 0.05)
+            if not ready or not self.accepting.is_set():
+                continue
+            conn, _ = self.server.accept()
+            self.connections += 1
+            with conn:
+                while not self._stop.is_set() and not self._drop.is_set():
+                    ready, _, _ = select.select([conn], [], [], 0.05)
+                    if not ready:
+                        continue
+                    data = conn.recv(65536)
+                    if not data:
+                        break
+                    self.received += data
+                    conn.sendall(data.upper())
+                if self._drop.is_set():
+                    # A reset, not a polite close: the device vanished.
+                    conn.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, b"\x01\x00\x00\x00\x00\x00\x00\x00")
+                    self._drop.clear()
+
+    def drop(self):
+        self._drop.set()
+
+    def send(self, data):
+        raise NotImplementedError
+
+    def close(self):
+        self._stop.set()
+        self._thread.join(DEADLINE)
+        self.server.close()
+
+
+@pytest.fixture
+def device():
+    dev = TcpDevice()
+    yield dev
+    dev.close()
+
+
+def connect(handle):
+    host, port = handle.address.rsplit(":", 1)
+    return socket.create_connection((host, int(port)), timeout=DEADLINE)
+
+
+def read_exactly(sock, count):
+    data = bytearray()
+    while len(data) < count:
+        chunk = sock.recv(count - len(data))
+        if not chunk:
+            break
+        data += chunk
+    return bytes(data)
+
+
+def read_to_end(sock):
+    data = bytearray()
+    while True:
+        chunk = sock.recv(4096)
+        if not chunk:
+            return bytes(data)
+        data += chunk
+
+
+def wait_for(predicate, what):
+    deadline = time.monotonic() + DEADLINE
+    while not predicate():
+        if time.monotonic() > deadline:
+            pytest.fail(f"timed out waiting for {what}")
+        time.sleep(0.005)
+
+
+def finish(handle):
+    handle.stop()
+    assert handle.wait(DEADLINE)
+    return handle.result()
+
+
+def test_one_client_talks_to_the_device(device):
+    handle = bridge.serve(device.options, "0", quiet=True)
+    try:
+        assert handle.address.startswith("127.0.0.1:")
+        assert any("this machine only" in m for m in handle.messages())
+        with connect(handle) as client:
+            client.sendall(b"ping\xff\x00")
+            assert read_exactly(client, 6) == b"PING\xff\x00"
+    finally:
+        assert finish(handle)["ok"]
+
+
+def test_second_client_is_refused_with_a_message(device):
+    handle = bridge.serve(device.options, "127.0.0.1:0", quiet=True)
+    try:
+        with connect(handle) as first:
+            first.sendall(b"a")
+            assert read_exactly(first, 1) == b"A"
+            with connect(handle) as second:
+                refusal = read_to_end(second)
+            assert b"in use by another client" in refusal
+            assert b"--shared" in refusal
+            # The first client is unaffected.
+            first.sendall(b"b")
+            assert read_exactly(first, 1) == b"B"
+        assert handle.stats()["clients_refused"] == 1
+    finally:
+        finish(handle)
+
+
+def test_shared_clients_watch_read_only(device):
+    handle = bridge.serve(device.options, "127.0.0.1:0", shared=True, quiet=True)
+    try:
+        with connect(handle) as control, connect(handle) as monitor:
+            wait_for(lambda: handle.stats()["clients_accepted"] == 2, "two clients")
+            monitor.sendall(b"ignored")
+            control.sendall(b"hello")
+            assert read_exactly(control, 5) == b"HELLO"
+            assert read_exactly(monitor, 5) == b"HELLO"
+        assert bytes(device.received) == b"hello"
+    finally:
+        finish(handle)
+
+
+def test_device_stays_open_when_a_client_leaves(device):
+    handle = bridge.serve(device.options, "127.0.0.1:0", quiet=True)
+    try:
+        for word in (b"one", b"two", b"three"):
+            with connect(handle) as client:
+                client.sendall(word)
+                assert read_exactly(client, len(word)) == word.upper()
+            wait_for(lambda: bridge_has_no_client(handle), "the client to leave")
+        assert device.connections == 1
+    finally:
+        finish(handle)
+
+
+def bridge_has_no_client(handle):
+    return sum("disconnected" in m for m in handle.messages()) >= \
+        sum("connected" in m and "disconnected" not in m for m in handle.messages())
+
+
+def test_device_loss_without_reopen_ends_the_server(device):
+    handle = bridge.serve(device.options, "127.0.0.1:0", quiet=True)
+    with connect(handle) as client:
+        client.sendall(b"x")
+        assert read_exactly(client, 1) == b"X"
+        device.drop()
+        client.sendall(b"y")  # the device is gone: the client sees its connection end
+        assert read_to_end(client) in (b"", b"Y")
+    assert handle.wait(DEADLINE)
+    result = handle.result()
+    assert result["outcome"] == "device_closed"
+    assert "went away" in result["message"]
+
+
+def test_reopen_after_device_loss(device, tmp_path):
+    out = tmp_path / "served.wtape"
+    handle = bridge.serve(device.options, "127.0.0.1:0", output=out, reopen=True, quiet=True)
+    try:
+        with connect(handle) as client:
+            client.sendall(b"before")
+            assert read_exactly(client, 6) == b"BEFORE"
+            device.accepting.clear()
+            device.drop()
+            wait_for(lambda: handle.stats()["device_losses"] == 1, "the loss to be noticed")
+            # The loss reaches the client as the end of its connection.
+            assert read_to_end(client) == b""
+        assert handle.running
+        # While the device is away, clients are told so.
+        with connect(handle) as early:
+            assert b"unavailable" in read_to_end(early)
+        device.accepting.set()
+        wait_for(lambda: handle.stats()["device_reopens"] == 1, "the device to be reopened")
+        with connect(handle) as client:
+            client.sendall(b"after")
+            assert read_exactly(client, 5) == b"AFTER"
+        assert device.connections == 2
+    finally:
+        result = finish(handle)
+    assert result["ok"]
+    with _core.SessionReader(str(out)) as reader:
+        records = list(reader)
+    kinds = [r.kind for r in records]
+    assert kinds.count("open") == 2
+    assert "device_lost" in kinds
+    assert kinds.index("device_lost") < len(kinds) - 1 - kinds[::-1].index("open")
+    connects = [json.loads(r.data) for r in records if r.kind == "client_connect"]
+    assert all(c["peer"].startswith("127.0.0.1:") for c in connects)
+    assert kinds.count("client_disconnect") == kinds.count("client_connect")
+    assert b"".join(r.data for r in records if r.kind == "tx").startswith(b"before")
+    assert b"".join(r.data for r in records if r.kind == "rx") == b"BEFOREAFTER"
+
+
+def test_bad_listen_address_is_a_clear_error(device):
+    with pytest.raises(ValueError, match="out of range"):
+        bridge.serve(device.options, "127.0.0.1:70000")
+    with pytest.raises(_core.PortError, match="resolve|bind"):
+        bridge.serve(device.options, "no.such.host.invalid:0", quiet=True)
