@@ -435,15 +435,20 @@ def serve_pty(device, link, log, stop, ready):
             time.sleep(0.05)
             return b""
 
+    os.set_blocking(master, False)
+
     def write(data):
+        # A device keeps talking whether or not anyone reads: when the
+        # terminal's buffer stays full (no client, or one that stopped
+        # reading), the rest is lost, as on a real line.
         view = memoryview(data)
         while view:
             try:
-                n = os.write(master, view)
+                view = view[os.write(master, view):]
             except BlockingIOError:
-                select.select([], [master], [], 0.5)
-                continue
-            view = view[n:]
+                if not select.select([], [master], [], 0.5)[1]:
+                    log("nobody reads: %d bytes dropped" % len(view))
+                    return
 
     def apply_baud(baud):
         # The terminal's speed is what a driver on the other side sees.

@@ -293,29 +293,48 @@ VersionInfo Driver::version() {
   return info;
 }
 
+void Driver::drain_until_quiet(std::chrono::milliseconds quiet,
+                               std::chrono::milliseconds limit) {
+  const auto end = std::chrono::steady_clock::now() + limit;
+  char scratch[512];
+  while (std::chrono::steady_clock::now() < end) {
+    if (port_.read(scratch, sizeof scratch, quiet) == 0) return;
+  }
+}
+
 VersionInfo Driver::open() {
   const auto saved = options_.line_timeout;
   options_.line_timeout = options_.probe_timeout;
+  struct Restore {
+    DriverOptions& options;
+    std::chrono::milliseconds line_timeout;
+    ~Restore() { options.line_timeout = line_timeout; }
+  } restore{options_, saved};
   try {
-    VersionInfo info = version();
-    options_.line_timeout = saved;
-    return info;
+    return version();
   } catch (const ProtocolError&) {
-    // No valid SCIP 2.0 reply: a URG-04LX powers on speaking SCIP 1.1. Let
-    // whatever it said go by, then ask it to switch.
-    while (port_.read_until("\n", max_line_bytes, std::chrono::milliseconds(100))
-               .size() > 0) {
-    }
   }
-  options_.line_timeout = saved;
+  // No valid reply. A device left streaming by an earlier program fills the
+  // line with scans: stop it, let the line go quiet, and ask again.
+  drain_until_quiet(std::chrono::milliseconds(100), options_.probe_timeout);
+  send("QT");
+  drain_until_quiet(std::chrono::milliseconds(100), options_.probe_timeout);
+  try {
+    return version();
+  } catch (const ProtocolError&) {
+  }
+  // Still nothing valid: a URG-04LX powers on speaking SCIP 1.1; ask it to
+  // switch. A SCIP 1.1 device answers "SCIP2.0", "0", ""; one already in
+  // 2.0 answers with a 2.0 status. Either way the next VV tells.
+  drain_until_quiet(std::chrono::milliseconds(100), options_.probe_timeout);
   send("SCIP2.0");
-  // A SCIP 1.1 device answers "SCIP2.0", "0", ""; one already in 2.0 answers
-  // with a 2.0 status. Either way the next VV tells.
   const std::string echo = read_line("SCIP2.0");
   if (echo != "SCIP2.0")
     throw ProtocolError("SCIP2.0", "no valid reply to VV, and the reply to SCIP2.0 "
                                    "echoes \"" + printable(echo) + "\"");
-  while (!read_line("SCIP2.0").empty()) {
+  for (int lines = 0; !read_line("SCIP2.0").empty(); ++lines) {
+    if (lines > 8)
+      throw ProtocolError("SCIP2.0", "the reply to SCIP2.0 does not end");
   }
   switched_from_scip1_ = true;
   return version();
@@ -516,10 +535,8 @@ void Driver::recover() {
       continue;
     }
     if (line.empty()) {
-      // Let the line go quiet, then drop anything a slow device still sent.
-      while (port_.read_until("\n", max_line_bytes, std::chrono::milliseconds(50))
-                 .size() > 0) {
-      }
+      // Let the line go quiet, dropping anything a slow device still sent.
+      drain_until_quiet(std::chrono::milliseconds(50), options_.line_timeout);
       return;
     }
   }

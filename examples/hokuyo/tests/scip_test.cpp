@@ -146,7 +146,21 @@ TEST(ScipDriver, OpenSwitchesAScip11DeviceOnlyWhenVvFails) {
   hokuyo::Driver driver(device, fast_options());
   EXPECT_EQ(driver.open().serial, "H0706400");
   EXPECT_TRUE(driver.switched_from_scip1());
-  EXPECT_EQ(device.commands, (std::vector<std::string>{"VV", "SCIP2.0", "VV"}));
+  EXPECT_EQ(device.commands, (std::vector<std::string>{"VV", "QT", "VV", "SCIP2.0", "VV"}));
+}
+
+TEST(ScipDriver, OpenStopsAStreamLeftRunningWithoutSwitchingProtocol) {
+  ScriptedDevice device;
+  // Scans of an earlier program's stream are still waiting to be read.
+  device.rx = "MD0044072501000\n" + status_line("99") + scan_body(5, ramp(682), 3);
+  device.respond = [&](const std::string& command) -> std::string {
+    if (command == "QT") return "MD0044072501000\n" + status_line("99") + "QT\n" + status_line("00") + "\n";
+    return command == "VV" ? version_reply() : std::string();
+  };
+  hokuyo::Driver driver(device, fast_options());
+  EXPECT_EQ(driver.open().serial, "H0706400");
+  EXPECT_FALSE(driver.switched_from_scip1());
+  EXPECT_EQ(device.commands, (std::vector<std::string>{"VV", "QT", "VV"}));
 }
 
 TEST(ScipDriver, SilentDeviceIsAClearError) {

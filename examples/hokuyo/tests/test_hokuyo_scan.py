@@ -212,3 +212,26 @@ def test_wrap_recording_crosses_the_device_clock_wrap(hokuyo_scan):
     unwrapped = [s["timestamp_unwrapped_ms"] for s in scans]
     assert raw != sorted(raw)
     assert unwrapped == sorted(unwrapped) and unwrapped[-1] > 0xFFFFFF
+
+
+def test_device_left_streaming_by_a_crashed_program_is_opened(hokuyo_scan, simulator):
+    import os
+    import select
+    import time
+    import tty
+
+    sim = simulator("--model", "urg04lx", "--scip2")
+    fd = os.open(sim.where, os.O_RDWR | os.O_NOCTTY)
+    try:
+        tty.setraw(fd)
+        os.write(fd, b"MD0044072501000\n")
+        seen = b""
+        end = time.monotonic() + 10
+        while b"99b\n" not in seen and time.monotonic() < end:
+            if select.select([fd], [], [], 1)[0]:
+                seen += os.read(fd, 4096)
+        assert b"99b\n" in seen, "the stream never started"
+    finally:
+        os.close(fd)  # the program dies; the scanner keeps streaming
+    scans = scans_of(run_scan(hokuyo_scan, sim.where, "--json"))
+    assert len(scans) == 1 and len(scans[0]["ranges"]) == 682

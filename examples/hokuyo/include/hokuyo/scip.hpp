@@ -110,7 +110,9 @@ class Driver {
  public:
   explicit Driver(wiretape::Port& port, DriverOptions options = {});
 
-  // VV; if VV gets no valid reply, SCIP2.0 (the SCIP 1.1 switch) then VV.
+  // VV. If VV gets no valid reply: QT (a device still streaming for an
+  // earlier program), VV again, and only if that fails too SCIP2.0 (the
+  // SCIP 1.1 switch) and VV.
   VersionInfo open();
   VersionInfo version();             // VV
   SensorParameters parameters();     // PP
@@ -143,6 +145,9 @@ class Driver {
 
  private:
   std::string read_line(const std::string& command);
+  // Discards input until none came for `quiet`, or `limit` passed.
+  void drain_until_quiet(std::chrono::milliseconds quiet,
+                         std::chrono::milliseconds limit);
   Reply read_reply(const std::string& command, bool echo_is_stream);
   void send(const std::string& command);
   void expect_status(const Reply& reply, std::initializer_list<const char*> ok);
