@@ -217,6 +217,9 @@ class RecordingPort final : public Port {
     try {
       writer_.write(kind, t_ns, data);
     } catch (const PortError& e) {
+      // A read or write racing with close() may come after the file was
+      // closed: that is the end of the session, not a recording failure.
+      if (finished_.load(std::memory_order_acquire)) return;
       recording_failed(e);
     }
   }
@@ -253,9 +256,10 @@ class RecordingPort final : public Port {
 
   void finish_recording() {
     std::lock_guard<std::mutex> lock(finish_mutex_);
-    if (finished_) return;
-    finished_ = true;
+    if (closed_recorded_) return;
+    closed_recorded_ = true;
     record(RecordKind::close, now_ns(), "{}");
+    finished_.store(true, std::memory_order_release);
     if (!recording_.load()) return;
     try {
       writer_.close();
@@ -276,7 +280,8 @@ class RecordingPort final : public Port {
   std::atomic<bool> has_pending_failure_{false};
   std::optional<PortError> pending_failure_;
   std::mutex finish_mutex_;
-  bool finished_ = false;
+  bool closed_recorded_ = false;
+  std::atomic<bool> finished_{false};
 };
 
 }  // namespace

@@ -16,8 +16,10 @@
 #include <condition_variable>
 #include <cstdlib>
 #include <deque>
+#include <future>
 #include <mutex>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "detail/json.hpp"
@@ -523,4 +525,28 @@ TEST(FlexiportLoggingTypes, SeriallogOnAPseudoTerminalRecordsSettings) {
   }
   EXPECT_EQ(kinds, (std::vector<std::string>{"open", "settings", "tx", "close"}));
   EXPECT_EQ(settings, "{\"baud\":57600}");
+}
+
+TEST(RecordingPort, CloseFromAnotherThreadEndsTheSessionCleanly) {
+  TempDir dir;
+  const std::string path = dir.file("closed.wtape");
+  auto port = open_port("type=loopback,log=" + path);
+  std::promise<std::string> outcome;
+  std::thread reader([&] {
+    try {
+      char byte;
+      port->read(&byte, 1);  // blocks: nothing was written
+      outcome.set_value("returned");
+    } catch (const PortClosed&) {
+      outcome.set_value("closed");
+    } catch (const std::exception& e) {
+      outcome.set_value(std::string("other: ") + e.what());
+    }
+  });
+  port->close();
+  auto result = outcome.get_future();
+  ASSERT_EQ(result.wait_for(10s), std::future_status::ready);
+  EXPECT_EQ(result.get(), "closed");
+  reader.join();
+  EXPECT_EQ(kinds_of(read_all(path)), (std::vector<std::string>{"open", "close"}));
 }
