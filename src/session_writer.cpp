@@ -41,6 +41,7 @@ struct SessionWriter::Impl {
   mutable std::mutex mutex;
   std::condition_variable wake;
   std::string buffer;
+  std::string spare;  // a flushed buffer kept for its capacity
   std::vector<std::size_t> record_ends;  // end offset of each buffered record
   std::uint64_t buffered_total = 0;      // committed + buffer.size() + in flight
   std::optional<Clock::time_point> oldest_unflushed;
@@ -76,6 +77,7 @@ struct SessionWriter::Impl {
         return;
       }
       data.swap(buffer);
+      buffer.swap(spare);
       ends.swap(record_ends);
       oldest_unflushed.reset();
     }
@@ -100,6 +102,9 @@ struct SessionWriter::Impl {
     }
     if (error == 0) {
       committed += data.size();
+      data.clear();
+      std::lock_guard<std::mutex> lock(mutex);
+      if (spare.capacity() < data.capacity()) spare.swap(data);
       return;
     }
     // Keep the records that made it whole.
