@@ -26,7 +26,7 @@ def main(argv=None):
                         help="power on in SCIP 2.0 (the URG-04LX starts in SCIP 1.1)")
     parser.add_argument("--laser-on", action="store_true", help="laser on at power-on")
     parser.add_argument("--start-time-ms", type=int, default=0,
-                        help="the device clock at power-on (24-bit, wraps)")
+                        help="the device clock at the first command (24-bit, wraps)")
     parser.add_argument("--bad-sum", action="append", default=[], metavar="CMD",
                         help="corrupt one data-line sum in the next reply to CMD (e.g. GD); "
                              "repeat to spoil several replies")

@@ -115,6 +115,7 @@ class Device:
         self.fault = None
         self.stream = None
         self.scan_index = 0
+        self.clock_started = False
 
     # --- time -----------------------------------------------------------
     def timestamp_ms(self, now):
@@ -171,6 +172,12 @@ class Device:
     def handle_line(self, line: bytes, now):
         """Answers one command line (without its terminator). Returns a list
         of (due_time, bytes)."""
+        if not self.clock_started:
+            # The clock (and the scan boundaries) start with the first
+            # command, so that --start-time-ms places the wrap where a test
+            # wants it however long the client took to start.
+            self.opened_at = now
+            self.clock_started = True
         replies = self.answer(line, now)
         cmd = line[:2].upper()
         if replies and cmd in self.garbage:

@@ -107,7 +107,7 @@ def test_simulated_utm_over_tcp_me_with_intensities(hokuyo_scan, simulator):
 
 def test_timestamp_wrap_is_unwrapped(hokuyo_scan, simulator):
     sim = simulator("--model", "utm30lx", "--start-time-ms", str(0xFFFFFF - 400))
-    scans = scans_of(run_scan(hokuyo_scan, sim.where, "--mode", "md", "--scans", 30,
+    scans = scans_of(run_scan(hokuyo_scan, sim.where, "--mode", "md", "--scans", 60,
                               "--first", 0, "--last", 9, "--json"))
     raw = [s["timestamp_ms"] for s in scans]
     unwrapped = [s["timestamp_unwrapped_ms"] for s in scans]
