@@ -9,7 +9,6 @@ import json
 import os
 import pathlib
 import select
-import shutil
 import signal
 import subprocess
 import sys
@@ -98,46 +97,72 @@ def wiretape_command(*args):
 
 
 def proxy_available():
-    """Whether `wiretape record` (the transparent proxy) is there."""
+    """How to run the transparent proxy: "cli" (`wiretape record`), "bridge"
+    (the same engine in this process, when the command line does not have
+    `record` yet), or None (record with the library instead)."""
     try:
         result = subprocess.run(wiretape_command("record", "--help"),
                                 capture_output=True, text=True, timeout=30)
+        if result.returncode == 0 and "--device" in result.stdout:
+            return "cli"
     except (OSError, subprocess.TimeoutExpired):
-        return False
-    return result.returncode == 0 and "--device" in result.stdout
+        pass
+    try:
+        from . import bridge, _core  # noqa: F401
+    except ImportError:
+        return None
+    return "bridge" if hasattr(_core, "Bridge") else None
 
 
-def wait_for_path(path, process, deadline_s=15.0):
-    """Waits until `path` exists (the proxy's pty link), or the process ends."""
+def wait_for_path(path, still_running, describe, deadline_s=15.0):
+    """Waits until `path` exists (the proxy's pty link) or the proxy ends."""
     end = time.monotonic() + deadline_s
     while not os.path.lexists(path):
-        if process.poll() is not None:
-            raise DemoError("wiretape record exited: " + process.stderr.read().strip())
+        if not still_running():
+            raise DemoError(f"{describe} ended before making {path}")
         if time.monotonic() > end:
-            raise DemoError(f"wiretape record made no {path} within {deadline_s} s")
+            raise DemoError(f"{describe} made no {path} within {deadline_s} s")
         time.sleep(0.02)
 
 
-def record_scan(program, sim, output, scan_args, workdir, use_proxy):
+def _run_program(program, port, scan_args):
+    return subprocess.run([str(program), "--port", port, *scan_args],
+                          capture_output=True, text=True, timeout=60)
+
+
+def record_scan(program, sim, output, scan_args, workdir, proxy):
     """Runs hokuyo-scan against `sim`, recording the session into `output`.
-    With the proxy, hokuyo-scan opens the proxy's pty and `wiretape record`
-    forwards to the simulator; otherwise the library records (`log=`)."""
+    Through the proxy (`proxy` = "cli" or "bridge"), hokuyo-scan opens the
+    proxy's pty and the proxy forwards to the simulator; with `proxy` None
+    the library records the port hokuyo-scan opens (`log=`)."""
     output = pathlib.Path(output)
     if output.exists():
         output.unlink()
-    if not use_proxy:
-        result = subprocess.run([str(program), "--port", f"{sim.port_options},log={output}",
-                                 *scan_args], capture_output=True, text=True, timeout=60)
-        return result, "library (log=)"
+    if not proxy:
+        return (_run_program(program, f"{sim.port_options},log={output}", scan_args),
+                "library (log=)")
     link = pathlib.Path(workdir) / "proxy-pty"
+    client_port = f"type=serial,device={link}"
+    if proxy == "bridge":
+        from . import bridge
+        handle = bridge.record(sim.port_options, output, pty=link, quiet=True)
+        try:
+            wait_for_path(link, lambda: handle.running, "the record proxy")
+            result = _run_program(program, client_port, scan_args)
+        finally:
+            handle.stop()
+            handle.wait(15)
+        outcome = handle.result()
+        if not outcome.get("ok", False):
+            raise DemoError(f"the record proxy failed: {outcome.get('message')}")
+        return result, "proxy (wiretape.bridge.record)"
     recorder = subprocess.Popen(
         wiretape_command("record", "--device", sim.port_options, "--pty", str(link),
                          "-o", str(output)),
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        wait_for_path(link, recorder)
-        result = subprocess.run([str(program), "--port", f"type=serial,device={link}",
-                                 *scan_args], capture_output=True, text=True, timeout=60)
+        wait_for_path(link, lambda: recorder.poll() is None, "wiretape record")
+        result = _run_program(program, client_port, scan_args)
     finally:
         if recorder.poll() is None:
             recorder.send_signal(signal.SIGINT)
@@ -178,7 +203,7 @@ def run(repo_root=None):
     out_dir = repo / "build" / "demo"
     out_dir.mkdir(parents=True, exist_ok=True)
     recording = out_dir / "urg04lx-demo.wtape"
-    use_proxy = proxy_available()
+    proxy = proxy_available()
 
     print("wiretape demo: record a Hokuyo URG-04LX (simulated), then replay it without it")
     with tempfile.TemporaryDirectory(prefix="wiretape-demo-") as workdir:
@@ -187,7 +212,7 @@ def run(repo_root=None):
                            str(pathlib.Path(workdir) / "urg04lx")) as sim:
                 print(f"  1. simulator up on {sim.fields.get('pty')}")
                 recorded, method = record_scan(program, sim, recording, SCAN_ARGS,
-                                               workdir, use_proxy)
+                                               workdir, proxy)
             print(f"  2. recorded hokuyo-scan {' '.join(SCAN_ARGS)} via {method}")
             print(f"     -> {recording}")
             print("  3. simulator stopped")

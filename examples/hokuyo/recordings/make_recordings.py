@@ -42,14 +42,14 @@ def main(argv=None):
     args = parser.parse_args(argv)
     repo = demo.find_repo()
     program = demo.find_program(repo)
-    use_proxy = not args.library and demo.proxy_available()
+    proxy = None if args.library else demo.proxy_available()
     for name in args.names:
         sim_args, scan_args = RECORDINGS[name]
         output = HERE / f"{name}.wtape"
         with tempfile.TemporaryDirectory(prefix="hokuyo-rec-") as workdir:
             with demo.Simulator(repo, *sim_args, "--pty", f"{workdir}/sim") as sim:
                 result, method = demo.record_scan(program, sim, output, scan_args,
-                                                  workdir, use_proxy)
+                                                  workdir, proxy)
         if result.returncode != 0:
             print(f"{name}: hokuyo-scan failed:\n{result.stderr}", file=sys.stderr)
             return 1
