@@ -23,7 +23,8 @@ for source in "${sources[@]}"; do
     failed+=("$name")
     continue
   fi
-  if ! "$program" -help=1 2>&1 | grep -q "libFuzzer"; then
+  help=$("$program" -help=1 2>&1 || true)
+  if [[ "$help" != *libFuzzer* ]]; then
     echo "fuzz: $program is not a libFuzzer program (built without clang?); failing" >&2
     failed+=("$name")
     continue
