@@ -6,7 +6,7 @@ import pathlib
 
 import pytest
 
-from conftest import EXAMPLE, run_scan
+from hokuyo_testlib import EXAMPLE, run_scan
 
 RECORDINGS = EXAMPLE / "recordings"
 

@@ -1,5 +1,6 @@
 """The simulator's device model, without a transport: what a SCIP 2.0 driver
 will see from it."""
+import hokuyo_testlib  # noqa: F401  (puts the simulator on sys.path)
 import scip_sim
 from scip_sim import Device, checksum, encode
 
