@@ -536,3 +536,59 @@ TEST(ScipReplay, CheckedInStreamRecordingInSequence) {
 }
 
 }  // namespace replayed
+
+// --- hostile devices ------------------------------------------------------------
+
+// Mutated and random replies end in ProtocolError or StatusError, never in a
+// crash, a hang or a scan with the wrong number of values.
+TEST(ScipHostileDevice, MutatedRepliesGiveCleanErrors) {
+  std::uint32_t seed = 12345;
+  auto next = [&seed]() {
+    seed = seed * 1664525u + 1013904223u;
+    return seed >> 8;
+  };
+  const std::string good = "GD0010010901\n" + status_line("00") + scan_body(77, ramp(100), 3);
+  int errors = 0, scans = 0;
+  for (int round = 0; round < 2000; ++round) {
+    std::string reply = good;
+    switch (round % 4) {
+      case 0:  // flip bits
+        for (int flips = 1 + next() % 3; flips > 0; --flips)
+          reply[next() % reply.size()] ^= static_cast<char>(1u << (next() % 8));
+        break;
+      case 1:  // cut short
+        reply.resize(next() % reply.size());
+        break;
+      case 2:  // insert noise
+        reply.insert(next() % reply.size(), std::string(1 + next() % 20, static_cast<char>(next())));
+        break;
+      default:  // pure noise
+        reply.clear();
+        for (int n = next() % 600; n > 0; --n) reply += static_cast<char>(next());
+    }
+    ScriptedDevice device;
+    device.respond = [&](const std::string&) { return reply; };
+    hokuyo::Driver driver(device, fast_options());
+    try {
+      const auto scan = driver.get_scan(hokuyo::ScanMode::gd, 10, 109, 1);
+      ASSERT_EQ(scan.ranges.size(), 100u) << "round " << round;
+      ++scans;
+    } catch (const hokuyo::ProtocolError&) {
+      ++errors;
+    } catch (const hokuyo::StatusError&) {
+      ++errors;
+    }
+  }
+  EXPECT_GT(errors, 1500);  // nearly every mutation is caught by a sum or a count
+}
+
+TEST(ScipHostileDevice, RecoverGivesUpOnANoisyDeviceInBoundedTime) {
+  ScriptedDevice device;
+  // A device that answers QT with endless noise and never a QT reply.
+  device.respond = [](const std::string&) { return std::string(200000, 'x') + "\n"; };
+  auto options = fast_options();
+  hokuyo::Driver driver(device, options);
+  const auto started = std::chrono::steady_clock::now();
+  EXPECT_THROW(driver.recover(), hokuyo::ProtocolError);
+  EXPECT_LT(std::chrono::steady_clock::now() - started, 5s);
+}
