@@ -1,7 +1,518 @@
+// wiretape.open_port() and wiretape.Port: the C++ Port with bytes, float
+// seconds and pyserial-like names.
+//
+// Every call that can block releases the GIL. Waits (reads, wait_readable)
+// run in slices of signal_check_interval: between slices the GIL is taken
+// back and Python's signal handlers run, so Ctrl-C interrupts a blocked read
+// even when the port's timeout is None. Slicing never loses data: a read that
+// times out consumes nothing.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstddef>
+#include <cstring>
+#include <string>
+#include <string_view>
+
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/unique_ptr.h>
+
 #include "python/bindings.hpp"
+#include "wiretape/errors.hpp"
+#include "wiretape/port.hpp"
+
+namespace nb = nanobind;
+using namespace nb::literals;
 
 namespace wiretape::python {
 
-void bind_port(nanobind::module_&) {}
+// --- shared helpers ---------------------------------------------------------
+
+Timeout timeout_from_python(nb::handle value) {
+  if (value.is_none()) return forever;
+  double seconds = 0.0;
+  if (PyFloat_Check(value.ptr()) || PyLong_Check(value.ptr())) {
+    seconds = PyFloat_AsDouble(value.ptr());
+    if (seconds == -1.0 && PyErr_Occurred()) throw nb::python_error();
+  } else if (nb::hasattr(value, "total_seconds")) {  // datetime.timedelta
+    seconds = nb::cast<double>(value.attr("total_seconds")());
+  } else {
+    throw nb::type_error(
+        ("timeout must be None (block) or a number of seconds, not " +
+         std::string(Py_TYPE(value.ptr())->tp_name))
+            .c_str());
+  }
+  if (std::isnan(seconds) || seconds < 0.0) {
+    throw nb::value_error(
+        ("timeout must be None (block) or >= 0 seconds, got " +
+         std::string(nb::repr(value).c_str()))
+            .c_str());
+  }
+  // Beyond ~31 years a deadline would overflow the clock: that is forever.
+  if (seconds >= 1e9) return forever;
+  return std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(seconds * 1e9)));
+}
+
+nb::object timeout_to_python(Timeout timeout) {
+  if (!timeout) return nb::none();
+  return nb::float_(std::chrono::duration<double>(*timeout).count());
+}
+
+void check_signals() {
+  if (PyErr_CheckSignals() != 0) throw nb::python_error();
+}
+
+namespace {
+
+// The per-call timeout: `...` (omitted) is the port's own.
+Timeout call_timeout(const Port& port, nb::handle value) {
+  if (value.is(nb::ellipsis())) return port.timeout();
+  return timeout_from_python(value);
+}
+
+// Runs attempt(slice_end) with the GIL released until it returns true or
+// `timeout` expires, checking Python's signals between slices. attempt must
+// return by slice_end (it passes remaining(slice_end) to the port).
+template <typename Attempt>
+void run_in_slices(Timeout timeout, Attempt&& attempt) {
+  using Clock = std::chrono::steady_clock;
+  const Deadline deadline = deadline_after(timeout);
+  for (;;) {
+    Clock::time_point slice_end = Clock::now() + signal_check_interval;
+    bool last = false;
+    if (deadline && *deadline <= slice_end) {
+      slice_end = *deadline;
+      last = true;
+    }
+    bool done;
+    {
+      nb::gil_scoped_release release;
+      done = attempt(Deadline(slice_end));
+    }
+    if (done || last) return;
+    check_signals();
+  }
+}
+
+// A read-only view of a bytes-like object (bytes, bytearray, memoryview...),
+// valid while this lives; holding the buffer keeps it from being resized, so
+// it may be used with the GIL released.
+class ByteView {
+ public:
+  ByteView(nb::handle object, const char* what) {
+    if (PyUnicode_Check(object.ptr())) {
+      throw nb::type_error((std::string(what) +
+                            " must be bytes-like, not str (encode it first)")
+                               .c_str());
+    }
+    if (PyObject_GetBuffer(object.ptr(), &view_, PyBUF_SIMPLE) != 0) {
+      PyErr_Clear();
+      throw nb::type_error((std::string(what) + " must be bytes-like, not " +
+                            Py_TYPE(object.ptr())->tp_name)
+                               .c_str());
+    }
+  }
+  ~ByteView() { PyBuffer_Release(&view_); }
+  ByteView(const ByteView&) = delete;
+  ByteView& operator=(const ByteView&) = delete;
+
+  const char* data() const { return static_cast<const char*>(view_.buf); }
+  std::size_t size() const { return static_cast<std::size_t>(view_.len); }
+  std::string_view view() const { return {data(), size()}; }
+
+ private:
+  Py_buffer view_{};
+};
+
+std::size_t byte_count(long long value, const char* what) {
+  if (value < 0) {
+    throw nb::value_error(
+        (std::string(what) + " must be >= 0, got " + std::to_string(value)).c_str());
+  }
+  return static_cast<std::size_t>(value);
+}
+
+std::size_t optional_byte_count(nb::handle value, const char* what) {
+  if (value.is_none()) return Port::unlimited;
+  return byte_count(nb::cast<long long>(value), what);
+}
+
+bool ends_with(const std::string& text, std::string_view suffix) {
+  return !suffix.empty() && text.size() >= suffix.size() &&
+         std::string_view(text).substr(text.size() - suffix.size()) == suffix;
+}
+
+// Reads never allocate more than this per call for read(size): a read
+// returns what is there, so a smaller buffer changes nothing for the caller.
+constexpr std::size_t max_read_chunk = 1 << 20;
+
+nb::bytes to_bytes(const std::string& data) {
+  return nb::bytes(data.data(), data.size());
+}
+
+nb::bytes read(Port& port, long long size, nb::handle timeout) {
+  const std::size_t wanted = std::min(byte_count(size, "size"), max_read_chunk);
+  const Timeout limit = call_timeout(port, timeout);
+  if (wanted == 0) return nb::bytes("", 0);
+  std::string buffer(wanted, '\0');
+  std::size_t got = 0;
+  run_in_slices(limit, [&](Deadline slice_end) {
+    got = port.read(&buffer[0], buffer.size(), remaining(slice_end));
+    return got > 0;
+  });
+  return nb::bytes(buffer.data(), got);
+}
+
+nb::bytes read_exactly(Port& port, long long count, nb::handle timeout) {
+  const std::size_t wanted = byte_count(count, "count");
+  const Timeout limit = call_timeout(port, timeout);
+  std::string data;
+  data.reserve(std::min(wanted, max_read_chunk));
+  char chunk[4096];
+  if (wanted > 0) {
+    run_in_slices(limit, [&](Deadline slice_end) {
+      while (data.size() < wanted) {
+        const std::size_t want = std::min(sizeof chunk, wanted - data.size());
+        const std::size_t n = port.read(chunk, want, remaining(slice_end));
+        if (n == 0) return false;
+        data.append(chunk, n);
+      }
+      return true;
+    });
+  }
+  return to_bytes(data);
+}
+
+// Byte by byte, as the C++ read_until, so nothing past the delimiter is
+// consumed; the delimiter may arrive split across slices.
+std::string read_until(Port& port, std::string_view delimiter,
+                       std::size_t max_bytes, Timeout limit) {
+  std::string data;
+  if (max_bytes == 0) return data;
+  run_in_slices(limit, [&](Deadline slice_end) {
+    while (data.size() < max_bytes) {
+      char byte;
+      if (port.read(&byte, 1, remaining(slice_end)) == 0) return false;
+      data.push_back(byte);
+      if (ends_with(data, delimiter)) return true;
+    }
+    return true;
+  });
+  return data;
+}
+
+nb::bytes read_until_binding(Port& port, nb::handle expected, nb::handle size,
+                             nb::handle timeout) {
+  std::string delimiter;
+  {
+    ByteView view(expected, "expected");
+    delimiter.assign(view.data(), view.size());
+  }
+  const std::size_t max_bytes = optional_byte_count(size, "size");
+  return to_bytes(read_until(port, delimiter, max_bytes, call_timeout(port, timeout)));
+}
+
+std::size_t skip(Port& port, long long count, nb::handle timeout) {
+  const std::size_t wanted = byte_count(count, "count");
+  const Timeout limit = call_timeout(port, timeout);
+  std::size_t skipped = 0;
+  char scratch[4096];
+  if (wanted > 0) {
+    run_in_slices(limit, [&](Deadline slice_end) {
+      while (skipped < wanted) {
+        const std::size_t want = std::min(sizeof scratch, wanted - skipped);
+        const std::size_t n = port.read(scratch, want, remaining(slice_end));
+        if (n == 0) return false;
+        skipped += n;
+      }
+      return true;
+    });
+  }
+  return skipped;
+}
+
+bool skip_until(Port& port, nb::handle delimiter_object, nb::handle timeout) {
+  std::string delimiter;
+  {
+    ByteView view(delimiter_object, "delimiter");
+    delimiter.assign(view.data(), view.size());
+  }
+  if (delimiter.empty()) throw nb::value_error("delimiter must not be empty");
+  const std::string data =
+      read_until(port, delimiter, Port::unlimited, call_timeout(port, timeout));
+  return ends_with(data, delimiter);
+}
+
+bool wait_readable(Port& port, nb::handle timeout) {
+  const Timeout limit = call_timeout(port, timeout);
+  bool ready = false;
+  run_in_slices(limit, [&](Deadline slice_end) {
+    ready = port.wait_readable(remaining(slice_end));
+    return ready;
+  });
+  return ready;
+}
+
+std::size_t write(Port& port, nb::handle data) {
+  ByteView view(data, "data");
+  nb::gil_scoped_release release;
+  return port.write(view.data(), view.size());
+}
+
+std::size_t write_all(Port& port, nb::handle data) {
+  ByteView view(data, "data");
+  nb::gil_scoped_release release;
+  return port.write_all(view.data(), view.size());
+}
+
+int fileno(const Port& port) {
+  const int handle = port.native_handle();
+  if (handle < 0) throw PortClosed(port.description() + ": the port is closed");
+  return handle;
+}
+
+const char* access_name(Access access) {
+  switch (access) {
+    case Access::read_only: return "readonly";
+    case Access::write_only: return "writeonly";
+    case Access::read_write: break;
+  }
+  return "readwrite";
+}
+
+const char* parity_name(Parity parity) {
+  switch (parity) {
+    case Parity::even: return "even";
+    case Parity::odd: return "odd";
+    case Parity::mark: return "mark";
+    case Parity::space: return "space";
+    case Parity::none: break;
+  }
+  return "none";
+}
+
+const char* flow_name(FlowControl flow) {
+  switch (flow) {
+    case FlowControl::rtscts: return "rtscts";
+    case FlowControl::xonxoff: return "xonxoff";
+    case FlowControl::none: break;
+  }
+  return "none";
+}
+
+Parity parse_parity(const std::string& name) {
+  for (Parity parity : {Parity::none, Parity::even, Parity::odd, Parity::mark,
+                        Parity::space}) {
+    if (name == parity_name(parity)) return parity;
+  }
+  throw nb::value_error(("parity must be one of none, even, odd, mark, space; got '" +
+                         name + "'")
+                            .c_str());
+}
+
+FlowControl parse_flow(const std::string& name) {
+  for (FlowControl flow :
+       {FlowControl::none, FlowControl::rtscts, FlowControl::xonxoff}) {
+    if (name == flow_name(flow)) return flow;
+  }
+  throw nb::value_error(
+      ("flow must be one of none, rtscts, xonxoff; got '" + name + "'").c_str());
+}
+
+nb::dict settings_dict(const SerialSettings& settings) {
+  nb::dict result;
+  result["baud"] = settings.baud;
+  result["databits"] = settings.data_bits;
+  result["stopbits"] = settings.stop_bits;
+  result["parity"] = parity_name(settings.parity);
+  result["flow"] = flow_name(settings.flow);
+  return result;
+}
+
+void configure(Port& port, nb::handle baud, nb::handle databits,
+               nb::handle stopbits, nb::handle parity, nb::handle flow) {
+  SerialSettings settings = port.serial_settings();
+  if (!baud.is_none()) {
+    const long long value = nb::cast<long long>(baud);
+    if (value <= 0 || value > 0xFFFFFFFFLL) {
+      throw nb::value_error(("baud must be a positive rate, got " +
+                             std::to_string(value)).c_str());
+    }
+    settings.baud = static_cast<unsigned>(value);
+  }
+  if (!databits.is_none()) {
+    settings.data_bits = nb::cast<int>(databits);
+    if (settings.data_bits < 5 || settings.data_bits > 8) {
+      throw nb::value_error(("databits must be 5, 6, 7 or 8, got " +
+                             std::to_string(settings.data_bits)).c_str());
+    }
+  }
+  if (!stopbits.is_none()) {
+    settings.stop_bits = nb::cast<int>(stopbits);
+    if (settings.stop_bits != 1 && settings.stop_bits != 2) {
+      throw nb::value_error(("stopbits must be 1 or 2, got " +
+                             std::to_string(settings.stop_bits)).c_str());
+    }
+  }
+  if (!parity.is_none()) settings.parity = parse_parity(nb::cast<std::string>(parity));
+  if (!flow.is_none()) settings.flow = parse_flow(nb::cast<std::string>(flow));
+  nb::gil_scoped_release release;
+  port.configure(settings);
+}
+
+void send_break(Port& port, double duration) {
+  if (std::isnan(duration) || duration < 0.0 || duration > 3600.0) {
+    throw nb::value_error("duration must be between 0 and 3600 seconds");
+  }
+  const auto milliseconds =
+      std::chrono::milliseconds(std::llround(duration * 1000.0));
+  nb::gil_scoped_release release;
+  port.send_break(milliseconds);
+}
+
+std::string repr(const Port& port) {
+  return "<wiretape.Port " + port.description() +
+         (port.is_open() ? "" : " (closed)") + ">";
+}
+
+constexpr const char port_doc[] = R"(A connection to a device: serial line, TCP, UDP, pseudo-terminal,
+in-memory loopback, or a replayed recording. Made by open_port().
+
+Reads follow wiretape's (C++) semantics: read(size) returns what is there,
+at least one byte and at most size, or b"" when the timeout expires; the
+compound reads (read_exactly, read_until, read_line, skip_until) return what
+they have when the timeout expires and never raise on a timeout.
+
+Every `timeout` argument is in seconds: None blocks, 0 polls; omitted means
+the port's own `timeout`. Ctrl-C interrupts a blocked read. One reader and
+one writer may run at once on different threads; close() from another thread
+wakes a blocked read, which then raises PortClosed.)";
+
+}  // namespace
+
+void bind_port(nb::module_& m) {
+  nb::class_<Port>(m, "Port", port_doc)
+      // --- reading ---------------------------------------------------------
+      .def("read", &read, "size"_a = 1, "timeout"_a.none() = nb::ellipsis(),
+           "What is there, at least one byte and at most `size`; b\"\" when the "
+           "timeout expires.")
+      .def("read_exactly", &read_exactly, "count"_a, "timeout"_a.none() = nb::ellipsis(),
+           "Exactly `count` bytes, or what came before the timeout expired.")
+      .def("read_until", &read_until_binding, "expected"_a = nb::bytes("\n", 1),
+           "size"_a.none() = nb::none(), "timeout"_a.none() = nb::ellipsis(),
+           "Up to and including `expected`, or `size` bytes, or what came "
+           "before the timeout expired. Nothing past `expected` is consumed.")
+      .def("read_line",
+           [](Port& port, nb::handle size, nb::handle timeout) {
+             return to_bytes(read_until(port, "\n", optional_byte_count(size, "size"),
+                                        call_timeout(port, timeout)));
+           },
+           "size"_a.none() = nb::none(), "timeout"_a.none() = nb::ellipsis(),
+           "Up to and including b\"\\n\" (see read_until).")
+      .def("skip", &skip, "count"_a, "timeout"_a.none() = nb::ellipsis(),
+           "Discards up to `count` bytes; returns how many were discarded.")
+      .def("skip_until", &skip_until, "delimiter"_a, "timeout"_a.none() = nb::ellipsis(),
+           "Discards through `delimiter`; False if the timeout expired first.")
+      .def("available", [](Port& port) { return port.available(); },
+           "Bytes that a read would return at once.")
+      .def_prop_ro("in_waiting", [](Port& port) { return port.available(); },
+                   "Bytes that a read would return at once (pyserial's name).")
+      .def("wait_readable", &wait_readable, "timeout"_a.none() = nb::ellipsis(),
+           "True once a read would not block (data, or the device is gone); "
+           "False when the timeout expired.")
+      // --- writing ---------------------------------------------------------
+      .def("write", &write, "data"_a,
+           "Writes what the device accepts, at least one byte, or 0 when the "
+           "port's timeout expires; returns the count written.")
+      .def("write_all", &write_all, "data"_a,
+           "Writes everything; returns less than len(data) only when the "
+           "port's timeout expired.")
+      // --- buffers -----------------------------------------------------------
+      .def("flush_input", &Port::flush_input, nb::call_guard<nb::gil_scoped_release>(),
+           "Drops what was received and not yet read.")
+      .def("flush_output", &Port::flush_output, nb::call_guard<nb::gil_scoped_release>(),
+           "Drops what was written and not yet sent.")
+      .def("drain", &Port::drain, nb::call_guard<nb::gil_scoped_release>(),
+           "Waits until written data has left.")
+      // --- state -------------------------------------------------------------
+      .def_prop_rw(
+          "timeout", [](const Port& port) { return timeout_to_python(port.timeout()); },
+          [](Port& port, nb::handle value) { port.set_timeout(timeout_from_python(value)); },
+          nb::arg("value").none(),
+          "The port's timeout in seconds: None blocks, 0 polls.")
+      .def("close", &Port::close, nb::call_guard<nb::gil_scoped_release>(),
+           "Closes the port; a read blocked in another thread raises PortClosed.")
+      .def_prop_ro("is_open", [](const Port& port) { return port.is_open(); })
+      .def_prop_ro("description", [](const Port& port) { return port.description(); },
+                   "Human-readable, e.g. 'serial /dev/ttyUSB0 @ 115200 8N1'.")
+      .def_prop_ro("type", [](const Port& port) { return port.type(); },
+                   "The port's type as in the option string: 'serial', 'tcp', ...")
+      .def_prop_ro("access", [](const Port& port) { return access_name(port.access()); },
+                   "'readwrite', 'readonly' or 'writeonly'.")
+      .def("fileno", &fileno,
+           "A file descriptor that polls readable exactly when available() > 0 "
+           "(for select, selectors, asyncio). Raises PortClosed after close().")
+      .def("native_handle", [](const Port& port) { return port.native_handle(); },
+           "As fileno(), but -1 after close().")
+      // --- serial line control -------------------------------------------------
+      .def("set_baud", [](Port& port, unsigned baud) {
+             nb::gil_scoped_release release;
+             port.set_baud(baud);
+           }, "baud"_a)
+      .def_prop_rw(
+          "baud", [](const Port& port) { return port.serial_settings().baud; },
+          [](Port& port, unsigned baud) {
+            nb::gil_scoped_release release;
+            port.set_baud(baud);
+          },
+          "The line rate; PortError (ENOTSUP) on a port without one.")
+      .def("configure", &configure, nb::kw_only(), "baud"_a.none() = nb::none(),
+           "databits"_a.none() = nb::none(), "stopbits"_a.none() = nb::none(),
+           "parity"_a.none() = nb::none(), "flow"_a.none() = nb::none(),
+           "Changes the given line settings, keeping the others.")
+      .def("serial_settings",
+           [](const Port& port) { return settings_dict(port.serial_settings()); },
+           "The line settings: {'baud', 'databits', 'stopbits', 'parity', 'flow'}.")
+      .def("set_dtr", [](Port& port, bool level) { port.set_dtr(level); }, "level"_a)
+      .def("set_rts", [](Port& port, bool level) { port.set_rts(level); }, "level"_a)
+      .def_prop_rw(
+          "dtr",
+          [](const Port&) -> bool {
+            throw nb::attribute_error("dtr can be set, not read");
+          },
+          [](Port& port, bool level) { port.set_dtr(level); }, "Sets DTR (write-only).")
+      .def_prop_rw(
+          "rts",
+          [](const Port&) -> bool {
+            throw nb::attribute_error("rts can be set, not read");
+          },
+          [](Port& port, bool level) { port.set_rts(level); }, "Sets RTS (write-only).")
+      .def("cts", [](Port& port) { return port.cts(); })
+      .def("dsr", [](Port& port) { return port.dsr(); })
+      .def("ri", [](Port& port) { return port.ri(); })
+      .def("cd", [](Port& port) { return port.cd(); })
+      .def("send_break", &send_break, "duration"_a = 0.25,
+           "Holds the line in break for `duration` seconds.")
+      // --- context manager -----------------------------------------------------
+      .def("__enter__", [](Port& port) -> Port& { return port; },
+           nb::rv_policy::reference)
+      .def("__exit__",
+           [](Port& port, nb::handle, nb::handle, nb::handle) {
+             nb::gil_scoped_release release;
+             port.close();
+           },
+           nb::arg().none(), nb::arg().none(), nb::arg().none())
+      .def("__repr__", &repr);
+
+  m.def("open_port",
+        [](const std::string& options) {
+          nb::gil_scoped_release release;
+          return open_port(std::string_view(options));
+        },
+        "options"_a,
+        "Opens the port an option string describes, e.g. "
+        "'type=serial,device=/dev/ttyUSB0,baud=115200'. Raises OptionError for "
+        "a bad string, PortError when the device cannot be opened.");
+}
 
 }  // namespace wiretape::python

@@ -4,11 +4,29 @@
 
 #include <nanobind/nanobind.h>
 
+#include "wiretape/timeout.hpp"
+
 namespace wiretape::python {
 
 void bind_errors(nanobind::module_& m);   // bind_errors.cpp
 void bind_port(nanobind::module_& m);     // bind_port.cpp
 void bind_session(nanobind::module_& m);  // bind_session.cpp
 void bind_bridge(nanobind::module_& m);   // bind_bridge.cpp: proxy, serve, virtual devices
+
+// Helpers shared by the bindings (bind_port.cpp).
+
+// A Python timeout: None blocks (wiretape::forever), a number is seconds
+// (0 polls). Raises ValueError for a negative or NaN number, TypeError for
+// anything else.
+Timeout timeout_from_python(nanobind::handle value);
+nanobind::object timeout_to_python(Timeout timeout);
+
+// Runs Python's signal handlers (Ctrl-C); throws nanobind::python_error when
+// one raised. Call with the GIL held, between slices of a blocking wait.
+void check_signals();
+
+// How long a blocking call waits with the GIL released before it looks at
+// Python's signals again.
+inline constexpr std::chrono::milliseconds signal_check_interval{50};
 
 }  // namespace wiretape::python
