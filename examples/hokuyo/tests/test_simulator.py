@@ -185,3 +185,43 @@ def test_pty_line_speed_changes_after_the_ss_reply(simulator):
         assert termios.tcgetattr(fd)[4] == termios.B115200
     finally:
         os.close(fd)
+
+
+def test_command_line_errors_are_clear():
+    import subprocess
+    import sys
+
+    from hokuyo_testlib import EXAMPLE
+
+    def sim(*args):
+        return subprocess.run([sys.executable, str(EXAMPLE / "sim"), *args],
+                              capture_output=True, text=True, timeout=30)
+
+    result = sim("--model", "urg04lx")
+    assert result.returncode == 2 and "--pty" in result.stderr
+    result = sim("--model", "nosuch", "--pty", "/tmp/x")
+    assert result.returncode == 2 and "nosuch" in result.stderr
+    result = sim("--listen", "localhost:http")
+    assert result.returncode == 2 and "HOST:PORT" in result.stderr
+    result = sim("--pty", "/nonexistent-dir/link")
+    assert result.returncode == 3 and "nonexistent-dir" in result.stderr
+
+
+def test_tcp_client_that_leaves_gets_a_fresh_device_next(simulator):
+    import socket
+
+    sim = simulator("--model", "utm30lx", "--listen", "127.0.0.1:0")
+    host, port = sim.where.rsplit(":", 1)
+
+    def exchange(command):
+        with socket.create_connection((host, int(port)), timeout=10) as conn:
+            conn.sendall(command)
+            reply = b""
+            while not reply.endswith(b"\n\n"):
+                chunk = conn.recv(4096)
+                assert chunk, "the simulator closed the connection"
+                reply += chunk
+            return reply
+
+    assert exchange(b"BM\n") == b"BM\n00P\n\n"
+    assert exchange(b"BM\n") == b"BM\n00P\n\n"  # laser off again: a new power-on
