@@ -235,3 +235,17 @@ def test_device_left_streaming_by_a_crashed_program_is_opened(hokuyo_scan, simul
         os.close(fd)  # the program dies; the scanner keeps streaming
     scans = scans_of(run_scan(hokuyo_scan, sim.where, "--json"))
     assert len(scans) == 1 and len(scans[0]["ranges"]) == 682
+
+
+def test_checked_in_stream_replays_at_the_device_pace(hokuyo_scan):
+    """Default timing (causal): the three MD scans, 100 ms apart on the
+    device, come no faster on replay."""
+    import time
+
+    recording = RECORDINGS / "urg04lx_md.wtape"
+    meta = json.loads(recording.with_suffix(".json").read_text())
+    started = time.monotonic()
+    scans = scans_of(run_scan(hokuyo_scan, replay(recording), *meta["args"]))
+    elapsed = time.monotonic() - started
+    assert scans == meta["scans"]
+    assert elapsed >= 0.2, f"three scans 100 ms apart replayed in {elapsed:.3f} s"
