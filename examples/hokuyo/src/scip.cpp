@@ -118,15 +118,17 @@ std::string encode(std::uint32_t value, int digits) {
 }
 
 bool StatusError::hardware_fault() const {
-  if (status_.size() != 2) return false;
+  if (status_.size() != 2 || status_[0] < '0' || status_[0] > '9' ||
+      status_[1] < '0' || status_[1] > '9')
+    return false;
   const int value = (status_[0] - '0') * 10 + (status_[1] - '0');
-  return status_[0] >= '5' && status_[0] <= '9' && value >= 50 && value <= 97;
+  return value >= 50 && value <= 97;
 }
 
 std::string describe_status(std::string_view command, std::string_view status) {
   const std::string_view name = command.substr(0, 2);
   if (status.size() == 2 && status[0] >= '5' && status[0] <= '9' &&
-      status != "98" && status != "99")
+      status[1] >= '0' && status[1] <= '9' && status != "98" && status != "99")
     return "hardware fault";
   if (status == "0A") return "the device could not create the reply";
   if (status == "0B") return "buffer shortage, or the command repeats one in progress";
