@@ -267,8 +267,7 @@ struct Bridge::Impl::Client {
 // state but cannot change it.
 class Bridge::Impl::ComPortAdapter final : public rfc::ComPort {
  public:
-  ComPortAdapter(Impl& bridge, Client& client, bool control)
-      : bridge_(bridge), client_(client), control_(control) {}
+  ComPortAdapter(Impl& bridge, bool control) : bridge_(bridge), control_(control) {}
 
   std::uint32_t set_baud(std::uint32_t baud) override {
     if (baud != 0 && control_ && bridge_.device_) {
@@ -372,8 +371,9 @@ class Bridge::Impl::ComPortAdapter final : public rfc::ComPort {
   void purge(std::uint8_t which) override {
     if (!control_ || !bridge_.device_) return;
     if (which & 1) {
+      // What is already queued for the client stays: Telnet answers share
+      // that queue, and the client drops its own buffer anyway.
       bridge_.device_->flush_input();
-      client_.outgoing.clear();
       bridge_.record(RecordKind::flush_input, "{}");
     }
     if (which & 2) {
@@ -413,7 +413,6 @@ class Bridge::Impl::ComPortAdapter final : public rfc::ComPort {
   }
 
   Impl& bridge_;
-  Client& client_;
   bool control_;
 };
 
@@ -791,7 +790,7 @@ void Bridge::Impl::accept_client() {
     client->monitor = control != nullptr;
     if (!client->monitor && options_.restart && had_client_) restart_device();
     if (options_.protocol == BridgeProtocol::rfc2217) {
-      client->com_port = std::make_unique<ComPortAdapter>(*this, *client, !client->monitor);
+      client->com_port = std::make_unique<ComPortAdapter>(*this, !client->monitor);
       client->telnet = std::make_unique<rfc::ServerSession>(*client->com_port);
       client->outgoing.append(client->telnet->greeting());
     }

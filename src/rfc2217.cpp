@@ -30,7 +30,10 @@ int ServerSession::option_index(std::uint8_t option) {
 
 std::string ServerSession::greeting() {
   std::string out;
-  for (std::uint8_t option : {telnet::binary, telnet::sga, telnet::com_port}) {
+  // Only BINARY is offered: a client that sees an offer of SGA or
+  // COM-PORT-OPTION before it sent its own requests (pyserial) takes the
+  // option as agreed and never asks, so those are left to the client.
+  for (std::uint8_t option : {telnet::binary}) {
     const int index = option_index(option);
     if (!we_[index] && !we_offered_[index]) {
       we_offered_[index] = true;

@@ -69,8 +69,7 @@ class ServerSession {
  public:
   explicit ServerSession(ComPort& port) : port_(port) {}
 
-  // What the server sends first: it offers BINARY both ways, SGA and the
-  // COM-PORT-OPTION.
+  // What the server sends first: it offers BINARY both ways.
   std::string greeting();
   // Feeds bytes from the client: data for the device is appended to
   // `to_device` (IAC IAC unescaped), answers to `to_client`.
@@ -84,8 +83,8 @@ class ServerSession {
 
   // The client asked the server to stop sending data (FLOWCONTROL-SUSPEND).
   bool suspended() const { return suspended_; }
-  // Both sides agreed on COM-PORT-OPTION.
-  bool com_port_active() const { return we_[kComPort] && they_[kComPort]; }
+  // The client agreed to COM-PORT-OPTION on either side: it speaks RFC 2217.
+  bool com_port_active() const { return we_[kComPort] || they_[kComPort]; }
 
  private:
   enum class State { data, iac, negotiate, subnegotiation, subnegotiation_iac };
