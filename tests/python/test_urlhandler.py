@@ -132,18 +132,20 @@ def test_driver_records_through_pyserial_then_replays(thermometer, tmp_path):
     assert thermometer.requests == [b"ID?", b"T?"]  # the device was not asked again
 
 
-def test_replay_in_request_mode_serves_reordered_commands(thermometer, tmp_path):
+def test_replay_in_request_mode_serves_repeated_commands(thermometer, tmp_path):
     cassette = tmp_path / "thermo.wtape"
     with serial.serial_for_url(f"wiretape+record://{cassette}?device={thermometer.path}",
                                timeout=5) as port:
         read_thermometer(port)
 
-    with serial.serial_for_url(f"wiretape://{cassette}?timing=none&match=request",
+    # This driver asks for the identity twice: the recording has it once.
+    with serial.serial_for_url(f"wiretape://{cassette}?timing=none&match=request&repeat=last",
                                timeout=5) as port:
+        for _ in range(2):
+            port.write(b"ID?\r")
+            assert port.read_until(b"\r\n") == b"THERMO-1 v2.0\r\n"
         port.write(b"T?\r")
         assert port.read_until(b"\r\n") == b"+21.50C\r\n"
-        port.write(b"ID?\r")
-        assert port.read_until(b"\r\n") == b"THERMO-1 v2.0\r\n"
 
 
 def test_replay_mismatch_reaches_the_driver_with_the_report(thermometer, tmp_path):
