@@ -156,24 +156,28 @@ def record_scan(program, sim, output, scan_args, workdir, proxy):
         if not outcome.get("ok", False):
             raise DemoError(f"the record proxy failed: {outcome.get('message')}")
         return result, "proxy (wiretape.bridge.record)"
-    recorder = subprocess.Popen(
-        wiretape_command("record", "--device", sim.port_options, "--pty", str(link),
-                         "-o", str(output)),
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        wait_for_path(link, lambda: recorder.poll() is None, "wiretape record")
-        result = _run_program(program, client_port, scan_args)
-    finally:
-        if recorder.poll() is None:
-            recorder.send_signal(signal.SIGINT)
+    # The recorder's messages go to a file: a pipe nobody reads could fill
+    # and stall it.
+    messages = pathlib.Path(workdir) / "record.log"
+    with open(messages, "w") as log:
+        recorder = subprocess.Popen(
+            wiretape_command("record", "--device", sim.port_options, "--pty", str(link),
+                             "-o", str(output)),
+            stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
         try:
-            recorder.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            recorder.kill()
-            recorder.wait()
+            wait_for_path(link, lambda: recorder.poll() is None, "wiretape record")
+            result = _run_program(program, client_port, scan_args)
+        finally:
+            if recorder.poll() is None:
+                recorder.send_signal(signal.SIGINT)
+            try:
+                recorder.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                recorder.kill()
+                recorder.wait()
     if recorder.returncode != 0:
         raise DemoError(f"wiretape record failed ({recorder.returncode}): "
-                        + recorder.stderr.read().strip())
+                        + messages.read_text().strip())
     return result, "proxy (wiretape record)"
 
 
