@@ -286,3 +286,22 @@ def test_wiretape_pty_serves_the_replay_on_a_terminal(pytester):
     cassette = cassette_of(pytester, "test_pty", "test_through_pty")
     assert streams(cassette) == (b"PING\r", b"PING\r")
     pytester.runpytest().assert_outcomes(passed=1)
+
+
+def test_request_mode_mismatch_shows_the_closest_recorded_requests(pytester):
+    pytester.makepyfile(test_cmds="""
+        import pytest
+
+        @pytest.mark.wiretape(match="request")
+        def test_cmds(wiretape_port):
+            for command in (b"VV\\n", b"PP\\n"):
+                wiretape_port.write_all(command)
+                assert wiretape_port.read_exactly(3, timeout=5) == command
+    """)
+    pytester.runpytest("--wiretape-record=once", LOOPBACK).assert_outcomes(passed=1)
+    pytester.makepyfile(test_cmds=pytester.path.joinpath("test_cmds.py").read_text()
+                        .replace('b"PP\\n"', 'b"PX\\n"'))
+    result = pytester.runpytest()
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*ReplayMismatch*matches no unused exchange*",
+                                 "*closest unused requests*", "*50 50 0a*|PP.|*"])
