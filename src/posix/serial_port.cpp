@@ -23,16 +23,27 @@ std::string describe(const std::string& device, const SerialSettings& s) {
 
 class SerialPort final : public FdPort {
  public:
-  SerialPort(sys::UniqueFd fd, std::string device, SerialSettings settings)
+  SerialPort(sys::UniqueFd fd, std::string device, SerialSettings settings,
+             bool exclusive = false)
       : FdPort(std::move(fd), describe(device, settings)),
         device_(std::move(device)),
-        settings_(settings) {
+        settings_(settings),
+        exclusive_(exclusive) {
     configure(settings);
   }
   ~SerialPort() override { close(); }
 
   std::string type() const override { return "serial"; }
 
+ protected:
+  // A pseudo-terminal outlives its clients (its master keeps it), and so
+  // would the exclusive lock: without this, the next client that is not
+  // root gets EBUSY.
+  void on_close() override {
+    if (exclusive_) sys::ioctl(fd(), TIOCNXCL);
+  }
+
+ public:
   void configure(const SerialSettings& wanted) override {
     Call call(*this);
     std::lock_guard<std::mutex> lock(settings_mutex_);
@@ -105,6 +116,7 @@ class SerialPort final : public FdPort {
   const std::string device_;
   mutable std::mutex settings_mutex_;
   SerialSettings settings_;
+  const bool exclusive_;
 };
 
 Parity parse_parity(const std::string& text) {
@@ -177,7 +189,7 @@ std::unique_ptr<Port> open_serial(Options& options) {
     }
     raise_os_error(err, where, "tcgetattr");
   }
-  return std::make_unique<SerialPort>(std::move(fd), device, settings);
+  return std::make_unique<SerialPort>(std::move(fd), device, settings, exclusive);
 }
 
 }  // namespace wiretape::detail
