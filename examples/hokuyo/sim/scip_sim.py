@@ -424,8 +424,13 @@ def run_session(device, read_fd, write, wait_fd, log, stop, apply_baud=None):
 
 def serve_pty(device, link, log, stop, ready):
     master, slave = os.openpty()
-    tty.setraw(slave)
     path = os.ttyname(slave)
+    # Only clients hold the terminal open: a terminal left open here would
+    # keep a client's exclusive lock (TIOCEXCL) after it closed, and the
+    # next client (not root) would get EBUSY. Terminal settings made through
+    # the master apply to the client's side.
+    os.close(slave)
+    tty.setraw(master)
     if link:
         try:
             os.unlink(link)
@@ -433,16 +438,18 @@ def serve_pty(device, link, log, stop, ready):
             pass
         os.symlink(path, link)
     ready("pty=%s link=%s" % (path, link or path))
+    os.set_blocking(master, False)
 
     def read_fd():
         try:
             return os.read(master, 4096)
+        except BlockingIOError:
+            return b""
         except OSError:
-            # No client has the terminal open: EIO until one does.
+            # EIO: no client has the terminal open. It polls readable until
+            # one does, so wait a little instead of spinning.
             time.sleep(0.05)
             return b""
-
-    os.set_blocking(master, False)
 
     def write(data):
         # A device keeps talking whether or not anyone reads: when the
@@ -456,6 +463,9 @@ def serve_pty(device, link, log, stop, ready):
                 if not select.select([], [master], [], 0.5)[1]:
                     log("nobody reads: %d bytes dropped" % len(view))
                     return
+            except OSError:
+                log("no client: %d bytes dropped" % len(view))
+                return
 
     def apply_baud(baud):
         # The terminal's speed is what a driver on the other side sees.
@@ -463,9 +473,9 @@ def serve_pty(device, link, log, stop, ready):
         if speed is None:
             log("no termios speed for %d; left unchanged" % baud)
             return
-        attrs = termios.tcgetattr(slave)
+        attrs = termios.tcgetattr(master)
         attrs[4] = attrs[5] = speed
-        termios.tcsetattr(slave, termios.TCSADRAIN, attrs)
+        termios.tcsetattr(master, termios.TCSADRAIN, attrs)
 
     try:
         run_session(device, read_fd, write, master, log, stop, apply_baud)
@@ -476,7 +486,6 @@ def serve_pty(device, link, log, stop, ready):
             except FileNotFoundError:
                 pass
         os.close(master)
-        os.close(slave)
 
 
 def serve_tcp(device, host, port, log, stop, ready):
