@@ -14,6 +14,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -31,11 +32,22 @@ inline double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-// Peak resident set size of this process so far, in MiB.
+// Peak resident set size of this program so far, in MiB. VmHWM belongs to
+// the address space, which execve() replaced; getrusage's ru_maxrss would
+// carry over the peak of the process that started us.
 inline double peak_rss_mib() {
+  if (std::FILE* status = std::fopen("/proc/self/status", "r")) {
+    char line[256];
+    long kib = -1;
+    while (std::fgets(line, sizeof line, status)) {
+      if (std::sscanf(line, "VmHWM: %ld kB", &kib) == 1) break;
+    }
+    std::fclose(status);
+    if (kib >= 0) return static_cast<double>(kib) / 1024.0;
+  }
   rusage usage{};
   getrusage(RUSAGE_SELF, &usage);
-  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // ru_maxrss is KiB
+  return static_cast<double>(usage.ru_maxrss) / 1024.0;  // KiB, Linux
 }
 
 // A session of `total_bytes` of device output cut into rx records of

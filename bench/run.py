@@ -104,7 +104,7 @@ class Bench:
 
     def python_replay(self, path: Path, size: int) -> dict:
         code = (
-            "import json, resource, sys, time, wiretape\n"
+            "import json, sys, time, wiretape\n"
             "path, expected = sys.argv[1], int(sys.argv[2])\n"
             "start = time.perf_counter()\n"
             "port = wiretape.open_port(f'type=replay,file={path},timing=none,unused=ignore,timeout=10')\n"
@@ -116,8 +116,9 @@ class Bench:
             "    total += len(data)\n"
             "seconds = time.perf_counter() - start\n"
             "port.close()\n"
+            "hwm = [l for l in open('/proc/self/status') if l.startswith('VmHWM')]\n"
             "print(json.dumps({'seconds': seconds,"
-            " 'peak_rss_MB': resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))\n")
+            " 'peak_rss_MB': int(hwm[0].split()[1]) / 1024 if hwm else -1}))\n")
         proc = subprocess.run([str(self.python), "-c", code, str(path), str(size)],
                               capture_output=True, text=True, timeout=600)
         if proc.returncode != 0:
@@ -341,8 +342,11 @@ def main(argv: list[str] | None = None) -> int:
     bench = Bench(build, args.quick)
     results_path = bench.work / "results.json"
     # --only updates the figures it measures and keeps the others.
+    notes_path = bench.work / "notes.json"
     if args.only and results_path.exists():
         bench.results.update(json.loads(results_path.read_text()))
+        if notes_path.exists():
+            bench.notes.update(json.loads(notes_path.read_text()).get("notes", {}))
     skipped: dict[str, str] = {}
     for name in groups:
         print(f"bench: {name} ...", flush=True)
@@ -358,7 +362,7 @@ def main(argv: list[str] | None = None) -> int:
         else:
             print(f"bench: {name} done in {time.perf_counter() - started:.1f} s", flush=True)
     results_path.write_text(json.dumps(bench.results, indent=2, sort_keys=True) + "\n")
-    (bench.work / "notes.json").write_text(
+    notes_path.write_text(
         json.dumps({"notes": bench.notes, "skipped": skipped}, indent=2, ensure_ascii=False) + "\n")
     print_table(bench.results, bench.notes, skipped)
     print(f"results: {results_path}")
