@@ -2,6 +2,7 @@
 a (fake, pty-backed) device through wiretape+record://, then runs unchanged
 against the recording through wiretape://."""
 
+import json
 import os
 import select
 import subprocess
@@ -112,6 +113,7 @@ def test_driver_records_through_pyserial_then_replays(thermometer, tmp_path):
                     "&meta_bench=desk"
     with serial.serial_for_url(recording_url, timeout=5) as port:
         recorded = read_thermometer(port)
+        port.baudrate = 57600  # recorded as a settings event
     assert recorded == {"id": "THERMO-1 v2.0", "celsius": 21.5}
     assert thermometer.requests == [b"ID?", b"T?"]
 
@@ -123,6 +125,11 @@ def test_driver_records_through_pyserial_then_replays(thermometer, tmp_path):
     assert rx == b"THERMO-1 v2.0\r\n+21.50C\r\n"
     assert kinds[0] == "open" and kinds[-1] == "close"
     assert "flush_input" in kinds
+    settings = [json.loads(bytes(r.data)) for r in wiretape.SessionReader(str(cassette))
+                if r.kind == "settings"]
+    assert [event["baud"] for event in settings] == [57600]
+    opened = next(iter(wiretape.SessionReader(str(cassette))))
+    assert json.loads(bytes(opened.data))["baud"] == 115200
     header = wiretape.SessionReader(str(cassette)).header
     assert "desk" in str(header)
 
