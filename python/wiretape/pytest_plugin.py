@@ -263,7 +263,12 @@ class WiretapeCassette:
     def open_port(self):
         import wiretape
 
-        port = wiretape.open_port(self.options)
+        try:
+            port = wiretape.open_port(self.options)
+        except wiretape.OptionError as error:
+            source = "the device setting" if self.recording else "the marker's replay keys"
+            pytest.fail(f"{self.item.nodeid}: bad wiretape options (check {source}): "
+                        f"{error}\n    options: {self.options}", pytrace=False)
         self._ports.append(port)
         return port
 

@@ -305,3 +305,21 @@ def test_request_mode_mismatch_shows_the_closest_recorded_requests(pytester):
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines(["*ReplayMismatch*matches no unused exchange*",
                                  "*closest unused requests*", "*50 50 0a*|PP.|*"])
+
+
+def test_a_bad_replay_key_names_itself(pytester):
+    pytester.makepyfile(test_key="""
+        import pytest
+
+        @pytest.mark.wiretape(timming="none")
+        def test_key(wiretape_port):
+            pass
+    """)
+    cassette = cassette_of(pytester, "test_key", "test_key")
+    cassette.parent.mkdir(parents=True)
+    with wiretape.SessionWriter(str(cassette), port_type="loopback") as writer:
+        writer.write("rx", 0, b"x")
+    result = pytester.runpytest()
+    result.assert_outcomes(errors=1)
+    result.stdout.fnmatch_lines(["*test_key.py::test_key: bad wiretape options "
+                                 "(check the marker's replay keys)*timming*"])
