@@ -249,3 +249,28 @@ def test_checked_in_stream_replays_at_the_device_pace(hokuyo_scan):
     elapsed = time.monotonic() - started
     assert scans == meta["scans"]
     assert elapsed >= 0.2, f"three scans 100 ms apart replayed in {elapsed:.3f} s"
+
+
+def test_one_simulator_serves_one_client_after_another(hokuyo_scan, simulator):
+    """Each hokuyo-scan opens the pty exclusively; the lock must go with it,
+    or the next client that is not root gets EBUSY. Run as an ordinary user
+    (dropping root with setpriv when the tests run as root)."""
+    import os
+    import shutil
+    import subprocess
+
+    sim = simulator("--model", "urg04lx", "--scip2")
+    device = os.path.realpath(sim.where)  # the link's folder may be private
+    prefix = []
+    if os.geteuid() == 0:
+        setpriv = shutil.which("setpriv")
+        if setpriv is None:
+            pytest.skip("SKIPPED LOUDLY: running as root without setpriv to drop it")
+        os.chmod(device, 0o666)
+        prefix = [setpriv, "--reuid=65534", "--regid=65534", "--clear-groups"]
+        if subprocess.run([*prefix, "test", "-x", str(hokuyo_scan)]).returncode != 0:
+            pytest.skip(f"SKIPPED LOUDLY: {hokuyo_scan} is not reachable by an ordinary user")
+    for attempt in range(3):
+        result = subprocess.run([*prefix, str(hokuyo_scan), "--port", device, "--json"],
+                                capture_output=True, text=True, timeout=60)
+        assert result.returncode == 0, f"client {attempt + 1}: {result.stderr}"
