@@ -361,6 +361,10 @@ def main(argv: list[str] | None = None) -> int:
             traceback.print_exc()
         else:
             print(f"bench: {name} done in {time.perf_counter() - started:.1f} s", flush=True)
+    if bench_devices.USED_RUNNER:
+        bench.notes["relays_run_by"] = (
+            "wiretape.bridge through bench/bridge_runner.py (the CLI lacked: "
+            + ", ".join(sorted(bench_devices.USED_RUNNER)) + ")")
     results_path.write_text(json.dumps(bench.results, indent=2, sort_keys=True) + "\n")
     notes_path.write_text(
         json.dumps({"notes": bench.notes, "skipped": skipped}, indent=2, ensure_ascii=False) + "\n")
