@@ -233,11 +233,13 @@ void ServerSession::subnegotiation(std::string& out) {
     case set_control:
       if (auto v = byte_value()) reply(command, one(port_.set_control(*v)), out);
       return;
+    // A client that asks gets the whole state; the masks filter only what
+    // the server sends unasked.
     case notify_linestate:
-      reply(command, one(port_.line_state() & linestate_mask_), out);
+      reply(command, one(port_.line_state()), out);
       return;
     case notify_modemstate:
-      reply(command, one(port_.modem_state() & modemstate_mask_), out);
+      reply(command, one(port_.modem_state()), out);
       return;
     case flowcontrol_suspend:
       suspended_ = true;

@@ -1,0 +1,230 @@
+// The RFC 2217 server session byte for byte: option negotiation, COM-PORT
+// commands and their answers, IAC escaping, and hostile input.
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "rfc2217.hpp"
+
+namespace {
+
+using wiretape::detail::rfc2217::ComPort;
+using wiretape::detail::rfc2217::ServerSession;
+
+std::string bytes(std::initializer_list<int> values) {
+  std::string out;
+  for (int v : values) out.push_back(static_cast<char>(v));
+  return out;
+}
+
+class RecordingComPort final : public ComPort {
+ public:
+  std::uint32_t set_baud(std::uint32_t baud) override {
+    calls.push_back("baud " + std::to_string(baud));
+    if (baud != 0) this->baud = baud;
+    return this->baud;
+  }
+  std::uint8_t set_data_size(std::uint8_t bits) override {
+    calls.push_back("datasize " + std::to_string(bits));
+    return bits == 0 ? 8 : bits;
+  }
+  std::uint8_t set_parity(std::uint8_t code) override {
+    calls.push_back("parity " + std::to_string(code));
+    return code == 0 ? 1 : code;
+  }
+  std::uint8_t set_stop_size(std::uint8_t code) override {
+    calls.push_back("stopsize " + std::to_string(code));
+    return code == 3 ? 1 : code;  // 1.5 refused: still one
+  }
+  std::uint8_t set_control(std::uint8_t value) override {
+    calls.push_back("control " + std::to_string(value));
+    return value;
+  }
+  void purge(std::uint8_t which) override { calls.push_back("purge " + std::to_string(which)); }
+  std::uint8_t modem_state() override { return 0x30; }
+  std::uint8_t line_state() override { return 0x60; }
+
+  std::uint32_t baud = 9600;
+  std::vector<std::string> calls;
+};
+
+struct Fed {
+  std::string to_device;
+  std::string to_client;
+};
+
+Fed feed(ServerSession& session, const std::string& input) {
+  Fed fed;
+  session.receive(input.data(), input.size(), fed.to_device, fed.to_client);
+  return fed;
+}
+
+// IAC WILL/DO COM-PORT-OPTION as pyserial sends them on open.
+const std::string kClientOpen = bytes({255, 253, 44, 255, 251, 44});
+
+TEST(Rfc2217, GreetingOffersBinaryOnly) {
+  RecordingComPort port;
+  ServerSession session(port);
+  EXPECT_EQ(session.greeting(), bytes({255, 251, 0, 255, 253, 0}));
+  // Offers already made are not made again.
+  EXPECT_EQ(session.greeting(), "");
+}
+
+TEST(Rfc2217, AgreesToComPortAndAnnouncesTheModemState) {
+  RecordingComPort port;
+  ServerSession session(port);
+  const Fed fed = feed(session, kClientOpen);
+  EXPECT_TRUE(session.com_port_active());
+  EXPECT_EQ(fed.to_client, bytes({255, 251, 44,                  // WILL COM-PORT
+                                  255, 250, 44, 107, 0x30, 255, 240,  // modem state
+                                  255, 253, 44}));               // DO COM-PORT
+  EXPECT_EQ(fed.to_device, "");
+}
+
+TEST(Rfc2217, RefusesUnknownOptionsAndEcho) {
+  RecordingComPort port;
+  ServerSession session(port);
+  const Fed fed = feed(session, bytes({255, 253, 1, 255, 251, 99}));
+  EXPECT_EQ(fed.to_client, bytes({255, 252, 1, 255, 254, 99}));
+  EXPECT_FALSE(session.com_port_active());
+}
+
+TEST(Rfc2217, AnswersAnOfferOnlyOnce) {
+  RecordingComPort port;
+  ServerSession session(port);
+  session.greeting();
+  // The client accepts our BINARY offers: nothing more to say.
+  EXPECT_EQ(feed(session, bytes({255, 253, 0, 255, 251, 0})).to_client, "");
+  // Repeating an agreed option is not answered (no negotiation loops).
+  EXPECT_EQ(feed(session, bytes({255, 253, 0})).to_client, "");
+}
+
+TEST(Rfc2217, SetBaudrateIsAppliedAndAnsweredWithTheRateInEffect) {
+  RecordingComPort port;
+  ServerSession session(port);
+  feed(session, kClientOpen);
+  // 115200 = 0x0001c200
+  const Fed fed = feed(session, bytes({255, 250, 44, 1, 0x00, 0x01, 0xc2, 0x00, 255, 240}));
+  EXPECT_EQ(port.calls.back(), "baud 115200");
+  EXPECT_EQ(fed.to_client, bytes({255, 250, 44, 101, 0x00, 0x01, 0xc2, 0x00, 255, 240}));
+}
+
+TEST(Rfc2217, BaudrateValueWithIacIsUnescaped) {
+  RecordingComPort port;
+  ServerSession session(port);
+  feed(session, kClientOpen);
+  // 0x0000ff00 = 65280: the 0xff is doubled on the wire both ways.
+  const Fed fed =
+      feed(session, bytes({255, 250, 44, 1, 0x00, 0x00, 255, 255, 0x00, 255, 240}));
+  EXPECT_EQ(port.calls.back(), "baud 65280");
+  EXPECT_EQ(fed.to_client,
+            bytes({255, 250, 44, 101, 0x00, 0x00, 255, 255, 0x00, 255, 240}));
+}
+
+TEST(Rfc2217, LineSettingsControlAndPurge) {
+  RecordingComPort port;
+  ServerSession session(port);
+  feed(session, kClientOpen);
+  const Fed fed = feed(session, bytes({255, 250, 44, 2, 7, 255, 240,     // 7 data bits
+                                       255, 250, 44, 3, 3, 255, 240,     // even parity
+                                       255, 250, 44, 4, 3, 255, 240,     // 1.5 stop bits
+                                       255, 250, 44, 5, 9, 255, 240,     // DTR off
+                                       255, 250, 44, 12, 1, 255, 240,    // purge rx
+                                       255, 250, 44, 12, 9, 255, 240})); // bad purge
+  EXPECT_EQ(port.calls, (std::vector<std::string>{"datasize 7", "parity 3", "stopsize 3",
+                                                  "control 9", "purge 1"}));
+  EXPECT_EQ(fed.to_client, bytes({255, 250, 44, 102, 7, 255, 240,
+                                  255, 250, 44, 103, 3, 255, 240,
+                                  255, 250, 44, 104, 1, 255, 240,  // refused: still 1
+                                  255, 250, 44, 105, 9, 255, 240,
+                                  255, 250, 44, 112, 1, 255, 240,
+                                  255, 250, 44, 112, 9, 255, 240}));
+}
+
+TEST(Rfc2217, StateRequestsAndMasks) {
+  RecordingComPort port;
+  ServerSession session(port);
+  feed(session, kClientOpen);
+  const Fed fed = feed(session, bytes({255, 250, 44, 11, 0x10, 255, 240,  // modem mask: CTS
+                                       255, 250, 44, 7, 255, 240,         // modem state?
+                                       255, 250, 44, 6, 255, 240}));      // line state?
+  EXPECT_EQ(fed.to_client, bytes({255, 250, 44, 111, 0x10, 255, 240,
+                                  255, 250, 44, 107, 0x30, 255, 240,
+                                  255, 250, 44, 106, 0x60, 255, 240}));
+  // The mask filters what the server sends unasked.
+  EXPECT_EQ(session.modem_state_notification(), bytes({255, 250, 44, 107, 0x10, 255, 240}));
+}
+
+TEST(Rfc2217, FlowControlSuspendAndResume) {
+  RecordingComPort port;
+  ServerSession session(port);
+  feed(session, bytes({255, 250, 44, 8, 255, 240}));
+  EXPECT_TRUE(session.suspended());
+  feed(session, bytes({255, 250, 44, 9, 255, 240}));
+  EXPECT_FALSE(session.suspended());
+}
+
+TEST(Rfc2217, DataPassesWithIacUnescapedAcrossReads) {
+  RecordingComPort port;
+  ServerSession session(port);
+  std::string to_device;
+  std::string to_client;
+  const std::string first = bytes({'a', 255});
+  const std::string second = bytes({255, 'b', 255});
+  const std::string third = bytes({251, 0, 'c'});
+  session.receive(first.data(), first.size(), to_device, to_client);
+  session.receive(second.data(), second.size(), to_device, to_client);
+  session.receive(third.data(), third.size(), to_device, to_client);
+  EXPECT_EQ(to_device, bytes({'a', 255, 'b', 'c'}));
+}
+
+TEST(Rfc2217, EscapeDoublesIac) {
+  std::string out;
+  const std::string data = bytes({1, 255, 2, 255, 255});
+  ServerSession::escape(data.data(), data.size(), out);
+  EXPECT_EQ(out, bytes({1, 255, 255, 2, 255, 255, 255, 255}));
+}
+
+TEST(Rfc2217, OverlongSubnegotiationIsDroppedWhole) {
+  RecordingComPort port;
+  ServerSession session(port);
+  feed(session, kClientOpen);
+  std::string input = bytes({255, 250, 44, 1, 0, 0, 0x25, 0x80});
+  input += std::string(1000, 'x');
+  input += bytes({255, 240});
+  input += "after";
+  const Fed fed = feed(session, input);
+  EXPECT_TRUE(port.calls.empty());
+  EXPECT_EQ(fed.to_client, "");
+  EXPECT_EQ(fed.to_device, "after");
+}
+
+TEST(Rfc2217, CommandInsideSubnegotiationAbandonsIt) {
+  RecordingComPort port;
+  ServerSession session(port);
+  feed(session, kClientOpen);
+  // SB COM-PORT SET-BAUDRATE, then IAC DO ECHO before any SE.
+  const Fed fed = feed(session, bytes({255, 250, 44, 1, 0, 255, 253, 1, 'z'}));
+  EXPECT_TRUE(port.calls.empty());
+  EXPECT_EQ(fed.to_client, bytes({255, 252, 1}));
+  EXPECT_EQ(fed.to_device, "z");
+}
+
+TEST(Rfc2217, MalformedCommandsAreIgnored) {
+  RecordingComPort port;
+  ServerSession session(port);
+  feed(session, kClientOpen);
+  const Fed fed = feed(session, bytes({255, 250, 255, 240,            // empty SB
+                                       255, 250, 44, 1, 1, 255, 240,  // short baud
+                                       255, 250, 44, 2, 255, 240,     // no value
+                                       255, 250, 44, 200, 1, 255, 240,  // unknown
+                                       255, 250, 24, 0, 255, 240,     // other option
+                                       255, 240, 255, 241}));         // stray SE, NOP
+  EXPECT_TRUE(port.calls.empty());
+  EXPECT_EQ(fed.to_client, "");
+  EXPECT_EQ(fed.to_device, "");
+}
+
+}  // namespace
