@@ -1084,8 +1084,14 @@ void Bridge::start() {
   if (::pipe2(pipe_fds, O_NONBLOCK | O_CLOEXEC) != 0) raise_errno("bridge: pipe");
   impl.wake_read_.reset(pipe_fds[0]);
   impl.wake_write_.reset(pipe_fds[1]);
+  std::string failure = "the bridge could not start";
   try {
-    impl.open_all();
+    try {
+      impl.open_all();
+    } catch (const std::exception& error) {
+      failure = error.what();
+      throw;
+    }
   } catch (...) {
     impl.pty_.reset();
     impl.device_.reset();
@@ -1099,6 +1105,7 @@ void Bridge::start() {
     std::lock_guard<std::mutex> lock(impl.status_mutex_);
     impl.finished_ = true;
     impl.result_.outcome = BridgeOutcome::failed;
+    impl.result_.message = failure;
     throw;
   }
   {

@@ -1,0 +1,239 @@
+// The bridge engine from C++: a loopback device (what is written comes
+// back) behind a TCP listener or a pty, with recording; option checks; stop
+// and wait.
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstdio>
+#include <string>
+#include <vector>
+
+#include "wiretape/bridge.hpp"
+#include "wiretape/errors.hpp"
+#include "wiretape/session.hpp"
+
+namespace {
+
+using namespace std::chrono_literals;
+using wiretape::Bridge;
+using wiretape::BridgeClientSide;
+using wiretape::BridgeOptions;
+using wiretape::BridgeOutcome;
+using wiretape::RecordKind;
+
+constexpr auto kDeadline = 10s;
+
+class Fd {
+ public:
+  explicit Fd(int fd) : fd_(fd) {}
+  ~Fd() {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  Fd(const Fd&) = delete;
+  Fd& operator=(const Fd&) = delete;
+  int get() const { return fd_; }
+
+ private:
+  int fd_;
+};
+
+std::string temp_path(const std::string& name) {
+  const char* dir = std::getenv("TMPDIR");
+  return std::string(dir ? dir : "/tmp") + "/wiretape-bridge-test-" +
+         std::to_string(::getpid()) + "-" + name;
+}
+
+int connect_to(const std::string& address) {
+  const auto colon = address.rfind(':');
+  sockaddr_in peer{};
+  peer.sin_family = AF_INET;
+  peer.sin_port = htons(static_cast<std::uint16_t>(std::stoi(address.substr(colon + 1))));
+  ::inet_pton(AF_INET, address.substr(0, colon).c_str(), &peer.sin_addr);
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&peer), sizeof peer) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+// Reads until `count` bytes came or the deadline passed.
+std::string read_until_count(int fd, std::size_t count) {
+  std::string data;
+  const auto deadline = std::chrono::steady_clock::now() + kDeadline;
+  while (data.size() < count && std::chrono::steady_clock::now() < deadline) {
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, 100) <= 0) continue;
+    char buffer[4096];
+    const ssize_t n = ::read(fd, buffer, sizeof buffer);
+    if (n <= 0) break;
+    data.append(buffer, static_cast<std::size_t>(n));
+  }
+  return data;
+}
+
+void write_all(int fd, const std::string& data) {
+  std::size_t done = 0;
+  while (done < data.size()) {
+    const ssize_t n = ::write(fd, data.data() + done, data.size() - done);
+    ASSERT_GT(n, 0);
+    done += static_cast<std::size_t>(n);
+  }
+}
+
+std::vector<wiretape::Record> read_session(const std::string& path) {
+  wiretape::SessionReader reader(path);
+  std::vector<wiretape::Record> records;
+  wiretape::Record record;
+  while (reader.next(record)) records.push_back(record);
+  EXPECT_FALSE(reader.damage().has_value());
+  return records;
+}
+
+std::string joined(const std::vector<wiretape::Record>& records, RecordKind kind) {
+  std::string out;
+  for (const auto& r : records) {
+    if (r.kind == kind) out += r.data;
+  }
+  return out;
+}
+
+TEST(Bridge, TcpClientThroughLoopbackDeviceIsForwardedAndRecorded) {
+  const std::string path = temp_path("tcp.wtape");
+  BridgeOptions options;
+  options.device = "type=loopback";
+  options.client_side = BridgeClientSide::tcp;
+  options.output = path;
+  options.metadata = {{"bench", "a"}};
+  options.quiet = true;
+  Bridge bridge(options);
+  bridge.start();
+  ASSERT_EQ(bridge.listen_address().rfind("127.0.0.1:", 0), 0u) << bridge.listen_address();
+
+  std::string payload;
+  for (int i = 0; i < 200'000; ++i) payload.push_back(static_cast<char>(i * 7));
+  {
+    Fd client(connect_to(bridge.listen_address()));
+    ASSERT_GE(client.get(), 0);
+    write_all(client.get(), payload);
+    EXPECT_EQ(read_until_count(client.get(), payload.size()), payload);
+  }
+  bridge.stop();
+  ASSERT_TRUE(bridge.wait(kDeadline));
+  const auto result = bridge.result();
+  EXPECT_EQ(result.outcome, BridgeOutcome::stopped);
+  EXPECT_TRUE(result.ok());
+  EXPECT_EQ(result.stats.bytes_to_device, payload.size());
+  EXPECT_EQ(result.stats.bytes_from_device, payload.size());
+  EXPECT_EQ(result.stats.clients_accepted, 1u);
+
+  wiretape::SessionReader reader(path);
+  EXPECT_EQ(reader.header().capture, wiretape::Capture::wire);
+  EXPECT_EQ(reader.header().port_type, "loopback");
+  EXPECT_EQ(reader.header().user_metadata.at("bench"), "a");
+  const auto records = read_session(path);
+  ASSERT_GE(records.size(), 4u);
+  EXPECT_EQ(records.front().kind, RecordKind::open);
+  EXPECT_EQ(records.front().t_ns, 0u);
+  EXPECT_EQ(records.back().kind, RecordKind::close);
+  EXPECT_EQ(joined(records, RecordKind::tx), payload);
+  EXPECT_EQ(joined(records, RecordKind::rx), payload);
+  for (std::size_t i = 1; i < records.size(); ++i) {
+    EXPECT_LE(records[i - 1].t_ns, records[i].t_ns);
+  }
+  std::remove(path.c_str());
+}
+
+TEST(Bridge, PtyClientThroughLoopbackDevice) {
+  BridgeOptions options;
+  options.device = "type=loopback";
+  options.quiet = true;
+  Bridge bridge(options);
+  bridge.start();
+  ASSERT_EQ(bridge.pty_path().rfind("/dev/", 0), 0u) << bridge.pty_path();
+  Fd terminal(::open(bridge.pty_path().c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC));
+  ASSERT_GE(terminal.get(), 0);
+  write_all(terminal.get(), "hello through a pty");
+  EXPECT_EQ(read_until_count(terminal.get(), 19), "hello through a pty");
+  bridge.stop();
+  ASSERT_TRUE(bridge.wait(kDeadline));
+  EXPECT_TRUE(bridge.result().ok());
+}
+
+TEST(Bridge, DurationEndsByItself) {
+  BridgeOptions options;
+  options.device = "type=loopback";
+  options.duration = 50ms;
+  options.quiet = true;
+  Bridge bridge(options);
+  const auto started = std::chrono::steady_clock::now();
+  bridge.start();
+  ASSERT_TRUE(bridge.wait(kDeadline));
+  EXPECT_GE(std::chrono::steady_clock::now() - started, 50ms);
+  EXPECT_EQ(bridge.result().outcome, BridgeOutcome::finished);
+}
+
+TEST(Bridge, WaitTimesOutWhileRunningAndStopIsIdempotent) {
+  BridgeOptions options;
+  options.device = "type=loopback";
+  options.client_side = BridgeClientSide::tcp;
+  options.quiet = true;
+  Bridge bridge(options);
+  bridge.start();
+  EXPECT_TRUE(bridge.running());
+  EXPECT_FALSE(bridge.wait(10ms));
+  bridge.stop();
+  bridge.stop();
+  EXPECT_TRUE(bridge.wait(kDeadline));
+  EXPECT_FALSE(bridge.running());
+}
+
+TEST(Bridge, StopBeforeStartIsHarmless) {
+  BridgeOptions options;
+  options.device = "type=loopback";
+  Bridge bridge(options);
+  bridge.stop();
+  EXPECT_TRUE(bridge.wait(0ms));
+}
+
+TEST(Bridge, OptionsAreCheckedWithClearMessages) {
+  BridgeOptions options;
+  try {
+    Bridge bridge(options);
+    FAIL() << "an empty device was accepted";
+  } catch (const wiretape::OptionError& error) {
+    EXPECT_EQ(error.key(), "device");
+  }
+  options.device = "type=loopback";
+  options.protocol = wiretape::BridgeProtocol::rfc2217;
+  EXPECT_THROW(Bridge{options}, wiretape::OptionError);
+  options.protocol = wiretape::BridgeProtocol::raw;
+  options.client_side = BridgeClientSide::tcp;
+  options.listen_port = 70000;
+  try {
+    Bridge bridge(options);
+    FAIL() << "port 70000 was accepted";
+  } catch (const wiretape::OptionError& error) {
+    EXPECT_NE(std::string(error.what()).find("70000"), std::string::npos);
+  }
+}
+
+TEST(Bridge, BadDeviceOptionsFailAtStart) {
+  BridgeOptions options;
+  options.device = "type=loopback,bogus=1";
+  options.quiet = true;
+  Bridge bridge(options);
+  EXPECT_THROW(bridge.start(), wiretape::OptionError);
+  EXPECT_TRUE(bridge.wait(0ms));
+  EXPECT_EQ(bridge.result().outcome, BridgeOutcome::failed);
+  EXPECT_NE(bridge.result().message.find("bogus"), std::string::npos) << bridge.result().message;
+}
+
+}  // namespace
