@@ -1,12 +1,677 @@
-"""The wiretape command line. Placeholder."""
+"""The wiretape command line: record, replay, serve, show, stats, verify,
+convert, diff, ports, demo.
+
+Exit codes (one place: :func:`exit_code_for`):
+  0  ok (Ctrl-C included)
+  1  the checked thing failed: replay mismatch, damaged session file, diff
+     found a difference, unused data under unused=error
+  2  usage error: bad arguments or option strings
+  3  runtime error: device or file I/O
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
 import sys
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 from . import __version__
 
+EXIT_OK = 0
+EXIT_CHECK_FAILED = 1
+EXIT_USAGE = 2
+EXIT_RUNTIME = 3
 
-def main(argv=None):
-    print(f"wiretape {__version__}")
-    return 0
+# How often a waiting command wakes up to notice Ctrl-C (seconds).
+_POLL_S = 0.2
+
+
+class UsageError(Exception):
+    """Arguments that make no sense together (exit 2)."""
+
+
+class CheckFailed(Exception):
+    """The checked thing failed (exit 1); the message says what."""
+
+
+class RuntimeFailure(Exception):
+    """A device or file could not be used (exit 3)."""
+
+
+def exit_code_for(error: BaseException) -> int:
+    """The exit code of an exception that ended a command: the one mapping of
+    exception classes to exit codes."""
+    import wiretape
+
+    if isinstance(error, KeyboardInterrupt):
+        return EXIT_OK
+    if isinstance(error, (CheckFailed, wiretape.ReplayMismatch, wiretape.SessionError)):
+        return EXIT_CHECK_FAILED
+    if isinstance(error, (UsageError, wiretape.OptionError)):
+        return EXIT_USAGE
+    if isinstance(error, (RuntimeFailure, OSError, NotImplementedError, RuntimeError)):
+        return EXIT_RUNTIME  # PortError and PortClosed are OSErrors
+    if isinstance(error, (ValueError, TypeError)):
+        return EXIT_USAGE  # a bad value given on the command line
+    return EXIT_RUNTIME
+
+
+def _describe(error: BaseException) -> str:
+    """One line naming the problem."""
+    if isinstance(error, NotImplementedError):
+        text = str(error) or "this command"
+        return f"{text} (not available in this build)"
+    if isinstance(error, OSError) and not str(error).strip():
+        return type(error).__name__
+    if isinstance(error, OSError) and error.filename and error.strerror and \
+            type(error).__module__ == "builtins":
+        return f"{error.filename}: {error.strerror}"
+    text = str(error).strip()
+    if not text:
+        return type(error).__name__
+    if isinstance(error, (UsageError, CheckFailed, RuntimeFailure)):
+        return text
+    import wiretape
+
+    if isinstance(error, (wiretape.ReplayMismatch,)):
+        return "replay mismatch: " + text
+    return text
+
+
+# --------------------------------------------------------------------------
+# output
+
+
+class _Output:
+    """stdout and stderr, with colour (rich) when they are terminals."""
+
+    def __init__(self) -> None:
+        self._console = None
+        self._error_console = None
+        try:
+            import rich.console
+
+            if sys.stdout.isatty():
+                self._console = rich.console.Console(highlight=False)
+            if sys.stderr.isatty():
+                self._error_console = rich.console.Console(stderr=True, highlight=False)
+        except ImportError:  # colour is a nicety
+            pass
+
+    def print(self, text: str = "", style: Optional[str] = None) -> None:
+        if self._console is not None and style:
+            self._console.print(text, style=style, markup=False, soft_wrap=True)
+        else:
+            print(text, flush=True)
+
+    def note(self, text: str) -> None:
+        """A progress or status message (stderr)."""
+        if self._error_console is not None:
+            self._error_console.print(text, style="cyan", markup=False, soft_wrap=True)
+        else:
+            print(text, file=sys.stderr, flush=True)
+
+    def error(self, prog: str, text: str) -> None:
+        line = f"{prog}: error: {text}"
+        if self._error_console is not None:
+            self._error_console.print(line, style="bold red", markup=False, soft_wrap=True)
+        else:
+            print(line, file=sys.stderr, flush=True)
+
+    def table(self, columns: Sequence[str], rows: Sequence[Sequence[str]]) -> None:
+        if self._console is not None:
+            import rich.table
+
+            table = rich.table.Table(*columns, box=None, header_style="bold")
+            for row in rows:
+                table.add_row(*row)
+            self._console.print(table)
+            return
+        widths = [max([len(c)] + [len(r[i]) for r in rows]) for i, c in enumerate(columns)]
+        for row in [list(columns)] + [list(r) for r in rows]:
+            print("  ".join(cell.ljust(width) for cell, width in zip(row, widths)).rstrip())
+
+
+# --------------------------------------------------------------------------
+# argument helpers
+
+
+def _meta_pairs(items: Optional[List[str]]) -> Dict[str, str]:
+    metadata: Dict[str, str] = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise UsageError(f"--meta {item!r}: expected KEY=VALUE")
+        metadata[key.strip()] = value
+    return metadata
+
+
+def _require_input(path: str) -> None:
+    """A session file given to read must be there (exit 3 otherwise); a
+    flexiport ``name.log`` stands for ``name.logr`` + ``name.logw``."""
+    if os.path.exists(path):
+        if os.path.isdir(path):
+            raise RuntimeFailure(f"{path}: is a directory, not a session file")
+        return
+    if path.endswith(".log") and (os.path.exists(path + "r") or os.path.exists(path + "w")):
+        return
+    raise RuntimeFailure(f"{path}: no such file")
+
+
+def _positive_seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: must be more than 0 seconds")
+    return value
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: must be more than 0")
+    return value
+
+
+def _non_negative_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not value >= 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: must be 0 or more")
+    return value
+
+
+def _format_number(value: float) -> str:
+    return repr(int(value)) if float(value).is_integer() else repr(value)
+
+
+# --------------------------------------------------------------------------
+# bridges: record, replay, serve
+
+
+def _run_bridge(handle, out: _Output, what: str) -> int:
+    """Waits for a started bridge until it ends or Ctrl-C (or SIGTERM) stops
+    it; prints the outcome; returns the exit code."""
+    previous = signal.getsignal(signal.SIGTERM)
+
+    def _terminate(signum, frame):
+        raise KeyboardInterrupt
+
+    try:
+        signal.signal(signal.SIGTERM, _terminate)
+    except ValueError:  # not the main thread (tests calling main())
+        previous = None
+    try:
+        try:
+            while not handle.wait(_POLL_S):
+                pass
+        except KeyboardInterrupt:
+            out.note(f"{what}: stopping")
+            handle.stop()
+            handle.wait()
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+    result = handle.result()
+    stats = result.get("stats") or {}
+    if stats:
+        figures = ", ".join(f"{key}={value}" for key, value in stats.items() if value)
+        out.note(f"{what}: {result.get('outcome')}" + (f" ({figures})" if figures else ""))
+    if result.get("ok", False):
+        return EXIT_OK
+    message = str(result.get("message") or result.get("outcome") or "failed")
+    if result.get("outcome") == "mismatch":
+        raise CheckFailed(f"replay mismatch: {message}")
+    raise RuntimeFailure(message)
+
+
+def _client_side(args) -> Tuple[Optional[str], Optional[str]]:
+    if args.pty is None and args.listen is None:
+        raise UsageError("give where the client connects: --pty PATH or --listen HOST:PORT")
+    return args.pty, args.listen
+
+
+def _announce(handle, out: _Output, what: str, link: Optional[str] = None) -> None:
+    where = []
+    if handle.pty_path:
+        where.append(f"pty {link} -> {handle.pty_path}" if link else f"pty {handle.pty_path}")
+    if handle.address:
+        where.append(f"tcp {handle.address}")
+    out.note(f"{what}: {handle.device_description}; clients use "
+             + (", ".join(where) or "the client side") + "; Ctrl-C ends")
+
+
+def cmd_record(args, out: _Output) -> int:
+    from . import bridge
+
+    pty, listen = _client_side(args)
+    handle = bridge.record(args.device, args.output, pty=pty, listen=listen,
+                           duration=args.duration, meta=_meta_pairs(args.meta),
+                           quiet=args.quiet)
+    _announce(handle, out, f"recording to {args.output}", pty)
+    return _run_bridge(handle, out, "record")
+
+
+_REPLAY_KEYS = ("timing", "speed", "check", "match", "tolerance", "unmatched",
+                "repeat", "unused", "at_end")
+
+
+def replay_options_of(args) -> str:
+    """The replay keys given as --timing, --speed... plus --options."""
+    pairs = []
+    for key in _REPLAY_KEYS:
+        value = getattr(args, key, None)
+        if value is None:
+            continue
+        if isinstance(value, float):
+            value = _format_number(value)
+        pairs.append(f"{key}={value}")
+    if args.options:
+        pairs.append(args.options.strip().strip(","))
+    return ",".join(pairs)
+
+
+def cmd_replay(args, out: _Output) -> int:
+    from . import bridge
+
+    pty, listen = _client_side(args)
+    _require_input(args.file)
+    handle = bridge.serve_replay(args.file, pty=pty, listen=listen,
+                                 replay_options=replay_options_of(args),
+                                 restart=args.restart, output=args.output,
+                                 quiet=args.quiet)
+    _announce(handle, out, f"replaying {args.file}", pty)
+    return _run_bridge(handle, out, "replay")
+
+
+def cmd_serve(args, out: _Output) -> int:
+    from . import bridge
+
+    handle = bridge.serve(args.device, args.listen, output=args.output,
+                          protocol=args.protocol, shared=args.shared, reopen=args.reopen,
+                          quiet=args.quiet)
+    _announce(handle, out, "serving")
+    return _run_bridge(handle, out, "serve")
+
+
+# --------------------------------------------------------------------------
+# files: show, stats, verify, convert, diff
+
+
+def cmd_show(args, out: _Output) -> int:
+    from . import inspect
+
+    _require_input(args.file)
+    if args.decode and args.format != "text":
+        raise UsageError("--decode works with --format text only")
+    try:
+        inspect.show(args.file, fmt=args.format, decode=args.decode)
+    except BrokenPipeError:  # `wiretape show big.wtape | head`
+        _silence_stdout()
+        return EXIT_OK
+    # show reports damage itself and shows everything before it.
+    if inspect.verify(args.file)["ok"]:
+        return EXIT_OK
+    return EXIT_CHECK_FAILED
+
+
+def _silence_stdout() -> None:
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+
+
+def _print_stats(stats: dict, out: _Output) -> None:
+    order = ["path", "port_type", "port_options", "capture", "start_utc", "host",
+             "wiretape_version", "source_format", "records", "rx_records", "rx_bytes",
+             "tx_records", "tx_bytes", "event_records", "duration_s"]
+    width = max(len(key) for key in order + ["events", "metadata", "damaged"])
+    for key in order:
+        if key in stats and stats[key] not in (None, ""):
+            value = stats[key]
+            if key == "duration_s":
+                value = f"{value:.6f}"
+            out.print(f"{key:<{width}}  {value}")
+    if stats.get("events"):
+        events = ", ".join(f"{kind} {count}" for kind, count in sorted(stats["events"].items()))
+        out.print(f"{'events':<{width}}  {events}")
+    if stats.get("metadata"):
+        metadata = ", ".join(f"{k}={v}" for k, v in sorted(stats["metadata"].items()))
+        out.print(f"{'metadata':<{width}}  {metadata}")
+    if stats.get("damaged"):
+        out.print(f"{'damaged':<{width}}  at byte {stats.get('damage_offset')}: "
+                  f"{stats.get('damage_message')}", style="bold red")
+
+
+def cmd_stats(args, out: _Output) -> int:
+    from . import inspect
+
+    _require_input(args.file)
+    stats = inspect.stats(args.file)
+    if args.json:
+        print(json.dumps(stats, indent=2, sort_keys=True, default=str))
+    else:
+        _print_stats(stats, out)
+    return EXIT_CHECK_FAILED if stats.get("damaged") else EXIT_OK
+
+
+def cmd_verify(args, out: _Output) -> int:
+    from . import inspect
+
+    _require_input(args.file)
+    result = inspect.verify(args.file)
+    if args.json:
+        print(json.dumps(result, indent=2, sort_keys=True, default=str))
+    elif result["ok"]:
+        out.print(f"{args.file}: ok, {result['records']} records", style="green")
+    else:
+        out.print(f"{args.file}: DAMAGED at byte {result['offset']} after "
+                  f"{result['records']} good records: {result['message']}", style="bold red")
+    return EXIT_OK if result["ok"] else EXIT_CHECK_FAILED
+
+
+def cmd_convert(args, out: _Output) -> int:
+    from . import convert
+
+    _require_input(args.input)
+    progress = sys.stderr.isatty() and not args.quiet
+    result = convert.convert(args.input, args.output, from_format=args.from_format,
+                             to_format=args.to_format, progress=progress)
+    if not args.quiet:
+        out.note(f"converted {result.get('records', '?')} records: {args.input} "
+                 f"({result.get('from', '?')}) -> {args.output} ({result.get('to', '?')})")
+    return EXIT_OK
+
+
+def cmd_diff(args, out: _Output) -> int:
+    from . import diff
+
+    _require_input(args.a)
+    _require_input(args.b)
+    result = diff.diff(args.a, args.b)
+    for line in result.report().splitlines():
+        style = None
+        if line == "sessions are identical":
+            style = "green"
+        elif line == "sessions differ" or "damaged" in line:
+            style = "bold red"
+        out.print(line, style=style)
+    return EXIT_OK if result.identical else EXIT_CHECK_FAILED
+
+
+# --------------------------------------------------------------------------
+# ports, demo
+
+
+def _by_id_links(directory: str = "/dev/serial/by-id") -> Dict[str, List[str]]:
+    """Real device path -> the stable /dev/serial/by-id links to it."""
+    links: Dict[str, List[str]] = {}
+    try:
+        names = sorted(os.listdir(directory))
+    except OSError:  # no USB serial devices, or not Linux
+        return links
+    for name in names:
+        path = os.path.join(directory, name)
+        links.setdefault(os.path.realpath(path), []).append(path)
+    return links
+
+
+def serial_ports() -> List[dict]:
+    """The serial devices the OS knows: device, by-id paths, USB ids, text."""
+    from serial.tools import list_ports
+
+    by_id = _by_id_links()
+    ports = []
+    for info in sorted(list_ports.comports(), key=lambda p: p.device):
+        vid_pid = None
+        if info.vid is not None and info.pid is not None:
+            vid_pid = f"{info.vid:04x}:{info.pid:04x}"
+        description = info.description if info.description not in (None, "n/a") else ""
+        ports.append({
+            "device": info.device,
+            "by_id": by_id.get(os.path.realpath(info.device), []),
+            "vid_pid": vid_pid,
+            "description": description,
+            "manufacturer": info.manufacturer,
+            "product": info.product,
+            "serial_number": info.serial_number,
+            "location": info.location,
+            "hwid": info.hwid,
+        })
+    return ports
+
+
+def cmd_ports(args, out: _Output) -> int:
+    ports = serial_ports()
+    if args.json:
+        print(json.dumps(ports, indent=2))
+        return EXIT_OK
+    if not ports:
+        out.note("no serial ports found")
+        return EXIT_OK
+    rows = [(p["device"], "\n".join(p["by_id"]) or "-", p["vid_pid"] or "-",
+             p["description"] or "-") for p in ports]
+    out.table(("device", "by-id", "usb", "description"), rows)
+    return EXIT_OK
+
+
+def cmd_demo(args, out: _Output) -> int:
+    from . import demo
+
+    return int(demo.run() or 0)
+
+
+# --------------------------------------------------------------------------
+# the parser
+
+
+_DESCRIPTION = "Record and replay the wire-level session between a driver and its device."
+
+_EPILOG = """exit codes: 0 ok (Ctrl-C included); 1 the checked thing failed (replay
+mismatch, damaged file, diff found a difference, unused data under
+unused=error); 2 usage error; 3 runtime error (device or file I/O).
+--device takes a port option string (type=tcp,host=10.0.0.5,port=10940) or a
+bare path, which means type=serial,device=PATH."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that raises instead of exiting, so main() returns codes."""
+
+    def error(self, message):  # noqa: D401 - argparse's hook
+        raise _ArgumentError(self, message)
+
+    def exit(self, status=0, message=None):
+        if message:
+            print(message, file=sys.stderr if status else sys.stdout, end="")
+        raise _ParserExit(status)
+
+
+class _ArgumentError(Exception):
+    def __init__(self, parser, message):
+        super().__init__(message)
+        self.parser = parser
+
+
+class _ParserExit(Exception):
+    def __init__(self, status):
+        super().__init__(status)
+        self.status = status
+
+
+def _add_client_side(parser, verb: str) -> None:
+    side = parser.add_mutually_exclusive_group()
+    side.add_argument("--pty", metavar="PATH",
+                      help=f"{verb} on a new pseudo-terminal, linked at PATH (the "
+                           "client opens PATH as if it were the device)")
+    side.add_argument("--listen", metavar="HOST:PORT",
+                      help=f"{verb} on TCP: the client connects to HOST:PORT "
+                           "(PORT alone means 127.0.0.1:PORT; 0 picks a free port)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="wiretape", description=_DESCRIPTION, epilog=_EPILOG,
+                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"wiretape {__version__}")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    def command(name: str, handler: Callable, help_text: str, description: str = ""):
+        sub = commands.add_parser(name, help=help_text, description=description or help_text,
+                                  epilog=_EPILOG,
+                                  formatter_class=argparse.RawDescriptionHelpFormatter)
+        sub.set_defaults(handler=handler)
+        return sub
+
+    record = command(
+        "record", cmd_record, "record a driver's session with a device (transparent proxy)",
+        "A transparent proxy: the driver under test opens the --pty PATH (or connects "
+        "to --listen HOST:PORT) as if it were the device; every byte both ways is "
+        "forwarded to the --device and recorded. Ctrl-C ends cleanly. On a pty the "
+        "terminal settings the driver sets (baud, parity, stop bits) are applied to "
+        "the device and recorded; a pty has no modem lines.")
+    record.add_argument("--device", required=True, metavar="OPTS",
+                        help="the real device: a port option string or a serial device path")
+    _add_client_side(record, "the driver connects")
+    record.add_argument("-o", "--output", required=True, metavar="FILE",
+                        help="the session file to write (.wtape)")
+    record.add_argument("--duration", type=_positive_seconds, metavar="S",
+                        help="stop after S seconds (default: until Ctrl-C)")
+    record.add_argument("--meta", action="append", metavar="KEY=VALUE",
+                        help="free metadata for the session header (repeatable)")
+    record.add_argument("-q", "--quiet", action="store_true", help="no client/device messages")
+
+    replay = command(
+        "replay", cmd_replay, "replay a recording as a virtual device (pty or TCP)",
+        "The recording becomes a virtual device any program can open: a "
+        "pseudo-terminal (--pty PATH) or a TCP server (--listen HOST:PORT). A "
+        "client that closes and reopens continues the session (--restart starts it "
+        "over). The replay keys are those of type=replay (docs/options.md).")
+    replay.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
+    _add_client_side(replay, "the client connects")
+    replay.add_argument("--timing", choices=("none", "session", "causal"),
+                        help="when recorded replies are released (default causal)")
+    replay.add_argument("--speed", type=_positive_float, help="rate multiplier (default 1.0)")
+    replay.add_argument("--check", choices=("off", "data", "timing"),
+                        help="what is compared against the recording (default data)")
+    replay.add_argument("--match", choices=("sequence", "request"),
+                        help="sequence: one stream; request: answer matching requests "
+                             "in any order (default sequence)")
+    replay.add_argument("--tolerance", type=_non_negative_float, metavar="MS",
+                        help="timing tolerance in milliseconds for --check timing (default 100)")
+    replay.add_argument("--unmatched", choices=("error", "silent"),
+                        help="bytes matching no request: error or ignore (default error)")
+    replay.add_argument("--repeat", choices=("none", "last", "cycle"),
+                        help="used-up exchanges under --match request (default none)")
+    replay.add_argument("--unused", choices=("ignore", "warn", "error"),
+                        help="recorded data never consumed at close (default warn)")
+    replay.add_argument("--at-end", dest="at_end", choices=("silent", "closed"),
+                        help="after the last record (default silent)")
+    replay.add_argument("--options", metavar="KEYS",
+                        help="further replay keys as an option string (k=v,k=v)")
+    replay.add_argument("--restart", action="store_true",
+                        help="each new client starts the session over")
+    replay.add_argument("-o", "--output", metavar="FILE",
+                        help="also record what the client does to FILE")
+    replay.add_argument("-q", "--quiet", action="store_true", help="no client messages")
+
+    serve = command(
+        "serve", cmd_serve, "share a local device with remote programs over TCP",
+        "Shares a local device over TCP (raw bytes, or RFC 2217 so that remote "
+        "programs can set the line), recording on the server side with -o.")
+    serve.add_argument("--device", required=True, metavar="OPTS",
+                       help="the device: a port option string or a serial device path")
+    serve.add_argument("--listen", required=True, metavar="HOST:PORT",
+                       help="where clients connect (PORT alone means 127.0.0.1:PORT)")
+    serve.add_argument("-o", "--output", metavar="FILE", help="record the session to FILE")
+    serve.add_argument("--protocol", choices=("raw", "rfc2217"), default="raw",
+                       help="raw bytes or RFC 2217 (default raw)")
+    serve.add_argument("--shared", action="store_true",
+                       help="later clients may connect to monitor (read-only)")
+    serve.add_argument("--reopen", action="store_true",
+                       help="wait for a device that went away to come back")
+    serve.add_argument("-q", "--quiet", action="store_true", help="no client messages")
+
+    ports = command("ports", cmd_ports, "list serial devices (by-id paths, USB ids)")
+    ports.add_argument("--json", action="store_true", help="print JSON")
+
+    show = command("show", cmd_show, "print a session's timeline")
+    show.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
+    show.add_argument("--format", choices=("text", "hex", "jsonl"), default="text",
+                      help="text (default), hex dump, or one JSON object per record")
+    show.add_argument("--decode", choices=("scip",),
+                      help="decode a protocol: scip (Hokuyo SCIP 2.0)")
+
+    stats = command("stats", cmd_stats, "figures of a session (exit 1 if damaged)")
+    stats.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
+    stats.add_argument("--json", action="store_true", help="print JSON")
+
+    verify = command("verify", cmd_verify, "check every record of a session (exit 1 if damaged)")
+    verify.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
+    verify.add_argument("--json", action="store_true", help="print JSON")
+
+    convert = command(
+        "convert", cmd_convert, "convert between session formats",
+        "Converts IN to OUT. Formats: wiretape (.wtape), flexiport (name.log = "
+        "name.logr + name.logw), jsonl, and the exports pcapng (Wireshark) and "
+        "mcap (Foxglove). A format not given is taken from the file name.")
+    convert.add_argument("input", metavar="IN", help="the session to read")
+    convert.add_argument("output", metavar="OUT", help="the file to write")
+    convert.add_argument("--from", dest="from_format", choices=("wiretape", "flexiport", "jsonl"),
+                         help="format of IN (default: from its name or content)")
+    convert.add_argument("--to", dest="to_format",
+                         choices=("wiretape", "flexiport", "jsonl", "pcapng", "mcap"),
+                         help="format of OUT (default: from its name)")
+    convert.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
+
+    diff = command("diff", cmd_diff,
+                   "first divergence of two sessions, per direction (exit 1 if they differ)")
+    diff.add_argument("a", metavar="A", help="a session")
+    diff.add_argument("b", metavar="B", help="another session")
+
+    command("demo", cmd_demo,
+            "record a simulated Hokuyo scanner, replay it without it, compare (make demo)")
+    return parser
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """Runs the command line; returns the exit code."""
+    out = _Output()
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except _ArgumentError as error:
+        error.parser.print_usage(sys.stderr)
+        out.error(error.parser.prog, str(error))
+        return EXIT_USAGE
+    except _ParserExit as done:
+        return int(done.status or 0)
+    if getattr(args, "handler", None) is None:
+        parser.print_help(sys.stderr)
+        out.error("wiretape", "a command is required")
+        return EXIT_USAGE
+    prog = f"wiretape {args.command}"
+    try:
+        return int(args.handler(args, out) or 0)
+    except KeyboardInterrupt:
+        return EXIT_OK
+    except Exception as error:  # every failure: one line, a code, no traceback
+        if os.environ.get("WIRETAPE_DEBUG"):
+            import traceback
+
+            traceback.print_exc()
+        out.error(prog, _describe(error))
+        return exit_code_for(error)
 
 
 if __name__ == "__main__":
