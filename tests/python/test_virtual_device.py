@@ -136,3 +136,34 @@ def test_a_diverging_client_gets_the_mismatch_report(session):
 def test_missing_recording_is_a_clear_error(tmp_path):
     with pytest.raises(Exception, match="missing.wtape"):
         bridge.serve_replay(tmp_path / "missing.wtape", pty=True, quiet=True)
+
+
+def test_unused_error_turns_leftover_data_into_a_mismatch(session):
+    handle = bridge.serve_replay(session, listen="127.0.0.1:0",
+                                 replay_options="timing=none,unused=error", quiet=True)
+    with connect(handle) as client:
+        client.sendall(b"PING\n")
+        assert recv_line(client) == b"PONG\n"
+    result = finish(handle)
+    assert result["outcome"] == "mismatch"
+    assert "unused=error" in result["message"]
+
+
+def test_a_recorded_device_loss_ends_the_virtual_device(tmp_path):
+    path = tmp_path / "lost.wtape"
+    writer = _core.SessionWriter(str(path), capture="wire", port_type="serial")
+    writer.write("open", 0, b"{}")
+    writer.write("tx", 1000, b"PING\n")
+    writer.write("rx", 2000, b"PONG\n")
+    writer.write("device_lost", 3000, b'{"error":"unplugged"}')
+    writer.close()
+    handle = bridge.serve_replay(path, listen="127.0.0.1:0", replay_options="timing=none",
+                                 quiet=True)
+    with connect(handle) as client:
+        client.sendall(b"PING\n")
+        assert recv_line(client) == b"PONG\n"
+        assert handle.wait(DEADLINE)
+        assert client.recv(10) == b""
+    result = handle.result()
+    assert result["outcome"] == "device_closed"
+    assert result["ok"]
