@@ -55,6 +55,7 @@ namespace rfc = detail::rfc2217;
 constexpr std::size_t kChunk = 64 * 1024;
 constexpr auto kSettingsPollInterval = std::chrono::milliseconds(50);
 constexpr auto kWriteRetryInterval = std::chrono::milliseconds(2);
+constexpr auto kModemPollInterval = std::chrono::milliseconds(250);
 constexpr std::size_t kMaxMessages = 1000;
 
 const char* parity_name(Parity parity) {
@@ -174,6 +175,8 @@ struct Bridge::Impl {
   SerialSettings last_pty_settings_;
   Clock::time_point next_settings_check_;
   Clock::time_point next_reopen_;
+  Clock::time_point next_modem_poll_;
+  std::optional<std::uint8_t> last_modem_state_;
   bool reopen_failure_logged_ = false;
   bool had_client_ = false;
   bool dropped_input_logged_ = false;
@@ -246,6 +249,7 @@ struct Bridge::Impl {
 
   // --- line settings -----------------------------------------------------------------
   void check_pty_settings();
+  void poll_modem_lines();
   SerialSettings current_settings();
   // Applies `target` to the device (or to the virtual line), records it;
   // false if the device refused.
@@ -422,6 +426,7 @@ void Bridge::Impl::open_device(bool first, const char* why) {
   device_ = open_port(options_.device);
   // Never block the loop: writes take what the device accepts now.
   device_->set_timeout(std::chrono::nanoseconds(0));
+  last_modem_state_.reset();
   if (first) t0_ = Clock::now();
   const std::string description = device_->description();
   {
@@ -618,6 +623,9 @@ void Bridge::Impl::loop() {
     if (end_at_) wake_at = std::min(wake_at, *end_at_);
     if (pty_ && options_.mirror_settings) wake_at = std::min(wake_at, next_settings_check_);
     if (!device_ && options_.reopen) wake_at = std::min(wake_at, next_reopen_);
+    const bool watch_modem = options_.protocol == BridgeProtocol::rfc2217 && device_ &&
+                             !clients_.empty() && last_modem_state_ != std::uint8_t{0xff};
+    if (watch_modem) wake_at = std::min(wake_at, next_modem_poll_);
     if (device_ && !to_device_.empty() && !device_polls_output_ready) {
       wake_at = std::min(wake_at, now + kWriteRetryInterval);
     }
@@ -657,6 +665,10 @@ void Bridge::Impl::loop() {
                    clients_.end());
     if (listener_index >= 0 && (fds[static_cast<std::size_t>(listener_index)].revents & POLLIN)) {
       accept_client();
+    }
+    if (watch_modem && Clock::now() >= next_modem_poll_) {
+      poll_modem_lines();
+      next_modem_poll_ = Clock::now() + kModemPollInterval;
     }
     if (pty_ && options_.mirror_settings && Clock::now() >= next_settings_check_) {
       check_pty_settings();
@@ -1019,6 +1031,29 @@ bool Bridge::Impl::apply_settings(const SerialSettings& target, const char* sour
 void Bridge::Impl::record_modem_line(const char* line, bool level, bool applied) {
   record(RecordKind::modem_lines,
          json::ObjectWriter().add(line, level).add("applied", applied).str());
+}
+
+// RFC 2217 clients are told when CTS, DSR, RI or CD change.
+void Bridge::Impl::poll_modem_lines() {
+  std::uint8_t state = 0;
+  try {
+    Port& d = *device_;
+    state = static_cast<std::uint8_t>((d.cd() ? 0x80 : 0) | (d.ri() ? 0x40 : 0) |
+                                      (d.dsr() ? 0x20 : 0) | (d.cts() ? 0x10 : 0));
+  } catch (const PortClosed& closed) {
+    device_lost(closed.what());
+    return;
+  } catch (const PortError&) {
+    last_modem_state_ = 0xff;  // no modem lines: stop asking
+    return;
+  }
+  if (last_modem_state_ == state) return;
+  last_modem_state_ = state;
+  for (auto& client : clients_) {
+    if (client->gone || !client->telnet) continue;
+    client->outgoing.append(client->telnet->modem_state_notification());
+    write_client(*client);
+  }
 }
 
 void Bridge::Impl::check_pty_settings() {
