@@ -17,6 +17,8 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/unique_ptr.h>
 
+#include "replay/replay_port.hpp"
+
 #include "python/bindings.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/port.hpp"
@@ -74,10 +76,17 @@ Timeout call_timeout(const Port& port, nb::handle value) {
 // `timeout` expires, checking Python's signals between slices. attempt must
 // return by slice_end (it passes remaining(slice_end) to the port).
 template <typename Attempt>
-void run_in_slices(Timeout timeout, Attempt&& attempt) {
+void run_in_slices(Port& port, Timeout timeout, Attempt&& attempt) {
   using Clock = std::chrono::steady_clock;
   const Deadline deadline = deadline_after(timeout);
   for (;;) {
+    // A replay whose recording has ended raises PortClosed on a read that
+    // would block forever; slices alone would hide that it is forever.
+    if (!timeout && detail::replay_read_would_block_forever(port)) {
+      nb::gil_scoped_release release;
+      attempt(Deadline());
+      return;
+    }
     Clock::time_point slice_end = Clock::now() + signal_check_interval;
     bool last = false;
     if (deadline && *deadline <= slice_end) {
@@ -156,7 +165,7 @@ nb::bytes read(Port& port, long long size, nb::handle timeout) {
   if (wanted == 0) return nb::bytes("", 0);
   std::string buffer(wanted, '\0');
   std::size_t got = 0;
-  run_in_slices(limit, [&](Deadline slice_end) {
+  run_in_slices(port, limit, [&](Deadline slice_end) {
     got = port.read(&buffer[0], buffer.size(), remaining(slice_end));
     return got > 0;
   });
@@ -170,7 +179,7 @@ nb::bytes read_exactly(Port& port, long long count, nb::handle timeout) {
   data.reserve(std::min(wanted, max_read_chunk));
   char chunk[4096];
   if (wanted > 0) {
-    run_in_slices(limit, [&](Deadline slice_end) {
+    run_in_slices(port, limit, [&](Deadline slice_end) {
       while (data.size() < wanted) {
         const std::size_t want = std::min(sizeof chunk, wanted - data.size());
         const std::size_t n = port.read(chunk, want, remaining(slice_end));
@@ -189,7 +198,7 @@ std::string read_until(Port& port, std::string_view delimiter,
                        std::size_t max_bytes, Timeout limit) {
   std::string data;
   if (max_bytes == 0) return data;
-  run_in_slices(limit, [&](Deadline slice_end) {
+  run_in_slices(port, limit, [&](Deadline slice_end) {
     while (data.size() < max_bytes) {
       char byte;
       if (port.read(&byte, 1, remaining(slice_end)) == 0) return false;
@@ -218,7 +227,7 @@ std::size_t skip(Port& port, long long count, nb::handle timeout) {
   std::size_t skipped = 0;
   char scratch[4096];
   if (wanted > 0) {
-    run_in_slices(limit, [&](Deadline slice_end) {
+    run_in_slices(port, limit, [&](Deadline slice_end) {
       while (skipped < wanted) {
         const std::size_t want = std::min(sizeof scratch, wanted - skipped);
         const std::size_t n = port.read(scratch, want, remaining(slice_end));
@@ -246,7 +255,7 @@ bool skip_until(Port& port, nb::handle delimiter_object, nb::handle timeout) {
 bool wait_readable(Port& port, nb::handle timeout) {
   const Timeout limit = call_timeout(port, timeout);
   bool ready = false;
-  run_in_slices(limit, [&](Deadline slice_end) {
+  run_in_slices(port, limit, [&](Deadline slice_end) {
     ready = port.wait_readable(remaining(slice_end));
     return ready;
   });

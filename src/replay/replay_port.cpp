@@ -127,6 +127,14 @@ class ReplayPort final : public Port {
   }
 
   void close() override { shut(/*may_throw=*/true); }
+
+  bool read_would_block_forever() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return !closed_ &&
+           engine_.outlook(ReplayClock::now()).state ==
+               ReplayEngine::ReadState::ended &&
+           engine_.config().at_end == ReplayAtEnd::silent;
+  }
   bool is_open() const override {
     std::lock_guard<std::mutex> lock(mutex_);
     return !closed_;
@@ -338,6 +346,11 @@ RecordSourceFactory session_source_factory(const std::string& path) {
 std::unique_ptr<Port> open_replay_session(ReplayConfig config,
                                           RecordSourceFactory sources) {
   return std::make_unique<ReplayPort>(std::move(config), std::move(sources));
+}
+
+bool replay_read_would_block_forever(Port& port) {
+  auto* replay = dynamic_cast<ReplayPort*>(&port);
+  return replay != nullptr && replay->read_would_block_forever();
 }
 
 std::unique_ptr<Port> open_replay(Options& options) {

@@ -12,4 +12,10 @@ namespace wiretape::detail {
 std::unique_ptr<Port> open_replay_session(ReplayConfig config,
                                           RecordSourceFactory sources);
 
+// True when `port` is a replay whose recording has nothing more for the
+// client to read (at_end=silent): a read without a timeout would raise
+// PortClosed. For callers that wait in slices (the Python binding), which
+// would otherwise wait forever. False for every other port.
+bool replay_read_would_block_forever(Port& port);
+
 }  // namespace wiretape::detail
