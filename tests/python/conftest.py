@@ -52,7 +52,8 @@ class Endpoint:
     def close(self):
         if self.port.is_open:
             self.port.close()
-        for action in self._cleanup:
+        cleanup, self._cleanup = self._cleanup, []
+        for action in cleanup:
             action()
 
 
@@ -174,3 +175,26 @@ def session_file(tmp_path):
         return write_session(tmp_path / name, records, **header)
 
     return make
+
+
+@pytest.fixture
+def endpoint_factory(tmp_path):
+    """``endpoint_factory(kind)``: an Endpoint of that kind ("loopback",
+    "pty", "tcp"), closed after the test."""
+    made = []
+
+    def make(kind, timeout="1"):
+        if kind == "loopback":
+            endpoint = make_loopback(timeout)
+        elif kind == "pty":
+            endpoint = make_pty(tmp_path, timeout)
+        elif kind == "tcp":
+            endpoint = make_tcp(timeout)
+        else:
+            raise ValueError(f"unknown endpoint kind {kind!r}")
+        made.append(endpoint)
+        return endpoint
+
+    yield make
+    for endpoint in made:
+        endpoint.close()
