@@ -73,7 +73,7 @@ class Bench:
         self.work = build / "bench"
         self.work.mkdir(parents=True, exist_ok=True)
         self.tool = build / "bin" / "wiretape_bench_tool"
-        self.gbench = build / "bin" / "wiretape_bench"
+        self.gbench_program = build / "bin" / "wiretape_bench"
         self.python = ROOT / ".venv" / "bin" / "python"
         if not self.python.exists():
             self.python = Path(sys.executable)
@@ -264,15 +264,21 @@ class Bench:
             raise Skip("wiretape_bench not built (Google Benchmark missing: "
                        "apt-get install libbenchmark-dev)")
         out = self.work / "gbench.json"
-        proc = subprocess.run([str(self.gbench), f"--benchmark_out={out}",
+        proc = subprocess.run([str(self.gbench_program), f"--benchmark_out={out}",
                                "--benchmark_out_format=json", "--benchmark_min_time=0.2"],
                               capture_output=True, text=True, timeout=900, env=self.env)
         if proc.returncode != 0:
             raise Skip("wiretape_bench: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
-        self.notes["gbench"] = f"per-call figures in {out}"
+        figures = []
+        for entry in json.loads(out.read_text()).get("benchmarks", []):
+            rate = entry.get("bytes_per_second")
+            figures.append(f"{entry['name'].replace('/real_time', '')} "
+                           + (f"{rate / 1e6:.0f} MB/s" if rate else
+                              f"{entry['real_time']:.1f} {entry['time_unit']}"))
+        self.notes["gbench"] = f"{out}: " + "; ".join(figures)
 
     def gbench_path_ok(self) -> bool:
-        return self.gbench.exists()
+        return self.gbench_program.exists()
 
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
