@@ -234,3 +234,65 @@ def test_bad_listen_address_is_a_clear_error(device):
         bridge.serve(device.options, "127.0.0.1:70000")
     with pytest.raises(_core.PortError, match="resolve|bind"):
         bridge.serve(device.options, "no.such.host.invalid:0", quiet=True)
+
+
+def serial_on_pty_problem():
+    import os
+    master, slave = os.openpty()
+    try:
+        _core.open_port(f"type=serial,device={os.ttyname(slave)},exclusive=false").close()
+        return None
+    except Exception as error:  # noqa: BLE001 - any failure means "not usable here"
+        return str(error)
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_pty_device_closed_then_back_under_the_same_link(tmp_path):
+    """The device is a serial port on a pty reached through a symlink (as
+    /dev/serial/by-id/... is): its pty closes (unplugged), a new one appears
+    under the same link (plugged back), and the server carries on."""
+    import os
+    import tty
+
+    problem = serial_on_pty_problem()
+    if problem:
+        pytest.skip(f"serial ports cannot be opened here: {problem}")
+
+    def plug():
+        master, slave = os.openpty()
+        tty.setraw(slave)
+        if os.path.lexists(link):
+            os.unlink(link)
+        os.symlink(os.ttyname(slave), link)
+        return master, slave
+
+    link = str(tmp_path / "ttyDevice")
+    master, slave = plug()
+    handle = bridge.serve(f"type=serial,device={link},exclusive=false", "127.0.0.1:0",
+                          reopen=True, quiet=True)
+    try:
+        with connect(handle) as client:
+            client.sendall(b"one")
+            ready, _, _ = select.select([master], [], [], DEADLINE)
+            assert ready and os.read(master, 10) == b"one"
+            os.unlink(link)
+            os.close(slave)
+            os.close(master)  # unplugged: the server's reads fail
+            wait_for(lambda: handle.stats()["device_losses"] == 1, "the loss to be noticed")
+            assert read_to_end(client) == b""
+        assert any("went away" in m for m in handle.messages())
+        master, slave = plug()
+        wait_for(lambda: handle.stats()["device_reopens"] == 1, "the device to come back")
+        with connect(handle) as client:
+            client.sendall(b"two")
+            ready, _, _ = select.select([master], [], [], DEADLINE)
+            assert ready and os.read(master, 10) == b"two"
+            os.write(master, b"back")
+            assert read_exactly(client, 4) == b"back"
+    finally:
+        result = finish(handle)
+        os.close(master)
+        os.close(slave)
+    assert result["ok"]
