@@ -183,7 +183,9 @@ class Bench:
             f"lateness min {result['min_us']:.0f} µs, max {result['max_us']:.0f} µs; "
             f"open took {result['open_us']:.0f} µs, t=0 taken {result['anchor_after_open_start_us']:.0f} µs "
             f"into it (median {result['p50_from_open_start_us']:.0f} µs if due times count "
-            f"from the start of open); naive player ends "
+            f"from the start of open); the machine's floor, a thread sleeping until each "
+            f"due time: median {result['sleep_until_p50_us']:.0f} µs, p99 "
+            f"{result['sleep_until_p99_us']:.0f} µs; naive player ends "
             f"{result['naive_last_late_ms']:.0f} ms late")
 
     def record(self) -> None:
