@@ -52,6 +52,21 @@ void keep_tail(std::string& history, std::string_view added) {
   if (history.size() > kContext) history.erase(0, history.size() - kContext);
 }
 
+// A recorded close is the device going away only when the session goes on
+// after it; the close that ends a recording (the client closing its port) is
+// just the end, where at_end applies. Consumes the source.
+bool session_goes_on(RecordSource& source) {
+  Record record;
+  while (source.next(record)) {
+    if ((record.kind == RecordKind::rx || record.kind == RecordKind::tx) &&
+        !record.data.empty()) {
+      return true;
+    }
+    if (record.kind == RecordKind::device_lost) return true;
+  }
+  return false;
+}
+
 }  // namespace
 
 std::string hex_ascii(std::string_view bytes) {
@@ -111,6 +126,10 @@ void ReplayEngine::fill_rx() {
       case RecordKind::close:
       case RecordKind::device_lost: {
         if (record.kind == RecordKind::rx && record.data.empty()) break;
+        if (record.kind == RecordKind::close && !session_goes_on(*rx_source_)) {
+          rx_exhausted_ = true;
+          break;
+        }
         RxItem item;
         item.kind = record.kind;
         item.t_ns = record.t_ns;
@@ -290,7 +309,8 @@ bool ReplayEngine::next_tx_record() {
         break;
       case RecordKind::close:
       case RecordKind::device_lost:
-        tx_hit_close_ = true;
+        tx_hit_close_ = record.kind == RecordKind::device_lost ||
+                        session_goes_on(*tx_source_);
         tx_close_t_ns_ = record.t_ns;
         tx_exhausted_ = true;
         break;
@@ -437,6 +457,7 @@ void ReplayEngine::load_exchanges() {
       case RecordKind::device_lost: {
         if (record.kind == RecordKind::rx && record.data.empty()) break;
         device_gone = record.kind != RecordKind::rx;
+        if (record.kind == RecordKind::close && !session_goes_on(*source)) break;
         RxItem item;
         item.kind = record.kind;
         item.t_ns = record.t_ns;

@@ -269,6 +269,32 @@ TEST(ReplaySequence, RecordedCloseReplaysAsPortClosedAtThatPoint) {
   EXPECT_THROW(read_some(*port), PortClosed);
 }
 
+// The close that ends a recording is the client closing its port: the end,
+// where at_end applies, not a device that went away.
+TEST(ReplaySequence, CloseThatEndsTheRecordingIsTheEndNotALoss) {
+  auto port = replay({tx(0, "Q"), rx(1, "A"), event(2, RecordKind::close)});
+  port->write("Q");
+  EXPECT_EQ(read_some(*port), "A");
+  EXPECT_FALSE(port->wait_readable(20ms));
+  EXPECT_EQ(read_some(*port, 10, 20ms), "");
+  EXPECT_THROW(port->write("more"), ReplayMismatch);
+  auto request = replay({tx(0, "Q"), rx(1, "A"), event(2, RecordKind::close)},
+                        "timing=none,match=request");
+  request->write("Q");
+  EXPECT_EQ(read_some(*request), "A");
+  EXPECT_EQ(read_some(*request, 10, 20ms), "");
+  auto closed = replay({rx(1, "A"), event(2, RecordKind::close)},
+                       "timing=none,at_end=closed");
+  EXPECT_EQ(read_some(*closed), "A");
+  EXPECT_THROW(read_some(*closed), PortClosed);
+}
+
+TEST(ReplaySequence, WritePastARecordedCloseRaisesPortClosed) {
+  auto port = replay({tx(0, "Q"), event(1, RecordKind::close), rx(2, "late")});
+  port->write("Q");
+  EXPECT_THROW(port->write("R"), PortClosed);
+}
+
 TEST(ReplaySequence, RecordedDeviceLossReplaysAsPortClosed) {
   auto port = replay({tx(0, "Q"), rx(1, "A"), event(2, RecordKind::device_lost)});
   port->write("Q");

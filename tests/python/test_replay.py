@@ -134,8 +134,8 @@ def test_after_the_end_reads_time_out_and_blocking_reads_raise(tmp_path):
         closed.read(10, timeout=1)
 
 
-def test_recorded_close_raises_port_closed(tmp_path):
-    port = replay(write_session(tmp_path / "s.wtape", [("rx", 0, b"bye"), ("close", 1, b"")]))
+def test_recorded_device_loss_raises_port_closed(tmp_path):
+    port = replay(write_session(tmp_path / "s.wtape", [("rx", 0, b"bye"), ("device_lost", 1, b"")]))
     assert port.read_exactly(3) == b"bye"
     with pytest.raises(core.PortClosed):
         port.read(1)
