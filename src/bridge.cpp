@@ -998,6 +998,9 @@ SerialSettings Bridge::Impl::current_settings() {
 }
 
 bool Bridge::Impl::apply_settings(const SerialSettings& target, const char* source) {
+  // RFC 2217 clients send every setting on open: only changes are applied
+  // and recorded.
+  if (target == current_settings()) return true;
   bool applied = false;
   try {
     device_->configure(target);

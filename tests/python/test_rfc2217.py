@@ -127,8 +127,9 @@ def test_pyserial_rfc2217_client_sets_the_line_and_moves_bytes(pty_device, tmp_p
     kinds = [r.kind for r in records]
     assert kinds[0] == "open" and "client_connect" in kinds and "client_disconnect" in kinds
     settings = [json.loads(r.data) for r in records if r.kind == "settings"]
-    assert {"baud": 115200, "stopbits": 2, "source": "rfc2217", "applied": True}.items() <= settings[-3].items() \
-        or any(s["baud"] == 115200 and s["applied"] for s in settings)
+    assert settings[0]["baud"] == 115200 and settings[0]["source"] == "rfc2217"
+    assert all(s["applied"] for s in settings)
+    assert any(s["stopbits"] == 2 for s in settings)
     assert any(s["databits"] == 7 and s["parity"] == "even" for s in settings)
     lines = [json.loads(r.data) for r in records if r.kind == "modem_lines"]
     assert {"dtr": False, "applied": False} in lines
@@ -202,3 +203,27 @@ def test_malformed_telnet_never_stops_the_server(tmp_path):
         result = finish(handle)
         server.close()
     assert result["ok"]
+
+
+def test_rfc2217_in_front_of_a_replay(tmp_path):
+    path = tmp_path / "device.wtape"
+    writer = _core.SessionWriter(str(path), capture="wire", port_type="serial")
+    writer.write("open", 0, b"{}")
+    writer.write("tx", 1000, b"PING\n")
+    writer.write("rx", 2000, b"PONG\xff\n")
+    writer.close()
+    handle = bridge.serve(f"type=replay,file={path},timing=none", "127.0.0.1:0",
+                          protocol="rfc2217", output=tmp_path / "served.wtape", quiet=True)
+    try:
+        with serial.serial_for_url("rfc2217://" + handle.address, baudrate=115200,
+                                   timeout=DEADLINE) as client:
+            client.write(b"PING\n")
+            assert client.read_until(b"\n") == b"PONG\xff\n"
+    finally:
+        result = finish(handle)
+    assert result["ok"], result
+    with _core.SessionReader(str(tmp_path / "served.wtape")) as reader:
+        records = list(reader)
+    settings = [json.loads(r.data) for r in records if r.kind == "settings"]
+    # Only the change from the replay's default line is recorded.
+    assert [s["baud"] for s in settings] == [115200]
