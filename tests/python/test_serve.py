@@ -296,3 +296,28 @@ def test_pty_device_closed_then_back_under_the_same_link(tmp_path):
         os.close(master)
         os.close(slave)
     assert result["ok"]
+
+
+def test_a_monitor_that_does_not_read_never_holds_the_controller_back():
+    handle = bridge.serve("type=loopback", "127.0.0.1:0", shared=True, quiet=True)
+    total = 32 << 20
+    try:
+        with connect(handle) as control, connect(handle) as monitor:
+            monitor.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+            wait_for(lambda: handle.stats()["clients_accepted"] == 2, "two clients")
+            chunk = bytes(range(256)) * 256
+            sender = threading.Thread(
+                target=lambda: [control.sendall(chunk) for _ in range(total // len(chunk))])
+            sender.start()
+            got = 0
+            while got < total:
+                data = control.recv(1 << 20)
+                assert data
+                got += len(data)
+            sender.join(DEADLINE)
+        stats = handle.stats()
+        assert stats["bytes_from_device"] == total
+        # The monitor's share beyond its bound was dropped, not queued.
+        assert stats["bytes_dropped"] > 0
+    finally:
+        finish(handle)
