@@ -288,4 +288,12 @@ TEST(FaultDisconnect, RecordedTcpDeviceLossIsRecordedAndTheFileVerifies) {
   EXPECT_FALSE(reader.damage()) << reader.damage()->what();
   EXPECT_EQ(rx, "hello\n");
   EXPECT_TRUE(lost) << "no device_lost record in " << path;
+
+  // Replayed, the loss comes back at the same point: a blocked read after
+  // the recorded bytes raises PortClosed.
+  auto replay = open_port("type=replay,timing=none,file=" + path);
+  EXPECT_EQ(replay->read_line(), "hello\n");
+  auto replayed = in_background([&] { replay->read_line(); });
+  const CallResult replayed_result = finished(replayed);
+  EXPECT_EQ(replayed_result.outcome, Outcome::port_closed) << describe(replayed_result);
 }
