@@ -66,7 +66,7 @@ fuzz:
 
 # Record+replay loop for SOAK_MINUTES; fails if RSS or open fds grow.
 soak: python
-	$(PYTHON) bench/soak.py --minutes $(SOAK_MINUTES) --work $(BUILD)/soak
+	$(PYTHON) bench/soak.py --minutes $(SOAK_MINUTES) --build $(BUILD) --work $(BUILD)/soak
 
 clean:
 	rm -rf $(BUILD)
