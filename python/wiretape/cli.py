@@ -231,7 +231,9 @@ def _run_bridge(handle, out: _Output, what: str) -> int:
         return EXIT_OK
     message = str(result.get("message") or result.get("outcome") or "failed")
     if result.get("outcome") == "mismatch":
-        raise CheckFailed(f"replay mismatch: {message}")
+        if not message.startswith("replay mismatch"):
+            message = f"replay mismatch: {message}"
+        raise CheckFailed(message)
     raise RuntimeFailure(message)
 
 

@@ -351,3 +351,26 @@ def test_record_with_duration_ends_by_itself(tmp_path):
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     assert os.path.getsize(output) > 0
+
+
+def test_replay_mismatch_exits_1_with_the_report(tmp_path, session_file):
+    import socket
+
+    path = session_file(SESSION)
+    child = _start(["replay", str(path), "--listen", "127.0.0.1:0", "--timing", "none"])
+    try:
+        host, number = _address(child)
+        with socket.create_connection((host, number), timeout=5) as client:
+            client.sendall(b"PANG\n")
+            client.settimeout(5)
+            try:
+                while client.recv(64):
+                    pass
+            except OSError:
+                pass
+        child.wait(15)  # a mismatch ends the replay by itself
+    finally:
+        code, _, err = _stop(child)
+    assert code == 1, err
+    assert "replay mismatch" in err and "Traceback" not in err
+    assert err.count("replay mismatch: replay mismatch") == 0
