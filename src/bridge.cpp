@@ -486,23 +486,20 @@ void Bridge::Impl::open_listener() {
 }
 
 void Bridge::Impl::open_all() {
+  if (options_.client_side == BridgeClientSide::tcp) open_listener();
+  open_device(true, nullptr);
   if (!options_.output.empty()) {
     SessionWriterOptions writer_options;
     writer_options.capture = Capture::wire;
     writer_options.port_options = options_.device;
+    writer_options.port_type = device_->type();
     writer_options.metadata = options_.metadata;
     writer_options.flush_ms = options_.flush_ms;
-    // The port type is the device's; take it from the option string.
-    const auto type_at = options_.device.find("type=");
-    if (type_at != std::string::npos) {
-      const auto start = type_at + 5;
-      const auto stop = options_.device.find_first_of(", \t\n", start);
-      writer_options.port_type = options_.device.substr(start, stop - start);
-    }
     writer_ = std::make_unique<SessionWriter>(options_.output, std::move(writer_options));
+    // Time zero is the device's open, which came just before the file.
+    record_at(RecordKind::open, 0,
+              json::ObjectWriter().add("description", device_->description()).str());
   }
-  if (options_.client_side == BridgeClientSide::tcp) open_listener();
-  open_device(true, nullptr);
   if (options_.client_side == BridgeClientSide::pty) {
     std::string pty_options = "type=pty";
     if (!options_.pty_link.empty()) {
@@ -1135,10 +1132,13 @@ void Bridge::start() {
     impl.device_.reset();
     impl.listener_.reset();
     if (impl.writer_) {
+      // Nothing was recorded: leave no file that looks like a session.
       try {
         impl.writer_->close();
       } catch (...) {
       }
+      impl.writer_.reset();
+      std::remove(impl.options_.output.c_str());
     }
     std::lock_guard<std::mutex> lock(impl.status_mutex_);
     impl.finished_ = true;

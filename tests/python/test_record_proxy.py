@@ -273,8 +273,11 @@ def test_duration_ends_the_recording(device, tmp_path):
 
 
 def test_unreachable_device_is_a_clear_error(tmp_path):
+    out = tmp_path / "x.wtape"
     with pytest.raises(_core.PortError, match="connect"):
-        bridge.record("type=tcp,port=1,timeout=2", tmp_path / "x.wtape", pty=True, quiet=True)
+        bridge.record("type=tcp,port=1,timeout=2", out, pty=True, quiet=True)
+    # Nothing was recorded: no file that looks like a session is left.
+    assert not out.exists()
 
 
 def test_exactly_one_client_side(device, tmp_path):
