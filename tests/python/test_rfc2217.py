@@ -17,6 +17,9 @@ from wiretape import _core, bridge
 
 DEADLINE = 10.0
 
+# pyserial's rfc2217 client uses threading names deprecated in Python 3.10.
+pytestmark = pytest.mark.filterwarnings("ignore:set.*is deprecated:DeprecationWarning")
+
 
 def serial_on_pty_problem():
     master, slave = os.openpty()
