@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -254,6 +255,38 @@ TEST_F(CassetteFixture, EchoesThroughTheCassette) {
   ASSERT_NE(cassette(), nullptr);
   EXPECT_EQ(fs::path(cassette()->path()).filename(), "CassetteFixture.EchoesThroughTheCassette.wtape");
   EXPECT_EQ(fs::path(cassette()->path()).parent_path().filename(), "testing_helper_test");
+}
+
+// The fixture's two paths through the environment, as a developer runs them:
+// this program runs its own CassetteFixture test, first recording from
+// type=loopback, then replaying what it recorded.
+int run_fixture_test(const std::string& environment) {
+  const std::string program = std::string(WIRETAPE_BIN_DIR) + "/testing_helper_test";
+  const std::string command = environment + " '" + program +
+                              "' --gtest_filter=CassetteFixture.EchoesThroughTheCassette"
+                              " > /dev/null 2>&1";
+  return std::system(command.c_str());
+}
+
+TEST(CassetteFixtureProgram, RecordsWithTheEnvironmentThenReplays) {
+  TemporaryDirectory directory;
+  const std::string where = "WIRETAPE_CASSETTE_DIR='" + directory.path().string() + "'";
+  const fs::path cassette = directory.path() / "testing_helper_test" /
+                            "CassetteFixture.EchoesThroughTheCassette.wtape";
+
+  EXPECT_NE(run_fixture_test("env -u WIRETAPE_RECORD " + where), 0)
+      << "replay must fail while the cassette is missing";
+  EXPECT_FALSE(fs::exists(cassette));
+
+  ASSERT_EQ(run_fixture_test("env WIRETAPE_RECORD=1 WIRETAPE_DEVICE=type=loopback " + where), 0);
+  ASSERT_TRUE(fs::exists(cassette));
+  EXPECT_EQ(streams(cassette), std::make_pair(std::string("PING\rVV\n"), std::string("PING\rVV\n")));
+
+  EXPECT_EQ(run_fixture_test("env -u WIRETAPE_RECORD -u WIRETAPE_DEVICE " + where), 0);
+  const std::string recorded = file_bytes(cassette);
+  EXPECT_NE(run_fixture_test("env -u WIRETAPE_DEVICE WIRETAPE_RECORD=1 " + where), 0)
+      << "recording without WIRETAPE_DEVICE must fail";
+  EXPECT_EQ(file_bytes(cassette), recorded);
 }
 
 }  // namespace
