@@ -97,3 +97,82 @@ TEST(OptionsAlias, OldNameMapsAndBothIsError) {
   auto both = Options::parse("ip=1,host=2");
   EXPECT_THROW(both.alias("ip", "host"), OptionError);
 }
+
+TEST(OptionsTake, TimeoutSpellings) {
+  auto options = Options::parse("a=-1,b=none,c=forever,d=0,e=1.5,f=NONE");
+  EXPECT_EQ(options.take_timeout("a", std::chrono::seconds(1)), wiretape::forever);
+  EXPECT_EQ(options.take_timeout("b", std::chrono::seconds(1)), wiretape::forever);
+  EXPECT_EQ(options.take_timeout("c", std::chrono::seconds(1)), wiretape::forever);
+  EXPECT_EQ(options.take_timeout("d", wiretape::forever), std::chrono::nanoseconds(0));
+  EXPECT_EQ(options.take_timeout("e", wiretape::forever),
+            std::chrono::nanoseconds(1'500'000'000));
+  EXPECT_EQ(options.take_timeout("f", std::chrono::seconds(1)), wiretape::forever);
+  EXPECT_EQ(options.take_timeout("absent", std::chrono::seconds(2)),
+            std::chrono::nanoseconds(std::chrono::seconds(2)));
+  for (const char* bad : {"-0.5", "soon", "", "1s", "inf", "nan"}) {
+    auto one = Options::parse(std::string("timeout=\"") + bad + "\"");
+    try {
+      one.take_timeout("timeout", wiretape::forever);
+      ADD_FAILURE() << "accepted timeout=" << bad;
+    } catch (const OptionError& e) {
+      EXPECT_EQ(e.key(), "timeout");
+    }
+  }
+}
+
+TEST(OptionsTake, BooleansAcceptEverySpellingInAnyCase) {
+  auto options = Options::parse("a=TRUE,b=No,c=ON,d=0,e=Yes,f=off,g");
+  EXPECT_TRUE(options.take_bool("a", false));
+  EXPECT_FALSE(options.take_bool("b", true));
+  EXPECT_TRUE(options.take_bool("c", false));
+  EXPECT_FALSE(options.take_bool("d", true));
+  EXPECT_TRUE(options.take_bool("e", false));
+  EXPECT_FALSE(options.take_bool("f", true));
+  EXPECT_TRUE(options.take_bool("g", false)) << "a bare key means 1";
+  auto bad = Options::parse("listen=2");
+  EXPECT_THROW(bad.take_bool("listen", false), OptionError);
+}
+
+TEST(OptionsTake, IntegersRejectTrailingTextAndRange) {
+  for (const char* bad : {"12abc", "", "1.5", "99999999999999999999", "-1"}) {
+    auto options = Options::parse(std::string("n=\"") + bad + "\"");
+    try {
+      options.take_int("n", 0, 0, 100);
+      ADD_FAILURE() << "accepted n=" << bad;
+    } catch (const OptionError& e) {
+      EXPECT_EQ(e.key(), "n");
+      EXPECT_NE(std::string(e.what()).find("0 to 100"), std::string::npos);
+    }
+  }
+}
+
+TEST(OptionsTake, PrefixedKeysAreCollected) {
+  auto options = Options::parse("meta_robot=r2,meta_site=\"lab 3\",other=1");
+  const auto meta = options.take_prefixed("meta_");
+  ASSERT_EQ(meta.size(), 2u);
+  EXPECT_EQ(meta.at("robot"), "r2");
+  EXPECT_EQ(meta.at("site"), "lab 3");
+  EXPECT_THROW(options.finish("loopback"), OptionError) << "'other' is left";
+}
+
+TEST(OptionsQuote, QuotesOnlyWhatNeedsIt) {
+  EXPECT_EQ(Options::quote("plain"), "plain");
+  EXPECT_EQ(Options::quote("a b"), "\"a b\"");
+  EXPECT_EQ(Options::quote("a,b"), "\"a,b\"");
+  EXPECT_EQ(Options::quote("k=v"), "\"k=v\"");
+  EXPECT_EQ(Options::quote(""), "\"\"");
+  EXPECT_EQ(Options::quote("say \"x\""), "\"say \\\"x\\\"\"");
+}
+
+TEST(OptionsAlias, AliasIsListedAmongValidKeys) {
+  auto options = Options::parse("colour=1");
+  options.alias("ip", "host");
+  options.take("host");
+  try {
+    options.finish("tcp");
+    FAIL();
+  } catch (const OptionError& e) {
+    EXPECT_NE(std::string(e.what()).find("ip"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("host"), std::string::npos);
+  }
+}

@@ -186,3 +186,32 @@ TEST(Pty, CloseFromAnotherThreadWakesABlockedRead) {
   EXPECT_THROW(port->read(&byte, 1), wiretape::PortClosed);
   closer.join();
 }
+
+TEST(Pty, FlushInputDropsUnreadDataAndDrainReturns) {
+  TempDir dir;
+  const std::string link = dir.path + "/device";
+  auto port = open_port("type=pty,timeout=5,link=" + link);
+  const int client = open_client(link);
+  write_fd(client, "stale");
+  ASSERT_TRUE(port->wait_readable(5s));
+  port->flush_input();
+  EXPECT_EQ(port->available(), 0u);
+  char byte;
+  EXPECT_EQ(port->read(&byte, 1, 0s), 0u);
+  port->write_all("x");
+  port->drain();
+  port->flush_output();
+  write_fd(client, "fresh");
+  EXPECT_EQ(port->read_exactly(5), "fresh");
+  ::close(client);
+}
+
+TEST(Pty, BaudAndModemControlAreNotTheDeviceSidesToSet) {
+  auto port = open_port("type=pty");
+  try {
+    port->set_baud(9600);
+    FAIL();
+  } catch (const wiretape::PortError& error) {
+    EXPECT_EQ(error.code().value(), ENOTSUP);
+  }
+}
