@@ -215,7 +215,7 @@ class Bench:
     def pty_proxy(self) -> None:
         """wiretape record --pty vs socat's pty relay on the same device."""
         size = (16 if self.quick else 64) * MiB
-        rounds = 1 if self.quick else 3
+        rounds = 1 if self.quick else 5
         ours, theirs = [], []
         for _ in range(rounds):
             ours.append(bench_devices.pty_relay_throughput(
@@ -230,7 +230,7 @@ class Bench:
     def serve(self) -> None:
         """wiretape serve (raw) vs socat TCP-LISTEN … FILE:pty."""
         size = (16 if self.quick else 64) * MiB
-        rounds = 1 if self.quick else 3
+        rounds = 1 if self.quick else 5
         ours_bps, theirs_bps, ours_rtt, theirs_rtt = [], [], [], []
         for _ in range(rounds):
             for name, bps, rtt in (("wiretape", ours_bps, ours_rtt),
