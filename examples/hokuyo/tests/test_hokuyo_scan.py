@@ -274,3 +274,23 @@ def test_one_simulator_serves_one_client_after_another(hokuyo_scan, simulator):
         result = subprocess.run([*prefix, str(hokuyo_scan), "--port", device, "--json"],
                                 capture_output=True, text=True, timeout=60)
         assert result.returncode == 0, f"client {attempt + 1}: {result.stderr}"
+
+
+@pytest.mark.parametrize("timing", ["none", "causal"])
+def test_recording_as_a_virtual_device_on_a_pty(hokuyo_scan, tmp_path, timing):
+    """`wiretape replay --pty`: the recording becomes a device any program
+    opens; hokuyo-scan reads the recorded scans from it."""
+    try:
+        from wiretape import _core, bridge
+    except ImportError as error:
+        pytest.skip(f"SKIPPED LOUDLY: the wiretape extension is not importable: {error}")
+    if not hasattr(_core, "Bridge"):
+        pytest.skip("SKIPPED LOUDLY: the extension has no Bridge (virtual devices)")
+    recording = RECORDINGS / "urg04lx_md.wtape"
+    meta = json.loads(recording.with_suffix(".json").read_text())
+    link = tmp_path / "virtual-urg"
+    with bridge.serve_replay(recording, pty=link, replay_options=f"timing={timing}",
+                             quiet=True) as handle:
+        result = run_scan(hokuyo_scan, f"type=serial,device={link}", *meta["args"])
+    assert scans_of(result) == meta["scans"]
+    assert handle.result()["ok"], handle.result()
