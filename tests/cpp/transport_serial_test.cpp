@@ -13,6 +13,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include "posix/platform.hpp"
@@ -91,6 +92,25 @@ TEST(Serial, SeveralBaudsWithTwoStopBitsAndEvenParity) {
   }
 }
 
+// flexiport parsed `stopbits` into the data bits.
+TEST(SerialFlexiportDefects, StopbitsAreNotParsedIntoDatabits) {
+  for (const auto& [options, data_bits, stop_bits] :
+       std::vector<std::tuple<std::string, tcflag_t, bool>>{
+           {",stopbits=2", CS8, true},
+           {",stopbits=1", CS8, false},
+           {",databits=7,stopbits=2", CS7, true},
+           {",stopbits=2,databits=6", CS6, true}}) {
+    SCOPED_TRACE(options);
+    PtyPair pty;
+    TermiosWatch watch;
+    auto port = open_port(serial(pty, options));
+    const termios programmed = watch.last();
+    EXPECT_EQ(programmed.c_cflag & CSIZE, data_bits);
+    EXPECT_EQ((programmed.c_cflag & CSTOPB) != 0, stop_bits);
+    EXPECT_EQ(port->serial_settings().stop_bits, stop_bits ? 2 : 1);
+  }
+}
+
 TEST(Serial, DataBitsParityAndFlowReachTheTermios) {
   PtyPair pty;
   TermiosWatch watch;
@@ -113,7 +133,8 @@ TEST(Serial, DataBitsParityAndFlowReachTheTermios) {
   EXPECT_EQ(hardware->serial_settings().flow, wiretape::FlowControl::rtscts);
 }
 
-TEST(Serial, SetBaudProgramsTheNewRate) {
+// flexiport's SetBaudRate programmed the previous rate.
+TEST(SerialFlexiportDefects, SetBaudProgramsTheNewRate) {
   PtyPair pty;
   TermiosWatch watch;
   auto port = open_port(serial(pty, ",baud=9600,stopbits=2"));
@@ -135,7 +156,8 @@ TEST(Serial, NonStandardRatesAreProgrammed) {
   EXPECT_EQ(device_baud(pty), 31250u);
 }
 
-TEST(Serial, DefaultTimeoutBlocksUntilDataComes) {
+// flexiport's serial port with the default timeout did not block.
+TEST(SerialFlexiportDefects, DefaultTimeoutBlocksUntilDataComes) {
   PtyPair pty;
   wiretape::test::BlockedPollSignal signal;
   auto port = open_port(serial(pty));
