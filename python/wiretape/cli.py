@@ -667,6 +667,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return int(args.handler(args, out) or 0)
     except KeyboardInterrupt:
         return EXIT_OK
+    except BrokenPipeError:  # the reader of our output went away (| head)
+        _silence_stdout()
+        return EXIT_OK
     except Exception as error:  # every failure: one line, a code, no traceback
         if os.environ.get("WIRETAPE_DEBUG"):
             import traceback
