@@ -374,3 +374,35 @@ def test_replay_mismatch_exits_1_with_the_report(tmp_path, session_file):
     assert code == 1, err
     assert "replay mismatch" in err and "Traceback" not in err
     assert err.count("replay mismatch: replay mismatch") == 0
+
+
+def test_ports_show_by_id_paths_and_usb_ids(capsys, monkeypatch, tmp_path):
+    from serial.tools import list_ports, list_ports_common
+
+    device = tmp_path / "ttyUSB0"
+    device.write_text("")
+    by_id = tmp_path / "by-id"
+    by_id.mkdir()
+    stable = by_id / "usb-Hokuyo_Data_Flex_Ltd._URG-04LX-if00"
+    stable.symlink_to(device)
+
+    info = list_ports_common.ListPortInfo(str(device), skip_link_detection=True)
+    info.vid, info.pid = 0x15D1, 0x0000
+    info.description = "URG-Series USB Driver"
+    info.serial_number = "H1234"
+    monkeypatch.setattr(list_ports, "comports", lambda *a, **k: [info])
+    real_links = cli._by_id_links
+    monkeypatch.setattr(cli, "_by_id_links", lambda directory=str(by_id): real_links(directory))
+
+    code, out, _ = run(capsys, "ports", "--json")
+    assert code == 0
+    [port] = json.loads(out)
+    assert port["device"] == str(device)
+    assert port["by_id"] == [str(stable)]
+    assert port["vid_pid"] == "15d1:0000"
+    assert port["description"] == "URG-Series USB Driver"
+    assert port["serial_number"] == "H1234"
+
+    code, out, _ = run(capsys, "ports")
+    assert code == 0
+    assert str(stable) in out and "15d1:0000" in out and "URG-Series" in out
