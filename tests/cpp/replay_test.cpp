@@ -709,3 +709,39 @@ TEST(ReplayFlexiportDefects, SessionWithNoReads) {
   EXPECT_THROW(port->write("more"), ReplayMismatch);
   EXPECT_EQ(read_some(*port, 10, 20ms), "");
 }
+
+// --- more modes -------------------------------------------------------------------------
+
+TEST(ReplayRequest, DatagramRequestsMatchWholeDatagrams) {
+  auto port = replay({tx(0, "GET a"), rx(1, "A"), tx(2, "GET b"), rx(3, "B")},
+                     "timing=none,match=request", /*datagrams=*/true);
+  port->write("GET b");
+  EXPECT_EQ(read_some(*port), "B");
+  EXPECT_THROW(port->write("GET"), ReplayMismatch);  // not a whole request
+  port->write("GET a");
+  EXPECT_EQ(read_some(*port), "A");
+}
+
+TEST(ReplayRequest, CausalTimingCountsFromTheMatch) {
+  auto port = replay({tx(0, "Q"), rx(ms(60), "A")}, "timing=causal,match=request");
+  EXPECT_FALSE(port->wait_readable(100ms));  // nothing asked, nothing released
+  const auto asked = std::chrono::steady_clock::now();
+  port->write("Q");
+  EXPECT_EQ(port->available(), 0u);
+  EXPECT_EQ(read_some(*port, 10, 5s), "A");
+  EXPECT_GE(std::chrono::steady_clock::now() - asked, 50ms);
+}
+
+TEST(ReplayRequest, CheckTimingRejectsARequestFarTooEarly) {
+  auto port = replay({tx(ms(500), "Q"), rx(ms(501), "A")},
+                     "timing=session,match=request,check=timing,tolerance=50");
+  EXPECT_THROW(port->write("Q"), ReplayMismatch);
+}
+
+TEST(ReplayTiming, CausalSpeedScalesTheGaps) {
+  auto port = replay({tx(0, "Q"), rx(ms(2000), "A")}, "timing=causal,speed=20");
+  const auto asked = std::chrono::steady_clock::now();
+  port->write("Q");
+  EXPECT_EQ(read_some(*port, 10, 5s), "A");  // 100 ms, not 2 s
+  EXPECT_GE(std::chrono::steady_clock::now() - asked, 90ms);
+}
