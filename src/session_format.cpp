@@ -218,8 +218,9 @@ void BufferedFile::refresh_size() {
 }
 
 std::uint64_t BufferedFile::remaining() {
-  const std::uint64_t left = size_ > position_ ? size_ - position_ : 0;
-  return left;
+  // At the known end, look again: the file may still be being written.
+  if (position_ >= size_) refresh_size();
+  return size_ > position_ ? size_ - position_ : 0;
 }
 
 std::size_t BufferedFile::fill() {

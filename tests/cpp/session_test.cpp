@@ -498,3 +498,21 @@ TEST(SessionWriter, KilledRecorderLosesAtMostTheLastFlushMs) {
     EXPECT_NE(std::string(reader.damage()->what()).find("truncated"), std::string::npos);
   }
 }
+
+TEST(SessionReader, FollowsAFileThatIsStillBeingWritten) {
+  TempDir dir;
+  const std::string path = dir.file("live.wtape");
+  SessionWriter writer(path, {});
+  writer.write(RecordKind::tx, 1, "first");
+  writer.flush();
+  SessionReader reader(path);
+  Record record;
+  ASSERT_TRUE(reader.next(record));
+  EXPECT_EQ(record.data, "first");
+  EXPECT_FALSE(reader.next(record));
+  EXPECT_FALSE(reader.damage());
+  writer.write(RecordKind::rx, 2, "second");
+  writer.flush();
+  ASSERT_TRUE(reader.next(record));
+  EXPECT_EQ(record.data, "second");
+}
