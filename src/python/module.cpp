@@ -1,5 +1,7 @@
 // wiretape._core: the C++ library as seen from Python. The thin package in
 // python/wiretape/ re-exports it; each bind_*.cpp file binds one area.
+#include <cstdlib>
+
 #include <nanobind/nanobind.h>
 
 #include "python/bindings.hpp"
@@ -10,6 +12,10 @@ namespace nb = nanobind;
 NB_MODULE(_core, m) {
   m.doc() = "wiretape's C++ core";
   m.attr("__version__") = wiretape::version;
+  // A port still held at exit by a daemon thread blocked in read() is not a
+  // leak worth a screenful of warnings; WIRETAPE_DEBUG_LEAKS=1 turns them on
+  // when hunting reference-counting bugs.
+  nb::set_leak_warnings(std::getenv("WIRETAPE_DEBUG_LEAKS") != nullptr);
   wiretape::python::bind_errors(m);
   wiretape::python::bind_port(m);
   wiretape::python::bind_session(m);
