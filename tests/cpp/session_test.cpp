@@ -516,3 +516,32 @@ TEST(SessionReader, FollowsAFileThatIsStillBeingWritten) {
   ASSERT_TRUE(reader.next(record));
   EXPECT_EQ(record.data, "second");
 }
+
+TEST(SessionWriter, FullDiskIsAClearPortError) {
+  if (::access("/dev/full", W_OK) != 0) GTEST_SKIP() << "no writable /dev/full on this system";
+  try {
+    SessionWriter writer("/dev/full", {});
+    FAIL() << "no error writing to /dev/full";
+  } catch (const PortError& e) {
+    EXPECT_EQ(e.code().value(), ENOSPC);
+    EXPECT_NE(std::string(e.what()).find("/dev/full: cannot write the session file"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(SessionWriter, FsyncOptionWritesReadableFiles) {
+  TempDir dir;
+  const std::string path = dir.file("synced.wtape");
+  SessionWriterOptions options;
+  options.fsync = true;
+  options.flush_ms = 1;
+  {
+    SessionWriter writer(path, options);
+    for (int i = 0; i < 20; ++i) writer.write(RecordKind::rx, i, "synced");
+    writer.flush();
+  }
+  SessionReader reader(path);
+  EXPECT_EQ(read_all(reader).size(), 20u);
+  EXPECT_FALSE(reader.damage());
+}
