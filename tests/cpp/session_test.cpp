@@ -441,7 +441,8 @@ TEST(SessionWriter, FileSizeLimitIsAClearErrorAndTheFileStaysReadable) {
   }
 }
 
-// A recorder killed with SIGKILL loses at most the last flush_ms: the child
+// A recorder killed with SIGKILL loses at most the last flush_ms (flexiport
+// defect: its stdio-buffered log lost everything on a crash): the child
 // reports each record it has handed to the writer (with the time), and
 // everything reported more than flush_ms (plus slack for a loaded machine)
 // before the kill must be in the file.
