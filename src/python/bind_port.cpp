@@ -384,8 +384,8 @@ std::string repr(const Port& port) {
          (port.is_open() ? "" : " (closed)") + ">";
 }
 
-constexpr const char port_doc[] = R"(A connection to a device: serial line, TCP, UDP, pseudo-terminal,
-in-memory loopback, or a replayed recording. Made by open_port().
+constexpr const char port_doc[] = R"(A connection to a device: serial line, TCP, UDP,
+pseudo-terminal, in-memory loopback, or a replayed recording. Made by open_port().
 
 Reads follow wiretape's (C++) semantics: read(size) returns what is there,
 at least one byte and at most size, or b"" when the timeout expires; the
@@ -402,12 +402,19 @@ wakes a blocked read, which then raises PortClosed.)";
 void bind_port(nb::module_& m) {
   nb::class_<Port>(m, "Port", port_doc)
       // --- reading ---------------------------------------------------------
-      .def("read", &read, nb::sig("def read(self, size: int = 1, timeout: float | None = ...) -> bytes"), "size"_a = 1, "timeout"_a.none() = nb::ellipsis(),
+      .def("read", &read,
+           nb::sig("def read(self, size: int = 1, timeout: float | None = ...) -> bytes"),
+           "size"_a = 1, "timeout"_a.none() = nb::ellipsis(),
            "What is there, at least one byte and at most `size`; b\"\" when the "
            "timeout expires.")
-      .def("read_exactly", &read_exactly, nb::sig("def read_exactly(self, count: int, timeout: float | None = ...) -> bytes"), "count"_a, "timeout"_a.none() = nb::ellipsis(),
+      .def("read_exactly", &read_exactly,
+           nb::sig("def read_exactly(self, count: int, timeout: float | None = ...) -> bytes"),
+           "count"_a, "timeout"_a.none() = nb::ellipsis(),
            "Exactly `count` bytes, or what came before the timeout expired.")
-      .def("read_until", &read_until_binding, nb::sig("def read_until(self, expected: bytes = b\"\\n\", size: int | None = None, timeout: float | None = ...) -> bytes"), "expected"_a = nb::bytes("\n", 1),
+      .def("read_until", &read_until_binding,
+           nb::sig("def read_until(self, expected: bytes = b\"\\n\", size: int | None = None, "
+                   "timeout: float | None = ...) -> bytes"),
+           "expected"_a = nb::bytes("\n", 1),
            "size"_a.none() = nb::none(), "timeout"_a.none() = nb::ellipsis(),
            "Up to and including `expected`, or `size` bytes, or what came "
            "before the timeout expired. Nothing past `expected` is consumed.")
@@ -417,17 +424,24 @@ void bind_port(nb::module_& m) {
                                         call_timeout(port, timeout)));
            },
            "size"_a.none() = nb::none(), "timeout"_a.none() = nb::ellipsis(),
-           nb::sig("def read_line(self, size: int | None = None, timeout: float | None = ...) -> bytes"),
+           nb::sig("def read_line(self, size: int | None = None, "
+                   "timeout: float | None = ...) -> bytes"),
            "Up to and including b\"\\n\" (see read_until).")
-      .def("skip", &skip, nb::sig("def skip(self, count: int, timeout: float | None = ...) -> int"), "count"_a, "timeout"_a.none() = nb::ellipsis(),
+      .def("skip", &skip,
+           nb::sig("def skip(self, count: int, timeout: float | None = ...) -> int"),
+           "count"_a, "timeout"_a.none() = nb::ellipsis(),
            "Discards up to `count` bytes; returns how many were discarded.")
-      .def("skip_until", &skip_until, nb::sig("def skip_until(self, delimiter: bytes, timeout: float | None = ...) -> bool"), "delimiter"_a, "timeout"_a.none() = nb::ellipsis(),
+      .def("skip_until", &skip_until,
+           nb::sig("def skip_until(self, delimiter: bytes, timeout: float | None = ...) -> bool"),
+           "delimiter"_a, "timeout"_a.none() = nb::ellipsis(),
            "Discards through `delimiter`; False if the timeout expired first.")
       .def("available", [](Port& port) { return port.available(); },
            "Bytes that a read would return at once.")
       .def_prop_ro("in_waiting", [](Port& port) { return port.available(); },
                    "Bytes that a read would return at once (pyserial's name).")
-      .def("wait_readable", &wait_readable, nb::sig("def wait_readable(self, timeout: float | None = ...) -> bool"), "timeout"_a.none() = nb::ellipsis(),
+      .def("wait_readable", &wait_readable,
+           nb::sig("def wait_readable(self, timeout: float | None = ...) -> bool"),
+           "timeout"_a.none() = nb::ellipsis(),
            "True once a read would not block (data, or the device is gone); "
            "False when the timeout expired.")
       // --- writing ---------------------------------------------------------
@@ -476,7 +490,11 @@ void bind_port(nb::module_& m) {
             port.set_baud(baud);
           },
           "The line rate; PortError (ENOTSUP) on a port without one.")
-      .def("configure", &configure, nb::sig("def configure(self, *, baud: int | None = None, databits: int | None = None, stopbits: int | None = None, parity: str | None = None, flow: str | None = None) -> None"), nb::kw_only(), "baud"_a.none() = nb::none(),
+      .def("configure", &configure,
+           nb::sig("def configure(self, *, baud: int | None = None, databits: int | None = None, "
+                   "stopbits: int | None = None, parity: str | None = None, "
+                   "flow: str | None = None) -> None"),
+           nb::kw_only(), "baud"_a.none() = nb::none(),
            "databits"_a.none() = nb::none(), "stopbits"_a.none() = nb::none(),
            "parity"_a.none() = nb::none(), "flow"_a.none() = nb::none(),
            "Changes the given line settings, keeping the others.")
