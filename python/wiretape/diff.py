@@ -62,19 +62,30 @@ class _Records:
 
 
 class _Cursor:
-    """The byte stream of one direction, consumed record by record."""
+    """The byte stream of one direction, consumed record by record.
+
+    The current record is kept whole with a position into it, so that
+    comparing long records against many short ones stays linear.
+    """
 
     def __init__(self, records: Iterator, kind: str):
         self._records = records
         self._kind = kind
-        self.data = b""  # what is left of the current record
+        self._data = b""
+        self._pos = 0
         self.t_ns: Optional[int] = None
         self.bytes = 0
         self.records = 0
         self.ended = False
 
+    def left(self) -> int:
+        return len(self._data) - self._pos
+
+    def peek(self, n: int) -> bytes:
+        return self._data[self._pos : self._pos + n]
+
     def fill(self) -> bool:
-        while not self.data and not self.ended:
+        while not self.left() and not self.ended:
             try:
                 record = next(self._records)
             except StopIteration:
@@ -82,18 +93,19 @@ class _Cursor:
                 break
             if _kind_name(record.kind) != self._kind or not record.data:
                 continue
-            self.data = bytes(record.data)
+            self._data = bytes(record.data)
+            self._pos = 0
             self.t_ns = record.t_ns
-            self.bytes += len(self.data)
+            self.bytes += len(self._data)
             self.records += 1
-        return bool(self.data)
+        return self.left() > 0
 
     def consume(self, n: int) -> None:
-        self.data = self.data[n:]
+        self._pos += n
 
     def drain(self) -> None:
         while self.fill():
-            self.data = b""
+            self._pos = len(self._data)
 
 
 @dataclass
@@ -178,26 +190,27 @@ def _compare(a: _Records, b: _Records, direction: str) -> DirectionDiff:
         has_a, has_b = ca.fill(), cb.fill()
         if not has_a and not has_b:
             break
-        n = min(len(ca.data), len(cb.data))
-        if n and ca.data[:n] == cb.data[:n]:
-            history = (history + ca.data[:n])[-_CONTEXT:]
+        n = min(ca.left(), cb.left())
+        chunk_a, chunk_b = ca.peek(n), cb.peek(n)
+        if n and chunk_a == chunk_b:
+            history = (history + chunk_a[-_CONTEXT:])[-_CONTEXT:]
             offset += n
             ca.consume(n)
             cb.consume(n)
             continue
         same = 0
-        while same < n and ca.data[same] == cb.data[same]:
+        while same < n and chunk_a[same] == chunk_b[same]:
             same += 1
-        history = (history + ca.data[:same])[-_CONTEXT:]
+        history = (history + chunk_a[:same][-_CONTEXT:])[-_CONTEXT:]
         ca.consume(same)
         cb.consume(same)
         result.identical = False
         result.offset = offset + same
         result.before = history
-        result.at_a = ca.data[:_CONTEXT]
-        result.at_b = cb.data[:_CONTEXT]
-        result.time_a_ns = ca.t_ns if ca.data else None
-        result.time_b_ns = cb.t_ns if cb.data else None
+        result.at_a = ca.peek(_CONTEXT)
+        result.at_b = cb.peek(_CONTEXT)
+        result.time_a_ns = ca.t_ns if ca.left() else None
+        result.time_b_ns = cb.t_ns if cb.left() else None
         break
     ca.drain()
     cb.drain()
