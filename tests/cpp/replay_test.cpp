@@ -9,6 +9,8 @@
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
+#include <cstdio>
+#include <filesystem>
 #include <future>
 #include <string>
 #include <thread>
@@ -744,4 +746,32 @@ TEST(ReplayTiming, CausalSpeedScalesTheGaps) {
   port->write("Q");
   EXPECT_EQ(read_some(*port, 10, 5s), "A");  // 100 ms, not 2 s
   EXPECT_GE(std::chrono::steady_clock::now() - asked, 90ms);
+}
+
+TEST(ReplayFiles, DamagedSessionReplaysUpToTheDamage) {
+  TempDir dir;
+  const std::string path =
+      write_session(dir, {rx(0, "intact "), rx(1, "record"), rx(2, std::string(100, 'z'))});
+  // Cut the last record in half.
+  ASSERT_EQ(::truncate(path.c_str(), static_cast<off_t>(std::filesystem::file_size(path) - 50)), 0);
+  auto port = open_port("type=replay,timing=none,timeout=5,unused=ignore,file=" + path);
+  EXPECT_EQ(port->read_exactly(13), "intact record");
+  EXPECT_EQ(read_some(*port, 10, 20ms), "");
+}
+
+TEST(ReplayFiles, NotASessionIsAClearErrorAtOpen) {
+  TempDir dir;
+  const std::string path = dir.file("junk.wtape");
+  {
+    std::FILE* file = std::fopen(path.c_str(), "wb");
+    ASSERT_NE(file, nullptr);
+    std::fputs("this is not a session", file);
+    std::fclose(file);
+  }
+  try {
+    open_port("type=replay,file=" + path);
+    FAIL() << "junk accepted";
+  } catch (const SessionError& error) {
+    EXPECT_NE(std::string(error.what()).find("junk.wtape"), std::string::npos) << error.what();
+  }
 }
