@@ -6,6 +6,7 @@
 #include <cstring>
 #include <sstream>
 
+#include "detail/json.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail {
@@ -307,6 +308,11 @@ bool ReplayEngine::next_tx_record() {
       case RecordKind::rx:
         if (!record.data.empty()) tx_after_rx_ = true;
         break;
+      case RecordKind::settings:
+      case RecordKind::modem_lines:
+      case RecordKind::line_break:
+        if (checks_events()) expected_events_.push_back(std::move(record));
+        break;
       case RecordKind::close:
       case RecordKind::device_lost:
         tx_hit_close_ = record.kind == RecordKind::device_lost ||
@@ -370,6 +376,14 @@ void ReplayEngine::write_sequence(const char* data, std::size_t size,
       return;
     }
     const std::string& expected = tx_record_.data;
+    if (tx_position_ == 0 && !expected_events_.empty()) {
+      const Record& missing = expected_events_.front();
+      raise_mismatch("the recording has a " + std::string(to_string(missing.kind)) +
+                         " event " + missing.data +
+                         " before these bytes, and the client did not make it",
+                     tx_written_, std::string_view(expected).substr(0, kContext),
+                     rest.substr(0, kContext), missing.t_ns, tx_exchange_);
+    }
     if (tx_position_ == 0 && config_.check == ReplayCheck::timing) {
       const ReplayTime due =
           config_.timing == ReplayTiming::session || !previous_tx_finished_
@@ -426,6 +440,72 @@ void ReplayEngine::write_sequence(const char* data, std::size_t size,
     done += accepted;
     if (config_.datagrams) return;
   }
+}
+
+bool ReplayEngine::checks_events() const {
+  return config_.check == ReplayCheck::timing &&
+         config_.match == ReplayMatch::sequence;
+}
+
+namespace {
+
+std::string member_text(const json::Value& value) {
+  switch (value.type) {
+    case json::Value::Type::boolean:
+      return value.boolean ? "true" : "false";
+    case json::Value::Type::number:
+    case json::Value::Type::string:
+      return value.text;
+    default:
+      return json::serialize(value);
+  }
+}
+
+std::string fields_json(const std::map<std::string, std::string>& fields) {
+  std::string text = "{";
+  for (const auto& [key, value] : fields) {
+    if (text.size() > 1) text += ",";
+    const bool bare = value == "true" || value == "false" ||
+                      (!value.empty() &&
+                       value.find_first_not_of("-0123456789.") == std::string::npos);
+    text += json::quote(key) + ":" + (bare ? value : json::quote(value));
+  }
+  return text + "}";
+}
+
+}  // namespace
+
+void ReplayEngine::client_event(RecordKind kind,
+                                const std::map<std::string, std::string>& fields,
+                                ReplayTime) {
+  if (!checks_events()) return;
+  if (!have_tx_record_ || tx_position_ == 0) next_tx_record();
+  const std::string made = std::string(to_string(kind)) + " " + fields_json(fields);
+  if (expected_events_.empty()) {
+    raise_mismatch("the client made a " + made +
+                       " event where the recording has none",
+                   tx_written_, {}, {}, previous_tx_t_ns_, tx_exchange_);
+  }
+  const Record& recorded = expected_events_.front();
+  bool same = recorded.kind == kind;
+  if (same) {
+    try {
+      const json::Value value = json::parse(recorded.data.empty() ? "{}" : recorded.data);
+      // Only what both say is compared (set_baud against a full configure).
+      for (const auto& [key, text] : fields) {
+        const json::Value* member = value.find(key);
+        if (member != nullptr && member_text(*member) != text) same = false;
+      }
+    } catch (const json::ParseError&) {
+      same = false;
+    }
+  }
+  if (!same) {
+    raise_mismatch("the client made a " + made + " event; the recording has " +
+                       std::string(to_string(recorded.kind)) + " " + recorded.data,
+                   tx_written_, {}, {}, recorded.t_ns, tx_exchange_);
+  }
+  expected_events_.pop_front();
 }
 
 // --- the write side, match=request ---------------------------------------------

@@ -60,6 +60,13 @@ class ReplayEngine {
   // Accepts the whole write or raises ReplayMismatch (or PortClosed past a
   // recorded close).
   void write(const char* data, std::size_t size, ReplayTime now);
+  // The client changed line settings, a modem line or sent a break: under
+  // check=timing (match=sequence) it must match the next recorded event of
+  // that kind, in order with the writes. `fields` are the event's JSON
+  // members as text (baud -> "115200", dtr -> "true").
+  void client_event(RecordKind kind,
+                    const std::map<std::string, std::string>& fields,
+                    ReplayTime now);
   // Drops rx that was released and is due but not yet read.
   void flush_input(ReplayTime now);
   // What the recording held that the client never consumed; empty if all.
@@ -102,6 +109,7 @@ class ReplayEngine {
   bool next_tx_record();
   void write_sequence(const char* data, std::size_t size, ReplayTime now);
   void check_tx_timing(ReplayTime due, ReplayTime now);
+  bool checks_events() const;
 
   // match=request
   void load_exchanges();
@@ -142,6 +150,7 @@ class ReplayEngine {
   std::size_t tx_position_ = 0;
   std::int64_t tx_exchange_ = -1;
   bool tx_after_rx_ = true;
+  std::deque<Record> expected_events_;  // recorded before the next tx record
   std::optional<ReplayTime> previous_tx_finished_;
   std::uint64_t previous_tx_t_ns_ = 0;
 

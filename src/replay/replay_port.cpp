@@ -146,29 +146,44 @@ class ReplayPort final : public Port {
     return signal_read_.get();
   }
 
-  // The emulated device accepts line settings and keeps them; recorded
-  // settings events are not checked.
+  // The emulated device accepts line settings and keeps them; under
+  // check=timing each call must match the recorded event at that point.
   void set_baud(unsigned baud) override {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
+    engine_.client_event(RecordKind::settings, {{"baud", std::to_string(baud)}},
+                         ReplayClock::now());
     settings_.baud = baud;
   }
   void configure(const SerialSettings& settings) override {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
+    engine_.client_event(RecordKind::settings,
+                         {{"baud", std::to_string(settings.baud)},
+                          {"databits", std::to_string(settings.data_bits)},
+                          {"stopbits", std::to_string(settings.stop_bits)},
+                          {"parity", parity_name(settings.parity)},
+                          {"flow", flow_name(settings.flow)}},
+                         ReplayClock::now());
     settings_ = settings;
   }
   SerialSettings serial_settings() const override {
     std::lock_guard<std::mutex> lock(mutex_);
     return settings_;
   }
-  void set_dtr(bool) override {}
-  void set_rts(bool) override {}
+  void set_dtr(bool level) override { modem_line("dtr", level); }
+  void set_rts(bool level) override { modem_line("rts", level); }
   bool cts() override { return true; }
   bool dsr() override { return true; }
   bool ri() override { return false; }
   bool cd() override { return true; }
-  void send_break(std::chrono::milliseconds) override {}
+  void send_break(std::chrono::milliseconds duration) override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    check_open();
+    engine_.client_event(RecordKind::line_break,
+                         {{"duration_ms", std::to_string(duration.count())}},
+                         ReplayClock::now());
+  }
 
  protected:
   std::size_t read_some(void* buffer, std::size_t size,
@@ -244,6 +259,33 @@ class ReplayPort final : public Port {
  private:
   void check_open() const {
     if (closed_) throw PortClosed(description_ + " is closed");
+  }
+
+  void modem_line(const char* line, bool level) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    check_open();
+    engine_.client_event(RecordKind::modem_lines, {{line, level ? "true" : "false"}},
+                         ReplayClock::now());
+  }
+
+  static const char* parity_name(Parity parity) {
+    switch (parity) {
+      case Parity::none: return "none";
+      case Parity::even: return "even";
+      case Parity::odd: return "odd";
+      case Parity::mark: return "mark";
+      case Parity::space: return "space";
+    }
+    return "none";
+  }
+
+  static const char* flow_name(FlowControl flow) {
+    switch (flow) {
+      case FlowControl::none: return "none";
+      case FlowControl::rtscts: return "rtscts";
+      case FlowControl::xonxoff: return "xonxoff";
+    }
+    return "none";
   }
 
   void wait(std::unique_lock<std::mutex>& lock, Deadline deadline,

@@ -775,3 +775,61 @@ TEST(ReplayFiles, NotASessionIsAClearErrorAtOpen) {
     EXPECT_NE(std::string(error.what()).find("junk.wtape"), std::string::npos) << error.what();
   }
 }
+
+// --- recorded events ------------------------------------------------------------------
+
+std::vector<Record> baud_session() {
+  return {{0, RecordKind::settings,
+           "{\"baud\":115200,\"databits\":8,\"stopbits\":1,\"parity\":\"none\",\"flow\":\"none\"}"},
+          {1, RecordKind::modem_lines, "{\"dtr\":true}"},
+          tx(2, "Q"),
+          rx(3, "A")};
+}
+
+TEST(ReplayEvents, CheckTimingRequiresTheRecordedSettingsInOrder) {
+  const char* keys = "timing=causal,check=timing,tolerance=5000";
+  {
+    auto port = replay(baud_session(), keys);
+    port->set_baud(115200);  // compared with what the recording holds
+    port->set_dtr(true);
+    port->write("Q");
+    EXPECT_EQ(read_some(*port), "A");
+  }
+  {
+    auto port = replay(baud_session(), keys);
+    try {
+      port->set_baud(9600);
+      FAIL() << "wrong baud accepted";
+    } catch (const ReplayMismatch& mismatch) {
+      EXPECT_NE(std::string(mismatch.what()).find("\"baud\":115200"), std::string::npos)
+          << mismatch.what();
+    }
+  }
+  {
+    auto port = replay(baud_session(), keys);
+    try {
+      port->write("Q");
+      FAIL() << "a write skipping the recorded settings was accepted";
+    } catch (const ReplayMismatch& mismatch) {
+      EXPECT_NE(std::string(mismatch.what()).find("did not make it"), std::string::npos)
+          << mismatch.what();
+    }
+  }
+  {
+    auto port = replay(baud_session(), keys);
+    SerialSettings settings;
+    settings.baud = 115200;
+    port->configure(settings);
+    EXPECT_THROW(port->send_break(250ms), ReplayMismatch);  // dtr was recorded
+  }
+}
+
+TEST(ReplayEvents, CheckDataDoesNotCheckEvents) {
+  auto port = replay(baud_session(), "timing=none,check=data");
+  port->set_baud(9600);
+  port->set_rts(false);
+  port->send_break(10ms);
+  port->write("Q");
+  EXPECT_EQ(read_some(*port), "A");
+  EXPECT_EQ(port->serial_settings().baud, 9600u);
+}
