@@ -124,6 +124,8 @@ def test_driver_records_through_pyserial_then_replays(thermometer, tmp_path):
     assert tx == b"ID?\rT?\r"
     assert rx == b"THERMO-1 v2.0\r\n+21.50C\r\n"
     assert kinds[0] == "open" and kinds[-1] == "close"
+    # read_until is one read for the driver, so one record
+    assert b"THERMO-1 v2.0\r\n" in [bytes(r.data) for r in wiretape.SessionReader(str(cassette))]
     assert "flush_input" in kinds
     settings = [json.loads(bytes(r.data)) for r in wiretape.SessionReader(str(cassette))
                 if r.kind == "settings"]

@@ -206,6 +206,14 @@ class _PyserialRecordingSerial(SerialBase):
             self._record("rx", data)
         return data
 
+    def read_until(self, expected=b"\n", size=None):
+        # One record for the whole call, as the client sees it (pyserial's
+        # own read_until would read, and so record, one byte at a time).
+        data = self._device_or_raise().read_until(expected, size)
+        if data:
+            self._record("rx", data)
+        return data
+
     def write(self, data):
         device = self._device_or_raise()
         data = bytes(data)
