@@ -406,3 +406,45 @@ def test_ports_show_by_id_paths_and_usb_ids(capsys, monkeypatch, tmp_path):
     code, out, _ = run(capsys, "ports")
     assert code == 0
     assert str(stable) in out and "15d1:0000" in out and "URG-Series" in out
+
+
+def test_record_through_a_pty_and_sigterm_ends_it_cleanly(tmp_path):
+    import select
+    import time
+
+    link = tmp_path / "ttyV0"
+    output = tmp_path / "pty.wtape"
+    child = _start(["record", "--device", "type=loopback", "--pty", str(link),
+                    "-o", str(output)])
+    try:
+        announced = ""
+        while "clients use" not in announced:
+            line = child.stderr.readline()
+            assert line, f"wiretape record ended early: {announced}"
+            announced += line
+        assert str(link) in announced, announced
+        end = time.monotonic() + 10
+        while not link.exists():
+            assert child.poll() is None and time.monotonic() < end, announced
+            select.select([], [], [], 0.01)
+        client = os.open(str(link), os.O_RDWR | os.O_NOCTTY)
+        try:
+            import termios
+            import tty
+
+            tty.setraw(client, termios.TCSANOW)
+            os.write(client, b"hi there")
+            received = b""
+            while len(received) < 8 and select.select([client], [], [], 5)[0]:
+                received += os.read(client, 64)
+            assert received == b"hi there"
+        finally:
+            os.close(client)
+        child.send_signal(signal.SIGTERM)
+        code, _, err = _stop(child)
+    finally:
+        if child.poll() is None:
+            _stop(child)
+    assert code == 0, err
+    records = list(wiretape.SessionReader(str(output)))
+    assert b"".join(r.data for r in records if r.kind == "tx") == b"hi there"
