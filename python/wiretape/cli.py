@@ -199,29 +199,17 @@ def _format_number(value: float) -> str:
 # bridges: record, replay, serve
 
 
-def _run_bridge(handle, out: _Output, what: str) -> int:
-    """Waits for a started bridge until it ends or Ctrl-C (or SIGTERM) stops
-    it; prints the outcome; returns the exit code."""
-    previous = signal.getsignal(signal.SIGTERM)
-
-    def _terminate(signum, frame):
-        raise KeyboardInterrupt
-
+def _run_bridge(handle, out: _Output, what: str, announce: Callable[[], None]) -> int:
+    """Announces a started bridge and waits until it ends or Ctrl-C (or
+    SIGTERM, see main) stops it; prints the outcome; returns the exit code."""
     try:
-        signal.signal(signal.SIGTERM, _terminate)
-    except ValueError:  # not the main thread (tests calling main())
-        previous = None
-    try:
-        try:
-            while not handle.wait(_POLL_S):
-                pass
-        except KeyboardInterrupt:
-            out.note(f"{what}: stopping")
-            handle.stop()
-            handle.wait()
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+        announce()
+        while not handle.wait(_POLL_S):
+            pass
+    except KeyboardInterrupt:
+        out.note(f"{what}: stopping")
+        handle.stop()
+        handle.wait()
     result = handle.result()
     stats = result.get("stats") or {}
     if stats:
@@ -260,8 +248,8 @@ def cmd_record(args, out: _Output) -> int:
     handle = bridge.record(args.device, args.output, pty=pty, listen=listen,
                            duration=args.duration, meta=_meta_pairs(args.meta),
                            quiet=args.quiet)
-    _announce(handle, out, f"recording to {args.output}", pty)
-    return _run_bridge(handle, out, "record")
+    return _run_bridge(handle, out, "record",
+                       lambda: _announce(handle, out, f"recording to {args.output}", pty))
 
 
 _REPLAY_KEYS = ("timing", "speed", "check", "match", "tolerance", "unmatched",
@@ -292,8 +280,8 @@ def cmd_replay(args, out: _Output) -> int:
                                  replay_options=replay_options_of(args),
                                  restart=args.restart, output=args.output,
                                  quiet=args.quiet)
-    _announce(handle, out, f"replaying {args.file}", pty)
-    return _run_bridge(handle, out, "replay")
+    return _run_bridge(handle, out, "replay",
+                       lambda: _announce(handle, out, f"replaying {args.file}", pty))
 
 
 def cmd_serve(args, out: _Output) -> int:
@@ -302,8 +290,7 @@ def cmd_serve(args, out: _Output) -> int:
     handle = bridge.serve(args.device, args.listen, output=args.output,
                           protocol=args.protocol, shared=args.shared, reopen=args.reopen,
                           quiet=args.quiet)
-    _announce(handle, out, "serving")
-    return _run_bridge(handle, out, "serve")
+    return _run_bridge(handle, out, "serve", lambda: _announce(handle, out, "serving"))
 
 
 # --------------------------------------------------------------------------
@@ -663,6 +650,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         out.error("wiretape", "a command is required")
         return EXIT_USAGE
     prog = f"wiretape {args.command}"
+    # SIGTERM ends a command as Ctrl-C does: cleanly, files complete, exit 0.
+    previous_sigterm = None
+    try:
+        previous_sigterm = signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
+    except ValueError:  # not the main thread (main() called from a thread)
+        pass
     try:
         return int(args.handler(args, out) or 0)
     except KeyboardInterrupt:
@@ -677,6 +670,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             traceback.print_exc()
         out.error(prog, _describe(error))
         return exit_code_for(error)
+    finally:
+        if previous_sigterm is not None:
+            signal.signal(signal.SIGTERM, previous_sigterm)
+
+
+def _sigterm_as_interrupt(signum, frame):
+    raise KeyboardInterrupt
 
 
 if __name__ == "__main__":
