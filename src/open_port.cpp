@@ -12,12 +12,18 @@ namespace {
 
 // flexiport spelled the access mode as a bare key.
 Access take_access(Options& options) {
+  std::string bare_choice;
   for (const char* bare : {"readonly", "writeonly", "readwrite"}) {
-    if (options.has(bare)) {
-      if (!options.take_bool(bare, false)) continue;
-      options.set("access", bare);
+    if (!options.take_bool(bare, false)) continue;
+    if (!bare_choice.empty() || options.has("access")) {
+      throw OptionError(bare, std::string("option '") + bare +
+                                  "' conflicts with another access mode; "
+                                  "give one of access=, readonly, writeonly, "
+                                  "readwrite");
     }
+    bare_choice = bare;
   }
+  if (!bare_choice.empty()) options.set("access", bare_choice);
   const std::string access = options.take_choice(
       "access", "readwrite", {"readwrite", "readonly", "writeonly"});
   if (access == "readonly") return Access::read_only;

@@ -202,3 +202,10 @@ TEST(OpenPort, BadKeysAreRefusedBeforeTheDeviceIsTouched) {
   // The device was not left locked by the refused open.
   EXPECT_NO_THROW(open_port("type=serial,device=" + pty.path));
 }
+
+TEST(OpenPort, ConflictingAccessModesAreRefused) {
+  expect_option_error("type=loopback,readonly,writeonly", "writeonly", "access mode");
+  expect_option_error("type=loopback,access=readwrite,readonly", "readonly", "access mode");
+  EXPECT_EQ(open_port("type=loopback,readonly=false")->access(), Access::read_write);
+  expect_option_error("type=loopback,colour=1", "colour", "readonly");
+}
