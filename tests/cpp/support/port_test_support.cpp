@@ -45,7 +45,11 @@ int free_port(bool udp) {
 
 }  // namespace wiretape::test
 
+#if defined(__APPLE__)
+#include <util.h>
+#else
 #include <pty.h>
+#endif
 #include <termios.h>
 
 #include <cerrno>
