@@ -448,3 +448,28 @@ def test_record_through_a_pty_and_sigterm_ends_it_cleanly(tmp_path):
     assert code == 0, err
     records = list(wiretape.SessionReader(str(output)))
     assert b"".join(r.data for r in records if r.kind == "tx") == b"hi there"
+
+
+def test_serve_shares_a_device_over_tcp_and_records_it(tmp_path):
+    import socket
+
+    output = tmp_path / "served.wtape"
+    child = _start(["serve", "--device", "type=loopback", "--listen", "127.0.0.1:0",
+                    "-o", str(output)])
+    try:
+        host, number = _address(child)
+        with socket.create_connection((host, number), timeout=5) as client:
+            client.sendall(b"over tcp\n")
+            client.settimeout(5)
+            received = b""
+            while len(received) < 9:
+                chunk = client.recv(64)
+                if not chunk:
+                    break
+                received += chunk
+        assert received == b"over tcp\n"
+    finally:
+        code, _, err = _stop(child)
+    assert code == 0, err
+    tx = b"".join(r.data for r in wiretape.SessionReader(str(output)) if r.kind == "tx")
+    assert tx == b"over tcp\n"
