@@ -3,7 +3,6 @@ Port across threads: close() wakes a blocked read, the GIL is released while
 a call blocks, Ctrl-C interrupts a blocked read."""
 
 import errno
-import os
 import pickle
 import signal
 import subprocess
