@@ -34,9 +34,12 @@ $(VENV)/.installed: $(VENV)/.deps pyproject.toml
 
 python: cpp $(VENV)/.installed
 
+# Both suites run even when the first fails; the target fails if either did.
 test: python
-	cd $(BUILD) && ctest --output-on-failure -j2 --timeout 300
-	$(PYTHON) -m pytest -q
+	status=0; \
+	(cd $(BUILD) && ctest --output-on-failure -j2 --timeout 300) || status=1; \
+	$(PYTHON) -m pytest -q || status=1; \
+	exit $$status
 
 demo: python
 	$(VENV)/bin/wiretape demo
