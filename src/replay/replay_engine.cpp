@@ -151,8 +151,9 @@ void ReplayEngine::fill_rx() {
 
 void ReplayEngine::entitle() {
   if (config_.match != ReplayMatch::sequence) return;
-  for (RxItem& item : rx_queue_) {
-    if (item.due) continue;
+  // Items before first_unentitled_ all have their due time already.
+  for (; first_unentitled_ < rx_queue_.size(); ++first_unentitled_) {
+    RxItem& item = rx_queue_[first_unentitled_];
     const bool entitled = config_.timing == ReplayTiming::session ||
                           tx_written_ >= item.tx_before;
     if (!entitled) break;  // later records need at least as many tx bytes
@@ -195,6 +196,11 @@ void ReplayEngine::prepare(ReplayTime) {
   entitle();
 }
 
+void ReplayEngine::pop_rx() {
+  rx_queue_.pop_front();
+  if (first_unentitled_ > 0) --first_unentitled_;
+}
+
 bool ReplayEngine::is_due(const RxItem& item, ReplayTime now) const {
   return item.due && *item.due <= now;
 }
@@ -224,7 +230,7 @@ std::size_t ReplayEngine::read(char* buffer, std::size_t size, ReplayTime now) {
       const std::size_t n = std::min(size, item.data.size());
       std::memcpy(buffer, item.data.data(), n);
       rx_queue_bytes_ -= item.data.size();
-      rx_queue_.pop_front();
+      pop_rx();
       return n;
     }
     const std::size_t n =
@@ -234,7 +240,7 @@ std::size_t ReplayEngine::read(char* buffer, std::size_t size, ReplayTime now) {
     copied += n;
     if (item.consumed == item.data.size()) {
       rx_queue_bytes_ -= item.data.size();
-      rx_queue_.pop_front();
+      pop_rx();
     }
   }
   return copied;
@@ -280,7 +286,7 @@ void ReplayEngine::flush_input(ReplayTime now) {
   while (!rx_queue_.empty() && rx_queue_.front().kind == RecordKind::rx &&
          is_due(rx_queue_.front(), now)) {
     rx_queue_bytes_ -= rx_queue_.front().data.size();
-    rx_queue_.pop_front();
+    pop_rx();
     if (rx_queue_.empty()) prepare(now);
   }
 }

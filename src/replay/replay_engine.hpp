@@ -103,6 +103,7 @@ class ReplayEngine {
   void prepare(ReplayTime now);  // look-ahead and entitlement
   void fill_rx();
   void entitle();
+  void pop_rx();
   bool is_due(const RxItem& item, ReplayTime now) const;
 
   // match=sequence
@@ -132,6 +133,7 @@ class ReplayEngine {
 
   std::deque<RxItem> rx_queue_;
   std::size_t rx_queue_bytes_ = 0;
+  std::size_t first_unentitled_ = 0;  // match=sequence
 
   // match=sequence, the read cursor.
   std::unique_ptr<RecordSource> rx_source_;
