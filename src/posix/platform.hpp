@@ -26,4 +26,11 @@ int no_sigpipe_send_flags();
 // Per-socket equivalent where the system has no send flag for it.
 void prevent_sigpipe(int socket_fd);
 
+// Asks the system to wake the calling thread from timed sleeps as close to
+// the requested time as it can (Linux: timer slack of 1 ns instead of the
+// default 50 us, by which the kernel may otherwise defer a wake-up to batch
+// timers). Applies to the calling thread only; a no-op where the system has
+// no such setting.
+void precise_timers_for_this_thread();
+
 }  // namespace wiretape::detail::platform
