@@ -13,6 +13,7 @@
 #include <thread>
 
 #include "detail/open.hpp"
+#include "posix/platform.hpp"
 #include "replay/record_source.hpp"
 #include "replay/replay_engine.hpp"
 #include "replay/replay_port.hpp"
@@ -211,7 +212,7 @@ class ReplayPort final : public Port {
         }
       }
       if (deadline && now >= *deadline) return 0;
-      wait(lock, deadline, outlook);
+      wait(lock, now, deadline, outlook);
     }
   }
 
@@ -252,7 +253,7 @@ class ReplayPort final : public Port {
           break;
       }
       if (deadline && now >= *deadline) return false;
-      wait(lock, deadline, outlook);
+      wait(lock, now, deadline, outlook);
     }
   }
 
@@ -288,18 +289,33 @@ class ReplayPort final : public Port {
     return "none";
   }
 
-  void wait(std::unique_lock<std::mutex>& lock, Deadline deadline,
-            const ReplayEngine::Outlook& outlook) {
-    Deadline wake = deadline;
+  // Blocks a reader until something may have changed: the deadline, the
+  // next due time, or a notification. With a scheduler thread, a reader waits
+  // to be woken kFinalSpin before the due time (see schedule()) and spins
+  // itself through the rest, so that it returns the data on time from its own
+  // CPU instead of waiting to be scheduled again after a wake-up at the due
+  // time. Deadlines (timeouts) are waited for as usual, without spinning.
+  void wait(std::unique_lock<std::mutex>& lock, ReplayTime now,
+            Deadline deadline, const ReplayEngine::Outlook& outlook) {
+    Deadline due;
     if (outlook.state == ReplayEngine::ReadState::waiting && outlook.wake &&
-        (!wake || *outlook.wake < *wake)) {
-      wake = outlook.wake;
+        (!deadline || *outlook.wake < *deadline)) {
+      due = outlook.wake;
     }
-    if (wake) {
-      changed_.wait_until(lock, *wake);
+    ++blocked_readers_;
+    if (due && scheduler_.joinable() && *due - now <= kFinalSpin) {
+      lock.unlock();
+      while (ReplayClock::now() < *due) {
+      }
+      lock.lock();
+    } else if (due) {
+      changed_.wait_until(lock, scheduler_.joinable() ? *due - kFinalSpin : *due);
+    } else if (deadline) {
+      changed_.wait_until(lock, *deadline);
     } else {
       changed_.wait(lock);
     }
+    --blocked_readers_;
   }
 
   // Keeps the pipe readable exactly when a read would not block on data.
@@ -327,18 +343,50 @@ class ReplayPort final : public Port {
     return outlook;
   }
 
-  // Raises the pipe when timed data falls due, with nobody reading.
+  // Raises the pipe when timed data falls due, and wakes blocked readers
+  // just before.
+  //
+  // A client blocked in read() sleeps with its own thread's timer slack
+  // (50 us by default on Linux, and not ours to change), so it is woken from
+  // here instead: this thread asks for precise timers, wakes kFinalSpin
+  // before each due time and notifies the readers, which spin through the
+  // rest themselves (see wait()). With no reader blocked (a client polling
+  // native_handle()), this thread spins to the due time and raises the pipe.
+  // Either way at most one thread spins per blocked caller, for at most
+  // kFinalSpin per due time: 10 % of a core for records 1 ms apart, nothing
+  // while nothing is due; records closer together than kFinalSpin keep it
+  // spinning while they play.
   void schedule() {
+    platform::precise_timers_for_this_thread();
     std::unique_lock<std::mutex> lock(mutex_);
     while (!closed_) {
-      const ReplayEngine::Outlook outlook = update_signal(ReplayClock::now());
-      if (outlook.state == ReplayEngine::ReadState::waiting && outlook.wake) {
-        changed_.wait_until(lock, *outlook.wake);
-      } else {
+      const auto now = ReplayClock::now();
+      const ReplayEngine::Outlook outlook = update_signal(now);
+      if (outlook.state != ReplayEngine::ReadState::waiting || !outlook.wake) {
         changed_.wait(lock);
+        continue;
       }
+      const ReplayTime due = *outlook.wake;
+      if (due - now > kFinalSpin) {
+        // Anything may have changed on waking: start over.
+        changed_.wait_until(lock, due - kFinalSpin);
+        continue;
+      }
+      if (blocked_readers_ > 0) {
+        changed_.notify_all();  // they spin to the due time themselves
+        changed_.wait_until(lock, due);
+        continue;
+      }
+      lock.unlock();
+      while (ReplayClock::now() < due) {
+      }
+      lock.lock();
     }
   }
+
+  // How long before a due time the scheduler stops sleeping and spins: above
+  // the usual timer wake-up latency, small against typical record gaps.
+  static constexpr std::chrono::microseconds kFinalSpin{100};
 
   void shut(bool may_throw) {
     std::string unused;
@@ -373,6 +421,7 @@ class ReplayPort final : public Port {
   OwnedFd signal_read_;
   OwnedFd signal_write_;
   bool signalled_ = false;
+  int blocked_readers_ = 0;  // threads inside wait()
   std::thread scheduler_;
 };
 
