@@ -58,6 +58,16 @@ inline void put_u32be(char* out, std::uint32_t v) {
   for (int i = 0; i < 4; ++i) out[i] = static_cast<char>((v >> (24 - 8 * i)) & 0xFF);
 }
 
+// CRC32C by slicing-by-8 tables: the portable path, and the reference the
+// hardware path must agree with.
+std::uint32_t crc32c_table(const void* data, std::size_t size, std::uint32_t crc = 0);
+// Whether this CPU has CRC32C instructions this build can use.
+bool crc32c_hardware_available();
+// CRC32C by the CPU's instructions (falls back to the tables when
+// crc32c_hardware_available() is false). wiretape::crc32c picks this when it
+// can.
+std::uint32_t crc32c_hardware(const void* data, std::size_t size, std::uint32_t crc = 0);
+
 // The header JSON of a session file.
 std::string header_json(const SessionWriterOptions& options);
 // Parses the header JSON into `header` (metadata_json included); throws
