@@ -1,6 +1,8 @@
 // Writing .wtape files: append-only, buffered, with a flusher thread that
 // hands buffered records to the OS at most flush_ms after they were written,
-// so that a killed recorder loses at most that much.
+// so that a killed recorder loses at most that much. The writing thread only
+// checksums and copies; the flusher makes the write() calls, from one buffer
+// while the writer fills the other.
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -23,8 +25,13 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// Above this much buffered data, write() hands it to the OS itself.
+// Above this much buffered data the flusher is woken at once, without
+// waiting for flush_ms.
 constexpr std::size_t flush_threshold = 256 * 1024;
+// Above this much (the flusher cannot keep up with the disk), write() hands
+// the buffer to the OS itself: memory stays bounded and the recording runs
+// at the disk's pace.
+constexpr std::size_t max_buffered = 4 * 1024 * 1024;
 
 }  // namespace
 
@@ -45,6 +52,7 @@ struct SessionWriter::Impl {
   std::vector<std::size_t> record_ends;  // end offset of each buffered record
   std::uint64_t buffered_total = 0;      // committed + buffer.size() + in flight
   std::optional<Clock::time_point> oldest_unflushed;
+  bool flush_requested = false;  // the buffer passed flush_threshold
   std::optional<PortError> failure;
   bool closing = false;
   bool closed = false;
@@ -74,12 +82,14 @@ struct SessionWriter::Impl {
         buffer.clear();
         record_ends.clear();
         oldest_unflushed.reset();
+        flush_requested = false;
         return;
       }
       data.swap(buffer);
       buffer.swap(spare);
       ends.swap(record_ends);
       oldest_unflushed.reset();
+      flush_requested = false;
     }
     std::size_t written = 0;
     int error = 0;
@@ -130,7 +140,7 @@ struct SessionWriter::Impl {
         continue;
       }
       const auto due = *oldest_unflushed + std::chrono::milliseconds(options.flush_ms);
-      if (Clock::now() < due) {
+      if (!flush_requested && Clock::now() < due) {
         wake.wait_until(lock, due);
         continue;
       }
@@ -212,7 +222,11 @@ void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view 
       impl_->oldest_unflushed = Clock::now();
       impl_->wake.notify_one();
     }
-    flush_here = buffer.size() >= flush_threshold || impl_->options.flush_ms == 0;
+    if (buffer.size() >= flush_threshold && !impl_->flush_requested) {
+      impl_->flush_requested = true;
+      impl_->wake.notify_one();
+    }
+    flush_here = buffer.size() >= max_buffered || impl_->options.flush_ms == 0;
   }
   if (flush_here) {
     impl_->flush_now();
