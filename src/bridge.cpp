@@ -58,30 +58,11 @@ constexpr auto kWriteRetryInterval = std::chrono::milliseconds(2);
 constexpr auto kModemPollInterval = std::chrono::milliseconds(250);
 constexpr std::size_t kMaxMessages = 1000;
 
-const char* parity_name(Parity parity) {
-  switch (parity) {
-    case Parity::none: return "none";
-    case Parity::even: return "even";
-    case Parity::odd: return "odd";
-    case Parity::mark: return "mark";
-    case Parity::space: return "space";
-  }
-  return "none";
-}
-
-const char* flow_name(FlowControl flow) {
-  switch (flow) {
-    case FlowControl::none: return "none";
-    case FlowControl::rtscts: return "rtscts";
-    case FlowControl::xonxoff: return "xonxoff";
-  }
-  return "none";
-}
 
 std::string settings_text(const SerialSettings& s) {
   char text[96];
   std::snprintf(text, sizeof text, "%u %d%c%d flow=%s", s.baud, s.data_bits,
-                "NEOMS"[static_cast<int>(s.parity)], s.stop_bits, flow_name(s.flow));
+                "NEOMS"[static_cast<int>(s.parity)], s.stop_bits, to_string(s.flow));
   return text;
 }
 
@@ -1018,8 +999,8 @@ bool Bridge::Impl::apply_settings(const SerialSettings& target, const char* sour
                                    .add("baud", target.baud)
                                    .add("databits", target.data_bits)
                                    .add("stopbits", target.stop_bits)
-                                   .add("parity", parity_name(target.parity))
-                                   .add("flow", flow_name(target.flow))
+                                   .add("parity", to_string(target.parity))
+                                   .add("flow", to_string(target.flow))
                                    .add("applied", applied)
                                    .add("source", source)
                                    .str());

@@ -9,6 +9,26 @@ namespace wiretape {
 
 Port::~Port() = default;
 
+const char* to_string(Parity parity) noexcept {
+  switch (parity) {
+    case Parity::even: return "even";
+    case Parity::odd: return "odd";
+    case Parity::mark: return "mark";
+    case Parity::space: return "space";
+    case Parity::none: break;
+  }
+  return "none";
+}
+
+const char* to_string(FlowControl flow) noexcept {
+  switch (flow) {
+    case FlowControl::rtscts: return "rtscts";
+    case FlowControl::xonxoff: return "xonxoff";
+    case FlowControl::none: break;
+  }
+  return "none";
+}
+
 namespace {
 
 void require(bool allowed, const char* operation, const Port& port) {

@@ -33,6 +33,10 @@ enum class Access { read_write, read_only, write_only };
 enum class Parity { none, even, odd, mark, space };
 enum class FlowControl { none, rtscts, xonxoff };
 
+// Names as in option strings: "none", "even", ... / "none", "rtscts", ...
+const char* to_string(Parity parity) noexcept;
+const char* to_string(FlowControl flow) noexcept;
+
 // Line settings of a serial port (or of the terminal a pty emulates).
 struct SerialSettings {
   unsigned baud = 9600;

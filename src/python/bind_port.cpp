@@ -289,30 +289,11 @@ const char* access_name(Access access) {
   return "readwrite";
 }
 
-const char* parity_name(Parity parity) {
-  switch (parity) {
-    case Parity::even: return "even";
-    case Parity::odd: return "odd";
-    case Parity::mark: return "mark";
-    case Parity::space: return "space";
-    case Parity::none: break;
-  }
-  return "none";
-}
-
-const char* flow_name(FlowControl flow) {
-  switch (flow) {
-    case FlowControl::rtscts: return "rtscts";
-    case FlowControl::xonxoff: return "xonxoff";
-    case FlowControl::none: break;
-  }
-  return "none";
-}
 
 Parity parse_parity(const std::string& name) {
   for (Parity parity : {Parity::none, Parity::even, Parity::odd, Parity::mark,
                         Parity::space}) {
-    if (name == parity_name(parity)) return parity;
+    if (name == to_string(parity)) return parity;
   }
   throw nb::value_error(("parity must be one of none, even, odd, mark, space; got '" +
                          name + "'")
@@ -322,7 +303,7 @@ Parity parse_parity(const std::string& name) {
 FlowControl parse_flow(const std::string& name) {
   for (FlowControl flow :
        {FlowControl::none, FlowControl::rtscts, FlowControl::xonxoff}) {
-    if (name == flow_name(flow)) return flow;
+    if (name == to_string(flow)) return flow;
   }
   throw nb::value_error(
       ("flow must be one of none, rtscts, xonxoff; got '" + name + "'").c_str());
@@ -333,8 +314,8 @@ nb::dict settings_dict(const SerialSettings& settings) {
   result["baud"] = settings.baud;
   result["databits"] = settings.data_bits;
   result["stopbits"] = settings.stop_bits;
-  result["parity"] = parity_name(settings.parity);
-  result["flow"] = flow_name(settings.flow);
+  result["parity"] = to_string(settings.parity);
+  result["flow"] = to_string(settings.flow);
   return result;
 }
 
