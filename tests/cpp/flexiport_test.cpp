@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include "support/port_test_support.hpp"
+
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -20,20 +22,7 @@ namespace {
 
 const std::string shared = std::string(WIRETAPE_SHARED_DATA_DIR) + "/flexiport/";
 
-class TempDir {
- public:
-  TempDir() {
-    char pattern[] = "/tmp/wiretape-flexiport-test-XXXXXX";
-    const char* made = ::mkdtemp(pattern);
-    if (made == nullptr) throw std::runtime_error("mkdtemp failed");
-    path_ = made;
-  }
-  ~TempDir() { std::system(("rm -rf '" + path_ + "'").c_str()); }
-  std::string file(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
-};
+using wiretape::test::TempDir;
 
 std::string slurp(const std::string& path) {
   std::ifstream in(path, std::ios::binary);

@@ -12,6 +12,8 @@
 
 #include <gtest/gtest.h>
 
+#include "support/port_test_support.hpp"
+
 #include <chrono>
 #include <condition_variable>
 #include <cstdlib>
@@ -33,20 +35,7 @@ using namespace std::chrono_literals;
 
 namespace {
 
-class TempDir {
- public:
-  TempDir() {
-    char pattern[] = "/tmp/wiretape-recording-test-XXXXXX";
-    const char* made = ::mkdtemp(pattern);
-    if (made == nullptr) throw std::runtime_error("mkdtemp failed");
-    path_ = made;
-  }
-  ~TempDir() { std::system(("rm -rf '" + path_ + "'").c_str()); }
-  std::string file(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
-};
+using wiretape::test::TempDir;
 
 // A scripted device: reads return queued chunks (0 when none: a timeout),
 // writes accept at most `write_limit` bytes a call, and every serial-control

@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include "support/port_test_support.hpp"
+
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
@@ -20,7 +22,6 @@
 #include "replay/replay_config.hpp"
 #include "replay/replay_engine.hpp"
 #include "replay/replay_port.hpp"
-#include "support/port_test_support.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/options.hpp"
 #include "wiretape/port.hpp"
@@ -67,20 +68,7 @@ std::string read_some(Port& port, std::size_t size = 4096,
   return buffer;
 }
 
-class TempDir {
- public:
-  TempDir() {
-    char pattern[] = "/tmp/wiretape-replay-test-XXXXXX";
-    const char* made = ::mkdtemp(pattern);
-    if (made == nullptr) throw std::runtime_error("mkdtemp failed");
-    path_ = made;
-  }
-  ~TempDir() { std::system(("rm -rf '" + path_ + "'").c_str()); }
-  std::string file(const std::string& name) const { return path_ + "/" + name; }
-
- private:
-  std::string path_;
-};
+using wiretape::test::TempDir;
 
 std::string write_session(const TempDir& dir, const std::vector<Record>& records,
                           const std::string& port_type = "serial") {

@@ -71,6 +71,9 @@ struct PtyPair {
 struct TempDir {
   TempDir();
   ~TempDir();
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  std::string file(const std::string& name) const { return path + "/" + name; }
   std::string path;
 };
 
