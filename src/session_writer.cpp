@@ -32,6 +32,10 @@ constexpr std::size_t flush_threshold = 256 * 1024;
 // the buffer to the OS itself: memory stays bounded and the recording runs
 // at the disk's pace.
 constexpr std::size_t max_buffered = 4 * 1024 * 1024;
+// The file's blocks are reserved this far ahead of its end (without changing
+// its size): writes into reserved blocks cost the file system much less than
+// growing the file write by write.
+constexpr std::uint64_t reserve_step = 32 * 1024 * 1024;
 
 }  // namespace
 
@@ -43,6 +47,8 @@ struct SessionWriter::Impl {
   // Serialises writes to the file and keeps their order.
   std::mutex io_mutex;
   std::uint64_t committed = 0;  // bytes in the file, all whole records
+  std::uint64_t reserved = 0;   // blocks reserved up to here (io_mutex)
+  bool reserving = true;        // false once the file system declined
 
   // Guards everything below.
   mutable std::mutex mutex;
@@ -91,6 +97,7 @@ struct SessionWriter::Impl {
       oldest_unflushed.reset();
       flush_requested = false;
     }
+    reserve_ahead(committed + data.size());
     std::size_t written = 0;
     int error = 0;
     while (written < data.size()) {
@@ -129,6 +136,36 @@ struct SessionWriter::Impl {
     std::lock_guard<std::mutex> lock(mutex);
     fail_locked(error, "cannot write the session file");
     buffered_total = committed;
+  }
+
+  // Best effort: a file system without fallocate, a full disk or a file size
+  // limit only means the writes that follow go unreserved, and report their
+  // own errors.
+  void reserve_ahead(std::uint64_t end) {
+#ifdef FALLOC_FL_KEEP_SIZE
+    if (!reserving || end <= reserved) return;
+    // Small files reserve little: a killed recorder leaves at most the step
+    // reserved past its end.
+    const std::uint64_t target = end + std::min(reserve_step, end);
+    if (::fallocate(fd, FALLOC_FL_KEEP_SIZE, static_cast<off_t>(reserved),
+                    static_cast<off_t>(target - reserved)) == 0) {
+      reserved = target;
+    } else {
+      reserving = false;
+    }
+#else
+    (void)end;
+#endif
+  }
+
+  // Gives back the blocks reserved past the end of the file.
+  void release_reserve() {
+#ifdef FALLOC_FL_KEEP_SIZE
+    if (reserved > committed && fd >= 0) {
+      (void)::ftruncate(fd, static_cast<off_t>(committed));
+      reserved = committed;
+    }
+#endif
   }
 
   void run_flusher() {
@@ -259,6 +296,7 @@ void SessionWriter::close() {
   {
     std::lock_guard<std::mutex> io(impl_->io_mutex);
     if (impl_->fd >= 0) {
+      impl_->release_reserve();
       ::close(impl_->fd);
       impl_->fd = -1;
     }
