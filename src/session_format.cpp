@@ -450,6 +450,13 @@ bool BufferedFile::read(void* out, std::size_t size) {
 }
 
 bool BufferedFile::read_into(std::string& out, std::size_t size) {
+  if (end_ - begin_ >= size) {
+    // One copy, without the zero-fill a resize() would do first.
+    out.assign(buffer_.get() + begin_, size);
+    begin_ += size;
+    position_ += size;
+    return true;
+  }
   out.resize(size);
   return size == 0 || read(&out[0], size);
 }
