@@ -197,7 +197,7 @@ class ReplayPort final : public Port {
           engine_.read(static_cast<char*>(buffer), size, now);
       const ReplayEngine::Outlook outlook = update_signal(now);
       if (n > 0) {
-        if (scheduler_.joinable()) changed_.notify_all();
+        reschedule(outlook);
         return n;
       }
       if (outlook.state == ReplayEngine::ReadState::ended) {
@@ -302,20 +302,22 @@ class ReplayPort final : public Port {
         (!deadline || *outlook.wake < *deadline)) {
       due = outlook.wake;
     }
-    ++blocked_readers_;
-    if (due && scheduler_.joinable() && *due - now <= kFinalSpin) {
-      lock.unlock();
-      while (ReplayClock::now() < *due) {
+    if (due && scheduler_.joinable()) {
+      ++readers_awaiting_due_;
+      if (*due - now <= kFinalSpin) {
+        lock.unlock();
+        while (ReplayClock::now() < *due) {
+        }
+        lock.lock();
+      } else {
+        changed_.wait_until(lock, *due - kFinalSpin);
       }
-      lock.lock();
-    } else if (due) {
-      changed_.wait_until(lock, scheduler_.joinable() ? *due - kFinalSpin : *due);
-    } else if (deadline) {
-      changed_.wait_until(lock, *deadline);
+      --readers_awaiting_due_;
+    } else if (due || deadline) {
+      changed_.wait_until(lock, due ? *due : *deadline);
     } else {
       changed_.wait(lock);
     }
-    --blocked_readers_;
   }
 
   // Keeps the pipe readable exactly when a read would not block on data.
@@ -363,24 +365,52 @@ class ReplayPort final : public Port {
       const auto now = ReplayClock::now();
       const ReplayEngine::Outlook outlook = update_signal(now);
       if (outlook.state != ReplayEngine::ReadState::waiting || !outlook.wake) {
-        changed_.wait(lock);
+        sleep_scheduler(lock, ReplayTime::max());
         continue;
       }
       const ReplayTime due = *outlook.wake;
       if (due - now > kFinalSpin) {
         // Anything may have changed on waking: start over.
-        changed_.wait_until(lock, due - kFinalSpin);
+        sleep_scheduler(lock, due - kFinalSpin);
         continue;
       }
-      if (blocked_readers_ > 0) {
-        changed_.notify_all();  // they spin to the due time themselves
-        changed_.wait_until(lock, due);
+      if (readers_awaiting_due_ > 0) {
+        // They spin to the due time themselves and take the data. Waking at
+        // the due time as well would only make this thread compete with them
+        // for a core and for the lock; it wakes later, to raise the pipe if
+        // they gave up instead.
+        changed_.notify_all();
+        sleep_scheduler(lock, due + kFinalSpin);
         continue;
       }
       lock.unlock();
       while (ReplayClock::now() < due) {
       }
       lock.lock();
+    }
+  }
+
+  // The scheduler waits until `until` (max: until notified) and records it,
+  // so that others notify it only when it would wake too late.
+  void sleep_scheduler(std::unique_lock<std::mutex>& lock, ReplayTime until) {
+    scheduler_wake_ = until;
+    if (until == ReplayTime::max()) {
+      changed_.wait(lock);
+    } else {
+      changed_.wait_until(lock, until);
+    }
+    scheduler_wake_ = ReplayTime::min();  // awake: it looks again anyway
+  }
+
+  // After a read took data: wakes the scheduler if the next due time falls
+  // before it would wake by itself. Skipping the needless wake-up keeps a
+  // cross-core wake-up (costly, in virtual machines above all) out of the
+  // reader's path in steady play.
+  void reschedule(const ReplayEngine::Outlook& outlook) {
+    if (!scheduler_.joinable()) return;
+    if (outlook.state == ReplayEngine::ReadState::waiting && outlook.wake &&
+        *outlook.wake - kFinalSpin < scheduler_wake_) {
+      changed_.notify_all();
     }
   }
 
@@ -421,7 +451,8 @@ class ReplayPort final : public Port {
   OwnedFd signal_read_;
   OwnedFd signal_write_;
   bool signalled_ = false;
-  int blocked_readers_ = 0;  // threads inside wait()
+  int readers_awaiting_due_ = 0;  // threads in wait() for a due time
+  ReplayTime scheduler_wake_ = ReplayTime::min();  // see sleep_scheduler()
   std::thread scheduler_;
 };
 
