@@ -31,7 +31,7 @@ constexpr std::size_t flush_threshold = 256 * 1024;
 // Above this much (the flusher cannot keep up with the disk), write() hands
 // the buffer to the OS itself: memory stays bounded and the recording runs
 // at the disk's pace.
-constexpr std::size_t max_buffered = 4 * 1024 * 1024;
+constexpr std::size_t max_buffered = 1024 * 1024;
 // The file's blocks are reserved this far ahead of its end (without changing
 // its size): writes into reserved blocks cost the file system much less than
 // growing the file write by write.
