@@ -19,25 +19,6 @@ namespace wiretape::detail {
 
 namespace {
 
-const char* parity_name(Parity parity) {
-  switch (parity) {
-    case Parity::none: return "none";
-    case Parity::even: return "even";
-    case Parity::odd: return "odd";
-    case Parity::mark: return "mark";
-    case Parity::space: return "space";
-  }
-  return "none";
-}
-
-const char* flow_name(FlowControl flow) {
-  switch (flow) {
-    case FlowControl::none: return "none";
-    case FlowControl::rtscts: return "rtscts";
-    case FlowControl::xonxoff: return "xonxoff";
-  }
-  return "none";
-}
 
 class RecordingPort final : public Port {
  public:
@@ -109,8 +90,8 @@ class RecordingPort final : public Port {
                .add("baud", settings.baud)
                .add("databits", settings.data_bits)
                .add("stopbits", settings.stop_bits)
-               .add("parity", parity_name(settings.parity))
-               .add("flow", flow_name(settings.flow))
+               .add("parity", to_string(settings.parity))
+               .add("flow", to_string(settings.flow))
                .str());
   }
 
