@@ -24,17 +24,8 @@ const std::string shared = std::string(WIRETAPE_SHARED_DATA_DIR) + "/flexiport/"
 
 using wiretape::test::TempDir;
 
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream out;
-  out << in.rdbuf();
-  return out.str();
-}
-
-void spit(const std::string& path, const std::string& bytes) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-}
+using wiretape::test::read_file;
+using wiretape::test::write_file;
 
 struct Chunk {
   std::uint64_t sec = 0;
@@ -128,8 +119,8 @@ class RealRecording : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(RealRecording, EveryByteAndTimestampIsImported) {
   const std::string prefix = shared + GetParam() + ".log";
-  const auto reads = decode_new(slurp(prefix + "r"));
-  const auto writes = decode_new(slurp(prefix + "w"));
+  const auto reads = decode_new(read_file(prefix + "r"));
+  const auto writes = decode_new(read_file(prefix + "w"));
   ASSERT_GT(reads.size(), 100u);
   ASSERT_GE(writes.size(), 10u);
   for (const std::string& name : {prefix, prefix + "r", prefix + "w"}) {
@@ -154,21 +145,21 @@ TEST_P(RealRecording, RoundTripsByteForByteThroughWtape) {
     while (reader.next(record)) writer.write(record);
   }
   export_flexiport(wtape, dir.file("out.log"));
-  EXPECT_EQ(slurp(dir.file("out.logr")), slurp(prefix + "r"));
-  EXPECT_EQ(slurp(dir.file("out.logw")), slurp(prefix + "w"));
+  EXPECT_EQ(read_file(dir.file("out.logr")), read_file(prefix + "r"));
+  EXPECT_EQ(read_file(dir.file("out.logw")), read_file(prefix + "w"));
   // Straight from flexiport to flexiport, too.
   export_flexiport(prefix, dir.file("direct.log"));
-  EXPECT_EQ(slurp(dir.file("direct.logr")), slurp(prefix + "r"));
-  EXPECT_EQ(slurp(dir.file("direct.logw")), slurp(prefix + "w"));
+  EXPECT_EQ(read_file(dir.file("direct.logr")), read_file(prefix + "r"));
+  EXPECT_EQ(read_file(dir.file("direct.logw")), read_file(prefix + "w"));
 }
 
 TEST_P(RealRecording, OldFormatIsDetectedAndReadTheSame) {
   TempDir dir;
   const std::string prefix = shared + GetParam() + ".log";
-  const auto reads = decode_new(slurp(prefix + "r"));
-  const auto writes = decode_new(slurp(prefix + "w"));
-  spit(dir.file("old.logr"), encode_old(reads));
-  spit(dir.file("old.logw"), encode_old(writes));
+  const auto reads = decode_new(read_file(prefix + "r"));
+  const auto writes = decode_new(read_file(prefix + "w"));
+  write_file(dir.file("old.logr"), encode_old(reads));
+  write_file(dir.file("old.logw"), encode_old(writes));
   SessionReader reader(dir.file("old.log"));
   EXPECT_NE(reader.header().metadata_json.find("\"flexiport_read_format\":\"old\""),
             std::string::npos);
@@ -177,8 +168,8 @@ TEST_P(RealRecording, OldFormatIsDetectedAndReadTheSame) {
   expect_faithful_import(records, reads, writes);
   // Exported in the new format, it equals the original.
   export_flexiport(dir.file("old.log"), dir.file("new.log"));
-  EXPECT_EQ(slurp(dir.file("new.logr")), slurp(prefix + "r"));
-  EXPECT_EQ(slurp(dir.file("new.logw")), slurp(prefix + "w"));
+  EXPECT_EQ(read_file(dir.file("new.logr")), read_file(prefix + "r"));
+  EXPECT_EQ(read_file(dir.file("new.logw")), read_file(prefix + "w"));
 }
 
 INSTANTIATE_TEST_SUITE_P(Hokuyo, RealRecording,
@@ -186,8 +177,8 @@ INSTANTIATE_TEST_SUITE_P(Hokuyo, RealRecording,
 
 TEST(FlexiportLog, EqualTimesPutTheWriteBeforeTheRead) {
   TempDir dir;
-  spit(dir.file("s.logr"), encode_new({{1, 5, "answer"}, {2, 0, "late"}}));
-  spit(dir.file("s.logw"), encode_new({{0, 9, "first"}, {1, 5, "question"}, {2, 0, "tie"}}));
+  write_file(dir.file("s.logr"), encode_new({{1, 5, "answer"}, {2, 0, "late"}}));
+  write_file(dir.file("s.logw"), encode_new({{0, 9, "first"}, {1, 5, "question"}, {2, 0, "tie"}}));
   SessionReader reader(dir.file("s.log"));
   const auto records = read_all(reader);
   std::vector<std::string> order;
@@ -197,8 +188,8 @@ TEST(FlexiportLog, EqualTimesPutTheWriteBeforeTheRead) {
 
 TEST(FlexiportLog, SessionWithNoWritesIsRead) {
   TempDir dir;
-  spit(dir.file("gps.logr"), encode_new({{0, 1, "$GPGGA"}, {1, 1, "$GPRMC"}}));
-  spit(dir.file("gps.logw"), "");
+  write_file(dir.file("gps.logr"), encode_new({{0, 1, "$GPGGA"}, {1, 1, "$GPRMC"}}));
+  write_file(dir.file("gps.logw"), "");
   SessionReader reader(dir.file("gps.log"));
   EXPECT_EQ(read_all(reader).size(), 2u);
   EXPECT_FALSE(reader.damage());
@@ -206,7 +197,7 @@ TEST(FlexiportLog, SessionWithNoWritesIsRead) {
 
 TEST(FlexiportLog, MissingPartnerFileIsNamed) {
   TempDir dir;
-  spit(dir.file("half.logr"), encode_new({{0, 1, "x"}}));
+  write_file(dir.file("half.logr"), encode_new({{0, 1, "x"}}));
   try {
     SessionReader reader(dir.file("half.log"));
     FAIL() << "no error";
@@ -219,8 +210,8 @@ TEST(FlexiportLog, TruncatedChunkStopsWithItsOffset) {
   TempDir dir;
   std::string reads = encode_new({{0, 1, "one"}, {0, 2, "two"}, {0, 3, "three"}});
   reads.resize(reads.size() - 2);
-  spit(dir.file("cut.logr"), reads);
-  spit(dir.file("cut.logw"), "");
+  write_file(dir.file("cut.logr"), reads);
+  write_file(dir.file("cut.logw"), "");
   SessionReader reader(dir.file("cut.log"));
   const auto records = read_all(reader);
   ASSERT_EQ(records.size(), 2u);
@@ -233,8 +224,8 @@ TEST(FlexiportLog, AbsurdLengthIsDamageNotAnAllocation) {
   TempDir dir;
   std::string reads = encode_new({{0, 1, "one"}, {0, 2, "two"}});
   detail::put_u32be(&reads[15 + 8], 0xFFFFFFF0u);
-  spit(dir.file("bad.logr"), reads);
-  spit(dir.file("bad.logw"), "");
+  write_file(dir.file("bad.logr"), reads);
+  write_file(dir.file("bad.logw"), "");
   SessionReader reader(dir.file("bad.log"));
   EXPECT_EQ(read_all(reader).size(), 1u);
   ASSERT_TRUE(reader.damage());
@@ -251,8 +242,8 @@ TEST(FlexiportLog, ExportDropsEventsAndKeepsMicroseconds) {
     writer.write(RecordKind::close, 3'000'000'000ull, "{}");
   }
   export_flexiport(dir.file("s.wtape"), dir.file("e.log"));
-  const auto writes = decode_new(slurp(dir.file("e.logw")));
-  const auto reads = decode_new(slurp(dir.file("e.logr")));
+  const auto writes = decode_new(read_file(dir.file("e.logw")));
+  const auto reads = decode_new(read_file(dir.file("e.logr")));
   ASSERT_EQ(writes.size(), 1u);
   ASSERT_EQ(reads.size(), 1u);
   EXPECT_EQ(writes[0].sec, 1u);

@@ -7,6 +7,8 @@
 
 #include <gtest/gtest.h>
 
+#include "support/port_test_support.hpp"
+
 #include <cstdlib>
 #include <fstream>
 #include <sstream>
@@ -24,17 +26,8 @@ namespace {
 
 const std::string golden_dir = std::string(WIRETAPE_TEST_DATA_DIR) + "/golden/";
 
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream out;
-  out << in.rdbuf();
-  return out.str();
-}
-
-void spit(const std::string& path, const std::string& bytes) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-}
+using wiretape::test::read_file;
+using wiretape::test::write_file;
 
 std::string from_hex(const std::string& hex) {
   std::string bytes;
@@ -118,7 +111,7 @@ TEST_P(GoldenFile, WriterRecreatesItByteForByte) {
       writer.write(static_cast<RecordKind>(line.kind_code), line.t_ns, line.data);
     }
   }
-  std::string bytes = slurp(path);
+  std::string bytes = read_file(path);
   ::unlink(path.c_str());
   if (golden.corrupt) {
     ASSERT_LT(golden.corrupt->first, bytes.size());
@@ -126,8 +119,8 @@ TEST_P(GoldenFile, WriterRecreatesItByteForByte) {
         static_cast<char>(bytes[golden.corrupt->first] ^ golden.corrupt->second);
   }
   const std::string golden_path = golden_dir + GetParam() + ".wtape";
-  if (std::getenv("WIRETAPE_REGENERATE_GOLDEN") != nullptr) spit(golden_path, bytes);
-  EXPECT_EQ(bytes, slurp(golden_path))
+  if (std::getenv("WIRETAPE_REGENERATE_GOLDEN") != nullptr) write_file(golden_path, bytes);
+  EXPECT_EQ(bytes, read_file(golden_path))
       << "the writer no longer produces " << golden_path
       << " (a format change needs a new format version, see docs/session-format.md)";
 }

@@ -34,17 +34,8 @@ namespace {
 
 using wiretape::test::TempDir;
 
-std::string slurp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream out;
-  out << in.rdbuf();
-  return out.str();
-}
-
-void spit(const std::string& path, const std::string& bytes) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-}
+using wiretape::test::read_file;
+using wiretape::test::write_file;
 
 std::vector<Record> read_all(SessionReader& reader) {
   std::vector<Record> records;
@@ -71,7 +62,7 @@ std::string write_sample(const std::string& path, int records = 3) {
                  "record " + std::to_string(i));
   }
   writer.close();
-  return slurp(path);
+  return read_file(path);
 }
 
 }  // namespace
@@ -182,25 +173,25 @@ TEST(SessionFile, MissingEmptyAndForeignFilesAreClearErrors) {
     }
   };
   expect_error(dir.file("missing.wtape"), "No such file", 0);
-  spit(dir.file("empty.wtape"), "");
+  write_file(dir.file("empty.wtape"), "");
   expect_error(dir.file("empty.wtape"), "empty file", 0);
-  spit(dir.file("text.wtape"), "hello, I am a text file and no session\n");
+  write_file(dir.file("text.wtape"), "hello, I am a text file and no session\n");
   expect_error(dir.file("text.wtape"), "wrong magic", 0);
 
   const std::string good = write_sample(dir.file("good.wtape"));
-  spit(dir.file("short.wtape"), good.substr(0, 11));
+  write_file(dir.file("short.wtape"), good.substr(0, 11));
   expect_error(dir.file("short.wtape"), "truncated header", 11);
-  spit(dir.file("cut-header.wtape"), good.substr(0, 40));
+  write_file(dir.file("cut-header.wtape"), good.substr(0, 40));
   expect_error(dir.file("cut-header.wtape"), "truncated or corrupt header", 12);
 
   std::string future = good;
   detail::put_u16le(&future[8], 2);
-  spit(dir.file("future.wtape"), future);
+  write_file(dir.file("future.wtape"), future);
   expect_error(dir.file("future.wtape"), "newer than this reader", 8);
 
   std::string absurd = good;
   detail::put_u32le(&absurd[12], 0xFFFFFFF0u);
-  spit(dir.file("absurd-header.wtape"), absurd);
+  write_file(dir.file("absurd-header.wtape"), absurd);
   expect_error(dir.file("absurd-header.wtape"), "claims 4294967280 bytes", 12);
 }
 
@@ -212,7 +203,7 @@ TEST(SessionFile, NewerMinorVersionIsRead) {
   detail::put_u16le(&bytes[10], 7);
   const std::size_t header_end = 16 + json_length;
   detail::put_u32le(&bytes[header_end], crc32c(bytes.data(), header_end));
-  spit(dir.file("minor.wtape"), bytes);
+  write_file(dir.file("minor.wtape"), bytes);
   SessionReader reader(dir.file("minor.wtape"));
   EXPECT_EQ(reader.header().version_minor, 7);
   EXPECT_EQ(read_all(reader).size(), 3u);
@@ -235,7 +226,7 @@ TEST(SessionFile, EveryBitFlipIsDetectedAndEverythingBeforeItKept) {
     for (int bit : {0, 5}) {
       std::string bad = good;
       bad[byte] = static_cast<char>(bad[byte] ^ (1 << bit));
-      spit(path, bad);
+      write_file(path, bad);
       if (byte < header_end) {
         EXPECT_THROW(SessionReader{path}, SessionError) << "byte " << byte;
         continue;
@@ -257,7 +248,7 @@ TEST(SessionFile, TruncationAtEveryByteKeepsTheWholeRecordsBefore) {
   const std::size_t header_end = 16 + detail::get_u32le(&good[12]) + 4;
   const std::string path = dir.file("cut.wtape");
   for (std::size_t size = header_end; size < good.size(); ++size) {
-    spit(path, good.substr(0, size));
+    write_file(path, good.substr(0, size));
     SessionReader reader(path);
     const auto records = read_all(reader);
     std::size_t whole = 0;
@@ -280,7 +271,7 @@ TEST(SessionFile, HostileLengthIsAnErrorNotAnAllocation) {
   std::string bytes = write_sample(dir.file("a.wtape"), 2);
   const std::size_t header_end = 16 + detail::get_u32le(&bytes[12]) + 4;
   detail::put_u32le(&bytes[header_end], 0xFFFFFFFFu);
-  spit(dir.file("hostile.wtape"), bytes);
+  write_file(dir.file("hostile.wtape"), bytes);
   SessionReader reader(dir.file("hostile.wtape"));
   EXPECT_TRUE(read_all(reader).empty());
   ASSERT_TRUE(reader.damage());
@@ -314,14 +305,14 @@ TEST(SessionWriter, BufferedRecordsReachTheFileWithinFlushMsWhenIdle) {
   options.flush_ms = 50;
   SessionWriter writer(path, options);
   const std::uint64_t header_size = writer.size();
-  EXPECT_EQ(slurp(path).size(), header_size) << "the header is written at once";
+  EXPECT_EQ(read_file(path).size(), header_size) << "the header is written at once";
   const auto written = std::chrono::steady_clock::now();
   writer.write(RecordKind::rx, 5, "idle data");
   // No flush() call: the flusher must get it to the file on its own.
   const auto deadline = written + 5s;
   std::size_t seen = 0;
   while (std::chrono::steady_clock::now() < deadline) {
-    seen = slurp(path).size();
+    seen = read_file(path).size();
     if (seen == writer.size()) break;
     std::this_thread::yield();
   }
@@ -418,7 +409,7 @@ TEST(SessionWriter, FileSizeLimitIsAClearErrorAndTheFileStaysReadable) {
   EXPECT_NE(report.find(path), std::string::npos) << report;
   const int failed_at = std::atoi(report.c_str() + report.find(' ') + 1);
   // The file holds whole records only, as many as fit in 4096 bytes.
-  EXPECT_LE(slurp(path).size(), 4096u);
+  EXPECT_LE(read_file(path).size(), 4096u);
   SessionReader reader(path);
   const auto records = read_all(reader);
   EXPECT_FALSE(reader.damage()) << reader.damage()->what();

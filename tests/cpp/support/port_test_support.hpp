@@ -67,6 +67,11 @@ struct PtyPair {
   std::string read_master(std::size_t count) const;
 };
 
+// A whole file's bytes; "" if it cannot be read.
+std::string read_file(const std::string& path);
+// Replaces the file's content with `bytes`.
+void write_file(const std::string& path, const std::string& bytes);
+
 // A fresh directory under /tmp, removed with its content at destruction.
 struct TempDir {
   TempDir();
