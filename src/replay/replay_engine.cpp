@@ -111,6 +111,7 @@ std::chrono::nanoseconds ReplayEngine::scaled(std::uint64_t ns) const {
 void ReplayEngine::fill_rx() {
   if (config_.match != ReplayMatch::sequence) return;
   Record record;
+  record.data = spare_payload();
   while (!rx_exhausted_ && rx_queue_.size() < kLookaheadRecords &&
          rx_queue_bytes_ < kLookaheadBytes) {
     if (!rx_source_->next(record)) {
@@ -138,6 +139,7 @@ void ReplayEngine::fill_rx() {
         item.anchor_t_ns = rx_last_tx_t_ns_;
         rx_queue_bytes_ += record.data.size();
         item.data = std::move(record.data);
+        record.data = spare_payload();
         rx_queue_.push_back(std::move(item));
         // The device is gone: nothing after this point is served.
         if (record.kind != RecordKind::rx) rx_exhausted_ = true;
@@ -147,6 +149,27 @@ void ReplayEngine::fill_rx() {
         break;  // events are not replayed to the client
     }
   }
+  recycle_payload(std::move(record.data));
+}
+
+std::string ReplayEngine::spare_payload() {
+  if (spare_payloads_.empty()) return {};
+  std::string buffer = std::move(spare_payloads_.back());
+  spare_payloads_.pop_back();
+  spare_bytes_ -= buffer.capacity();
+  return buffer;
+}
+
+void ReplayEngine::recycle_payload(std::string&& buffer) {
+  // Bounded like the look-ahead, so memory stays independent of the session.
+  if (config_.match != ReplayMatch::sequence || buffer.capacity() == 0 ||
+      spare_payloads_.size() >= kLookaheadRecords ||
+      spare_bytes_ + buffer.capacity() > kLookaheadBytes) {
+    return;
+  }
+  buffer.clear();
+  spare_bytes_ += buffer.capacity();
+  spare_payloads_.push_back(std::move(buffer));
 }
 
 void ReplayEngine::entitle() {
@@ -197,6 +220,7 @@ void ReplayEngine::prepare(ReplayTime) {
 }
 
 void ReplayEngine::pop_rx() {
+  recycle_payload(std::move(rx_queue_.front().data));
   rx_queue_.pop_front();
   if (first_unentitled_ > 0) --first_unentitled_;
 }

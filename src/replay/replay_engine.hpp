@@ -104,6 +104,10 @@ class ReplayEngine {
   void fill_rx();
   void entitle();
   void pop_rx();
+  // Payload buffers of consumed rx records, reused by the read cursor so a
+  // record costs no allocation once the look-ahead is warm.
+  std::string spare_payload();
+  void recycle_payload(std::string&& buffer);
   bool is_due(const RxItem& item, ReplayTime now) const;
 
   // match=sequence
@@ -141,6 +145,8 @@ class ReplayEngine {
   std::uint64_t rx_tx_seen_ = 0;
   std::optional<std::uint64_t> rx_last_tx_t_ns_;
   std::deque<TxEnd> tx_ends_;
+  std::vector<std::string> spare_payloads_;
+  std::size_t spare_bytes_ = 0;  // their capacity
 
   // match=sequence, the write cursor.
   std::unique_ptr<RecordSource> tx_source_;
