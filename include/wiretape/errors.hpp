@@ -50,7 +50,8 @@ class ReplayMismatch : public std::runtime_error {
         exchange_(exchange) {}
   std::uint64_t tx_offset() const noexcept { return tx_offset_; }
   std::uint64_t session_time_ns() const noexcept { return session_time_ns_; }
-  // Exchange number (0-based) in request mode or -1 when not applicable.
+  // Exchange number (0-based): the matched exchange in request mode, the run
+  // of recorded writes in sequence mode; -1 where there is none.
   std::int64_t exchange() const noexcept { return exchange_; }
 
  private:

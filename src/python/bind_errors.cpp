@@ -60,7 +60,8 @@ class ReplayMismatch(AssertionError):
     the full report (offset, session time, expected and actual bytes as
     hex+ASCII, exchange); ``tx_offset`` is the byte offset in the recorded tx
     stream, ``session_time_ns`` the session time in ns, ``exchange`` the
-    exchange number (0-based) under match=request, else None."""
+    exchange number (0-based: in request mode the matched exchange, in sequence
+    mode the run of recorded writes), or None where there is none."""
 
     def __init__(self, message="", tx_offset=0, session_time_ns=0, exchange=None):
         super().__init__(message)
