@@ -400,7 +400,26 @@ std::uint64_t BufferedFile::remaining() {
 }
 
 std::size_t BufferedFile::fill() {
-  if (begin_ > 0) {
+  if (buffer_.use_count() > 1 && (begin_ > 0 || end_ == 0)) {
+    // Views still point into this buffer: go on in a fresh one rather than
+    // move or overwrite their bytes.
+    std::shared_ptr<char[]> fresh;
+    for (auto& retired : retired_) {
+      if (retired.use_count() == 1) {  // its views are all gone: reuse it
+        fresh = std::move(retired);
+        retired = std::move(retired_.back());
+        retired_.pop_back();
+        break;
+      }
+    }
+    // A fresh allocation costs page faults every time; reuse is what pays.
+    if (!fresh) fresh.reset(new char[buffer_size]);
+    std::memcpy(fresh.get(), buffer_.get() + begin_, end_ - begin_);
+    end_ -= begin_;
+    begin_ = 0;
+    if (retired_.size() < max_retired_buffers) retired_.push_back(std::move(buffer_));
+    buffer_ = std::move(fresh);
+  } else if (begin_ > 0) {
     std::memmove(buffer_.get(), buffer_.get() + begin_, end_ - begin_);
     end_ -= begin_;
     begin_ = 0;
@@ -466,6 +485,28 @@ bool BufferedFile::read_into(std::string& out, std::size_t size) {
   }
   out.resize(size);
   return size == 0 || read(&out[0], size);
+}
+
+std::size_t BufferedFile::max_view_size() { return buffer_size / 2; }
+
+bool BufferedFile::read_view(std::size_t size, PayloadView& out) {
+  if (size > max_view_size()) return false;
+  if (end_ - begin_ < size) {
+    if (remaining() < size) refresh_size();
+    if (remaining() < size) return false;
+    while (end_ - begin_ < size) {
+      const std::size_t before = end_ - begin_;
+      if (fill() == before) {
+        seek(position_);
+        return false;
+      }
+    }
+  }
+  out.owner = buffer_;
+  out.bytes = std::string_view(buffer_.get() + begin_, size);
+  begin_ += size;
+  position_ += size;
+  return true;
 }
 
 bool BufferedFile::skip(std::uint64_t size) {

@@ -7,7 +7,9 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
+#include "session_cursor.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 
@@ -93,6 +95,11 @@ class BufferedFile {
   bool read(void* out, std::size_t size);
   // Reads `size` bytes into `out`; the caller has checked remaining().
   bool read_into(std::string& out, std::size_t size);
+  // Reads `size` bytes (at most max_view_size()) as a view into the buffer,
+  // which is then never overwritten while the view lives; false (nothing
+  // consumed) if the file holds fewer.
+  bool read_view(std::size_t size, PayloadView& out);
+  static std::size_t max_view_size();
   bool skip(std::uint64_t size);
   std::uint64_t position() const { return position_; }
   // Bytes after position(); re-reads the file's size so a file still being
@@ -108,7 +115,10 @@ class BufferedFile {
 
   std::string path_;
   int fd_ = -1;
-  std::unique_ptr<char[]> buffer_;
+  std::shared_ptr<char[]> buffer_;  // shared with the views handed out
+  // Earlier buffers, reused once no view holds them any more.
+  static constexpr std::size_t max_retired_buffers = 32;
+  std::vector<std::shared_ptr<char[]>> retired_;
   std::size_t begin_ = 0;  // unread bytes are buffer_[begin_, end_)
   std::size_t end_ = 0;
   std::uint64_t position_ = 0;  // file offset of buffer_[begin_]
@@ -120,6 +130,12 @@ class RecordSource {
  public:
   virtual ~RecordSource() = default;
   virtual bool next(Record& record) = 0;
+  // next(), with large payloads as views where the source can (see
+  // SessionCursor).
+  virtual bool next(Record& record, PayloadView& view) {
+    view = PayloadView{};
+    return next(record);
+  }
   virtual void rewind() = 0;
   virtual const std::optional<SessionError>& damage() const = 0;
 };

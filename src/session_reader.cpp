@@ -28,8 +28,26 @@ class WtapeSource final : public RecordSource {
     first_record_ = file_.position();
   }
 
-  bool next(Record& record) override {
+  bool next(Record& record) override { return next_record(record, nullptr); }
+  bool next(Record& record, PayloadView& view) override {
+    if (next_record(record, &view)) return true;
+    view = PayloadView{};  // no bytes of a damaged record handed out
+    return false;
+  }
+
+  void rewind() override {
+    file_.seek(first_record_);
+    damage_.reset();
+    records_ = 0;
+  }
+
+  const std::optional<SessionError>& damage() const override { return damage_; }
+
+ private:
+  // With `view`, large payloads come as views into the read buffer.
+  bool next_record(Record& record, PayloadView* view) {
     for (;;) {
+      if (view) *view = PayloadView{};
       if (damage_) return false;
       const std::uint64_t offset = file_.position();
       char head[record_header_size];
@@ -49,11 +67,21 @@ class WtapeSource final : public RecordSource {
                                 " more bytes (truncated, or a corrupt length)");
       }
       std::uint32_t crc = crc32c(head, sizeof head);
-      std::string& payload = record.data;
-      if (!file_.read_into(payload, length)) {
-        return stop(offset, "truncated record at byte " + std::to_string(offset));
+      const char* payload = nullptr;
+      if (view && length >= min_view_payload &&
+          length <= BufferedFile::max_view_size()) {
+        if (!file_.read_view(length, *view)) {
+          return stop(offset, "truncated record at byte " + std::to_string(offset));
+        }
+        record.data.clear();
+        payload = view->bytes.data();
+      } else {
+        if (!file_.read_into(record.data, length)) {
+          return stop(offset, "truncated record at byte " + std::to_string(offset));
+        }
+        payload = record.data.data();
       }
-      crc = crc32c(payload.data(), payload.size(), crc);
+      crc = crc32c(payload, length, crc);
       char stored_bytes[crc_size];
       if (!file_.read(stored_bytes, crc_size)) {
         return stop(offset, "truncated record at byte " + std::to_string(offset));
@@ -73,15 +101,6 @@ class WtapeSource final : public RecordSource {
     }
   }
 
-  void rewind() override {
-    file_.seek(first_record_);
-    damage_.reset();
-    records_ = 0;
-  }
-
-  const std::optional<SessionError>& damage() const override { return damage_; }
-
- private:
   static bool known_kind(std::uint8_t kind) {
     return kind == 0x01 || kind == 0x02 || (kind >= 0x10 && kind <= 0x1a);
   }
@@ -164,7 +183,37 @@ bool starts_with_magic(const std::string& path) {
          std::memcmp(head, session_magic, sizeof head) == 0;
 }
 
+std::unique_ptr<RecordSource> open_source(const std::string& path,
+                                          SessionHeader& header) {
+  if (!starts_with_magic(path)) {
+    if (auto prefix = flexiport_prefix(path)) return open_flexiport(*prefix, header);
+  }
+  return std::make_unique<WtapeSource>(path, header);
+}
+
 }  // namespace
+
+struct SessionCursor::Impl {
+  std::string path;
+  SessionHeader header;
+  std::unique_ptr<RecordSource> source;
+};
+
+SessionCursor::SessionCursor(const std::string& path) : impl_(std::make_unique<Impl>()) {
+  impl_->path = path;
+  impl_->source = open_source(path, impl_->header);
+}
+
+SessionCursor::~SessionCursor() = default;
+bool SessionCursor::next(Record& record) { return impl_->source->next(record); }
+bool SessionCursor::next(Record& record, PayloadView& view) {
+  return impl_->source->next(record, view);
+}
+const std::optional<SessionError>& SessionCursor::damage() const {
+  return impl_->source->damage();
+}
+const std::string& SessionCursor::path() const { return impl_->path; }
+
 }  // namespace detail
 
 struct SessionReader::Impl {
@@ -175,13 +224,7 @@ struct SessionReader::Impl {
 
 SessionReader::SessionReader(const std::string& path) : impl_(std::make_unique<Impl>()) {
   impl_->path = path;
-  if (!detail::starts_with_magic(path)) {
-    if (auto prefix = detail::flexiport_prefix(path)) {
-      impl_->source = detail::open_flexiport(*prefix, impl_->header);
-      return;
-    }
-  }
-  impl_->source = std::make_unique<detail::WtapeSource>(path, impl_->header);
+  impl_->source = detail::open_source(path, impl_->header);
 }
 
 SessionReader::~SessionReader() = default;
