@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "session_cursor.hpp"
 #include "wiretape/session.hpp"
 
 namespace wiretape::detail {
@@ -19,6 +20,12 @@ class RecordSource {
   virtual ~RecordSource() = default;
   // The next record in recorded order; false at the end.
   virtual bool next(Record& record) = 0;
+  // next(), but a large payload may come as `view` instead of in
+  // record.data (then left empty); `view` is empty otherwise.
+  virtual bool next_view(Record& record, PayloadView& view) {
+    view = PayloadView{};
+    return next(record);
+  }
 };
 
 using RecordSourceFactory = std::function<std::unique_ptr<RecordSource>()>;

@@ -111,23 +111,25 @@ std::chrono::nanoseconds ReplayEngine::scaled(std::uint64_t ns) const {
 void ReplayEngine::fill_rx() {
   if (config_.match != ReplayMatch::sequence) return;
   Record record;
+  PayloadView view;
   record.data = spare_payload();
   while (!rx_exhausted_ && rx_queue_.size() < kLookaheadRecords &&
          rx_queue_bytes_ < kLookaheadBytes) {
-    if (!rx_source_->next(record)) {
+    if (!rx_source_->next_view(record, view)) {
       rx_exhausted_ = true;
       break;
     }
+    const std::size_t size = view ? view.bytes.size() : record.data.size();
     switch (record.kind) {
       case RecordKind::tx:
-        if (record.data.empty()) break;
-        rx_tx_seen_ += record.data.size();
+        if (size == 0) break;
+        rx_tx_seen_ += size;
         rx_last_tx_t_ns_ = record.t_ns;
         break;
       case RecordKind::rx:
       case RecordKind::close:
       case RecordKind::device_lost: {
-        if (record.kind == RecordKind::rx && record.data.empty()) break;
+        if (record.kind == RecordKind::rx && size == 0) break;
         if (record.kind == RecordKind::close && !session_goes_on(*rx_source_)) {
           rx_exhausted_ = true;
           break;
@@ -137,9 +139,13 @@ void ReplayEngine::fill_rx() {
         item.t_ns = record.t_ns;
         item.tx_before = rx_tx_seen_;
         item.anchor_t_ns = rx_last_tx_t_ns_;
-        rx_queue_bytes_ += record.data.size();
-        item.data = std::move(record.data);
-        record.data = spare_payload();
+        rx_queue_bytes_ += size;
+        if (view) {
+          item.view = std::move(view);
+        } else {
+          item.data = std::move(record.data);
+          record.data = spare_payload();
+        }
         rx_queue_.push_back(std::move(item));
         // The device is gone: nothing after this point is served.
         if (record.kind != RecordKind::rx) rx_exhausted_ = true;
@@ -248,22 +254,22 @@ std::size_t ReplayEngine::read(char* buffer, std::size_t size, ReplayTime now) {
                                                        : "went away") +
                        " at session time " + seconds(item.t_ns) + " s");
     }
+    const std::string_view payload = item.payload();
     if (config_.datagrams) {
       if (copied > 0) break;
       // One datagram per read; a shorter read truncates it, as recv does.
-      const std::size_t n = std::min(size, item.data.size());
-      std::memcpy(buffer, item.data.data(), n);
-      rx_queue_bytes_ -= item.data.size();
+      const std::size_t n = std::min(size, payload.size());
+      std::memcpy(buffer, payload.data(), n);
+      rx_queue_bytes_ -= payload.size();
       pop_rx();
       return n;
     }
-    const std::size_t n =
-        std::min(size - copied, item.data.size() - item.consumed);
-    std::memcpy(buffer + copied, item.data.data() + item.consumed, n);
+    const std::size_t n = std::min(size - copied, payload.size() - item.consumed);
+    std::memcpy(buffer + copied, payload.data() + item.consumed, n);
     item.consumed += n;
     copied += n;
-    if (item.consumed == item.data.size()) {
-      rx_queue_bytes_ -= item.data.size();
+    if (item.consumed == payload.size()) {
+      rx_queue_bytes_ -= payload.size();
       pop_rx();
     }
   }
@@ -275,8 +281,8 @@ std::size_t ReplayEngine::available(ReplayTime now) {
   std::size_t total = 0;
   for (const RxItem& item : rx_queue_) {
     if (item.kind != RecordKind::rx || !is_due(item, now)) break;
-    if (config_.datagrams) return item.data.size();
-    total += item.data.size() - item.consumed;
+    if (config_.datagrams) return item.payload().size();
+    total += item.payload().size() - item.consumed;
   }
   return total;
 }
@@ -309,7 +315,7 @@ void ReplayEngine::flush_input(ReplayTime now) {
   prepare(now);
   while (!rx_queue_.empty() && rx_queue_.front().kind == RecordKind::rx &&
          is_due(rx_queue_.front(), now)) {
-    rx_queue_bytes_ -= rx_queue_.front().data.size();
+    rx_queue_bytes_ -= rx_queue_.front().payload().size();
     pop_rx();
     if (rx_queue_.empty()) prepare(now);
   }
@@ -790,7 +796,7 @@ std::string ReplayEngine::unused_report() {
   std::uint64_t rx_records = 0;
   for (const RxItem& item : rx_queue_) {
     if (item.kind != RecordKind::rx) continue;
-    rx_bytes += item.data.size() - item.consumed;
+    rx_bytes += item.payload().size() - item.consumed;
     ++rx_records;
   }
   std::ostringstream report;

@@ -78,7 +78,15 @@ class ReplayEngine {
   struct RxItem {
     RecordKind kind = RecordKind::rx;  // rx, close or device_lost
     std::string data;
+    // The payload instead of data, when the source gave one: a view into the
+    // session reader's 64 KiB read buffer, which it pins. The look-ahead's
+    // record limit keeps that bounded (at most one buffer per queued record;
+    // in practice the look-ahead's bytes plus one buffer).
+    PayloadView view;
     std::size_t consumed = 0;
+    std::string_view payload() const {
+      return view ? view.bytes : std::string_view(data);
+    }
     std::uint64_t t_ns = 0;
     // match=sequence: tx bytes recorded before this record, and the time of
     // the last tx record before it (none: before any write).

@@ -47,6 +47,17 @@ class SessionRecordSource final : public RecordSource {
       : reader_(path), warned_(std::move(warned)) {}
   bool next(Record& record) override {
     if (reader_.next(record)) return true;
+    warn_of_damage();
+    return false;
+  }
+  bool next_view(Record& record, PayloadView& view) override {
+    if (reader_.next(record, view)) return true;
+    warn_of_damage();
+    return false;
+  }
+
+ private:
+  void warn_of_damage() {
     if (reader_.damage() && !*warned_) {
       *warned_ = true;
       std::fprintf(stderr,
@@ -54,11 +65,9 @@ class SessionRecordSource final : public RecordSource {
                    "damage: %s\n",
                    reader_.path().c_str(), reader_.damage()->what());
     }
-    return false;
   }
 
- private:
-  SessionReader reader_;
+  SessionCursor reader_;
   std::shared_ptr<bool> warned_;
 };
 
