@@ -364,7 +364,7 @@ void parse_header_json(const std::string& text, const std::string& path,
 // --- BufferedFile ----------------------------------------------------------
 
 namespace {
-constexpr std::size_t buffer_size = 64 * 1024;
+constexpr std::size_t buffer_size = 128 * 1024;
 }  // namespace
 
 BufferedFile::BufferedFile(const std::string& path)
