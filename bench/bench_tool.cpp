@@ -180,13 +180,23 @@ int timing(std::uint64_t records, std::uint64_t period_us) {
   return 0;
 }
 
-// Seconds to push `bytes` in 64 KiB writes to a sink over loopback TCP.
-double tcp_push_seconds(std::uint64_t bytes, const std::string& log_path) {
+// CPU time used so far by every thread of this process, seconds.
+double process_cpu_seconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  const auto seconds = [](const timeval& t) { return static_cast<double>(t.tv_sec) + static_cast<double>(t.tv_usec) / 1e6; };
+  return seconds(usage.ru_utime) + seconds(usage.ru_stime);
+}
+
+// Seconds to push `bytes` in 64 KiB writes to a sink over loopback TCP;
+// `cpu_seconds` gets the CPU time all threads (sender, sink, recorder) used.
+double tcp_push_seconds(std::uint64_t bytes, const std::string& log_path, double* cpu_seconds = nullptr) {
   wb::TcpSink sink;
   std::string options = sink.client_options();
   if (!log_path.empty()) options += ",log=" + log_path;
   std::vector<char> chunk(64 * 1024, 'x');
   const auto start = Clock::now();
+  const double cpu_start = process_cpu_seconds();
   {
     auto port = wiretape::open_port(options);
     std::uint64_t sent = 0;
@@ -202,22 +212,42 @@ double tcp_push_seconds(std::uint64_t bytes, const std::string& log_path) {
     if (Clock::now() > deadline) throw std::runtime_error("record-throughput: sink never got every byte");
     std::this_thread::yield();
   }
+  if (cpu_seconds) *cpu_seconds = process_cpu_seconds() - cpu_start;
   return wb::seconds_since(start);
 }
 
 int record_throughput(std::uint64_t bytes, std::uint64_t rounds) {
   const std::string log_path = temp_path("wiretape-bench-record");
-  std::vector<double> plain, recorded;
-  for (std::uint64_t r = 0; r < rounds; ++r) {  // interleaved: same conditions
-    plain.push_back(tcp_push_seconds(bytes, ""));
-    recorded.push_back(tcp_push_seconds(bytes, log_path));
+  std::vector<double> plain, recorded, ratios, plain_cores, recorded_cores;
+  for (std::uint64_t r = 0; r < rounds; ++r) {
+    // Interleaved, in alternating order: each pair runs under the same
+    // conditions, and the ratio is taken per pair, so that the machine's
+    // drift from round to round (loopback throughput on a shared VM varies
+    // by a factor of two) cancels out.
+    double plain_s = 0, recorded_s = 0, plain_cpu = 0, recorded_cpu = 0;
+    if (r % 2 == 0) {
+      plain_s = tcp_push_seconds(bytes, "", &plain_cpu);
+      recorded_s = tcp_push_seconds(bytes, log_path, &recorded_cpu);
+    } else {
+      recorded_s = tcp_push_seconds(bytes, log_path, &recorded_cpu);
+      plain_s = tcp_push_seconds(bytes, "", &plain_cpu);
+    }
+    plain_cores.push_back(plain_cpu / plain_s);
+    recorded_cores.push_back(recorded_cpu / recorded_s);
     std::remove(log_path.c_str());
+    plain.push_back(plain_s);
+    recorded.push_back(recorded_s);
+    ratios.push_back(plain_s / recorded_s);
   }
   const double plain_MBps = static_cast<double>(bytes) / wb::percentile(plain, 0.5) / 1e6;
   const double recorded_MBps = static_cast<double>(bytes) / wb::percentile(recorded, 0.5) / 1e6;
-  std::printf("{\"bytes\": %llu, \"rounds\": %llu, \"plain_MBps\": %.2f, \"recorded_MBps\": %.2f, \"ratio\": %.4f}\n",
+  std::printf("{\"bytes\": %llu, \"rounds\": %llu, \"plain_MBps\": %.2f, \"recorded_MBps\": %.2f, "
+              "\"ratio\": %.4f, \"ratio_min\": %.4f, \"ratio_max\": %.4f, "
+              "\"plain_cores\": %.2f, \"recorded_cores\": %.2f, \"cores\": %u}\n",
               static_cast<unsigned long long>(bytes), static_cast<unsigned long long>(rounds),
-              plain_MBps, recorded_MBps, recorded_MBps / plain_MBps);
+              plain_MBps, recorded_MBps, wb::percentile(ratios, 0.5), wb::percentile(ratios, 0.0),
+              wb::percentile(ratios, 1.0), wb::percentile(plain_cores, 0.5),
+              wb::percentile(recorded_cores, 0.5), std::thread::hardware_concurrency());
   return 0;
 }
 

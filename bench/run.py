@@ -191,11 +191,14 @@ class Bench:
     def record(self) -> None:
         """Recording overhead on a loopback TCP pair: throughput and RTT."""
         need_disk(self.work, GiB, "record throughput")
-        size = (64 if self.quick else 256) * MiB
-        result = self.run_tool("record-throughput", str(size), "3" if self.quick else "5")
+        size = (64 if self.quick else 128) * MiB
+        result = self.run_tool("record-throughput", str(size), "5" if self.quick else "15")
         self.results["record_throughput_ratio"] = round(result["ratio"], 3)
         self.notes["record_throughput"] = (
-            f"unrecorded {result['plain_MBps']:.0f} MB/s, recorded {result['recorded_MBps']:.0f} MB/s")
+            f"median of {result['rounds']} interleaved pairs (range {result['ratio_min']:.2f}–"
+            f"{result['ratio_max']:.2f}); unrecorded {result['plain_MBps']:.0f} MB/s on "
+            f"{result['plain_cores']:.2f} of {result['cores']} cores, recorded "
+            f"{result['recorded_MBps']:.0f} MB/s on {result['recorded_cores']:.2f} cores")
         result = self.run_tool("record-latency", "2000", "3" if self.quick else "5")
         self.results["record_latency_ratio"] = round(result["ratio"], 3)
         self.notes["record_latency"] = (

@@ -1,8 +1,10 @@
 // Writing .wtape files: append-only, buffered, with a flusher thread that
 // hands buffered records to the OS at most flush_ms after they were written,
 // so that a killed recorder loses at most that much. The writing thread only
-// checksums and copies; the flusher makes the write() calls, from one buffer
-// while the writer fills the other.
+// copies; the flusher computes the records' checksums and makes the write()
+// calls, from one buffer while the writer fills the other. Recording shares
+// the machine with the traffic it records, so the work on the port's own
+// thread is kept to the one copy that cannot be avoided.
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -14,6 +16,7 @@
 #include <cstring>
 #include <mutex>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "session_format.hpp"
@@ -56,6 +59,8 @@ struct SessionWriter::Impl {
   std::string buffer;
   std::string spare;  // a flushed buffer kept for its capacity
   std::vector<std::size_t> record_ends;  // end offset of each buffered record
+  // Records in the buffer whose CRC slot is still to be filled: [start, end).
+  std::vector<std::pair<std::size_t, std::size_t>> unsealed;
   std::uint64_t buffered_total = 0;      // committed + buffer.size() + in flight
   std::optional<Clock::time_point> oldest_unflushed;
   bool flush_requested = false;  // the buffer passed flush_threshold
@@ -81,12 +86,14 @@ struct SessionWriter::Impl {
     std::lock_guard<std::mutex> io(io_mutex);
     std::string data;
     std::vector<std::size_t> ends;
+    std::vector<std::pair<std::size_t, std::size_t>> to_seal;
     {
       std::lock_guard<std::mutex> lock(mutex);
       if (failure || buffer.empty()) {
         // Nothing more will reach the file after a failure.
         buffer.clear();
         record_ends.clear();
+        unsealed.clear();
         oldest_unflushed.reset();
         flush_requested = false;
         return;
@@ -94,9 +101,11 @@ struct SessionWriter::Impl {
       data.swap(buffer);
       buffer.swap(spare);
       ends.swap(record_ends);
+      to_seal.swap(unsealed);
       oldest_unflushed.reset();
       flush_requested = false;
     }
+    seal(data, to_seal);
     reserve_ahead(committed + data.size());
     std::size_t written = 0;
     int error = 0;
@@ -136,6 +145,14 @@ struct SessionWriter::Impl {
     std::lock_guard<std::mutex> lock(mutex);
     fail_locked(error, "cannot write the session file");
     buffered_total = committed;
+  }
+
+  // Fills each record's CRC slot: the CRC32C of its header and payload.
+  static void seal(std::string& data, const std::vector<std::pair<std::size_t, std::size_t>>& records) {
+    for (const auto& [start, end] : records) {
+      const std::size_t covered = end - detail::crc_size - start;
+      detail::put_u32le(&data[end - detail::crc_size], crc32c(&data[start], covered));
+    }
   }
 
   // Best effort: a file system without fallocate, a full disk or a file size
@@ -237,10 +254,7 @@ void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view 
   detail::put_u32le(head, static_cast<std::uint32_t>(data.size()));
   head[4] = static_cast<char>(kind);
   detail::put_u64le(head + 8, t_ns);
-  std::uint32_t crc = crc32c(head, sizeof head);
-  crc = crc32c(data.data(), data.size(), crc);
-  char tail[detail::crc_size];
-  detail::put_u32le(tail, crc);
+  const char tail[detail::crc_size] = {};  // the flusher fills it in (seal)
 
   bool flush_here = false;
   {
@@ -250,10 +264,12 @@ void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view 
       throw PortError(EBADF, impl_->path + ": the session writer is closed");
     }
     std::string& buffer = impl_->buffer;
+    const std::size_t start = buffer.size();
     buffer.append(head, sizeof head);
     buffer.append(data.data(), data.size());
     buffer.append(tail, sizeof tail);
     impl_->record_ends.push_back(buffer.size());
+    impl_->unsealed.emplace_back(start, buffer.size());
     impl_->buffered_total += sizeof head + data.size() + sizeof tail;
     if (!impl_->oldest_unflushed) {
       impl_->oldest_unflushed = Clock::now();
