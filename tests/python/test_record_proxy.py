@@ -6,7 +6,6 @@ import os
 import random
 import select
 import socket
-import threading
 import time
 
 import pytest
@@ -14,76 +13,15 @@ import serial
 
 from wiretape import _core, bridge
 
+from devices import TcpDevice
+
 DEADLINE = 10.0
-
-
-class TcpDevice:
-    """A device on TCP: answers each chunk with ``respond(chunk)``, or with
-    ``stream=True`` sends numbered lines without stopping."""
-
-    def __init__(self, respond=bytes.upper, stream=False):
-        self.server = socket.socket()
-        self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        self.server.bind(("127.0.0.1", 0))
-        self.server.listen(4)
-        self.port = self.server.getsockname()[1]
-        self.options = f"type=tcp,port={self.port}"
-        self.respond = respond
-        self.stream = stream
-        self.received = bytearray()
-        self.connections = 0
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-        self._thread.start()
-
-    def _run(self):
-        while not self._stop.is_set():
-            ready, _, _ = select.select([self.server], [], [], 0.1)
-            if not ready:
-                continue
-            conn, _ = self.server.accept()
-            self.connections += 1
-            with conn:
-                self._serve(conn)
-
-    def _serve(self, conn):
-        line = 0
-        conn.setblocking(False)
-        while not self._stop.is_set():
-            if self.stream:
-                try:
-                    conn.send(b"line %08d\n" % line)
-                    line += 1
-                except BlockingIOError:
-                    select.select([], [conn], [], 0.1)
-                except OSError:
-                    return
-            ready, _, _ = select.select([conn], [], [], 0 if self.stream else 0.1)
-            if not ready:
-                continue
-            try:
-                data = conn.recv(65536)
-            except OSError:
-                return
-            if not data:
-                return
-            self.received += data
-            if self.respond and not self.stream:
-                conn.setblocking(True)
-                conn.sendall(self.respond(data))
-                conn.setblocking(False)
-
-    def close(self):
-        self._stop.set()
-        self._thread.join(DEADLINE)
-        self.server.close()
 
 
 @pytest.fixture
 def device():
-    dev = TcpDevice()
-    yield dev
-    dev.close()
+    with TcpDevice() as dev:
+        yield dev
 
 
 def read_records(path):
@@ -239,9 +177,8 @@ def test_settings_mirrored_onto_a_serial_device(tmp_path):
 
 
 def test_stop_mid_stream_leaves_a_complete_file(tmp_path):
-    streaming = TcpDevice(stream=True)
     out = tmp_path / "stream.wtape"
-    try:
+    with TcpDevice(stream=True) as streaming:
         handle = bridge.record(streaming.options, out, listen="127.0.0.1:0", quiet=True)
         host, port = handle.address.rsplit(":", 1)
         with socket.create_connection((host, int(port)), timeout=DEADLINE) as client:
@@ -249,8 +186,6 @@ def test_stop_mid_stream_leaves_a_complete_file(tmp_path):
             while len(got) < 200_000:
                 got += client.recv(65536)
             result = finish(handle)
-    finally:
-        streaming.close()
     assert result["ok"]
     _, records = read_records(out)
     assert records[-1].kind == "close"

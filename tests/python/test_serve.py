@@ -12,69 +12,15 @@ import pytest
 
 from wiretape import _core, bridge
 
+from devices import TcpDevice
+
 DEADLINE = 10.0
-
-
-class TcpDevice:
-    """A device on TCP answering each chunk in upper case; ``drop()`` closes
-    the current connection as a device that goes away would."""
-
-    def __init__(self):
-        self.server = socket.socket()
-        self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        self.server.bind(("127.0.0.1", 0))
-        self.server.listen(4)
-        self.port = self.server.getsockname()[1]
-        self.options = f"type=tcp,port={self.port}"
-        self.received = bytearray()
-        self.connections = 0
-        self.accepting = threading.Event()
-        self.accepting.set()
-        self._drop = threading.Event()
-        self._stop = threading.Event()
-        self._conn = None
-        self._thread = threading.Thread(target=self._run, daemon=True)
-        self._thread.start()
-
-    def _run(self):
-        while not self._stop.is_set():
-            ready, _, _ = select.select([self.server], [], [], 0.05)
-            if not ready or not self.accepting.is_set():
-                continue
-            conn, _ = self.server.accept()
-            self.connections += 1
-            with conn:
-                while not self._stop.is_set() and not self._drop.is_set():
-                    ready, _, _ = select.select([conn], [], [], 0.05)
-                    if not ready:
-                        continue
-                    data = conn.recv(65536)
-                    if not data:
-                        break
-                    self.received += data
-                    conn.sendall(data.upper())
-                if self._drop.is_set():
-                    # A reset, not a polite close: the device vanished.
-                    conn.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, b"\x01\x00\x00\x00\x00\x00\x00\x00")
-                    self._drop.clear()
-
-    def drop(self):
-        self._drop.set()
-
-    def send(self, data):
-        raise NotImplementedError
-
-    def close(self):
-        self._stop.set()
-        self._thread.join(DEADLINE)
-        self.server.close()
 
 
 @pytest.fixture
 def device():
-    dev = TcpDevice()
-    yield dev
-    dev.close()
+    with TcpDevice() as dev:
+        yield dev
 
 
 def connect(handle):

@@ -1,0 +1,111 @@
+"""A device on TCP for the tests of the programs that sit between a device
+and its driver (record, serve): a small server on 127.0.0.1 that the
+program under test connects to as it would to a real device."""
+
+import select
+import socket
+import struct
+import threading
+
+# How long the device's loop waits in select before looking at its events
+# (stop, drop, accepting) again: bounds how soon it reacts to them.
+_POLL_S = 0.05
+# How long close() waits for the device's thread to end.
+_JOIN_S = 10.0
+# SO_LINGER on, 0 s: closing sends a reset, as a device that vanished would.
+_RESET_ON_CLOSE = struct.pack("ii", 1, 0)
+
+
+class TcpDevice:
+    """A device on TCP, one connection at a time.
+
+    By default it answers each chunk it receives with ``respond(chunk)``
+    (upper case unless told otherwise; ``respond=None`` answers nothing).
+    With ``stream=True`` it sends numbered lines (``b"line 00000000\\n"``, ...)
+    without stopping and answers nothing.
+
+    ``received`` holds every byte it received, ``connections`` counts the
+    connections it accepted. ``drop()`` resets the current connection (the
+    device goes away). While the ``accepting`` event is clear it takes no
+    new connection (they wait in the listen backlog). ``options`` is the
+    wiretape option string that reaches it. Use it as a context manager, or
+    call ``close()``."""
+
+    def __init__(self, respond=bytes.upper, stream=False):
+        self.server = socket.socket()
+        self.server.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        self.server.bind(("127.0.0.1", 0))
+        self.server.listen(4)
+        self.port = self.server.getsockname()[1]
+        self.options = f"type=tcp,port={self.port}"
+        self.respond = respond
+        self.stream = stream
+        self.received = bytearray()
+        self.connections = 0
+        self.accepting = threading.Event()
+        self.accepting.set()
+        self._drop = threading.Event()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc_info):
+        self.close()
+
+    def drop(self):
+        """Resets the current connection (or the next one, if none is open)."""
+        self._drop.set()
+
+    def close(self):
+        self._stop.set()
+        self._thread.join(_JOIN_S)
+        self.server.close()
+
+    def _run(self):
+        while not self._stop.is_set():
+            ready, _, _ = select.select([self.server], [], [], _POLL_S)
+            if not ready or not self.accepting.is_set():
+                continue
+            conn, _ = self.server.accept()
+            self.connections += 1
+            with conn:
+                self._serve(conn)
+                if self._drop.is_set():
+                    conn.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, _RESET_ON_CLOSE)
+                    self._drop.clear()
+
+    def _serve(self, conn):
+        line = 0
+        unsent = b""  # of the current line: a send may take only part of it
+        conn.setblocking(False)
+        while not self._stop.is_set() and not self._drop.is_set():
+            if self.stream:
+                if not unsent:
+                    unsent = b"line %08d\n" % line
+                    line += 1
+                try:
+                    unsent = unsent[conn.send(unsent):]
+                except BlockingIOError:
+                    select.select([], [conn], [], _POLL_S)
+                except OSError:
+                    return
+            ready, _, _ = select.select([conn], [], [], 0 if self.stream else _POLL_S)
+            if not ready:
+                continue
+            try:
+                data = conn.recv(65536)
+            except OSError:
+                return
+            if not data:
+                return
+            self.received += data
+            if self.respond and not self.stream:
+                conn.setblocking(True)
+                try:
+                    conn.sendall(self.respond(data))
+                except OSError:
+                    return
+                conn.setblocking(False)
