@@ -2,35 +2,29 @@
 (wiretape record --pty and wiretape serve against socat) and the pyserial
 replay comparison with pytest-reserial.
 
-The "device" is a pseudo-terminal this process holds: bytes written to its
-master side come out of the serial device the relay opened, and what the relay
-writes to the device can be read from the master.
+The relays are measured by wiretape_relay_bench (bench/relay_bench.cpp),
+which holds the pseudo-terminal device, starts the relay, feeds, reads and
+echoes on native threads; this module only says which relay to start.
 """
 
 from __future__ import annotations
 
+import json
 import os
-import select
 import shutil
-import signal
-import socket
-import statistics
 import subprocess
 import sys
-import threading
 import time
-import tty
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-CHUNK = 64 * 1024
 
 
 class Skip(Exception):
     """A figure that cannot be measured here; the message says why."""
 
 
-# --- processes --------------------------------------------------------------
+# --- relays: wiretape record --pty / serve against socat ----------------------
 USED_RUNNER: set[str] = set()
 
 
@@ -51,199 +45,39 @@ def wiretape_command(subcommand: str, python: Path) -> list[str]:
     return [str(python), str(Path(__file__).resolve().parent / "bridge_runner.py")]
 
 
-def need_socat() -> None:
-    if shutil.which("socat") is None:
-        raise Skip("socat is not installed (apt-get install socat)")
+DEVICE = "type=serial,device={device},baud=115200"
 
 
-def spawn(command: list[str]) -> subprocess.Popen:
-    return subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, start_new_session=True)
+def relay_command(kind: str, client: str, python: Path, work: Path) -> list[str]:
+    """The relay's command line, with wiretape_relay_bench's placeholders
+    ({device}, {port}, {link}). client: "pty" (wiretape record --pty vs socat
+    PTY) or "tcp" (wiretape serve vs socat TCP-LISTEN)."""
+    if kind == "socat":
+        if shutil.which("socat") is None:
+            raise Skip("socat is not installed (apt-get install socat)")
+        side = ("PTY,link={link},raw,echo=0" if client == "pty"
+                else "TCP-LISTEN:{port},bind=127.0.0.1,reuseaddr")
+        return ["socat", "-b65536", side, "FILE:{device},raw,echo=0"]
+    if client == "pty":
+        return wiretape_command("record", python) + [
+            "record", "--device", DEVICE, "--pty", "{link}", "-o", str(work / "relay.wtape")]
+    return wiretape_command("serve", python) + [
+        "serve", "--device", DEVICE, "--listen", "127.0.0.1:{port}"]
 
 
-def stop(process: subprocess.Popen) -> None:
-    """Ctrl-C first (wiretape ends cleanly on it), then harder."""
-    if process.poll() is None:
-        process.send_signal(signal.SIGINT)
-        try:
-            process.wait(10)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait(10)
-    if process.stderr:
-        process.stderr.close()
-
-
-def failure(process: subprocess.Popen, what: str) -> Skip:
-    err = process.stderr.read().decode(errors="replace").strip() if process.stderr else ""
-    return Skip(f"{what}: exited with {process.returncode}: {err.splitlines()[-1:] or ''}")
-
-
-# --- the device -------------------------------------------------------------
-class PtyDevice:
-    """A pseudo-terminal standing in for a serial device."""
-
-    def __init__(self) -> None:
-        self.master, self.slave = os.openpty()
-        tty.setraw(self.slave)
-        self.path = os.ttyname(self.slave)
-        self._echo: threading.Thread | None = None
-        self._stop = threading.Event()
-
-    def options(self) -> str:
-        return f"type=serial,device={self.path},baud=115200"
-
-    def feed(self, size: int) -> threading.Thread:
-        """Writes `size` bytes as the device's output, on a thread."""
-        def run() -> None:
-            block = bytes(range(256)) * (CHUNK // 256)
-            sent = 0
-            while sent < size:
-                try:
-                    sent += os.write(self.master, block[: min(CHUNK, size - sent)])
-                except OSError:
-                    return
-        thread = threading.Thread(target=run, daemon=True)
-        thread.start()
-        return thread
-
-    def echo(self) -> None:
-        """Sends back everything written to the device, until close()."""
-        def run() -> None:
-            while not self._stop.is_set():
-                ready, _, _ = select.select([self.master], [], [], 0.2)
-                if not ready:
-                    continue
-                try:
-                    data = os.read(self.master, CHUNK)
-                    while data:
-                        data = data[os.write(self.master, data):]
-                except OSError:
-                    return
-        self._echo = threading.Thread(target=run, daemon=True)
-        self._echo.start()
-
-    def close(self) -> None:
-        self._stop.set()
-        if self._echo:
-            self._echo.join(5)
-        os.close(self.master)
-        os.close(self.slave)
-
-
-def wait_for(predicate, process: subprocess.Popen, what: str, seconds: float = 15.0):
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        result = predicate()
-        if result:
-            return result
-        if process.poll() is not None:
-            raise failure(process, what)
-        time.sleep(0.02)  # polling another process's readiness, not a test
-    raise Skip(f"{what}: not ready after {seconds:.0f} s")
-
-
-def read_exactly(read, size: int, seconds: float = 120.0) -> None:
-    deadline = time.monotonic() + seconds
-    got = 0
-    while got < size:
-        if time.monotonic() > deadline:
-            raise Skip(f"relay delivered {got} of {size} bytes in {seconds:.0f} s")
-        data = read(min(CHUNK, size - got))
-        if not data:
-            raise Skip(f"relay closed after {got} of {size} bytes")
-        got += len(data)
-
-
-# --- pty relays: wiretape record --pty vs socat --------------------------------
-def pty_relay_throughput(kind: str, size: int, work: Path, python: Path) -> float:
-    """Bytes per second from the device to a client of the relay's pty."""
-    device = PtyDevice()
-    link = work / f"relay-{kind}.pty"
-    link.unlink(missing_ok=True)
-    if kind == "wiretape":
-        command = wiretape_command("record", python) + [
-            "record", "--device", device.options(), "--pty", str(link),
-            "-o", str(work / "relay.wtape")]
-    else:
-        need_socat()
-        command = ["socat", "-b65536", f"PTY,link={link},raw,echo=0",
-                   f"FILE:{device.path},raw,echo=0"]
-    process = spawn(command)
-    client = -1
+def relay_figures(program: Path, kind: str, client: str, size: int, roundtrips: int,
+                  work: Path, python: Path) -> dict:
+    """One run of one relay: {"bytes_per_s", "rtt_median_us", ...}."""
+    command = [str(program), client, str(size), str(roundtrips), str(work), "--",
+               *relay_command(kind, client, python, work)]
     try:
-        wait_for(link.exists, process, f"{kind} pty relay")
-        client = os.open(link, os.O_RDWR | os.O_NOCTTY)
-        tty.setraw(client)
-
-        def read(n: int) -> bytes:
-            ready, _, _ = select.select([client], [], [], 10)
-            return os.read(client, n) if ready else b""
-        start = time.perf_counter()
-        feeder = device.feed(size)
-        read_exactly(read, size)
-        seconds = time.perf_counter() - start
-        feeder.join(10)
-        return size / seconds
+        proc = subprocess.run(command, capture_output=True, text=True, timeout=600)
     finally:
-        if client >= 0:
-            os.close(client)
-        stop(process)
-        device.close()
         (work / "relay.wtape").unlink(missing_ok=True)
-
-
-# --- TCP relays: wiretape serve vs socat TCP-LISTEN ---------------------------------
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def tcp_relay_figures(kind: str, size: int, roundtrips: int, work: Path,
-                      python: Path) -> tuple[float, float]:
-    """(bytes/s device->client, median µs of a 64-byte round trip)."""
-    device = PtyDevice()
-    port = free_port()
-    if kind == "wiretape":
-        command = wiretape_command("serve", python) + [
-            "serve", "--device", device.options(), "--listen", f"127.0.0.1:{port}"]
-    else:
-        need_socat()
-        command = ["socat", "-b65536", f"TCP-LISTEN:{port},bind=127.0.0.1,reuseaddr",
-                   f"FILE:{device.path},raw,echo=0"]
-    process = spawn(command)
-    client = None
-    try:
-        def connect():
-            try:
-                return socket.create_connection(("127.0.0.1", port), timeout=10)
-            except OSError:
-                return None
-        client = wait_for(connect, process, f"{kind} TCP relay")
-        client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        client.settimeout(10)
-
-        start = time.perf_counter()
-        feeder = device.feed(size)
-        read_exactly(client.recv, size)
-        bps = size / (time.perf_counter() - start)
-        feeder.join(10)
-
-        device.echo()
-        message = b"p" * 64
-        rtts = []
-        for _ in range(roundtrips):
-            begin = time.perf_counter()
-            client.sendall(message)
-            read_exactly(client.recv, len(message), 10)
-            rtts.append((time.perf_counter() - begin) * 1e6)
-        return bps, statistics.median(rtts)
-    finally:
-        if client is not None:
-            client.close()
-        stop(process)
-        device.close()
+    if proc.returncode != 0:
+        message = proc.stderr.strip() or f"exit status {proc.returncode}"
+        raise Skip(f"{kind} relay: {message.splitlines()[0]}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
 # --- pyserial replay: wiretape:// vs pytest-reserial ------------------------------

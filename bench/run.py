@@ -74,6 +74,7 @@ class Bench:
         self.work.mkdir(parents=True, exist_ok=True)
         self.tool = build / "bin" / "wiretape_bench_tool"
         self.gbench_program = build / "bin" / "wiretape_bench"
+        self.relay_program = build / "bin" / "wiretape_relay_bench"
         self.python = ROOT / ".venv" / "bin" / "python"
         if not self.python.exists():
             self.python = Path(sys.executable)
@@ -215,40 +216,53 @@ class Bench:
         finally:
             path.unlink(missing_ok=True)
 
+    def relay_rounds(self, client: str, size: int, roundtrips: int) -> dict[str, list]:
+        """wiretape and socat as the same relay on the same kind of device,
+        interleaved in alternating order; per-pair ratios, so that the
+        machine's drift from round to round cancels out."""
+        rounds = 3 if self.quick else 11
+        figures: dict[str, list] = {"wiretape": [], "socat": []}
+        for index in range(rounds):
+            order = ("wiretape", "socat") if index % 2 == 0 else ("socat", "wiretape")
+            for kind in order:
+                figures[kind].append(bench_devices.relay_figures(
+                    self.relay_program, kind, client, size, roundtrips, self.work, self.python))
+        return figures
+
+    @staticmethod
+    def pair_ratios(figures: dict[str, list], key: str) -> list[float]:
+        return [ours[key] / theirs[key]
+                for ours, theirs in zip(figures["wiretape"], figures["socat"])]
+
+    @staticmethod
+    def spread(values: list[float]) -> str:
+        return f"range {min(values):.2f}–{max(values):.2f} over {len(values)} pairs"
+
     def pty_proxy(self) -> None:
         """wiretape record --pty vs socat's pty relay on the same device."""
-        size = (16 if self.quick else 64) * MiB
-        rounds = 1 if self.quick else 5
-        ours, theirs = [], []
-        for _ in range(rounds):
-            ours.append(bench_devices.pty_relay_throughput(
-                "wiretape", size, self.work, self.python))
-            theirs.append(bench_devices.pty_relay_throughput(
-                "socat", size, self.work, self.python))
-        self.results["pty_proxy_vs_socat_throughput_ratio"] = round(
-            statistics.median(ours) / statistics.median(theirs), 3)
-        self.notes["pty_proxy"] = (f"wiretape {statistics.median(ours) / 1e6:.0f} MB/s, "
-                                   f"socat {statistics.median(theirs) / 1e6:.0f} MB/s")
+        figures = self.relay_rounds("pty", (16 if self.quick else 64) * MiB, 1)
+        throughput = self.pair_ratios(figures, "bytes_per_s")
+        self.results["pty_proxy_vs_socat_throughput_ratio"] = round(statistics.median(throughput), 3)
+        mbps = {kind: statistics.median(f["bytes_per_s"] for f in runs) / 1e6
+                for kind, runs in figures.items()}
+        self.notes["pty_proxy"] = (f"wiretape {mbps['wiretape']:.0f} MB/s, socat "
+                                   f"{mbps['socat']:.0f} MB/s; {self.spread(throughput)}")
 
     def serve(self) -> None:
         """wiretape serve (raw) vs socat TCP-LISTEN … FILE:pty."""
-        size = (16 if self.quick else 64) * MiB
-        rounds = 1 if self.quick else 5
-        ours_bps, theirs_bps, ours_rtt, theirs_rtt = [], [], [], []
-        for _ in range(rounds):
-            for name, bps, rtt in (("wiretape", ours_bps, ours_rtt),
-                                   ("socat", theirs_bps, theirs_rtt)):
-                b, r = bench_devices.tcp_relay_figures(name, size, 1000, self.work, self.python)
-                bps.append(b)
-                rtt.append(r)
-        self.results["serve_vs_socat_throughput_ratio"] = round(
-            statistics.median(ours_bps) / statistics.median(theirs_bps), 3)
-        self.results["serve_vs_socat_latency_ratio"] = round(
-            statistics.median(ours_rtt) / statistics.median(theirs_rtt), 3)
+        figures = self.relay_rounds("tcp", (16 if self.quick else 64) * MiB, 2000)
+        throughput = self.pair_ratios(figures, "bytes_per_s")
+        latency = self.pair_ratios(figures, "rtt_median_us")
+        self.results["serve_vs_socat_throughput_ratio"] = round(statistics.median(throughput), 3)
+        self.results["serve_vs_socat_latency_ratio"] = round(statistics.median(latency), 3)
+        median = {kind: {key: statistics.median(f[key] for f in runs)
+                         for key in ("bytes_per_s", "rtt_median_us")}
+                  for kind, runs in figures.items()}
         self.notes["serve"] = (
-            f"throughput wiretape {statistics.median(ours_bps) / 1e6:.0f} MB/s, socat "
-            f"{statistics.median(theirs_bps) / 1e6:.0f} MB/s; median RTT wiretape "
-            f"{statistics.median(ours_rtt):.0f} µs, socat {statistics.median(theirs_rtt):.0f} µs")
+            f"throughput wiretape {median['wiretape']['bytes_per_s'] / 1e6:.0f} MB/s, socat "
+            f"{median['socat']['bytes_per_s'] / 1e6:.0f} MB/s ({self.spread(throughput)}); "
+            f"median RTT wiretape {median['wiretape']['rtt_median_us']:.0f} µs, socat "
+            f"{median['socat']['rtt_median_us']:.0f} µs ({self.spread(latency)})")
 
     def reserial(self) -> None:
         """10,000 request/response exchanges through pyserial: wiretape:// vs
@@ -293,7 +307,7 @@ FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_prox
 def build_programs(build: Path) -> None:
     subprocess.run(["cmake", "-S", str(ROOT), "-B", str(build), "-DWIRETAPE_BENCH=ON"],
                    check=True, stdout=subprocess.DEVNULL)
-    targets = ["wiretape_bench_tool"]
+    targets = ["wiretape_bench_tool", "wiretape_relay_bench"]
     # wiretape_bench exists only when Google Benchmark was found.
     listing = subprocess.run(["cmake", "--build", str(build), "--target", "help"],
                              capture_output=True, text=True).stdout
