@@ -53,6 +53,9 @@ namespace json = detail::json;
 namespace rfc = detail::rfc2217;
 
 constexpr std::size_t kChunk = 64 * 1024;
+// What one read of a terminal returns at most when more is waiting: Linux's
+// line discipline hands out its 4 KiB buffer less one byte.
+constexpr std::size_t kLineDisciplineBuffer = 4095;
 constexpr auto kSettingsPollInterval = std::chrono::milliseconds(50);
 constexpr auto kWriteRetryInterval = std::chrono::milliseconds(2);
 constexpr auto kModemPollInterval = std::chrono::milliseconds(250);
@@ -657,22 +660,34 @@ void Bridge::Impl::loop() {
 
 void Bridge::Impl::read_device(short revents) {
   std::array<char, kChunk> buffer;
-  std::size_t n = 0;
+  std::size_t filled = 0;
   try {
     if (revents & POLLIN || revents & (POLLHUP | POLLERR)) {
-      n = device_->read(buffer.data(), buffer.size(), std::chrono::nanoseconds(0));
+      // A read that took a whole line-discipline buffer means the device is
+      // ahead of us: read on and pass the lot to the clients at once, one
+      // send instead of one per read.
+      for (;;) {
+        const std::size_t n = device_->read(buffer.data() + filled, buffer.size() - filled,
+                                            std::chrono::nanoseconds(0));
+        if (n > 0) record(RecordKind::rx, std::string_view(buffer.data() + filled, n));
+        filled += n;
+        if (n < kLineDisciplineBuffer || buffer.size() - filled < kLineDisciplineBuffer) break;
+      }
     }
   } catch (const PortClosed& closed) {
+    if (filled > 0) {
+      update_stats([filled](BridgeStats& s) { s.bytes_from_device += filled; });
+      deliver_from_device(buffer.data(), filled);
+    }
     device_lost(closed.what());
     return;
   }
-  if (n == 0) {
+  if (filled == 0) {
     if (revents & (POLLHUP | POLLERR)) device_lost("the device hung up");
     return;
   }
-  update_stats([n](BridgeStats& s) { s.bytes_from_device += n; });
-  record(RecordKind::rx, std::string_view(buffer.data(), n));
-  deliver_from_device(buffer.data(), n);
+  update_stats([filled](BridgeStats& s) { s.bytes_from_device += filled; });
+  deliver_from_device(buffer.data(), filled);
 }
 
 void Bridge::Impl::deliver_from_device(const char* data, std::size_t n) {

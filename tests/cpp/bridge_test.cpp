@@ -13,11 +13,13 @@
 #include <chrono>
 #include <cstdio>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "wiretape/bridge.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
+#include "support/port_test_support.hpp"
 
 namespace {
 
@@ -148,6 +150,39 @@ TEST(Bridge, TcpClientThroughLoopbackDeviceIsForwardedAndRecorded) {
   for (std::size_t i = 1; i < records.size(); ++i) {
     EXPECT_LE(records[i - 1].t_ns, records[i].t_ns);
   }
+  std::remove(path.c_str());
+}
+
+// A serial device that sends faster than one read a wake-up: the bridge
+// reads on while reads come back full and forwards the lot at once; every
+// byte arrives and is recorded, in order.
+TEST(Bridge, SerialDeviceAheadOfTheBridgeArrivesWholeAndRecordedInOrder) {
+  wiretape::test::PtyPair device;
+  const std::string path = temp_path("ahead.wtape");
+  BridgeOptions options;
+  options.device = "type=serial,device=" + device.path;
+  options.client_side = BridgeClientSide::tcp;
+  options.output = path;
+  options.quiet = true;
+  Bridge bridge(options);
+  bridge.start();
+  std::string payload;
+  for (int i = 0; i < 512 * 1024; ++i) payload.push_back(static_cast<char>(i % 251));
+  {
+    Fd client(connect_to(bridge.listen_address()));
+    ASSERT_GE(client.get(), 0);
+    std::thread feeder([&] { device.write_master(payload); });
+    const std::string received = read_until_count(client.get(), payload.size());
+    feeder.join();
+    EXPECT_EQ(received.size(), payload.size());
+    EXPECT_TRUE(received == payload) << "the client's bytes differ from the device's";
+  }
+  bridge.stop();
+  ASSERT_TRUE(bridge.wait(kDeadline));
+  EXPECT_TRUE(bridge.result().ok()) << bridge.result().message;
+  EXPECT_EQ(bridge.result().stats.bytes_from_device, payload.size());
+  const auto records = read_session(path);
+  EXPECT_TRUE(joined(records, RecordKind::rx) == payload);
   std::remove(path.c_str());
 }
 
