@@ -10,18 +10,7 @@ import pytest
 
 import wiretape
 
-# Generous: a loaded CI machine must not fail a test that waits for an event.
-DEADLINE_S = 5.0
-
-
-def wait_until(condition, deadline_s=DEADLINE_S, what="the condition"):
-    """Polls `condition` (without sleeping blind: select on nothing for a
-    short while between checks) until it is true or the deadline passes."""
-    end = time.monotonic() + deadline_s
-    while not condition():
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out after {deadline_s}s waiting for {what}")
-        select.select([], [], [], 0.005)
+from devices import DEADLINE_S, wait_until
 
 
 class Endpoint:

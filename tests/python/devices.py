@@ -1,11 +1,19 @@
-"""A device on TCP for the tests of the programs that sit between a device
-and its driver (record, serve): a small server on 127.0.0.1 that the
-program under test connects to as it would to a real device."""
+"""Helpers for the Python tests: ``wait_until``, the one way a test waits
+for an event, and a device on TCP for the tests of the programs that sit
+between a device and its driver (record, serve): a small server on
+127.0.0.1 that the program under test connects to as it would to a real
+device."""
 
 import select
 import socket
 import struct
 import threading
+import time
+
+# Generous: a loaded CI machine must not fail a test that waits for an event.
+DEADLINE_S = 5.0
+# How long wait_until pauses between two looks at its condition.
+_WAIT_POLL_S = 0.005
 
 # How long the device's loop waits in select before looking at its events
 # (stop, drop, accepting) again: bounds how soon it reacts to them.
@@ -14,6 +22,25 @@ _POLL_S = 0.05
 _JOIN_S = 10.0
 # SO_LINGER on, 0 s: closing sends a reset, as a device that vanished would.
 _RESET_ON_CLOSE = struct.pack("ii", 1, 0)
+
+
+def wait_until(condition, deadline_s=DEADLINE_S, what="the condition"):
+    """Polls `condition` until it is true; raises AssertionError naming
+    `what` if `deadline_s` passes first.
+
+    Between checks it selects on nothing for a short while (never a blind
+    sleep of the whole deadline). `what` says what is awaited ("the client's
+    disconnect to be logged"); it may be a callable returning that text,
+    called only on failure, so the message can show the state at the
+    deadline (e.g. the messages logged so far). The condition may itself
+    raise (an assert) to give up early when the awaited event can no
+    longer happen."""
+    end = time.monotonic() + deadline_s
+    while not condition():
+        if time.monotonic() > end:
+            awaited = what() if callable(what) else what
+            raise AssertionError(f"timed out after {deadline_s}s waiting for {awaited}")
+        select.select([], [], [], _WAIT_POLL_S)
 
 
 class TcpDevice:

@@ -18,6 +18,8 @@ import pytest
 
 import wiretape
 
+from devices import wait_until
+
 DEADLINE = 10.0  # seconds: generous, for events that should happen at once
 CHUNK = bytes(range(256)) * 16
 
@@ -146,11 +148,14 @@ def test_record_proxy_killed_mid_stream_leaves_a_file_that_verifies(tmp_path, pt
     proxy = subprocess.Popen(recorder_command(pty_device["path"], str(link), str(output)),
                              stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
-        deadline = time.monotonic() + DEADLINE
-        while not link.exists():
+        def proxy_made_its_pty():
+            if link.exists():
+                return True
+            # A proxy that ended will never make it: fail at once, with its errors.
             assert proxy.poll() is None, proxy.stderr.read().decode()
-            assert time.monotonic() < deadline, "the proxy never made its pty"
-            time.sleep(0.01)  # waiting for another process's file to appear
+            return False
+
+        wait_until(proxy_made_its_pty, DEADLINE, what="the proxy to make its pty")
         client = os.open(link, os.O_RDWR | os.O_NOCTTY)
         tty.setraw(client)
         try:

@@ -13,7 +13,7 @@ import serial
 
 from wiretape import _core, bridge
 
-from devices import TcpDevice
+from devices import TcpDevice, wait_until
 
 DEADLINE = 10.0
 
@@ -96,11 +96,9 @@ def test_tcp_proxy_forwards_and_records(device, tmp_path):
             got += data
     assert bytes(got) == payload.upper()
     # The client's disconnect is recorded before stop.
-    deadline = time.monotonic() + DEADLINE
-    while handle.stats()["records_written"] and time.monotonic() < deadline:
-        if any("disconnected" in m for m in handle.messages()):
-            break
-        time.sleep(0.01)
+    wait_until(lambda: not handle.stats()["records_written"]
+               or any("disconnected" in m for m in handle.messages()), DEADLINE,
+               what=lambda: f"the client's disconnect to be logged (messages: {handle.messages()})")
     finish(handle)
     _, records = read_records(out)
     kinds = [r.kind for r in records]

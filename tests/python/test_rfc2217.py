@@ -15,6 +15,8 @@ import serial
 
 from wiretape import _core, bridge
 
+from devices import wait_until
+
 DEADLINE = 10.0
 
 # pyserial's rfc2217 client uses threading names deprecated in Python 3.10.
@@ -116,9 +118,8 @@ def test_pyserial_rfc2217_client_sets_the_line_and_moves_bytes(pty_device, tmp_p
             client.rts = True                    # acknowledged, noted
             assert client.cts is False
             pty_device.write(b"stale")
-            deadline = time.monotonic() + DEADLINE
-            while client.in_waiting < 5 and time.monotonic() < deadline:
-                time.sleep(0.01)
+            wait_until(lambda: client.in_waiting >= 5, DEADLINE,
+                       what="the 5 stale bytes to reach the client")
             client.reset_input_buffer()
             client.write(b"after")
             assert pty_device.read(5) == b"after"
@@ -185,17 +186,16 @@ def test_malformed_telnet_never_stops_the_server(tmp_path):
         for chunk in garbage:
             with socket.create_connection((host, int(port)), timeout=DEADLINE) as raw:
                 raw.sendall(chunk)
-            deadline = time.monotonic() + DEADLINE
-            while handle.stats()["clients_accepted"] == 0 and time.monotonic() < deadline:
-                time.sleep(0.01)
+            wait_until(lambda: handle.stats()["clients_accepted"] != 0, DEADLINE,
+                       what="the first client to be accepted")
         assert handle.running
-        deadline = time.monotonic() + DEADLINE
         # Each garbage client is either served then gone (closed or reset),
         # or refused while the server had not yet seen the previous one leave.
         ends = ("disconnected", "refused", "connection failed")
-        while sum(any(e in m for e in ends) for m in handle.messages()) < len(garbage):
-            assert time.monotonic() < deadline, handle.messages()
-            time.sleep(0.01)
+        wait_until(lambda: sum(any(e in m for e in ends) for m in handle.messages())
+                   >= len(garbage), DEADLINE,
+                   what=lambda: f"every garbage client's end to be logged "
+                                f"(messages: {handle.messages()})")
         with serial.serial_for_url("rfc2217://" + handle.address, timeout=DEADLINE) as client:
             client.write(b"still here")
             conn.settimeout(DEADLINE)

@@ -6,13 +6,12 @@ import json
 import select
 import socket
 import threading
-import time
 
 import pytest
 
 from wiretape import _core, bridge
 
-from devices import TcpDevice
+from devices import TcpDevice, wait_until
 
 DEADLINE = 10.0
 
@@ -45,14 +44,6 @@ def read_to_end(sock):
         if not chunk:
             return bytes(data)
         data += chunk
-
-
-def wait_for(predicate, what):
-    deadline = time.monotonic() + DEADLINE
-    while not predicate():
-        if time.monotonic() > deadline:
-            pytest.fail(f"timed out waiting for {what}")
-        time.sleep(0.005)
 
 
 def finish(handle):
@@ -95,7 +86,8 @@ def test_shared_clients_watch_read_only(device):
     handle = bridge.serve(device.options, "127.0.0.1:0", shared=True, quiet=True)
     try:
         with connect(handle) as control, connect(handle) as monitor:
-            wait_for(lambda: handle.stats()["clients_accepted"] == 2, "two clients")
+            wait_until(lambda: handle.stats()["clients_accepted"] == 2, DEADLINE,
+                       what="both clients to be accepted")
             monitor.sendall(b"ignored")
             control.sendall(b"hello")
             assert read_exactly(control, 5) == b"HELLO"
@@ -112,7 +104,8 @@ def test_device_stays_open_when_a_client_leaves(device):
             with connect(handle) as client:
                 client.sendall(word)
                 assert read_exactly(client, len(word)) == word.upper()
-            wait_for(lambda: bridge_has_no_client(handle), "the client to leave")
+            wait_until(lambda: bridge_has_no_client(handle), DEADLINE,
+                       what="the client's disconnect to be logged")
         assert device.connections == 1
     finally:
         finish(handle)
@@ -146,7 +139,8 @@ def test_reopen_after_device_loss(device, tmp_path):
             assert read_exactly(client, 6) == b"BEFORE"
             device.accepting.clear()
             device.drop()
-            wait_for(lambda: handle.stats()["device_losses"] == 1, "the loss to be noticed")
+            wait_until(lambda: handle.stats()["device_losses"] == 1, DEADLINE,
+                       what="the device loss to be counted")
             # The loss reaches the client as the end of its connection.
             assert read_to_end(client) == b""
         assert handle.running
@@ -154,7 +148,8 @@ def test_reopen_after_device_loss(device, tmp_path):
         with connect(handle) as early:
             assert b"unavailable" in read_to_end(early)
         device.accepting.set()
-        wait_for(lambda: handle.stats()["device_reopens"] == 1, "the device to be reopened")
+        wait_until(lambda: handle.stats()["device_reopens"] == 1, DEADLINE,
+                   what="the device to be reopened")
         with connect(handle) as client:
             client.sendall(b"after")
             assert read_exactly(client, 5) == b"AFTER"
@@ -226,11 +221,13 @@ def test_pty_device_closed_then_back_under_the_same_link(tmp_path):
             os.unlink(link)
             os.close(slave)
             os.close(master)  # unplugged: the server's reads fail
-            wait_for(lambda: handle.stats()["device_losses"] == 1, "the loss to be noticed")
+            wait_until(lambda: handle.stats()["device_losses"] == 1, DEADLINE,
+                       what="the device loss to be counted")
             assert read_to_end(client) == b""
         assert any("went away" in m for m in handle.messages())
         master, slave = plug()
-        wait_for(lambda: handle.stats()["device_reopens"] == 1, "the device to come back")
+        wait_until(lambda: handle.stats()["device_reopens"] == 1, DEADLINE,
+                   what="the replugged device to be reopened")
         with connect(handle) as client:
             client.sendall(b"two")
             ready, _, _ = select.select([master], [], [], DEADLINE)
@@ -250,7 +247,8 @@ def test_a_monitor_that_does_not_read_never_holds_the_controller_back():
     try:
         with connect(handle) as control, connect(handle) as monitor:
             monitor.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-            wait_for(lambda: handle.stats()["clients_accepted"] == 2, "two clients")
+            wait_until(lambda: handle.stats()["clients_accepted"] == 2, DEADLINE,
+                       what="both clients to be accepted")
             chunk = bytes(range(256)) * 256
             sender = threading.Thread(
                 target=lambda: [control.sendall(chunk) for _ in range(total // len(chunk))])

@@ -4,12 +4,13 @@ reconnects continues the session (restart starts it over); a client that
 diverges gets the mismatch report as the result."""
 
 import socket
-import time
 
 import pytest
 import serial
 
 from wiretape import _core, bridge
+
+from devices import wait_until
 
 DEADLINE = 10.0
 EXCHANGES = [(b"PING\n", b"PONG\n"), (b"ID?\n", b"DEV-1\n"), (b"T?\n", b"+21.5C\n")]
@@ -81,6 +82,11 @@ def test_reopening_the_pty_continues_the_session(session):
         assert finish(handle)["ok"]
 
 
+def client_left(handle):
+    """The last message the server logged is a client's disconnect."""
+    return any("disconnected" in m for m in handle.messages()[-1:])
+
+
 def test_virtual_device_over_tcp_continues_across_reconnects(session):
     handle = bridge.serve_replay(session, listen="127.0.0.1:0",
                                  replay_options="timing=causal", quiet=True)
@@ -90,10 +96,9 @@ def test_virtual_device_over_tcp_continues_across_reconnects(session):
                 client.sendall(request)
                 assert recv_line(client) == answer
             # The next client may only come once this one is seen to leave.
-            deadline = time.monotonic() + DEADLINE
-            while not any("disconnected" in m for m in handle.messages()[-1:]):
-                assert time.monotonic() < deadline
-                time.sleep(0.005)
+            wait_until(lambda: client_left(handle), DEADLINE,
+                       what=lambda: f"the client's disconnect to be logged "
+                                    f"(messages: {handle.messages()})")
     finally:
         result = finish(handle)
     assert result["ok"], result
@@ -107,10 +112,9 @@ def test_restart_starts_the_session_over_for_each_client(session):
             with connect(handle) as client:
                 client.sendall(b"PING\n")
                 assert recv_line(client) == b"PONG\n"
-            deadline = time.monotonic() + DEADLINE
-            while not any("disconnected" in m for m in handle.messages()[-1:]):
-                assert time.monotonic() < deadline
-                time.sleep(0.005)
+            wait_until(lambda: client_left(handle), DEADLINE,
+                       what=lambda: f"the client's disconnect to be logged "
+                                    f"(messages: {handle.messages()})")
     finally:
         result = finish(handle)
     assert result["ok"], result
