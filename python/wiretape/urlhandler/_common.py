@@ -13,6 +13,14 @@ from serial.serialutil import (
 _OPTION_SEPARATORS = set(", \t\r\n\"\\=")
 
 
+def _converted_errors():
+    """The wiretape errors a pyserial caller sees as SerialException.
+    ReplayMismatch passes through: it is the report a test must show."""
+    import wiretape  # not at import time: wiretape may be importing us
+
+    return (wiretape.OptionError, wiretape.SessionError, wiretape.PortError)
+
+
 def _value(attribute):
     """A Port attribute that may be bound as a property or as a method."""
     return attribute() if callable(attribute) else attribute
@@ -108,14 +116,9 @@ class PortSerial(SerialBase):
         return self._wiretape_port
 
     def _convert_errors(self, call, *args, **kwargs):
-        import wiretape
-
-        # ReplayMismatch passes through: it is the report a test must show.
-        converted = tuple(getattr(wiretape, name) for name in
-                          ("OptionError", "SessionError", "PortError") if hasattr(wiretape, name))
         try:
             return call(*args, **kwargs)
-        except converted as error:
+        except _converted_errors() as error:  # evaluated only when something was raised
             raise SerialException(f"{self._port}: {error}") from error
 
     @property
