@@ -125,14 +125,22 @@ bool Port::wait_readable(Timeout timeout) {
 }
 
 std::size_t Port::write(const void* data, std::size_t size) {
+  return write(data, size, timeout_);
+}
+
+std::size_t Port::write(const void* data, std::size_t size, Timeout timeout) {
   require(access_ != Access::read_only, "write", *this);
   if (size == 0) return 0;
-  return write_some(data, size, deadline_after(timeout_));
+  return write_some(data, size, deadline_after(timeout));
 }
 
 std::size_t Port::write_all(const void* data, std::size_t size) {
+  return write_all(data, size, timeout_);
+}
+
+std::size_t Port::write_all(const void* data, std::size_t size, Timeout timeout) {
   require(access_ != Access::read_only, "write", *this);
-  const Deadline deadline = deadline_after(timeout_);
+  const Deadline deadline = deadline_after(timeout);
   const auto* bytes = static_cast<const char*>(data);
   std::size_t sent = 0;
   while (sent < size) {

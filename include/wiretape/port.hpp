@@ -86,9 +86,11 @@ class Port {
   // --- writing -----------------------------------------------------------
   // Writes what the device accepts, at least one byte, or 0 on timeout.
   std::size_t write(const void* data, std::size_t size);
+  std::size_t write(const void* data, std::size_t size, Timeout timeout);
   std::size_t write(std::string_view data) { return write(data.data(), data.size()); }
   // Writes everything; returns less than `size` only on timeout.
   std::size_t write_all(const void* data, std::size_t size);
+  std::size_t write_all(const void* data, std::size_t size, Timeout timeout);
   std::size_t write_all(std::string_view data) {
     return write_all(data.data(), data.size());
   }

@@ -75,14 +75,18 @@ Timeout call_timeout(const Port& port, nb::handle value) {
 // Runs attempt(slice_end) with the GIL released until it returns true or
 // `timeout` expires, checking Python's signals between slices. attempt must
 // return by slice_end (it passes remaining(slice_end) to the port).
+enum class Direction { reading, writing };
+
 template <typename Attempt>
-void run_in_slices(Port& port, Timeout timeout, Attempt&& attempt) {
+void run_in_slices(Port& port, Timeout timeout, Attempt&& attempt,
+                   Direction direction = Direction::reading) {
   using Clock = std::chrono::steady_clock;
   const Deadline deadline = deadline_after(timeout);
   for (;;) {
     // A replay whose recording has ended raises PortClosed on a read that
     // would block forever; slices alone would hide that it is forever.
-    if (!timeout && detail::replay_read_would_block_forever(port)) {
+    if (direction == Direction::reading && !timeout &&
+        detail::replay_read_would_block_forever(port)) {
       nb::gil_scoped_release release;
       attempt(Deadline());
       return;
@@ -262,16 +266,34 @@ bool wait_readable(Port& port, nb::handle timeout) {
   return ready;
 }
 
+// Writes wait in slices too, so that Ctrl-C reaches a write to a device that
+// does not drain (flow control held, a full pty) however long the timeout.
 std::size_t write(Port& port, nb::handle data) {
   ByteView view(data, "data");
-  nb::gil_scoped_release release;
-  return port.write(view.data(), view.size());
+  if (view.size() == 0) return port.write(view.data(), 0);
+  std::size_t written = 0;
+  run_in_slices(
+      port, port.timeout(),
+      [&](Deadline slice_end) {
+        written = port.write(view.data(), view.size(), remaining(slice_end));
+        return written > 0;
+      },
+      Direction::writing);
+  return written;
 }
 
 std::size_t write_all(Port& port, nb::handle data) {
   ByteView view(data, "data");
-  nb::gil_scoped_release release;
-  return port.write_all(view.data(), view.size());
+  if (view.size() == 0) return port.write_all(view.data(), 0);
+  std::size_t sent = 0;
+  run_in_slices(
+      port, port.timeout(),
+      [&](Deadline slice_end) {
+        sent += port.write_all(view.data() + sent, view.size() - sent, remaining(slice_end));
+        return sent == view.size();
+      },
+      Direction::writing);
+  return sent;
 }
 
 int fileno(const Port& port) {

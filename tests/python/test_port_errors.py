@@ -242,3 +242,36 @@ def test_ctrl_c_interrupts_read_until_and_wait_readable():
             child.wait()
     assert child.returncode == 0, err
     assert "done" in out
+
+
+def test_ctrl_c_interrupts_a_write_to_a_device_that_does_not_drain():
+    # A pty whose other side nobody reads: once its buffer is full, writes
+    # block for as long as the port's timeout (None: forever).
+    script = textwrap.dedent("""
+        import os, sys, wiretape
+        master, terminal = os.openpty()
+        port = wiretape.open_port("type=serial,device=" + os.ttyname(terminal))
+        port.timeout = None
+        for call in (lambda: port.write_all(b"x" * (16 << 20)),
+                     lambda: port.write(b"y")):
+            try:
+                print("ready", flush=True)
+                call()
+                sys.exit(1)
+            except KeyboardInterrupt:
+                pass
+        print("done", flush=True)
+    """)
+    child = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+    try:
+        for _ in range(2):
+            assert child.stdout.readline().strip() == "ready"
+            child.send_signal(signal.SIGINT)
+        out, err = child.communicate(timeout=10)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+    assert child.returncode == 0, err
+    assert "done" in out
