@@ -464,3 +464,15 @@ TEST(Serial, WriteTimesOutReturningWhatWasSent) {
   EXPECT_GT(sent, 0u);
   EXPECT_LT(sent, block.size());
 }
+
+TEST(Serial, PerCallWriteTimeoutOverridesThePortsForever) {
+  PtyPair pty;
+  auto port = open_port(serial(pty, ""));  // the port's own timeout: forever
+  const std::string block(1 << 20, 'w');
+  const std::size_t sent = port->write_all(block.data(), block.size(), std::chrono::milliseconds(50));
+  EXPECT_GT(sent, 0u);
+  EXPECT_LT(sent, block.size()) << "nobody reads the pty: its buffer must have filled";
+  // Full now: a polling write takes nothing and returns at once.
+  EXPECT_EQ(port->write(block.data(), block.size(), std::chrono::nanoseconds(0)), 0u);
+  EXPECT_EQ(pty.read_master(3), "www");  // what was sent reached the device
+}
