@@ -150,12 +150,6 @@ def write_session(path, records, port_type="serial", capture="client"):
 
 
 @pytest.fixture
-def waiter():
-    """``waiter(condition, deadline_s=5, what=...)``: waits for an event."""
-    return wait_until
-
-
-@pytest.fixture
 def session_file(tmp_path):
     """``session_file(records, name="s.wtape", **header)``: writes a session
     of (kind, t_ns, data) records into tmp_path and returns its path."""
