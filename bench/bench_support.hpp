@@ -15,6 +15,7 @@
 #include <chrono>
 #include <cstdint>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <stdexcept>
 #include <string>
@@ -178,6 +179,16 @@ class TcpEcho : public LoopbackServer {
   }
   ~TcpEcho() override = default;
 };
+
+// A positive integer from the command line, or an error naming `what`.
+inline std::uint64_t parse_count(const char* text, const char* what) {
+  char* end = nullptr;
+  const unsigned long long value = std::strtoull(text, &end, 10);
+  if (end == text || *end != '\0' || value == 0) {
+    throw std::invalid_argument(std::string(what) + ": expected a positive integer, got '" + text + "'");
+  }
+  return value;
+}
 
 inline double percentile(std::vector<double> values, double fraction) {
   if (values.empty()) return 0.0;

@@ -36,15 +36,6 @@ using wb::Clock;
 
 namespace {
 
-std::uint64_t parse_count(const char* text, const char* what) {
-  char* end = nullptr;
-  const unsigned long long value = std::strtoull(text, &end, 10);
-  if (end == text || *end != '\0' || value == 0) {
-    throw std::invalid_argument(std::string(what) + ": expected a positive integer, got '" + text + "'");
-  }
-  return value;
-}
-
 std::string temp_path(const std::string& stem) {
   const char* dir = std::getenv("WIRETAPE_BENCH_DIR");
   return std::string(dir ? dir : "/tmp") + "/" + stem + "-" + std::to_string(::getpid()) + ".wtape";
@@ -395,21 +386,21 @@ int main(int argc, char** argv) {
   const std::string command = argv[1];
   try {
     if (command == "make-session") {
-      wb::write_rx_session(argv[2], parse_count(argv[3], "BYTES"));
+      wb::write_rx_session(argv[2], wb::parse_count(argv[3], "BYTES"));
       std::printf("{\"path\": \"%s\"}\n", argv[2]);
       return 0;
     }
-    if (command == "replay") return replay(argv[2], parse_count(argv[3], "BYTES"));
-    if (command == "timing") return timing(parse_count(argv[2], "RECORDS"), parse_count(argv[3], "PERIOD_US"));
+    if (command == "replay") return replay(argv[2], wb::parse_count(argv[3], "BYTES"));
+    if (command == "timing") return timing(wb::parse_count(argv[2], "RECORDS"), wb::parse_count(argv[3], "PERIOD_US"));
     if (command == "record-throughput") {
-      return record_throughput(parse_count(argv[2], "BYTES"), parse_count(argv[3], "ROUNDS"));
+      return record_throughput(wb::parse_count(argv[2], "BYTES"), wb::parse_count(argv[3], "ROUNDS"));
     }
     if (command == "record-latency") {
-      return record_latency(parse_count(argv[2], "ROUNDTRIPS"), parse_count(argv[3], "ROUNDS"));
+      return record_latency(wb::parse_count(argv[2], "ROUNDTRIPS"), wb::parse_count(argv[3], "ROUNDS"));
     }
-    if (command == "soak") return soak(parse_count(argv[2], "SECONDS"), argv[3]);
-    if (command == "make-exchanges") return make_exchanges(argv[2], parse_count(argv[3], "COUNT"));
-    if (command == "record-rss") return record_rss(parse_count(argv[2], "BYTES"), argv[3]);
+    if (command == "soak") return soak(wb::parse_count(argv[2], "SECONDS"), argv[3]);
+    if (command == "make-exchanges") return make_exchanges(argv[2], wb::parse_count(argv[3], "COUNT"));
+    if (command == "record-rss") return record_rss(wb::parse_count(argv[2], "BYTES"), argv[3]);
   } catch (const std::exception& error) {
     std::cerr << "wiretape_bench_tool " << command << ": " << error.what() << "\n";
     return 1;

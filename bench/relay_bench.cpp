@@ -363,15 +363,6 @@ int run(const std::string& kind, std::uint64_t bytes, std::uint64_t roundtrips, 
   return 0;
 }
 
-std::uint64_t parse_count(const char* text, const char* what) {
-  char* end = nullptr;
-  const unsigned long long value = std::strtoull(text, &end, 10);
-  if (end == text || *end != '\0' || value == 0) {
-    throw std::invalid_argument(std::string(what) + ": expected a positive integer, got '" + text + "'");
-  }
-  return value;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -382,7 +373,7 @@ int main(int argc, char** argv) {
   }
   ::signal(SIGPIPE, SIG_IGN);
   try {
-    return run(argv[1], parse_count(argv[2], "BYTES"), parse_count(argv[3], "ROUNDTRIPS"), argv[4],
+    return run(argv[1], wb::parse_count(argv[2], "BYTES"), wb::parse_count(argv[3], "ROUNDTRIPS"), argv[4],
                std::vector<std::string>(argv + 6, argv + argc));
   } catch (const std::exception& error) {
     std::cerr << "wiretape_relay_bench: " << error.what() << "\n";

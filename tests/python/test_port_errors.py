@@ -1,6 +1,6 @@
 """wiretape's exceptions from Python (classes, bases, attributes) and the
 Port across threads: close() wakes a blocked read, the GIL is released while
-a call blocks, Ctrl-C interrupts a blocked read."""
+a call blocks, Ctrl-C interrupts a blocked read or write."""
 
 import errno
 import pickle
@@ -188,39 +188,13 @@ def test_one_reader_and_one_writer_at_once(loopback):
     assert received == [payload]
 
 
-def test_ctrl_c_interrupts_a_blocking_read():
-    script = textwrap.dedent("""
-        import sys, wiretape
-        port = wiretape.open_port("type=loopback")
-        try:
-            print("ready", flush=True)
-            port.read(1, timeout=None)
-        except KeyboardInterrupt:
-            print("interrupted", flush=True)
-            sys.exit(0)
-        sys.exit(1)
-    """)
-    child = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
-                             stderr=subprocess.PIPE, text=True)
-    try:
-        assert child.stdout.readline().strip() == "ready"
-        child.send_signal(signal.SIGINT)
-        out, err = child.communicate(timeout=10)
-    finally:
-        if child.poll() is None:
-            child.kill()
-            child.wait()
-    assert child.returncode == 0, err
-    assert "interrupted" in out
-
-
-def test_ctrl_c_interrupts_read_until_and_wait_readable():
-    script = textwrap.dedent("""
-        import sys, wiretape
-        port = wiretape.open_port("type=loopback")
-        for call in (lambda: port.read_until(b"\\n", timeout=None),
-                     lambda: port.wait_readable(None),
-                     lambda: port.read_exactly(5, timeout=60)):
+def interrupt_each_call(setup, calls):
+    """Runs `calls` (Python expressions over `port`, made by `setup`) one by
+    one in a child interpreter, sending SIGINT once each has started; each
+    must end in KeyboardInterrupt."""
+    script = textwrap.dedent(setup) + textwrap.dedent(f"""
+        import sys
+        for call in [{", ".join(f"lambda: {call}" for call in calls)}]:
             try:
                 print("ready", flush=True)
                 call()
@@ -232,7 +206,7 @@ def test_ctrl_c_interrupts_read_until_and_wait_readable():
     child = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, text=True)
     try:
-        for _ in range(3):
+        for _ in calls:
             assert child.stdout.readline().strip() == "ready"
             child.send_signal(signal.SIGINT)
         out, err = child.communicate(timeout=10)
@@ -242,36 +216,24 @@ def test_ctrl_c_interrupts_read_until_and_wait_readable():
             child.wait()
     assert child.returncode == 0, err
     assert "done" in out
+
+
+def test_ctrl_c_interrupts_blocked_reads():
+    interrupt_each_call("""
+        import wiretape
+        port = wiretape.open_port("type=loopback")
+    """, ["port.read(1, timeout=None)",
+          "port.read_until(b'\\n', timeout=None)",
+          "port.wait_readable(None)",
+          "port.read_exactly(5, timeout=60)"])
 
 
 def test_ctrl_c_interrupts_a_write_to_a_device_that_does_not_drain():
     # A pty whose other side nobody reads: once its buffer is full, writes
     # block for as long as the port's timeout (None: forever).
-    script = textwrap.dedent("""
-        import os, sys, wiretape
+    interrupt_each_call("""
+        import os, wiretape
         master, terminal = os.openpty()
         port = wiretape.open_port("type=serial,device=" + os.ttyname(terminal))
         port.timeout = None
-        for call in (lambda: port.write_all(b"x" * (16 << 20)),
-                     lambda: port.write(b"y")):
-            try:
-                print("ready", flush=True)
-                call()
-                sys.exit(1)
-            except KeyboardInterrupt:
-                pass
-        print("done", flush=True)
-    """)
-    child = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
-                             stderr=subprocess.PIPE, text=True)
-    try:
-        for _ in range(2):
-            assert child.stdout.readline().strip() == "ready"
-            child.send_signal(signal.SIGINT)
-        out, err = child.communicate(timeout=10)
-    finally:
-        if child.poll() is None:
-            child.kill()
-            child.wait()
-    assert child.returncode == 0, err
-    assert "done" in out
+    """, ["port.write_all(b'x' * (16 << 20))", "port.write(b'y')"])
