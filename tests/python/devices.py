@@ -4,6 +4,7 @@ between a device and its driver (record, serve): a small server on
 127.0.0.1 that the program under test connects to as it would to a real
 device."""
 
+import os
 import select
 import socket
 import struct
@@ -136,3 +137,20 @@ class TcpDevice:
                 except OSError:
                     return
                 conn.setblocking(False)
+
+
+def skip_unless_serial_opens_on_a_pty():
+    """Skips the calling test, saying why, when a serial port cannot be
+    opened on a pseudo-terminal here."""
+    import pytest
+
+    from wiretape import _core
+
+    master, terminal = os.openpty()
+    try:
+        _core.open_port(f"type=serial,device={os.ttyname(terminal)},exclusive=false").close()
+    except Exception as error:  # noqa: BLE001 - any failure means "not usable here"
+        pytest.skip(f"serial ports cannot be opened here: {error}")
+    finally:
+        os.close(master)
+        os.close(terminal)

@@ -13,7 +13,7 @@ import serial
 
 from wiretape import _core, bridge
 
-from devices import TcpDevice, wait_until
+from devices import TcpDevice, skip_unless_serial_opens_on_a_pty, wait_until
 
 DEADLINE = 10.0
 
@@ -129,24 +129,8 @@ def test_terminal_settings_the_client_sets_are_recorded(device, tmp_path):
     assert joined(records[index_57600:], "tx") == b"b"
 
 
-def serial_on_pty_available():
-    master, slave = os.openpty()
-    try:
-        import wiretape._core as core
-        port = core.open_port(f"type=serial,device={os.ttyname(slave)},exclusive=false")
-        port.close()
-        return True
-    except Exception as error:  # noqa: BLE001 - any failure means "not usable here"
-        return str(error)
-    finally:
-        os.close(master)
-        os.close(slave)
-
-
 def test_settings_mirrored_onto_a_serial_device(tmp_path):
-    available = serial_on_pty_available()
-    if available is not True:
-        pytest.skip(f"serial ports cannot be opened here: {available}")
+    skip_unless_serial_opens_on_a_pty()
     import termios
     import tty
 

@@ -15,25 +15,12 @@ import serial
 
 from wiretape import _core, bridge
 
-from devices import wait_until
+from devices import skip_unless_serial_opens_on_a_pty, wait_until
 
 DEADLINE = 10.0
 
 # pyserial's rfc2217 client uses threading names deprecated in Python 3.10.
 pytestmark = pytest.mark.filterwarnings("ignore:set.*is deprecated:DeprecationWarning")
-
-
-def serial_on_pty_problem():
-    master, slave = os.openpty()
-    try:
-        port = _core.open_port(f"type=serial,device={os.ttyname(slave)},exclusive=false")
-        port.close()
-        return None
-    except Exception as error:  # noqa: BLE001 - any failure means "not usable here"
-        return str(error)
-    finally:
-        os.close(master)
-        os.close(slave)
 
 
 class PtyDevice:
@@ -71,9 +58,7 @@ class PtyDevice:
 
 @pytest.fixture
 def pty_device():
-    problem = serial_on_pty_problem()
-    if problem:
-        pytest.skip(f"serial ports cannot be opened here: {problem}")
+    skip_unless_serial_opens_on_a_pty()
     device = PtyDevice()
     yield device
     device.close()

@@ -11,7 +11,7 @@ import pytest
 
 from wiretape import _core, bridge
 
-from devices import TcpDevice, wait_until
+from devices import TcpDevice, skip_unless_serial_opens_on_a_pty, wait_until
 
 DEADLINE = 10.0
 
@@ -177,19 +177,6 @@ def test_bad_listen_address_is_a_clear_error(device):
         bridge.serve(device.options, "no.such.host.invalid:0", quiet=True)
 
 
-def serial_on_pty_problem():
-    import os
-    master, slave = os.openpty()
-    try:
-        _core.open_port(f"type=serial,device={os.ttyname(slave)},exclusive=false").close()
-        return None
-    except Exception as error:  # noqa: BLE001 - any failure means "not usable here"
-        return str(error)
-    finally:
-        os.close(master)
-        os.close(slave)
-
-
 def test_pty_device_closed_then_back_under_the_same_link(tmp_path):
     """The device is a serial port on a pty reached through a symlink (as
     /dev/serial/by-id/... is): its pty closes (unplugged), a new one appears
@@ -197,9 +184,7 @@ def test_pty_device_closed_then_back_under_the_same_link(tmp_path):
     import os
     import tty
 
-    problem = serial_on_pty_problem()
-    if problem:
-        pytest.skip(f"serial ports cannot be opened here: {problem}")
+    skip_unless_serial_opens_on_a_pty()
 
     def plug():
         master, slave = os.openpty()
