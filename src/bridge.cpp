@@ -25,6 +25,7 @@
 #include <utility>
 
 #include "detail/json.hpp"
+#include "posix/platform.hpp"
 #include "posix/syscalls.hpp"
 #include "rfc2217.hpp"
 #include "wiretape/errors.hpp"
@@ -150,6 +151,10 @@ struct Bridge::Impl {
   // --- owned by the forwarding thread once started -----------------------------
   std::unique_ptr<Port> device_;
   std::unique_ptr<Port> pty_;
+  // Opens and closes of the pty's terminal by any process: how a pty client
+  // is seen to arrive and leave (invalid where the system cannot tell).
+  UniqueFd pty_watch_;
+  int pty_openers_ = 0;
   UniqueFd listener_;
   std::vector<std::unique_ptr<Client>> clients_;
   std::unique_ptr<SessionWriter> writer_;
@@ -222,6 +227,7 @@ struct Bridge::Impl {
   void deliver_from_device(const char* data, std::size_t n);
   void read_pty();
   void write_pty();
+  void watch_pty_clients();
   void accept_client();
   void read_client(Client& client);
   void write_client(Client& client);
@@ -500,8 +506,12 @@ void Bridge::Impl::open_all() {
     // "pty /dev/pts/7 (link ...)": the terminal's path is the second word.
     const auto space = description.find(' ');
     const auto end = description.find(' ', space + 1);
+    const std::string path =
+        description.substr(space + 1, end == std::string::npos ? end : end - space - 1);
+    // Best effort: without it, a pty client's coming and going goes unseen.
+    pty_watch_ = UniqueFd(detail::platform::watch_opens_and_closes(path));
     std::lock_guard<std::mutex> lock(status_mutex_);
-    pty_path_ = description.substr(space + 1, end == std::string::npos ? end : end - space - 1);
+    pty_path_ = path;
   }
   if (pty_) {
     try {
@@ -585,6 +595,11 @@ void Bridge::Impl::loop() {
       pty_index = static_cast<int>(fds.size());
       fds.push_back({pty_->native_handle(), events, 0});
     }
+    int pty_watch_index = -1;
+    if (pty_watch_) {
+      pty_watch_index = static_cast<int>(fds.size());
+      fds.push_back({pty_watch_.get(), POLLIN, 0});
+    }
     int listener_index = -1;
     if (listener_) {
       listener_index = static_cast<int>(fds.size());
@@ -628,6 +643,9 @@ void Bridge::Impl::loop() {
     }
     if (device_index >= 0 && fds[static_cast<std::size_t>(device_index)].revents) {
       read_device(fds[static_cast<std::size_t>(device_index)].revents);
+    }
+    if (pty_watch_index >= 0 && fds[static_cast<std::size_t>(pty_watch_index)].revents) {
+      watch_pty_clients();
     }
     if (pty_index >= 0) {
       const short revents = fds[static_cast<std::size_t>(pty_index)].revents;
@@ -732,6 +750,31 @@ void Bridge::Impl::read_pty() {
   record(RecordKind::tx, std::string_view(buffer.data(), n));
   to_device_.append(buffer.data(), n);
   flush_to_device();
+}
+
+// The first opener of the terminal is a client arriving, the last close
+// its leaving (a program may open the terminal more than once, and tools
+// such as stty open and close it too).
+void Bridge::Impl::watch_pty_clients() {
+  for (const bool opened : detail::platform::read_opens_and_closes(pty_watch_.get())) {
+    if (opened) {
+      if (pty_openers_++ > 0) continue;
+      if (options_.restart && had_client_ && device_) {
+        pty_->flush_output();  // what the previous client left unread
+        to_pty_.clear();
+        restart_device();
+      }
+      had_client_ = true;
+      record(RecordKind::client_connect,
+             json::ObjectWriter().add("peer", "pty").add("role", "control").str());
+      update_stats([](BridgeStats& s) { ++s.clients_accepted; });
+      message("client connected to " + pty_->description());
+    } else if (pty_openers_ > 0 && --pty_openers_ == 0) {
+      record(RecordKind::client_disconnect,
+             json::ObjectWriter().add("peer", "pty").add("reason", "closed the terminal").str());
+      message("client closed " + pty_->description());
+    }
+  }
 }
 
 void Bridge::Impl::write_pty() {

@@ -72,8 +72,9 @@ struct BridgeOptions {
   // reopen_interval) instead of ending.
   bool reopen = false;
   std::chrono::milliseconds reopen_interval{250};
-  // tcp: each new client starts the device over (closes and reopens it; for
-  // a replay, the session restarts). Otherwise a client that reconnects
+  // Each new client starts the device over (closes and reopens it; for a
+  // replay, the session restarts). On a pty (Linux) a new client is the
+  // first open of the terminal after every opener had closed it. Otherwise a client that reconnects
   // continues where the previous one left off.
   bool restart = false;
   // End by itself after this long (record --duration).

@@ -179,13 +179,12 @@ def serve_replay(file, *, pty=None, listen=None, replay_options: str = "",
     """``wiretape replay --pty/--listen``: the recording ``file`` becomes a
     virtual device. ``replay_options`` are replay keys (``"timing=none,
     check=data"``). A client that reconnects continues the session;
-    ``restart`` starts it over for each new TCP client. The result is ok,
+    ``restart`` starts it over for each new client (TCP, or pty on Linux). The result is ok,
     or ``outcome == "mismatch"`` with the report in ``message``."""
     options = "type=replay,file=" + _quote(os.fspath(file))
     if replay_options.strip():
         options += "," + replay_options.strip()
-    # A pty cannot tell the bridge when a client reopens it; the terminal
-    # settings of a replayed device are not applied anywhere.
+    # The terminal settings of a replayed device are not applied anywhere.
     return _start(options, pty=pty, listen=listen, restart=restart,
                   output=os.fspath(output) if output else "",
                   mirror_settings=False, quiet=quiet)

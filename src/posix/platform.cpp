@@ -11,8 +11,10 @@
 // include <termios.h> (nor the seam header that does).
 #include <asm/ioctls.h>
 #include <asm/termbits.h>
+#include <sys/inotify.h>
 #include <sys/prctl.h>
 #include <sys/socket.h>
+#include <unistd.h>
 
 namespace wiretape::detail::sys {
 int ioctl_through_seam(int fd, unsigned long request, void* argument);
@@ -65,6 +67,34 @@ void precise_timers_for_this_thread() {
   ::prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL);
 }
 
+int watch_opens_and_closes(const std::string& path) {
+  const int fd = ::inotify_init1(IN_NONBLOCK | IN_CLOEXEC);
+  if (fd < 0) return -1;
+  if (::inotify_add_watch(fd, path.c_str(), IN_OPEN | IN_CLOSE) < 0) {
+    const int error = errno;
+    ::close(fd);
+    errno = error;
+    return -1;
+  }
+  return fd;
+}
+
+std::vector<bool> read_opens_and_closes(int watch_fd) {
+  std::vector<bool> events;
+  alignas(inotify_event) char buffer[4096];
+  for (;;) {
+    const ssize_t n = ::read(watch_fd, buffer, sizeof buffer);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return events;
+    for (ssize_t at = 0; at + static_cast<ssize_t>(sizeof(inotify_event)) <= n;) {
+      const auto* event = reinterpret_cast<const inotify_event*>(buffer + at);
+      if (event->mask & IN_OPEN) events.push_back(true);
+      if (event->mask & IN_CLOSE) events.push_back(false);
+      at += static_cast<ssize_t>(sizeof(inotify_event) + event->len);
+    }
+  }
+}
+
 #else
 
 int set_custom_baud(int, unsigned) { return ENOTSUP; }
@@ -89,6 +119,13 @@ void prevent_sigpipe(int socket_fd) {
 }
 
 void precise_timers_for_this_thread() {}
+
+int watch_opens_and_closes(const std::string&) {
+  errno = ENOTSUP;
+  return -1;
+}
+
+std::vector<bool> read_opens_and_closes(int) { return {}; }
 
 #endif
 

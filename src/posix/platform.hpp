@@ -4,6 +4,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 namespace wiretape::detail::platform {
 
@@ -32,5 +33,14 @@ void prevent_sigpipe(int socket_fd);
 // timers). Applies to the calling thread only; a no-op where the system has
 // no such setting.
 void precise_timers_for_this_thread();
+
+// Watches the file at `path` (a pseudo-terminal's terminal side) being opened
+// and closed by any process, so that a pty's client can be seen to arrive
+// and leave (Linux: inotify). Returns a descriptor that polls readable when
+// something happened, or -1 with errno set where the system cannot do it.
+int watch_opens_and_closes(const std::string& path);
+// What happened since the last call, in order: true for an open, false for a
+// close. Empty when nothing did.
+std::vector<bool> read_opens_and_closes(int watch_fd);
 
 }  // namespace wiretape::detail::platform

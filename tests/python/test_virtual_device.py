@@ -104,6 +104,30 @@ def test_virtual_device_over_tcp_continues_across_reconnects(session):
     assert result["ok"], result
 
 
+def test_restart_on_a_pty_starts_the_session_over_for_each_client(session, tmp_path):
+    # The bridge sees a pty client leave when the last opener closes the
+    # terminal (Linux); without restart the second PING would be a mismatch.
+    out = tmp_path / "clients.wtape"
+    handle = bridge.serve_replay(session, pty=True, restart=True, output=out,
+                                 replay_options="timing=none,unused=ignore", quiet=True)
+    try:
+        for round_ in range(3):
+            with serial.Serial(handle.pty_path, 9600, timeout=DEADLINE) as client:
+                client.write(b"PING\n")
+                assert read_line(client) == b"PONG\n"
+            wait_until(lambda: sum("client closed" in m for m in handle.messages()) > round_,
+                       DEADLINE, what=lambda: f"the pty client's close to be seen "
+                                              f"(messages: {handle.messages()})")
+    finally:
+        result = finish(handle)
+    assert result["ok"], result
+    assert handle.stats()["clients_accepted"] == 3
+    with _core.SessionReader(str(out)) as reader:
+        events = [(r.kind, r.data) for r in reader if r.kind.startswith("client_")]
+    assert [kind for kind, _ in events] == ["client_connect", "client_disconnect"] * 3
+    assert all(b'"peer":"pty"' in data.replace(b" ", b"") for _, data in events)
+
+
 def test_restart_starts_the_session_over_for_each_client(session):
     handle = bridge.serve_replay(session, listen="127.0.0.1:0", restart=True,
                                  replay_options="timing=none,unused=ignore", quiet=True)
