@@ -16,7 +16,6 @@
 #include <cstring>
 #include <mutex>
 #include <thread>
-#include <utility>
 #include <vector>
 
 #include "session_format.hpp"
@@ -58,9 +57,9 @@ struct SessionWriter::Impl {
   std::condition_variable wake;
   std::string buffer;
   std::string spare;  // a flushed buffer kept for its capacity
-  std::vector<std::size_t> record_ends;  // end offset of each buffered record
-  // Records in the buffer whose CRC slot is still to be filled: [start, end).
-  std::vector<std::pair<std::size_t, std::size_t>> unsealed;
+  // End offset of each buffered record (the file header counts as one); its
+  // last 4 bytes are the CRC slot, filled in by seal() before the write.
+  std::vector<std::size_t> record_ends;
   std::uint64_t buffered_total = 0;      // committed + buffer.size() + in flight
   std::optional<Clock::time_point> oldest_unflushed;
   bool flush_requested = false;  // the buffer passed flush_threshold
@@ -86,14 +85,12 @@ struct SessionWriter::Impl {
     std::lock_guard<std::mutex> io(io_mutex);
     std::string data;
     std::vector<std::size_t> ends;
-    std::vector<std::pair<std::size_t, std::size_t>> to_seal;
     {
       std::lock_guard<std::mutex> lock(mutex);
       if (failure || buffer.empty()) {
         // Nothing more will reach the file after a failure.
         buffer.clear();
         record_ends.clear();
-        unsealed.clear();
         oldest_unflushed.reset();
         flush_requested = false;
         return;
@@ -101,11 +98,10 @@ struct SessionWriter::Impl {
       data.swap(buffer);
       buffer.swap(spare);
       ends.swap(record_ends);
-      to_seal.swap(unsealed);
       oldest_unflushed.reset();
       flush_requested = false;
     }
-    seal(data, to_seal);
+    seal(data, ends);
     reserve_ahead(committed + data.size());
     std::size_t written = 0;
     int error = 0;
@@ -147,11 +143,14 @@ struct SessionWriter::Impl {
     buffered_total = committed;
   }
 
-  // Fills each record's CRC slot: the CRC32C of its header and payload.
-  static void seal(std::string& data, const std::vector<std::pair<std::size_t, std::size_t>>& records) {
-    for (const auto& [start, end] : records) {
+  // Fills each record's CRC slot with the CRC32C of the bytes before it (the
+  // file header has the same shape: fixed part, JSON, CRC).
+  static void seal(std::string& data, const std::vector<std::size_t>& ends) {
+    std::size_t start = 0;
+    for (const std::size_t end : ends) {
       const std::size_t covered = end - detail::crc_size - start;
       detail::put_u32le(&data[end - detail::crc_size], crc32c(&data[start], covered));
+      start = end;
     }
   }
 
@@ -225,9 +224,7 @@ SessionWriter::SessionWriter(const std::string& path, SessionWriterOptions optio
   detail::put_u16le(&header[10], detail::session_version_minor);
   detail::put_u32le(&header[12], static_cast<std::uint32_t>(json.size()));
   header += json;
-  char crc[detail::crc_size];
-  detail::put_u32le(crc, crc32c(header.data(), header.size()));
-  header.append(crc, sizeof crc);
+  header.append(detail::crc_size, '\0');  // sealed by the first flush
   // The header reaches the OS at once: a file that exists is readable.
   impl_->buffer = header;
   impl_->record_ends.push_back(header.size());
@@ -264,12 +261,10 @@ void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view 
       throw PortError(EBADF, impl_->path + ": the session writer is closed");
     }
     std::string& buffer = impl_->buffer;
-    const std::size_t start = buffer.size();
     buffer.append(head, sizeof head);
     buffer.append(data.data(), data.size());
     buffer.append(tail, sizeof tail);
     impl_->record_ends.push_back(buffer.size());
-    impl_->unsealed.emplace_back(start, buffer.size());
     impl_->buffered_total += sizeof head + data.size() + sizeof tail;
     if (!impl_->oldest_unflushed) {
       impl_->oldest_unflushed = Clock::now();
