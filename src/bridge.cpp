@@ -54,8 +54,8 @@ namespace json = detail::json;
 namespace rfc = detail::rfc2217;
 
 constexpr std::size_t kChunk = 64 * 1024;
-// What one read of a terminal returns at most when more is waiting: Linux's
-// line discipline hands out its 4 KiB buffer less one byte.
+// A read of a terminal hands out about one line-discipline buffer (Linux: 4 KiB
+// less one byte) at a time; a read at least this large means more is waiting.
 constexpr std::size_t kLineDisciplineBuffer = 4095;
 constexpr auto kSettingsPollInterval = std::chrono::milliseconds(50);
 constexpr auto kWriteRetryInterval = std::chrono::milliseconds(2);
@@ -228,6 +228,8 @@ struct Bridge::Impl {
   void read_pty();
   void write_pty();
   void watch_pty_clients();
+  void client_connected(const std::string& peer, const char* role);
+  void client_disconnected(const std::string& peer, const std::string& reason);
   void accept_client();
   void read_client(Client& client);
   void write_client(Client& client);
@@ -765,16 +767,23 @@ void Bridge::Impl::watch_pty_clients() {
         restart_device();
       }
       had_client_ = true;
-      record(RecordKind::client_connect,
-             json::ObjectWriter().add("peer", "pty").add("role", "control").str());
-      update_stats([](BridgeStats& s) { ++s.clients_accepted; });
+      client_connected("pty", "control");
       message("client connected to " + pty_->description());
     } else if (pty_openers_ > 0 && --pty_openers_ == 0) {
-      record(RecordKind::client_disconnect,
-             json::ObjectWriter().add("peer", "pty").add("reason", "closed the terminal").str());
+      client_disconnected("pty", "closed the terminal");
       message("client closed " + pty_->description());
     }
   }
+}
+
+void Bridge::Impl::client_connected(const std::string& peer, const char* role) {
+  record(RecordKind::client_connect, json::ObjectWriter().add("peer", peer).add("role", role).str());
+  update_stats([](BridgeStats& s) { ++s.clients_accepted; });
+}
+
+void Bridge::Impl::client_disconnected(const std::string& peer, const std::string& reason) {
+  record(RecordKind::client_disconnect,
+         json::ObjectWriter().add("peer", peer).add("reason", reason).str());
 }
 
 void Bridge::Impl::write_pty() {
@@ -843,10 +852,7 @@ void Bridge::Impl::accept_client() {
       client->outgoing.append(client->telnet->greeting());
     }
     if (!client->monitor) had_client_ = true;
-    const char* role = client->monitor ? "monitor" : "control";
-    record(RecordKind::client_connect,
-           json::ObjectWriter().add("peer", peer).add("role", role).str());
-    update_stats([](BridgeStats& s) { ++s.clients_accepted; });
+    client_connected(peer, client->monitor ? "monitor" : "control");
     message("client " + peer + " connected" +
             (client->monitor ? " (read-only monitor)" : ""));
     clients_.push_back(std::move(client));
@@ -911,8 +917,7 @@ void Bridge::Impl::drop_client(Client& client, const std::string& reason) {
   client.gone = true;
   client.fd.reset();
   client.outgoing.clear();
-  record(RecordKind::client_disconnect,
-         json::ObjectWriter().add("peer", client.peer).add("reason", reason).str());
+  client_disconnected(client.peer, reason);
   message("client " + client.peer + " " + reason);
 }
 

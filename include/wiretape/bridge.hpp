@@ -74,8 +74,8 @@ struct BridgeOptions {
   std::chrono::milliseconds reopen_interval{250};
   // Each new client starts the device over (closes and reopens it; for a
   // replay, the session restarts). On a pty (Linux) a new client is the
-  // first open of the terminal after every opener had closed it. Otherwise a client that reconnects
-  // continues where the previous one left off.
+  // first open of the terminal after every opener had closed it. Otherwise
+  // a client that reconnects continues where the previous one left off.
   bool restart = false;
   // End by itself after this long (record --duration).
   Timeout duration = forever;

@@ -72,11 +72,11 @@ Timeout call_timeout(const Port& port, nb::handle value) {
   return timeout_from_python(value);
 }
 
+enum class Direction { reading, writing };
+
 // Runs attempt(slice_end) with the GIL released until it returns true or
 // `timeout` expires, checking Python's signals between slices. attempt must
 // return by slice_end (it passes remaining(slice_end) to the port).
-enum class Direction { reading, writing };
-
 template <typename Attempt>
 void run_in_slices(Port& port, Timeout timeout, Attempt&& attempt,
                    Direction direction = Direction::reading) {
