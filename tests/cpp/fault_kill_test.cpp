@@ -17,6 +17,8 @@
 #include <string>
 #include <thread>
 
+#include "session_format.hpp"
+#include "support/port_test_support.hpp"
 #include "wiretape/port.hpp"
 #include "wiretape/session.hpp"
 
@@ -72,17 +74,10 @@ std::string make_chunk(std::uint64_t k) {
 // write in flight when the recorder died reached the file only in part.
 // (The kernel stops a write to a file between pages when SIGKILL comes.)
 bool file_ends_inside_record(const std::string& path, std::uint64_t offset) {
-  std::FILE* file = std::fopen(path.c_str(), "rb");
-  if (!file) return false;
-  std::fseek(file, 0, SEEK_END);
-  const auto size = static_cast<std::uint64_t>(std::ftell(file));
-  unsigned char head[16] = {};
-  std::fseek(file, static_cast<long>(offset), SEEK_SET);
-  const std::size_t got = std::fread(head, 1, sizeof head, file);
-  std::fclose(file);
-  if (got < sizeof head) return offset + sizeof head > size;
-  const std::uint64_t length = head[0] | (head[1] << 8) | (head[2] << 16) | (std::uint64_t{head[3]} << 24);
-  return offset + sizeof head + length + 4 > size;
+  const std::string bytes = wiretape::test::read_file(path);
+  if (offset + wiretape::detail::record_header_size > bytes.size()) return true;
+  const std::uint64_t length = wiretape::detail::get_u32le(&bytes[offset]);
+  return offset + wiretape::detail::record_header_size + length + wiretape::detail::crc_size > bytes.size();
 }
 
 struct Verified {
