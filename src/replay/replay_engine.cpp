@@ -106,6 +106,10 @@ std::chrono::nanoseconds ReplayEngine::scaled(std::uint64_t ns) const {
       static_cast<std::int64_t>(std::llround(static_cast<double>(ns) / config_.speed)));
 }
 
+ReplayTime ReplayEngine::due_by_session_clock(std::uint64_t t_ns) const {
+  return config_.timing == ReplayTiming::none ? open_time_ : open_time_ + scaled(t_ns);
+}
+
 // --- the read side -----------------------------------------------------------
 
 void ReplayEngine::fill_rx() {
@@ -188,14 +192,12 @@ void ReplayEngine::entitle() {
     if (!entitled) break;  // later records need at least as many tx bytes
     switch (config_.timing) {
       case ReplayTiming::none:
-        item.due = open_time_;
-        break;
       case ReplayTiming::session:
-        item.due = open_time_ + scaled(item.t_ns);
+        item.due = due_by_session_clock(item.t_ns);
         break;
       case ReplayTiming::causal: {
         if (!item.anchor_t_ns) {
-          item.due = open_time_ + scaled(item.t_ns);
+          item.due = due_by_session_clock(item.t_ns);
           break;
         }
         ReplayTime finished = previous_tx_finished_.value_or(open_time_);
@@ -581,9 +583,7 @@ void ReplayEngine::load_exchanges() {
         in_request = false;
         if (exchanges_.empty()) {
           // A greeting: released at open.
-          item.due = config_.timing == ReplayTiming::none
-                         ? open_time_
-                         : open_time_ + scaled(item.t_ns);
+          item.due = due_by_session_clock(item.t_ns);
           rx_queue_bytes_ += item.data.size();
           rx_queue_.push_back(std::move(item));
         } else {
@@ -620,10 +620,8 @@ void ReplayEngine::serve(std::size_t index, ReplayTime now) {
     RxItem item = response;
     switch (config_.timing) {
       case ReplayTiming::none:
-        item.due = open_time_;
-        break;
       case ReplayTiming::session:
-        item.due = open_time_ + scaled(item.t_ns);
+        item.due = due_by_session_clock(item.t_ns);
         break;
       case ReplayTiming::causal:
         item.due = now + scaled(item.t_ns > exchange.last_tx_t_ns

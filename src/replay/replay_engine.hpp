@@ -108,6 +108,10 @@ class ReplayEngine {
   };
 
   std::chrono::nanoseconds scaled(std::uint64_t ns) const;
+  // When a record recorded at `t_ns` is due by the session's clock alone:
+  // at once (timing=none) or at its recorded time (timing=session, and
+  // causal timing for records no write comes before).
+  ReplayTime due_by_session_clock(std::uint64_t t_ns) const;
   void prepare(ReplayTime now);  // look-ahead and entitlement
   void fill_rx();
   void entitle();
