@@ -161,34 +161,27 @@ def _require_input(path: str) -> None:
     raise RuntimeFailure(f"{path}: no such file")
 
 
-def _positive_seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"{text!r}: must be more than 0 seconds")
-    return value
+def _number_checker(what: str, minimum: float, inclusive: bool, unit: str = ""):
+    """An argparse type: a float of `what` above `minimum` (or at it, when
+    `inclusive`), with a message that names the rule broken."""
+    suffix = f" {unit}" if unit else ""
+
+    def check(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+        if not (value >= minimum if inclusive else value > minimum):
+            bound = f"{minimum:g}{suffix} or more" if inclusive else f"more than {minimum:g}{suffix}"
+            raise argparse.ArgumentTypeError(f"{text!r}: must be {bound}")
+        return value
+
+    return check
 
 
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"{text!r}: must be more than 0")
-    return value
-
-
-def _non_negative_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-    if not value >= 0:
-        raise argparse.ArgumentTypeError(f"{text!r}: must be 0 or more")
-    return value
+_positive_seconds = _number_checker("a number of seconds", 0, inclusive=False, unit="seconds")
+_positive_float = _number_checker("a number", 0, inclusive=False)
+_non_negative_float = _number_checker("a number", 0, inclusive=True)
 
 
 def _format_number(value: float) -> str:

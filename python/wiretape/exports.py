@@ -36,6 +36,7 @@ mcap (open with Foxglove):
 from __future__ import annotations
 
 import base64
+import contextlib
 import datetime as _datetime
 import json
 import os
@@ -237,6 +238,24 @@ def _packet(interface: int, timestamp_ns: int, payload: bytes, flags: int,
     return _block(_PCAPNG_EPB, body)
 
 
+@contextlib.contextmanager
+def _replacing(dst):
+    """A file to write that becomes `dst` only once the block completes: a
+    failed or interrupted export never leaves a half-written file under the
+    name asked for."""
+    temporary = os.fspath(dst) + ".partial"
+    try:
+        with open(temporary, "wb") as out:
+            yield out
+        os.replace(temporary, dst)
+    except BaseException:
+        try:
+            os.unlink(temporary)
+        except OSError:
+            pass
+        raise
+
+
 def write_pcapng(src, dst) -> Dict[str, int]:
     """Writes the session `src` (a .wtape, or a flexiport ``name.log``) to
     `dst` as pcapng; returns counts of what was written
@@ -245,33 +264,24 @@ def write_pcapng(src, dst) -> Dict[str, int]:
     header = _header_dict(reader)
     start_ns = _start_epoch_ns(header)
     counts = {"rx": 0, "tx": 0, "events": 0}
-    temporary = os.fspath(dst) + ".partial"
-    try:
-        with open(temporary, "wb") as out:
-            out.write(_section_header(json.dumps(header, sort_keys=True, default=str)))
-            for name, description in _INTERFACES:
-                out.write(_interface(name, description))
-            for t_ns, kind, data in _records(reader):
-                stamp = start_ns + t_ns
-                if kind == "rx":
-                    out.write(_packet(_RX_INTERFACE, stamp, data, _EPB_INBOUND))
-                    counts["rx"] += 1
-                elif kind == "tx":
-                    out.write(_packet(_TX_INTERFACE, stamp, data, _EPB_OUTBOUND))
-                    counts["tx"] += 1
-                else:
-                    event = json.dumps(_event_json(data), sort_keys=True)
-                    payload = f"{kind} {event}".encode("utf-8")
-                    out.write(_packet(_EVENT_INTERFACE, stamp, payload, 0,
-                                      comment=f"wiretape event: {kind}"))
-                    counts["events"] += 1
-        os.replace(temporary, dst)
-    except BaseException:
-        try:
-            os.unlink(temporary)
-        except OSError:
-            pass
-        raise
+    with _replacing(dst) as out:
+        out.write(_section_header(json.dumps(header, sort_keys=True, default=str)))
+        for name, description in _INTERFACES:
+            out.write(_interface(name, description))
+        for t_ns, kind, data in _records(reader):
+            stamp = start_ns + t_ns
+            if kind == "rx":
+                out.write(_packet(_RX_INTERFACE, stamp, data, _EPB_INBOUND))
+                counts["rx"] += 1
+            elif kind == "tx":
+                out.write(_packet(_TX_INTERFACE, stamp, data, _EPB_OUTBOUND))
+                counts["tx"] += 1
+            else:
+                event = json.dumps(_event_json(data), sort_keys=True)
+                payload = f"{kind} {event}".encode("utf-8")
+                out.write(_packet(_EVENT_INTERFACE, stamp, payload, 0,
+                                  comment=f"wiretape event: {kind}"))
+                counts["events"] += 1
     return counts
 
 
@@ -323,52 +333,43 @@ def write_mcap(src, dst) -> Dict[str, int]:
     header = _header_dict(reader)
     start_ns = _start_epoch_ns(header)
     counts = {"rx": 0, "tx": 0, "events": 0}
-    temporary = os.fspath(dst) + ".partial"
-    try:
-        with open(temporary, "wb") as out:
-            writer = Writer(out)
-            writer.start(profile="", library=f"wiretape {__version__}")
-            bytes_schema = writer.register_schema(
-                name="wiretape.Bytes", encoding="jsonschema",
-                data=json.dumps(_BYTES_SCHEMA).encode("utf-8"))
-            event_schema = writer.register_schema(
-                name="wiretape.Event", encoding="jsonschema",
-                data=json.dumps(_EVENT_SCHEMA).encode("utf-8"))
-            channels = {
-                "rx": writer.register_channel(topic=MCAP_TOPICS["rx"], message_encoding="json",
-                                              schema_id=bytes_schema),
-                "tx": writer.register_channel(topic=MCAP_TOPICS["tx"], message_encoding="json",
-                                              schema_id=bytes_schema),
-                "events": writer.register_channel(topic=MCAP_TOPICS["events"],
-                                                  message_encoding="json",
-                                                  schema_id=event_schema),
-            }
-            sequence = 0
-            for t_ns, kind, data in _records(reader):
-                if kind in ("rx", "tx"):
-                    channel = channels[kind]
-                    message = {"t_ns": t_ns, "kind": kind, "size": len(data),
-                               "data": base64.b64encode(data).decode("ascii"),
-                               "text": escape_bytes(data)}
-                    counts[kind] += 1
-                else:
-                    channel = channels["events"]
-                    message = {"t_ns": t_ns, "kind": kind, "event": _event_json(data)}
-                    counts["events"] += 1
-                stamp = start_ns + t_ns
-                writer.add_message(channel_id=channel, log_time=stamp, publish_time=stamp,
-                                   data=json.dumps(message).encode("utf-8"), sequence=sequence)
-                sequence += 1
-            writer.add_metadata(
-                name="wiretape",
-                data={key: value if isinstance(value, str) else json.dumps(value, default=str)
-                      for key, value in header.items()})
-            writer.finish()
-        os.replace(temporary, dst)
-    except BaseException:
-        try:
-            os.unlink(temporary)
-        except OSError:
-            pass
-        raise
+    with _replacing(dst) as out:
+        writer = Writer(out)
+        writer.start(profile="", library=f"wiretape {__version__}")
+        bytes_schema = writer.register_schema(
+            name="wiretape.Bytes", encoding="jsonschema",
+            data=json.dumps(_BYTES_SCHEMA).encode("utf-8"))
+        event_schema = writer.register_schema(
+            name="wiretape.Event", encoding="jsonschema",
+            data=json.dumps(_EVENT_SCHEMA).encode("utf-8"))
+        channels = {
+            "rx": writer.register_channel(topic=MCAP_TOPICS["rx"], message_encoding="json",
+                                          schema_id=bytes_schema),
+            "tx": writer.register_channel(topic=MCAP_TOPICS["tx"], message_encoding="json",
+                                          schema_id=bytes_schema),
+            "events": writer.register_channel(topic=MCAP_TOPICS["events"],
+                                              message_encoding="json",
+                                              schema_id=event_schema),
+        }
+        sequence = 0
+        for t_ns, kind, data in _records(reader):
+            if kind in ("rx", "tx"):
+                channel = channels[kind]
+                message = {"t_ns": t_ns, "kind": kind, "size": len(data),
+                           "data": base64.b64encode(data).decode("ascii"),
+                           "text": escape_bytes(data)}
+                counts[kind] += 1
+            else:
+                channel = channels["events"]
+                message = {"t_ns": t_ns, "kind": kind, "event": _event_json(data)}
+                counts["events"] += 1
+            stamp = start_ns + t_ns
+            writer.add_message(channel_id=channel, log_time=stamp, publish_time=stamp,
+                               data=json.dumps(message).encode("utf-8"), sequence=sequence)
+            sequence += 1
+        writer.add_metadata(
+            name="wiretape",
+            data={key: value if isinstance(value, str) else json.dumps(value, default=str)
+                  for key, value in header.items()})
+        writer.finish()
     return counts
