@@ -6,7 +6,7 @@
 #include <cstdlib>
 #include <string>
 
-#include "rfc2217.hpp"
+#include "bridge/rfc2217.hpp"
 
 namespace {
 

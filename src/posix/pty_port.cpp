@@ -7,7 +7,7 @@
 #include <cerrno>
 #include <cstdlib>
 
-#include "detail/open.hpp"
+#include "core/open_port.hpp"
 #include "posix/fd_port.hpp"
 #include "posix/platform.hpp"
 #include "posix/termios_settings.hpp"

@@ -7,7 +7,7 @@
 #include <mutex>
 #include <thread>
 
-#include "detail/open.hpp"
+#include "core/open_port.hpp"
 #include "posix/fd_port.hpp"
 #include "posix/termios_settings.hpp"
 #include "wiretape/errors.hpp"

@@ -7,7 +7,7 @@
 #include <chrono>
 #include <cstdio>
 
-#include "detail/open.hpp"
+#include "core/open_port.hpp"
 #include "posix/socket_port.hpp"
 #include "wiretape/errors.hpp"
 

@@ -7,7 +7,7 @@
 #include <cstring>
 #include <mutex>
 
-#include "detail/open.hpp"
+#include "core/open_port.hpp"
 #include "posix/platform.hpp"
 #include "posix/socket_port.hpp"
 #include "wiretape/errors.hpp"

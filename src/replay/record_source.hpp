@@ -10,7 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "session_cursor.hpp"
+#include "session/cursor.hpp"
 #include "wiretape/session.hpp"
 
 namespace wiretape::detail {

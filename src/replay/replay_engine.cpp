@@ -6,7 +6,7 @@
 #include <cstring>
 #include <sstream>
 
-#include "detail/json.hpp"
+#include "util/json.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail {

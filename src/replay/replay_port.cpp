@@ -12,7 +12,7 @@
 #include <mutex>
 #include <thread>
 
-#include "detail/open.hpp"
+#include "core/open_port.hpp"
 #include "posix/platform.hpp"
 #include "replay/record_source.hpp"
 #include "replay/replay_engine.hpp"

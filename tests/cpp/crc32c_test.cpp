@@ -6,7 +6,7 @@
 #include <random>
 #include <vector>
 
-#include "session_format.hpp"
+#include "session/format.hpp"
 #include "wiretape/session.hpp"
 
 namespace {

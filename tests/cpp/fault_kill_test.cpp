@@ -17,7 +17,7 @@
 #include <string>
 #include <thread>
 
-#include "session_format.hpp"
+#include "session/format.hpp"
 #include "support/port_test_support.hpp"
 #include "wiretape/port.hpp"
 #include "wiretape/session.hpp"

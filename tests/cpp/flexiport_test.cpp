@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "session_format.hpp"
+#include "session/format.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 

@@ -24,8 +24,8 @@
 #include <thread>
 #include <vector>
 
-#include "detail/json.hpp"
-#include "detail/open.hpp"
+#include "util/json.hpp"
+#include "core/open_port.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/port.hpp"
 #include "wiretape/session.hpp"

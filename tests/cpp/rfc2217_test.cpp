@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "rfc2217.hpp"
+#include "bridge/rfc2217.hpp"
 
 namespace {
 

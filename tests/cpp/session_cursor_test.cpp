@@ -6,8 +6,8 @@
 #include <string>
 #include <vector>
 
-#include "session_cursor.hpp"
-#include "session_format.hpp"
+#include "session/cursor.hpp"
+#include "session/format.hpp"
 #include "support/port_test_support.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"

@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "detail/json.hpp"
+#include "util/json.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 

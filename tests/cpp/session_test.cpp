@@ -22,7 +22,7 @@
 #include <thread>
 #include <vector>
 
-#include "session_format.hpp"
+#include "session/format.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 #include "wiretape/version.hpp"

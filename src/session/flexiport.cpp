@@ -14,8 +14,8 @@
 #include <memory>
 #include <string>
 
-#include "detail/json.hpp"
-#include "session_format.hpp"
+#include "util/json.hpp"
+#include "session/format.hpp"
 #include "wiretape/session.hpp"
 
 namespace wiretape {

@@ -10,8 +10,8 @@
 #include <mutex>
 #include <string>
 
-#include "detail/json.hpp"
-#include "detail/open.hpp"
+#include "util/json.hpp"
+#include "core/open_port.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 

@@ -24,10 +24,10 @@
 #include <thread>
 #include <utility>
 
-#include "detail/json.hpp"
+#include "util/json.hpp"
 #include "posix/platform.hpp"
 #include "posix/syscalls.hpp"
-#include "rfc2217.hpp"
+#include "bridge/rfc2217.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/port.hpp"
 #include "wiretape/session.hpp"

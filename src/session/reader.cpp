@@ -7,7 +7,7 @@
 #include <cstring>
 #include <string>
 
-#include "session_format.hpp"
+#include "session/format.hpp"
 #include "wiretape/session.hpp"
 
 namespace wiretape {

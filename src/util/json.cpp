@@ -1,5 +1,5 @@
-// The implementation of detail/json.hpp (src/detail holds headers only).
-#include "detail/json.hpp"
+// The JSON reader and writer of util/json.hpp.
+#include "util/json.hpp"
 
 #include <cmath>
 #include <cstdio>

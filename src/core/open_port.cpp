@@ -1,7 +1,7 @@
 #include <cstdio>
 #include <string>
 
-#include "detail/open.hpp"
+#include "core/open_port.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/options.hpp"
 #include "wiretape/port.hpp"

@@ -1,4 +1,4 @@
-#include "session_format.hpp"
+#include "session/format.hpp"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -17,7 +17,7 @@
 #include <arm_acle.h>
 #endif
 
-#include "detail/json.hpp"
+#include "util/json.hpp"
 #include "wiretape/version.hpp"
 
 namespace wiretape {

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "session_cursor.hpp"
+#include "session/cursor.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 

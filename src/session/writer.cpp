@@ -18,7 +18,7 @@
 #include <thread>
 #include <vector>
 
-#include "session_format.hpp"
+#include "session/format.hpp"
 #include "wiretape/session.hpp"
 
 namespace wiretape {

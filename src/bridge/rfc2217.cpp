@@ -1,4 +1,4 @@
-#include "rfc2217.hpp"
+#include "bridge/rfc2217.hpp"
 
 #include <optional>
 

@@ -7,7 +7,7 @@
 #include <deque>
 #include <mutex>
 
-#include "detail/open.hpp"
+#include "core/open_port.hpp"
 #include "posix/fd_port.hpp"
 #include "posix/syscalls.hpp"
 #include "wiretape/errors.hpp"
