@@ -119,7 +119,7 @@ void ReplayEngine::fill_rx() {
   record.data = spare_payload();
   while (!rx_exhausted_ && rx_queue_.size() < kLookaheadRecords &&
          rx_queue_bytes_ < kLookaheadBytes) {
-    if (!rx_source_->next_view(record, view)) {
+    if (!rx_source_->next(record, view)) {
       rx_exhausted_ = true;
       break;
     }

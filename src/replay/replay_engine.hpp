@@ -19,7 +19,7 @@
 #include <string_view>
 #include <vector>
 
-#include "replay/record_source.hpp"
+#include "session/record_source.hpp"
 #include "replay/replay_config.hpp"
 #include "wiretape/session.hpp"
 

@@ -14,9 +14,9 @@
 
 #include "core/open_port.hpp"
 #include "posix/platform.hpp"
-#include "replay/record_source.hpp"
 #include "replay/replay_engine.hpp"
 #include "replay/replay_port.hpp"
+#include "session/reader.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 
@@ -41,33 +41,42 @@ class OwnedFd {
   int fd_ = -1;
 };
 
+// A session file's records; damage ends them with one warning on stderr
+// (shared by the sources of one replay).
 class SessionRecordSource final : public RecordSource {
  public:
   SessionRecordSource(const std::string& path, std::shared_ptr<bool> warned)
-      : reader_(path), warned_(std::move(warned)) {}
+      : path_(path), source_(open_session_source(path, header_)),
+        warned_(std::move(warned)) {}
   bool next(Record& record) override {
-    if (reader_.next(record)) return true;
+    if (source_->next(record)) return true;
     warn_of_damage();
     return false;
   }
-  bool next_view(Record& record, PayloadView& view) override {
-    if (reader_.next(record, view)) return true;
+  bool next(Record& record, PayloadView& view) override {
+    if (source_->next(record, view)) return true;
     warn_of_damage();
     return false;
+  }
+  void rewind() override { source_->rewind(); }
+  const std::optional<SessionError>& damage() const override {
+    return source_->damage();
   }
 
  private:
   void warn_of_damage() {
-    if (reader_.damage() && !*warned_) {
+    if (source_->damage() && !*warned_) {
       *warned_ = true;
       std::fprintf(stderr,
                    "wiretape: %s is damaged; replaying what comes before the "
                    "damage: %s\n",
-                   reader_.path().c_str(), reader_.damage()->what());
+                   path_.c_str(), source_->damage()->what());
     }
   }
 
-  SessionCursor reader_;
+  std::string path_;
+  SessionHeader header_;
+  std::unique_ptr<RecordSource> source_;
   std::shared_ptr<bool> warned_;
 };
 

@@ -2,12 +2,16 @@
 #pragma once
 
 #include <memory>
+#include <string>
 
-#include "replay/record_source.hpp"
+#include "session/record_source.hpp"
 #include "replay/replay_config.hpp"
 #include "wiretape/port.hpp"
 
 namespace wiretape::detail {
+
+// Sources over the session file at `path` (.wtape or flexiport log pair).
+RecordSourceFactory session_source_factory(const std::string& path);
 
 std::unique_ptr<Port> open_replay_session(ReplayConfig config,
                                           RecordSourceFactory sources);

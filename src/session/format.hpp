@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "session/cursor.hpp"
+#include "session/record_source.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 
@@ -123,21 +123,6 @@ class BufferedFile {
   std::size_t end_ = 0;
   std::uint64_t position_ = 0;  // file offset of buffer_[begin_]
   std::uint64_t size_ = 0;
-};
-
-// A source of records: a .wtape file, or a merged pair of flexiport logs.
-class RecordSource {
- public:
-  virtual ~RecordSource() = default;
-  virtual bool next(Record& record) = 0;
-  // next(), with large payloads as views where the source can (see
-  // SessionCursor).
-  virtual bool next(Record& record, PayloadView& view) {
-    view = PayloadView{};
-    return next(record);
-  }
-  virtual void rewind() = 0;
-  virtual const std::optional<SessionError>& damage() const = 0;
 };
 
 // flexiport's logs: `prefix` is "name.log" for name.logr + name.logw. Throws

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "session/format.hpp"
+#include "session/reader.hpp"
 #include "wiretape/session.hpp"
 
 namespace wiretape {
@@ -183,36 +184,15 @@ bool starts_with_magic(const std::string& path) {
          std::memcmp(head, session_magic, sizeof head) == 0;
 }
 
-std::unique_ptr<RecordSource> open_source(const std::string& path,
-                                          SessionHeader& header) {
+}  // namespace
+
+std::unique_ptr<RecordSource> open_session_source(const std::string& path,
+                                                  SessionHeader& header) {
   if (!starts_with_magic(path)) {
     if (auto prefix = flexiport_prefix(path)) return open_flexiport(*prefix, header);
   }
   return std::make_unique<WtapeSource>(path, header);
 }
-
-}  // namespace
-
-struct SessionCursor::Impl {
-  std::string path;
-  SessionHeader header;
-  std::unique_ptr<RecordSource> source;
-};
-
-SessionCursor::SessionCursor(const std::string& path) : impl_(std::make_unique<Impl>()) {
-  impl_->path = path;
-  impl_->source = open_source(path, impl_->header);
-}
-
-SessionCursor::~SessionCursor() = default;
-bool SessionCursor::next(Record& record) { return impl_->source->next(record); }
-bool SessionCursor::next(Record& record, PayloadView& view) {
-  return impl_->source->next(record, view);
-}
-const std::optional<SessionError>& SessionCursor::damage() const {
-  return impl_->source->damage();
-}
-const std::string& SessionCursor::path() const { return impl_->path; }
 
 }  // namespace detail
 
@@ -224,7 +204,7 @@ struct SessionReader::Impl {
 
 SessionReader::SessionReader(const std::string& path) : impl_(std::make_unique<Impl>()) {
   impl_->path = path;
-  impl_->source = detail::open_source(path, impl_->header);
+  impl_->source = detail::open_session_source(path, impl_->header);
 }
 
 SessionReader::~SessionReader() = default;

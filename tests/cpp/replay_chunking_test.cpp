@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "replay/record_source.hpp"
+#include "session/record_source.hpp"
 #include "replay/replay_config.hpp"
 #include "replay/replay_port.hpp"
 #include "wiretape/errors.hpp"

@@ -18,7 +18,7 @@
 #include <thread>
 #include <vector>
 
-#include "replay/record_source.hpp"
+#include "session/record_source.hpp"
 #include "replay/replay_config.hpp"
 #include "replay/replay_engine.hpp"
 #include "replay/replay_port.hpp"

@@ -1,20 +1,20 @@
-// SessionCursor: payloads handed out as views into the read buffers must stay
-// intact while held, match what SessionReader returns, and be CRC-checked.
+// The session reader's view API (open_session_source): payloads handed out as
+// views into the read buffers must stay intact while held, match what
+// SessionReader returns, and be CRC-checked.
 #include <gtest/gtest.h>
 
 #include <cstddef>
 #include <string>
 #include <vector>
 
-#include "session/cursor.hpp"
 #include "session/format.hpp"
+#include "session/reader.hpp"
 #include "support/port_test_support.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 
 using namespace wiretape;
 using wiretape::detail::PayloadView;
-using wiretape::detail::SessionCursor;
 
 namespace {
 
@@ -56,18 +56,19 @@ void write_session(const std::string& path) {
   writer.close();
 }
 
-TEST(SessionCursor, HeldViewsStayIntactAndMatchTheReader) {
+TEST(SessionViews, HeldViewsStayIntactAndMatchTheReader) {
   TempDir dir;
   const std::string path = dir.file("mixed.wtape");
   write_session(path);
-  SessionCursor cursor(path);
+  SessionHeader header;
+  auto cursor = detail::open_session_source(path, header);
   Record record;
   PayloadView view;
   // Every view kept until the end, with its record's number.
   std::vector<std::pair<std::size_t, PayloadView>> held;
   std::size_t count = 0;
   const auto all = sizes();
-  while (cursor.next(record, view)) {
+  while (cursor->next(record, view)) {
     ASSERT_LT(count, all.size());
     if (view) {
       EXPECT_TRUE(record.data.empty());
@@ -78,7 +79,7 @@ TEST(SessionCursor, HeldViewsStayIntactAndMatchTheReader) {
     }
     ++count;
   }
-  EXPECT_FALSE(cursor.damage());
+  EXPECT_FALSE(cursor->damage());
   EXPECT_EQ(count, all.size());
   std::size_t viewable = 0;
   for (std::size_t size : all) {
@@ -89,13 +90,13 @@ TEST(SessionCursor, HeldViewsStayIntactAndMatchTheReader) {
   }
   EXPECT_EQ(held.size(), viewable);
   EXPECT_GT(viewable, all.size() / 3);
-  // The bytes are still right after the cursor went on through many refills.
+  // The bytes are still right after the source went on through many refills.
   for (const auto& [index, kept] : held) {
     EXPECT_EQ(std::string(kept.bytes), payload(index, all[index])) << "record " << index;
   }
 }
 
-TEST(SessionCursor, CorruptViewedPayloadStopsThereLikeTheReader) {
+TEST(SessionViews, CorruptViewedPayloadStopsThereLikeTheReader) {
   TempDir dir;
   const std::string path = dir.file("bad.wtape");
   write_session(path);
@@ -108,22 +109,23 @@ TEST(SessionCursor, CorruptViewedPayloadStopsThereLikeTheReader) {
   bytes[at + 16 + 100] ^= 0x20;
   write_file(path, bytes);
 
-  SessionCursor cursor(path);
+  SessionHeader header;
+  auto cursor = detail::open_session_source(path, header);
   Record record;
   PayloadView view;
   int count = 0;
-  while (cursor.next(record, view)) ++count;
+  while (cursor->next(record, view)) ++count;
   EXPECT_EQ(count, 3);
-  ASSERT_TRUE(cursor.damage());
-  EXPECT_EQ(cursor.damage()->offset(), at);
-  EXPECT_NE(std::string(cursor.damage()->what()).find("CRC32C"), std::string::npos);
+  ASSERT_TRUE(cursor->damage());
+  EXPECT_EQ(cursor->damage()->offset(), at);
+  EXPECT_NE(std::string(cursor->damage()->what()).find("CRC32C"), std::string::npos);
   EXPECT_FALSE(view);
 
   SessionReader reader(path);
   int reader_count = 0;
   while (reader.next(record)) ++reader_count;
   EXPECT_EQ(reader_count, count);
-  EXPECT_EQ(std::string(reader.damage()->what()), std::string(cursor.damage()->what()));
+  EXPECT_EQ(std::string(reader.damage()->what()), std::string(cursor->damage()->what()));
 }
 
 }  // namespace
