@@ -54,6 +54,28 @@ struct SerialSettings {
   }
 };
 
+// What a port can do, asked of the port (Port::capabilities()) instead of
+// guessed from its type() or description(). Every field is false unless the
+// port type says otherwise, so a new port type starts out conservative.
+//   serial_settings   configure()/set_baud()/serial_settings() act on a line
+//                     (serial; replay emulates one)
+//   terminal_settings serial_settings() reports what a client programmed on
+//                     its terminal (pty), to be mirrored onto a device
+//   modem_lines       set_dtr/set_rts and cts/dsr/ri/cd work (serial; replay)
+//   send_break        send_break() works (serial; replay)
+//   datagrams         reads and writes keep message boundaries (udp)
+//   output_pollable   native_handle() polls writable exactly when a write
+//                     would not block (descriptor-backed ports); otherwise a
+//                     write that took nothing is retried on a timer
+struct PortCapabilities {
+  bool serial_settings = false;
+  bool terminal_settings = false;
+  bool modem_lines = false;
+  bool send_break = false;
+  bool datagrams = false;
+  bool output_pollable = false;
+};
+
 class Port {
  public:
   virtual ~Port();
@@ -114,6 +136,8 @@ class Port {
   // A file descriptor that polls readable exactly when available() > 0 (or
   // the device is gone); -1 only after close().
   virtual int native_handle() const = 0;
+  // What this port can do (see PortCapabilities); none of it by default.
+  virtual PortCapabilities capabilities() const { return {}; }
 
   // --- serial line control (PortError ENOTSUP where the port has none) ----
   virtual void set_baud(unsigned baud);

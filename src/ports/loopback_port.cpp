@@ -66,6 +66,7 @@ class LoopbackPort final : public Port {
   }
   std::string description() const override { return "loopback"; }
   std::string type() const override { return "loopback"; }
+  PortCapabilities capabilities() const override { return {}; }
   int native_handle() const override {
     std::lock_guard<std::mutex> lock(mutex_);
     return signal_read_.get();

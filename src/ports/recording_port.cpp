@@ -73,6 +73,7 @@ class RecordingPort final : public Port {
   bool is_open() const override { return inner_->is_open(); }
   std::string description() const override { return inner_->description(); }
   std::string type() const override { return inner_->type(); }
+  PortCapabilities capabilities() const override { return inner_->capabilities(); }
   int native_handle() const override { return inner_->native_handle(); }
 
   void set_baud(unsigned baud) override {

@@ -28,6 +28,7 @@ class PtyPort final : public FdPort {
   ~PtyPort() override { close(); }
 
   std::string type() const override { return "pty"; }
+  PortCapabilities capabilities() const override { PortCapabilities c; c.terminal_settings = c.output_pollable = true; return c; }
 
   // What the client set on the terminal. Linux forces 8 data bits and no
   // parity on a pty, so only the rate and stop bits carry information there.

@@ -34,6 +34,7 @@ class SerialPort final : public FdPort {
   ~SerialPort() override { close(); }
 
   std::string type() const override { return "serial"; }
+  PortCapabilities capabilities() const override { PortCapabilities c; c.serial_settings = c.modem_lines = c.send_break = c.output_pollable = true; return c; }
 
  protected:
   // A pseudo-terminal outlives its clients (its master keeps it), and so

@@ -21,6 +21,7 @@ class TcpPort final : public SocketPort {
       : SocketPort(std::move(fd), std::move(description)) {}
   ~TcpPort() override { close(); }
   std::string type() const override { return "tcp"; }
+  PortCapabilities capabilities() const override { PortCapabilities c; c.output_pollable = true; return c; }
 };
 
 std::string seconds_text(Timeout timeout) {

@@ -26,6 +26,7 @@ class UdpPort final : public SocketPort {
         destination_length_(length) {}
   ~UdpPort() override { close(); }
   std::string type() const override { return "udp"; }
+  PortCapabilities capabilities() const override { PortCapabilities c; c.datagrams = c.output_pollable = true; return c; }
 
  protected:
   bool zero_read_is_end_of_file() const override { return false; }

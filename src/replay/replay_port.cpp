@@ -160,6 +160,7 @@ class ReplayPort final : public Port {
   }
   std::string description() const override { return description_; }
   std::string type() const override { return "replay"; }
+  PortCapabilities capabilities() const override { PortCapabilities c; c.serial_settings = c.modem_lines = c.send_break = true; return c; }
   int native_handle() const override {
     std::lock_guard<std::mutex> lock(mutex_);
     return signal_read_.get();
