@@ -10,6 +10,7 @@
 #include "core/open_port.hpp"
 #include "posix/fd_port.hpp"
 #include "posix/platform.hpp"
+#include "posix/pty_terminal.hpp"
 #include "posix/termios_settings.hpp"
 #include "wiretape/errors.hpp"
 
@@ -39,6 +40,8 @@ class PtyPort final : public FdPort {
     }
     return line_settings_of(settings, current_baud(terminal_.get(), settings));
   }
+
+  const std::string& terminal_path() const { return path_; }
 
   void set_dtr(bool) override { no_modem_lines(); }
   void set_rts(bool) override { no_modem_lines(); }
@@ -80,6 +83,11 @@ class PtyPort final : public FdPort {
 };
 
 }  // namespace
+
+std::string pty_terminal_path(const Port& port) {
+  const auto* pty = dynamic_cast<const PtyPort*>(&port);
+  return pty ? pty->terminal_path() : std::string();
+}
 
 std::unique_ptr<Port> open_pty(Options& options) {
   const std::string link = options.take_string("link", "");

@@ -85,6 +85,10 @@ Table make_real() {
     return ::getsockname(fd, address, length);
   };
   t.shutdown = [](int fd, int how) { return ::shutdown(fd, how); };
+  t.accept4 = [](int fd, sockaddr* address, socklen_t* length, int flags) {
+    return ::accept4(fd, address, length, flags);
+  };
+  t.pipe2 = [](int fds[2], int flags) { return ::pipe2(fds, flags); };
   return t;
 }
 

@@ -57,6 +57,11 @@ struct Table {
       getsockopt;
   std::function<int(int fd, sockaddr* address, socklen_t* length)> getsockname;
   std::function<int(int fd, int how)> shutdown;
+  // With the flags the bridge needs set atomically (non-blocking,
+  // close-on-exec).
+  std::function<int(int fd, sockaddr* address, socklen_t* length, int flags)>
+      accept4;
+  std::function<int(int fds[2], int flags)> pipe2;
 };
 
 // The real libc calls.
@@ -153,6 +158,10 @@ inline int getsockname(int fd, sockaddr* address, socklen_t* length) {
   return current().getsockname(fd, address, length);
 }
 inline int shutdown(int fd, int how) { return current().shutdown(fd, how); }
+inline int accept4(int fd, sockaddr* address, socklen_t* length, int flags) {
+  return current().accept4(fd, address, length, flags);
+}
+inline int pipe2(int fds[2], int flags) { return current().pipe2(fds, flags); }
 
 // Closes a descriptor once, keeping errno (for clean-up paths).
 void close_quietly(int fd);

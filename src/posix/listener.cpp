@@ -1,0 +1,116 @@
+#include "posix/listener.hpp"
+
+#include <netdb.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+
+#include <cerrno>
+#include <cstring>
+#include <memory>
+
+#include "posix/platform.hpp"
+#include "wiretape/errors.hpp"
+
+namespace wiretape::detail {
+
+namespace {
+
+std::string address_of(const sockaddr* address, socklen_t length) {
+  char host[NI_MAXHOST] = "";
+  char service[NI_MAXSERV] = "";
+  if (::getnameinfo(address, length, host, sizeof host, service, sizeof service,
+                    NI_NUMERICHOST | NI_NUMERICSERV) != 0) {
+    return "?";
+  }
+  if (address->sa_family == AF_INET6) {
+    return std::string("[") + host + "]:" + service;
+  }
+  return std::string(host) + ":" + service;
+}
+
+[[noreturn]] void raise_errno(const std::string& what) {
+  const int error = errno;
+  throw PortError(error, what + ": " + std::strerror(error));
+}
+
+Transfer failed_or_would_block(int error) {
+  Transfer transfer;
+  if (error == EAGAIN || error == EWOULDBLOCK || error == EINTR) {
+    transfer.status = Transfer::Status::would_block;
+  } else {
+    transfer.status = Transfer::Status::failed;
+    transfer.error = error;
+  }
+  return transfer;
+}
+
+}  // namespace
+
+Transfer Connection::receive(void* buffer, std::size_t size) {
+  const ssize_t got = sys::recv(fd_.get(), buffer, size, 0);
+  if (got < 0) return failed_or_would_block(errno);
+  Transfer transfer;
+  if (got == 0) {
+    transfer.status = Transfer::Status::closed;
+    return transfer;
+  }
+  transfer.bytes = static_cast<std::size_t>(got);
+  return transfer;
+}
+
+Transfer Connection::send(const void* data, std::size_t size) {
+  const ssize_t sent = sys::send(fd_.get(), data, size,
+                                 platform::no_sigpipe_send_flags() | MSG_DONTWAIT);
+  if (sent < 0) return failed_or_would_block(errno);
+  Transfer transfer;
+  transfer.bytes = static_cast<std::size_t>(sent);
+  return transfer;
+}
+
+Listener::Listener(const std::string& host, int port) {
+  addrinfo hints{};
+  hints.ai_family = AF_UNSPEC;
+  hints.ai_socktype = SOCK_STREAM;
+  hints.ai_flags = AI_PASSIVE | AI_NUMERICSERV;
+  addrinfo* found = nullptr;
+  const std::string port_text = std::to_string(port);
+  const std::string where = "listen " + host + ":" + port_text;
+  const int status = ::getaddrinfo(host.empty() ? nullptr : host.c_str(),
+                                   port_text.c_str(), &hints, &found);
+  if (status != 0) {
+    throw PortError(EINVAL, where + ": cannot resolve the host: " + ::gai_strerror(status));
+  }
+  std::unique_ptr<addrinfo, void (*)(addrinfo*)> list(found, ::freeaddrinfo);
+  sys::UniqueFd fd(sys::socket(found->ai_family,
+                               found->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC,
+                               found->ai_protocol));
+  if (!fd) raise_errno(where + ": socket");
+  const int on = 1;
+  sys::setsockopt(fd.get(), SOL_SOCKET, SO_REUSEADDR, &on, sizeof on);
+  if (sys::bind(fd.get(), found->ai_addr, found->ai_addrlen) != 0) raise_errno(where + ": bind");
+  if (sys::listen(fd.get(), 8) != 0) raise_errno(where + ": listen");
+  sockaddr_storage bound{};
+  socklen_t length = sizeof bound;
+  sys::getsockname(fd.get(), reinterpret_cast<sockaddr*>(&bound), &length);
+  address_ = address_of(reinterpret_cast<sockaddr*>(&bound), length);
+  fd_ = std::move(fd);
+}
+
+std::optional<Connection> Listener::accept() {
+  for (;;) {
+    sockaddr_storage peer{};
+    socklen_t length = sizeof peer;
+    sys::UniqueFd fd(sys::accept4(fd_.get(), reinterpret_cast<sockaddr*>(&peer), &length,
+                                  SOCK_NONBLOCK | SOCK_CLOEXEC));
+    if (!fd) {
+      if (errno == EINTR || errno == ECONNABORTED) continue;
+      return std::nullopt;  // EAGAIN: no more waiting; anything else is retried next time
+    }
+    platform::prevent_sigpipe(fd.get());
+    const int on = 1;
+    sys::setsockopt(fd.get(), IPPROTO_TCP, TCP_NODELAY, &on, sizeof on);
+    return Connection(std::move(fd), address_of(reinterpret_cast<sockaddr*>(&peer), length));
+  }
+}
+
+}  // namespace wiretape::detail
