@@ -4,41 +4,56 @@
 // every parser state is also crossed between reads.
 #include <cstdint>
 #include <cstdlib>
+#include <optional>
 #include <string>
 
 #include "bridge/rfc2217.hpp"
 
 namespace {
 
+using wiretape::FlowControl;
+using wiretape::Parity;
+using namespace wiretape::detail::rfc2217;
+
 // A device that takes every setting, as a serial port would.
-class FakeComPort final : public wiretape::detail::rfc2217::ComPort {
+class FakeComPort final : public ComPort {
  public:
-  std::uint32_t set_baud(std::uint32_t baud) override {
-    if (baud != 0) baud_ = baud;
+  std::uint32_t set_baud(std::optional<std::uint32_t> baud) override {
+    if (baud) baud_ = *baud;
     return baud_;
   }
-  std::uint8_t set_data_size(std::uint8_t bits) override {
-    if (bits >= 5 && bits <= 8) bits_ = bits;
+  int set_data_bits(std::optional<int> bits) override {
+    if (bits && (*bits < 5 || *bits > 8)) std::abort();  // the session filters these
+    if (bits) bits_ = *bits;
     return bits_;
   }
-  std::uint8_t set_parity(std::uint8_t code) override {
-    if (code >= 1 && code <= 5) parity_ = code;
+  Parity set_parity(std::optional<Parity> parity) override {
+    if (parity) parity_ = *parity;
     return parity_;
   }
-  std::uint8_t set_stop_size(std::uint8_t code) override {
-    if (code == 1 || code == 2) stop_ = code;
+  StopBits set_stop_bits(std::optional<StopBits> stop_bits) override {
+    if (stop_bits) stop_ = *stop_bits;
     return stop_;
   }
-  std::uint8_t set_control(std::uint8_t value) override { return value; }
-  void purge(std::uint8_t which) override {
-    if (which < 1 || which > 3) std::abort();  // the session filters these
+  FlowControl set_flow_control(std::optional<FlowControl> flow) override {
+    if (flow) flow_ = *flow;
+    return flow_;
   }
-  std::uint8_t modem_state() override { return 0x30; }
-  std::uint8_t line_state() override { return 0; }
+  bool set_break(std::optional<bool> on) override { return on.value_or(false); }
+  bool set_dtr(std::optional<bool> on) override { return on.value_or(true); }
+  bool set_rts(std::optional<bool> on) override { return on.value_or(true); }
+  void purge(bool from_device, bool for_device) override {
+    if (!from_device && !for_device) std::abort();  // the session filters these
+  }
+  ModemLines modem_lines() override { return {}; }
+  LineState line_state() override { return {}; }
 
  private:
   std::uint32_t baud_ = 9600;
-  std::uint8_t bits_ = 8, parity_ = 1, stop_ = 1;
+  int bits_ = 8;
+  Parity parity_ = Parity::none;
+  StopBits stop_ = StopBits::one;
+  FlowControl flow_ = FlowControl::none;
 };
 
 }  // namespace

@@ -6,6 +6,131 @@ namespace wiretape::detail::rfc2217 {
 
 namespace {
 
+// Telnet bytes (RFC 854/855) and the COM-PORT-OPTION (RFC 2217).
+namespace telnet {
+constexpr std::uint8_t se = 240, sb = 250, will = 251, wont = 252, do_ = 253,
+                       dont = 254, iac = 255;
+constexpr std::uint8_t binary = 0, echo = 1, sga = 3, com_port = 44;
+}  // namespace telnet
+
+// Client -> server commands; the server answers with command + 100.
+enum Command : std::uint8_t {
+  set_baudrate = 1,
+  set_datasize = 2,
+  set_parity = 3,
+  set_stopsize = 4,
+  set_control = 5,
+  notify_linestate = 6,
+  notify_modemstate = 7,
+  flowcontrol_suspend = 8,
+  flowcontrol_resume = 9,
+  set_linestate_mask = 10,
+  set_modemstate_mask = 11,
+  purge_data = 12,
+};
+constexpr std::uint8_t server_reply_offset = 100;
+
+// SET-CONTROL values.
+namespace control {
+constexpr std::uint8_t ask_flow = 0, flow_none = 1, flow_xonxoff = 2, flow_rtscts = 3,
+                       ask_break = 4, break_on = 5, break_off = 6, ask_dtr = 7, dtr_on = 8,
+                       dtr_off = 9, ask_rts = 10, rts_on = 11, rts_off = 12,
+                       ask_inbound_flow = 13, inbound_flow_none = 14;
+}  // namespace control
+
+// Purge: 1 the server's receive buffer (data from the device), 2 its
+// transmit buffer (data for the device), 3 both.
+constexpr std::uint8_t purge_receive = 1, purge_transmit = 2;
+
+std::optional<Parity> parity_of(std::uint8_t code) {
+  switch (code) {
+    case 1: return Parity::none;
+    case 2: return Parity::odd;
+    case 3: return Parity::even;
+    case 4: return Parity::mark;
+    case 5: return Parity::space;
+    default: return std::nullopt;
+  }
+}
+
+std::uint8_t code_of(Parity parity) {
+  switch (parity) {
+    case Parity::none: return 1;
+    case Parity::odd: return 2;
+    case Parity::even: return 3;
+    case Parity::mark: return 4;
+    case Parity::space: return 5;
+  }
+  return 1;
+}
+
+std::optional<StopBits> stop_bits_of(std::uint8_t code) {
+  switch (code) {
+    case 1: return StopBits::one;
+    case 2: return StopBits::two;
+    case 3: return StopBits::one_and_a_half;
+    default: return std::nullopt;
+  }
+}
+
+std::uint8_t code_of(StopBits stop_bits) {
+  switch (stop_bits) {
+    case StopBits::one: return 1;
+    case StopBits::two: return 2;
+    case StopBits::one_and_a_half: return 3;
+  }
+  return 1;
+}
+
+std::uint8_t code_of(FlowControl flow) {
+  switch (flow) {
+    case FlowControl::none: return control::flow_none;
+    case FlowControl::xonxoff: return control::flow_xonxoff;
+    case FlowControl::rtscts: return control::flow_rtscts;
+  }
+  return control::flow_none;
+}
+
+std::uint8_t code_of(const ModemLines& lines) {
+  return static_cast<std::uint8_t>((lines.cd ? 0x80 : 0) | (lines.ri ? 0x40 : 0) |
+                                   (lines.dsr ? 0x20 : 0) | (lines.cts ? 0x10 : 0));
+}
+
+std::uint8_t code_of(const LineState& state) {
+  return static_cast<std::uint8_t>(
+      (state.timeout ? 0x80 : 0) | (state.shift_register_empty ? 0x40 : 0) |
+      (state.holding_register_empty ? 0x20 : 0) | (state.break_detected ? 0x10 : 0) |
+      (state.framing_error ? 0x08 : 0) | (state.parity_error ? 0x04 : 0) |
+      (state.overrun_error ? 0x02 : 0) | (state.data_ready ? 0x01 : 0));
+}
+
+// A SET-CONTROL request: the setting it names, answered with the value now
+// in effect.
+std::uint8_t apply_control(ComPort& port, std::uint8_t value) {
+  using namespace control;
+  const auto level = [](bool on, std::uint8_t on_code, std::uint8_t off_code) {
+    return on ? on_code : off_code;
+  };
+  switch (value) {
+    case ask_flow: return code_of(port.set_flow_control(std::nullopt));
+    case flow_none: return code_of(port.set_flow_control(FlowControl::none));
+    case flow_xonxoff: return code_of(port.set_flow_control(FlowControl::xonxoff));
+    case flow_rtscts: return code_of(port.set_flow_control(FlowControl::rtscts));
+    case ask_break: return level(port.set_break(std::nullopt), break_on, break_off);
+    case break_on:
+    case break_off: return level(port.set_break(value == break_on), break_on, break_off);
+    case ask_dtr: return level(port.set_dtr(std::nullopt), dtr_on, dtr_off);
+    case dtr_on:
+    case dtr_off: return level(port.set_dtr(value == dtr_on), dtr_on, dtr_off);
+    case ask_rts: return level(port.set_rts(std::nullopt), rts_on, rts_off);
+    case rts_on:
+    case rts_off: return level(port.set_rts(value == rts_on), rts_on, rts_off);
+    // Inbound flow control follows the outbound one.
+    case ask_inbound_flow: return inbound_flow_none;
+    default: return value;
+  }
+}
+
 void append_escaped(std::string& out, std::uint8_t byte) {
   out.push_back(static_cast<char>(byte));
   if (byte == telnet::iac) out.push_back(static_cast<char>(byte));
@@ -171,7 +296,8 @@ void ServerSession::maybe_announce(std::string& out) {
   // as soon as the option is agreed.
   if (!announced_ && com_port_active()) {
     announced_ = true;
-    reply(notify_modemstate, std::string(1, static_cast<char>(port_.modem_state())), out);
+    reply(notify_modemstate, std::string(1, static_cast<char>(code_of(port_.modem_lines()))),
+          out);
   }
 }
 
@@ -179,7 +305,7 @@ std::string ServerSession::modem_state_notification() {
   std::string out;
   if (com_port_active()) {
     reply(notify_modemstate,
-          std::string(1, static_cast<char>(port_.modem_state() & modemstate_mask_)),
+          std::string(1, static_cast<char>(code_of(port_.modem_lines()) & modemstate_mask_)),
           out);
   }
   return out;
@@ -213,7 +339,8 @@ void ServerSession::subnegotiation(std::string& out) {
       if (value.size() != 4) return;
       std::uint32_t baud = 0;
       for (char c : value) baud = (baud << 8) | static_cast<std::uint8_t>(c);
-      const std::uint32_t now = port_.set_baud(baud);
+      const std::uint32_t now =
+          port_.set_baud(baud == 0 ? std::nullopt : std::optional<std::uint32_t>(baud));
       std::string answer(4, '\0');
       for (int i = 0; i < 4; ++i) {
         answer[static_cast<std::size_t>(i)] = static_cast<char>((now >> (8 * (3 - i))) & 0xff);
@@ -222,24 +349,30 @@ void ServerSession::subnegotiation(std::string& out) {
       return;
     }
     case set_datasize:
-      if (auto v = byte_value()) reply(command, one(port_.set_data_size(*v)), out);
+      if (auto v = byte_value()) {
+        const std::optional<int> bits =
+            *v >= 5 && *v <= 8 ? std::optional<int>(*v) : std::nullopt;
+        reply(command, one(static_cast<std::uint8_t>(port_.set_data_bits(bits))), out);
+      }
       return;
     case set_parity:
-      if (auto v = byte_value()) reply(command, one(port_.set_parity(*v)), out);
+      if (auto v = byte_value()) reply(command, one(code_of(port_.set_parity(parity_of(*v)))), out);
       return;
     case set_stopsize:
-      if (auto v = byte_value()) reply(command, one(port_.set_stop_size(*v)), out);
+      if (auto v = byte_value()) {
+        reply(command, one(code_of(port_.set_stop_bits(stop_bits_of(*v)))), out);
+      }
       return;
     case set_control:
-      if (auto v = byte_value()) reply(command, one(port_.set_control(*v)), out);
+      if (auto v = byte_value()) reply(command, one(apply_control(port_, *v)), out);
       return;
     // A client that asks gets the whole state; the masks filter only what
     // the server sends unasked.
     case notify_linestate:
-      reply(command, one(port_.line_state()), out);
+      reply(command, one(code_of(port_.line_state())), out);
       return;
     case notify_modemstate:
-      reply(command, one(port_.modem_state()), out);
+      reply(command, one(code_of(port_.modem_lines())), out);
       return;
     case flowcontrol_suspend:
       suspended_ = true;
@@ -261,7 +394,7 @@ void ServerSession::subnegotiation(std::string& out) {
       return;
     case purge_data:
       if (auto v = byte_value()) {
-        if (*v >= 1 && *v <= 3) port_.purge(*v);
+        if (*v >= 1 && *v <= 3) port_.purge(*v & purge_receive, *v & purge_transmit);
         reply(command, one(*v), out);
       }
       return;

@@ -3,6 +3,9 @@
 // and the Telnet answers for the client. Kept free of sockets so that it can
 // be fuzzed (fuzz/rfc2217_fuzz.cpp) and tested byte for byte.
 //
+// The protocol's codes (Telnet commands, COM-PORT-OPTION subcommands and
+// their values) live in rfc2217.cpp alone; the bridge sees typed settings.
+//
 // Hostile input is bounded: a subnegotiation longer than
 // kMaxSubnegotiation bytes is dropped whole, unknown commands and options
 // are refused or ignored, and no input makes the parser allocate more than
@@ -11,56 +14,59 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
+
+#include "wiretape/port.hpp"
 
 namespace wiretape::detail::rfc2217 {
 
-// Telnet bytes (RFC 854/855) and the COM-PORT-OPTION (RFC 2217).
-namespace telnet {
-constexpr std::uint8_t se = 240, sb = 250, will = 251, wont = 252, do_ = 253,
-                       dont = 254, iac = 255;
-constexpr std::uint8_t binary = 0, echo = 1, sga = 3, com_port = 44;
-}  // namespace telnet
-
-// Client -> server commands; the server answers with command + 100.
-enum Command : std::uint8_t {
-  set_baudrate = 1,
-  set_datasize = 2,
-  set_parity = 3,
-  set_stopsize = 4,
-  set_control = 5,
-  notify_linestate = 6,
-  notify_modemstate = 7,
-  flowcontrol_suspend = 8,
-  flowcontrol_resume = 9,
-  set_linestate_mask = 10,
-  set_modemstate_mask = 11,
-  purge_data = 12,
+// The modem inputs RFC 2217 reports (NOTIFY-MODEMSTATE's upper bits).
+struct ModemLines {
+  bool cts = false;
+  bool dsr = false;
+  bool ri = false;
+  bool cd = false;
+  bool operator==(const ModemLines& other) const {
+    return cts == other.cts && dsr == other.dsr && ri == other.ri && cd == other.cd;
+  }
+  bool operator!=(const ModemLines& other) const { return !(*this == other); }
 };
-constexpr std::uint8_t server_reply_offset = 100;
 
-// RFC 2217 parity codes: 1 none, 2 odd, 3 even, 4 mark, 5 space.
-// Stop size codes: 1 one, 2 two, 3 one and a half.
-// SET-CONTROL values used here: 1 no flow control, 2 xon/xoff, 3 rts/cts,
-// 5/6 break on/off, 8/9 DTR on/off, 11/12 RTS on/off; 0, 4, 7, 10 ask.
-// Purge: 1 the server's receive buffer (data from the device), 2 its
-// transmit buffer (data for the device), 3 both.
-// Modem state bits: 0x80 CD, 0x40 RI, 0x20 DSR, 0x10 CTS.
+// The line state RFC 2217 reports (NOTIFY-LINESTATE).
+struct LineState {
+  bool timeout = false;
+  bool shift_register_empty = false;
+  bool holding_register_empty = false;
+  bool break_detected = false;
+  bool framing_error = false;
+  bool parity_error = false;
+  bool overrun_error = false;
+  bool data_ready = false;
+};
 
-// What a session asks of the device. Each setter receives the client's
-// value (0 asks for the current one) and returns the value now in effect,
-// which is what the client is told.
+enum class StopBits { one, two, one_and_a_half };
+
+// What a session asks of the device, in the line's own terms: the protocol's
+// codes never leave this module. Each setter receives what the client asked
+// for (nullopt when it only asks what is in effect, or sent a value it has no
+// meaning for) and returns what is in effect now, which the client is told.
 class ComPort {
  public:
   virtual ~ComPort() = default;
-  virtual std::uint32_t set_baud(std::uint32_t baud) = 0;
-  virtual std::uint8_t set_data_size(std::uint8_t bits) = 0;
-  virtual std::uint8_t set_parity(std::uint8_t code) = 0;
-  virtual std::uint8_t set_stop_size(std::uint8_t code) = 0;
-  virtual std::uint8_t set_control(std::uint8_t value) = 0;
-  virtual void purge(std::uint8_t which) = 0;
-  virtual std::uint8_t modem_state() = 0;
-  virtual std::uint8_t line_state() = 0;
+  virtual std::uint32_t set_baud(std::optional<std::uint32_t> baud) = 0;
+  virtual int set_data_bits(std::optional<int> bits) = 0;
+  virtual Parity set_parity(std::optional<Parity> parity) = 0;
+  virtual StopBits set_stop_bits(std::optional<StopBits> stop_bits) = 0;
+  virtual FlowControl set_flow_control(std::optional<FlowControl> flow) = 0;
+  virtual bool set_break(std::optional<bool> on) = 0;
+  virtual bool set_dtr(std::optional<bool> on) = 0;
+  virtual bool set_rts(std::optional<bool> on) = 0;
+  // Drops data the server holds: what came from the device and is not yet
+  // sent to the client, and/or what is waiting to be written to the device.
+  virtual void purge(bool from_device, bool for_device) = 0;
+  virtual ModemLines modem_lines() = 0;
+  virtual LineState line_state() = 0;
 };
 
 constexpr std::size_t kMaxSubnegotiation = 64;

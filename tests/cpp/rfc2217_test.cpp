@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -10,7 +11,12 @@
 
 namespace {
 
+using wiretape::FlowControl;
+using wiretape::Parity;
 using wiretape::detail::rfc2217::ComPort;
+using wiretape::detail::rfc2217::LineState;
+using wiretape::detail::rfc2217::ModemLines;
+using wiretape::detail::rfc2217::StopBits;
 using wiretape::detail::rfc2217::ServerSession;
 
 std::string bytes(std::initializer_list<int> values) {
@@ -21,33 +27,57 @@ std::string bytes(std::initializer_list<int> values) {
 
 class RecordingComPort final : public ComPort {
  public:
-  std::uint32_t set_baud(std::uint32_t baud) override {
-    calls.push_back("baud " + std::to_string(baud));
-    if (baud != 0) this->baud = baud;
+  std::uint32_t set_baud(std::optional<std::uint32_t> baud) override {
+    calls.push_back("baud " + (baud ? std::to_string(*baud) : std::string("?")));
+    if (baud) this->baud = *baud;
     return this->baud;
   }
-  std::uint8_t set_data_size(std::uint8_t bits) override {
-    calls.push_back("datasize " + std::to_string(bits));
-    return bits == 0 ? 8 : bits;
+  int set_data_bits(std::optional<int> bits) override {
+    calls.push_back("datasize " + (bits ? std::to_string(*bits) : std::string("?")));
+    return bits.value_or(8);
   }
-  std::uint8_t set_parity(std::uint8_t code) override {
-    calls.push_back("parity " + std::to_string(code));
-    return code == 0 ? 1 : code;
+  Parity set_parity(std::optional<Parity> parity) override {
+    calls.push_back(std::string("parity ") + (parity ? to_string(*parity) : "?"));
+    return parity.value_or(Parity::none);
   }
-  std::uint8_t set_stop_size(std::uint8_t code) override {
-    calls.push_back("stopsize " + std::to_string(code));
-    return code == 3 ? 1 : code;  // 1.5 refused: still one
+  StopBits set_stop_bits(std::optional<StopBits> stop_bits) override {
+    calls.push_back(std::string("stopsize ") +
+                    (stop_bits == StopBits::one_and_a_half ? "1.5"
+                     : stop_bits == StopBits::two          ? "2"
+                     : stop_bits == StopBits::one          ? "1"
+                                                           : "?"));
+    return stop_bits == StopBits::two ? StopBits::two : StopBits::one;  // 1.5 refused
   }
-  std::uint8_t set_control(std::uint8_t value) override {
-    calls.push_back("control " + std::to_string(value));
-    return value;
+  FlowControl set_flow_control(std::optional<FlowControl> flow) override {
+    calls.push_back(std::string("flow ") + (flow ? to_string(*flow) : "?"));
+    return flow.value_or(FlowControl::none);
   }
-  void purge(std::uint8_t which) override { calls.push_back("purge " + std::to_string(which)); }
-  std::uint8_t modem_state() override { return 0x30; }
-  std::uint8_t line_state() override { return 0x60; }
+  bool set_break(std::optional<bool> on) override { return level("break", on); }
+  bool set_dtr(std::optional<bool> on) override { return level("dtr", on); }
+  bool set_rts(std::optional<bool> on) override { return level("rts", on); }
+  void purge(bool from_device, bool for_device) override {
+    calls.push_back(std::string("purge") + (from_device ? " from_device" : "") +
+                    (for_device ? " for_device" : ""));
+  }
+  ModemLines modem_lines() override {
+    ModemLines lines;
+    lines.cts = lines.dsr = true;  // 0x30
+    return lines;
+  }
+  LineState line_state() override {
+    LineState state;
+    state.shift_register_empty = state.holding_register_empty = true;  // 0x60
+    return state;
+  }
 
   std::uint32_t baud = 9600;
   std::vector<std::string> calls;
+
+ private:
+  bool level(const char* line, std::optional<bool> on) {
+    calls.push_back(std::string(line) + (on ? (*on ? " on" : " off") : " ?"));
+    return on.value_or(true);
+  }
 };
 
 struct Fed {
@@ -133,8 +163,8 @@ TEST(Rfc2217, LineSettingsControlAndPurge) {
                                        255, 250, 44, 5, 9, 255, 240,     // DTR off
                                        255, 250, 44, 12, 1, 255, 240,    // purge rx
                                        255, 250, 44, 12, 9, 255, 240})); // bad purge
-  EXPECT_EQ(port.calls, (std::vector<std::string>{"datasize 7", "parity 3", "stopsize 3",
-                                                  "control 9", "purge 1"}));
+  EXPECT_EQ(port.calls, (std::vector<std::string>{"datasize 7", "parity even", "stopsize 1.5",
+                                                  "dtr off", "purge from_device"}));
   EXPECT_EQ(fed.to_client, bytes({255, 250, 44, 102, 7, 255, 240,
                                   255, 250, 44, 103, 3, 255, 240,
                                   255, 250, 44, 104, 1, 255, 240,  // refused: still 1

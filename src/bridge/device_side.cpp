@@ -1,0 +1,336 @@
+#include "bridge/device_side.hpp"
+
+#include <algorithm>
+#include <cerrno>
+#include <cstdio>
+
+#include "util/json.hpp"
+#include "wiretape/errors.hpp"
+
+namespace wiretape::detail::bridge {
+
+namespace {
+
+std::string settings_text(const SerialSettings& s) {
+  char text[96];
+  std::snprintf(text, sizeof text, "%u %d%c%d flow=%s", s.baud, s.data_bits,
+                "NEOMS"[static_cast<int>(s.parity)], s.stop_bits, to_string(s.flow));
+  return text;
+}
+
+bool is_unsupported(const PortError& error) {
+  const int code = error.code().value();
+  return code == ENOTSUP || code == ENOTTY || code == EINVAL || code == ENOSYS;
+}
+
+}  // namespace
+
+// --- the device ----------------------------------------------------------------------
+
+void DeviceSide::open(bool first, const char* why) {
+  device_ = open_port(options_.device);
+  // Never block the loop: writes take what the device accepts now.
+  device_->set_timeout(std::chrono::nanoseconds(0));
+  last_modem_inputs_.reset();
+  modem_inputs_unreadable_ = false;
+  if (first) t0_ = Clock::now();
+  description_ = device_->description();
+  status_.set(&Status::device_description, description_);
+  try {
+    virtual_settings_ = device_->serial_settings();
+  } catch (const PortError&) {
+  }
+  json::ObjectWriter event;
+  event.add("description", description_);
+  if (why) event.add(why, true);
+  // Time zero is the device's first open.
+  record_at(RecordKind::open, first ? 0 : now_ns(), event.str());
+}
+
+void DeviceSide::open_session_file() {
+  if (options_.output.empty()) return;
+  SessionWriterOptions writer_options;
+  writer_options.capture = Capture::wire;
+  writer_options.port_options = options_.device;
+  writer_options.port_type = device_->type();
+  writer_options.metadata = options_.metadata;
+  writer_options.flush_ms = options_.flush_ms;
+  writer_ = std::make_unique<SessionWriter>(options_.output, std::move(writer_options));
+  // Time zero is the device's open, which came just before the file.
+  record_at(RecordKind::open, 0, json::ObjectWriter().add("description", description_).str());
+}
+
+PortCapabilities DeviceSide::capabilities() const {
+  return device_ ? device_->capabilities() : PortCapabilities{};
+}
+
+void DeviceSide::lost(const std::string& reason) {
+  if (!device_) return;
+  record(RecordKind::device_lost, json::ObjectWriter().add("error", reason).str());
+  status_.update_stats([](BridgeStats& s) { ++s.device_losses; });
+  status_.message("the device (" + description_ + ") went away: " + reason);
+  try {
+    device_->close();
+  } catch (const ReplayMismatch&) {
+    throw;
+  } catch (const std::exception&) {
+  }
+  device_.reset();
+  to_device_.clear();
+  if (on_lost_) on_lost_(reason);
+}
+
+void DeviceSide::restart() {
+  if (device_) {
+    record(RecordKind::close, "{}");
+    device_->close();
+    device_.reset();
+  }
+  to_device_.clear();
+  open(false, "restarted");
+  status_.message("a new client: the device starts over");
+}
+
+void DeviceSide::shut_down(BridgeOutcome& outcome, std::string& message) {
+  if (device_) {
+    try {
+      record(RecordKind::close, "{}");
+    } catch (const std::exception&) {
+    }
+    try {
+      device_->close();
+    } catch (const ReplayMismatch& mismatch) {
+      if (outcome != BridgeOutcome::failed) {
+        outcome = BridgeOutcome::mismatch;
+        message = mismatch.what();
+      }
+    } catch (const std::exception& error) {
+      status_.message(std::string("closing the device: ") + error.what());
+    }
+    device_.reset();
+  }
+  if (writer_) {
+    try {
+      writer_->close();
+    } catch (const std::exception& error) {
+      if (outcome != BridgeOutcome::mismatch) {
+        outcome = BridgeOutcome::failed;
+        message = std::string("writing the session file: ") + error.what();
+      }
+    }
+  }
+}
+
+void DeviceSide::abandon() {
+  device_.reset();
+  if (writer_) {
+    try {
+      writer_->close();
+    } catch (...) {
+    }
+    writer_.reset();
+    std::remove(options_.output.c_str());
+  }
+}
+
+// --- recording ---------------------------------------------------------------------------
+
+std::uint64_t DeviceSide::now_ns() const {
+  return static_cast<std::uint64_t>(
+      std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - t0_).count());
+}
+
+void DeviceSide::record_at(RecordKind kind, std::uint64_t t_ns, std::string_view data) {
+  if (!writer_) return;
+  writer_->write(kind, t_ns, data);
+  status_.update_stats([](BridgeStats& s) { ++s.records_written; });
+}
+
+void DeviceSide::client_connected(const std::string& peer, const char* role) {
+  record(RecordKind::client_connect, json::ObjectWriter().add("peer", peer).add("role", role).str());
+  status_.update_stats([](BridgeStats& s) { ++s.clients_accepted; });
+}
+
+void DeviceSide::client_disconnected(const std::string& peer, const std::string& reason) {
+  record(RecordKind::client_disconnect,
+         json::ObjectWriter().add("peer", peer).add("reason", reason).str());
+}
+
+// --- client -> device ------------------------------------------------------------------
+
+std::size_t DeviceSide::room_for_client_data() const {
+  return options_.buffer_limit - std::min(options_.buffer_limit, to_device_.size());
+}
+
+void DeviceSide::send(const char* data, std::size_t size) {
+  if (!device_ || size == 0) return;
+  record(RecordKind::tx, std::string_view(data, size));
+  to_device_.append(data, size);
+  flush();
+}
+
+void DeviceSide::flush() {
+  while (device_ && !to_device_.empty()) {
+    std::size_t n = 0;
+    try {
+      n = device_->write(to_device_.data(), to_device_.size());
+    } catch (const PortClosed& closed) {
+      lost(closed.what());
+      return;
+    }
+    if (n == 0) return;
+    to_device_.consume(n);
+    status_.update_stats([n](BridgeStats& s) { s.bytes_to_device += n; });
+  }
+}
+
+// --- the line ----------------------------------------------------------------------------
+
+SerialSettings DeviceSide::current_settings() {
+  if (device_) {
+    try {
+      return device_->serial_settings();
+    } catch (const PortClosed&) {
+      throw;
+    } catch (const PortError&) {
+    }
+  }
+  return virtual_settings_;
+}
+
+bool DeviceSide::apply_settings(const SerialSettings& target, const char* source) {
+  // RFC 2217 clients send every setting on open: only changes are applied
+  // and recorded.
+  if (target == current_settings()) return true;
+  bool applied = false;
+  if (capabilities().serial_settings) {
+    try {
+      device_->configure(target);
+      applied = true;
+    } catch (const PortClosed&) {
+      throw;
+    } catch (const PortError& error) {
+      if (!is_unsupported(error) || error.code().value() == EINVAL) {
+        status_.message(std::string("the device refused ") + settings_text(target) + ": " +
+                        error.what());
+        return false;
+      }
+    }
+  }
+  // A device without line settings (tcp) keeps them as the client's view of
+  // the line.
+  virtual_settings_ = target;
+  status_.update_stats([](BridgeStats& s) { ++s.settings_changes; });
+  record(RecordKind::settings, json::ObjectWriter()
+                                   .add("baud", target.baud)
+                                   .add("databits", target.data_bits)
+                                   .add("stopbits", target.stop_bits)
+                                   .add("parity", to_string(target.parity))
+                                   .add("flow", to_string(target.flow))
+                                   .add("applied", applied)
+                                   .add("source", source)
+                                   .str());
+  status_.message(std::string(applied ? "device set to "
+                                      : "line set to (device has no line settings) ") +
+                  settings_text(target) + " by the " + source);
+  return true;
+}
+
+void DeviceSide::set_output_level(ModemOutput line, bool level) {
+  bool applied = false;
+  if (capabilities().modem_lines) {
+    try {
+      if (line == ModemOutput::dtr) device_->set_dtr(level);
+      else device_->set_rts(level);
+      applied = true;
+    } catch (const PortClosed&) {
+      throw;
+    } catch (const PortError&) {
+      // Acknowledged and noted, as for a device without modem lines.
+    }
+  }
+  (line == ModemOutput::dtr ? dtr_ : rts_) = level;
+  record(RecordKind::modem_lines, json::ObjectWriter()
+                                      .add(line == ModemOutput::dtr ? "dtr" : "rts", level)
+                                      .add("applied", applied)
+                                      .str());
+}
+
+void DeviceSide::start_break() {
+  if (!break_since_) break_since_ = Clock::now();
+}
+
+void DeviceSide::end_break() {
+  if (!break_since_) return;
+  // The Port sends a break of a given length: the time it was on.
+  auto on = std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - *break_since_);
+  on = std::clamp(on, std::chrono::milliseconds(1), std::chrono::milliseconds(2000));
+  break_since_.reset();
+  bool applied = false;
+  if (capabilities().send_break) {
+    try {
+      device_->send_break(on);
+      applied = true;
+    } catch (const PortClosed&) {
+      throw;
+    } catch (const PortError&) {
+    }
+  }
+  record(RecordKind::line_break, json::ObjectWriter()
+                                     .add("duration_ms", static_cast<std::int64_t>(on.count()))
+                                     .add("applied", applied)
+                                     .str());
+}
+
+void DeviceSide::purge(bool from_device, bool for_device) {
+  if (from_device) {
+    // What is already queued for a client stays: Telnet answers share that
+    // queue, and the client drops its own buffer anyway.
+    device_->flush_input();
+    record(RecordKind::flush_input, "{}");
+  }
+  if (for_device) {
+    device_->flush_output();
+    to_device_.clear();
+    record(RecordKind::flush_output, "{}");
+  }
+}
+
+std::optional<ModemInputs> DeviceSide::modem_inputs() {
+  if (!capabilities().modem_lines) return std::nullopt;
+  try {
+    ModemInputs inputs;
+    inputs.cd = device_->cd();
+    inputs.ri = device_->ri();
+    inputs.dsr = device_->dsr();
+    inputs.cts = device_->cts();
+    return inputs;
+  } catch (const PortClosed&) {
+    throw;
+  } catch (const PortError&) {
+    return std::nullopt;
+  }
+}
+
+bool DeviceSide::modem_inputs_watchable() const {
+  return device_ && capabilities().modem_lines && !modem_inputs_unreadable_;
+}
+
+bool DeviceSide::modem_inputs_changed() {
+  std::optional<ModemInputs> inputs;
+  try {
+    inputs = modem_inputs();
+  } catch (const PortClosed& closed) {
+    lost(closed.what());
+    return false;
+  }
+  if (!inputs) {
+    modem_inputs_unreadable_ = true;  // stop asking
+    return false;
+  }
+  if (last_modem_inputs_ == inputs) return false;
+  last_modem_inputs_ = inputs;
+  return true;
+}
+
+}  // namespace wiretape::detail::bridge

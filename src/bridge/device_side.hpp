@@ -1,0 +1,129 @@
+// The bridge's device side: the device port and what happens to it (open,
+// loss, reopen, restart), the queue of client data waiting for it, its line
+// state as clients see it, and the session file everything is recorded
+// into. Client endpoints and the RFC 2217 adapter act on the device through
+// this class alone; it is the one place that writes records.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "bridge/byte_queue.hpp"
+#include "bridge/status.hpp"
+#include "wiretape/bridge.hpp"
+#include "wiretape/port.hpp"
+#include "wiretape/session.hpp"
+
+namespace wiretape::detail::bridge {
+
+using Clock = std::chrono::steady_clock;
+
+// The device's modem inputs.
+struct ModemInputs {
+  bool cts = false;
+  bool dsr = false;
+  bool ri = false;
+  bool cd = false;
+  bool operator==(const ModemInputs& other) const {
+    return cts == other.cts && dsr == other.dsr && ri == other.ri && cd == other.cd;
+  }
+  bool operator!=(const ModemInputs& other) const { return !(*this == other); }
+};
+
+enum class ModemOutput { dtr, rts };
+
+class DeviceSide {
+ public:
+  // Called after the device went away and was closed, with the reason.
+  using LostHandler = std::function<void(const std::string& reason)>;
+
+  DeviceSide(const BridgeOptions& options, Status& status)
+      : options_(options), status_(status) {}
+
+  // --- the device ------------------------------------------------------------
+  // Opens the device from the options and records an open event (`why` names
+  // a reopen or restart); the first open is time zero. Throws when the device
+  // cannot be opened.
+  void open(bool first, const char* why);
+  // Starts the session file (if the options name one); call after the first
+  // open.
+  void open_session_file();
+  bool is_open() const { return device_ != nullptr; }
+  Port& port() { return *device_; }
+  PortCapabilities capabilities() const;
+  const std::string& description() const { return description_; }
+  void on_lost(LostHandler handler) { on_lost_ = std::move(handler); }
+  // The device went away: recorded, counted, closed; then the lost handler.
+  void lost(const std::string& reason);
+  // Closes the device and opens it again (a replay starts over).
+  void restart();
+  // Closes the device and the session file when the bridge ends, turning a
+  // replay's mismatch at close or a failed file into the bridge's outcome.
+  void shut_down(BridgeOutcome& outcome, std::string& message);
+  // Undoes a start that failed: nothing is left open, and no session file
+  // that holds nothing.
+  void abandon();
+
+  // --- recording -----------------------------------------------------------
+  std::uint64_t now_ns() const;
+  void record(RecordKind kind, std::string_view data) { record_at(kind, now_ns(), data); }
+  void record_at(RecordKind kind, std::uint64_t t_ns, std::string_view data);
+  // A client arriving and leaving, as every endpoint reports it.
+  void client_connected(const std::string& peer, const char* role);
+  void client_disconnected(const std::string& peer, const std::string& reason);
+
+  // --- client -> device ------------------------------------------------------
+  // How many more client bytes the queue to the device takes.
+  std::size_t room_for_client_data() const;
+  bool has_data_for_device() const { return !to_device_.empty(); }
+  // Client bytes for the device: recorded (tx), queued and written as far as
+  // the device takes them now. Dropped while the device is away.
+  void send(const char* data, std::size_t size);
+  // Writes what is queued, as far as the device takes it now.
+  void flush();
+
+  // --- the line ----------------------------------------------------------------
+  // The device's line settings, or for a device without any (tcp) the ones
+  // clients set.
+  SerialSettings current_settings();
+  // Applies `target` to the device (or to the virtual line), records it;
+  // false if the device refused. `source` names who asked, for the record.
+  bool apply_settings(const SerialSettings& target, const char* source);
+  bool output_level(ModemOutput line) const { return line == ModemOutput::dtr ? dtr_ : rts_; }
+  void set_output_level(ModemOutput line, bool level);
+  bool break_on() const { return break_since_.has_value(); }
+  void start_break();
+  // Sends a break as long as it was on, and records it.
+  void end_break();
+  void purge(bool from_device, bool for_device);
+  // The device's modem inputs; nothing where it has none.
+  std::optional<ModemInputs> modem_inputs();
+  // Whether watching the modem inputs for changes makes sense.
+  bool modem_inputs_watchable() const;
+  // True when the modem inputs changed since the last call.
+  bool modem_inputs_changed();
+
+ private:
+  const BridgeOptions& options_;
+  Status& status_;
+  std::unique_ptr<Port> device_;
+  std::string description_;
+  std::unique_ptr<SessionWriter> writer_;
+  Clock::time_point t0_;
+  ByteQueue to_device_;
+  LostHandler on_lost_;
+  // Line state for devices that have none (tcp): what clients set.
+  SerialSettings virtual_settings_;
+  bool dtr_ = true;
+  bool rts_ = true;
+  std::optional<Clock::time_point> break_since_;
+  std::optional<ModemInputs> last_modem_inputs_;
+  bool modem_inputs_unreadable_ = false;
+};
+
+}  // namespace wiretape::detail::bridge

@@ -1,0 +1,197 @@
+// The pty endpoint: a pseudo-terminal that a program opens as if it were the
+// device. One client at a time by nature; where the system can tell (Linux),
+// its first open and last close are the client arriving and leaving. The
+// terminal settings the client programs are mirrored onto the device.
+#include <array>
+#include <string>
+
+#include "bridge/endpoint.hpp"
+#include "posix/platform.hpp"
+#include "posix/pty_terminal.hpp"
+#include "posix/syscalls.hpp"
+#include "wiretape/errors.hpp"
+
+namespace wiretape::detail::bridge {
+
+namespace {
+
+constexpr auto kSettingsPollInterval = std::chrono::milliseconds(50);
+
+std::string pty_options(const std::string& link) {
+  std::string options = "type=pty";
+  if (link.empty()) return options;
+  std::string quoted;
+  for (char c : link) {
+    if (c == '"' || c == '\\') quoted.push_back('\\');
+    quoted.push_back(c);
+  }
+  return options + ",link=\"" + quoted + "\"";
+}
+
+class PtyEndpoint final : public ClientEndpoint {
+ public:
+  PtyEndpoint(const BridgeOptions& options, DeviceSide& device, Status& status)
+      : options_(options), device_(device), status_(status) {
+    pty_ = open_port(pty_options(options_.pty_link));
+    pty_->set_timeout(std::chrono::nanoseconds(0));
+    const std::string path = pty_terminal_path(*pty_);
+    // Best effort: without it, a pty client's coming and going goes unseen.
+    opens_and_closes_ = sys::UniqueFd(platform::watch_opens_and_closes(path));
+    status_.set(&Status::pty_path, path);
+    try {
+      last_settings_ = pty_->serial_settings();
+    } catch (const PortError&) {
+    }
+    next_settings_check_ = Clock::now() + kSettingsPollInterval;
+  }
+
+  void add_to_poll(PollSet& poll_set) override {
+    pty_slot_ = poll_set.add(pty_->native_handle(), device_.room_for_client_data() > 0,
+                             !to_pty_.empty());
+    watch_slot_ = opens_and_closes_ ? poll_set.add(opens_and_closes_.get(), true, false)
+                                    : PollSet::none;
+  }
+
+  void handle_events(const PollSet& poll_set) override {
+    if (poll_set.ready(watch_slot_).any()) watch_clients();
+    if (poll_set.ready(pty_slot_).readable) read_pty();
+    if (!to_pty_.empty()) write_pty();
+  }
+
+  Clock::time_point next_timer() const override {
+    return options_.mirror_settings ? next_settings_check_ : Clock::time_point::max();
+  }
+
+  void run_timers(Clock::time_point now) override {
+    if (options_.mirror_settings && now >= next_settings_check_) {
+      check_settings();
+      next_settings_check_ = Clock::now() + kSettingsPollInterval;
+    }
+  }
+
+  bool wants_device_data() const override { return to_pty_.size() < options_.buffer_limit; }
+
+  void deliver_from_device(const char* data, std::size_t size) override {
+    to_pty_.append(data, size);
+    write_pty();
+  }
+
+  void device_lost() override { dropped_input_logged_ = false; }
+
+  void device_reopened() override {
+    if (!options_.mirror_settings) return;
+    // The client set its line before the device went away: carry it over.
+    SerialSettings target = device_.current_settings();
+    target.baud = last_settings_.baud;
+    target.stop_bits = last_settings_.stop_bits;
+    if (target != device_.current_settings()) {
+      device_.apply_settings(target, "client's terminal settings");
+    }
+  }
+
+  bool has_clients() const override { return openers_ > 0; }
+
+  // The terminal closes last, after the device (see the destructor).
+  void shut_down() override {}
+
+  ~PtyEndpoint() override {
+    try {
+      pty_->close();
+    } catch (const std::exception&) {
+    }
+  }
+
+ private:
+  void read_pty() {
+    if (options_.mirror_settings) check_settings();
+    std::array<char, kChunk> buffer;
+    const std::size_t room = std::min(device_.room_for_client_data(), buffer.size());
+    const std::size_t n = pty_->read(buffer.data(), room, std::chrono::nanoseconds(0));
+    if (n == 0) return;
+    if (!device_.is_open()) {
+      if (!dropped_input_logged_) {
+        status_.message("the device is away: input from the client is dropped until it is back");
+        dropped_input_logged_ = true;
+      }
+      return;
+    }
+    device_.send(buffer.data(), n);
+  }
+
+  void write_pty() {
+    while (!to_pty_.empty()) {
+      const std::size_t n = pty_->write(to_pty_.data(), to_pty_.size());
+      if (n == 0) return;
+      to_pty_.consume(n);
+    }
+  }
+
+  // The first opener of the terminal is a client arriving, the last close
+  // its leaving (a program may open the terminal more than once, and tools
+  // such as stty open and close it too).
+  void watch_clients() {
+    for (const bool opened : platform::read_opens_and_closes(opens_and_closes_.get())) {
+      if (opened) {
+        if (openers_++ > 0) continue;
+        if (options_.restart && had_client_ && device_.is_open()) {
+          pty_->flush_output();  // what the previous client left unread
+          to_pty_.clear();
+          device_.restart();
+        }
+        had_client_ = true;
+        device_.client_connected("pty", "control");
+        status_.message("client connected to " + pty_->description());
+      } else if (openers_ > 0 && --openers_ == 0) {
+        device_.client_disconnected("pty", "closed the terminal");
+        status_.message("client closed " + pty_->description());
+      }
+    }
+  }
+
+  void check_settings() {
+    SerialSettings seen;
+    try {
+      seen = pty_->serial_settings();
+    } catch (const PortError&) {
+      return;
+    }
+    if (seen == last_settings_) return;
+    const SerialSettings before = last_settings_;
+    last_settings_ = seen;
+    if (!device_.is_open()) return;
+    // Only what the client changed is carried over: a pty cannot show data
+    // bits or parity (Linux forces 8N), so the device keeps its own there.
+    SerialSettings target = device_.current_settings();
+    if (seen.baud != before.baud) target.baud = seen.baud;
+    if (seen.data_bits != before.data_bits) target.data_bits = seen.data_bits;
+    if (seen.stop_bits != before.stop_bits) target.stop_bits = seen.stop_bits;
+    if (seen.parity != before.parity) target.parity = seen.parity;
+    if (seen.flow != before.flow) target.flow = seen.flow;
+    device_.apply_settings(target, "client's terminal settings");
+  }
+
+  const BridgeOptions& options_;
+  DeviceSide& device_;
+  Status& status_;
+  std::unique_ptr<Port> pty_;
+  // Opens and closes of the terminal by any process (invalid where the
+  // system cannot tell).
+  sys::UniqueFd opens_and_closes_;
+  int openers_ = 0;
+  bool had_client_ = false;
+  bool dropped_input_logged_ = false;
+  ByteQueue to_pty_;
+  SerialSettings last_settings_;
+  Clock::time_point next_settings_check_;
+  PollSet::Slot pty_slot_ = PollSet::none;
+  PollSet::Slot watch_slot_ = PollSet::none;
+};
+
+}  // namespace
+
+std::unique_ptr<ClientEndpoint> make_pty_endpoint(const BridgeOptions& options,
+                                                  DeviceSide& device, Status& status) {
+  return std::make_unique<PtyEndpoint>(options, device, status);
+}
+
+}  // namespace wiretape::detail::bridge
