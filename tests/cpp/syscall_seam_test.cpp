@@ -1,11 +1,20 @@
 // The OS-call seam itself: overrides apply to the ports and are undone.
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <cerrno>
+#include <chrono>
 #include <string>
 
 #include "posix/syscalls.hpp"
 #include "support/port_test_support.hpp"
+#include "wiretape/bridge.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/port.hpp"
 
@@ -78,4 +87,85 @@ TEST(SyscallSeam, ErrorsNameThePortAndTheOperation) {
     EXPECT_NE(what.find("tcsetattr"), std::string::npos) << what;
     EXPECT_EQ(error.code().value(), EPERM);
   }
+}
+
+namespace {
+
+// A TCP client made with libc directly, so that the seam's fakes touch only
+// the bridge.
+int connect_to(const std::string& address) {
+  const auto colon = address.rfind(':');
+  sockaddr_in peer{};
+  peer.sin_family = AF_INET;
+  peer.sin_port = htons(static_cast<std::uint16_t>(std::stoi(address.substr(colon + 1))));
+  ::inet_pton(AF_INET, address.substr(0, colon).c_str(), &peer.sin_addr);
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&peer), sizeof peer) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+std::string read_count(int fd, std::size_t count) {
+  std::string data;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  while (data.size() < count && std::chrono::steady_clock::now() < deadline) {
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, 100) <= 0) continue;
+    char buffer[256];
+    const ssize_t n = ::read(fd, buffer, sizeof buffer);
+    if (n <= 0) break;
+    data.append(buffer, static_cast<std::size_t>(n));
+  }
+  return data;
+}
+
+}  // namespace
+
+TEST(SyscallSeam, TheBridgeCarriesOnThroughInterruptedPollAndAccept) {
+  std::atomic<int> polls{0};
+  std::atomic<int> interrupted_polls{0};
+  std::atomic<int> interrupted_accepts{0};
+  sys::ScopedOverride seam;
+  // Every other poll() and the first try of every accept() are interrupted
+  // by a signal, as a process with signal handlers sees them.
+  seam->poll = [&](pollfd* fds, nfds_t count, int timeout_ms) {
+    if (polls++ % 2 == 0) {
+      ++interrupted_polls;
+      errno = EINTR;
+      return -1;
+    }
+    return sys::real().poll(fds, count, timeout_ms);
+  };
+  bool accept_interrupted = false;
+  seam->accept4 = [&](int fd, sockaddr* address, socklen_t* length, int flags) {
+    accept_interrupted = !accept_interrupted;
+    if (accept_interrupted) {
+      ++interrupted_accepts;
+      errno = EINTR;
+      return -1;
+    }
+    return sys::real().accept4(fd, address, length, flags);
+  };
+
+  wiretape::BridgeOptions options;
+  options.device = "type=loopback";
+  options.client_side = wiretape::BridgeClientSide::tcp;
+  options.quiet = true;
+  wiretape::Bridge bridge(options);
+  bridge.start();
+  const int client = connect_to(bridge.listen_address());
+  ASSERT_GE(client, 0);
+  const std::string message = "through every interruption\n";
+  ASSERT_EQ(::write(client, message.data(), message.size()),
+            static_cast<ssize_t>(message.size()));
+  EXPECT_EQ(read_count(client, message.size()), message);
+  ::close(client);
+  bridge.stop();
+  ASSERT_TRUE(bridge.wait(std::chrono::seconds(10)));
+  EXPECT_EQ(bridge.result().outcome, wiretape::BridgeOutcome::stopped);
+  EXPECT_EQ(bridge.result().stats.clients_accepted, 1u);
+  EXPECT_GT(interrupted_polls.load(), 0);
+  EXPECT_GT(interrupted_accepts.load(), 0);
 }
