@@ -1,8 +1,11 @@
-// Everything of wiretape's public C++ API.
+// Everything of wiretape's public C++ API (the test helpers of
+// wiretape/testing.hpp are included on their own, by tests).
 #pragma once
 
+#include "wiretape/bridge.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/options.hpp"
 #include "wiretape/port.hpp"
+#include "wiretape/session.hpp"
 #include "wiretape/timeout.hpp"
 #include "wiretape/version.hpp"
