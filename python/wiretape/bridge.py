@@ -14,21 +14,25 @@ it::
         handle.wait()
     print(handle.result())
 
-``result()`` is a dict: ``outcome`` (``running``, ``stopped``, ``finished``,
-``device_closed``, ``mismatch``, ``failed``), ``ok`` (False for a mismatch or
-a failure: the CLI exits 1 or 3), ``message`` (the mismatch report or error)
-and ``stats``.
+``result()`` is a :class:`BridgeResult`: ``outcome`` (``running``,
+``stopped``, ``finished``, ``device_closed``, ``mismatch``, ``failed``), ``ok``
+(False for a mismatch or a failure: the CLI exits 1 or 3), ``message`` (the
+mismatch report or error) and ``stats``, a :class:`BridgeStats` of counters
+(``bytes_to_device``, ``clients_accepted``...; ``stats.items()`` lists them).
 """
 
 from __future__ import annotations
 
 import os
-from typing import Dict, List, Mapping, Optional, Tuple, Union
+from typing import List, Mapping, Optional, Tuple, Union
 
 from . import _core
+from ._core import BridgeResult, BridgeStats
 
 __all__ = [
     "BridgeHandle",
+    "BridgeResult",
+    "BridgeStats",
     "device_options",
     "parse_listen",
     "record",
@@ -94,10 +98,10 @@ class BridgeHandle:
         """Ends the bridge (thread-safe); the session file is left complete."""
         self._bridge.stop()
 
-    def result(self) -> Dict[str, object]:
+    def result(self) -> BridgeResult:
         return self._bridge.result()
 
-    def stats(self) -> Dict[str, int]:
+    def stats(self) -> BridgeStats:
         return self._bridge.stats()
 
     @property

@@ -204,14 +204,12 @@ def _run_bridge(handle, out: _Output, what: str, announce: Callable[[], None]) -
         handle.stop()
         handle.wait()
     result = handle.result()
-    stats = result.get("stats") or {}
-    if stats:
-        figures = ", ".join(f"{key}={value}" for key, value in stats.items() if value)
-        out.note(f"{what}: {result.get('outcome')}" + (f" ({figures})" if figures else ""))
-    if result.get("ok", False):
+    figures = ", ".join(f"{key}={value}" for key, value in result.stats.items() if value)
+    out.note(f"{what}: {result.outcome}" + (f" ({figures})" if figures else ""))
+    if result.ok:
         return EXIT_OK
-    message = str(result.get("message") or result.get("outcome") or "failed")
-    if result.get("outcome") == "mismatch":
+    message = result.message or result.outcome
+    if result.outcome == "mismatch":
         if not message.startswith("replay mismatch"):
             message = f"replay mismatch: {message}"
         raise CheckFailed(message)

@@ -153,8 +153,8 @@ def record_scan(program, sim, output, scan_args, workdir, proxy):
             handle.stop()
             handle.wait(15)
         outcome = handle.result()
-        if not outcome.get("ok", False):
-            raise DemoError(f"the record proxy failed: {outcome.get('message')}")
+        if not outcome.ok:
+            raise DemoError(f"the record proxy failed: {outcome.message}")
         return result, "proxy (wiretape.bridge.record)"
     # The recorder's messages go to a file: a pipe nobody reads could fill
     # and stall it.

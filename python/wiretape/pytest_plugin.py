@@ -426,13 +426,9 @@ def wiretape_pty(wiretape_cassette, tmp_path_factory) -> str:
     def stop():
         handle.stop()
         handle.wait(10)
-        result = handle.result() if hasattr(handle, "result") else None
-        if isinstance(result, dict):
-            outcome = result.get("outcome")
-            ok = result.get("ok", outcome not in ("mismatch", "failed"))
-            if not ok:
-                raise AssertionError(
-                    f"wiretape_pty ({outcome}): {result.get('message') or result}")
+        result = handle.result()
+        if not result.ok:
+            raise AssertionError(f"wiretape_pty ({result.outcome}): {result.message or result}")
 
     wiretape_cassette.add_cleanup(stop)
     for name in ("pty_path", "pty"):

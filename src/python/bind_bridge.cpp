@@ -4,10 +4,14 @@
 // start() and wait() release the GIL; wait() runs in short slices and checks
 // Python's signals between them, so Ctrl-C interrupts a wait.
 #include <chrono>
+#include <cstdint>
 #include <map>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <nanobind/stl/map.h>
+#include <nanobind/stl/pair.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
@@ -24,18 +28,60 @@ Timeout timeout_from_python(nb::handle value);  // bind_port.cpp
 
 namespace {
 
-nb::dict stats_dict(const BridgeStats& s) {
-  nb::dict d;
-  d["bytes_to_device"] = s.bytes_to_device;
-  d["bytes_from_device"] = s.bytes_from_device;
-  d["bytes_dropped"] = s.bytes_dropped;
-  d["clients_accepted"] = s.clients_accepted;
-  d["clients_refused"] = s.clients_refused;
-  d["settings_changes"] = s.settings_changes;
-  d["device_losses"] = s.device_losses;
-  d["device_reopens"] = s.device_reopens;
-  d["records_written"] = s.records_written;
-  return d;
+// BridgeStats' counters by name, in declaration order: one list for the
+// attributes, items() and repr().
+constexpr std::pair<const char*, std::uint64_t BridgeStats::*> kStatFields[] = {
+    {"bytes_to_device", &BridgeStats::bytes_to_device},
+    {"bytes_from_device", &BridgeStats::bytes_from_device},
+    {"bytes_dropped", &BridgeStats::bytes_dropped},
+    {"clients_accepted", &BridgeStats::clients_accepted},
+    {"clients_refused", &BridgeStats::clients_refused},
+    {"settings_changes", &BridgeStats::settings_changes},
+    {"device_losses", &BridgeStats::device_losses},
+    {"device_reopens", &BridgeStats::device_reopens},
+    {"records_written", &BridgeStats::records_written},
+};
+
+std::string stats_repr(const BridgeStats& stats) {
+  std::string text = "BridgeStats(";
+  const char* separator = "";
+  for (const auto& [name, field] : kStatFields) {
+    text += separator + std::string(name) + "=" + std::to_string(stats.*field);
+    separator = ", ";
+  }
+  return text + ")";
+}
+
+void bind_results(nb::module_& m) {
+  auto stats = nb::class_<BridgeStats>(m, "BridgeStats",
+                                       "A bridge's counters so far (read-only).");
+  for (const auto& [name, field] : kStatFields) stats.def_ro(name, field);
+  stats
+      .def(
+          "items",
+          [](const BridgeStats& s) {
+            std::vector<std::pair<std::string, std::uint64_t>> items;
+            for (const auto& [name, field] : kStatFields) items.emplace_back(name, s.*field);
+            return items;
+          },
+          "(name, count) pairs, in declaration order.")
+      .def("__repr__", &stats_repr);
+
+  nb::class_<BridgeResult>(m, "BridgeResult",
+                           "How a bridge ended (or that it is running), read-only.")
+      .def_prop_ro(
+          "outcome", [](const BridgeResult& r) { return std::string(to_string(r.outcome)); },
+          "running, stopped, finished, device_closed, mismatch or failed.")
+      .def_prop_ro("ok", &BridgeResult::ok, "False for a mismatch or a failure.")
+      .def_ro("message", &BridgeResult::message,
+              "The mismatch report, the error, or why the device closed.")
+      .def_ro("stats", &BridgeResult::stats)
+      .def("__repr__", [](const BridgeResult& r) {
+        return "BridgeResult(outcome=" + std::string(to_string(r.outcome)) +
+               ", ok=" + (r.ok() ? "True" : "False") + ", message=" +
+               nb::cast<std::string>(nb::repr(nb::cast(r.message))) +
+               ", stats=" + stats_repr(r.stats) + ")";
+      });
 }
 
 BridgeOptions make_options(const std::string& device, const std::string& client_side,
@@ -72,6 +118,7 @@ BridgeOptions make_options(const std::string& device, const std::string& client_
 }  // namespace
 
 void bind_bridge(nb::module_& m) {
+  bind_results(m);
   nb::class_<Bridge>(m, "Bridge",
                      "Forwards bytes between a device port and a pty or TCP clients, "
                      "optionally recording them (see wiretape.bridge).")
@@ -129,20 +176,10 @@ void bind_bridge(nb::module_& m) {
           "timeout"_a = nb::none(),
           "True once the bridge has ended; False if `timeout` (seconds) expired first.")
       .def_prop_ro("running", &Bridge::running)
-      .def(
-          "result",
-          [](const Bridge& bridge) {
-            const BridgeResult r = bridge.result();
-            nb::dict d;
-            d["outcome"] = std::string(to_string(r.outcome));
-            d["ok"] = r.ok();
-            d["message"] = r.message;
-            d["stats"] = stats_dict(r.stats);
-            return d;
-          },
-          "{'outcome', 'ok', 'message', 'stats'}: outcome is running, stopped, "
-          "finished, device_closed, mismatch or failed.")
-      .def("stats", [](const Bridge& bridge) { return stats_dict(bridge.stats()); })
+      .def("result", &Bridge::result,
+           "A BridgeResult: outcome (running, stopped, finished, device_closed, "
+           "mismatch or failed), ok, message and stats.")
+      .def("stats", &Bridge::stats, "A BridgeStats: the counters so far.")
       .def_prop_ro("pty_path", &Bridge::pty_path)
       .def_prop_ro("listen_address", &Bridge::listen_address)
       .def_prop_ro("device_description", &Bridge::device_description)

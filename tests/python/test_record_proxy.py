@@ -63,7 +63,7 @@ def test_pty_proxy_forwards_and_records_every_byte_in_order(device, tmp_path):
             sent += chunk
             answers += read_exactly(client, len(chunk))
     result = finish(handle)
-    assert result["ok"] and result["outcome"] == "stopped"
+    assert result.ok and result.outcome == "stopped"
     assert bytes(answers) == bytes(sent).upper()
     assert bytes(device.received) == bytes(sent)
 
@@ -77,8 +77,8 @@ def test_pty_proxy_forwards_and_records_every_byte_in_order(device, tmp_path):
     assert joined(records, "rx") == bytes(sent).upper()
     times = [r.t_ns for r in records]
     assert times == sorted(times)
-    assert result["stats"]["bytes_to_device"] == len(sent)
-    assert result["stats"]["bytes_from_device"] == len(sent)
+    assert result.stats.bytes_to_device == len(sent)
+    assert result.stats.bytes_from_device == len(sent)
 
 
 def test_tcp_proxy_forwards_and_records(device, tmp_path):
@@ -167,7 +167,7 @@ def test_stop_mid_stream_leaves_a_complete_file(tmp_path):
             while len(got) < 200_000:
                 got += client.recv(65536)
             result = finish(handle)
-    assert result["ok"]
+    assert result.ok
     _, records = read_records(out)
     assert records[-1].kind == "close"
     rx = joined(records, "rx")
@@ -183,7 +183,7 @@ def test_duration_ends_the_recording(device, tmp_path):
     handle = bridge.record(device.options, out, pty=True, duration=0.3, quiet=True)
     assert handle.wait(DEADLINE)
     assert time.monotonic() - started >= 0.3
-    assert handle.result()["outcome"] == "finished"
+    assert handle.result().outcome == "finished"
     _, records = read_records(out)
     assert [r.kind for r in records] == ["open", "close"]
 

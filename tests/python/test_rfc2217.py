@@ -110,7 +110,7 @@ def test_pyserial_rfc2217_client_sets_the_line_and_moves_bytes(pty_device, tmp_p
             assert pty_device.read(5) == b"after"
     finally:
         result = finish(handle)
-    assert result["ok"], result
+    assert result.ok, result
     with _core.SessionReader(str(out)) as reader:
         records = list(reader)
     kinds = [r.kind for r in records]
@@ -171,7 +171,7 @@ def test_malformed_telnet_never_stops_the_server(tmp_path):
         for chunk in garbage:
             with socket.create_connection((host, int(port)), timeout=DEADLINE) as raw:
                 raw.sendall(chunk)
-            wait_until(lambda: handle.stats()["clients_accepted"] != 0, DEADLINE,
+            wait_until(lambda: handle.stats().clients_accepted != 0, DEADLINE,
                        what="the first client to be accepted")
         assert handle.running
         # Each garbage client is either served then gone (closed or reset),
@@ -190,7 +190,7 @@ def test_malformed_telnet_never_stops_the_server(tmp_path):
     finally:
         result = finish(handle)
         server.close()
-    assert result["ok"]
+    assert result.ok
 
 
 def test_rfc2217_in_front_of_a_replay(tmp_path):
@@ -209,7 +209,7 @@ def test_rfc2217_in_front_of_a_replay(tmp_path):
             assert client.read_until(b"\n") == b"PONG\xff\n"
     finally:
         result = finish(handle)
-    assert result["ok"], result
+    assert result.ok, result
     with _core.SessionReader(str(tmp_path / "served.wtape")) as reader:
         records = list(reader)
     settings = [json.loads(r.data) for r in records if r.kind == "settings"]

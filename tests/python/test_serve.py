@@ -61,7 +61,7 @@ def test_one_client_talks_to_the_device(device):
             client.sendall(b"ping\xff\x00")
             assert read_exactly(client, 6) == b"PING\xff\x00"
     finally:
-        assert finish(handle)["ok"]
+        assert finish(handle).ok
 
 
 def test_second_client_is_refused_with_a_message(device):
@@ -77,7 +77,7 @@ def test_second_client_is_refused_with_a_message(device):
             # The first client is unaffected.
             first.sendall(b"b")
             assert read_exactly(first, 1) == b"B"
-        assert handle.stats()["clients_refused"] == 1
+        assert handle.stats().clients_refused == 1
     finally:
         finish(handle)
 
@@ -86,7 +86,7 @@ def test_shared_clients_watch_read_only(device):
     handle = bridge.serve(device.options, "127.0.0.1:0", shared=True, quiet=True)
     try:
         with connect(handle) as control, connect(handle) as monitor:
-            wait_until(lambda: handle.stats()["clients_accepted"] == 2, DEADLINE,
+            wait_until(lambda: handle.stats().clients_accepted == 2, DEADLINE,
                        what="both clients to be accepted")
             monitor.sendall(b"ignored")
             control.sendall(b"hello")
@@ -126,8 +126,8 @@ def test_device_loss_without_reopen_ends_the_server(device):
         assert read_to_end(client) in (b"", b"Y")
     assert handle.wait(DEADLINE)
     result = handle.result()
-    assert result["outcome"] == "device_closed"
-    assert "went away" in result["message"]
+    assert result.outcome == "device_closed"
+    assert "went away" in result.message
 
 
 def test_reopen_after_device_loss(device, tmp_path):
@@ -139,7 +139,7 @@ def test_reopen_after_device_loss(device, tmp_path):
             assert read_exactly(client, 6) == b"BEFORE"
             device.accepting.clear()
             device.drop()
-            wait_until(lambda: handle.stats()["device_losses"] == 1, DEADLINE,
+            wait_until(lambda: handle.stats().device_losses == 1, DEADLINE,
                        what="the device loss to be counted")
             # The loss reaches the client as the end of its connection.
             assert read_to_end(client) == b""
@@ -148,7 +148,7 @@ def test_reopen_after_device_loss(device, tmp_path):
         with connect(handle) as early:
             assert b"unavailable" in read_to_end(early)
         device.accepting.set()
-        wait_until(lambda: handle.stats()["device_reopens"] == 1, DEADLINE,
+        wait_until(lambda: handle.stats().device_reopens == 1, DEADLINE,
                    what="the device to be reopened")
         with connect(handle) as client:
             client.sendall(b"after")
@@ -156,7 +156,7 @@ def test_reopen_after_device_loss(device, tmp_path):
         assert device.connections == 2
     finally:
         result = finish(handle)
-    assert result["ok"]
+    assert result.ok
     with _core.SessionReader(str(out)) as reader:
         records = list(reader)
     kinds = [r.kind for r in records]
@@ -206,12 +206,12 @@ def test_pty_device_closed_then_back_under_the_same_link(tmp_path):
             os.unlink(link)
             os.close(slave)
             os.close(master)  # unplugged: the server's reads fail
-            wait_until(lambda: handle.stats()["device_losses"] == 1, DEADLINE,
+            wait_until(lambda: handle.stats().device_losses == 1, DEADLINE,
                        what="the device loss to be counted")
             assert read_to_end(client) == b""
         assert any("went away" in m for m in handle.messages())
         master, slave = plug()
-        wait_until(lambda: handle.stats()["device_reopens"] == 1, DEADLINE,
+        wait_until(lambda: handle.stats().device_reopens == 1, DEADLINE,
                    what="the replugged device to be reopened")
         with connect(handle) as client:
             client.sendall(b"two")
@@ -223,7 +223,7 @@ def test_pty_device_closed_then_back_under_the_same_link(tmp_path):
         result = finish(handle)
         os.close(master)
         os.close(slave)
-    assert result["ok"]
+    assert result.ok
 
 
 def test_a_monitor_that_does_not_read_never_holds_the_controller_back():
@@ -232,7 +232,7 @@ def test_a_monitor_that_does_not_read_never_holds_the_controller_back():
     try:
         with connect(handle) as control, connect(handle) as monitor:
             monitor.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-            wait_until(lambda: handle.stats()["clients_accepted"] == 2, DEADLINE,
+            wait_until(lambda: handle.stats().clients_accepted == 2, DEADLINE,
                        what="both clients to be accepted")
             chunk = bytes(range(256)) * 256
             sender = threading.Thread(
@@ -245,8 +245,8 @@ def test_a_monitor_that_does_not_read_never_holds_the_controller_back():
                 got += len(data)
             sender.join(DEADLINE)
         stats = handle.stats()
-        assert stats["bytes_from_device"] == total
+        assert stats.bytes_from_device == total
         # The monitor's share beyond its bound was dropped, not queued.
-        assert stats["bytes_dropped"] > 0
+        assert stats.bytes_dropped > 0
     finally:
         finish(handle)

@@ -67,8 +67,8 @@ def test_virtual_device_on_a_pty_with_pyserial(session, tmp_path):
                 assert read_line(client) == answer
     finally:
         result = finish(handle)
-    assert result["ok"], result
-    assert result["outcome"] == "stopped"
+    assert result.ok, result
+    assert result.outcome == "stopped"
 
 
 def test_reopening_the_pty_continues_the_session(session):
@@ -79,7 +79,7 @@ def test_reopening_the_pty_continues_the_session(session):
                 client.write(request)
                 assert read_line(client) == answer
     finally:
-        assert finish(handle)["ok"]
+        assert finish(handle).ok
 
 
 def client_left(handle):
@@ -101,7 +101,7 @@ def test_virtual_device_over_tcp_continues_across_reconnects(session):
                                     f"(messages: {handle.messages()})")
     finally:
         result = finish(handle)
-    assert result["ok"], result
+    assert result.ok, result
 
 
 def test_restart_on_a_pty_starts_the_session_over_for_each_client(session, tmp_path):
@@ -120,8 +120,8 @@ def test_restart_on_a_pty_starts_the_session_over_for_each_client(session, tmp_p
                                               f"(messages: {handle.messages()})")
     finally:
         result = finish(handle)
-    assert result["ok"], result
-    assert handle.stats()["clients_accepted"] == 3
+    assert result.ok, result
+    assert handle.stats().clients_accepted == 3
     with _core.SessionReader(str(out)) as reader:
         events = [(r.kind, r.data) for r in reader if r.kind.startswith("client_")]
     assert [kind for kind, _ in events] == ["client_connect", "client_disconnect"] * 3
@@ -141,7 +141,7 @@ def test_restart_starts_the_session_over_for_each_client(session):
                                     f"(messages: {handle.messages()})")
     finally:
         result = finish(handle)
-    assert result["ok"], result
+    assert result.ok, result
 
 
 def test_a_diverging_client_gets_the_mismatch_report(session):
@@ -155,10 +155,10 @@ def test_a_diverging_client_gets_the_mismatch_report(session):
         assert handle.wait(DEADLINE)
         assert client.recv(100) == b""
     result = handle.result()
-    assert result["outcome"] == "mismatch"
-    assert not result["ok"]
-    assert "tx byte offset 7" in result["message"]
-    assert "expected: 3f 0a" in result["message"]
+    assert result.outcome == "mismatch"
+    assert not result.ok
+    assert "tx byte offset 7" in result.message
+    assert "expected: 3f 0a" in result.message
 
 
 def test_missing_recording_is_a_clear_error(tmp_path):
@@ -173,8 +173,8 @@ def test_unused_error_turns_leftover_data_into_a_mismatch(session):
         client.sendall(b"PING\n")
         assert recv_line(client) == b"PONG\n"
     result = finish(handle)
-    assert result["outcome"] == "mismatch"
-    assert "unused=error" in result["message"]
+    assert result.outcome == "mismatch"
+    assert "unused=error" in result.message
 
 
 def test_a_recorded_device_loss_ends_the_virtual_device(tmp_path):
@@ -193,5 +193,5 @@ def test_a_recorded_device_loss_ends_the_virtual_device(tmp_path):
         assert handle.wait(DEADLINE)
         assert client.recv(10) == b""
     result = handle.result()
-    assert result["outcome"] == "device_closed"
-    assert result["ok"]
+    assert result.outcome == "device_closed"
+    assert result.ok
