@@ -293,4 +293,4 @@ def test_recording_as_a_virtual_device_on_a_pty(hokuyo_scan, tmp_path, timing):
                              quiet=True) as handle:
         result = run_scan(hokuyo_scan, f"type=serial,device={link}", *meta["args"])
     assert scans_of(result) == meta["scans"]
-    assert handle.result()["ok"], handle.result()
+    assert handle.result().ok, handle.result()
