@@ -17,6 +17,7 @@ struct RegistryEntry {
 // In the order listings show them: `scip` first (DESIGN.md section 13).
 constexpr RegistryEntry registry[] = {
     {"scip", &make_scip_profile},
+    {"lines", &make_default_lines_profile},
 };
 
 std::string known_names() {

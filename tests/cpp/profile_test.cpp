@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "replay/profile.hpp"
+#include "replay/profiles/builtin.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 
@@ -263,6 +264,52 @@ TEST(ScipHostileInput, BinaryGarbageIsFramedWithoutLoss) {
     }
     expect_split_independent(*scip, direction, garbage);
   }
+}
+
+TEST(LinesProfile, LinesEndWithTheDelimiterInEitherDirection) {
+  const auto lines = find_profile("lines");
+  const std::string stream = "$GPGGA,1*47\n\n$GPRMC,2*11\r\npartial";
+  for (StreamDirection direction : {StreamDirection::tx, StreamDirection::rx}) {
+    EXPECT_EQ(bytes_of(frame_in_chunks(*lines, direction, stream, {})),
+              (std::vector<std::string>{"$GPGGA,1*47\n", "\n", "$GPRMC,2*11\r\n", "partial"}));
+    expect_split_independent(*lines, direction, stream);
+  }
+  EXPECT_EQ(lines->match_key("AT+CSQ\n"), "AT+CSQ");
+  EXPECT_EQ(lines->frame_name(StreamDirection::tx, "AT+CSQ\n"), "AT+CSQ");
+  EXPECT_EQ(lines->describe(StreamDirection::rx, "+CSQ: 21,0\r\n"), "+CSQ: 21,0\\r\\n");
+}
+
+TEST(LinesProfile, AMultiByteDelimiterUnderEverySplit) {
+  const auto lines = make_lines_profile("\r\n");
+  const std::string stream = "OK\r\nERR\rOR\n\r\n\r\r\nend";
+  EXPECT_EQ(bytes_of(frame_in_chunks(*lines, StreamDirection::rx, stream, {})),
+            (std::vector<std::string>{"OK\r\n", "ERR\rOR\n\r\n", "\r\r\n", "end"}));
+  expect_split_independent(*lines, StreamDirection::rx, stream);
+  EXPECT_EQ(lines->match_key("OK\r\n"), "OK");
+}
+
+TEST(LinesProfile, AnEmptyDelimiterIsAnOptionError) {
+  try {
+    make_lines_profile("");
+    FAIL() << "no error";
+  } catch (const OptionError& error) {
+    EXPECT_EQ(error.key(), "delimiter");
+    EXPECT_NE(std::string(error.what()).find("delimiter is empty"), std::string::npos);
+  }
+}
+
+TEST(LinesProfile, GarbageWithoutDelimiterIsCutAtTheSizeLimit) {
+  const auto lines = find_profile("lines");
+  auto framer = lines->make_framer(StreamDirection::rx);
+  std::vector<Frame> frames;
+  const std::string chunk(64 * 1024, '\0');
+  for (std::size_t fed = 0; fed < 2 * max_frame_bytes + 10; fed += chunk.size()) {
+    framer->feed(chunk, frames);
+    EXPECT_LT(framer->pending(), max_frame_bytes);
+  }
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_EQ(frames[0].end, FrameEnd::size_limit);
+  EXPECT_EQ(frames[0].bytes.size(), max_frame_bytes);
 }
 
 TEST(SessionDecoder, FramesTakeTheTimeOfTheirFirstByteAndEventsPassThrough) {

@@ -95,6 +95,15 @@ def test_scip_frames_names_and_match_keys():
         scip.describe("up", b"VV\n")
 
 
+def test_lines_frames_each_direction_at_line_feeds():
+    lines = _core.find_profile("lines")
+    assert lines.frames("rx", b"$GPGGA,1*47\r\n$GPRMC") == [b"$GPGGA,1*47\r\n", b"$GPRMC"]
+    assert lines.frame_name("tx", b"AT+CSQ\n") == "AT+CSQ"
+    records = [_core.Record(1, "tx", b"AT"), _core.Record(2, "tx", b"\nATI\n"), _core.Record(3, "rx", b"OK\n")]
+    assert list(lines.decode_session(records)) == [
+        (1, "tx", b"AT\n", "AT\\n"), (2, "tx", b"ATI\n", "ATI\\n"), (3, "rx", b"OK\n", "OK\\n")]
+
+
 def test_a_recording_decodes_as_the_golden_file_says():
     items = list(_core.find_profile("scip").decode_session(GOLDEN_RECORDING))
     assert show_lines(items) == GOLDEN_TEXT.read_text().splitlines()

@@ -20,4 +20,9 @@ std::string printable_text(std::string_view bytes, std::size_t limit);
 // Hokuyo SCIP 2.0 laser scanners (scip.cpp).
 std::shared_ptr<const Profile> make_scip_profile();
 
+// Lines ending with `delimiter` (lines.cpp); OptionError (key "delimiter")
+// for an empty one. The registry's `lines` ends them with LF.
+std::shared_ptr<const Profile> make_lines_profile(std::string delimiter);
+std::shared_ptr<const Profile> make_default_lines_profile();
+
 }  // namespace wiretape::detail
