@@ -41,6 +41,39 @@ std::string_view view_of(const nb::bytes& data) { return {data.c_str(), data.siz
 
 nb::bytes to_bytes(std::string_view data) { return nb::bytes(data.data(), data.size()); }
 
+// A record from an iterable: anything with t_ns, kind and data, as
+// SessionReader's records and show's own record views have.
+struct RecordFields {
+  std::uint64_t t_ns = 0;
+  nb::object kind;
+  nb::bytes data;
+};
+
+RecordFields record_fields(nb::handle record) {
+  for (const char* name : {"t_ns", "kind", "data"}) {
+    if (!nb::hasattr(record, name)) {
+      throw nb::type_error(("decode_session: a record needs t_ns, kind and data; " +
+                            std::string(nb::repr(record).c_str()) + " has no " + name)
+                               .c_str());
+    }
+  }
+  nb::object t_ns = record.attr("t_ns");
+  nb::object data = record.attr("data");
+  std::uint64_t t = 0;
+  if (!PyLong_Check(t_ns.ptr()) || !nb::try_cast<std::uint64_t>(t_ns, t)) {
+    throw nb::type_error(("decode_session: a record's t_ns must be an integer 0..2**64-1, not " +
+                          std::string(nb::repr(t_ns).c_str()))
+                             .c_str());
+  }
+  if (!nb::isinstance<nb::bytes>(data)) {
+    throw nb::type_error(("decode_session: a record's data must be bytes, not " +
+                          std::string(nb::type_name(data.type()).c_str()))
+                             .c_str());
+  }
+  return RecordFields{t, record.attr("kind"),
+                      nb::borrow<nb::bytes>(data)};
+}
+
 // (t_ns, kind, bytes, description): a frame, or an event with None.
 nb::object item_tuple(const DecodedItem& item, nb::object kind) {
   nb::object description = item.is_frame ? nb::object(nb::str(item.description.data(),
@@ -112,22 +145,20 @@ class DecodedSession {
         ready_.push_back(item_tuple(item, nb::str(item.kind == RecordKind::tx ? "tx" : "rx")));
       return;
     }
-    nb::object record = nb::steal(next);
-    nb::object kind = record.attr("kind");
-    const auto t_ns = nb::cast<std::uint64_t>(record.attr("t_ns"));
+    const RecordFields record = record_fields(nb::steal(next));
     const std::optional<RecordKind> known =
-        nb::isinstance<nb::str>(kind) ? record_kind_from_string(nb::cast<std::string>(kind))
-                                      : std::nullopt;
+        nb::isinstance<nb::str>(record.kind)
+            ? record_kind_from_string(nb::cast<std::string>(record.kind))
+            : std::nullopt;
     if (known != RecordKind::tx && known != RecordKind::rx) {
       // Events keep the kind as given (kinds this version does not name too).
       DecodedItem event;
-      event.t_ns = t_ns;
-      event.bytes = std::string(view_of(nb::cast<nb::bytes>(record.attr("data"))));
-      ready_.push_back(item_tuple(event, kind));
+      event.t_ns = record.t_ns;
+      event.bytes = std::string(view_of(record.data));
+      ready_.push_back(item_tuple(event, record.kind));
       return;
     }
-    const nb::bytes data = nb::cast<nb::bytes>(record.attr("data"));
-    decoder_.feed(t_ns, *known, view_of(data), decoded_);
+    decoder_.feed(record.t_ns, *known, view_of(record.data), decoded_);
     for (const DecodedItem& item : decoded_)
       ready_.push_back(item_tuple(item, nb::str(item.kind == RecordKind::tx ? "tx" : "rx")));
   }

@@ -248,6 +248,16 @@ TEST(ScipHostileInput, ALineWithoutEndIsCutAtTheSizeLimit) {
   }
 }
 
+TEST(ScipHostileInput, ACrLfAcrossTheSizeLimitDoesNotGrowAFramePastIt) {
+  const auto scip = find_profile("scip");
+  const std::string stream = std::string(max_frame_bytes - 1, 'A') + "\r\n";
+  const auto frames = frame_in_chunks(*scip, StreamDirection::tx, stream, {});
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_EQ(frames[0].bytes.size(), max_frame_bytes);
+  EXPECT_EQ(frames[0].end, FrameEnd::size_limit);
+  EXPECT_EQ(frames[1].bytes, "\n");
+}
+
 TEST(ScipHostileInput, BinaryGarbageIsFramedWithoutLoss) {
   const auto scip = find_profile("scip");
   std::mt19937 random(99);

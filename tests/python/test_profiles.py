@@ -156,6 +156,25 @@ def test_a_damaged_session_decodes_up_to_the_damage():
     assert len(items) > 0
 
 
+def test_bad_sources_are_clear_errors():
+    scip = _core.find_profile("scip")
+    with pytest.raises(_core.SessionError):
+        scip.decode_session(ROOT / "no-such-session.wtape")
+    with pytest.raises(TypeError, match="has no t_ns"):
+        list(scip.decode_session([object()]))
+    with pytest.raises(TypeError, match="data must be bytes, not str"):
+        list(scip.decode_session([_Fake(1, "tx", "VV")]))
+    with pytest.raises(TypeError, match="t_ns must be an integer 0..2"):
+        list(scip.decode_session([_Fake(-1, "tx", b"VV")]))
+    with pytest.raises(TypeError, match="t_ns must be an integer"):
+        list(scip.decode_session([_Fake(2**70, "tx", b"VV")]))
+
+
+class _Fake:
+    def __init__(self, t_ns, kind, data):
+        self.t_ns, self.kind, self.data = t_ns, kind, data
+
+
 def test_events_keep_their_kind_and_payload():
     records = [_core.Record(5, "open", b"{}"), _core.Record(6, "tx", b"VV\n"),
                _core.Record(7, 0x7f, b"opaque")]

@@ -111,10 +111,10 @@ class ScipCommandFramer final : public Framer {
       buffer_ += byte;
       if (byte == lf) {
         cut(FrameEnd::delimited, frames);
-      } else if (byte == cr) {
-        after_cr_ = true;
       } else if (buffer_.size() >= max_frame_bytes) {
         cut(FrameEnd::size_limit, frames);
+      } else if (byte == cr) {
+        after_cr_ = true;
       }
     }
   }
