@@ -70,8 +70,7 @@ RecordFields record_fields(nb::handle record) {
                           std::string(nb::type_name(data.type()).c_str()))
                              .c_str());
   }
-  return RecordFields{t, record.attr("kind"),
-                      nb::borrow<nb::bytes>(data)};
+  return RecordFields{t, record.attr("kind"), nb::borrow<nb::bytes>(data)};
 }
 
 // (t_ns, kind, bytes, description): a frame, or an event with None.
@@ -132,8 +131,7 @@ class DecodedSession {
         }
       }
       finished_ = !more;
-      for (const DecodedItem& item : decoded_)
-        ready_.push_back(item_tuple(item, nb::str(std::string(to_string(item.kind)).c_str())));
+      queue_decoded();
       return;
     }
     PyObject* next = PyIter_Next(records_.ptr());
@@ -141,8 +139,7 @@ class DecodedSession {
       if (PyErr_Occurred()) throw nb::python_error();
       finished_ = true;
       decoder_.finish(decoded_);
-      for (const DecodedItem& item : decoded_)
-        ready_.push_back(item_tuple(item, nb::str(item.kind == RecordKind::tx ? "tx" : "rx")));
+      queue_decoded();
       return;
     }
     const RecordFields record = record_fields(nb::steal(next));
@@ -159,8 +156,14 @@ class DecodedSession {
       return;
     }
     decoder_.feed(record.t_ns, *known, view_of(record.data), decoded_);
-    for (const DecodedItem& item : decoded_)
-      ready_.push_back(item_tuple(item, nb::str(item.kind == RecordKind::tx ? "tx" : "rx")));
+    queue_decoded();
+  }
+
+  void queue_decoded() {
+    for (const DecodedItem& item : decoded_) {
+      const std::string_view kind = to_string(item.kind);
+      ready_.push_back(item_tuple(item, nb::str(kind.data(), kind.size())));
+    }
   }
 
   SessionDecoder decoder_;

@@ -45,6 +45,14 @@ def scip_sessions():
     return sessions
 
 
+def test_the_real_devices_logs_are_among_the_sessions():
+    logs = [path for path in scip_sessions() if path.suffix == ".log"]
+    if not logs:
+        pytest.skip(f"no flexiport logs under {SHARED_DATA / 'flexiport'} "
+                    "(set WIRETAPE_SHARED_DATA_DIR): the real devices' sessions were not decoded")
+    assert {path.name for path in logs} >= {"urg04lx_2011.log", "utm30lx_2011.log"}
+
+
 def python_decoded(records):
     """What the Python decoder gives, in the profile's item shape."""
     out = []
