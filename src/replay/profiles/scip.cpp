@@ -3,10 +3,10 @@
 //
 // A command (tx) is one line: the host ends it with LF, CR or CR LF. A reply
 // (rx) is the echo line, the status line, data lines and an empty line: it
-// ends at the first empty line (LF LF; CR LF counts as a line end too). A
-// lone LF is a reply of its own (the device answering an empty line). MD/MS/ME
-// scans send one reply per scan to a single command, so one request frame is
-// followed by several response frames.
+// ends at the first empty line (LF LF; a line of only CR counts as empty).
+// An LF where a reply would begin is a frame of its own. MD/MS/ME scans send
+// one reply per scan to a single command, so one request frame is followed by
+// several response frames.
 #include <algorithm>
 #include <array>
 #include <utility>
