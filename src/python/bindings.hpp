@@ -12,6 +12,7 @@ void bind_errors(nanobind::module_& m);   // bind_errors.cpp
 void bind_port(nanobind::module_& m);     // bind_port.cpp
 void bind_session(nanobind::module_& m);  // bind_session.cpp
 void bind_bridge(nanobind::module_& m);   // bind_bridge.cpp: proxy, serve, virtual devices
+void bind_profile(nanobind::module_& m);  // bind_profile.cpp: protocol profiles
 
 // Helpers shared by the bindings (bind_port.cpp).
 

@@ -1,0 +1,258 @@
+// Protocol profiles from Python: profile_names(), find_profile(name) and the
+// Profile it returns (framing, match keys, names, and a whole session
+// decoded for `wiretape show`).
+#include <deque>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nanobind/stl/string.h>
+#include <nanobind/stl/unique_ptr.h>
+#include <nanobind/stl/vector.h>
+
+#include "python/bindings.hpp"
+#include "replay/profile.hpp"
+#include "wiretape/session.hpp"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+
+namespace wiretape::python {
+
+namespace {
+
+using detail::DecodedItem;
+using detail::Profile;
+using detail::SessionDecoder;
+using detail::StreamDirection;
+
+struct PyProfile {
+  std::shared_ptr<const Profile> profile;
+};
+
+StreamDirection direction_from_python(const std::string& direction) {
+  if (direction == "tx") return StreamDirection::tx;
+  if (direction == "rx") return StreamDirection::rx;
+  throw nb::value_error(("direction must be 'tx' or 'rx', not '" + direction + "'").c_str());
+}
+
+std::string_view view_of(const nb::bytes& data) { return {data.c_str(), data.size()}; }
+
+nb::bytes to_bytes(std::string_view data) { return nb::bytes(data.data(), data.size()); }
+
+// A record from an iterable: anything with t_ns, kind and data, as
+// SessionReader's records and show's own record views have.
+struct RecordFields {
+  std::uint64_t t_ns = 0;
+  nb::object kind;
+  nb::bytes data;
+};
+
+RecordFields record_fields(nb::handle record) {
+  for (const char* name : {"t_ns", "kind", "data"}) {
+    if (!nb::hasattr(record, name)) {
+      throw nb::type_error(("decode_session: a record needs t_ns, kind and data; " +
+                            std::string(nb::repr(record).c_str()) + " has no " + name)
+                               .c_str());
+    }
+  }
+  nb::object t_ns = record.attr("t_ns");
+  nb::object data = record.attr("data");
+  std::uint64_t t = 0;
+  if (!PyLong_Check(t_ns.ptr()) || !nb::try_cast<std::uint64_t>(t_ns, t)) {
+    throw nb::type_error(("decode_session: a record's t_ns must be an integer 0..2**64-1, not " +
+                          std::string(nb::repr(t_ns).c_str()))
+                             .c_str());
+  }
+  if (!nb::isinstance<nb::bytes>(data)) {
+    throw nb::type_error(("decode_session: a record's data must be bytes, not " +
+                          std::string(nb::type_name(data.type()).c_str()))
+                             .c_str());
+  }
+  return RecordFields{t, record.attr("kind"), nb::borrow<nb::bytes>(data)};
+}
+
+// (t_ns, kind, bytes, description): a frame, or an event with None.
+nb::object item_tuple(const DecodedItem& item, nb::object kind) {
+  nb::object description = item.is_frame ? nb::object(nb::str(item.description.data(),
+                                                               item.description.size()))
+                                         : nb::none();
+  return nb::make_tuple(item.t_ns, kind, to_bytes(item.bytes), description);
+}
+
+// Iterates a session decoded with a profile: from a session file read here,
+// or from any iterable of records (objects with t_ns, kind and data, as
+// SessionReader yields). Memory holds one record's frames at a time.
+class DecodedSession {
+ public:
+  DecodedSession(std::shared_ptr<const Profile> profile, nb::handle source)
+      : decoder_(std::move(profile)) {
+    if (nb::isinstance<nb::str>(source) || nb::isinstance<nb::bytes>(source) ||
+        nb::hasattr(source, "__fspath__")) {
+      PyObject* fspath = PyOS_FSPath(source.ptr());
+      if (fspath == nullptr) throw nb::python_error();
+      nb::object path = nb::steal(fspath);
+      const std::string p = nb::isinstance<nb::bytes>(path)
+                                ? std::string(view_of(nb::borrow<nb::bytes>(path)))
+                                : nb::cast<std::string>(path);
+      nb::gil_scoped_release release;
+      reader_ = std::make_unique<SessionReader>(p);
+    } else {
+      records_ = nb::iter(source);
+    }
+  }
+
+  nb::object next() {
+    while (ready_.empty() && !finished_) pull();
+    if (ready_.empty()) throw nb::stop_iteration();
+    nb::object item = std::move(ready_.front());
+    ready_.pop_front();
+    return item;
+  }
+
+  std::optional<SessionError> damage() const {
+    if (reader_ && reader_->damage()) return *reader_->damage();
+    return std::nullopt;
+  }
+
+ private:
+  void pull() {
+    decoded_.clear();
+    if (reader_) {
+      bool more = false;
+      {
+        nb::gil_scoped_release release;
+        more = reader_->next(record_);
+        if (more) {
+          decoder_.feed(record_, decoded_);
+        } else {
+          decoder_.finish(decoded_);
+        }
+      }
+      finished_ = !more;
+      queue_decoded();
+      return;
+    }
+    PyObject* next = PyIter_Next(records_.ptr());
+    if (next == nullptr) {
+      if (PyErr_Occurred()) throw nb::python_error();
+      finished_ = true;
+      decoder_.finish(decoded_);
+      queue_decoded();
+      return;
+    }
+    const RecordFields record = record_fields(nb::steal(next));
+    const std::optional<RecordKind> known =
+        nb::isinstance<nb::str>(record.kind)
+            ? record_kind_from_string(nb::cast<std::string>(record.kind))
+            : std::nullopt;
+    if (known != RecordKind::tx && known != RecordKind::rx) {
+      // Events keep the kind as given (kinds this version does not name too).
+      DecodedItem event;
+      event.t_ns = record.t_ns;
+      event.bytes = std::string(view_of(record.data));
+      ready_.push_back(item_tuple(event, record.kind));
+      return;
+    }
+    decoder_.feed(record.t_ns, *known, view_of(record.data), decoded_);
+    queue_decoded();
+  }
+
+  void queue_decoded() {
+    for (const DecodedItem& item : decoded_) {
+      const std::string_view kind = to_string(item.kind);
+      ready_.push_back(item_tuple(item, nb::str(kind.data(), kind.size())));
+    }
+  }
+
+  SessionDecoder decoder_;
+  std::unique_ptr<SessionReader> reader_;
+  nb::object records_;
+  Record record_;
+  std::deque<DecodedItem> decoded_;
+  std::deque<nb::object> ready_;
+  bool finished_ = false;
+};
+
+}  // namespace
+
+void bind_profile(nb::module_& m) {
+  nb::class_<PyProfile>(m, "Profile",
+                        "What wiretape knows of a protocol: how each direction is cut into "
+                        "frames, the bytes of a request compared when matching, and frame "
+                        "names. Get one with find_profile(name).")
+      .def_prop_ro("name", [](const PyProfile& p) { return std::string(p.profile->name()); })
+      .def_prop_ro("summary", [](const PyProfile& p) { return std::string(p.profile->summary()); })
+      .def(
+          "frames",
+          [](const PyProfile& p, const std::string& direction, nb::bytes data) {
+            auto framer = p.profile->make_framer(direction_from_python(direction));
+            std::vector<detail::Frame> frames;
+            framer->feed(view_of(data), frames);
+            if (auto tail = framer->finish()) frames.push_back(std::move(*tail));
+            nb::list out;
+            for (const detail::Frame& frame : frames) out.append(to_bytes(frame.bytes));
+            return out;
+          },
+          "direction"_a, "data"_a,
+          "The frames of one direction's whole byte stream ('tx' or 'rx'); an "
+          "incomplete tail is the last frame.")
+      .def(
+          "match_key",
+          [](const PyProfile& p, nb::bytes request) {
+            return to_bytes(p.profile->match_key(view_of(request)));
+          },
+          "request"_a, "The bytes of a request frame that are compared when matching.")
+      .def(
+          "frame_name",
+          [](const PyProfile& p, const std::string& direction, nb::bytes frame) {
+            return p.profile->frame_name(direction_from_python(direction), view_of(frame));
+          },
+          "direction"_a, "frame"_a, "The frame's short name (for SCIP, the command code).")
+      .def(
+          "describe",
+          [](const PyProfile& p, const std::string& direction, nb::bytes frame) {
+            return p.profile->describe(direction_from_python(direction), view_of(frame));
+          },
+          "direction"_a, "frame"_a, "The frame's one-line description, as show prints it.")
+      .def(
+          "decode_session",
+          [](const PyProfile& p, nb::handle source) {
+            return std::make_unique<DecodedSession>(p.profile, source);
+          },
+          "source"_a,
+          "Decodes a session for show: `source` is a session file's path or an iterable "
+          "of records. Yields (t_ns, kind, data, description): frames of 'tx' and 'rx' "
+          "(re-assembled however the recording split them; t_ns is that of the frame's "
+          "first byte) with their description, once complete; events as they come, with "
+          "their payload and None. Frames incomplete at the end come last, rx before tx.")
+      .def("__repr__",
+           [](const PyProfile& p) { return "<Profile " + std::string(p.profile->name()) + ">"; });
+
+  nb::class_<DecodedSession>(m, "DecodedSession",
+                             "The items of a session decoded with a profile (an iterator).")
+      .def("__iter__", [](nb::handle self) { return self; })
+      .def("__next__", &DecodedSession::next)
+      .def_prop_ro(
+          "damage",
+          [](const DecodedSession& self) -> nb::object {
+            const auto damage = self.damage();
+            if (!damage) return nb::none();
+            nb::object cls = nb::module_::import_("wiretape._core").attr("SessionError");
+            nb::object error = cls(std::string(damage->what()), damage->offset());
+            error.attr("message") = std::string(damage->what());
+            return error;
+          },
+          "None, or a SessionError (not raised) saying where reading a session file "
+          "stopped");
+
+  m.def("profile_names", &detail::profile_names,
+        "The built-in protocol profiles' names, `scip` first.");
+  m.def(
+      "find_profile",
+      [](const std::string& name) { return PyProfile{detail::find_profile(name)}; },
+      "name"_a, "The built-in profile called `name`; OptionError for an unknown name.");
+}
+
+}  // namespace wiretape::python

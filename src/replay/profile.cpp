@@ -1,0 +1,136 @@
+#include "replay/profile.hpp"
+
+#include <utility>
+
+#include "replay/profiles/builtin.hpp"
+#include "wiretape/errors.hpp"
+
+namespace wiretape::detail {
+
+namespace {
+
+struct RegistryEntry {
+  std::string_view name;
+  std::shared_ptr<const Profile> (*make)();
+};
+
+// In the order listings show them: `scip` first (DESIGN.md section 13).
+constexpr RegistryEntry registry[] = {
+    {"scip", &make_scip_profile},
+    {"lines", &make_default_lines_profile},
+};
+
+std::string known_names() {
+  std::string out;
+  for (const RegistryEntry& entry : registry) {
+    if (!out.empty()) out += ", ";
+    out += entry.name;
+  }
+  return out;
+}
+
+}  // namespace
+
+std::string printable_text(std::string_view bytes, std::size_t limit) {
+  static constexpr char hex_digits[] = "0123456789abcdef";
+  std::string text;
+  for (unsigned char byte : bytes.substr(0, limit)) {
+    switch (byte) {
+      case '\n': text += "\\n"; break;
+      case '\r': text += "\\r"; break;
+      case '\t': text += "\\t"; break;
+      case '\\': text += "\\\\"; break;
+      default:
+        if (byte >= 0x20 && byte < 0x7f) {
+          text += static_cast<char>(byte);
+        } else {
+          text += "\\x";
+          text += hex_digits[byte >> 4];
+          text += hex_digits[byte & 0x0f];
+        }
+    }
+  }
+  if (bytes.size() > limit) {
+    text += "... (+" + std::to_string(bytes.size() - limit) + " bytes)";
+  }
+  return text;
+}
+
+std::string_view to_string(StreamDirection direction) {
+  return direction == StreamDirection::tx ? "tx" : "rx";
+}
+
+std::vector<std::string> profile_names() {
+  std::vector<std::string> names;
+  for (const RegistryEntry& entry : registry) names.emplace_back(entry.name);
+  return names;
+}
+
+std::shared_ptr<const Profile> find_profile(std::string_view name) {
+  for (const RegistryEntry& entry : registry) {
+    if (entry.name == name) return entry.make();
+  }
+  throw OptionError("profile", "unknown profile '" + std::string(name) +
+                                   "': the profiles are " + known_names());
+}
+
+// --- SessionDecoder -----------------------------------------------------------
+
+SessionDecoder::SessionDecoder(std::shared_ptr<const Profile> profile)
+    : profile_(std::move(profile)),
+      tx_{profile_->make_framer(StreamDirection::tx)},
+      rx_{profile_->make_framer(StreamDirection::rx)} {}
+
+void SessionDecoder::feed(const Record& record, std::deque<DecodedItem>& out) {
+  feed(record.t_ns, record.kind, record.data, out);
+}
+
+void SessionDecoder::feed(std::uint64_t t_ns, RecordKind kind, std::string_view data,
+                          std::deque<DecodedItem>& out) {
+  if (kind != RecordKind::tx && kind != RecordKind::rx) {
+    DecodedItem item;
+    item.t_ns = t_ns;
+    item.kind = kind;
+    item.bytes.assign(data.data(), data.size());
+    out.push_back(std::move(item));
+    return;
+  }
+  const StreamDirection direction =
+      kind == RecordKind::tx ? StreamDirection::tx : StreamDirection::rx;
+  Stream& stream = direction == StreamDirection::tx ? tx_ : rx_;
+  // Frames are consecutive: only the first frame this record completes can
+  // have begun in an earlier record (as the kept tail); every later one
+  // began in this record.
+  const bool tail_began_earlier = stream.framer->pending() > 0;
+  frames_.clear();
+  stream.framer->feed(data, frames_);
+  for (std::size_t i = 0; i < frames_.size(); ++i) {
+    const bool began_earlier = i == 0 && tail_began_earlier;
+    emit(direction, began_earlier ? stream.tail_t_ns : t_ns, std::move(frames_[i]), out);
+  }
+  if (stream.framer->pending() > 0 && !(frames_.empty() && tail_began_earlier)) {
+    stream.tail_t_ns = t_ns;
+  }
+}
+
+void SessionDecoder::finish(std::deque<DecodedItem>& out) {
+  for (StreamDirection direction : {StreamDirection::rx, StreamDirection::tx}) {
+    Stream& stream = direction == StreamDirection::tx ? tx_ : rx_;
+    if (std::optional<Frame> tail = stream.framer->finish()) {
+      emit(direction, stream.tail_t_ns, std::move(*tail), out);
+    }
+  }
+}
+
+void SessionDecoder::emit(StreamDirection direction, std::uint64_t t_ns, Frame frame,
+                          std::deque<DecodedItem>& out) const {
+  DecodedItem item;
+  item.t_ns = t_ns;
+  item.kind = direction == StreamDirection::tx ? RecordKind::tx : RecordKind::rx;
+  item.description = profile_->describe(direction, frame.bytes);
+  item.bytes = std::move(frame.bytes);
+  item.is_frame = true;
+  out.push_back(std::move(item));
+}
+
+}  // namespace wiretape::detail

@@ -1,0 +1,28 @@
+// The built-in profiles, each in a file of its own; profile.cpp lists them
+// in the registry.
+#pragma once
+
+#include <cstddef>
+#include <memory>
+#include <string>
+#include <string_view>
+
+#include "replay/profile.hpp"
+
+namespace wiretape::detail {
+
+// The bytes as one line of text for descriptions: printable ASCII kept,
+// LF, CR, tab and backslash as \n \r \t \\, other bytes as \xHH; past
+// `limit` bytes the rest is counted ("... (+N bytes)"). The same text as
+// `wiretape show` gives a record's payload.
+std::string printable_text(std::string_view bytes, std::size_t limit);
+
+// Hokuyo SCIP 2.0 laser scanners (scip.cpp).
+std::shared_ptr<const Profile> make_scip_profile();
+
+// Lines ending with `delimiter` (lines.cpp); OptionError (key "delimiter")
+// for an empty one. The registry's `lines` ends them with LF.
+std::shared_ptr<const Profile> make_lines_profile(std::string delimiter);
+std::shared_ptr<const Profile> make_default_lines_profile();
+
+}  // namespace wiretape::detail

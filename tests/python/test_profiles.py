@@ -1,0 +1,199 @@
+"""Protocol profiles from Python: the registry, and the scip profile's
+decoding of whole sessions for ``wiretape show --decode scip``.
+
+The golden file ``tests/data/golden/urg04lx_gd.scip.txt`` holds the decoded
+timeline of one small recording, as show prints it; regenerate it with
+``python tests/python/test_profiles.py`` after a deliberate change to the
+texts. While the Python SCIP decoder still exists, every SCIP recording of
+the repository is also decoded both ways and compared item by item."""
+
+import json
+import os
+import pathlib
+import random
+import sys
+
+import pytest
+
+from wiretape import _core
+
+try:
+    from wiretape.inspect import _scip_describe, _scip_messages
+except ImportError:
+    try:
+        from wiretape.tools.show import _scip_describe, _scip_messages
+    except ImportError:
+        _scip_describe = _scip_messages = None
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+GOLDEN = ROOT / "tests" / "data" / "golden"
+RECORDINGS = ROOT / "examples" / "hokuyo" / "recordings"
+SHARED_DATA = pathlib.Path(os.environ.get("WIRETAPE_SHARED_DATA_DIR", ROOT.parent / "shared" / "data"))
+GOLDEN_RECORDING = RECORDINGS / "urg04lx_gd.wtape"
+GOLDEN_TEXT = GOLDEN / "urg04lx_gd.scip.txt"
+
+needs_python_decoder = pytest.mark.skipif(
+    _scip_messages is None,
+    reason="the Python SCIP decoder is gone: the golden file checks the scip profile")
+
+
+def scip_sessions():
+    """Every SCIP recording the repository has: the Hokuyo example's and the
+    real devices' flexiport logs (``name.log`` for name.logr + name.logw)."""
+    sessions = sorted(RECORDINGS.glob("*.wtape"))
+    sessions += sorted(path.with_suffix(".log") for path in (SHARED_DATA / "flexiport").glob("*.logr"))
+    return sessions
+
+
+def test_the_real_devices_logs_are_among_the_sessions():
+    logs = [path for path in scip_sessions() if path.suffix == ".log"]
+    if not logs:
+        pytest.skip(f"no flexiport logs under {SHARED_DATA / 'flexiport'} "
+                    "(set WIRETAPE_SHARED_DATA_DIR): the real devices' sessions were not decoded")
+    assert {path.name for path in logs} >= {"urg04lx_2011.log", "utm30lx_2011.log"}
+
+
+def python_decoded(records):
+    """What the Python decoder gives, in the profile's item shape."""
+    out = []
+    for t_ns, kind, item in _scip_messages(records):
+        if kind in ("rx", "tx"):
+            out.append((t_ns, kind, item, _scip_describe(kind, item)))
+        else:
+            out.append((t_ns, kind, item.data, None))
+    return out
+
+
+def show_lines(items):
+    """The timeline as ``wiretape show --decode scip`` prints it."""
+    lines = []
+    for t_ns, kind, data, description in items:
+        if description is None:
+            event = json.loads(data.decode("utf-8")) if data else {}
+            description = json.dumps(event) if event else ""
+        lines.append(f"{t_ns / 1e9:+.6f}s  {kind}  {description}")
+    return lines
+
+
+def test_scip_comes_first_in_the_registry():
+    names = _core.profile_names()
+    assert names[0] == "scip"
+    assert all(_core.find_profile(name).name == name for name in names)
+
+
+def test_an_unknown_profile_is_an_option_error_listing_the_known_ones():
+    with pytest.raises(_core.OptionError) as raised:
+        _core.find_profile("nmea-xyz")
+    message = str(raised.value)
+    assert "unknown profile 'nmea-xyz'" in message
+    for name in _core.profile_names():
+        assert name in message
+
+
+def test_scip_frames_names_and_match_keys():
+    scip = _core.find_profile("scip")
+    assert scip.frames("tx", b"VV\nPP\r\nII\rGD0044072501\n") == [b"VV\n", b"PP\r\n", b"II\r", b"GD0044072501\n"]
+    assert scip.frames("rx", b"VV\n00P\nA\n\nBM\n02R\n\nGD") == [b"VV\n00P\nA\n\n", b"BM\n02R\n\n", b"GD"]
+    assert scip.frame_name("tx", b"GD0044072501\n") == "GD"
+    assert scip.frame_name("tx", b"SCIP2.0\n") == "SCIP2.0"
+    assert scip.match_key(b"VV\r\n") == b"VV"
+    assert scip.describe("rx", b"BM\n02R\n\n") == (
+        "BM                       reply to BM (laser on): status 02, 0 data lines, 8 bytes")
+    with pytest.raises(ValueError, match="direction must be 'tx' or 'rx'"):
+        scip.describe("up", b"VV\n")
+
+
+def test_lines_frames_each_direction_at_line_feeds():
+    lines = _core.find_profile("lines")
+    assert lines.frames("rx", b"$GPGGA,1*47\r\n$GPRMC") == [b"$GPGGA,1*47\r\n", b"$GPRMC"]
+    assert lines.frame_name("tx", b"AT+CSQ\n") == "AT+CSQ"
+    records = [_core.Record(1, "tx", b"AT"), _core.Record(2, "tx", b"\nATI\n"), _core.Record(3, "rx", b"OK\n")]
+    assert list(lines.decode_session(records)) == [
+        (1, "tx", b"AT\n", "AT\\n"), (2, "tx", b"ATI\n", "ATI\\n"), (3, "rx", b"OK\n", "OK\\n")]
+
+
+def test_a_recording_decodes_as_the_golden_file_says():
+    items = list(_core.find_profile("scip").decode_session(GOLDEN_RECORDING))
+    assert show_lines(items) == GOLDEN_TEXT.read_text().splitlines()
+
+
+def test_decoding_a_path_and_an_iterable_of_records_agree():
+    scip = _core.find_profile("scip")
+    for path in scip_sessions():
+        from_path = list(scip.decode_session(path))
+        from_records = list(scip.decode_session(_core.SessionReader(path)))
+        assert from_path == from_records, path
+        assert from_path, path
+
+
+@needs_python_decoder
+@pytest.mark.parametrize("path", scip_sessions(), ids=lambda path: path.name)
+def test_scip_profile_decodes_recordings_as_the_python_decoder(path):
+    profile_items = list(_core.find_profile("scip").decode_session(path))
+    python_items = python_decoded(_core.SessionReader(path))
+    assert profile_items == python_items
+
+
+@needs_python_decoder
+def test_scip_profile_decodes_random_splits_and_garbage_as_the_python_decoder():
+    """Streams of SCIP-like bytes (line ends, empty lines, binary bytes, NULs;
+    no CR, where the profile also cuts and the Python decoder does not), cut
+    into records at random and mixed with events."""
+    rng = random.Random(2026)
+    alphabet = b"VVGDMDSCIP2.0\n\n\n\n00P99b\x00\x01\xff\x80;\\\t "
+    scip = _core.find_profile("scip")
+    for _ in range(300):
+        records = []
+        t_ns = 0
+        for _ in range(rng.randint(0, 30)):
+            t_ns += rng.randint(0, 1000)
+            kind = rng.choice(["rx", "tx", "rx", "tx", "settings"])
+            if kind == "settings":
+                records.append(_core.Record(t_ns, kind, b'{"baud":19200}'))
+            else:
+                data = bytes(rng.choice(alphabet) for _ in range(rng.randint(0, 12)))
+                records.append(_core.Record(t_ns, kind, data))
+        assert list(scip.decode_session(records)) == python_decoded(records)
+
+
+def test_a_damaged_session_decodes_up_to_the_damage():
+    decoded = _core.find_profile("scip").decode_session(GOLDEN / "damaged.wtape")
+    items = list(decoded)
+    assert decoded.damage is not None
+    assert decoded.damage.offset > 0
+    assert len(items) > 0
+
+
+def test_bad_sources_are_clear_errors():
+    scip = _core.find_profile("scip")
+    with pytest.raises(_core.SessionError):
+        scip.decode_session(ROOT / "no-such-session.wtape")
+    with pytest.raises(TypeError, match="has no t_ns"):
+        list(scip.decode_session([object()]))
+    with pytest.raises(TypeError, match="data must be bytes, not str"):
+        list(scip.decode_session([_Fake(1, "tx", "VV")]))
+    with pytest.raises(TypeError, match="t_ns must be an integer 0..2"):
+        list(scip.decode_session([_Fake(-1, "tx", b"VV")]))
+    with pytest.raises(TypeError, match="t_ns must be an integer"):
+        list(scip.decode_session([_Fake(2**70, "tx", b"VV")]))
+
+
+class _Fake:
+    def __init__(self, t_ns, kind, data):
+        self.t_ns, self.kind, self.data = t_ns, kind, data
+
+
+def test_events_keep_their_kind_and_payload():
+    records = [_core.Record(5, "open", b"{}"), _core.Record(6, "tx", b"VV\n"),
+               _core.Record(7, 0x7f, b"opaque")]
+    items = list(_core.find_profile("scip").decode_session(records))
+    assert items[0] == (5, "open", b"{}", None)
+    assert items[1][:3] == (6, "tx", b"VV\n")
+    assert items[2][2:] == (b"opaque", None)
+
+
+if __name__ == "__main__":
+    # Regenerates the golden file from the profile (review the diff).
+    lines = show_lines(_core.find_profile("scip").decode_session(GOLDEN_RECORDING))
+    GOLDEN_TEXT.write_text("\n".join(lines) + "\n")
+    print(f"wrote {GOLDEN_TEXT} ({len(lines)} lines)", file=sys.stderr)
