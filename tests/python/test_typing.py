@@ -20,8 +20,13 @@ def mypy_strict(script):
     environment["MYPYPATH"] = str(ROOT / "python")
     return subprocess.run(
         [sys.executable, "-m", "mypy", "--strict", "--follow-imports=silent",
-         "--no-incremental", str(SCRIPTS / script)],
+         "--no-incremental", f"--cache-dir={os.devnull}", str(SCRIPTS / script)],
         capture_output=True, text=True, timeout=300, env=environment, cwd=ROOT)
+
+
+def test_the_tools_typed_results_and_a_port_pass_mypy_strict():
+    result = mypy_strict("tools.py")
+    assert result.returncode == 0, result.stdout + result.stderr
 
 
 @pytest.mark.xfail(strict=True, reason="the generated stub types SessionReader and "
@@ -37,8 +42,9 @@ def test_a_port_with_timedelta_timeouts_passes_mypy_strict():
     assert result.returncode == 0, result.stdout + result.stderr
 
 
-@pytest.mark.parametrize("script", ["sessions.py", "ports.py"])
+@pytest.mark.parametrize("script", ["sessions.py", "ports.py", "tools.py"])
 def test_the_checked_programs_run(script):
-    result = subprocess.run([sys.executable, str(SCRIPTS / script)],
+    session = ROOT / "tests" / "data" / "golden" / "wire.wtape"
+    result = subprocess.run([sys.executable, str(SCRIPTS / script), str(session)],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr

@@ -51,13 +51,13 @@ def event_json(data: bytes) -> Any:
 
 
 @contextlib.contextmanager
-def replacing(dst: SessionPath, mode: str = "wb") -> Iterator[IO[Any]]:
+def replacing(dst: SessionPath) -> Iterator[IO[bytes]]:
     """A file to write that becomes `dst` only once the block completes: a
     failed or interrupted export never leaves a half-written file under the
     name asked for."""
     temporary = os.fspath(dst) + ".partial"
     try:
-        with open(temporary, mode, **({} if "b" in mode else {"encoding": "utf-8"})) as out:
+        with open(temporary, "wb") as out:
             yield out
         os.replace(temporary, dst)
     except BaseException:
