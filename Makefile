@@ -8,7 +8,7 @@ GENERATOR ?= Ninja
 CMAKE_ARGS ?=
 export PATH := $(abspath $(VENV))/bin:$(PATH)
 
-.PHONY: all cpp python test test-cpp test-python demo bench fuzz test-sanitize soak clean
+.PHONY: all cpp python stubs test test-cpp test-python demo bench fuzz test-sanitize soak clean
 
 all: python
 
@@ -17,7 +17,7 @@ $(VENV)/.deps: pyproject.toml
 	test -x $(PYTHON) || python3 -m venv $(VENV)
 	$(PYTHON) -m pip install -q --upgrade pip
 	$(PYTHON) -m pip install -q "scikit-build-core>=0.10" "nanobind>=2.0" \
-	  "pyserial>=3.5" "rich>=13" "mcap>=1.1" "pytest>=7" "hypothesis>=6"
+	  "pyserial>=3.5" "rich>=13" "mcap>=1.1" "pytest>=7" "hypothesis>=6" "mypy>=1.5"
 	touch $@
 
 $(BUILD)/build.ninja: $(VENV)/.deps CMakeLists.txt
@@ -33,6 +33,11 @@ $(VENV)/.installed: $(VENV)/.deps pyproject.toml
 	touch $@
 
 python: cpp $(VENV)/.installed
+
+# The extension's typing stubs, generated from the bindings by nanobind's
+# stubgen; tests/python/test_stubs.py fails when the checked-in file is stale.
+stubs: python
+	$(PYTHON) -m nanobind.stubgen -m wiretape._core -o python/wiretape/_core.pyi
 
 # Both suites run even when the first fails; the target fails if either did.
 test: python

@@ -7,23 +7,31 @@ The C++ core (``wiretape._core``) does the work; this package re-exports it:
 * the exceptions :class:`OptionError`, :class:`PortError`, :class:`PortClosed`,
   :class:`ReplayMismatch`, :class:`SessionError`;
 * session files: :class:`SessionReader`, :class:`SessionWriter`,
-  :class:`Record`, and the flexiport export, where this build has them.
+  :class:`Record`, and the flexiport export :func:`export_flexiport`.
+
+The commands that read session files are in :mod:`wiretape.tools`, the
+exports in :mod:`wiretape.exports`, the pytest plugin in
+:mod:`wiretape.testing`.
 
 ``import wiretape`` also registers the pyserial URL handlers
 ``wiretape://`` (replay) and ``wiretape+record://`` (record).
 """
 
-from . import _core
 from ._core import (
     OptionError,
     Port,
     PortClosed,
     PortError,
+    Record,
     ReplayMismatch,
     SessionError,
+    SessionReader,
+    SessionWriter,
     __version__,
+    export_flexiport,
     open_port,
 )
+from .urlhandler import register as _register_url_handlers
 
 __all__ = [
     "__version__",
@@ -34,24 +42,10 @@ __all__ = [
     "PortClosed",
     "ReplayMismatch",
     "SessionError",
-]
-
-# Session files and bridges are bound by other parts of the extension; a
-# build without them still offers the ports.
-for _name in (
     "SessionReader",
     "SessionWriter",
-    "SessionHeader",
     "Record",
-    "RecordKind",
     "export_flexiport",
-    "import_flexiport",
-):
-    if hasattr(_core, _name):
-        globals()[_name] = getattr(_core, _name)
-        __all__.append(_name)
-del _name
-
-from .urlhandler import register as _register_url_handlers  # noqa: E402
+]
 
 _register_url_handlers()

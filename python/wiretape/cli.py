@@ -289,18 +289,19 @@ def cmd_serve(args, out: _Output) -> int:
 
 
 def cmd_show(args, out: _Output) -> int:
-    from . import inspect
+    from .tools.show import show
+    from .tools.verify import verify
 
     _require_input(args.file)
     if args.decode and args.format != "text":
         raise UsageError("--decode works with --format text only")
     try:
-        inspect.show(args.file, fmt=args.format, decode=args.decode)
+        show(args.file, fmt=args.format, decode=args.decode)
     except BrokenPipeError:  # `wiretape show big.wtape | head`
         _silence_stdout()
         return EXIT_OK
     # show reports damage itself and shows everything before it.
-    if inspect.verify(args.file)["ok"]:
+    if verify(args.file).ok:
         return EXIT_OK
     return EXIT_CHECK_FAILED
 
@@ -336,10 +337,10 @@ def _print_stats(stats: dict, out: _Output) -> None:
 
 
 def cmd_stats(args, out: _Output) -> int:
-    from . import inspect
+    from .tools.stats import stats as session_stats
 
     _require_input(args.file)
-    stats = inspect.stats(args.file)
+    stats = session_stats(args.file).to_json()
     if args.json:
         print(json.dumps(stats, indent=2, sort_keys=True, default=str))
     else:
@@ -348,39 +349,39 @@ def cmd_stats(args, out: _Output) -> int:
 
 
 def cmd_verify(args, out: _Output) -> int:
-    from . import inspect
+    from .tools.verify import verify
 
     _require_input(args.file)
-    result = inspect.verify(args.file)
+    result = verify(args.file)
     if args.json:
-        print(json.dumps(result, indent=2, sort_keys=True, default=str))
-    elif result["ok"]:
-        out.print(f"{args.file}: ok, {result['records']} records", style="green")
+        print(json.dumps(result.to_json(), indent=2, sort_keys=True, default=str))
+    elif result.ok:
+        out.print(f"{args.file}: ok, {result.records} records", style="green")
     else:
-        out.print(f"{args.file}: DAMAGED at byte {result['offset']} after "
-                  f"{result['records']} good records: {result['message']}", style="bold red")
-    return EXIT_OK if result["ok"] else EXIT_CHECK_FAILED
+        out.print(f"{args.file}: DAMAGED at byte {result.offset} after "
+                  f"{result.records} good records: {result.message}", style="bold red")
+    return EXIT_OK if result.ok else EXIT_CHECK_FAILED
 
 
 def cmd_convert(args, out: _Output) -> int:
-    from . import convert
+    from .tools.convert import convert
 
     _require_input(args.input)
     progress = sys.stderr.isatty() and not args.quiet
-    result = convert.convert(args.input, args.output, from_format=args.from_format,
-                             to_format=args.to_format, progress=progress)
+    result = convert(args.input, args.output, from_format=args.from_format,
+                     to_format=args.to_format, progress=progress)
     if not args.quiet:
-        out.note(f"converted {result.get('records', '?')} records: {args.input} "
-                 f"({result.get('from', '?')}) -> {args.output} ({result.get('to', '?')})")
+        out.note(f"converted {result.records} records: {args.input} "
+                 f"({result.from_format}) -> {args.output} ({result.to_format})")
     return EXIT_OK
 
 
 def cmd_diff(args, out: _Output) -> int:
-    from . import diff
+    from .tools.diff import diff
 
     _require_input(args.a)
     _require_input(args.b)
-    result = diff.diff(args.a, args.b)
+    result = diff(args.a, args.b)
     for line in result.report().splitlines():
         style = None
         if line == "sessions are identical":

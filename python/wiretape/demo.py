@@ -96,24 +96,6 @@ def wiretape_command(*args):
     return [sys.executable, "-m", "wiretape.cli", *args]
 
 
-def proxy_available():
-    """How to run the transparent proxy: "cli" (`wiretape record`), "bridge"
-    (the same engine in this process, when the command line does not have
-    `record` yet), or None (record with the library instead)."""
-    try:
-        result = subprocess.run(wiretape_command("record", "--help"),
-                                capture_output=True, text=True, timeout=30)
-        if result.returncode == 0 and "--device" in result.stdout:
-            return "cli"
-    except (OSError, subprocess.TimeoutExpired):
-        pass
-    try:
-        from . import bridge, _core  # noqa: F401
-    except ImportError:
-        return None
-    return "bridge" if hasattr(_core, "Bridge") else None
-
-
 def wait_for_path(path, still_running, describe, deadline_s=15.0):
     """Waits until `path` exists (the proxy's pty link) or the proxy ends."""
     end = time.monotonic() + deadline_s
@@ -207,7 +189,6 @@ def run(repo_root=None):
     out_dir = repo / "build" / "demo"
     out_dir.mkdir(parents=True, exist_ok=True)
     recording = out_dir / "urg04lx-demo.wtape"
-    proxy = proxy_available()
 
     print("wiretape demo: record a Hokuyo URG-04LX (simulated), then replay it without it")
     with tempfile.TemporaryDirectory(prefix="wiretape-demo-") as workdir:
@@ -216,7 +197,7 @@ def run(repo_root=None):
                            str(pathlib.Path(workdir) / "urg04lx")) as sim:
                 print(f"  1. simulator up on {sim.fields.get('pty')}")
                 recorded, method = record_scan(program, sim, recording, SCAN_ARGS,
-                                               workdir, proxy)
+                                               workdir, "cli")
             print(f"  2. recorded hokuyo-scan {' '.join(SCAN_ARGS)} via {method}")
             print(f"     -> {recording}")
             print("  3. simulator stopped")

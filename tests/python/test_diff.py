@@ -1,16 +1,14 @@
-"""wiretape.diff: first divergence per direction, and a summary."""
+"""wiretape.tools.diff: first divergence per direction, and a summary."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import pytest
+from shared_test_data import flexiport_log
 
-from wiretape.diff import diff
-
-core = pytest.importorskip("wiretape._core")
-
-SHARED = Path("/work/shared/data/flexiport")
+from wiretape import _core as core
+from wiretape.tools.diff import diff
 
 
 def write_session(path: Path, records) -> Path:
@@ -81,14 +79,12 @@ def test_record_lists_are_accepted(tmp_path):
 
 
 def test_flexiport_log_and_its_conversion_are_identical(tmp_path):
-    log = SHARED / "urg04lx_2011.log"
-    if not (SHARED / "urg04lx_2011.logr").exists():
-        pytest.skip("the shared flexiport recordings are not on this machine")
+    log = flexiport_log("urg04lx_2011")
     with core.SessionReader(str(log)) as reader:
         records = [(r.kind, r.t_ns, r.data) for r in reader]
     converted = write_session(tmp_path / "urg.wtape", records)
     assert diff(str(log), converted).identical
-    other = SHARED / "utm30lx_2011.log"
+    other = flexiport_log("utm30lx_2011")
     result = diff(str(log), str(other))
     assert not result.identical
     assert result["tx"].identical is False or result["rx"].identical is False

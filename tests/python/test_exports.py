@@ -3,18 +3,15 @@ in order, in its direction, with its time; the files open in the real tools."""
 
 import base64
 import json
-import os
 import shutil
 import struct
 import subprocess
 
 import pytest
+from shared_test_data import flexiport_log
 
 import wiretape
 from wiretape import exports
-
-SHARED_DATA = os.environ.get("WIRETAPE_SHARED_DATA_DIR", "/work/shared/data")
-FLEXIPORT_URG = os.path.join(SHARED_DATA, "flexiport", "urg04lx_2011.log")
 
 SESSION_RECORDS = [
     (0, "open", b""),
@@ -167,21 +164,20 @@ def test_mcap_has_one_channel_per_direction_and_reads_back(session, tmp_path):
 
 
 def test_real_flexiport_recording_exports_every_record(tmp_path):
-    if not os.path.exists(FLEXIPORT_URG + "r"):
-        pytest.skip(f"shared recordings missing: {FLEXIPORT_URG}r")
-    reader = wiretape.SessionReader(FLEXIPORT_URG)
+    urg_log = str(flexiport_log("urg04lx_2011"))
+    reader = wiretape.SessionReader(urg_log)
     expected = [(r.kind, bytes(r.data)) for r in reader if r.kind in ("rx", "tx")]
     assert expected
 
     pcap = tmp_path / "urg.pcapng"
-    exports.write_pcapng(FLEXIPORT_URG, pcap)
+    exports.write_pcapng(urg_log, pcap)
     _, _, packets = read_pcapng(pcap)
     assert [(p[0], p[3]) for p in packets if p[0] in ("rx", "tx")] == expected
 
     from mcap.reader import make_reader
 
     mcap_path = tmp_path / "urg.mcap"
-    exports.write_mcap(FLEXIPORT_URG, mcap_path)
+    exports.write_mcap(urg_log, mcap_path)
     with open(mcap_path, "rb") as stream:
         got = [(channel.topic.rsplit("/", 1)[1], base64.b64decode(json.loads(m.data)["data"]))
                for _, channel, m in make_reader(stream).iter_messages()

@@ -21,6 +21,8 @@ def _defined(body):
             names.add(node.name)
         elif isinstance(node, ast.AnnAssign) and isinstance(node.target, ast.Name):
             names.add(node.target.id)
+        elif isinstance(node, ast.ImportFrom):  # stubgen's `from wiretape import X as X`
+            names.update(alias.asname or alias.name for alias in node.names)
     return names
 
 

@@ -1,13 +1,8 @@
 """The pytest plugin, run on small test files with pytester. The "real
 device" is wiretape's in-memory loopback (what is written is read back)."""
 
-import os
-import textwrap
-
-import pytest
-
 import wiretape
-from wiretape.pytest_plugin import MAX_NAME_LENGTH, safe_file_name
+from wiretape.testing.cassette import MAX_NAME_LENGTH, safe_file_name
 
 pytest_plugins = ["pytester"]
 
@@ -165,7 +160,7 @@ def test_command_line_beats_marker_beats_ini(pytester):
         def test_marker_replays(wiretape_options):
             print("OPTIONS", wiretape_options)
     """)
-    result = pytester.runpytest("-s", "-W", "ignore::wiretape.pytest_plugin.WiretapeWarning",
+    result = pytester.runpytest("-s", "-W", "ignore::wiretape.testing.WiretapeWarning",
                                 "-k", "test_ini or test_marker")
     result.stdout.fnmatch_lines(["*OPTIONS type=loopback,meta_source=ini,log=*"])
     result.stdout.fnmatch_lines(["*OPTIONS type=loopback,meta_source=marker,log=*"])
@@ -173,7 +168,7 @@ def test_command_line_beats_marker_beats_ini(pytester):
     result.assert_outcomes(passed=2, errors=1)
     result.stdout.fnmatch_lines(["*test_marker_replays.wtape does not exist*"])
 
-    result = pytester.runpytest("-s", "-W", "ignore::wiretape.pytest_plugin.WiretapeWarning",
+    result = pytester.runpytest("-s", "-W", "ignore::wiretape.testing.WiretapeWarning",
                                 "--wiretape-record=once", "--wiretape-device=type=loopback,meta_source=cli")
     result.assert_outcomes(passed=3)
     assert result.stdout.str().count("meta_source=cli") == 3
@@ -264,16 +259,6 @@ def test_wiretape_url_serves_pyserial_drivers(pytester):
 
 
 def test_wiretape_pty_serves_the_replay_on_a_terminal(pytester):
-    from wiretape import bridge
-
-    try:
-        handle = bridge.serve_replay(os.devnull, pty=str(pytester.path / "probe"))
-    except NotImplementedError as error:
-        pytest.skip(f"wiretape.bridge is not available in this build: {error}")
-    except Exception:
-        pass  # the bridge exists (it rejects /dev/null as a session)
-    else:
-        handle.stop()
     pytester.makepyfile(test_pty="""
         import serial
 
@@ -323,3 +308,94 @@ def test_a_bad_replay_key_names_itself(pytester):
     result.assert_outcomes(errors=1)
     result.stdout.fnmatch_lines(["*test_key.py::test_key: bad wiretape options "
                                  "(check the marker's replay keys)*timming*"])
+
+
+OPTIONS_TEST = """
+    import pytest
+
+    def echo(port):
+        port.write_all(b"hello\\n")
+        assert port.read_exactly(6, timeout=5) == b"hello\\n"
+
+    def test_echo(wiretape_port, wiretape_options):
+        echo(wiretape_port)
+        print("OPTIONS", wiretape_options)
+
+    @pytest.mark.wiretape(timing="causal")
+    def test_marker(wiretape_port, wiretape_options):
+        echo(wiretape_port)
+        print("OPTIONS", wiretape_options)
+"""
+
+
+def test_wiretape_config_in_a_conftest_sets_the_defaults_of_its_tests(pytester):
+    pytester.makeini("""
+        [pytest]
+        wiretape_record = none
+    """)
+    pytester.makeconftest("""
+        import pytest
+
+        @pytest.fixture
+        def wiretape_config():
+            return {"record": "once", "device": "type=loopback", "timing": "session",
+                    "unused": "warn"}
+    """)
+    pytester.makepyfile(test_config=OPTIONS_TEST)
+    # The conftest's record=once and device beat the ini's none: it records.
+    result = pytester.runpytest("-s")
+    result.assert_outcomes(passed=2)
+    result.stdout.fnmatch_lines(["*OPTIONS type=loopback,log=*test_echo.wtape.recording-*"])
+    cassette = cassette_of(pytester, "test_config", "test_echo")
+    assert streams(cassette) == (b"hello\n", b"hello\n")
+
+    # Now it replays, with the conftest's replay keys; the marker's win.
+    result = pytester.runpytest("-s")
+    result.assert_outcomes(passed=2)
+    result.stdout.fnmatch_lines(
+        ["*OPTIONS type=replay,file=*test_echo.wtape,timing=session,unused=warn"])
+    result.stdout.fnmatch_lines(
+        ["*OPTIONS type=replay,file=*test_marker.wtape,timing=causal,unused=warn"])
+
+    # The command line beats the conftest: rewrite records even what exists.
+    recorded = cassette.read_bytes()
+    result = pytester.runpytest("--wiretape-record=rewrite",
+                                "--wiretape-device=type=loopback,meta_source=cli", "-k", "echo")
+    result.assert_outcomes(passed=1)
+    assert cassette.read_bytes() != recorded
+    assert "meta_source=cli" in str(wiretape.SessionReader(str(cassette)).header)
+
+
+def test_wiretape_cassette_dir_in_a_conftest_moves_the_cassettes(pytester):
+    pytester.makeconftest("""
+        import pytest
+
+        @pytest.fixture
+        def wiretape_cassette_dir(request):
+            return request.path.parent / "tapes" / request.path.stem
+    """)
+    pytester.makepyfile(test_echo=ECHO_TEST)
+    pytester.runpytest("--wiretape-record=once", LOOPBACK).assert_outcomes(passed=1)
+    moved = pytester.path / "tapes" / "test_echo" / "test_echo.wtape"
+    assert streams(moved) == (b"hello\n", b"hello\n")
+    assert not cassette_of(pytester, "test_echo", "test_echo").exists()
+    pytester.runpytest().assert_outcomes(passed=1)  # replays from the moved cassette
+
+    moved.unlink()
+    result = pytester.runpytest()
+    result.assert_outcomes(errors=1)
+    result.stdout.fnmatch_lines([f"*{moved} does not exist*"])
+
+
+def test_a_wiretape_config_that_is_not_a_dict_is_a_clear_error(pytester):
+    pytester.makeconftest("""
+        import pytest
+
+        @pytest.fixture
+        def wiretape_config():
+            return "timing=none"
+    """)
+    pytester.makepyfile(test_echo=ECHO_TEST)
+    result = pytester.runpytest()
+    result.assert_outcomes(errors=1)
+    result.stdout.fnmatch_lines(["*wiretape_config fixture must return a dict of settings, not str*"])

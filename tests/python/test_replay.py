@@ -9,15 +9,13 @@ import tempfile
 import time
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from shared_test_data import flexiport_log
 
-core = pytest.importorskip("wiretape._core")
-hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
-
-import wiretape  # noqa: E402
-
-open_port = getattr(wiretape, "open_port", core.open_port)
+from wiretape import _core as core
+import wiretape
+from wiretape import open_port
 
 
 def write_session(path, records, port_type="serial"):
@@ -165,9 +163,7 @@ def test_bad_replay_options_name_the_key(tmp_path):
 
 
 def test_flexiport_recording_replays_in_request_mode():
-    log = "/work/shared/data/flexiport/urg04lx_2011.log"
-    if not os.path.exists(log + "r"):
-        pytest.skip("the shared flexiport recordings are not on this machine")
+    log = flexiport_log("urg04lx_2011")
     port = open_port(f"type=replay,timing=none,match=request,unused=ignore,timeout=5,file={log}")
     port.write(b"PP\n")
     reply = port.read_until(b"\n\n")

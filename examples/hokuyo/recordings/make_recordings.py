@@ -37,12 +37,12 @@ RECORDINGS = {
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--library", action="store_true",
-                        help="record with the library (log=) even if the proxy is there")
+                        help="record with the library (log=) instead of the `wiretape record` proxy")
     parser.add_argument("names", nargs="*", default=sorted(RECORDINGS))
     args = parser.parse_args(argv)
     repo = demo.find_repo()
     program = demo.find_program(repo)
-    proxy = None if args.library else demo.proxy_available()
+    proxy = None if args.library else "cli"
     for name in args.names:
         sim_args, scan_args = RECORDINGS[name]
         output = HERE / f"{name}.wtape"

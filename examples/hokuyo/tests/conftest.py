@@ -2,7 +2,7 @@
 program, the shared real recordings, and simulators on a pty or TCP."""
 import pytest
 
-from hokuyo_testlib import REPO, bin_dir, start_simulator
+from hokuyo_testlib import REPO, bin_dir, flexiport_log, start_simulator
 
 
 @pytest.fixture(scope="session")
@@ -14,16 +14,15 @@ def repo():
 def hokuyo_scan():
     program = bin_dir() / "hokuyo-scan"
     if not program.exists():
-        pytest.skip(f"SKIPPED LOUDLY: {program} is not built (run `make`)")
+        pytest.fail(f"{program} is not built: run `make` (or point WIRETAPE_BIN_DIR "
+                    "at the build's bin folder)", pytrace=False)
     return program
 
 
 @pytest.fixture(scope="session")
 def shared_data():
-    data = REPO.parent / "shared" / "data" / "flexiport"
-    if not (data / "urg04lx_2011.logr").exists():
-        pytest.skip(f"SKIPPED LOUDLY: the real recordings are not in {data}")
-    return data
+    """The folder of the real flexiport recordings (tests/python/shared_test_data.py)."""
+    return flexiport_log("urg04lx_2011").parent
 
 
 @pytest.fixture

@@ -34,11 +34,6 @@ def test_demo_without_the_program_says_so(repo, monkeypatch, tmp_path, capsys):
 
 @pytest.mark.parametrize("method", ["cli", "bridge", "library"])
 def test_each_way_of_recording_replays_the_same_scans(method, hokuyo_scan, repo, tmp_path):
-    available = demo.proxy_available()
-    if method == "cli" and available != "cli":
-        pytest.skip("SKIPPED LOUDLY: `wiretape record` is not in the command line yet")
-    if method == "bridge" and available is None:
-        pytest.skip("SKIPPED LOUDLY: the extension has no record proxy (Bridge)")
     proxy = None if method == "library" else method
     recording = tmp_path / "scan.wtape"
     args = ["--json", "--mode", "md", "--scans", "2", "--cluster", "8"]

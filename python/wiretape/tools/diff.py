@@ -16,9 +16,10 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field
-from typing import Iterable, Iterator, List, Optional, Tuple, Union
+from typing import Iterable, Iterator, List, Optional, Union
 
-DIRECTIONS = ("rx", "tx")
+from ._records import DIRECTIONS, open_session
+
 _CONTEXT = 16
 
 SessionLike = Union[str, "os.PathLike[str]", Iterable]
@@ -50,13 +51,11 @@ class _Records:
 
     def __iter__(self) -> Iterator:
         if isinstance(self._source, (str, os.PathLike)):
-            from ._core import SessionReader
-
-            with SessionReader(os.fspath(self._source)) as reader:
+            with open_session(self._source) as reader:
                 yield from reader
                 damage = reader.damage
                 if damage is not None:
-                    self.damage = str(getattr(damage, "message", damage))
+                    self.damage = damage.message
         else:
             yield from self._source
 

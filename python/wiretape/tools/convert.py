@@ -17,6 +17,7 @@ another name is sniffed (a ``.wtape`` file starts with its magic number).
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import sys
@@ -24,10 +25,11 @@ import tempfile
 import time
 from typing import Iterator, Optional
 
-from . import _core
-from .inspect import record_to_json
+from .. import _core, exports
+from ..exports import jsonl
+from ._records import SessionPath, header_fields, open_session
 
-__all__ = ["convert", "detect_format", "FORMATS"]
+__all__ = ["convert", "detect_format", "ConvertResult", "FORMATS"]
 
 FORMATS = ("wiretape", "flexiport", "jsonl", "pcapng", "mcap")
 _READABLE = ("wiretape", "flexiport", "jsonl")
@@ -122,7 +124,7 @@ def _jsonl_records(path: str) -> Iterator[tuple]:
 
 
 def _header_of_reader(reader) -> dict:
-    header = reader.header
+    header = header_fields(reader)
     return {
         "port_options": header["port_options"],
         "port_type": header["port_type"],
@@ -181,7 +183,7 @@ def _records_of(src: str, fmt: str):
                 yield kind, t_ns, data
 
         return header or {}, records(), lambda: None
-    reader = _core.SessionReader(src)
+    reader = open_session(src)
 
     def records():
         for record in reader:
@@ -210,20 +212,29 @@ def _write_wiretape(dst: str, header: dict, records, progress: _Progress) -> int
 
 
 def _write_jsonl(dst: str, header: dict, records, progress: _Progress) -> int:
-    with open(dst, "w", encoding="utf-8") as out:
-        out.write(json.dumps({"header": header}, separators=(",", ":")) + "\n")
+    def counted():
         for kind, t_ns, data in records:
-            record = _core.Record(t_ns, kind, data)
-            out.write(json.dumps(record_to_json(record), separators=(",", ":")) + "\n")
+            yield _core.Record(t_ns, kind, data)
             progress.step(len(data))
+
+    jsonl.write_records(dst, header, counted())
     return progress.records
 
 
-def convert(src, dst, from_format: Optional[str] = None, to_format: Optional[str] = None,
-            progress: bool = False) -> dict:
+@dataclasses.dataclass(frozen=True)
+class ConvertResult:
+    """What convert() did: how many records it wrote, from which format to which."""
+
+    records: int
+    from_format: str
+    to_format: str
+
+
+def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = None,
+            to_format: Optional[str] = None, progress: bool = False) -> ConvertResult:
     """Converts the session `src` into `dst`.
 
-    Returns ``{"records": N, "from": FORMAT, "to": FORMAT}``. A damaged
+    Returns the number of records written and both formats. A damaged
     source is converted up to the damage, then its SessionError is raised
     (``dst`` keeps everything before the damage). Header fields (start time,
     host, capture, metadata...) are carried over where the target format
@@ -238,11 +249,8 @@ def convert(src, dst, from_format: Optional[str] = None, to_format: Optional[str
     if source_format == "flexiport":
         src = _flexiport_prefix(src)
     report = _Progress(progress, _source_size(src, source_format))
-    result = {"from": source_format, "to": target_format, "records": 0}
 
     if target_format in ("pcapng", "mcap"):
-        from . import exports
-
         session = src
         with tempfile.TemporaryDirectory(prefix="wiretape-convert-") as scratch:
             if source_format == "jsonl":
@@ -251,8 +259,8 @@ def convert(src, dst, from_format: Optional[str] = None, to_format: Optional[str
                 _write_wiretape(session, header, records, _Progress(False, 0))
             writer = exports.write_pcapng if target_format == "pcapng" else exports.write_mcap
             writer(session, dst)
-            result["records"] = sum(1 for _ in _core.SessionReader(session))
-        return result
+            written = sum(1 for _ in open_session(session))
+        return ConvertResult(written, source_format, target_format)
 
     if target_format == "flexiport":
         prefix = _flexiport_prefix(dst)
@@ -260,23 +268,23 @@ def convert(src, dst, from_format: Optional[str] = None, to_format: Optional[str
             with tempfile.TemporaryDirectory(prefix="wiretape-convert-") as scratch:
                 session = os.path.join(scratch, "session.wtape")
                 header, records, _ = _records_of(src, "jsonl")
-                result["records"] = _write_wiretape(session, header, records, report)
+                written = _write_wiretape(session, header, records, report)
                 _core.export_flexiport(session, prefix)
         else:
             _core.export_flexiport(src, prefix)
-            result["records"] = sum(
-                1 for record in _core.SessionReader(prefix) if record.kind in ("rx", "tx")
+            written = sum(
+                1 for record in open_session(prefix) if record.kind in ("rx", "tx")
             )
         report.finish()
-        return result
+        return ConvertResult(written, source_format, target_format)
 
     header, records, damage = _records_of(src, source_format)
     if target_format == "wiretape":
-        result["records"] = _write_wiretape(dst, header, records, report)
+        written = _write_wiretape(dst, header, records, report)
     else:
-        result["records"] = _write_jsonl(dst, header, records, report)
+        written = _write_jsonl(dst, header, records, report)
     report.finish()
     problem = damage()
     if problem is not None:
         raise problem
-    return result
+    return ConvertResult(written, source_format, target_format)

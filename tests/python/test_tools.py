@@ -1,18 +1,21 @@
-"""wiretape.inspect (show, stats, verify) and wiretape.convert."""
+"""wiretape.tools: show, stats, verify and convert."""
 
 import io
 import json
 import pathlib
 
 import pytest
+from shared_test_data import flexiport_log
 
 from wiretape import _core
-from wiretape import convert as convert_module
-from wiretape import inspect
+from wiretape.tools import convert as convert_module
+from wiretape.tools.convert import ConvertResult
+from wiretape.tools.show import show
+from wiretape.tools.stats import stats as session_stats
+from wiretape.tools.verify import VerifyResult, verify
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 GOLDEN = ROOT / "tests" / "data" / "golden"
-FLEXIPORT = ROOT.parent / "shared" / "data" / "flexiport"
 
 
 def golden_records(name):
@@ -24,7 +27,7 @@ def golden_records(name):
 @pytest.mark.parametrize("name", ["all_kinds", "wire", "unknown_kind"])
 def test_show_jsonl_gives_one_object_per_record(name):
     out = io.StringIO()
-    count = inspect.show(GOLDEN / f"{name}.wtape", fmt="jsonl", out=out)
+    count = show(GOLDEN / f"{name}.wtape", fmt="jsonl", out=out)
     lines = [json.loads(line) for line in out.getvalue().splitlines()]
     expected = golden_records(name)
     assert count == len(expected) == len(lines)
@@ -39,7 +42,7 @@ def test_show_jsonl_gives_one_object_per_record(name):
 
 def test_show_text_lists_header_events_and_data():
     out = io.StringIO()
-    inspect.show(GOLDEN / "all_kinds.wtape", out=out)
+    show(GOLDEN / "all_kinds.wtape", out=out)
     text = out.getvalue()
     assert "capture      client" in text
     assert "started      2026-11-23T10:00:00.000000Z on golden-host" in text
@@ -53,21 +56,21 @@ def test_show_text_lists_header_events_and_data():
 
 def test_show_hex_dumps_payloads():
     out = io.StringIO()
-    inspect.show(GOLDEN / "all_kinds.wtape", fmt="hex", out=out)
+    show(GOLDEN / "all_kinds.wtape", fmt="hex", out=out)
     assert "00000000  56 56 0a" in out.getvalue()
     assert "|VV.|" in out.getvalue()
 
 
 def test_show_reports_damage_after_the_good_records():
     out = io.StringIO()
-    count = inspect.show(GOLDEN / "damaged.wtape", out=out)
+    count = show(GOLDEN / "damaged.wtape", out=out)
     assert count == 2
     assert "DAMAGED at byte 296" in out.getvalue()
 
 
 def test_show_scip_reassembles_commands_and_replies():
     out = io.StringIO()
-    inspect.show(FLEXIPORT / "urg04lx_2011.log", decode="scip", out=out)
+    show(flexiport_log("urg04lx_2011"), decode="scip", out=out)
     lines = [line for line in out.getvalue().splitlines() if "  tx  " in line or "  rx  " in line]
     commands = [line.split("  tx  ")[1].split()[0] for line in lines if "  tx  " in line]
     assert commands == ["VV", "VV", "PP", "II", "BM", "CR00", "VV", "PP", "II", "GD0044072501"]
@@ -79,42 +82,42 @@ def test_show_scip_reassembles_commands_and_replies():
 
 def test_show_rejects_unknown_format_and_decoder():
     with pytest.raises(ValueError, match="unknown format 'xml'"):
-        inspect.show(GOLDEN / "wire.wtape", fmt="xml")
+        show(GOLDEN / "wire.wtape", fmt="xml")
     with pytest.raises(ValueError, match="unknown decoder 'nmea'"):
-        inspect.show(GOLDEN / "wire.wtape", decode="nmea")
+        show(GOLDEN / "wire.wtape", decode="nmea")
 
 
 def test_stats_counts_bytes_records_and_header():
-    stats = inspect.stats(GOLDEN / "wire.wtape")
-    assert stats["records"] == 8
-    assert stats["tx_records"] == 2 and stats["tx_bytes"] == 3
-    assert stats["rx_records"] == 2 and stats["rx_bytes"] == len(b"VV\n00P\nVEND:Hokuyo;") + 3
-    assert stats["event_records"] == 4
-    assert stats["events"] == {"open": 1, "client_connect": 1, "client_disconnect": 1, "close": 1}
-    assert stats["duration_s"] == pytest.approx(0.002000001)
-    assert stats["capture"] == "wire"
-    assert stats["port_type"] == "serial"
-    assert stats["damaged"] is False
+    stats = session_stats(GOLDEN / "wire.wtape")
+    assert stats.records == 8
+    assert stats.tx_records == 2 and stats.tx_bytes == 3
+    assert stats.rx_records == 2 and stats.rx_bytes == len(b"VV\n00P\nVEND:Hokuyo;") + 3
+    assert stats.event_records == 4
+    assert stats.events == {"open": 1, "client_connect": 1, "client_disconnect": 1, "close": 1}
+    assert stats.duration_s == pytest.approx(0.002000001)
+    assert stats.capture == "wire"
+    assert stats.port_type == "serial"
+    assert stats.damaged is False
 
 
 def test_stats_of_real_flexiport_log():
-    stats = inspect.stats(FLEXIPORT / "utm30lx_2011.log")
-    assert stats["source_format"] == "flexiport"
-    assert stats["rx_bytes"] == stats["rx_records"]  # one byte per read call
-    assert stats["tx_bytes"] == sum(len(c) for c in [b"VV\n", b"VV\n", b"PP\n", b"II\n", b"BM\n", b"CR00\n",
+    stats = session_stats(flexiport_log("utm30lx_2011"))
+    assert stats.source_format == "flexiport"
+    assert stats.rx_bytes == stats.rx_records  # one byte per read call
+    assert stats.tx_bytes == sum(len(c) for c in [b"VV\n", b"VV\n", b"PP\n", b"II\n", b"BM\n", b"CR00\n",
                                                      b"VV\n", b"PP\n", b"II\n", b"ME0000108001101\n"])
 
 
 def test_verify_good_damaged_and_unreadable(tmp_path):
-    good = inspect.verify(GOLDEN / "all_kinds.wtape")
-    assert good == {"ok": True, "path": str(GOLDEN / "all_kinds.wtape"), "records": 17,
-                    "offset": None, "message": None}
-    damaged = inspect.verify(GOLDEN / "damaged.wtape")
-    assert damaged["ok"] is False and damaged["records"] == 2 and damaged["offset"] == 296
-    assert "CRC32C" in damaged["message"]
+    good = verify(GOLDEN / "all_kinds.wtape")
+    assert good == VerifyResult(ok=True, path=str(GOLDEN / "all_kinds.wtape"), records=17,
+                                offset=None, message=None)
+    damaged = verify(GOLDEN / "damaged.wtape")
+    assert damaged.ok is False and damaged.records == 2 and damaged.offset == 296
+    assert "CRC32C" in damaged.message
     (tmp_path / "junk.wtape").write_bytes(b"junk")
-    junk = inspect.verify(tmp_path / "junk.wtape")
-    assert junk["ok"] is False and junk["offset"] == 0 and "wrong magic" in junk["message"]
+    junk = verify(tmp_path / "junk.wtape")
+    assert junk.ok is False and junk.offset == 0 and "wrong magic" in junk.message
 
 
 def records_of(path):
@@ -122,9 +125,9 @@ def records_of(path):
 
 
 def test_convert_round_trips_between_wiretape_jsonl_and_flexiport(tmp_path):
-    source = FLEXIPORT / "urg04lx_2011.log"
+    source = flexiport_log("urg04lx_2011")
     a = tmp_path / "a.wtape"
-    assert convert_module.convert(source, a)["records"] == len(records_of(source))
+    assert convert_module.convert(source, a).records == len(records_of(source))
     jsonl = tmp_path / "a.jsonl"
     convert_module.convert(a, jsonl)
     b = tmp_path / "b.wtape"
@@ -132,8 +135,8 @@ def test_convert_round_trips_between_wiretape_jsonl_and_flexiport(tmp_path):
     assert records_of(b) == records_of(a) == records_of(source)
     assert _core.SessionReader(b).header == _core.SessionReader(a).header
     convert_module.convert(jsonl, tmp_path / "back.log")
-    assert (tmp_path / "back.logr").read_bytes() == (FLEXIPORT / "urg04lx_2011.logr").read_bytes()
-    assert (tmp_path / "back.logw").read_bytes() == (FLEXIPORT / "urg04lx_2011.logw").read_bytes()
+    assert (tmp_path / "back.logr").read_bytes() == source.with_suffix(".logr").read_bytes()
+    assert (tmp_path / "back.logw").read_bytes() == source.with_suffix(".logw").read_bytes()
 
 
 def test_convert_keeps_events_and_header_through_jsonl(tmp_path):
@@ -176,7 +179,7 @@ def test_convert_bad_jsonl_names_the_line(tmp_path):
 def test_convert_to_pcapng_and_mcap_calls_the_exporters(tmp_path):
     pcap = tmp_path / "s.pcapng"
     result = convert_module.convert(GOLDEN / "wire.wtape", pcap)
-    assert result == {"from": "wiretape", "to": "pcapng", "records": 8}
+    assert result == ConvertResult(records=8, from_format="wiretape", to_format="pcapng")
     assert pcap.read_bytes()[:4] == b"\x0a\x0d\x0d\x0a"  # pcapng section header block
     mcap = tmp_path / "s.mcap"
     convert_module.convert(GOLDEN / "wire.jsonl", mcap, from_format="jsonl")

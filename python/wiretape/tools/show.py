@@ -1,8 +1,8 @@
-"""Reading session files for people and programs: show, stats, verify.
+"""``wiretape show``: a session's timeline for people (text, hex) and
+programs (jsonl).
 
-Every function takes a ``.wtape`` file or a flexiport log (``name.log`` for
-``name.logr`` + ``name.logw``) and streams it: memory does not grow with the
-file's size.
+Streams the session (a ``.wtape`` file or a flexiport ``name.log``): memory
+does not grow with the file's size.
 """
 
 from __future__ import annotations
@@ -12,73 +12,21 @@ import os
 import sys
 from typing import IO, Iterable, Iterator, Optional
 
-from . import _core
+from .. import _core
+from ..exports.jsonl import json_line, record_to_json
+from ._records import DIRECTIONS as _DIRECTIONS
+from ._records import SessionPath, event_of, header_fields, open_session
+from ._records import printable as _printable
 
-__all__ = ["show", "stats", "verify", "record_to_json", "SCIP_COMMANDS"]
-
-_DIRECTIONS = ("rx", "tx")
-
-
-def _reader(path) -> "_core.SessionReader":
-    return _core.SessionReader(os.fspath(path))
-
-
-def _event(record) -> Optional[dict]:
-    """The event's JSON object, or None for rx/tx and unparsable payloads."""
-    if record.kind in _DIRECTIONS:
-        return None
-    if not record.data:
-        return {}
-    try:
-        value = json.loads(record.data.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError):
-        return None
-    return value if isinstance(value, dict) else None
-
-
-def record_to_json(record) -> dict:
-    """The JSON object of one record as ``show(fmt="jsonl")`` prints it:
-    ``t_ns``, ``kind``, ``size``, ``data_hex`` and, for events, ``event``."""
-    out = {
-        "t_ns": record.t_ns,
-        "kind": record.kind,
-        "size": len(record.data),
-        "data_hex": record.data.hex(),
-    }
-    event = _event(record)
-    if event is not None:
-        out["event"] = event
-    return out
-
-
-def _printable(data: bytes, limit: int = 64) -> str:
-    """The bytes as text: printable ASCII kept, the rest escaped."""
-    parts = []
-    for byte in data[:limit]:
-        if byte == 0x0A:
-            parts.append("\\n")
-        elif byte == 0x0D:
-            parts.append("\\r")
-        elif byte == 0x09:
-            parts.append("\\t")
-        elif byte == 0x5C:
-            parts.append("\\\\")
-        elif 0x20 <= byte < 0x7F:
-            parts.append(chr(byte))
-        else:
-            parts.append(f"\\x{byte:02x}")
-    text = "".join(parts)
-    if len(data) > limit:
-        text += f"... (+{len(data) - limit} bytes)"
-    return text
+__all__ = ["show", "SCIP_COMMANDS"]
 
 
 def _seconds(t_ns: int) -> str:
     return f"{t_ns / 1e9:+.6f}s"
 
 
-def _header_lines(reader, path) -> Iterator[str]:
-    header = reader.header
+def _header_lines(reader: _core.SessionReader, path: SessionPath) -> Iterator[str]:
+    header = header_fields(reader)
     yield f"session {os.fspath(path)}"
     if header["source_format"] == "flexiport":
         yield "  format       flexiport log (name.logr + name.logw)"
@@ -105,7 +53,11 @@ def _hexdump(data: bytes) -> Iterator[str]:
         yield f"    {offset:08x}  {hex_part:<47}  |{text}|"
 
 
-# --- SCIP 2.0 (Hokuyo laser scanners) ---------------------------------------
+# ============================================================================
+# SCIP 2.0 decoding (Hokuyo laser scanners), for --decode scip. This block
+# stands alone: it goes when the C++ protocol profile of SCIP decodes for
+# show.
+# ============================================================================
 
 SCIP_COMMANDS = {
     "VV": "version information",
@@ -174,7 +126,13 @@ def _scip_messages(records: Iterable) -> Iterator[tuple]:
             yield started[kind], kind, bytes(buffer)
 
 
-def show(path, fmt: str = "text", decode: Optional[str] = None, out: Optional[IO[str]] = None) -> int:
+# ============================================================================
+# end of SCIP 2.0 decoding
+# ============================================================================
+
+
+def show(path: SessionPath, fmt: str = "text", decode: Optional[str] = None,
+         out: Optional[IO[str]] = None) -> int:
     """Prints the session's timeline to ``out`` (default stdout).
 
     ``fmt``: ``text`` (one line per record), ``hex`` (a hex dump of each
@@ -189,11 +147,11 @@ def show(path, fmt: str = "text", decode: Optional[str] = None, out: Optional[IO
     if decode not in (None, "scip"):
         raise ValueError(f"unknown decoder {decode!r}: the decoder available is scip")
     out = out if out is not None else sys.stdout
-    reader = _reader(path)
+    reader = open_session(path)
     count = 0
     if fmt == "jsonl":
         for record in reader:
-            out.write(json.dumps(record_to_json(record), separators=(",", ":")) + "\n")
+            out.write(json_line(record_to_json(record)))
             count += 1
         if reader.damage is not None:
             print(f"wiretape: damaged: {reader.damage.message}", file=sys.stderr)
@@ -207,7 +165,7 @@ def show(path, fmt: str = "text", decode: Optional[str] = None, out: Optional[IO
             if kind in _DIRECTIONS:
                 out.write(f"{_seconds(t_ns)}  {kind}  {_scip_describe(kind, item)}\n")
             else:
-                event = _event(item)
+                event = event_of(item)
                 text = json.dumps(event) if event else ""
                 out.write(f"{_seconds(t_ns)}  {kind}  {text}\n")
         count = records.count
@@ -223,7 +181,7 @@ def show(path, fmt: str = "text", decode: Optional[str] = None, out: Optional[IO
                     for line in _hexdump(record.data):
                         out.write(line + "\n")
             else:
-                event = _event(record)
+                event = event_of(record)
                 text = json.dumps(event, separators=(",", ":")) if event is not None else _printable(record.data)
                 out.write(f"{_seconds(record.t_ns)}  {record.kind:<17} {'':>8}  {text}\n".rstrip() + "\n")
     if reader.damage is not None:
@@ -244,71 +202,3 @@ class _counting:
         for record in self._records:
             self.count += 1
             yield record
-
-
-def stats(path) -> dict:
-    """Figures of a session: ``records``, ``rx_records``, ``tx_records``,
-    ``event_records``, ``rx_bytes``, ``tx_bytes``, ``duration_s`` (first to
-    last record), ``first_t_ns``, ``last_t_ns``, ``events`` (count per
-    kind), ``damaged`` (and ``damage_offset``, ``damage_message``), plus the
-    header's fields (``capture``, ``port_type``, ``port_options``,
-    ``start_utc``, ``host``, ``wiretape_version``, ``metadata``,
-    ``source_format``)."""
-    reader = _reader(path)
-    result = {
-        "path": os.fspath(path),
-        "records": 0,
-        "rx_records": 0,
-        "tx_records": 0,
-        "event_records": 0,
-        "rx_bytes": 0,
-        "tx_bytes": 0,
-        "first_t_ns": None,
-        "last_t_ns": None,
-        "duration_s": 0.0,
-        "events": {},
-    }
-    first = last = None
-    for record in reader:
-        result["records"] += 1
-        if first is None:
-            first = record.t_ns
-        first = min(first, record.t_ns)
-        last = record.t_ns if last is None else max(last, record.t_ns)
-        if record.kind in _DIRECTIONS:
-            result[f"{record.kind}_records"] += 1
-            result[f"{record.kind}_bytes"] += len(record.data)
-        else:
-            result["event_records"] += 1
-            result["events"][record.kind] = result["events"].get(record.kind, 0) + 1
-    if first is not None:
-        result["first_t_ns"] = first
-        result["last_t_ns"] = last
-        result["duration_s"] = (last - first) / 1e9
-    header = reader.header
-    for key in ("capture", "port_type", "port_options", "start_utc", "host",
-                "wiretape_version", "source_format", "version_major", "version_minor"):
-        result[key] = header[key]
-    result["metadata"] = dict(header["metadata"])
-    damage = reader.damage
-    result["damaged"] = damage is not None
-    result["damage_offset"] = damage.offset if damage is not None else None
-    result["damage_message"] = damage.message if damage is not None else None
-    return result
-
-
-def verify(path) -> dict:
-    """Checks every record's CRC and length. Never raises for a bad file:
-    returns ``{"ok", "path", "records", "offset", "message"}`` where
-    ``offset``/``message`` say where and why reading stopped (None if ok)."""
-    result = {"ok": True, "path": os.fspath(path), "records": 0, "offset": None, "message": None}
-    try:
-        reader = _reader(path)
-    except _core.SessionError as error:
-        result.update(ok=False, offset=error.offset, message=str(error))
-        return result
-    for _ in reader:
-        result["records"] += 1
-    if reader.damage is not None:
-        result.update(ok=False, offset=reader.damage.offset, message=reader.damage.message)
-    return result

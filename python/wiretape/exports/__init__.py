@@ -1,0 +1,43 @@
+"""Exports of a session: Wireshark (pcapng), Foxglove (mcap) and JSON Lines.
+
+pcapng and mcap keep every record of the session, in order, stamped with wall-clock time
+(the session's start time plus the record's offset since the device opened).
+
+pcapng (open with Wireshark or ``tshark -r``):
+  * link type ``LINKTYPE_USER0`` (147): the payload is the bytes as they
+    crossed the wire, with no framing added; Wireshark shows them as data
+    (hex + ASCII), or decodes them if you map DLT User 0 to a dissector
+    (Preferences > Protocols > DLT_USER);
+  * three interfaces: 0 ``rx`` (device to host), 1 ``tx`` (host to device)
+    and 2 ``events`` (open, close, settings changes...: the payload is the
+    event's name, a space and its JSON); filter with ``frame.interface_id``
+    or ``frame.interface_name``;
+  * each packet also carries the pcapng direction flag (inbound for rx,
+    outbound for tx) and, for events, a comment;
+  * timestamps in nanoseconds (``if_tsresol`` = 9); the section header's
+    comment holds the session header (JSON).
+
+mcap (open with Foxglove):
+  * topics ``/wiretape/rx``, ``/wiretape/tx`` and ``/wiretape/events``;
+  * message encoding ``json`` with a JSON Schema (schema encoding
+    ``jsonschema``), one message per record::
+
+        {"t_ns": 1200, "kind": "rx", "size": 3,
+         "data": "AQID",            # base64 (contentEncoding: base64)
+         "text": "\\x01\\x02\\x03"}  # the bytes, printable ASCII kept,
+                                    # the rest escaped, for reading in
+                                    # Foxglove's Raw Messages panel
+
+    events carry their JSON object in ``event`` as well;
+  * log and publish time: the record's wall-clock time in nanoseconds;
+  * a metadata record ``wiretape`` holds the session header's fields.
+
+jsonl (wiretape.exports.jsonl): a header line, then one JSON object per
+record; ``wiretape convert`` writes and reads it.
+"""
+
+from ..tools._records import escape_bytes
+from .mcap import MCAP_TOPICS, write_mcap
+from .pcapng import LINKTYPE_USER0, write_pcapng
+
+__all__ = ["write_pcapng", "write_mcap", "LINKTYPE_USER0", "MCAP_TOPICS", "escape_bytes"]

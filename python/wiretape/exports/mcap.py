@@ -1,0 +1,100 @@
+"""The MCAP export (Foxglove); see the package's text for the topics and
+the message encoding."""
+
+from __future__ import annotations
+
+import base64
+import json
+from typing import Dict
+
+from .._core import __version__
+from ..tools._records import SessionPath, escape_bytes, header_fields, open_session
+from ._common import event_json, replacing, start_epoch_ns
+
+__all__ = ["write_mcap", "MCAP_TOPICS"]
+
+MCAP_TOPICS = {"rx": "/wiretape/rx", "tx": "/wiretape/tx", "events": "/wiretape/events"}
+
+_BYTES_SCHEMA = {
+    "title": "wiretape.Bytes",
+    "description": "Bytes that crossed the wire in one direction (one record of a wiretape session)",
+    "type": "object",
+    "properties": {
+        "t_ns": {"type": "integer", "description": "ns since the device was opened"},
+        "kind": {"type": "string", "enum": ["rx", "tx"],
+                 "description": "rx: device to host; tx: host to device"},
+        "size": {"type": "integer", "description": "number of bytes"},
+        "data": {"type": "string", "contentEncoding": "base64",
+                 "description": "the bytes, base64"},
+        "text": {"type": "string",
+                 "description": "the bytes with printable ASCII kept and the rest escaped"},
+    },
+    "required": ["t_ns", "kind", "size", "data"],
+}
+
+_EVENT_SCHEMA = {
+    "title": "wiretape.Event",
+    "description": "A port event of a wiretape session (open, close, settings, modem lines, break...)",
+    "type": "object",
+    "properties": {
+        "t_ns": {"type": "integer", "description": "ns since the device was opened"},
+        "kind": {"type": "string", "description": "the event's name"},
+        "event": {"type": "object", "description": "the event's JSON payload"},
+    },
+    "required": ["t_ns", "kind", "event"],
+}
+
+
+def write_mcap(src: SessionPath, dst: SessionPath) -> Dict[str, int]:
+    """Writes the session `src` to `dst` as MCAP (see wiretape.exports for
+    the topics and encoding); returns counts of what was written."""
+    try:
+        from mcap.writer import Writer
+    except ImportError as error:
+        raise RuntimeError("the mcap export needs the 'mcap' package: pip install mcap") from error
+
+    reader = open_session(src)
+    header = header_fields(reader)
+    start_ns = start_epoch_ns(header)
+    counts = {"rx": 0, "tx": 0, "events": 0}
+    with replacing(dst) as out:
+        writer = Writer(out)
+        writer.start(profile="", library=f"wiretape {__version__}")
+        bytes_schema = writer.register_schema(
+            name="wiretape.Bytes", encoding="jsonschema",
+            data=json.dumps(_BYTES_SCHEMA).encode("utf-8"))
+        event_schema = writer.register_schema(
+            name="wiretape.Event", encoding="jsonschema",
+            data=json.dumps(_EVENT_SCHEMA).encode("utf-8"))
+        channels = {
+            "rx": writer.register_channel(topic=MCAP_TOPICS["rx"], message_encoding="json",
+                                          schema_id=bytes_schema),
+            "tx": writer.register_channel(topic=MCAP_TOPICS["tx"], message_encoding="json",
+                                          schema_id=bytes_schema),
+            "events": writer.register_channel(topic=MCAP_TOPICS["events"],
+                                              message_encoding="json",
+                                              schema_id=event_schema),
+        }
+        sequence = 0
+        for record in reader:
+            t_ns, kind, data = record.t_ns, record.kind, record.data
+            if kind in ("rx", "tx"):
+                channel = channels[kind]
+                message = {"t_ns": t_ns, "kind": kind, "size": len(data),
+                           "data": base64.b64encode(data).decode("ascii"),
+                           "text": escape_bytes(data)}
+                counts[kind] += 1
+            else:
+                channel = channels["events"]
+                message = {"t_ns": t_ns, "kind": kind, "event": event_json(data)}
+                counts["events"] += 1
+            stamp = start_ns + t_ns
+            writer.add_message(channel_id=channel, log_time=stamp, publish_time=stamp,
+                               data=json.dumps(message).encode("utf-8"), sequence=sequence)
+            sequence += 1
+        writer.add_metadata(
+            name="wiretape",
+            data={key: value if isinstance(value, str) else json.dumps(value, default=str)
+                  for key, value in header.items()})
+        writer.finish()
+    return counts

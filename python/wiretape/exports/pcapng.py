@@ -1,0 +1,135 @@
+"""The pcapng export (Wireshark, ``tshark -r``); see the package's text for
+the file's layout."""
+
+from __future__ import annotations
+
+import json
+import struct
+from typing import Dict, Iterable, Optional, Tuple
+
+from .._core import __version__
+from ..tools._records import SessionPath, header_fields, open_session
+from ._common import event_json, replacing, start_epoch_ns
+
+__all__ = ["write_pcapng", "LINKTYPE_USER0"]
+
+LINKTYPE_USER0 = 147
+
+_PCAPNG_SHB = 0x0A0D0D0A
+_PCAPNG_IDB = 0x00000001
+_PCAPNG_EPB = 0x00000006
+_BYTE_ORDER_MAGIC = 0x1A2B3C4D
+
+_OPT_END = 0
+_OPT_COMMENT = 1
+_SHB_USERAPPL = 4
+_IF_NAME = 2
+_IF_DESCRIPTION = 3
+_IF_TSRESOL = 9
+_EPB_FLAGS = 2
+
+_EPB_INBOUND = 0x1
+_EPB_OUTBOUND = 0x2
+
+# Interface numbers in the pcapng file.
+_INTERFACES = (
+    ("rx", "device to host (rx)"),
+    ("tx", "host to device (tx)"),
+    ("events", "port events: open, close, settings, modem lines, break"),
+)
+_RX_INTERFACE, _TX_INTERFACE, _EVENT_INTERFACE = 0, 1, 2
+
+
+
+
+def _pad4(data: bytes) -> bytes:
+    return data + b"\0" * (-len(data) % 4)
+
+
+def _option(code: int, value: bytes) -> bytes:
+    return struct.pack("<HH", code, len(value)) + _pad4(value)
+
+
+def _options(options: Iterable[Tuple[int, bytes]]) -> bytes:
+    body = b"".join(_option(code, value) for code, value in options)
+    return body + struct.pack("<HH", _OPT_END, 0) if body else b""
+
+
+def _block(block_type: int, body: bytes) -> bytes:
+    length = 12 + len(body)
+    return struct.pack("<II", block_type, length) + body + struct.pack("<I", length)
+
+
+def _section_header(comment: str) -> bytes:
+    body = struct.pack("<IHHq", _BYTE_ORDER_MAGIC, 1, 0, -1)
+    body += _options(
+        [
+            (_OPT_COMMENT, comment.encode("utf-8")),
+            (_SHB_USERAPPL, f"wiretape {__version__}".encode("utf-8")),
+        ]
+    )
+    return _block(_PCAPNG_SHB, body)
+
+
+def _interface(name: str, description: str) -> bytes:
+    body = struct.pack("<HHI", LINKTYPE_USER0, 0, 0)  # snaplen 0: no limit
+    body += _options(
+        [
+            (_IF_NAME, name.encode("utf-8")),
+            (_IF_DESCRIPTION, description.encode("utf-8")),
+            (_IF_TSRESOL, bytes([9])),
+        ]
+    )
+    return _block(_PCAPNG_IDB, body)
+
+
+def _packet(interface: int, timestamp_ns: int, payload: bytes, flags: int,
+            comment: Optional[str] = None) -> bytes:
+    body = struct.pack(
+        "<IIIII",
+        interface,
+        (timestamp_ns >> 32) & 0xFFFFFFFF,
+        timestamp_ns & 0xFFFFFFFF,
+        len(payload),
+        len(payload),
+    )
+    body += _pad4(payload)
+    options = []
+    if flags:
+        options.append((_EPB_FLAGS, struct.pack("<I", flags)))
+    if comment:
+        options.append((_OPT_COMMENT, comment.encode("utf-8")))
+    body += _options(options)
+    return _block(_PCAPNG_EPB, body)
+
+
+def write_pcapng(src: SessionPath, dst: SessionPath) -> Dict[str, int]:
+    """Writes the session `src` (a .wtape, or a flexiport ``name.log``) to
+    `dst` as pcapng; returns counts of what was written
+    (``{"rx": n, "tx": n, "events": n}``)."""
+    reader = open_session(src)
+    header = header_fields(reader)
+    start_ns = start_epoch_ns(header)
+    counts = {"rx": 0, "tx": 0, "events": 0}
+    with replacing(dst) as out:
+        out.write(_section_header(json.dumps(header, sort_keys=True, default=str)))
+        for name, description in _INTERFACES:
+            out.write(_interface(name, description))
+        for record in reader:
+            t_ns, kind, data = record.t_ns, record.kind, record.data
+            stamp = start_ns + t_ns
+            if kind == "rx":
+                out.write(_packet(_RX_INTERFACE, stamp, data, _EPB_INBOUND))
+                counts["rx"] += 1
+            elif kind == "tx":
+                out.write(_packet(_TX_INTERFACE, stamp, data, _EPB_OUTBOUND))
+                counts["tx"] += 1
+            else:
+                event = json.dumps(event_json(data), sort_keys=True)
+                payload = f"{kind} {event}".encode("utf-8")
+                out.write(_packet(_EVENT_INTERFACE, stamp, payload, 0,
+                                  comment=f"wiretape event: {kind}"))
+                counts["events"] += 1
+    return counts
+
+

@@ -1,0 +1,280 @@
+"""The cassette of one test: where its recording lives, whether the test
+records it or replays it, and the option string that opens either.
+
+Settings come from, strongest first: the command line
+(``--wiretape-record``, ``--wiretape-device``), the test's
+``@pytest.mark.wiretape`` marker, the ``wiretape_config`` fixture (which a
+conftest overrides to give a directory's tests their defaults), the ini file
+(``wiretape_record``, ``wiretape_device``), and the defaults: record mode
+``none``, replay ``timing=none``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import re
+import urllib.parse
+import warnings
+from pathlib import Path
+from typing import Any, Callable, Dict, List, Mapping
+
+import pytest
+
+import wiretape
+
+RECORD_MODES = ("none", "once", "rewrite")
+DEFAULT_REPLAY_KEYS = {"timing": "none"}
+MAX_NAME_LENGTH = 100
+
+
+class WiretapeWarning(UserWarning):
+    """Something about a cassette deserves a look but does not fail the test."""
+
+
+# --------------------------------------------------------------------------
+# option strings
+
+
+def quote_option(value) -> str:
+    """A value for a wiretape option string, double-quoted if it needs to be."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    text = str(value)
+    if text and not (set(text) & set(", \t\r\n\"\\=")):
+        return text
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def _plain(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value)
+
+
+def device_options(device: str) -> str:
+    """The option string for a device setting: a bare path means a serial
+    device (``type=serial,device=PATH``)."""
+    text = device.strip()
+    if "=" not in text:
+        return f"type=serial,device={quote_option(text)}"
+    return text
+
+
+# --------------------------------------------------------------------------
+# cassette names
+
+
+def safe_file_name(name: str) -> str:
+    """`name` made safe for a file name (letters, digits and ``._-=+`` kept);
+    names longer than MAX_NAME_LENGTH are cut and given a hash of the whole
+    name, so that distinct tests keep distinct cassettes."""
+    safe = re.sub(r"[^A-Za-z0-9._=+-]+", "_", name).strip("_.")
+    if not safe:
+        safe = "test"
+    if len(safe) > MAX_NAME_LENGTH:
+        digest = hashlib.sha1(name.encode("utf-8")).hexdigest()[:12]
+        safe = safe[: MAX_NAME_LENGTH - 13].rstrip("_.") + "-" + digest
+    return safe
+
+
+def source_file_of(item: pytest.Item) -> Path:
+    return Path(str(item.path))
+
+
+def default_cassette_dir(item: pytest.Item) -> Path:
+    """``<test dir>/recordings/<test module>``: next to the test file."""
+    test_file = source_file_of(item)
+    return test_file.parent / "recordings" / test_file.stem
+
+
+def cassette_file_name(item: pytest.Item) -> str:
+    """The test's name as a file name: nodeid ``dir/test_x.py::TestA::test_b[p]``
+    gives ``TestA.test_b_p.wtape``."""
+    test_name = item.nodeid.split("::", 1)[1] if "::" in item.nodeid else item.name
+    return safe_file_name(test_name.replace("::", ".")) + ".wtape"
+
+
+# --------------------------------------------------------------------------
+# settings
+
+
+def marker_settings(item: pytest.Item) -> Dict[str, Any]:
+    """The keys of the test's wiretape markers, the closest marker winning."""
+    merged: Dict[str, Any] = {}
+    for marker in reversed(list(item.iter_markers("wiretape"))):  # closest last: wins
+        if len(marker.args) > 1:
+            pytest.fail(
+                f"{item.nodeid}: @pytest.mark.wiretape takes at most one positional "
+                f"argument (the cassette), got {marker.args!r}", pytrace=False)
+        if marker.args:
+            merged["cassette"] = marker.args[0]
+        merged.update(marker.kwargs)
+    return merged
+
+
+def _first_given(*values):
+    for value in values:
+        if value is not None and value != "":
+            return value
+    return None
+
+
+class WiretapeCassette:
+    """What the plugin decided for one test, and the cleanup it owes.
+
+    `settings` are the ``wiretape_config`` fixture's (the same keys as the
+    marker's); `cassette_dir` is the ``wiretape_cassette_dir`` fixture's.
+    """
+
+    def __init__(self, item: pytest.Item, settings: Mapping[str, Any], cassette_dir: Path):
+        if not isinstance(settings, Mapping):
+            pytest.fail(f"{item.nodeid}: the wiretape_config fixture must return a dict of "
+                        f"settings, not {type(settings).__name__}", pytrace=False)
+        self.item = item
+        config = item.config
+        marker = marker_settings(item)
+        defaults = dict(settings)
+        self.marker = marker
+
+        where = {"command line": config.getoption("wiretape_record"),
+                 "marker": marker.pop("record", None),
+                 "wiretape_config fixture": defaults.pop("record", None),
+                 "ini": config.getini("wiretape_record")}
+        record = _first_given(*where.values()) or "none"
+        if record not in RECORD_MODES:
+            source = next(k for k, v in where.items() if v not in (None, ""))
+            pytest.fail(
+                f"{item.nodeid}: wiretape record mode {record!r} (from the {source}) "
+                f"is not one of {', '.join(RECORD_MODES)}", pytrace=False)
+        self.record_mode = record
+        self.device = _first_given(config.getoption("wiretape_device"),
+                                   marker.pop("device", None),
+                                   defaults.pop("device", None),
+                                   config.getini("wiretape_device"))
+
+        cassette = _first_given(marker.pop("cassette", None), defaults.pop("cassette", None))
+        if cassette is None:
+            self.path = Path(cassette_dir) / cassette_file_name(item)
+        else:
+            self.path = Path(os.fspath(cassette))
+            if not self.path.is_absolute():
+                self.path = source_file_of(item).parent / self.path
+        # What is left of both are replay keys; the marker's win.
+        self.replay_keys = {**DEFAULT_REPLAY_KEYS, **defaults, **marker}
+
+        self.recording = record == "rewrite" or (record == "once" and not self.path.exists())
+        self.partial_path = self.path.with_name(f"{self.path.name}.recording-{os.getpid()}")
+        self._ports: List[wiretape.Port] = []
+        self._cleanups: List[Callable[[], None]] = []
+
+    # -- what fixtures use ---------------------------------------------------
+    @property
+    def options(self) -> str:
+        """The option string that opens the device (recording) or the replay."""
+        if self.recording:
+            return (device_options(self.device) + ",log=" + quote_option(str(self.partial_path))
+                    + ",meta_pytest_node=" + quote_option(self.item.nodeid))
+        return "type=replay,file=" + quote_option(str(self.path)) + "," + self.replay_options
+
+    @property
+    def replay_options(self) -> str:
+        """The replay keys alone (``timing=none,...``)."""
+        return ",".join(f"{key}={quote_option(value)}" for key, value in self.replay_keys.items())
+
+    @property
+    def url(self) -> str:
+        if self.recording:
+            query = urllib.parse.urlencode({"options": device_options(self.device)})
+            return f"wiretape+record://{urllib.parse.quote(str(self.partial_path))}?{query}"
+        query = urllib.parse.urlencode({key: _plain(value)
+                                        for key, value in self.replay_keys.items()})
+        return f"wiretape://{urllib.parse.quote(str(self.path))}?{query}"
+
+    def record_command(self) -> str:
+        device = self.device or "OPTS"
+        return (f"pytest --wiretape-record=once --wiretape-device={device!r} "
+                f"{self.item.nodeid!r}")
+
+    def prepare(self) -> None:
+        """Checks that the test can run: a cassette to replay, or a device to
+        record from; makes the cassette's directory when recording."""
+        if self.recording:
+            if not self.device:
+                pytest.fail(
+                    f"wiretape: cassette {self.path} must be recorded "
+                    f"(--wiretape-record={self.record_mode}) but no device is given: "
+                    "pass --wiretape-device=OPTS, the marker's device=, or set "
+                    "wiretape_device in the ini file", pytrace=False)
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            if self.partial_path.exists():
+                self.partial_path.unlink()
+        elif not self.path.exists():
+            pytest.fail(
+                f"wiretape: no recording for {self.item.nodeid}: {self.path} does not exist.\n"
+                f"Record it from the device with:\n    {self.record_command()}",
+                pytrace=False)
+
+    def open_port(self) -> wiretape.Port:
+        try:
+            port = wiretape.open_port(self.options)
+        except wiretape.OptionError as error:
+            source = "the device setting" if self.recording else "the marker's replay keys"
+            pytest.fail(f"{self.item.nodeid}: bad wiretape options (check {source}): "
+                        f"{error}\n    options: {self.options}", pytrace=False)
+        self._ports.append(port)
+        return port
+
+    def add_cleanup(self, cleanup: Callable[[], None]) -> None:
+        self._cleanups.append(cleanup)
+
+    def close_ports(self) -> None:
+        """Closes what the plugin opened; raises what closing raises (a replay
+        with unused=error reports unused data here)."""
+        errors = []
+        while self._cleanups:
+            try:
+                self._cleanups.pop()()
+            except Exception as error:  # keep closing the rest
+                errors.append(error)
+        while self._ports:
+            port = self._ports.pop()
+            try:
+                if port.is_open:
+                    port.close()
+            except Exception as error:
+                errors.append(error)
+        if errors:
+            raise errors[0]
+
+    def close_ports_quietly(self) -> None:
+        try:
+            self.close_ports()
+        except Exception:
+            pass
+
+    def finish(self, passed: bool) -> None:
+        """Keeps a recording made by a passing test; otherwise throws it away
+        and leaves any previous cassette as it was."""
+        self.close_ports_quietly()
+        if not self.recording:
+            return
+        if not passed:
+            if self.partial_path.exists():
+                self.partial_path.unlink()
+            return
+        if not self.partial_path.exists():
+            warnings.warn(WiretapeWarning(
+                f"{self.item.nodeid} passed while recording but opened no port from "
+                f"wiretape_options: nothing was written to {self.path}"))
+            return
+        os.replace(self.partial_path, self.path)
+
+    def describe(self) -> str:
+        lines = [f"cassette: {self.path}",
+                 f"mode: {'recording' if self.recording else 'replay'} "
+                 f"(--wiretape-record={self.record_mode})",
+                 f"options: {self.options}"]
+        if not self.recording:
+            lines.append(f"to record it again: {self.record_command().replace('=once', '=rewrite')}")
+        return "\n".join(lines)

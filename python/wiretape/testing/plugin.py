@@ -1,0 +1,206 @@
+"""pytest plugin: driver tests that record a device once and replay it in CI.
+
+Registered by the ``pytest11`` entry point ``wiretape``. Every test that uses
+one of the fixtures gets a *cassette* (wiretape.testing.cassette), a session
+file at ``<test dir>/recordings/<module>/<test>.wtape``, and either records
+it from the real device or replays it:
+
+``--wiretape-record=none`` (default)
+    replay only; a missing cassette is an error naming its path and the
+    command that records it.
+``--wiretape-record=once``
+    record when the cassette is missing, else replay.
+``--wiretape-record=rewrite``
+    always record anew; a test that fails while recording leaves the previous
+    cassette as it was.
+
+Recording needs the device: ``--wiretape-device=OPTS`` (a wiretape option
+string; a bare path means ``type=serial,device=PATH``). Both settings can
+also come from the marker (``record=``, ``device=``), the ``wiretape_config``
+fixture or the ini file (``wiretape_record``, ``wiretape_device``); the
+command line beats the marker, which beats ``wiretape_config``, which beats
+the ini file.
+
+Marker: ``@pytest.mark.wiretape(cassette=None, device=None, record=None,
+**replay_keys)``. ``cassette`` is a path relative to the test file's directory
+(or absolute); the replay keys are those of ``type=replay`` (``timing``,
+``match``, ``check``, ``unused``, ...). Replays default to ``timing=none``.
+
+Fixtures a conftest overrides to change what the plugin does:
+``wiretape_config``       a dict of settings for the test, with the marker's
+                          keys: the defaults of the tests it applies to.
+``wiretape_cassette_dir`` the directory of the test's cassette (default
+                          ``<test dir>/recordings/<module>``).
+
+Fixtures tests use:
+``wiretape_port``     the opened ``wiretape.Port``: the device recording to the
+                      cassette, or the replay. Closed when the test ends; what
+                      closing raises (``unused=error``) fails the test.
+``wiretape_options``  the option string that opens that port.
+``wiretape_url``      a pyserial URL for it (``wiretape://`` or
+                      ``wiretape+record://``).
+``wiretape_pty``      the path of a pseudo-terminal serving the replay (or
+                      proxying the device while recording), for drivers that
+                      open a device path themselves.
+``wiretape_cassette`` what the plugin decided: ``path``, ``recording``,
+                      ``options``...
+
+A cassette is written only when the test passes: recording goes to a
+temporary file next to the cassette that replaces it at the end.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Dict, Iterator
+
+import pytest
+
+import wiretape
+from wiretape import bridge, urlhandler
+
+from .cassette import RECORD_MODES, WiretapeCassette, default_cassette_dir, device_options
+
+_CASSETTE_KEY = pytest.StashKey[WiretapeCassette]()
+_REPORTS_KEY = pytest.StashKey[Dict[str, pytest.TestReport]]()
+
+
+# --------------------------------------------------------------------------
+# options, ini keys and the marker
+
+
+def pytest_addoption(parser):
+    group = parser.getgroup("wiretape", "wiretape: record and replay device sessions")
+    group.addoption(
+        "--wiretape-record", dest="wiretape_record", default=None, choices=RECORD_MODES,
+        help="none: replay only (default); once: record missing cassettes; "
+             "rewrite: record every cassette anew")
+    group.addoption(
+        "--wiretape-device", dest="wiretape_device", default=None, metavar="OPTS",
+        help="the device to record from: a wiretape option string "
+             "(e.g. type=serial,device=/dev/ttyACM0,baud=115200) or a serial device path")
+    parser.addini("wiretape_record", "wiretape record mode: none, once or rewrite", default="")
+    parser.addini("wiretape_device", "wiretape device option string to record from", default="")
+
+
+def pytest_configure(config):
+    config.addinivalue_line(
+        "markers",
+        "wiretape(cassette=None, device=None, record=None, **replay_keys): "
+        "the wiretape cassette, device and record mode of a test, and replay keys "
+        "(timing, match, check, unused...) for its replay")
+    urlhandler.register()
+
+
+# --------------------------------------------------------------------------
+# hooks: test outcome, port closing inside the test's call
+
+
+@pytest.hookimpl(wrapper=True, tryfirst=True)
+def pytest_runtest_makereport(item, call):
+    report = yield
+    item.stash.setdefault(_REPORTS_KEY, {})[report.when] = report
+    cassette = item.stash.get(_CASSETTE_KEY, None)
+    if cassette is not None and report.failed and report.when in ("setup", "call"):
+        report.sections.append(("wiretape", cassette.describe()))
+    return report
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_call(item):
+    cassette = item.stash.get(_CASSETTE_KEY, None)
+    try:
+        result = yield
+    except BaseException:
+        if cassette is not None:
+            cassette.close_ports_quietly()
+        raise
+    if cassette is not None:
+        # Closing may raise (unused recorded data under unused=error): that
+        # belongs to the test's result, not to its teardown.
+        cassette.close_ports()
+    return result
+
+
+def _test_passed(item) -> bool:
+    reports = item.stash.get(_REPORTS_KEY, {})
+    return all(when in reports and reports[when].passed for when in ("setup", "call"))
+
+
+# --------------------------------------------------------------------------
+# fixtures
+
+
+@pytest.fixture
+def wiretape_config() -> Dict[str, Any]:
+    """Settings for the test's cassette, with the marker's keys (``record``,
+    ``device``, ``cassette`` and replay keys such as ``timing``). Override it
+    in a conftest to give a directory's tests their defaults; the marker and
+    the command line still win."""
+    return {}
+
+
+@pytest.fixture
+def wiretape_cassette_dir(request: pytest.FixtureRequest) -> Path:
+    """The directory of the test's cassette: ``<test dir>/recordings/<module>``.
+    Override it in a conftest to keep cassettes elsewhere."""
+    return default_cassette_dir(request.node)
+
+
+@pytest.fixture
+def wiretape_cassette(request: pytest.FixtureRequest, wiretape_config: Dict[str, Any],
+                      wiretape_cassette_dir: Path) -> Iterator[WiretapeCassette]:
+    """The cassette of this test: path, recording or replay, option string."""
+    cassette = WiretapeCassette(request.node, wiretape_config, Path(wiretape_cassette_dir))
+    cassette.prepare()
+    request.node.stash[_CASSETTE_KEY] = cassette
+    yield cassette
+    cassette.finish(_test_passed(request.node))
+
+
+@pytest.fixture
+def wiretape_options(wiretape_cassette: WiretapeCassette) -> str:
+    """The option string that opens the device (recording) or the replay."""
+    return wiretape_cassette.options
+
+
+@pytest.fixture
+def wiretape_port(wiretape_cassette: WiretapeCassette) -> Iterator[wiretape.Port]:
+    """The opened port: the device recording to the cassette, or the replay."""
+    port = wiretape_cassette.open_port()
+    yield port
+    try:
+        if port.is_open:
+            port.close()
+    except Exception:
+        pass  # already reported by the call, or the test failed anyway
+
+
+@pytest.fixture
+def wiretape_url(wiretape_cassette: WiretapeCassette) -> str:
+    """A pyserial URL (``serial.serial_for_url``) for the device or the replay.
+    Close the pyserial port before the test ends."""
+    return wiretape_cassette.url
+
+
+@pytest.fixture
+def wiretape_pty(wiretape_cassette: WiretapeCassette, tmp_path_factory) -> str:
+    """The path of a pseudo-terminal serving the replay, or, while recording,
+    proxying the device; for drivers that open a device path themselves."""
+    link = tmp_path_factory.mktemp("wiretape-pty") / "tty"
+    if wiretape_cassette.recording:
+        handle = bridge.record(device_options(wiretape_cassette.device),
+                               str(wiretape_cassette.partial_path), pty=str(link))
+    else:
+        handle = bridge.serve_replay(str(wiretape_cassette.path), pty=str(link),
+                                     replay_options=wiretape_cassette.replay_options)
+
+    def stop():
+        handle.stop()
+        handle.wait(10)
+        result = handle.result()
+        if not result.ok:
+            raise AssertionError(f"wiretape_pty ({result.outcome}): {result.message or result}")
+
+    wiretape_cassette.add_cleanup(stop)
+    return str(handle.pty_path or link)

@@ -1,0 +1,96 @@
+"""``wiretape stats``: the figures of a session (records, bytes, duration,
+events, header), streamed: memory does not grow with the file's size."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from typing import Any, Dict, Optional
+
+from ._records import DIRECTIONS, SessionPath, header_fields, open_session
+
+__all__ = ["stats", "SessionStats"]
+
+
+@dataclasses.dataclass(frozen=True)
+class SessionStats:
+    """The figures of one session; ``to_json()`` is what ``stats --json`` prints."""
+
+    path: str
+    records: int
+    rx_records: int
+    tx_records: int
+    event_records: int
+    rx_bytes: int
+    tx_bytes: int
+    first_t_ns: Optional[int]  # None: no records
+    last_t_ns: Optional[int]
+    duration_s: float  # first to last record
+    events: Dict[str, int]  # count per event kind
+    # the header's fields
+    capture: str
+    port_type: str
+    port_options: str
+    start_utc: str
+    host: str
+    wiretape_version: str
+    source_format: str
+    version_major: int
+    version_minor: int
+    metadata: Dict[str, str]
+    # where and why reading stopped early (None when not damaged)
+    damaged: bool
+    damage_offset: Optional[int]
+    damage_message: Optional[str]
+
+    def to_json(self) -> Dict[str, Any]:
+        return dataclasses.asdict(self)
+
+
+def stats(path: SessionPath) -> SessionStats:
+    """Counts the records and bytes of each direction and the events of each
+    kind; a damaged file is counted up to the damage, which the result names."""
+    reader = open_session(path)
+    count = {"rx": 0, "tx": 0}
+    size = {"rx": 0, "tx": 0}
+    events: Dict[str, int] = {}
+    records = 0
+    first: Optional[int] = None
+    last: Optional[int] = None
+    for record in reader:
+        records += 1
+        first = record.t_ns if first is None else min(first, record.t_ns)
+        last = record.t_ns if last is None else max(last, record.t_ns)
+        if record.kind in DIRECTIONS:
+            count[record.kind] += 1
+            size[record.kind] += len(record.data)
+        else:
+            events[record.kind] = events.get(record.kind, 0) + 1
+    header = header_fields(reader)
+    damage = reader.damage
+    return SessionStats(
+        path=os.fspath(path),
+        records=records,
+        rx_records=count["rx"],
+        tx_records=count["tx"],
+        event_records=sum(events.values()),
+        rx_bytes=size["rx"],
+        tx_bytes=size["tx"],
+        first_t_ns=first,
+        last_t_ns=last,
+        duration_s=(last - first) / 1e9 if first is not None and last is not None else 0.0,
+        events=events,
+        capture=header["capture"],
+        port_type=header["port_type"],
+        port_options=header["port_options"],
+        start_utc=header["start_utc"],
+        host=header["host"],
+        wiretape_version=header["wiretape_version"],
+        source_format=header["source_format"],
+        version_major=header["version_major"],
+        version_minor=header["version_minor"],
+        metadata=dict(header["metadata"]),
+        damaged=damage is not None,
+        damage_offset=damage.offset if damage is not None else None,
+        damage_message=damage.message if damage is not None else None,
+    )
