@@ -83,7 +83,8 @@ bool RequestStrategy::more_to_release() const {
   return false;
 }
 
-void RequestStrategy::serve(std::size_t index, ReplayTime now) {
+void RequestStrategy::serve(std::size_t index, std::string_view request,
+                            ReplayTime now) {
   Exchange& exchange = exchanges_[index];
   if (config_.check == ReplayCheck::timing) {
     std::optional<ReplayTimeline::Anchor> anchor;
@@ -92,7 +93,9 @@ void RequestStrategy::serve(std::size_t index, ReplayTime now) {
     }
     const ReplayTime due = timeline_.due(exchange.last_tx_t_ns, anchor);
     if (const auto miss = timeline_.check(due, now)) {
-      report_.raise(miss->title, tx_written_, {}, {}, last_match_t_ns_,
+      report_.raise(miss->title, tx_written_,
+                    std::string_view(exchange.request).substr(0, kReplayContext),
+                    request.substr(0, kReplayContext), last_match_t_ns_,
                     static_cast<std::int64_t>(exchanges_served_), miss->detail);
     }
   }
@@ -134,7 +137,7 @@ bool RequestStrategy::match_pending(ReplayTime now) {
   }
   if (!chosen) return false;
   const std::size_t length = exchanges_[*chosen].request.size();
-  serve(*chosen, now);
+  serve(*chosen, std::string_view(pending_).substr(0, length), now);
   report_.accepted(std::string_view(pending_).substr(0, length));
   pending_.erase(0, length);
   pending_offset_ += length;

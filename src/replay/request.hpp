@@ -9,6 +9,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "replay/strategy.hpp"
@@ -40,7 +41,9 @@ class RequestStrategy final : public ReplayStrategy {
   };
 
   void load_exchanges(RecordSource& source);
-  void serve(std::size_t exchange, ReplayTime now);
+  // Releases the exchange's response for `request`, the client's bytes that
+  // matched it.
+  void serve(std::size_t exchange, std::string_view request, ReplayTime now);
   bool match_pending(ReplayTime now);
   [[noreturn]] void raise_unmatched();
 

@@ -210,8 +210,8 @@ void SequenceStrategy::write_records(const char* data, std::size_t size,
       if (const auto miss = timeline_.check(due, now)) {
         report_.raise(miss->title, tx_written_,
                       std::string_view(expected).substr(0, kReplayContext),
-                      std::string_view(expected).substr(0, kReplayContext),
-                      tx_record_.t_ns, tx_exchange_, miss->detail);
+                      rest.substr(0, kReplayContext), tx_record_.t_ns,
+                      tx_exchange_, miss->detail);
       }
     }
     std::size_t accepted;

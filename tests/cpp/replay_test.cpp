@@ -552,6 +552,22 @@ TEST(ReplayTiming, CheckTimingRejectsAWriteFarTooEarly) {
   }
 }
 
+// A timing mismatch shows what the client wrote as actual, against the
+// recorded bytes as expected (the data check comes after the timing check,
+// so the two may differ).
+TEST(ReplayTiming, TimingMismatchReportShowsTheClientsBytesAsActual) {
+  auto port = replay({tx(ms(500), "AB")}, "timing=session,check=timing,tolerance=50");
+  try {
+    port->write("XY");
+    FAIL() << "early write accepted";
+  } catch (const ReplayMismatch& mismatch) {
+    const std::string report = mismatch.what();
+    EXPECT_NE(report.find("too early"), std::string::npos) << report;
+    EXPECT_NE(report.find("  expected: 41 42  |AB|\n"), std::string::npos) << report;
+    EXPECT_NE(report.find("  actual:   58 59  |XY|\n"), std::string::npos) << report;
+  }
+}
+
 TEST(ReplayTiming, CheckTimingRejectsAWriteFarTooLate) {
   auto port = replay({tx(0, "A"), tx(ms(10), "B")},
                      "timing=causal,check=timing,tolerance=50");
@@ -726,6 +742,23 @@ TEST(ReplayRequest, CheckTimingRejectsARequestFarTooEarly) {
   auto port = replay({tx(ms(500), "Q"), rx(ms(501), "A")},
                      "timing=session,match=request,check=timing,tolerance=50");
   EXPECT_THROW(port->write("Q"), ReplayMismatch);
+}
+
+TEST(ReplayRequest, TimingMismatchReportShowsTheRequestAndTheClientsBytes) {
+  auto port = replay({tx(ms(500), "Q1\n"), rx(ms(501), "A")},
+                     "timing=session,match=request,check=timing,tolerance=50");
+  port->write("Q");
+  try {
+    port->write("1\n");
+    FAIL() << "early request accepted";
+  } catch (const ReplayMismatch& mismatch) {
+    const std::string report = mismatch.what();
+    EXPECT_NE(report.find("too early"), std::string::npos) << report;
+    EXPECT_NE(report.find("  expected: 51 31 0a  |Q1.|\n"), std::string::npos)
+        << report;
+    EXPECT_NE(report.find("  actual:   51 31 0a  |Q1.|\n"), std::string::npos)
+        << report;
+  }
 }
 
 TEST(ReplayTiming, CausalSpeedScalesTheGaps) {
