@@ -51,6 +51,8 @@ class SequenceStrategy final : public ReplayStrategy {
   bool next_tx_record();
   void write_records(const char* data, std::size_t size, ReplayTime now);
   bool checks_events() const;
+  // Recorded tx bytes the write cursor has passed (the client wrote them).
+  std::uint64_t tx_consumed() const;
 
   const ReplayConfig& config_;
   const ReplayTimeline& timeline_;
@@ -80,6 +82,7 @@ class SequenceStrategy final : public ReplayStrategy {
   std::optional<ReplayTime> previous_tx_finished_;
   std::uint64_t previous_tx_t_ns_ = 0;
   std::uint64_t tx_written_ = 0;  // bytes the client wrote
+  std::uint64_t tx_recorded_done_ = 0;  // of the tx records written in full
 };
 
 }  // namespace wiretape::detail

@@ -398,6 +398,105 @@ TEST(ReplayEnd, FullyConsumedSessionClosesCleanlyUnderUnusedError) {
   EXPECT_NO_THROW(port->close());
 }
 
+// A long command/response session made on the fly (no memory of its own):
+// each exchange is "Q\n" and a 4 KiB answer. Every source the factory makes
+// counts the records and payload bytes it hands out.
+struct HandedOut {
+  std::atomic<std::uint64_t> records{0};
+  std::atomic<std::uint64_t> bytes{0};
+};
+
+class LongSessionSource final : public detail::RecordSource {
+ public:
+  LongSessionSource(std::uint64_t exchanges, std::shared_ptr<HandedOut> counts)
+      : exchanges_(exchanges), counts_(std::move(counts)) {}
+  bool next(Record& record) override {
+    if (position_ >= 2 * exchanges_) return false;
+    const std::uint64_t exchange = position_ / 2;
+    record.t_ns = ms(10 * exchange) + (position_ % 2);
+    if (position_ % 2 == 0) {
+      record.kind = RecordKind::tx;
+      record.data = "Q\n";
+    } else {
+      record.kind = RecordKind::rx;
+      record.data.assign(kAnswerBytes, static_cast<char>('a' + exchange % 26));
+    }
+    ++position_;
+    ++counts_->records;
+    counts_->bytes += record.data.size();
+    return true;
+  }
+  void rewind() override { position_ = 0; }
+  const std::optional<SessionError>& damage() const override { return no_damage_; }
+
+  static constexpr std::size_t kAnswerBytes = 4096;
+
+ private:
+  std::uint64_t exchanges_;
+  std::shared_ptr<HandedOut> counts_;
+  std::uint64_t position_ = 0;
+  std::optional<SessionError> no_damage_;
+};
+
+// Closing a session the client left early must not read the rest of it (under
+// the port's lock) to count what was unused: the close reads a bounded
+// amount, and the report still says what was left and that there is more.
+TEST(ReplayEnd, ClosingEarlyReadsABoundedAmountToReportWhatWasUnused) {
+  static constexpr std::uint64_t kExchanges = 20000;  // 80 MiB of answers
+  for (const char* keys : {"timing=none", "timing=none,unused=error"}) {
+    SCOPED_TRACE(keys);
+    auto counts = std::make_shared<HandedOut>();
+    auto port = detail::open_replay_session(
+        config_from(keys), [counts]() -> std::unique_ptr<detail::RecordSource> {
+          return std::make_unique<LongSessionSource>(kExchanges, counts);
+        });
+    port->set_timeout(test::kEventDeadline);
+    port->write_all("Q\n");
+    EXPECT_EQ(port->read_exactly(LongSessionSource::kAnswerBytes).size(),
+              LongSessionSource::kAnswerBytes);
+    const std::uint64_t before_close = counts->bytes;
+    std::string report;
+    testing::internal::CaptureStderr();
+    try {
+      port->close();
+    } catch (const ReplayMismatch& mismatch) {
+      report = mismatch.what();
+    }
+    const std::string warning = testing::internal::GetCapturedStderr();
+    if (report.empty()) report = warning;
+    EXPECT_FALSE(port->is_open());
+    EXPECT_FALSE(report.empty());
+    EXPECT_EQ(std::string(keys).find("unused=error") != std::string::npos,
+              warning.empty())
+        << "unused=error raises, unused=warn warns";
+    const std::uint64_t read_at_close = counts->bytes - before_close;
+    EXPECT_LT(read_at_close, 8u << 20) << "bytes read to close the port";
+    EXPECT_NE(report.find("at least"), std::string::npos) << report;
+    EXPECT_NE(report.find("recorded rx bytes"), std::string::npos) << report;
+    EXPECT_NE(report.find("were never read"), std::string::npos) << report;
+    EXPECT_NE(report.find("recorded tx bytes were never written"), std::string::npos)
+        << report;
+  }
+}
+
+// Under the bound the count stays exact.
+TEST(ReplayEnd, UnusedReportCountsExactlyUnderTheBound) {
+  auto port = replay(hello_session(), "timing=none,unused=error");
+  EXPECT_EQ(port->read_line(), "HELLO\n");
+  port->write_all("PING\n");
+  try {
+    port->close();
+    FAIL() << "unused data not reported";
+  } catch (const ReplayMismatch& mismatch) {
+    const std::string report = mismatch.what();
+    EXPECT_NE(report.find(": 14 recorded rx bytes (3 records) were never read; "
+                          "5 recorded tx bytes were never written"),
+              std::string::npos)
+        << report;
+    EXPECT_EQ(report.find("at least"), std::string::npos) << report;
+  }
+}
+
 // --- request mode --------------------------------------------------------------------
 
 std::vector<Record> command_session() {
