@@ -7,7 +7,9 @@
 
 #include "support/port_test_support.hpp"
 
+#include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
@@ -18,6 +20,7 @@
 #include <thread>
 #include <vector>
 
+#include "posix/syscalls.hpp"
 #include "session/record_source.hpp"
 #include "replay/replay_config.hpp"
 #include "replay/replay_engine.hpp"
@@ -720,6 +723,43 @@ TEST(ReplayHandle, ReadableExactlyWhenDataIsAvailable) {
   EXPECT_FALSE(test::fd_readable(fd, 0ms));
   port->close();
   EXPECT_EQ(port->native_handle(), -1);
+}
+
+// The readiness pipe is made and closed through the system-call seam.
+TEST(ReplayHandle, ReadinessPipeGoesThroughTheSystemCallSeam) {
+  {
+    detail::sys::ScopedOverride seam;
+    seam->pipe = [](int*) {
+      errno = EMFILE;
+      return -1;
+    };
+    try {
+      replay(hello_session());
+      FAIL() << "the faked pipe failure was not seen";
+    } catch (const PortError& error) {
+      EXPECT_EQ(error.code().value(), EMFILE);
+      EXPECT_NE(std::string(error.what()).find("readiness pipe"), std::string::npos)
+          << error.what();
+    }
+  }
+  detail::sys::ScopedOverride seam;
+  std::vector<int> made;
+  std::vector<int> closed;
+  seam->pipe = [&made](int* fds) {
+    const int result = detail::sys::real().pipe(fds);
+    if (result == 0) made.assign({fds[0], fds[1]});
+    return result;
+  };
+  seam->close = [&closed](int fd) {
+    closed.push_back(fd);
+    return detail::sys::real().close(fd);
+  };
+  auto port = replay(hello_session(), "timing=none,unused=ignore");
+  ASSERT_EQ(made.size(), 2u);
+  EXPECT_EQ(port->native_handle(), made[0]);
+  port->close();
+  EXPECT_NE(std::find(closed.begin(), closed.end(), made[0]), closed.end());
+  EXPECT_NE(std::find(closed.begin(), closed.end(), made[1]), closed.end());
 }
 
 TEST(ReplayHandle, ReadableInTimingNoneToo) {
