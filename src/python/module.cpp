@@ -20,4 +20,5 @@ NB_MODULE(_core, m) {
   wiretape::python::bind_port(m);
   wiretape::python::bind_session(m);
   wiretape::python::bind_bridge(m);
+  wiretape::python::bind_util(m);
 }
