@@ -500,6 +500,52 @@ TEST(ReplayEnd, UnusedReportCountsExactlyUnderTheBound) {
   }
 }
 
+// The write cursor's source is not read at close: what the client never
+// wrote is counted from where the read cursor got to, exactly, even after a
+// long stream the client read in full.
+TEST(ReplayEnd, UnwrittenTxAfterALongStreamIsCountedExactly) {
+  std::vector<Record> session = {tx(0, "Q")};
+  for (int i = 0; i < 1000; ++i) session.push_back(rx(ms(1) + i, std::string(4096, 'r')));
+  session.push_back(tx(ms(2000), "BYE"));
+  session.push_back(rx(ms(2001), "ok"));
+  auto port = replay(session, "timing=none,unused=error");
+  port->write("Q");
+  EXPECT_EQ(port->read_exactly(1000 * 4096).size(), 1000u * 4096);
+  try {
+    port->close();
+    FAIL() << "unused data not reported";
+  } catch (const ReplayMismatch& mismatch) {
+    const std::string report = mismatch.what();
+    EXPECT_NE(report.find(": 2 recorded rx bytes (1 records) were never read; "
+                          "3 recorded tx bytes were never written"),
+              std::string::npos)
+        << report;
+    EXPECT_EQ(report.find("at least"), std::string::npos) << report;
+  }
+}
+
+// A client that wrote everything and read little: the write cursor is far
+// ahead of the read cursor, and none of the tx counts as unused.
+TEST(ReplayEnd, WriteCursorAheadOfTheReadCursorLeavesNoTxUnused) {
+  std::vector<Record> session;
+  std::string all_requests;
+  for (std::uint64_t i = 0; i < 2000; ++i) {
+    session.push_back(tx(ms(2 * i), "Q\n"));
+    session.push_back(rx(ms(2 * i + 1), std::string(4096, 'a')));
+    all_requests += "Q\n";
+  }
+  auto port = replay(session, "timing=none,unused=error");
+  port->write_all(all_requests);
+  try {
+    port->close();
+    FAIL() << "unused data not reported";
+  } catch (const ReplayMismatch& mismatch) {
+    const std::string report = mismatch.what();
+    EXPECT_NE(report.find("recorded rx bytes"), std::string::npos) << report;
+    EXPECT_EQ(report.find("tx bytes"), std::string::npos) << report;
+  }
+}
+
 // --- request mode --------------------------------------------------------------------
 
 std::vector<Record> command_session() {
