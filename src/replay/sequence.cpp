@@ -324,7 +324,7 @@ void SequenceStrategy::client_event(RecordKind kind,
     }
   }
   if (!same) {
-    report_.raise("the client made a " + made + "; the recording has " +
+    report_.raise("the client made a " + made + " event; the recording has " +
                       std::string(to_string(recorded.kind)) + " " + recorded.data,
                   tx_written_, {}, {}, recorded.t_ns, tx_exchange_);
   }

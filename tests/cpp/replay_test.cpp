@@ -1030,6 +1030,20 @@ TEST(ReplayEvents, CheckTimingRequiresTheRecordedSettingsInOrder) {
   }
 }
 
+TEST(ReplayEvents, EventMismatchReportNamesBothEvents) {
+  auto port = replay(baud_session(), "timing=causal,check=timing,tolerance=5000");
+  try {
+    port->set_baud(9600);
+    FAIL() << "wrong baud accepted";
+  } catch (const ReplayMismatch& mismatch) {
+    EXPECT_NE(std::string(mismatch.what())
+                  .find("the client made a settings {\"baud\":9600} event; "
+                        "the recording has settings {\"baud\":115200,"),
+              std::string::npos)
+        << mismatch.what();
+  }
+}
+
 TEST(ReplayEvents, CheckDataDoesNotCheckEvents) {
   auto port = replay(baud_session(), "timing=none,check=data");
   port->set_baud(9600);
