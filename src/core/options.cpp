@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdlib>
 
+#include "util/hex.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape {
@@ -38,10 +39,7 @@ std::string shown(std::string_view text) {
     if (c >= 0x20 && c < 0x7f) {
       out += static_cast<char>(c);
     } else {
-      static const char hex[] = "0123456789abcdef";
-      out += "\\x";
-      out += hex[c >> 4];
-      out += hex[c & 15];
+      detail::append_hex_escape(out, c);
     }
   }
   return out + "'";

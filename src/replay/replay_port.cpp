@@ -3,8 +3,6 @@
 // thread, and a pollable handle that is readable exactly when available() > 0
 // (a scheduler thread raises it when timed data falls due).
 #include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
 
 #include <cerrno>
 #include <condition_variable>
@@ -14,6 +12,7 @@
 
 #include "core/open_port.hpp"
 #include "posix/platform.hpp"
+#include "posix/syscalls.hpp"
 #include "replay/replay_engine.hpp"
 #include "replay/replay_port.hpp"
 #include "session/reader.hpp"
@@ -23,23 +22,6 @@
 namespace wiretape::detail {
 
 namespace {
-
-class OwnedFd {
- public:
-  OwnedFd() = default;
-  explicit OwnedFd(int fd) : fd_(fd) {}
-  ~OwnedFd() { reset(); }
-  OwnedFd(const OwnedFd&) = delete;
-  OwnedFd& operator=(const OwnedFd&) = delete;
-  int get() const { return fd_; }
-  void reset(int fd = -1) {
-    if (fd_ >= 0) ::close(fd_);
-    fd_ = fd;
-  }
-
- private:
-  int fd_ = -1;
-};
 
 // A session file's records; damage ends them with one warning on stderr
 // (shared by the sources of one replay).
@@ -96,14 +78,14 @@ class ReplayPort final : public Port {
       : description_(describe(config)),
         engine_(std::move(config), std::move(sources), ReplayClock::now()) {
     int fds[2];
-    if (::pipe(fds) != 0) {
+    if (sys::pipe(fds) != 0) {
       throw PortError(errno, description_ + ": creating the readiness pipe");
     }
     signal_read_.reset(fds[0]);
     signal_write_.reset(fds[1]);
     for (int fd : fds) {
-      ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) | O_NONBLOCK);
-      ::fcntl(fd, F_SETFD, FD_CLOEXEC);
+      sys::fcntl(fd, F_SETFL, sys::fcntl(fd, F_GETFL) | O_NONBLOCK);
+      sys::fcntl(fd, F_SETFD, FD_CLOEXEC);
     }
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -349,13 +331,13 @@ class ReplayPort final : public Port {
          engine_.config().at_end == ReplayAtEnd::closed);
     if (readable && !signalled_) {
       const char byte = 1;
-      while (::write(signal_write_.get(), &byte, 1) < 0 && errno == EINTR) {
+      while (sys::write(signal_write_.get(), &byte, 1) < 0 && errno == EINTR) {
       }
       signalled_ = true;
     } else if (!readable && signalled_) {
       char scratch[64];
       for (;;) {
-        const ssize_t n = ::read(signal_read_.get(), scratch, sizeof scratch);
+        const ssize_t n = sys::read(signal_read_.get(), scratch, sizeof scratch);
         if (n > 0 || (n < 0 && errno == EINTR)) continue;
         break;
       }
@@ -467,8 +449,8 @@ class ReplayPort final : public Port {
   ReplayEngine engine_;
   SerialSettings settings_;
   bool closed_ = false;
-  OwnedFd signal_read_;
-  OwnedFd signal_write_;
+  sys::UniqueFd signal_read_;
+  sys::UniqueFd signal_write_;
   bool signalled_ = false;
   int readers_awaiting_due_ = 0;  // threads in wait() for a due time
   ReplayTime scheduler_wake_ = ReplayTime::min();  // see sleep_scheduler()

@@ -7,7 +7,9 @@
 
 #include "support/port_test_support.hpp"
 
+#include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <chrono>
 #include <cstdlib>
 #include <cstring>
@@ -18,6 +20,7 @@
 #include <thread>
 #include <vector>
 
+#include "posix/syscalls.hpp"
 #include "session/record_source.hpp"
 #include "replay/replay_config.hpp"
 #include "replay/replay_engine.hpp"
@@ -398,6 +401,151 @@ TEST(ReplayEnd, FullyConsumedSessionClosesCleanlyUnderUnusedError) {
   EXPECT_NO_THROW(port->close());
 }
 
+// A long command/response session made on the fly (no memory of its own):
+// each exchange is "Q\n" and a 4 KiB answer. Every source the factory makes
+// counts the records and payload bytes it hands out.
+struct HandedOut {
+  std::atomic<std::uint64_t> records{0};
+  std::atomic<std::uint64_t> bytes{0};
+};
+
+class LongSessionSource final : public detail::RecordSource {
+ public:
+  LongSessionSource(std::uint64_t exchanges, std::shared_ptr<HandedOut> counts)
+      : exchanges_(exchanges), counts_(std::move(counts)) {}
+  bool next(Record& record) override {
+    if (position_ >= 2 * exchanges_) return false;
+    const std::uint64_t exchange = position_ / 2;
+    record.t_ns = ms(10 * exchange) + (position_ % 2);
+    if (position_ % 2 == 0) {
+      record.kind = RecordKind::tx;
+      record.data = "Q\n";
+    } else {
+      record.kind = RecordKind::rx;
+      record.data.assign(kAnswerBytes, static_cast<char>('a' + exchange % 26));
+    }
+    ++position_;
+    ++counts_->records;
+    counts_->bytes += record.data.size();
+    return true;
+  }
+  void rewind() override { position_ = 0; }
+  const std::optional<SessionError>& damage() const override { return no_damage_; }
+
+  static constexpr std::size_t kAnswerBytes = 4096;
+
+ private:
+  std::uint64_t exchanges_;
+  std::shared_ptr<HandedOut> counts_;
+  std::uint64_t position_ = 0;
+  std::optional<SessionError> no_damage_;
+};
+
+// Closing a session the client left early must not read the rest of it (under
+// the port's lock) to count what was unused: the close reads a bounded
+// amount, and the report still says what was left and that there is more.
+TEST(ReplayEnd, ClosingEarlyReadsABoundedAmountToReportWhatWasUnused) {
+  static constexpr std::uint64_t kExchanges = 20000;  // 80 MiB of answers
+  for (const char* keys : {"timing=none", "timing=none,unused=error"}) {
+    SCOPED_TRACE(keys);
+    auto counts = std::make_shared<HandedOut>();
+    auto port = detail::open_replay_session(
+        config_from(keys), [counts]() -> std::unique_ptr<detail::RecordSource> {
+          return std::make_unique<LongSessionSource>(kExchanges, counts);
+        });
+    port->set_timeout(test::kEventDeadline);
+    port->write_all("Q\n");
+    EXPECT_EQ(port->read_exactly(LongSessionSource::kAnswerBytes).size(),
+              LongSessionSource::kAnswerBytes);
+    const std::uint64_t before_close = counts->bytes;
+    std::string report;
+    testing::internal::CaptureStderr();
+    try {
+      port->close();
+    } catch (const ReplayMismatch& mismatch) {
+      report = mismatch.what();
+    }
+    const std::string warning = testing::internal::GetCapturedStderr();
+    if (report.empty()) report = warning;
+    EXPECT_FALSE(port->is_open());
+    EXPECT_FALSE(report.empty());
+    EXPECT_EQ(std::string(keys).find("unused=error") != std::string::npos,
+              warning.empty())
+        << "unused=error raises, unused=warn warns";
+    const std::uint64_t read_at_close = counts->bytes - before_close;
+    EXPECT_LT(read_at_close, 8u << 20) << "bytes read to close the port";
+    EXPECT_NE(report.find("at least"), std::string::npos) << report;
+    EXPECT_NE(report.find("recorded rx bytes"), std::string::npos) << report;
+    EXPECT_NE(report.find("were never read"), std::string::npos) << report;
+    EXPECT_NE(report.find("recorded tx bytes were never written"), std::string::npos)
+        << report;
+  }
+}
+
+// Under the bound the count stays exact.
+TEST(ReplayEnd, UnusedReportCountsExactlyUnderTheBound) {
+  auto port = replay(hello_session(), "timing=none,unused=error");
+  EXPECT_EQ(port->read_line(), "HELLO\n");
+  port->write_all("PING\n");
+  try {
+    port->close();
+    FAIL() << "unused data not reported";
+  } catch (const ReplayMismatch& mismatch) {
+    const std::string report = mismatch.what();
+    EXPECT_NE(report.find(": 14 recorded rx bytes (3 records) were never read; "
+                          "5 recorded tx bytes were never written"),
+              std::string::npos)
+        << report;
+    EXPECT_EQ(report.find("at least"), std::string::npos) << report;
+  }
+}
+
+// The write cursor's source is not read at close: what the client never
+// wrote is counted from where the read cursor got to, exactly, even after a
+// long stream the client read in full.
+TEST(ReplayEnd, UnwrittenTxAfterALongStreamIsCountedExactly) {
+  std::vector<Record> session = {tx(0, "Q")};
+  for (int i = 0; i < 1000; ++i) session.push_back(rx(ms(1) + i, std::string(4096, 'r')));
+  session.push_back(tx(ms(2000), "BYE"));
+  session.push_back(rx(ms(2001), "ok"));
+  auto port = replay(session, "timing=none,unused=error");
+  port->write("Q");
+  EXPECT_EQ(port->read_exactly(1000 * 4096).size(), 1000u * 4096);
+  try {
+    port->close();
+    FAIL() << "unused data not reported";
+  } catch (const ReplayMismatch& mismatch) {
+    const std::string report = mismatch.what();
+    EXPECT_NE(report.find(": 2 recorded rx bytes (1 records) were never read; "
+                          "3 recorded tx bytes were never written"),
+              std::string::npos)
+        << report;
+    EXPECT_EQ(report.find("at least"), std::string::npos) << report;
+  }
+}
+
+// A client that wrote everything and read little: the write cursor is far
+// ahead of the read cursor, and none of the tx counts as unused.
+TEST(ReplayEnd, WriteCursorAheadOfTheReadCursorLeavesNoTxUnused) {
+  std::vector<Record> session;
+  std::string all_requests;
+  for (std::uint64_t i = 0; i < 2000; ++i) {
+    session.push_back(tx(ms(2 * i), "Q\n"));
+    session.push_back(rx(ms(2 * i + 1), std::string(4096, 'a')));
+    all_requests += "Q\n";
+  }
+  auto port = replay(session, "timing=none,unused=error");
+  port->write_all(all_requests);
+  try {
+    port->close();
+    FAIL() << "unused data not reported";
+  } catch (const ReplayMismatch& mismatch) {
+    const std::string report = mismatch.what();
+    EXPECT_NE(report.find("recorded rx bytes"), std::string::npos) << report;
+    EXPECT_EQ(report.find("tx bytes"), std::string::npos) << report;
+  }
+}
+
 // --- request mode --------------------------------------------------------------------
 
 std::vector<Record> command_session() {
@@ -552,6 +700,22 @@ TEST(ReplayTiming, CheckTimingRejectsAWriteFarTooEarly) {
   }
 }
 
+// A timing mismatch shows what the client wrote as actual, against the
+// recorded bytes as expected (the data check comes after the timing check,
+// so the two may differ).
+TEST(ReplayTiming, TimingMismatchReportShowsTheClientsBytesAsActual) {
+  auto port = replay({tx(ms(500), "AB")}, "timing=session,check=timing,tolerance=50");
+  try {
+    port->write("XY");
+    FAIL() << "early write accepted";
+  } catch (const ReplayMismatch& mismatch) {
+    const std::string report = mismatch.what();
+    EXPECT_NE(report.find("too early"), std::string::npos) << report;
+    EXPECT_NE(report.find("  expected: 41 42  |AB|\n"), std::string::npos) << report;
+    EXPECT_NE(report.find("  actual:   58 59  |XY|\n"), std::string::npos) << report;
+  }
+}
+
 TEST(ReplayTiming, CheckTimingRejectsAWriteFarTooLate) {
   auto port = replay({tx(0, "A"), tx(ms(10), "B")},
                      "timing=causal,check=timing,tolerance=50");
@@ -605,6 +769,43 @@ TEST(ReplayHandle, ReadableExactlyWhenDataIsAvailable) {
   EXPECT_FALSE(test::fd_readable(fd, 0ms));
   port->close();
   EXPECT_EQ(port->native_handle(), -1);
+}
+
+// The readiness pipe is made and closed through the system-call seam.
+TEST(ReplayHandle, ReadinessPipeGoesThroughTheSystemCallSeam) {
+  {
+    detail::sys::ScopedOverride seam;
+    seam->pipe = [](int*) {
+      errno = EMFILE;
+      return -1;
+    };
+    try {
+      replay(hello_session());
+      FAIL() << "the faked pipe failure was not seen";
+    } catch (const PortError& error) {
+      EXPECT_EQ(error.code().value(), EMFILE);
+      EXPECT_NE(std::string(error.what()).find("readiness pipe"), std::string::npos)
+          << error.what();
+    }
+  }
+  detail::sys::ScopedOverride seam;
+  std::vector<int> made;
+  std::vector<int> closed;
+  seam->pipe = [&made](int* fds) {
+    const int result = detail::sys::real().pipe(fds);
+    if (result == 0) made.assign({fds[0], fds[1]});
+    return result;
+  };
+  seam->close = [&closed](int fd) {
+    closed.push_back(fd);
+    return detail::sys::real().close(fd);
+  };
+  auto port = replay(hello_session(), "timing=none,unused=ignore");
+  ASSERT_EQ(made.size(), 2u);
+  EXPECT_EQ(port->native_handle(), made[0]);
+  port->close();
+  EXPECT_NE(std::find(closed.begin(), closed.end(), made[0]), closed.end());
+  EXPECT_NE(std::find(closed.begin(), closed.end(), made[1]), closed.end());
 }
 
 TEST(ReplayHandle, ReadableInTimingNoneToo) {
@@ -728,6 +929,23 @@ TEST(ReplayRequest, CheckTimingRejectsARequestFarTooEarly) {
   EXPECT_THROW(port->write("Q"), ReplayMismatch);
 }
 
+TEST(ReplayRequest, TimingMismatchReportShowsTheRequestAndTheClientsBytes) {
+  auto port = replay({tx(ms(500), "Q1\n"), rx(ms(501), "A")},
+                     "timing=session,match=request,check=timing,tolerance=50");
+  port->write("Q");
+  try {
+    port->write("1\n");
+    FAIL() << "early request accepted";
+  } catch (const ReplayMismatch& mismatch) {
+    const std::string report = mismatch.what();
+    EXPECT_NE(report.find("too early"), std::string::npos) << report;
+    EXPECT_NE(report.find("  expected: 51 31 0a  |Q1.|\n"), std::string::npos)
+        << report;
+    EXPECT_NE(report.find("  actual:   51 31 0a  |Q1.|\n"), std::string::npos)
+        << report;
+  }
+}
+
 TEST(ReplayTiming, CausalSpeedScalesTheGaps) {
   auto port = replay({tx(0, "Q"), rx(ms(2000), "A")}, "timing=causal,speed=20");
   const auto asked = std::chrono::steady_clock::now();
@@ -809,6 +1027,20 @@ TEST(ReplayEvents, CheckTimingRequiresTheRecordedSettingsInOrder) {
     settings.baud = 115200;
     port->configure(settings);
     EXPECT_THROW(port->send_break(250ms), ReplayMismatch);  // dtr was recorded
+  }
+}
+
+TEST(ReplayEvents, EventMismatchReportNamesBothEvents) {
+  auto port = replay(baud_session(), "timing=causal,check=timing,tolerance=5000");
+  try {
+    port->set_baud(9600);
+    FAIL() << "wrong baud accepted";
+  } catch (const ReplayMismatch& mismatch) {
+    EXPECT_NE(std::string(mismatch.what())
+                  .find("the client made a settings {\"baud\":9600} event; "
+                        "the recording has settings {\"baud\":115200,"),
+              std::string::npos)
+        << mismatch.what();
   }
 }
 

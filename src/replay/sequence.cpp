@@ -1,0 +1,413 @@
+#include "replay/sequence.hpp"
+
+#include <algorithm>
+
+#include "util/json.hpp"
+#include "wiretape/errors.hpp"
+
+namespace wiretape::detail {
+
+SequenceStrategy::SequenceStrategy(const ReplayConfig& config,
+                                   const ReplayTimeline& timeline,
+                                   ReleasedRx& released, MismatchReport& report,
+                                   const RecordSourceFactory& sources)
+    : config_(config),
+      timeline_(timeline),
+      released_(released),
+      report_(report),
+      rx_source_(sources()),
+      tx_source_(sources()) {
+  fill();
+  entitle();
+}
+
+// --- the read cursor -----------------------------------------------------------
+
+void SequenceStrategy::release() {
+  const bool nothing_ahead = released_.empty() && ahead_.empty();
+  if (nothing_ahead || released_.bytes() + ahead_bytes_ < kLookaheadBytes / 2) {
+    fill();
+  }
+  entitle();
+}
+
+bool SequenceStrategy::more_to_release() const {
+  return !ahead_.empty() || !rx_exhausted_;
+}
+
+void SequenceStrategy::fill() {
+  Record record;
+  PayloadView view;
+  record.data = released_.spare_payload();
+  while (!rx_exhausted_ && released_.size() + ahead_.size() < kLookaheadRecords &&
+         released_.bytes() + ahead_bytes_ < kLookaheadBytes) {
+    if (!rx_source_->next(record, view)) {
+      rx_exhausted_ = true;
+      break;
+    }
+    const std::size_t size = view ? view.bytes.size() : record.data.size();
+    switch (record.kind) {
+      case RecordKind::tx:
+        if (size == 0) break;
+        rx_tx_seen_ += size;
+        rx_last_tx_t_ns_ = record.t_ns;
+        break;
+      case RecordKind::rx:
+      case RecordKind::close:
+      case RecordKind::device_lost: {
+        if (record.kind == RecordKind::rx && size == 0) break;
+        if (record.kind == RecordKind::close && !session_goes_on(*rx_source_)) {
+          rx_exhausted_ = true;
+          break;
+        }
+        Ahead ahead;
+        ahead.item.kind = record.kind;
+        ahead.item.t_ns = record.t_ns;
+        ahead.tx_before = rx_tx_seen_;
+        ahead.anchor_t_ns = rx_last_tx_t_ns_;
+        ahead_bytes_ += size;
+        if (view) {
+          ahead.item.view = std::move(view);
+        } else {
+          ahead.item.data = std::move(record.data);
+          record.data = released_.spare_payload();
+        }
+        ahead_.push_back(std::move(ahead));
+        // The device is gone: nothing after this point is served.
+        if (record.kind != RecordKind::rx) rx_exhausted_ = true;
+        break;
+      }
+      default:
+        break;  // events are not replayed to the client
+    }
+  }
+  released_.recycle_payload(std::move(record.data));
+}
+
+std::optional<ReplayTime> SequenceStrategy::finish_of(std::uint64_t tx_offset) const {
+  for (const TxEnd& end : tx_ends_) {
+    if (end.end_offset >= tx_offset) return end.finished;
+  }
+  return previous_tx_finished_;
+}
+
+void SequenceStrategy::entitle() {
+  while (!ahead_.empty()) {
+    Ahead& ahead = ahead_.front();
+    // timing=session: time alone decides, writes do not gate.
+    const bool entitled = config_.timing == ReplayTiming::session ||
+                          tx_written_ >= ahead.tx_before;
+    if (!entitled) break;  // later records need at least as many tx bytes
+    std::optional<ReplayTimeline::Anchor> anchor;
+    if (ahead.anchor_t_ns) {
+      if (const auto finished = finish_of(ahead.tx_before)) {
+        anchor = ReplayTimeline::Anchor{*finished, *ahead.anchor_t_ns};
+      }
+    }
+    ahead.item.due = timeline_.due(ahead.item.t_ns, anchor);
+    ahead_bytes_ -= ahead.item.payload().size();
+    released_.push(std::move(ahead.item));
+    ahead_.pop_front();
+  }
+  // Finish times the read cursor will never ask for again.
+  const std::uint64_t still_needed =
+      ahead_.empty() ? rx_tx_seen_ : ahead_.front().tx_before;
+  while (tx_ends_.size() > 1 && tx_ends_.front().end_offset < still_needed) {
+    tx_ends_.pop_front();
+  }
+}
+
+// --- the write cursor ------------------------------------------------------------
+
+bool SequenceStrategy::next_tx_record() {
+  Record record;
+  while (!have_tx_record_ && !tx_exhausted_) {
+    if (!tx_source_->next(record)) {
+      tx_exhausted_ = true;
+      break;
+    }
+    switch (record.kind) {
+      case RecordKind::tx:
+        if (record.data.empty()) break;
+        if (tx_after_rx_) {
+          ++tx_exchange_;
+          tx_after_rx_ = false;
+        }
+        tx_record_ = std::move(record);
+        tx_position_ = 0;
+        have_tx_record_ = true;
+        break;
+      case RecordKind::rx:
+        if (!record.data.empty()) tx_after_rx_ = true;
+        break;
+      case RecordKind::settings:
+      case RecordKind::modem_lines:
+      case RecordKind::line_break:
+        if (checks_events()) expected_events_.push_back(std::move(record));
+        break;
+      case RecordKind::close:
+      case RecordKind::device_lost:
+        tx_hit_close_ = record.kind == RecordKind::device_lost ||
+                        session_goes_on(*tx_source_);
+        tx_close_t_ns_ = record.t_ns;
+        tx_exhausted_ = true;
+        break;
+      default:
+        break;
+    }
+  }
+  return have_tx_record_;
+}
+
+void SequenceStrategy::write(const char* data, std::size_t size, ReplayTime now) {
+  try {
+    write_records(data, size, now);
+  } catch (...) {
+    entitle();  // what was accepted before the mismatch still counts
+    throw;
+  }
+  entitle();
+}
+
+void SequenceStrategy::write_records(const char* data, std::size_t size,
+                                     ReplayTime now) {
+  const bool compare = config_.check != ReplayCheck::off;
+  std::size_t done = 0;
+  while (done < size) {
+    const std::string_view rest(data + done, size - done);
+    if (!next_tx_record()) {
+      if (tx_hit_close_) {
+        throw PortClosed("replay of " + config_.file +
+                         ": the recorded device was closed at session time " +
+                         session_seconds(tx_close_t_ns_) +
+                         " s; it takes no more writes");
+      }
+      if (compare) {
+        report_.raise("the client wrote more than the recording holds",
+                      tx_written_, {}, rest.substr(0, kReplayContext),
+                      previous_tx_t_ns_, tx_exchange_);
+      }
+      tx_written_ += rest.size();
+      report_.accepted(rest);
+      return;
+    }
+    const std::string& expected = tx_record_.data;
+    if (tx_position_ == 0 && !expected_events_.empty()) {
+      const Record& missing = expected_events_.front();
+      report_.raise("the recording has a " + std::string(to_string(missing.kind)) +
+                        " event " + missing.data +
+                        " before these bytes, and the client did not make it",
+                    tx_written_,
+                    std::string_view(expected).substr(0, kReplayContext),
+                    rest.substr(0, kReplayContext), missing.t_ns, tx_exchange_);
+    }
+    if (tx_position_ == 0 && config_.check == ReplayCheck::timing) {
+      std::optional<ReplayTimeline::Anchor> anchor;
+      if (previous_tx_finished_) {
+        anchor = ReplayTimeline::Anchor{*previous_tx_finished_, previous_tx_t_ns_};
+      }
+      const ReplayTime due = timeline_.due(tx_record_.t_ns, anchor);
+      if (const auto miss = timeline_.check(due, now)) {
+        report_.raise(miss->title, tx_written_,
+                      std::string_view(expected).substr(0, kReplayContext),
+                      rest.substr(0, kReplayContext), tx_record_.t_ns,
+                      tx_exchange_, miss->detail);
+      }
+    }
+    std::size_t accepted;
+    if (config_.datagrams) {
+      if (compare && (done != 0 || rest != expected)) {
+        report_.raise("the client's datagram differs from the recorded one (" +
+                          std::to_string(rest.size()) + " bytes written, " +
+                          std::to_string(expected.size()) + " recorded)",
+                      tx_written_,
+                      std::string_view(expected).substr(0, kReplayContext),
+                      rest.substr(0, kReplayContext), tx_record_.t_ns,
+                      tx_exchange_);
+      }
+      // One datagram is one record, whatever its length.
+      tx_written_ += expected.size();
+      report_.accepted(expected);
+      accepted = rest.size();
+    } else {
+      const std::size_t n = std::min(rest.size(), expected.size() - tx_position_);
+      const std::string_view want(expected.data() + tx_position_, n);
+      if (compare) {
+        const std::size_t same = common_prefix(want, rest.substr(0, n));
+        if (same < n) {
+          // The equal part was accepted; the report starts at the difference.
+          tx_position_ += same;
+          tx_written_ += same;
+          report_.accepted(rest.substr(0, same));
+          report_.raise(
+              "the client wrote bytes that differ from the recording",
+              tx_written_,
+              std::string_view(expected).substr(tx_position_, kReplayContext),
+              rest.substr(same, kReplayContext), tx_record_.t_ns, tx_exchange_);
+        }
+      }
+      tx_position_ += n;
+      tx_written_ += n;
+      report_.accepted(rest.substr(0, n));
+      accepted = n;
+      if (tx_position_ < expected.size()) {
+        done += accepted;
+        continue;
+      }
+    }
+    tx_recorded_done_ += expected.size();
+    tx_ends_.push_back({tx_written_, now});
+    previous_tx_finished_ = now;
+    previous_tx_t_ns_ = tx_record_.t_ns;
+    have_tx_record_ = false;
+    done += accepted;
+    if (config_.datagrams) return;
+  }
+}
+
+// --- recorded events ---------------------------------------------------------------
+
+bool SequenceStrategy::checks_events() const {
+  return config_.check == ReplayCheck::timing;
+}
+
+namespace {
+
+std::string member_text(const json::Value& value) {
+  switch (value.type) {
+    case json::Value::Type::boolean:
+      return value.boolean ? "true" : "false";
+    case json::Value::Type::number:
+    case json::Value::Type::string:
+      return value.text;
+    default:
+      return json::serialize(value);
+  }
+}
+
+std::string fields_json(const std::map<std::string, std::string>& fields) {
+  std::string text = "{";
+  for (const auto& [key, value] : fields) {
+    if (text.size() > 1) text += ",";
+    const bool bare = value == "true" || value == "false" ||
+                      (!value.empty() &&
+                       value.find_first_not_of("-0123456789.") == std::string::npos);
+    text += json::quote(key) + ":" + (bare ? value : json::quote(value));
+  }
+  return text + "}";
+}
+
+}  // namespace
+
+void SequenceStrategy::client_event(RecordKind kind,
+                                    const std::map<std::string, std::string>& fields) {
+  if (!checks_events()) return;
+  if (!have_tx_record_ || tx_position_ == 0) next_tx_record();
+  const std::string made = std::string(to_string(kind)) + " " + fields_json(fields);
+  if (expected_events_.empty()) {
+    report_.raise("the client made a " + made +
+                      " event where the recording has none",
+                  tx_written_, {}, {}, previous_tx_t_ns_, tx_exchange_);
+  }
+  const Record& recorded = expected_events_.front();
+  bool same = recorded.kind == kind;
+  if (same) {
+    try {
+      const json::Value value = json::parse(recorded.data.empty() ? "{}" : recorded.data);
+      // Only what both say is compared (set_baud against a full configure).
+      for (const auto& [key, text] : fields) {
+        const json::Value* member = value.find(key);
+        if (member != nullptr && member_text(*member) != text) same = false;
+      }
+    } catch (const json::ParseError&) {
+      same = false;
+    }
+  }
+  if (!same) {
+    report_.raise("the client made a " + made + " event; the recording has " +
+                      std::string(to_string(recorded.kind)) + " " + recorded.data,
+                  tx_written_, {}, {}, recorded.t_ns, tx_exchange_);
+  }
+  expected_events_.pop_front();
+}
+
+// --- at close ------------------------------------------------------------------------
+
+namespace {
+
+// At close, the recording beyond the read cursor is read only this far once
+// something unused has been found: enough to say what was left, and that
+// there was more, without reading (under the port's lock) the whole rest of
+// a long session the client left early.
+constexpr std::uint64_t kUnusedScanBytes = 1 << 20;
+constexpr std::uint64_t kUnusedScanRecords = 4096;
+
+}  // namespace
+
+std::uint64_t SequenceStrategy::tx_consumed() const {
+  return tx_recorded_done_ + (have_tx_record_ ? tx_position_ : 0);
+}
+
+std::string SequenceStrategy::unused_report(std::uint64_t queued_rx_bytes,
+                                            std::uint64_t queued_rx_records) {
+  std::uint64_t rx_bytes = queued_rx_bytes;
+  std::uint64_t rx_records = queued_rx_records;
+  for (const Ahead& ahead : ahead_) {
+    if (ahead.item.kind != RecordKind::rx) continue;
+    rx_bytes += ahead.item.payload().size();
+    ++rx_records;
+  }
+  // The read cursor has counted the recorded tx up to where it is; the write
+  // cursor says how much of it the client wrote. Beyond the read cursor one
+  // scan counts both directions, so the write cursor's source is not read.
+  std::uint64_t tx_seen = rx_tx_seen_;
+  const auto tx_unused = [&] {
+    return tx_seen > tx_consumed() ? tx_seen - tx_consumed() : 0;
+  };
+  bool more = false;
+  std::uint64_t scanned_records = 0;
+  std::uint64_t scanned_bytes = 0;
+  Record record;
+  PayloadView view;
+  while (!rx_exhausted_ && rx_source_->next(record, view)) {
+    const std::size_t size = view ? view.bytes.size() : record.data.size();
+    if (record.kind == RecordKind::close ||
+        record.kind == RecordKind::device_lost) {
+      break;
+    }
+    if (record.kind == RecordKind::rx && size > 0) {
+      rx_bytes += size;
+      ++rx_records;
+    }
+    if (record.kind == RecordKind::tx) tx_seen += size;
+    ++scanned_records;
+    scanned_bytes += size;
+    // Until something unused is found the scan is still within what the
+    // client wrote (or events), so it only stops once it has.
+    if ((scanned_bytes >= kUnusedScanBytes ||
+         scanned_records >= kUnusedScanRecords) &&
+        (rx_bytes > 0 || tx_unused() > 0)) {
+      more = true;
+      break;
+    }
+  }
+  rx_exhausted_ = true;
+  const std::uint64_t tx_bytes = tx_unused();
+  tx_exhausted_ = true;
+  have_tx_record_ = false;
+  const std::string at_least = more ? "at least " : "";
+  std::string report;
+  if (rx_bytes > 0) {
+    report = at_least + std::to_string(rx_bytes) + " recorded rx bytes (" +
+             at_least + std::to_string(rx_records) + " records) were never read";
+  }
+  if (tx_bytes > 0) {
+    if (rx_bytes > 0) report += "; ";
+    report += at_least + std::to_string(tx_bytes) +
+              " recorded tx bytes were never written";
+  }
+  if (more) report += " (the rest of the recording was not counted)";
+  return report;
+}
+
+}  // namespace wiretape::detail

@@ -1,0 +1,88 @@
+// match=sequence: the session is one stream in recorded order. Two cursors
+// stream it: the read cursor looks ahead (bounded) for the rx the client
+// will read and releases each record once the client has written the tx
+// bytes recorded before it; the write cursor follows the recorded tx and
+// checks what the client writes (data, and under check=timing its timing and
+// the recorded events).
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "replay/strategy.hpp"
+
+namespace wiretape::detail {
+
+class SequenceStrategy final : public ReplayStrategy {
+ public:
+  SequenceStrategy(const ReplayConfig& config, const ReplayTimeline& timeline,
+                   ReleasedRx& released, MismatchReport& report,
+                   const RecordSourceFactory& sources);
+
+  void release() override;
+  bool more_to_release() const override;
+  void write(const char* data, std::size_t size, ReplayTime now) override;
+  void client_event(RecordKind kind,
+                    const std::map<std::string, std::string>& fields) override;
+  std::string unused_report(std::uint64_t queued_rx_bytes,
+                            std::uint64_t queued_rx_records) override;
+
+ private:
+  // An rx record the read cursor looked ahead to, not yet entitled.
+  struct Ahead {
+    RxItem item;
+    // tx bytes recorded before it, and the time of the last tx record
+    // before it (none: before any write).
+    std::uint64_t tx_before = 0;
+    std::optional<std::uint64_t> anchor_t_ns;
+  };
+  struct TxEnd {  // a recorded tx record the client finished writing
+    std::uint64_t end_offset;
+    ReplayTime finished;
+  };
+
+  void fill();
+  void entitle();
+  std::optional<ReplayTime> finish_of(std::uint64_t tx_offset) const;
+  bool next_tx_record();
+  void write_records(const char* data, std::size_t size, ReplayTime now);
+  bool checks_events() const;
+  // Recorded tx bytes the write cursor has passed (the client wrote them).
+  std::uint64_t tx_consumed() const;
+
+  const ReplayConfig& config_;
+  const ReplayTimeline& timeline_;
+  ReleasedRx& released_;
+  MismatchReport& report_;
+
+  // The read cursor.
+  std::unique_ptr<RecordSource> rx_source_;
+  bool rx_exhausted_ = false;
+  std::uint64_t rx_tx_seen_ = 0;
+  std::optional<std::uint64_t> rx_last_tx_t_ns_;
+  std::deque<Ahead> ahead_;
+  std::size_t ahead_bytes_ = 0;
+  std::deque<TxEnd> tx_ends_;
+
+  // The write cursor.
+  std::unique_ptr<RecordSource> tx_source_;
+  Record tx_record_;
+  bool have_tx_record_ = false;
+  bool tx_exhausted_ = false;
+  bool tx_hit_close_ = false;
+  std::uint64_t tx_close_t_ns_ = 0;
+  std::size_t tx_position_ = 0;
+  std::int64_t tx_exchange_ = -1;
+  bool tx_after_rx_ = true;
+  std::deque<Record> expected_events_;  // recorded before the next tx record
+  std::optional<ReplayTime> previous_tx_finished_;
+  std::uint64_t previous_tx_t_ns_ = 0;
+  std::uint64_t tx_written_ = 0;  // bytes the client wrote
+  std::uint64_t tx_recorded_done_ = 0;  // of the tx records written in full
+};
+
+}  // namespace wiretape::detail

@@ -1,0 +1,104 @@
+#include "replay/strategy.hpp"
+
+#include <algorithm>
+#include <cstdio>
+#include <sstream>
+
+#include "util/hex.hpp"
+#include "wiretape/errors.hpp"
+
+namespace wiretape::detail {
+
+void ReleasedRx::push(RxItem&& item) {
+  bytes_ += item.payload().size();
+  items_.push_back(std::move(item));
+}
+
+void ReleasedRx::pop_front() {
+  bytes_ -= items_.front().payload().size();
+  recycle_payload(std::move(items_.front().data));
+  items_.pop_front();
+}
+
+std::string ReleasedRx::spare_payload() {
+  if (spare_payloads_.empty()) return {};
+  std::string buffer = std::move(spare_payloads_.back());
+  spare_payloads_.pop_back();
+  spare_bytes_ -= buffer.capacity();
+  return buffer;
+}
+
+void ReleasedRx::recycle_payload(std::string&& buffer) {
+  // Bounded like the look-ahead, so memory stays independent of the session.
+  if (!recycle_ || buffer.capacity() == 0 ||
+      spare_payloads_.size() >= kLookaheadRecords ||
+      spare_bytes_ + buffer.capacity() > kLookaheadBytes) {
+    return;
+  }
+  buffer.clear();
+  spare_bytes_ += buffer.capacity();
+  spare_payloads_.push_back(std::move(buffer));
+}
+
+void MismatchReport::accepted(std::string_view bytes) {
+  if (bytes.size() >= kReplayContext) {
+    history_.assign(bytes.substr(bytes.size() - kReplayContext));
+    return;
+  }
+  history_.append(bytes);
+  if (history_.size() > kReplayContext) {
+    history_.erase(0, history_.size() - kReplayContext);
+  }
+}
+
+void MismatchReport::raise(const std::string& title, std::uint64_t offset,
+                           std::string_view expected, std::string_view actual,
+                           std::uint64_t session_t_ns, std::int64_t exchange,
+                           const std::string& extra) const {
+  std::ostringstream report;
+  report << "replay mismatch in " << file_ << ": " << title << "\n"
+         << "  at tx byte offset " << offset << ", session time "
+         << session_seconds(session_t_ns) << " s, exchange ";
+  if (exchange >= 0) {
+    report << exchange;
+  } else {
+    report << "-";
+  }
+  report << "\n";
+  report << "  before:   " << hex_ascii(history_) << "\n"
+         << "  expected: "
+         << (expected.empty() && match_ == ReplayMatch::sequence
+                 ? std::string("(nothing: the recorded writes end here)")
+                 : hex_ascii(expected))
+         << "\n"
+         << "  actual:   " << hex_ascii(actual) << "\n"
+         << extra;
+  throw ReplayMismatch(report.str(), offset, session_t_ns, exchange);
+}
+
+std::string session_seconds(std::uint64_t ns) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.6f", static_cast<double>(ns) / 1e9);
+  return text;
+}
+
+std::size_t common_prefix(std::string_view a, std::string_view b) {
+  const std::size_t limit = std::min(a.size(), b.size());
+  std::size_t i = 0;
+  while (i < limit && a[i] == b[i]) ++i;
+  return i;
+}
+
+bool session_goes_on(RecordSource& source) {
+  Record record;
+  while (source.next(record)) {
+    if ((record.kind == RecordKind::rx || record.kind == RecordKind::tx) &&
+        !record.data.empty()) {
+      return true;
+    }
+    if (record.kind == RecordKind::device_lost) return true;
+  }
+  return false;
+}
+
+}  // namespace wiretape::detail

@@ -1,0 +1,132 @@
+// What the replay engine (replay_engine.hpp) shares with its two match
+// strategies, match=sequence (sequence.hpp) and match=request (request.hpp):
+// the queue of rx released to the client, the mismatch report, and the
+// interface through which the engine drives a strategy.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "replay/replay_config.hpp"
+#include "replay/timing.hpp"
+#include "session/record_source.hpp"
+#include "wiretape/session.hpp"
+
+namespace wiretape::detail {
+
+// Bytes of context a mismatch report shows on either side.
+inline constexpr std::size_t kReplayContext = 16;
+
+// A recorded rx record (or a recorded device loss) the client may read.
+struct RxItem {
+  RecordKind kind = RecordKind::rx;  // rx, close or device_lost
+  std::string data;
+  // The payload instead of data, when the source gave one: a view into the
+  // session reader's 64 KiB read buffer, which it pins. The look-ahead's
+  // record limit keeps that bounded (at most one buffer per queued record;
+  // in practice the look-ahead's bytes plus one buffer).
+  PayloadView view;
+  std::size_t consumed = 0;
+  std::string_view payload() const {
+    return view ? view.bytes : std::string_view(data);
+  }
+  std::uint64_t t_ns = 0;
+  ReplayTime due;  // readable from then on
+};
+
+// The rx the client is entitled to, in recorded order, each with its due
+// time. Payload buffers of read records are kept (bounded) for the
+// sequence strategy to read the next records into, so that a record costs
+// no allocation once the look-ahead is warm.
+class ReleasedRx {
+ public:
+  explicit ReleasedRx(bool recycle_payloads) : recycle_(recycle_payloads) {}
+
+  bool empty() const { return items_.empty(); }
+  std::size_t size() const { return items_.size(); }
+  // Payload bytes of the queued records (read or not).
+  std::size_t bytes() const { return bytes_; }
+  RxItem& front() { return items_.front(); }
+  const std::deque<RxItem>& items() const { return items_; }
+
+  void push(RxItem&& item);
+  void pop_front();
+
+  // An empty string with capacity, if one was kept.
+  std::string spare_payload();
+  void recycle_payload(std::string&& buffer);
+
+ private:
+  std::deque<RxItem> items_;
+  std::size_t bytes_ = 0;
+  bool recycle_;
+  std::vector<std::string> spare_payloads_;
+  std::size_t spare_bytes_ = 0;  // their capacity
+};
+
+// Look-ahead bounds of the sequence strategy's read cursor, which also bound
+// the payload buffers kept for reuse: enough that a large read is served in
+// one go, small enough that memory does not depend on the session's size.
+inline constexpr std::size_t kLookaheadRecords = 256;
+inline constexpr std::size_t kLookaheadBytes = 1 << 20;
+
+// Raises ReplayMismatch with the report of DESIGN.md section 7; keeps the
+// last bytes the client wrote for its "before" line.
+class MismatchReport {
+ public:
+  MismatchReport(std::string file, ReplayMatch match)
+      : file_(std::move(file)), match_(match) {}
+
+  // The client wrote these bytes and they were accepted.
+  void accepted(std::string_view bytes);
+
+  [[noreturn]] void raise(const std::string& title, std::uint64_t offset,
+                          std::string_view expected, std::string_view actual,
+                          std::uint64_t session_t_ns, std::int64_t exchange,
+                          const std::string& extra = {}) const;
+
+ private:
+  std::string file_;
+  ReplayMatch match_;
+  std::string history_;  // the last kReplayContext accepted bytes
+};
+
+// A match strategy: decides what the client is entitled to read and checks
+// what it writes. Every call is given `now`; none reads a clock.
+class ReplayStrategy {
+ public:
+  virtual ~ReplayStrategy() = default;
+  // Moves whatever the client is now entitled to into the released queue.
+  virtual void release() = 0;
+  // Whether rx may still be released (by time, or by a write).
+  virtual bool more_to_release() const = 0;
+  // Accepts the whole write or raises ReplayMismatch (or PortClosed past a
+  // recorded close).
+  virtual void write(const char* data, std::size_t size, ReplayTime now) = 0;
+  // See ReplayEngine::client_event.
+  virtual void client_event(RecordKind kind,
+                            const std::map<std::string, std::string>& fields) = 0;
+  // What the recording held that the client never consumed, beyond the
+  // released rx still queued (`queued_rx_bytes` in `queued_rx_records`);
+  // empty if nothing.
+  virtual std::string unused_report(std::uint64_t queued_rx_bytes,
+                                    std::uint64_t queued_rx_records) = 0;
+};
+
+// --- small helpers both strategies use ----------------------------------------
+
+// "%.6f" seconds of a session time.
+std::string session_seconds(std::uint64_t ns);
+std::size_t common_prefix(std::string_view a, std::string_view b);
+
+// A recorded close is the device going away only when the session goes on
+// after it; the close that ends a recording (the client closing its port) is
+// just the end, where at_end applies. Consumes the source.
+bool session_goes_on(RecordSource& source);
+
+}  // namespace wiretape::detail

@@ -1,0 +1,58 @@
+// When recorded things are due on the replay clock. This is the one place
+// that turns a recorded time into a due time, for every timing mode and both
+// match strategies (DESIGN.md section 7), and that checks a client's write
+// against its due time under check=timing.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "replay/replay_config.hpp"
+
+namespace wiretape::detail {
+
+using ReplayClock = std::chrono::steady_clock;
+using ReplayTime = ReplayClock::time_point;
+
+class ReplayTimeline {
+ public:
+  ReplayTimeline(const ReplayConfig& config, ReplayTime open_time);
+
+  // The client's write that a record follows in the recording: when the
+  // client finished it, and when it was recorded. Causal timing counts from
+  // here.
+  struct Anchor {
+    ReplayTime finished;
+    std::uint64_t recorded_t_ns = 0;
+  };
+
+  // When something recorded at `t_ns` is due, once the client is entitled to
+  // it. timing=none: at once (the open time, already past). session: the
+  // open time + t / speed. causal: the anchor's finish + the recorded gap
+  // from the anchor / speed; with no anchor (nothing written before it), as
+  // session.
+  ReplayTime due(std::uint64_t t_ns, const std::optional<Anchor>& anchor) const;
+
+  // check=timing: a write outside its due time +- tolerance.
+  struct Miss {
+    bool early = false;
+    std::string title;   // "the client wrote too early"
+    std::string detail;  // how early or late, the tolerance and timing mode
+  };
+  // nullopt when `now` is within the window around `due`, or when timing is
+  // not checked.
+  std::optional<Miss> check(ReplayTime due, ReplayTime now) const;
+
+ private:
+  std::chrono::nanoseconds scaled(std::uint64_t ns) const;
+
+  ReplayTiming timing_;
+  double speed_;
+  bool checked_;
+  std::chrono::nanoseconds tolerance_;
+  ReplayTime open_time_;
+};
+
+}  // namespace wiretape::detail
