@@ -1,5 +1,6 @@
 """Typing stubs of wiretape._core, the C++ core (see docs/python.md)."""
 
+import datetime
 import os
 from collections.abc import Iterator, Mapping
 from types import EllipsisType, TracebackType
@@ -9,10 +10,12 @@ from typing_extensions import Buffer
 
 __version__: str
 
-# Timeouts are seconds: None blocks, 0 polls. Where a method takes
-# `timeout=...`, the Ellipsis (omitted) means the port's own timeout.
+# Timeouts are seconds (a float or a datetime.timedelta): None blocks, 0
+# polls. Where a method takes `timeout=...`, the Ellipsis (omitted) means the
+# port's own timeout.
 _Timeout = Optional[float]
-_CallTimeout = Union[float, None, EllipsisType]
+_TimeoutArg = Union[float, datetime.timedelta, None]
+_CallTimeout = Union[float, datetime.timedelta, None, EllipsisType]
 _Path = Union[str, bytes, os.PathLike[str], os.PathLike[bytes]]
 _Parity = Literal["none", "even", "odd", "mark", "space"]
 _Flow = Literal["none", "rtscts", "xonxoff"]
@@ -81,7 +84,7 @@ class Port:
     @property
     def timeout(self) -> _Timeout: ...
     @timeout.setter
-    def timeout(self, value: _Timeout) -> None: ...
+    def timeout(self, value: _TimeoutArg) -> None: ...
     def close(self) -> None: ...
     @property
     def is_open(self) -> bool: ...
@@ -112,16 +115,20 @@ class Port:
     def set_dtr(self, level: bool) -> None: ...
     def set_rts(self, level: bool) -> None: ...
     @property
-    def dtr(self) -> bool: ...  # write-only: reading raises AttributeError
+    def dtr(self) -> bool: ...  # the level last set (True before any)
     @dtr.setter
     def dtr(self, level: bool) -> None: ...
     @property
-    def rts(self) -> bool: ...  # write-only: reading raises AttributeError
+    def rts(self) -> bool: ...  # the level last set (True before any)
     @rts.setter
     def rts(self, level: bool) -> None: ...
+    @property
     def cts(self) -> bool: ...
+    @property
     def dsr(self) -> bool: ...
+    @property
     def ri(self) -> bool: ...
+    @property
     def cd(self) -> bool: ...
     def send_break(self, duration: float = 0.25) -> None: ...
     # context manager
@@ -134,6 +141,8 @@ class Port:
     ) -> None: ...
 
 def open_port(options: str) -> Port: ...
+def quote_option_value(value: str) -> str: ...
+def device_options(device: str) -> str: ...
 
 # --- session files -------------------------------------------------------------------
 
