@@ -151,6 +151,24 @@ def test_skip_and_skip_until(endpoint):
     assert port.skip(3, timeout=0.1) == 0
 
 
+def test_a_compound_read_is_one_rx_record_however_it_was_sliced(tmp_path):
+    log = tmp_path / "driver.wtape"
+    with wiretape.open_port(f"type=loopback,timeout=5,log={log}") as port:
+        port.write_all(b"alpha\nbeta\r\n")
+        assert port.read_line() == b"alpha\n"
+        assert port.read_until(b"\r\n") == b"beta\r\n"
+        port.write_all(b"noise#")
+        assert port.skip_until(b"#") is True
+        port.write_all(b"gam")
+        # Waits for the rest across several 50 ms slices, then times out.
+        assert port.read_exactly(5, timeout=0.25) == b"gam"
+        port.write_all(b"ma\n")
+        assert port.read_until(b"\n", timeout=0.25) == b"ma\n"
+        assert port.read_until(b"\n", timeout=0.05) == b""  # not recorded
+    rx = [bytes(r.data) for r in wiretape.SessionReader(str(log)) if r.kind == "rx"]
+    assert rx == [b"alpha\n", b"beta\r\n", b"noise#", b"gam", b"ma\n"]
+
+
 def test_read_until_accepts_any_bytes_like_delimiter(loopback):
     loopback.write(b"a;b;")
     assert loopback.read_until(bytearray(b";")) == b"a;"
