@@ -44,11 +44,6 @@ void require(bool allowed, const char* operation, const Port& port) {
   }
 }
 
-bool ends_with(std::string_view text, std::string_view suffix) {
-  return text.size() >= suffix.size() &&
-         text.substr(text.size() - suffix.size()) == suffix;
-}
-
 // Bytes a compound read asks the port for at once: a peek's window, and
 // what read_exactly reads into its result per call.
 constexpr std::size_t chunk_size = 4096;
@@ -60,7 +55,14 @@ constexpr std::size_t bulk_size = 1 << 16;
 class Port::ReadReturned {
  public:
   explicit ReadReturned(Port& port) : port_(port) {}
-  ~ReadReturned() { port_.read_returned(); }
+  ~ReadReturned() {
+    try {
+      port_.read_returned();
+    } catch (...) {
+      // A destructor never throws; the recorder reports its own failures
+      // from the next port call.
+    }
+  }
   ReadReturned(const ReadReturned&) = delete;
   ReadReturned& operator=(const ReadReturned&) = delete;
 
