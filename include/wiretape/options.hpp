@@ -67,8 +67,6 @@ class Options {
 
   // Canonical text: parse(to_string()) gives back the same entries.
   std::string to_string() const;
-  // A value quoted if it needs to be.
-  static std::string quote(std::string_view value);
 
  private:
   const Entry* find(std::string_view key) const;
@@ -76,5 +74,19 @@ class Options {
   std::set<std::string, std::less<>> consumed_;
   std::vector<std::string> declared_;
 };
+
+// A value as it is written in an option string: as is when it needs no
+// quotes, else in double quotes with `"` and `\` escaped
+// (`log="/home/me/My Runs/a.wtape"`). Quoted: the empty value and values
+// holding a separator (comma, space, tab, CR, LF), `=`, `"` or `\`.
+// Options::parse gives the value back.
+std::string quote_option_value(std::string_view value);
+
+// The option string that a device setting (the CLI's --device, a URL's
+// device=, WIRETAPE_DEVICE) stands for: a bare path, with no `=`, means
+// `type=serial,device=PATH` (quoted as needed); anything else is an option
+// string, returned as given. Surrounding white space is ignored. Throws
+// OptionError (key "device") when the setting is empty.
+std::string device_options(std::string_view device);
 
 }  // namespace wiretape

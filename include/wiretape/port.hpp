@@ -8,8 +8,9 @@
 //     most that long;
 //   - read() returns at least one byte, or 0 when the timeout expires; it
 //     never throws on a timeout;
-//   - compound reads (read_exactly, read_until, read_line, skip_until) that
-//     time out return the partial data and never throw;
+//   - compound reads (read_exactly, read_until, read_line, skip, skip_until)
+//     that time out return the partial data and never throw; each is one read
+//     (one rx record in a log= recording) however many system calls it took;
 //   - a device that goes away raises PortClosed; other OS errors PortError;
 //     EINTR never reaches the caller.
 // Threads: one reader and one writer may run at once; close() from any thread
@@ -22,6 +23,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -98,8 +100,11 @@ class Port {
   std::string read_line(std::size_t max_bytes = unlimited);
   // Discards up to `count` bytes; returns how many were discarded.
   std::size_t skip(std::size_t count);
+  std::string read_line(std::size_t max_bytes, Timeout timeout);
+  std::size_t skip(std::size_t count, Timeout timeout);
   // Discards through `delimiter`; false if the timeout expired first.
   bool skip_until(std::string_view delimiter);
+  bool skip_until(std::string_view delimiter, Timeout timeout);
   // Bytes that a read would return at once.
   virtual std::size_t available() = 0;
   // True once a read would not block (data, or the device is gone).
@@ -179,10 +184,96 @@ class Port {
   static bool wait_readable_until_of(Port& port, Deadline deadline) {
     return port.wait_readable_until(deadline);
   }
+  static std::optional<std::size_t> peek_some_of(Port& port, void* buffer,
+                                                 std::size_t size,
+                                                 Deadline deadline) {
+    return port.peek_some(buffer, size, deadline);
+  }
+  static void read_returned_of(Port& port) { port.read_returned(); }
+
+  // Copies up to `size` bytes that the next read_some would return, without
+  // consuming them: at least one byte, or 0 once `deadline` passed; raises
+  // PortClosed as read_some does. std::nullopt, at once, when the transport
+  // cannot look ahead (a tty): compound reads then read one byte at a time,
+  // so that they never consume past what they need (ports keep no read-ahead
+  // buffer, which keeps native_handle() truthful).
+  virtual std::optional<std::size_t> peek_some(void* buffer, std::size_t size,
+                                               Deadline deadline);
+  // Called once when a read, simple or compound, hands its bytes to the
+  // caller, or ends by an exception, after all the read_some calls it made:
+  // the recording port records them there as one rx.
+  virtual void read_returned() {}
 
  private:
+  friend class CompoundRead;
+  class ReadReturned;
   Timeout timeout_ = forever;
   Access access_ = Access::read_write;
+};
+
+// One compound read (read_exactly, read_until/read_line, skip, skip_until)
+// that its caller advances in steps, each bounded by a deadline of its own:
+// for callers that must regain control while the read waits (the Python
+// binding checks for Ctrl-C between steps). Port's compound reads are this
+// object advanced once to the call's deadline. However many steps and system
+// calls it takes, it is one read: its bytes are handed over, and recorded by
+// a log= port as one rx, once, by finish() (or by the destructor, when the
+// caller gave up, e.g. on Ctrl-C, after bytes were consumed).
+//
+// Where the port can look ahead (sockets, loopback), read_until takes one
+// system call per chunk the device sent; where it cannot (a tty), one byte
+// per call, so that nothing past the delimiter is consumed.
+class CompoundRead {
+ public:
+  // read_exactly: `count` bytes.
+  static CompoundRead exactly(Port& port, std::size_t count);
+  // read_until: through `delimiter` (none when empty), at most `max_bytes`.
+  static CompoundRead until(Port& port, std::string_view delimiter,
+                            std::size_t max_bytes = Port::unlimited);
+  // skip: discards `count` bytes.
+  static CompoundRead discard(Port& port, std::size_t count);
+  // skip_until: discards through `delimiter` (which must not be empty).
+  static CompoundRead discard_until(Port& port, std::string_view delimiter);
+
+  CompoundRead(CompoundRead&& other) noexcept;
+  CompoundRead& operator=(CompoundRead&&) = delete;
+  CompoundRead(const CompoundRead&) = delete;
+  CompoundRead& operator=(const CompoundRead&) = delete;
+  ~CompoundRead();
+
+  // Reads until the read is complete or `deadline` passed; true once it is
+  // complete (count reached, delimiter found, or max_bytes read). Raises what
+  // the port raises (PortClosed...); the bytes consumed before stay recorded.
+  bool advance(Deadline deadline);
+  bool complete() const noexcept { return complete_; }
+  // Bytes consumed so far (kept or discarded).
+  std::size_t consumed() const noexcept { return consumed_; }
+  // Whether the read ended with its delimiter.
+  bool found_delimiter() const noexcept { return found_delimiter_; }
+  // Ends the read and returns its bytes (empty for discards).
+  std::string finish();
+
+ private:
+  enum class Goal { count, delimiter };
+  CompoundRead(Port& port, Goal goal, std::string delimiter, std::size_t limit,
+               bool keep);
+  // How many bytes to take from the `size` peeked at `chunk`: through the
+  // delimiter if it ends there, else all of them.
+  std::size_t take_from(const char* chunk, std::size_t size) const;
+  void append(const char* bytes, std::size_t size);
+  void end_read() noexcept;
+
+  Port* port_;  // null once the read ended (or moved from)
+  Goal goal_;
+  std::string delimiter_;
+  std::size_t limit_;
+  bool keep_;
+  std::string data_;  // the bytes, when kept
+  std::string tail_;  // the last delimiter-size bytes, to find the delimiter
+  std::size_t consumed_ = 0;
+  bool complete_ = false;
+  bool found_delimiter_ = false;
+  bool read_started_ = false;
 };
 
 // Opens the port described by `options` (see docs/options.md). Throws

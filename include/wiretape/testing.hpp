@@ -156,12 +156,9 @@ class Cassette {
                                  " must be recorded (WIRETAPE_RECORD is set) but "
                                  "WIRETAPE_DEVICE names no device");
       }
-      std::string device = settings_.device;
-      if (device.find('=') == std::string::npos) {
-        device = "type=serial,device=" + Options::quote(device);
-      }
-      std::string text = device + ",log=" + Options::quote(partial_path_);
-      if (!test_name_.empty()) text += ",meta_gtest=" + Options::quote(test_name_);
+      std::string text = device_options(settings_.device) + ",log=" +
+                         quote_option_value(partial_path_);
+      if (!test_name_.empty()) text += ",meta_gtest=" + quote_option_value(test_name_);
       return text;
     }
     if (!std::filesystem::exists(path_)) {
@@ -170,7 +167,7 @@ class Cassette {
           "    WIRETAPE_RECORD=once WIRETAPE_DEVICE='OPTS' <this test program>" +
           (test_name_.empty() ? std::string() : " --gtest_filter='" + test_name_ + "'"));
     }
-    std::string text = "type=replay,file=" + Options::quote(path_);
+    std::string text = "type=replay,file=" + quote_option_value(path_);
     if (!Options::parse(replay_keys_).has("timing")) text += ",timing=none";
     if (!replay_keys_.empty()) text += "," + replay_keys_;
     return text;

@@ -41,21 +41,9 @@ __all__ = [
 ]
 
 
-def device_options(device: str) -> str:
-    """The port option string for ``--device``: a bare path means a serial
-    device (``type=serial,device=PATH``)."""
-    device = device.strip()
-    if not device:
-        raise ValueError("--device needs a port option string or a device path")
-    if "=" not in device:
-        return "type=serial,device=" + _quote(device)
-    return device
-
-
-def _quote(value: str) -> str:
-    if any(c in value for c in ', \t\n"'):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    return value
+# A bare path means type=serial,device=PATH; values quoted as options need.
+device_options = _core.device_options
+_quote = _core.quote_option_value
 
 
 def parse_listen(listen: Union[str, int]) -> Tuple[str, int]:

@@ -315,11 +315,12 @@ void Options::finish(std::string_view type) const {
   }
 }
 
-std::string Options::quote(std::string_view value) {
+std::string quote_option_value(std::string_view value) {
   const bool plain =
       !value.empty() &&
-      std::none_of(value.begin(), value.end(),
-                   [](char c) { return is_separator(c) || c == '"' || c == '='; });
+      std::none_of(value.begin(), value.end(), [](char c) {
+        return is_separator(c) || c == '"' || c == '=' || c == '\\';
+      });
   if (plain) return std::string(value);
   std::string out = "\"";
   for (char c : value) {
@@ -329,11 +330,24 @@ std::string Options::quote(std::string_view value) {
   return out + "\"";
 }
 
+std::string device_options(std::string_view device) {
+  const auto first = device.find_first_not_of(" \t\r\n");
+  if (first == std::string_view::npos) {
+    throw OptionError("device", "the device setting is empty; give a device "
+                                "path (/dev/ttyUSB0) or a port option string "
+                                "(type=tcp,host=10.0.0.5,port=10940)");
+  }
+  const auto last = device.find_last_not_of(" \t\r\n");
+  const std::string_view text = device.substr(first, last - first + 1);
+  if (text.find('=') != std::string_view::npos) return std::string(text);
+  return "type=serial,device=" + quote_option_value(text);
+}
+
 std::string Options::to_string() const {
   std::string out;
   for (const auto& entry : entries_) {
     if (!out.empty()) out += ',';
-    out += entry.key + "=" + quote(entry.value);
+    out += entry.key + "=" + quote_option_value(entry.value);
   }
   return out;
 }

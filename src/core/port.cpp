@@ -1,7 +1,10 @@
 #include "wiretape/port.hpp"
 
+#include <algorithm>
 #include <cerrno>
+#include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "wiretape/errors.hpp"
 
@@ -41,12 +44,31 @@ void require(bool allowed, const char* operation, const Port& port) {
   }
 }
 
-bool ends_with(const std::string& text, std::string_view suffix) {
-  return text.size() >= suffix.size() &&
-         std::string_view(text).substr(text.size() - suffix.size()) == suffix;
-}
+// Bytes a compound read asks the port for at once: a peek's window, and
+// what read_exactly reads into its result per call.
+constexpr std::size_t chunk_size = 4096;
+constexpr std::size_t bulk_size = 1 << 16;
 
 }  // namespace
+
+// Tells the port, however the read ends, that it handed its bytes over.
+class Port::ReadReturned {
+ public:
+  explicit ReadReturned(Port& port) : port_(port) {}
+  ~ReadReturned() {
+    try {
+      port_.read_returned();
+    } catch (...) {
+      // A destructor never throws; the recorder reports its own failures
+      // from the next port call.
+    }
+  }
+  ReadReturned(const ReadReturned&) = delete;
+  ReadReturned& operator=(const ReadReturned&) = delete;
+
+ private:
+  Port& port_;
+};
 
 std::size_t Port::read(void* buffer, std::size_t size) {
   return read(buffer, size, timeout_);
@@ -55,6 +77,7 @@ std::size_t Port::read(void* buffer, std::size_t size) {
 std::size_t Port::read(void* buffer, std::size_t size, Timeout timeout) {
   require(access_ != Access::write_only, "read", *this);
   if (size == 0) return 0;
+  ReadReturned returned(*this);
   return read_some(buffer, size, deadline_after(timeout));
 }
 
@@ -63,61 +86,52 @@ std::string Port::read_exactly(std::size_t count) {
 }
 
 std::string Port::read_exactly(std::size_t count, Timeout timeout) {
-  require(access_ != Access::write_only, "read", *this);
-  const Deadline deadline = deadline_after(timeout);
-  std::string data(count, '\0');
-  std::size_t got = 0;
-  while (got < count) {
-    const std::size_t n = read_some(&data[got], count - got, deadline);
-    if (n == 0) break;
-    got += n;
-  }
-  data.resize(got);
-  return data;
+  CompoundRead read = CompoundRead::exactly(*this, count);
+  read.advance(deadline_after(timeout));
+  return read.finish();
 }
 
 std::string Port::read_until(std::string_view delimiter, std::size_t max_bytes) {
   return read_until(delimiter, max_bytes, timeout_);
 }
 
-// Reads one byte at a time so that nothing past the delimiter is consumed:
-// the port keeps no read-ahead buffer, which keeps available() and the
-// pollable native_handle() truthful.
 std::string Port::read_until(std::string_view delimiter, std::size_t max_bytes,
                              Timeout timeout) {
-  require(access_ != Access::write_only, "read", *this);
-  const Deadline deadline = deadline_after(timeout);
-  std::string data;
-  while (data.size() < max_bytes) {
-    char byte;
-    if (read_some(&byte, 1, deadline) == 0) break;
-    data.push_back(byte);
-    if (!delimiter.empty() && ends_with(data, delimiter)) break;
-  }
-  return data;
+  CompoundRead read = CompoundRead::until(*this, delimiter, max_bytes);
+  read.advance(deadline_after(timeout));
+  return read.finish();
 }
 
 std::string Port::read_line(std::size_t max_bytes) {
-  return read_until("\n", max_bytes);
+  return read_line(max_bytes, timeout_);
 }
 
-std::size_t Port::skip(std::size_t count) {
-  require(access_ != Access::write_only, "read", *this);
-  const Deadline deadline = deadline_after(timeout_);
-  char scratch[4096];
-  std::size_t skipped = 0;
-  while (skipped < count) {
-    const std::size_t want = std::min(sizeof scratch, count - skipped);
-    const std::size_t n = read_some(scratch, want, deadline);
-    if (n == 0) break;
-    skipped += n;
-  }
-  return skipped;
+std::string Port::read_line(std::size_t max_bytes, Timeout timeout) {
+  return read_until("\n", max_bytes, timeout);
+}
+
+std::size_t Port::skip(std::size_t count) { return skip(count, timeout_); }
+
+std::size_t Port::skip(std::size_t count, Timeout timeout) {
+  CompoundRead read = CompoundRead::discard(*this, count);
+  read.advance(deadline_after(timeout));
+  read.finish();
+  return read.consumed();
 }
 
 bool Port::skip_until(std::string_view delimiter) {
-  const std::string data = read_until(delimiter, unlimited);
-  return ends_with(data, delimiter);
+  return skip_until(delimiter, timeout_);
+}
+
+bool Port::skip_until(std::string_view delimiter, Timeout timeout) {
+  CompoundRead read = CompoundRead::discard_until(*this, delimiter);
+  read.advance(deadline_after(timeout));
+  read.finish();
+  return read.found_delimiter();
+}
+
+std::optional<std::size_t> Port::peek_some(void*, std::size_t, Deadline) {
+  return std::nullopt;
 }
 
 bool Port::wait_readable(Timeout timeout) {
@@ -149,6 +163,139 @@ std::size_t Port::write_all(const void* data, std::size_t size, Timeout timeout)
     sent += n;
   }
   return sent;
+}
+
+// --- CompoundRead --------------------------------------------------------
+
+CompoundRead::CompoundRead(Port& port, Goal goal, std::string delimiter,
+                           std::size_t limit, bool keep)
+    : port_(&port),
+      goal_(goal),
+      delimiter_(std::move(delimiter)),
+      limit_(limit),
+      keep_(keep) {
+  require(port.access() != Access::write_only, "read", port);
+  complete_ = limit_ == 0;
+}
+
+CompoundRead CompoundRead::exactly(Port& port, std::size_t count) {
+  return CompoundRead(port, Goal::count, {}, count, true);
+}
+
+CompoundRead CompoundRead::until(Port& port, std::string_view delimiter,
+                                 std::size_t max_bytes) {
+  return CompoundRead(port, Goal::delimiter, std::string(delimiter), max_bytes,
+                      true);
+}
+
+CompoundRead CompoundRead::discard(Port& port, std::size_t count) {
+  return CompoundRead(port, Goal::count, {}, count, false);
+}
+
+CompoundRead CompoundRead::discard_until(Port& port,
+                                         std::string_view delimiter) {
+  if (delimiter.empty()) {
+    throw std::invalid_argument("skip_until: the delimiter must not be empty");
+  }
+  return CompoundRead(port, Goal::delimiter, std::string(delimiter),
+                      Port::unlimited, false);
+}
+
+CompoundRead::CompoundRead(CompoundRead&& other) noexcept
+    : port_(std::exchange(other.port_, nullptr)),
+      goal_(other.goal_),
+      delimiter_(std::move(other.delimiter_)),
+      limit_(other.limit_),
+      keep_(other.keep_),
+      data_(std::move(other.data_)),
+      tail_(std::move(other.tail_)),
+      consumed_(other.consumed_),
+      complete_(other.complete_),
+      found_delimiter_(other.found_delimiter_),
+      read_started_(other.read_started_) {}
+
+CompoundRead::~CompoundRead() { end_read(); }
+
+void CompoundRead::end_read() noexcept {
+  Port* port = std::exchange(port_, nullptr);
+  if (port == nullptr || !read_started_) return;
+  try {
+    port->read_returned();
+  } catch (...) {
+    // A destructor never throws; the recorder reports its own failures on
+    // the next port call.
+  }
+}
+
+std::string CompoundRead::finish() {
+  Port* port = std::exchange(port_, nullptr);
+  if (port != nullptr && read_started_) port->read_returned();
+  return std::move(data_);
+}
+
+void CompoundRead::append(const char* bytes, std::size_t size) {
+  consumed_ += size;
+  if (keep_) data_.append(bytes, size);
+  if (goal_ == Goal::delimiter && !delimiter_.empty()) {
+    tail_.append(bytes, size);
+    if (tail_.size() > delimiter_.size()) {
+      tail_.erase(0, tail_.size() - delimiter_.size());
+    }
+    found_delimiter_ = tail_ == delimiter_;
+  }
+  complete_ = found_delimiter_ || consumed_ == limit_;
+}
+
+std::size_t CompoundRead::take_from(const char* chunk, std::size_t size) const {
+  if (delimiter_.empty()) return size;
+  // The delimiter may start in the bytes already read: search them too.
+  std::string window = tail_.size() >= delimiter_.size()
+                           ? tail_.substr(tail_.size() - delimiter_.size() + 1)
+                           : tail_;
+  const std::size_t carried = window.size();
+  window.append(chunk, size);
+  const std::size_t at = window.find(delimiter_);
+  if (at == std::string::npos) return size;
+  return at + delimiter_.size() - carried;
+}
+
+bool CompoundRead::advance(Deadline deadline) {
+  if (port_ == nullptr) {
+    throw std::logic_error("CompoundRead::advance after finish()");
+  }
+  Port& port = *port_;
+  char chunk[chunk_size];
+  while (!complete_) {
+    read_started_ = true;
+    if (goal_ == Goal::count && keep_) {
+      // Nothing to look for: read straight into the result, in large pieces.
+      const std::size_t want = std::min(bulk_size, limit_ - consumed_);
+      data_.resize(consumed_ + want);
+      const std::size_t n = port.read_some(&data_[consumed_], want, deadline);
+      data_.resize(consumed_ + n);
+      if (n == 0) return false;
+      consumed_ += n;
+      complete_ = consumed_ == limit_;
+      continue;
+    }
+    const std::size_t want = std::min(chunk_size, limit_ - consumed_);
+    std::size_t take = want;
+    if (goal_ == Goal::delimiter && !delimiter_.empty()) {
+      const std::optional<std::size_t> peeked =
+          port.peek_some(chunk, want, deadline);
+      if (!peeked) {
+        take = 1;
+      } else if (*peeked == 0) {
+        return false;
+      } else {
+        take = take_from(chunk, *peeked);
+      }
+    }
+    const std::size_t n = port.read_some(chunk, take, deadline);
+    if (n == 0) return false;
+    append(chunk, n);
+  }
+  return true;
 }
 
 void Port::unsupported(const char* what) const {

@@ -84,6 +84,15 @@ class LoopbackPort final : public Port {
     return n;
   }
 
+  std::optional<std::size_t> peek_some(void* buffer, std::size_t size,
+                                       Deadline deadline) override {
+    std::unique_lock<std::mutex> lock(mutex_);
+    if (!wait_for_data(lock, deadline)) return 0;
+    const std::size_t n = std::min(size, buffer_.size());
+    std::copy_n(buffer_.begin(), n, static_cast<char*>(buffer));
+    return n;
+  }
+
   std::size_t write_some(const void* data, std::size_t size,
                          Deadline) override {
     std::lock_guard<std::mutex> lock(mutex_);

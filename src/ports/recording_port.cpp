@@ -1,7 +1,8 @@
 // The recording port (`log=FILE`): a decorator that forwards every call to
 // the port under it unchanged and records what crossed it into a session
-// file (capture=client): each successful read's bytes as rx when the read
-// returned, each write's bytes as tx stamped when the write call entered,
+// file (capture=client): each successful read's bytes as one rx when the
+// read returned (a compound read is one read, however many reads of the port
+// under it it took), each write's bytes as tx stamped when the write call entered,
 // and the events (open, close, flushes, drain, settings, modem lines, break,
 // device loss). Reads that time out are not recorded.
 #include <atomic>
@@ -125,20 +126,36 @@ class RecordingPort final : public Port {
   }
 
  protected:
+  // The bytes of one read collect here until the read returns: a compound
+  // read is one rx record however many read_some calls it took.
   std::size_t read_some(void* buffer, std::size_t size, Deadline deadline) override {
     report_failure();
     std::size_t n = 0;
     try {
       n = read_some_of(*inner_, buffer, size, deadline);
     } catch (const PortClosed& e) {
+      record_pending_rx();
       device_lost(e);
       throw;
     }
-    if (n > 0) {
-      record(RecordKind::rx, now_ns(),
-             std::string_view(static_cast<const char*>(buffer), n));
-    }
+    pending_rx_.append(static_cast<const char*>(buffer), n);
     return n;
+  }
+
+  std::optional<std::size_t> peek_some(void* buffer, std::size_t size,
+                                       Deadline deadline) override {
+    try {
+      return peek_some_of(*inner_, buffer, size, deadline);
+    } catch (const PortClosed& e) {
+      record_pending_rx();
+      device_lost(e);
+      throw;
+    }
+  }
+
+  void read_returned() override {
+    read_returned_of(*inner_);
+    record_pending_rx();
   }
 
   std::size_t write_some(const void* data, std::size_t size, Deadline deadline) override {
@@ -192,6 +209,13 @@ class RecordingPort final : public Port {
                .add("error", error.what())
                .add("errno", error.code().value())
                .str());
+  }
+
+  // rx is stamped when the read returned (capture=client).
+  void record_pending_rx() {
+    if (pending_rx_.empty()) return;
+    record(RecordKind::rx, now_ns(), pending_rx_);
+    pending_rx_.clear();
   }
 
   void record(RecordKind kind, std::uint64_t t_ns, std::string_view data) {
@@ -264,6 +288,8 @@ class RecordingPort final : public Port {
   std::mutex finish_mutex_;
   bool closed_recorded_ = false;
   std::atomic<bool> finished_{false};
+  // Touched by the reading thread only (one reader at a time).
+  std::string pending_rx_;
 };
 
 }  // namespace

@@ -154,14 +154,30 @@ bool FdPort::wait_for(short events, Deadline deadline) {
   }
 }
 
+ssize_t FdPort::transfer_peek(void*, std::size_t) {
+  errno = ENOTSUP;
+  return -1;
+}
+
 std::size_t FdPort::read_some(void* buffer, std::size_t size,
                               Deadline deadline) {
+  return *receive(buffer, size, deadline, Receive::consume);
+}
+
+std::optional<std::size_t> FdPort::peek_some(void* buffer, std::size_t size,
+                                             Deadline deadline) {
+  return receive(buffer, size, deadline, Receive::peek);
+}
+
+std::optional<std::size_t> FdPort::receive(void* buffer, std::size_t size,
+                                           Deadline deadline, Receive how) {
   Call call(*this);
   for (;;) {
     if (gone_) {
       throw PortClosed(description() + ": the device went away");
     }
-    const ssize_t n = transfer_in(buffer, size);
+    const ssize_t n = how == Receive::peek ? transfer_peek(buffer, size)
+                                           : transfer_in(buffer, size);
     if (n > 0) return static_cast<std::size_t>(n);
     if (n == 0) {
       if (size == 0) return 0;
@@ -170,15 +186,19 @@ std::size_t FdPort::read_some(void* buffer, std::size_t size,
         throw PortClosed(description() +
                          ": the device closed the connection (end of file)");
       }
-      continue;  // an empty datagram: nothing to return
+      // An empty datagram: nothing to return; a peek drops it, or it would
+      // see it again forever.
+      if (how == Receive::peek) transfer_in(buffer, 0);
+      continue;
     }
     const int err = errno;
     if (err == EINTR) continue;
+    if (how == Receive::peek && err == ENOTSUP) return std::nullopt;
     if (err == EAGAIN || err == EWOULDBLOCK) {
       if (!wait_for(POLLIN, deadline)) return 0;
       continue;
     }
-    fail(err, "read");
+    fail(err, how == Receive::peek ? "peek" : "read");
   }
 }
 

@@ -49,6 +49,9 @@ class FdPort : public Port {
   // One transfer attempt, errno convention. Sockets use recv/send.
   virtual ssize_t transfer_in(void* buffer, std::size_t size);
   virtual ssize_t transfer_out(const void* data, std::size_t size);
+  // What transfer_in() would return, left in place; -1 with errno ENOTSUP
+  // where the descriptor cannot look ahead (a tty). Sockets use MSG_PEEK.
+  virtual ssize_t transfer_peek(void* buffer, std::size_t size);
   // Whether a transfer_in() of 0 bytes means end of file (streams) or an
   // empty datagram (udp).
   virtual bool zero_read_is_end_of_file() const { return true; }
@@ -59,6 +62,8 @@ class FdPort : public Port {
 
   std::size_t read_some(void* buffer, std::size_t size,
                         Deadline deadline) override;
+  std::optional<std::size_t> peek_some(void* buffer, std::size_t size,
+                                       Deadline deadline) override;
   std::size_t write_some(const void* data, std::size_t size,
                          Deadline deadline) override;
   bool wait_readable_until(Deadline deadline) override;
@@ -83,6 +88,12 @@ class FdPort : public Port {
   [[noreturn]] void fail(int errno_value, const std::string& operation);
 
  private:
+  enum class Receive { consume, peek };
+  // read_some and peek_some: waits for data, handles end of file and empty
+  // datagrams; std::nullopt when a peek is not supported.
+  std::optional<std::size_t> receive(void* buffer, std::size_t size,
+                                     Deadline deadline, Receive how);
+
   sys::UniqueFd fd_;
   sys::UniqueFd wake_read_;
   sys::UniqueFd wake_write_;

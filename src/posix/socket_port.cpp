@@ -52,6 +52,10 @@ ssize_t SocketPort::transfer_in(void* buffer, std::size_t size) {
   return sys::recv(fd(), buffer, size, 0);
 }
 
+ssize_t SocketPort::transfer_peek(void* buffer, std::size_t size) {
+  return sys::recv(fd(), buffer, size, MSG_PEEK);
+}
+
 ssize_t SocketPort::transfer_out(const void* data, std::size_t size) {
   return sys::send(fd(), data, size, platform::no_sigpipe_send_flags());
 }

@@ -38,6 +38,7 @@ class SocketPort : public FdPort {
   SocketPort(sys::UniqueFd fd, std::string description);
   ssize_t transfer_in(void* buffer, std::size_t size) override;
   ssize_t transfer_out(const void* data, std::size_t size) override;
+  ssize_t transfer_peek(void* buffer, std::size_t size) override;
 };
 
 }  // namespace wiretape::detail

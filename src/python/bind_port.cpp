@@ -15,12 +15,14 @@
 #include <string_view>
 
 #include <nanobind/stl/string.h>
+#include <nanobind/stl/string_view.h>
 #include <nanobind/stl/unique_ptr.h>
 
 #include "replay/replay_port.hpp"
 
 #include "python/bindings.hpp"
 #include "wiretape/errors.hpp"
+#include "wiretape/options.hpp"
 #include "wiretape/port.hpp"
 
 namespace nb = nanobind;
@@ -150,11 +152,6 @@ std::size_t optional_byte_count(nb::handle value, const char* what) {
   return byte_count(nb::cast<long long>(value), what);
 }
 
-bool ends_with(const std::string& text, std::string_view suffix) {
-  return !suffix.empty() && text.size() >= suffix.size() &&
-         std::string_view(text).substr(text.size() - suffix.size()) == suffix;
-}
-
 // Reads never allocate more than this per call for read(size): a read
 // returns what is there, so a smaller buffer changes nothing for the caller.
 constexpr std::size_t max_read_chunk = 1 << 20;
@@ -176,84 +173,51 @@ nb::bytes read(Port& port, long long size, nb::handle timeout) {
   return nb::bytes(buffer.data(), got);
 }
 
+// Advances a compound read (C++ owns its logic) to the call's deadline in
+// slices, so that Ctrl-C is seen; it stays one read for a log= recording.
+// Interrupted, the read ends with what it consumed (recorded, not returned).
+CompoundRead& advance_in_slices(Port& port, CompoundRead& read, Timeout limit) {
+  if (!read.complete()) {
+    run_in_slices(port, limit,
+                  [&](Deadline slice_end) { return read.advance(slice_end); });
+  }
+  return read;
+}
+
+std::string delimiter_from(nb::handle object, const char* what) {
+  ByteView view(object, what);
+  return std::string(view.view());
+}
+
 nb::bytes read_exactly(Port& port, long long count, nb::handle timeout) {
-  const std::size_t wanted = byte_count(count, "count");
-  const Timeout limit = call_timeout(port, timeout);
-  std::string data;
-  data.reserve(std::min(wanted, max_read_chunk));
-  char chunk[4096];
-  if (wanted > 0) {
-    run_in_slices(port, limit, [&](Deadline slice_end) {
-      while (data.size() < wanted) {
-        const std::size_t want = std::min(sizeof chunk, wanted - data.size());
-        const std::size_t n = port.read(chunk, want, remaining(slice_end));
-        if (n == 0) return false;
-        data.append(chunk, n);
-      }
-      return true;
-    });
-  }
-  return to_bytes(data);
+  CompoundRead read = CompoundRead::exactly(port, byte_count(count, "count"));
+  return to_bytes(advance_in_slices(port, read, call_timeout(port, timeout)).finish());
 }
 
-// Byte by byte, as the C++ read_until, so nothing past the delimiter is
-// consumed; the delimiter may arrive split across slices.
-std::string read_until(Port& port, std::string_view delimiter,
-                       std::size_t max_bytes, Timeout limit) {
-  std::string data;
-  if (max_bytes == 0) return data;
-  run_in_slices(port, limit, [&](Deadline slice_end) {
-    while (data.size() < max_bytes) {
-      char byte;
-      if (port.read(&byte, 1, remaining(slice_end)) == 0) return false;
-      data.push_back(byte);
-      if (ends_with(data, delimiter)) return true;
-    }
-    return true;
-  });
-  return data;
+nb::bytes read_until(Port& port, nb::handle expected, nb::handle size,
+                     nb::handle timeout) {
+  CompoundRead read = CompoundRead::until(port, delimiter_from(expected, "expected"),
+                                          optional_byte_count(size, "size"));
+  return to_bytes(advance_in_slices(port, read, call_timeout(port, timeout)).finish());
 }
 
-nb::bytes read_until_binding(Port& port, nb::handle expected, nb::handle size,
-                             nb::handle timeout) {
-  std::string delimiter;
-  {
-    ByteView view(expected, "expected");
-    delimiter.assign(view.data(), view.size());
-  }
-  const std::size_t max_bytes = optional_byte_count(size, "size");
-  return to_bytes(read_until(port, delimiter, max_bytes, call_timeout(port, timeout)));
+nb::bytes read_line(Port& port, nb::handle size, nb::handle timeout) {
+  CompoundRead read = CompoundRead::until(port, "\n", optional_byte_count(size, "size"));
+  return to_bytes(advance_in_slices(port, read, call_timeout(port, timeout)).finish());
 }
 
 std::size_t skip(Port& port, long long count, nb::handle timeout) {
-  const std::size_t wanted = byte_count(count, "count");
-  const Timeout limit = call_timeout(port, timeout);
-  std::size_t skipped = 0;
-  char scratch[4096];
-  if (wanted > 0) {
-    run_in_slices(port, limit, [&](Deadline slice_end) {
-      while (skipped < wanted) {
-        const std::size_t want = std::min(sizeof scratch, wanted - skipped);
-        const std::size_t n = port.read(scratch, want, remaining(slice_end));
-        if (n == 0) return false;
-        skipped += n;
-      }
-      return true;
-    });
-  }
-  return skipped;
+  CompoundRead read = CompoundRead::discard(port, byte_count(count, "count"));
+  advance_in_slices(port, read, call_timeout(port, timeout)).finish();
+  return read.consumed();
 }
 
 bool skip_until(Port& port, nb::handle delimiter_object, nb::handle timeout) {
-  std::string delimiter;
-  {
-    ByteView view(delimiter_object, "delimiter");
-    delimiter.assign(view.data(), view.size());
-  }
+  const std::string delimiter = delimiter_from(delimiter_object, "delimiter");
   if (delimiter.empty()) throw nb::value_error("delimiter must not be empty");
-  const std::string data =
-      read_until(port, delimiter, Port::unlimited, call_timeout(port, timeout));
-  return ends_with(data, delimiter);
+  CompoundRead read = CompoundRead::discard_until(port, delimiter);
+  advance_in_slices(port, read, call_timeout(port, timeout)).finish();
+  return read.found_delimiter();
 }
 
 bool wait_readable(Port& port, nb::handle timeout) {
@@ -382,6 +346,43 @@ void send_break(Port& port, double duration) {
   port.send_break(milliseconds);
 }
 
+// The levels of DTR and RTS last set through a Python Port live in its
+// instance dictionary: the C++ Port sets lines, it does not remember them.
+constexpr const char dtr_attribute[] = "_wiretape_dtr";
+constexpr const char rts_attribute[] = "_wiretape_rts";
+
+bool modem_line(Port& port, bool (Port::*line)()) {
+  nb::gil_scoped_release release;
+  return (port.*line)();
+}
+
+bool output_line(nb::handle self, const char* attribute) {
+  if (nb::hasattr(self, attribute)) return nb::cast<bool>(self.attr(attribute));
+  // Never set: raises PortError(ENOTSUP) on a port without modem lines, as
+  // setting it would.
+  modem_line(nb::cast<Port&>(self), &Port::cts);
+  return true;
+}
+
+void set_output_line(nb::handle self, bool level, void (Port::*set)(bool),
+                     const char* attribute) {
+  {
+    Port& port = nb::cast<Port&>(self);
+    nb::gil_scoped_release release;
+    (port.*set)(level);
+  }
+  nb::setattr(self, attribute, nb::bool_(level));
+}
+
+bool dtr(nb::handle self) { return output_line(self, dtr_attribute); }
+bool rts(nb::handle self) { return output_line(self, rts_attribute); }
+void set_dtr(nb::handle self, bool level) {
+  set_output_line(self, level, &Port::set_dtr, dtr_attribute);
+}
+void set_rts(nb::handle self, bool level) {
+  set_output_line(self, level, &Port::set_rts, rts_attribute);
+}
+
 std::string repr(const Port& port) {
   return "<wiretape.Port " + port.description() +
          (port.is_open() ? "" : " (closed)") + ">";
@@ -395,7 +396,8 @@ at least one byte and at most size, or b"" when the timeout expires; the
 compound reads (read_exactly, read_until, read_line, skip_until) return what
 they have when the timeout expires and never raise on a timeout.
 
-Every `timeout` argument is in seconds: None blocks, 0 polls; omitted means
+Every `timeout` argument is in seconds (a float, or a datetime.timedelta):
+None blocks, 0 polls; omitted means
 the port's own `timeout`. Ctrl-C interrupts a blocked read. One reader and
 one writer may run at once on different threads; close() from another thread
 wakes a blocked read, which then raises PortClosed.)";
@@ -403,39 +405,35 @@ wakes a blocked read, which then raises PortClosed.)";
 }  // namespace
 
 void bind_port(nb::module_& m) {
-  nb::class_<Port>(m, "Port", port_doc)
+  nb::class_<Port>(m, "Port", port_doc, nb::dynamic_attr())
       // --- reading ---------------------------------------------------------
       .def("read", &read,
-           nb::sig("def read(self, size: int = 1, timeout: float | None = ...) -> bytes"),
+           nb::sig("def read(self, size: int = 1, timeout: float | datetime.timedelta | None = ...) -> bytes"),
            "size"_a = 1, "timeout"_a.none() = nb::ellipsis(),
            "What is there, at least one byte and at most `size`; b\"\" when the "
            "timeout expires.")
       .def("read_exactly", &read_exactly,
-           nb::sig("def read_exactly(self, count: int, timeout: float | None = ...) -> bytes"),
+           nb::sig("def read_exactly(self, count: int, timeout: float | datetime.timedelta | None = ...) -> bytes"),
            "count"_a, "timeout"_a.none() = nb::ellipsis(),
            "Exactly `count` bytes, or what came before the timeout expired.")
-      .def("read_until", &read_until_binding,
+      .def("read_until", &read_until,
            nb::sig("def read_until(self, expected: bytes = b\"\\n\", size: int | None = None, "
-                   "timeout: float | None = ...) -> bytes"),
+                   "timeout: float | datetime.timedelta | None = ...) -> bytes"),
            "expected"_a = nb::bytes("\n", 1),
            "size"_a.none() = nb::none(), "timeout"_a.none() = nb::ellipsis(),
            "Up to and including `expected`, or `size` bytes, or what came "
            "before the timeout expired. Nothing past `expected` is consumed.")
-      .def("read_line",
-           [](Port& port, nb::handle size, nb::handle timeout) {
-             return to_bytes(read_until(port, "\n", optional_byte_count(size, "size"),
-                                        call_timeout(port, timeout)));
-           },
+      .def("read_line", &read_line,
            "size"_a.none() = nb::none(), "timeout"_a.none() = nb::ellipsis(),
            nb::sig("def read_line(self, size: int | None = None, "
-                   "timeout: float | None = ...) -> bytes"),
+                   "timeout: float | datetime.timedelta | None = ...) -> bytes"),
            "Up to and including b\"\\n\" (see read_until).")
       .def("skip", &skip,
-           nb::sig("def skip(self, count: int, timeout: float | None = ...) -> int"),
+           nb::sig("def skip(self, count: int, timeout: float | datetime.timedelta | None = ...) -> int"),
            "count"_a, "timeout"_a.none() = nb::ellipsis(),
            "Discards up to `count` bytes; returns how many were discarded.")
       .def("skip_until", &skip_until,
-           nb::sig("def skip_until(self, delimiter: bytes, timeout: float | None = ...) -> bool"),
+           nb::sig("def skip_until(self, delimiter: bytes, timeout: float | datetime.timedelta | None = ...) -> bool"),
            "delimiter"_a, "timeout"_a.none() = nb::ellipsis(),
            "Discards through `delimiter`; False if the timeout expired first.")
       .def("available", [](Port& port) { return port.available(); },
@@ -443,7 +441,7 @@ void bind_port(nb::module_& m) {
       .def_prop_ro("in_waiting", [](Port& port) { return port.available(); },
                    "Bytes that a read would return at once (pyserial's name).")
       .def("wait_readable", &wait_readable,
-           nb::sig("def wait_readable(self, timeout: float | None = ...) -> bool"),
+           nb::sig("def wait_readable(self, timeout: float | datetime.timedelta | None = ...) -> bool"),
            "timeout"_a.none() = nb::ellipsis(),
            "True once a read would not block (data, or the device is gone); "
            "False when the timeout expired.")
@@ -466,7 +464,10 @@ void bind_port(nb::module_& m) {
           "timeout", [](const Port& port) { return timeout_to_python(port.timeout()); },
           [](Port& port, nb::handle value) { port.set_timeout(timeout_from_python(value)); },
           nb::arg("value").none(),
-          "The port's timeout in seconds: None blocks, 0 polls.")
+          nb::for_getter(nb::sig("def timeout(self) -> float | None")),
+          nb::for_setter(nb::sig("def timeout(self, value: float | datetime.timedelta | None, /) -> None")),
+          "The port's timeout in seconds (or a datetime.timedelta): None "
+          "blocks, 0 polls.")
       .def("close", &Port::close, nb::call_guard<nb::gil_scoped_release>(),
            "Closes the port; a read blocked in another thread raises PortClosed.")
       .def_prop_ro("is_open", [](const Port& port) { return port.is_open(); })
@@ -504,24 +505,22 @@ void bind_port(nb::module_& m) {
       .def("serial_settings",
            [](const Port& port) { return settings_dict(port.serial_settings()); },
            "The line settings: {'baud', 'databits', 'stopbits', 'parity', 'flow'}.")
-      .def("set_dtr", [](Port& port, bool level) { port.set_dtr(level); }, "level"_a)
-      .def("set_rts", [](Port& port, bool level) { port.set_rts(level); }, "level"_a)
-      .def_prop_rw(
-          "dtr",
-          [](const Port&) -> bool {
-            throw nb::attribute_error("dtr can be set, not read");
-          },
-          [](Port& port, bool level) { port.set_dtr(level); }, "Sets DTR (write-only).")
-      .def_prop_rw(
-          "rts",
-          [](const Port&) -> bool {
-            throw nb::attribute_error("rts can be set, not read");
-          },
-          [](Port& port, bool level) { port.set_rts(level); }, "Sets RTS (write-only).")
-      .def("cts", [](Port& port) { return port.cts(); })
-      .def("dsr", [](Port& port) { return port.dsr(); })
-      .def("ri", [](Port& port) { return port.ri(); })
-      .def("cd", [](Port& port) { return port.cd(); })
+      .def("set_dtr", &set_dtr, "level"_a, nb::sig("def set_dtr(self, level: bool) -> None"))
+      .def("set_rts", &set_rts, "level"_a, nb::sig("def set_rts(self, level: bool) -> None"))
+      .def_prop_rw("dtr", &dtr, &set_dtr,
+                   "DTR: the level last set (True before any: the OS raises it at "
+                   "open); settable.")
+      .def_prop_rw("rts", &rts, &set_rts,
+                   "RTS: the level last set (True before any: the OS raises it at "
+                   "open); settable.")
+      .def_prop_ro("cts", [](Port& port) { return modem_line(port, &Port::cts); },
+                   "CTS as the device drives it.")
+      .def_prop_ro("dsr", [](Port& port) { return modem_line(port, &Port::dsr); },
+                   "DSR as the device drives it.")
+      .def_prop_ro("ri", [](Port& port) { return modem_line(port, &Port::ri); },
+                   "RI (ring indicator) as the device drives it.")
+      .def_prop_ro("cd", [](Port& port) { return modem_line(port, &Port::cd); },
+                   "CD (carrier detect) as the device drives it.")
       .def("send_break", &send_break, "duration"_a = 0.25,
            "Holds the line in break for `duration` seconds.")
       // --- context manager -----------------------------------------------------
@@ -544,6 +543,17 @@ void bind_port(nb::module_& m) {
         "Opens the port an option string describes, e.g. "
         "'type=serial,device=/dev/ttyUSB0,baud=115200'. Raises OptionError for "
         "a bad string, PortError when the device cannot be opened.");
+
+  m.def("quote_option_value",
+        [](std::string_view value) { return quote_option_value(value); }, "value"_a,
+        "A value as it is written in an option string: as is, or in double "
+        "quotes with \\\" and \\\\ escaped when it is empty or holds a "
+        "separator, '=', '\"' or '\\\\'.");
+  m.def("device_options",
+        [](std::string_view device) { return device_options(device); }, "device"_a,
+        "The option string a device setting stands for: a bare path (no '=') "
+        "means type=serial,device=PATH; an option string is returned as given. "
+        "Raises OptionError when the setting is empty.");
 }
 
 }  // namespace wiretape::python

@@ -156,12 +156,43 @@ TEST(OptionsTake, PrefixedKeysAreCollected) {
 }
 
 TEST(OptionsQuote, QuotesOnlyWhatNeedsIt) {
-  EXPECT_EQ(Options::quote("plain"), "plain");
-  EXPECT_EQ(Options::quote("a b"), "\"a b\"");
-  EXPECT_EQ(Options::quote("a,b"), "\"a,b\"");
-  EXPECT_EQ(Options::quote("k=v"), "\"k=v\"");
-  EXPECT_EQ(Options::quote(""), "\"\"");
-  EXPECT_EQ(Options::quote("say \"x\""), "\"say \\\"x\\\"\"");
+  EXPECT_EQ(wiretape::quote_option_value("plain"), "plain");
+  EXPECT_EQ(wiretape::quote_option_value("/dev/ttyUSB0"), "/dev/ttyUSB0");
+  EXPECT_EQ(wiretape::quote_option_value("a b"), "\"a b\"");
+  EXPECT_EQ(wiretape::quote_option_value("a,b"), "\"a,b\"");
+  EXPECT_EQ(wiretape::quote_option_value("a\tb\r\n"), "\"a\tb\r\n\"");
+  EXPECT_EQ(wiretape::quote_option_value("k=v"), "\"k=v\"");
+  EXPECT_EQ(wiretape::quote_option_value(""), "\"\"");
+  EXPECT_EQ(wiretape::quote_option_value("say \"x\""), "\"say \\\"x\\\"\"");
+  EXPECT_EQ(wiretape::quote_option_value("C:\\x"), "\"C:\\\\x\"");
+}
+
+TEST(OptionsQuote, ParseGivesTheQuotedValueBack) {
+  for (const std::string value :
+       {"plain", "/home/me/My Runs/a.wtape", "a,b=c", "", "say \"x\"", "back\\slash",
+        "tab\tand\nnewline", "\"\\\""}) {
+    const auto options = Options::parse("log=" + wiretape::quote_option_value(value));
+    EXPECT_EQ(options.peek("log"), value) << value;
+  }
+}
+
+TEST(DeviceOptions, ABarePathMeansASerialDevice) {
+  EXPECT_EQ(wiretape::device_options("/dev/ttyUSB0"),
+            "type=serial,device=/dev/ttyUSB0");
+  EXPECT_EQ(wiretape::device_options("  /dev/My Port\n"),
+            "type=serial,device=\"/dev/My Port\"");
+  EXPECT_EQ(wiretape::device_options("type=tcp,port=5000"), "type=tcp,port=5000");
+  EXPECT_EQ(wiretape::device_options(" type=loopback "), "type=loopback");
+}
+
+TEST(DeviceOptions, AnEmptySettingNamesTheProblem) {
+  try {
+    wiretape::device_options(" \t");
+    FAIL() << "no OptionError";
+  } catch (const OptionError& error) {
+    EXPECT_EQ(error.key(), "device");
+    EXPECT_NE(std::string(error.what()).find("empty"), std::string::npos);
+  }
 }
 
 TEST(OptionsAlias, AliasIsListedAmongValidKeys) {

@@ -539,3 +539,108 @@ TEST(RecordingPort, CloseFromAnotherThreadEndsTheSessionCleanly) {
   reader.join();
   EXPECT_EQ(kinds_of(read_all(path)), (std::vector<std::string>{"open", "close"}));
 }
+
+namespace {
+
+std::vector<std::string> rx_payloads(const std::string& path) {
+  std::vector<std::string> payloads;
+  for (const Record& record : read_all(path)) {
+    if (record.kind == RecordKind::rx) payloads.push_back(record.data);
+  }
+  return payloads;
+}
+
+}  // namespace
+
+TEST(RecordingPort, ACompoundReadIsOneRxRecordOverLoopback) {
+  TempDir dir;
+  const std::string path = dir.file("lines.wtape");
+  {
+    auto port = open_port("type=loopback,timeout=2,log=" + path);
+    ASSERT_EQ(port->write_all("alpha\nbeta\n"), 11u);
+    EXPECT_EQ(port->read_line(), "alpha\n");
+    EXPECT_EQ(port->read_until("\n"), "beta\n");
+    port->write_all("gam");
+    port->write_all("ma");
+    EXPECT_EQ(port->read_exactly(5), "gamma");
+    port->write_all("noise;rest");
+    EXPECT_TRUE(port->skip_until(";"));
+    EXPECT_EQ(port->skip(4), 4u);
+    port->close();
+  }
+  EXPECT_EQ(rx_payloads(path),
+            (std::vector<std::string>{"alpha\n", "beta\n", "gamma", "noise;", "rest"}));
+}
+
+TEST(RecordingPort, ACompoundReadIsOneRxRecordOverReplay) {
+  TempDir dir;
+  const std::string session = dir.file("device.wtape");
+  {
+    SessionWriterOptions options;
+    options.port_type = "serial";
+    SessionWriter writer(session, options);
+    writer.write(RecordKind::rx, 0, "al");
+    writer.write(RecordKind::rx, 1, "pha\nbe");
+    writer.write(RecordKind::rx, 2, "ta\n");
+    writer.close();
+  }
+  const std::string path = dir.file("driver.wtape");
+  {
+    auto port = open_port("type=replay,timing=none,timeout=2,file=" + session +
+                          ",log=" + path);
+    EXPECT_EQ(port->read_line(), "alpha\n");
+    EXPECT_EQ(port->read_line(), "beta\n");
+    port->close();
+  }
+  EXPECT_EQ(rx_payloads(path), (std::vector<std::string>{"alpha\n", "beta\n"}));
+}
+
+TEST(RecordingPort, ACompoundReadAdvancedInStepsIsOneRxRecord) {
+  TempDir dir;
+  const std::string path = dir.file("s.wtape");
+  auto fake_owner = std::make_unique<FakePort>();
+  FakePort& fake = *fake_owner;
+  auto port = detail::record_port(std::move(fake_owner), config_for(path));
+  fake.incoming = {"ab"};
+  CompoundRead read = CompoundRead::until(*port, "\r\n");
+  EXPECT_FALSE(read.advance(Deadline()));  // the fake has no more: a timeout
+  fake.incoming = {"c\r", "\nnext"};
+  EXPECT_TRUE(read.advance(Deadline()));
+  EXPECT_EQ(read.finish(), "abc\r\n");
+  port->close();
+  EXPECT_EQ(rx_payloads(path), (std::vector<std::string>{"abc\r\n"}));
+}
+
+TEST(RecordingPort, ACompoundReadGivenUpStillRecordsWhatItConsumed) {
+  TempDir dir;
+  const std::string path = dir.file("s.wtape");
+  auto fake_owner = std::make_unique<FakePort>();
+  FakePort& fake = *fake_owner;
+  auto port = detail::record_port(std::move(fake_owner), config_for(path));
+  fake.incoming = {"partial"};
+  {
+    CompoundRead read = CompoundRead::exactly(*port, 100);
+    EXPECT_FALSE(read.advance(Deadline()));
+  }  // destroyed unfinished (in Python: Ctrl-C)
+  port->close();
+  EXPECT_EQ(rx_payloads(path), (std::vector<std::string>{"partial"}));
+}
+
+TEST(RecordingPort, BytesOfACompoundReadComeBeforeTheDeviceLoss) {
+  TempDir dir;
+  const std::string path = dir.file("s.wtape");
+  auto fake_owner = std::make_unique<FakePort>();
+  FakePort& fake = *fake_owner;
+  auto port = detail::record_port(std::move(fake_owner), config_for(path));
+  fake.incoming = {"ab"};
+  CompoundRead read = CompoundRead::exactly(*port, 4);
+  EXPECT_FALSE(read.advance(Deadline()));
+  fake.lost = true;
+  EXPECT_THROW(read.advance(Deadline()), PortClosed);
+  read.finish();
+  port->close();
+  const auto records = read_all(path);
+  EXPECT_EQ(kinds_of(records),
+            (std::vector<std::string>{"open", "rx", "device_lost", "close"}));
+  EXPECT_EQ(records[1].data, "ab");
+}

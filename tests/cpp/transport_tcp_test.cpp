@@ -193,3 +193,40 @@ TEST(Tcp, FlexiportIpAliasIsAccepted) {
   EXPECT_THROW(open_port("type=tcp,ip=127.0.0.1,host=localhost,port=1"),
                wiretape::OptionError);
 }
+
+// A socket can be looked at without consuming (MSG_PEEK): read_until takes
+// one system call per chunk the peer sent, not one per byte, and consumes
+// nothing past the delimiter.
+TEST(Tcp, ReadUntilTakesAFewSystemCallsPerLineNotOnePerByte) {
+  auto pair = connect_pair();
+  const std::string line = std::string(999, 'x') + "\n";
+  pair.server->write_all(line + "next");
+  const auto deadline = std::chrono::steady_clock::now() + 5s;
+  while (pair.client->available() < line.size() + 4 &&
+         std::chrono::steady_clock::now() < deadline) {
+    pair.client->wait_readable(100ms);
+  }
+  int receives = 0;
+  {
+    sys::ScopedOverride seam;
+    const auto real_recv = sys::real().recv;
+    seam->recv = [&](int fd, void* buffer, size_t size, int flags) {
+      ++receives;
+      return real_recv(fd, buffer, size, flags);
+    };
+    EXPECT_EQ(pair.client->read_until("\n", Port::unlimited, 5s), line);
+  }
+  EXPECT_LE(receives, 4);
+  EXPECT_EQ(pair.client->available(), 4u);
+  EXPECT_EQ(pair.client->read_exactly(4, 5s), "next");
+}
+
+TEST(Tcp, ReadUntilFindsADelimiterSplitAcrossSegments) {
+  auto pair = connect_pair();
+  pair.server->write_all("abc\r");
+  ASSERT_TRUE(pair.client->wait_readable(5s));
+  std::thread sender([&] { pair.server->write_all("\nrest"); });
+  EXPECT_EQ(pair.client->read_until("\r\n", Port::unlimited, 5s), "abc\r\n");
+  sender.join();
+  EXPECT_EQ(pair.client->read_exactly(4, 5s), "rest");
+}

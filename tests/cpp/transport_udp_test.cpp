@@ -1,3 +1,8 @@
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -93,4 +98,30 @@ TEST(Udp, HostWithoutPortIsAnOptionError) {
   }
   EXPECT_THROW(open_port("type=udp,port=70000"), wiretape::OptionError);
   EXPECT_THROW(open_port("type=udp,dest_port=1,port=2"), wiretape::OptionError);
+}
+
+// read_until peeks at each datagram and reads it through the delimiter: a
+// line sent in several datagrams comes back whole, an empty datagram is
+// passed over, and the rest of a datagram after the delimiter is dropped, as
+// a short read drops it.
+TEST(Udp, ReadUntilGathersALineFromDatagrams) {
+  const int a_port = wiretape::test::free_port(true);
+  const int b_port = wiretape::test::free_port(true);
+  auto a = open_port(endpoint_options(a_port, b_port));
+  auto b = open_port(endpoint_options(b_port, a_port));
+  a->write_all("ab");
+  {  // an empty datagram (Port::write sends nothing for 0 bytes)
+    const int fd = ::socket(AF_INET, SOCK_DGRAM, 0);
+    ASSERT_GE(fd, 0);
+    sockaddr_in to{};
+    to.sin_family = AF_INET;
+    to.sin_port = htons(static_cast<std::uint16_t>(b_port));
+    to.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    EXPECT_EQ(::sendto(fd, "", 0, 0, reinterpret_cast<const sockaddr*>(&to), sizeof to), 0);
+    ::close(fd);
+  }
+  a->write_all("c\nrest of it");
+  a->write_all("next\n");
+  EXPECT_EQ(b->read_until("\n", wiretape::Port::unlimited, 5s), "abc\n");
+  EXPECT_EQ(b->read_until("\n", wiretape::Port::unlimited, 5s), "next\n");
 }

@@ -2,6 +2,7 @@
 timeouts (None, 0, float), compound reads, in_waiting, the pollable fileno,
 writes, state and serial controls."""
 
+import datetime
 import errno
 import math
 import select
@@ -150,6 +151,24 @@ def test_skip_and_skip_until(endpoint):
     assert port.skip(3, timeout=0.1) == 0
 
 
+def test_a_compound_read_is_one_rx_record_however_it_was_sliced(tmp_path):
+    log = tmp_path / "driver.wtape"
+    with wiretape.open_port(f"type=loopback,timeout=5,log={log}") as port:
+        port.write_all(b"alpha\nbeta\r\n")
+        assert port.read_line() == b"alpha\n"
+        assert port.read_until(b"\r\n") == b"beta\r\n"
+        port.write_all(b"noise#")
+        assert port.skip_until(b"#") is True
+        port.write_all(b"gam")
+        # Waits for the rest across several 50 ms slices, then times out.
+        assert port.read_exactly(5, timeout=0.25) == b"gam"
+        port.write_all(b"ma\n")
+        assert port.read_until(b"\n", timeout=0.25) == b"ma\n"
+        assert port.read_until(b"\n", timeout=0.05) == b""  # not recorded
+    rx = [bytes(r.data) for r in wiretape.SessionReader(str(log)) if r.kind == "rx"]
+    assert rx == [b"alpha\n", b"beta\r\n", b"noise#", b"gam", b"ma\n"]
+
+
 def test_read_until_accepts_any_bytes_like_delimiter(loopback):
     loopback.write(b"a;b;")
     assert loopback.read_until(bytearray(b";")) == b"a;"
@@ -253,6 +272,24 @@ def test_timeout_property_takes_seconds_none_and_zero():
         port.close()
 
 
+def test_timeouts_accept_a_timedelta(loopback):
+    loopback.timeout = datetime.timedelta(milliseconds=250)
+    assert math.isclose(loopback.timeout, 0.25)
+    started = time.monotonic()
+    assert loopback.read(1, timeout=datetime.timedelta(milliseconds=50)) == b""
+    assert time.monotonic() - started >= 0.05
+    loopback.write_all(b"ab\n")
+    assert loopback.read_until(b"\n", timeout=datetime.timedelta(seconds=5)) == b"ab\n"
+    for call in (lambda t: loopback.read_exactly(1, timeout=t),
+                 lambda t: loopback.read_line(timeout=t),
+                 lambda t: loopback.skip(1, timeout=t),
+                 lambda t: loopback.skip_until(b"x", timeout=t),
+                 lambda t: loopback.wait_readable(t)):
+        call(datetime.timedelta(0))  # polls
+    with pytest.raises(ValueError, match="timeout"):
+        loopback.timeout = datetime.timedelta(seconds=-1)
+
+
 def test_timeout_option_sets_the_property():
     with wiretape.open_port("type=loopback,timeout=1.5") as port:
         assert port.timeout == 1.5
@@ -309,7 +346,8 @@ def test_calls_on_a_closed_port_raise_port_closed(loopback):
 
 
 def test_serial_controls_on_a_port_without_them_raise_enotsup(loopback):
-    for call in (lambda: loopback.set_baud(9600), lambda: loopback.cts(),
+    for call in (lambda: loopback.set_baud(9600), lambda: loopback.cts,
+                 lambda: loopback.dtr, lambda: loopback.ri,
                  lambda: loopback.set_dtr(True), lambda: loopback.send_break(0.01),
                  lambda: loopback.serial_settings()):
         with pytest.raises(wiretape.PortError) as raised:
@@ -340,11 +378,30 @@ def test_configure_rejects_bad_values_on_a_pty(tmp_path):
             port.configure(flow="magic")
 
 
-def test_dtr_and_rts_are_write_only(loopback):
-    with pytest.raises(AttributeError, match="dtr"):
-        loopback.dtr
-    with pytest.raises(AttributeError, match="rts"):
-        loopback.rts
+def test_modem_lines_are_pyserial_style_properties(session_file):
+    # A replay emulates a device with its lines up (CTS, DSR, CD) and no ring.
+    path = session_file([("rx", 0, b"hi")])
+    with wiretape.open_port(f"type=replay,timing=none,unused=ignore,file={path}") as port:
+        assert (port.cts, port.dsr, port.ri, port.cd) == (True, True, False, True)
+        assert (port.dtr, port.rts) == (True, True)  # raised at open, as pyserial
+        port.dtr = False
+        port.rts = False
+        assert (port.dtr, port.rts) == (False, False)
+        port.set_dtr(True)
+        assert port.dtr is True and port.rts is False
+        with pytest.raises(AttributeError):
+            port.cts = False  # read-only: the device drives it
+
+
+def test_modem_line_changes_are_recorded(session_file, tmp_path):
+    path = session_file([("rx", 0, b"hi")])
+    log = tmp_path / "driver.wtape"
+    with wiretape.open_port(f"type=replay,timing=none,unused=ignore,file={path},log={log}") as port:
+        port.dtr = False
+        port.rts = True
+        assert port.dtr is False
+    events = [bytes(r.data) for r in wiretape.SessionReader(str(log)) if r.kind == "modem_lines"]
+    assert events == [b'{"dtr":false}', b'{"rts":true}']
 
 
 def test_send_break_duration_is_validated(loopback):
@@ -370,3 +427,24 @@ def test_open_port_connect_refused_is_a_port_error_with_errno():
 def test_open_port_needs_a_string():
     with pytest.raises(TypeError):
         wiretape.open_port(None)
+
+
+# --- option helpers ------------------------------------------------------------------
+
+
+def test_option_values_are_quoted_once_in_cpp():
+    quote = wiretape._core.quote_option_value
+    assert quote("/dev/ttyUSB0") == "/dev/ttyUSB0"
+    assert quote("/home/me/My Runs/a.wtape") == '"/home/me/My Runs/a.wtape"'
+    assert quote('say "x"') == '"say \\"x\\""'
+    assert quote("") == '""'
+    assert quote("k=v,w") == '"k=v,w"'
+
+
+def test_a_bare_device_path_means_a_serial_port():
+    device_options = wiretape._core.device_options
+    assert device_options("/dev/ttyACM0") == "type=serial,device=/dev/ttyACM0"
+    assert device_options(" /dev/My Port ") == 'type=serial,device="/dev/My Port"'
+    assert device_options("type=tcp,port=10940") == "type=tcp,port=10940"
+    with pytest.raises(wiretape.OptionError, match="empty"):
+        device_options("  ")

@@ -3,7 +3,9 @@ Port across threads: close() wakes a blocked read, the GIL is released while
 a call blocks, Ctrl-C interrupts a blocked read or write."""
 
 import errno
+import os
 import pickle
+import select
 import signal
 import subprocess
 import sys
@@ -190,32 +192,82 @@ def test_one_reader_and_one_writer_at_once(loopback):
 
 def interrupt_each_call(setup, calls):
     """Runs `calls` (Python expressions over `port`, made by `setup`) one by
-    one in a child interpreter, sending SIGINT once each has started; each
-    must end in KeyboardInterrupt."""
+    one in a child interpreter; each must end in KeyboardInterrupt.
+
+    A SIGINT can land before a call blocks, or between calls, so the parent
+    keeps sending SIGINT until the child reports that the call was
+    interrupted, and the child turns SIGINT into KeyboardInterrupt only while
+    a call is under test (once per call): a signal that lands elsewhere is
+    ignored, and the next one interrupts."""
     script = textwrap.dedent(setup) + textwrap.dedent(f"""
-        import sys
+        import signal, sys
+        armed = False
+
+        def on_sigint(signum, frame):
+            global armed
+            if armed:
+                armed = False
+                raise KeyboardInterrupt
+
+        signal.signal(signal.SIGINT, on_sigint)
         for call in [{", ".join(f"lambda: {call}" for call in calls)}]:
+            print("ready", flush=True)
             try:
-                print("ready", flush=True)
+                armed = True
                 call()
                 sys.exit(1)
             except KeyboardInterrupt:
                 pass
+            print("interrupted", flush=True)
         print("done", flush=True)
     """)
     child = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE,
-                             stderr=subprocess.PIPE, text=True)
+                             stderr=subprocess.PIPE)
+    lines = _LineReader(child.stdout.fileno())
+    deadline = time.monotonic() + 60
     try:
         for _ in calls:
-            assert child.stdout.readline().strip() == "ready"
-            child.send_signal(signal.SIGINT)
-        out, err = child.communicate(timeout=10)
+            assert lines.next(deadline) == "ready"
+            # Each SIGINT either interrupts the call or is ignored; the
+            # child's report is the event waited for, a resend every 0.1 s.
+            line = None
+            while line is None and time.monotonic() < deadline:
+                child.send_signal(signal.SIGINT)
+                line = lines.next(min(deadline, time.monotonic() + 0.1), or_none=True)
+            assert line == "interrupted"
+        assert lines.next(deadline) == "done"
+        child.wait(timeout=max(1.0, deadline - time.monotonic()))
     finally:
         if child.poll() is None:
             child.kill()
             child.wait()
+        err = child.stderr.read().decode(errors="replace")
+        child.stdout.close()
+        child.stderr.close()
     assert child.returncode == 0, err
-    assert "done" in out
+
+
+class _LineReader:
+    """Lines from a pipe, each awaited until a deadline (select, no sleep)."""
+
+    def __init__(self, fd):
+        self._fd = fd
+        self._pending = b""
+
+    def next(self, deadline, or_none=False):
+        while b"\n" not in self._pending:
+            left = deadline - time.monotonic()
+            ready, _, _ = select.select([self._fd], [], [], max(0.0, left))
+            if not ready:
+                if or_none:
+                    return None
+                raise AssertionError(f"no line from the child in time; got {self._pending!r}")
+            chunk = os.read(self._fd, 4096)
+            if not chunk:
+                raise AssertionError(f"the child ended early; got {self._pending!r}")
+            self._pending += chunk
+        line, self._pending = self._pending.split(b"\n", 1)
+        return line.decode().strip()
 
 
 def test_ctrl_c_interrupts_blocked_reads():
@@ -224,6 +276,9 @@ def test_ctrl_c_interrupts_blocked_reads():
         port = wiretape.open_port("type=loopback")
     """, ["port.read(1, timeout=None)",
           "port.read_until(b'\\n', timeout=None)",
+          "port.read_line(timeout=None)",
+          "port.skip_until(b'\\n', timeout=None)",
+          "port.skip(5, timeout=None)",
           "port.wait_readable(None)",
           "port.read_exactly(5, timeout=60)"])
 

@@ -43,12 +43,15 @@ def test_serial_configure_changes_only_what_is_given(serial_over_pty):
 
 def test_serial_modem_lines_on_a_pty_raise_port_error_with_errno(serial_over_pty):
     port, _ = serial_over_pty
-    with pytest.raises(wiretape.PortError) as raised:
-        port.cts()
-    assert raised.value.errno == errno.ENOTTY
-    assert "modem lines" in str(raised.value)
+    for line in ("cts", "dsr", "ri", "cd", "dtr", "rts"):
+        with pytest.raises(wiretape.PortError) as raised:
+            getattr(port, line)
+        assert raised.value.errno == errno.ENOTTY, line
+        assert "modem lines" in str(raised.value)
     with pytest.raises(wiretape.PortError):
         port.dtr = True
+    with pytest.raises(wiretape.PortError):
+        port.rts = False
 
 
 def test_serial_bytes_cross_both_ways(serial_over_pty):

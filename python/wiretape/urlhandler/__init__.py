@@ -19,11 +19,12 @@ URLs:
     ``wiretape://run.wtape?timing=none&match=request``.
 
 ``wiretape+record://PATH?device=DEVICE&baud=115200``
-    opens DEVICE with pyserial (a path such as ``/dev/ttyUSB0`` or any
-    pyserial URL, percent-encoded if it has its own ``?``/``&``) and records
-    the session to PATH. ``baud`` (or ``baudrate``) sets the rate; settings
-    given to ``serial_for_url`` (``bytesize``, ``parity``...) reach the
-    device. ``meta_KEY=VALUE`` adds free metadata; ``flush_ms`` and
+    opens DEVICE (a path such as ``/dev/ttyUSB0``, which means
+    ``type=serial,device=PATH``, or a wiretape option string,
+    percent-encoded) and records the session to PATH with the library's
+    recorder (``log=PATH``). ``baud`` (or ``baudrate``) sets the rate;
+    settings given to ``serial_for_url`` (``bytesize``, ``parity``...) reach
+    the device. ``meta_KEY=VALUE`` adds free metadata; ``flush_ms`` and
     ``fsync`` tune the recorder.
 
 ``wiretape+record://PATH?options=OPTS``

@@ -10,7 +10,7 @@ from serial.serialutil import (
     SerialTimeoutException,
 )
 
-_OPTION_SEPARATORS = set(", \t\r\n\"\\=")
+_PARITY_NAMES = {"N": "none", "E": "even", "O": "odd", "M": "mark", "S": "space"}
 
 
 def _converted_errors():
@@ -21,21 +21,11 @@ def _converted_errors():
     return (wiretape.OptionError, wiretape.SessionError, wiretape.PortError)
 
 
-def _value(attribute):
-    """A Port attribute that may be bound as a property or as a method."""
-    return attribute() if callable(attribute) else attribute
-
-
-def quote_option(value) -> str:
-    """A value for a wiretape option string, double-quoted if it needs to be."""
-    text = str(value)
-    if text and not (set(text) & _OPTION_SEPARATORS):
-        return text
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
-
-
 def option_string(pairs) -> str:
-    return ",".join(f"{key}={quote_option(value)}" for key, value in pairs)
+    """``key=value,...``, each value quoted as the option syntax needs."""
+    from .. import _core
+
+    return ",".join(f"{key}={_core.quote_option_value(str(value))}" for key, value in pairs)
 
 
 def parse_url(url, scheme):
@@ -103,12 +93,27 @@ class PortSerial(SerialBase):
         if port is None:
             return
         # Line settings mean nothing to a replay; a real serial port follows
-        # the baud rate.
-        if _value(port.type) == "serial" and self._baudrate:
-            try:
-                port.set_baud(int(self._baudrate))
-            except Exception as error:
-                raise SerialException(f"cannot set baud rate {self._baudrate}: {error}") from error
+        # them. Only what changed is applied (a recording shows a settings
+        # event where the driver changed something, not at every open).
+        if port.type != "serial" or not self._baudrate:
+            return
+        wanted = {
+            "baud": int(self._baudrate),
+            "databits": int(self._bytesize),
+            "parity": _PARITY_NAMES.get(self._parity, str(self._parity)),
+            "flow": "rtscts" if self._rtscts else ("xonxoff" if self._xonxoff else "none"),
+        }
+        if self._stopbits in (1, 2):
+            wanted["stopbits"] = int(self._stopbits)
+        try:
+            current = port.serial_settings()
+            changed = {key: value for key, value in wanted.items() if current.get(key) != value}
+            if set(changed) == {"baud"}:
+                port.set_baud(changed["baud"])
+            elif changed:
+                port.configure(**changed)
+        except Exception as error:
+            raise SerialException(f"cannot apply the line settings {wanted}: {error}") from error
 
     def _require_open(self):
         if not self.is_open or self._wiretape_port is None:
@@ -167,7 +172,7 @@ class PortSerial(SerialBase):
     def _line(self, name, default):
         port = self._require_open()
         try:
-            return bool(_value(getattr(port, name)))
+            return bool(getattr(port, name))
         except Exception:  # no modem lines on this kind of port
             return default
 
