@@ -18,7 +18,7 @@ import signal
 import sys
 from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
-from . import __version__
+from . import __version__, _core
 
 EXIT_OK = 0
 EXIT_CHECK_FAILED = 1
@@ -293,10 +293,14 @@ def cmd_show(args, out: _Output) -> int:
     from .tools.verify import verify
 
     _require_input(args.file)
-    if args.decode and args.format != "text":
-        raise UsageError("--decode works with --format text only")
+    profile = args.profile or args.decode
+    if args.profile and args.decode and args.profile != args.decode:
+        raise UsageError(f"--profile {args.profile} and --decode {args.decode} disagree: give one")
+    if profile and args.format != "text":
+        option = "--profile" if args.profile else "--decode"
+        raise UsageError(f"{option} works with --format text only")
     try:
-        show(args.file, fmt=args.format, decode=args.decode)
+        show(args.file, fmt=args.format, profile=profile)
     except BrokenPipeError:  # `wiretape show big.wtape | head`
         _silence_stdout()
         return EXIT_OK
@@ -590,8 +594,11 @@ def build_parser() -> argparse.ArgumentParser:
     show.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
     show.add_argument("--format", choices=("text", "hex", "jsonl"), default="text",
                       help="text (default), hex dump, or one JSON object per record")
+    show.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
+                      help="cut the bytes into a protocol's frames and name them: "
+                           + ", ".join(_core.profile_names()))
     show.add_argument("--decode", choices=("scip",),
-                      help="decode a protocol: scip (Hokuyo SCIP 2.0)")
+                      help="the older name of --profile scip")
 
     stats = command("stats", cmd_stats, "figures of a session (exit 1 if damaged)")
     stats.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")

@@ -4,26 +4,17 @@ decoding of whole sessions for ``wiretape show --decode scip``.
 The golden file ``tests/data/golden/urg04lx_gd.scip.txt`` holds the decoded
 timeline of one small recording, as show prints it; regenerate it with
 ``python tests/python/test_profiles.py`` after a deliberate change to the
-texts. While the Python SCIP decoder still exists, every SCIP recording of
-the repository is also decoded both ways and compared item by item."""
+texts. The C++ tests (tests/cpp/profile_test.cpp) check that every split of
+the repository's recordings frames the same."""
 
 import json
 import os
 import pathlib
-import random
 import sys
 
 import pytest
 
 from wiretape import _core
-
-try:
-    from wiretape.inspect import _scip_describe, _scip_messages
-except ImportError:
-    try:
-        from wiretape.tools.show import _scip_describe, _scip_messages
-    except ImportError:
-        _scip_describe = _scip_messages = None
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 GOLDEN = ROOT / "tests" / "data" / "golden"
@@ -31,11 +22,6 @@ RECORDINGS = ROOT / "examples" / "hokuyo" / "recordings"
 SHARED_DATA = pathlib.Path(os.environ.get("WIRETAPE_SHARED_DATA_DIR", ROOT.parent / "shared" / "data"))
 GOLDEN_RECORDING = RECORDINGS / "urg04lx_gd.wtape"
 GOLDEN_TEXT = GOLDEN / "urg04lx_gd.scip.txt"
-
-needs_python_decoder = pytest.mark.skipif(
-    _scip_messages is None,
-    reason="the Python SCIP decoder is gone: the golden file checks the scip profile")
-
 
 def scip_sessions():
     """Every SCIP recording the repository has: the Hokuyo example's and the
@@ -51,17 +37,6 @@ def test_the_real_devices_logs_are_among_the_sessions():
         pytest.skip(f"no flexiport logs under {SHARED_DATA / 'flexiport'} "
                     "(set WIRETAPE_SHARED_DATA_DIR): the real devices' sessions were not decoded")
     assert {path.name for path in logs} >= {"urg04lx_2011.log", "utm30lx_2011.log"}
-
-
-def python_decoded(records):
-    """What the Python decoder gives, in the profile's item shape."""
-    out = []
-    for t_ns, kind, item in _scip_messages(records):
-        if kind in ("rx", "tx"):
-            out.append((t_ns, kind, item, _scip_describe(kind, item)))
-        else:
-            out.append((t_ns, kind, item.data, None))
-    return out
 
 
 def show_lines(items):
@@ -124,36 +99,6 @@ def test_decoding_a_path_and_an_iterable_of_records_agree():
         from_records = list(scip.decode_session(_core.SessionReader(path)))
         assert from_path == from_records, path
         assert from_path, path
-
-
-@needs_python_decoder
-@pytest.mark.parametrize("path", scip_sessions(), ids=lambda path: path.name)
-def test_scip_profile_decodes_recordings_as_the_python_decoder(path):
-    profile_items = list(_core.find_profile("scip").decode_session(path))
-    python_items = python_decoded(_core.SessionReader(path))
-    assert profile_items == python_items
-
-
-@needs_python_decoder
-def test_scip_profile_decodes_random_splits_and_garbage_as_the_python_decoder():
-    """Streams of SCIP-like bytes (line ends, empty lines, binary bytes, NULs;
-    no CR, where the profile also cuts and the Python decoder does not), cut
-    into records at random and mixed with events."""
-    rng = random.Random(2026)
-    alphabet = b"VVGDMDSCIP2.0\n\n\n\n00P99b\x00\x01\xff\x80;\\\t "
-    scip = _core.find_profile("scip")
-    for _ in range(300):
-        records = []
-        t_ns = 0
-        for _ in range(rng.randint(0, 30)):
-            t_ns += rng.randint(0, 1000)
-            kind = rng.choice(["rx", "tx", "rx", "tx", "settings"])
-            if kind == "settings":
-                records.append(_core.Record(t_ns, kind, b'{"baud":19200}'))
-            else:
-                data = bytes(rng.choice(alphabet) for _ in range(rng.randint(0, 12)))
-                records.append(_core.Record(t_ns, kind, data))
-        assert list(scip.decode_session(records)) == python_decoded(records)
 
 
 def test_a_damaged_session_decodes_up_to_the_damage():

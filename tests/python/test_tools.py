@@ -83,7 +83,7 @@ def test_show_scip_reassembles_commands_and_replies():
 def test_show_rejects_unknown_format_and_decoder():
     with pytest.raises(ValueError, match="unknown format 'xml'"):
         show(GOLDEN / "wire.wtape", fmt="xml")
-    with pytest.raises(ValueError, match="unknown decoder 'nmea'"):
+    with pytest.raises(ValueError, match="unknown profile 'nmea'"):
         show(GOLDEN / "wire.wtape", decode="nmea")
 
 

@@ -36,7 +36,6 @@ def test_writing_and_reading_a_session_passes_mypy_strict():
     assert result.returncode == 0, result.stdout + result.stderr
 
 
-@pytest.mark.xfail(strict=True, reason="binding accepts timedelta after the core change lands")
 def test_a_port_with_timedelta_timeouts_passes_mypy_strict():
     result = mypy_strict("ports.py")
     assert result.returncode == 0, result.stdout + result.stderr

@@ -22,6 +22,8 @@ from typing import Any, Callable, Dict, List, Mapping
 import pytest
 
 import wiretape
+from wiretape import _core
+from wiretape._core import device_options
 
 RECORD_MODES = ("none", "once", "rewrite")
 DEFAULT_REPLAY_KEYS = {"timing": "none"}
@@ -36,29 +38,16 @@ class WiretapeWarning(UserWarning):
 # option strings
 
 
-def quote_option(value) -> str:
-    """A value for a wiretape option string, double-quoted if it needs to be."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    text = str(value)
-    if text and not (set(text) & set(", \t\r\n\"\\=")):
-        return text
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
-
-
-def _plain(value) -> str:
+def _plain(value: Any) -> str:
+    """A marker or ini value as option text (booleans as true/false)."""
     if isinstance(value, bool):
         return "true" if value else "false"
     return str(value)
 
 
-def device_options(device: str) -> str:
-    """The option string for a device setting: a bare path means a serial
-    device (``type=serial,device=PATH``)."""
-    text = device.strip()
-    if "=" not in text:
-        return f"type=serial,device={quote_option(text)}"
-    return text
+def quote_option(value: Any) -> str:
+    """A value for a wiretape option string, double-quoted if it needs to be."""
+    return _core.quote_option_value(_plain(value))
 
 
 # --------------------------------------------------------------------------

@@ -59,7 +59,8 @@ import pytest
 import wiretape
 from wiretape import bridge, urlhandler
 
-from .cassette import RECORD_MODES, WiretapeCassette, default_cassette_dir, device_options
+from .._core import device_options
+from .cassette import RECORD_MODES, WiretapeCassette, default_cassette_dir
 
 _CASSETTE_KEY = pytest.StashKey[WiretapeCassette]()
 _REPORTS_KEY = pytest.StashKey[Dict[str, pytest.TestReport]]()

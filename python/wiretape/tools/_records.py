@@ -32,37 +32,27 @@ def event_of(record: _core.Record) -> Optional[Dict[str, Any]]:
     """The event's JSON object, or None for rx/tx and unparsable payloads."""
     if record.kind in DIRECTIONS:
         return None
-    if not record.data:
+    return event_payload(record.data)
+
+
+def event_payload(data: bytes) -> Optional[Dict[str, Any]]:
+    """An event record's payload as a JSON object ({} when empty), or None
+    when it is not one."""
+    if not data:
         return {}
     try:
-        value = json.loads(record.data.decode("utf-8"))
+        value = json.loads(data.decode("utf-8"))
     except (UnicodeDecodeError, ValueError):
         return None
     return value if isinstance(value, dict) else None
 
 
 def escape_bytes(data: bytes) -> str:
-    """Printable ASCII kept, the rest as Python-style escapes (\\r, \\n, \\xNN)."""
-    out = []
-    for byte in data:
-        if byte == 0x5C:
-            out.append("\\\\")
-        elif 0x20 <= byte < 0x7F:
-            out.append(chr(byte))
-        elif byte == 0x0A:
-            out.append("\\n")
-        elif byte == 0x0D:
-            out.append("\\r")
-        elif byte == 0x09:
-            out.append("\\t")
-        else:
-            out.append(f"\\x{byte:02x}")
-    return "".join(out)
+    """Printable ASCII kept, the rest as escapes (\\r, \\n, \\xNN): safe on a
+    terminal (C++'s escape_bytes, as in mismatch reports)."""
+    return _core.escape_bytes(bytes(data), len(data))
 
 
 def printable(data: bytes, limit: int = 64) -> str:
     """The first `limit` bytes as escape_bytes() text, and how many more there are."""
-    text = escape_bytes(data[:limit])
-    if len(data) > limit:
-        text += f"... (+{len(data) - limit} bytes)"
-    return text
+    return _core.escape_bytes(bytes(data), limit)

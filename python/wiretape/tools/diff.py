@@ -18,18 +18,12 @@ import os
 from dataclasses import dataclass, field
 from typing import Iterable, Iterator, List, Optional, Union
 
+from .. import _core
 from ._records import DIRECTIONS, open_session
 
 _CONTEXT = 16
 
 SessionLike = Union[str, "os.PathLike[str]", Iterable]
-
-
-def _hex_ascii(data: bytes) -> str:
-    if not data:
-        return "(none)"
-    text = "".join(chr(b) if 0x20 <= b < 0x7F else "." for b in data)
-    return data.hex(" ") + "  |" + text + "|"
 
 
 def _seconds(t_ns: Optional[int]) -> str:
@@ -139,9 +133,9 @@ class DirectionDiff:
         return "\n".join(
             [
                 f"{headline} (A at {_seconds(self.time_a_ns)}, B at {_seconds(self.time_b_ns)})",
-                f"  before: {_hex_ascii(self.before)}",
-                f"  A:      {_hex_ascii(self.at_a)}",
-                f"  B:      {_hex_ascii(self.at_b)}",
+                f"  before: {_core.hex_ascii(bytes(self.before))}",
+                f"  A:      {_core.hex_ascii(bytes(self.at_a))}",
+                f"  B:      {_core.hex_ascii(bytes(self.at_b))}",
                 f"  {counts}",
             ]
         )
