@@ -31,31 +31,6 @@ std::string known_names() {
 
 }  // namespace
 
-std::string printable_text(std::string_view bytes, std::size_t limit) {
-  static constexpr char hex_digits[] = "0123456789abcdef";
-  std::string text;
-  for (unsigned char byte : bytes.substr(0, limit)) {
-    switch (byte) {
-      case '\n': text += "\\n"; break;
-      case '\r': text += "\\r"; break;
-      case '\t': text += "\\t"; break;
-      case '\\': text += "\\\\"; break;
-      default:
-        if (byte >= 0x20 && byte < 0x7f) {
-          text += static_cast<char>(byte);
-        } else {
-          text += "\\x";
-          text += hex_digits[byte >> 4];
-          text += hex_digits[byte & 0x0f];
-        }
-    }
-  }
-  if (bytes.size() > limit) {
-    text += "... (+" + std::to_string(bytes.size() - limit) + " bytes)";
-  }
-  return text;
-}
-
 std::string_view to_string(StreamDirection direction) {
   return direction == StreamDirection::tx ? "tx" : "rx";
 }

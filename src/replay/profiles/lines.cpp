@@ -3,6 +3,7 @@
 #include <utility>
 
 #include "replay/profiles/builtin.hpp"
+#include "util/hex.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail {
@@ -74,11 +75,11 @@ class LinesProfile final : public Profile {
   }
 
   std::string frame_name(StreamDirection, std::string_view frame) const override {
-    return printable_text(without_delimiter(frame), name_bytes);
+    return escape_bytes(without_delimiter(frame), name_bytes);
   }
 
   std::string describe(StreamDirection, std::string_view frame) const override {
-    return printable_text(frame, description_bytes);
+    return escape_bytes(frame, description_bytes);
   }
 
  private:

@@ -12,6 +12,7 @@
 #include <utility>
 
 #include "replay/profiles/builtin.hpp"
+#include "util/hex.hpp"
 
 namespace wiretape::detail {
 
@@ -216,7 +217,7 @@ class ScipProfile final : public Profile {
     if (direction == StreamDirection::tx) {
       std::string_view line = frame;
       while (!line.empty() && line.back() == lf) line.remove_suffix(1);
-      return pad_right(printable_text(line, 40), 24) + " " + code + ": " + meaning;
+      return pad_right(escape_bytes(line, 40), 24) + " " + code + ": " + meaning;
     }
     std::string status = "??";
     std::size_t data_lines = 0;
@@ -234,7 +235,7 @@ class ScipProfile final : public Profile {
     const std::string status_text = status == "00"   ? "ok"
                                     : status == "99" ? "scan data"
                                                      : "status";
-    return pad_right(printable_text(echo, 24), 24) + " reply to " + code + " (" + meaning +
+    return pad_right(escape_bytes(echo, 24), 24) + " reply to " + code + " (" + meaning +
            "): " + status_text + " " + status + ", " + std::to_string(data_lines) +
            " data lines, " + std::to_string(frame.size()) + " bytes";
   }
