@@ -16,6 +16,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "wiretape/session.hpp"
@@ -63,6 +64,35 @@ class Framer {
 // FrameEnd::size_limit, so memory stays bounded. Real frames are far smaller
 // (a SCIP ME scan of 1081 steps is about 7 KiB).
 inline constexpr std::size_t max_frame_bytes = 1 << 20;
+
+// What every framer that cuts byte by byte shares: the kept bytes, cutting
+// them into a frame, and the tail when the stream ends. A framer appends each
+// byte to buffer_ and calls cut() where a frame ends.
+class BufferingFramer : public Framer {
+ public:
+  std::optional<Frame> finish() override {
+    if (buffer_.empty()) return std::nullopt;
+    Frame frame{std::move(buffer_), tail_end()};
+    buffer_.clear();
+    forget_frame();
+    return frame;
+  }
+  std::size_t pending() const override { return buffer_.size(); }
+
+ protected:
+  void cut(FrameEnd end, std::vector<Frame>& frames) {
+    frames.push_back(Frame{std::move(buffer_), end});
+    buffer_.clear();
+    forget_frame();
+  }
+  // What the kept bytes are when the stream ends: cut short, unless the
+  // framer knows them complete.
+  virtual FrameEnd tail_end() const { return FrameEnd::stream_end; }
+  // Drops what the framer noted about the frame being gathered.
+  virtual void forget_frame() {}
+
+  std::string buffer_;
+};
 
 class Profile {
  public:

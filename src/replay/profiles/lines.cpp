@@ -19,7 +19,7 @@ bool ends_with(std::string_view text, std::string_view suffix) {
   return text.size() >= suffix.size() && text.substr(text.size() - suffix.size()) == suffix;
 }
 
-class DelimiterFramer final : public Framer {
+class DelimiterFramer final : public BufferingFramer {
  public:
   explicit DelimiterFramer(std::string delimiter) : delimiter_(std::move(delimiter)) {}
 
@@ -36,23 +36,8 @@ class DelimiterFramer final : public Framer {
     }
   }
 
-  std::optional<Frame> finish() override {
-    if (buffer_.empty()) return std::nullopt;
-    Frame frame{std::move(buffer_), FrameEnd::stream_end};
-    buffer_.clear();
-    return frame;
-  }
-
-  std::size_t pending() const override { return buffer_.size(); }
-
  private:
-  void cut(FrameEnd end, std::vector<Frame>& frames) {
-    frames.push_back(Frame{std::move(buffer_), end});
-    buffer_.clear();
-  }
-
   std::string delimiter_;
-  std::string buffer_;
 };
 
 class LinesProfile final : public Profile {

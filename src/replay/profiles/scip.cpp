@@ -95,7 +95,7 @@ std::string pad_right(std::string text, std::size_t width) {
 
 // Frames are cut byte by byte so that any split of the stream gives the same
 // frames; the size limit keeps a stream without line ends bounded.
-class ScipCommandFramer final : public Framer {
+class ScipCommandFramer final : public BufferingFramer {
  public:
   void feed(std::string_view bytes, std::vector<Frame>& frames) override {
     for (char byte : bytes) {
@@ -120,28 +120,17 @@ class ScipCommandFramer final : public Framer {
     }
   }
 
-  std::optional<Frame> finish() override {
-    if (buffer_.empty()) return std::nullopt;
-    // A command ended by a bare CR is complete; anything else was cut short.
-    Frame frame{std::move(buffer_), after_cr_ ? FrameEnd::delimited : FrameEnd::stream_end};
-    buffer_.clear();
-    after_cr_ = false;
-    return frame;
-  }
-
-  std::size_t pending() const override { return buffer_.size(); }
-
  private:
-  void cut(FrameEnd end, std::vector<Frame>& frames) {
-    frames.push_back(Frame{std::move(buffer_), end});
-    buffer_.clear();
+  // A command ended by a bare CR is complete; anything else was cut short.
+  FrameEnd tail_end() const override {
+    return after_cr_ ? FrameEnd::delimited : FrameEnd::stream_end;
   }
+  void forget_frame() override { after_cr_ = false; }
 
-  std::string buffer_;
   bool after_cr_ = false;  // the kept command ends with a CR
 };
 
-class ScipReplyFramer final : public Framer {
+class ScipReplyFramer final : public BufferingFramer {
  public:
   void feed(std::string_view bytes, std::vector<Frame>& frames) override {
     for (char byte : bytes) {
@@ -160,24 +149,9 @@ class ScipReplyFramer final : public Framer {
     }
   }
 
-  std::optional<Frame> finish() override {
-    if (buffer_.empty()) return std::nullopt;
-    Frame frame{std::move(buffer_), FrameEnd::stream_end};
-    buffer_.clear();
-    line_start_ = 0;
-    return frame;
-  }
-
-  std::size_t pending() const override { return buffer_.size(); }
-
  private:
-  void cut(FrameEnd end, std::vector<Frame>& frames) {
-    frames.push_back(Frame{std::move(buffer_), end});
-    buffer_.clear();
-    line_start_ = 0;
-  }
+  void forget_frame() override { line_start_ = 0; }
 
-  std::string buffer_;
   std::size_t line_start_ = 0;  // where the line being received begins
 };
 
