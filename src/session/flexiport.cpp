@@ -6,6 +6,8 @@
 // with times counted from the port's open. The format of each file is
 // detected from its first chunks; the two files are merged by time, a write
 // before a read at equal times.
+#include "session/flexiport.hpp"
+
 #include <sys/stat.h>
 
 #include <cerrno>
@@ -14,8 +16,9 @@
 #include <memory>
 #include <string>
 
-#include "util/json.hpp"
+#include "session/buffered_file.hpp"
 #include "session/format.hpp"
+#include "util/json.hpp"
 #include "wiretape/session.hpp"
 
 namespace wiretape {

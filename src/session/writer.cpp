@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "session/format.hpp"
+#include "session/header.hpp"
 #include "wiretape/session.hpp"
 
 namespace wiretape {
