@@ -197,6 +197,11 @@ class SessionWriter:
 def export_flexiport(source: _Path, prefix: _Path) -> None: ...
 def crc32c(data: bytes, crc: int = 0) -> int: ...
 
+# The record kinds, in code order: dicts of name, code, is_event, meaning and
+# fields (dicts of name, type, required, meaning), as docs/session-format.md
+# lists them.
+RECORD_KINDS: tuple[dict[str, Any], ...]
+
 # --- bridges (see wiretape.bridge) ----------------------------------------------------
 
 class Bridge:

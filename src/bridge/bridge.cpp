@@ -28,6 +28,7 @@
 #include "posix/platform.hpp"
 #include "posix/syscalls.hpp"
 #include "bridge/rfc2217.hpp"
+#include "session/record_kinds.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/port.hpp"
 #include "wiretape/session.hpp"
@@ -51,6 +52,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 using detail::sys::UniqueFd;
 namespace json = detail::json;
+namespace event_field = detail::event_field;
 namespace rfc = detail::rfc2217;
 
 constexpr std::size_t kChunk = 64 * 1024;
@@ -341,18 +343,18 @@ class Bridge::Impl::ComPortAdapter final : public rfc::ComPort {
             applied = false;
           }
           b.record(RecordKind::line_break, json::ObjectWriter()
-                                               .add("duration_ms", static_cast<std::int64_t>(on.count()))
-                                               .add("applied", applied)
+                                               .add(event_field::duration_ms, static_cast<std::int64_t>(on.count()))
+                                               .add(event_field::applied, applied)
                                                .str());
         }
         return 6;
       case 7: return b.dtr_ ? 8 : 9;
       case 8: case 9:
-        if (act) set_line("dtr", value == 8);
+        if (act) set_line(event_field::dtr, value == 8);
         return b.dtr_ ? 8 : 9;
       case 10: return b.rts_ ? 11 : 12;
       case 11: case 12:
-        if (act) set_line("rts", value == 11);
+        if (act) set_line(event_field::rts, value == 11);
         return b.rts_ ? 11 : 12;
       case 13: return 14;  // inbound flow control: follows the outbound one
       default: return value;
@@ -430,7 +432,7 @@ void Bridge::Impl::open_device(bool first, const char* why) {
   } catch (const PortError&) {
   }
   json::ObjectWriter event;
-  event.add("description", description);
+  event.add(event_field::description, description);
   if (why) event.add(why, true);
   // Time zero is the device's first open.
   record_at(RecordKind::open, first ? 0 : now_ns(), event.str());
@@ -490,7 +492,7 @@ void Bridge::Impl::open_all() {
     writer_ = std::make_unique<SessionWriter>(options_.output, std::move(writer_options));
     // Time zero is the device's open, which came just before the file.
     record_at(RecordKind::open, 0,
-              json::ObjectWriter().add("description", device_->description()).str());
+              json::ObjectWriter().add(event_field::description, device_->description()).str());
   }
   if (options_.client_side == BridgeClientSide::pty) {
     std::string pty_options = "type=pty";
@@ -777,13 +779,13 @@ void Bridge::Impl::watch_pty_clients() {
 }
 
 void Bridge::Impl::client_connected(const std::string& peer, const char* role) {
-  record(RecordKind::client_connect, json::ObjectWriter().add("peer", peer).add("role", role).str());
+  record(RecordKind::client_connect, json::ObjectWriter().add(event_field::peer, peer).add(event_field::role, role).str());
   update_stats([](BridgeStats& s) { ++s.clients_accepted; });
 }
 
 void Bridge::Impl::client_disconnected(const std::string& peer, const std::string& reason) {
   record(RecordKind::client_disconnect,
-         json::ObjectWriter().add("peer", peer).add("reason", reason).str());
+         json::ObjectWriter().add(event_field::peer, peer).add(event_field::reason, reason).str());
 }
 
 void Bridge::Impl::write_pty() {
@@ -923,7 +925,7 @@ void Bridge::Impl::drop_client(Client& client, const std::string& reason) {
 
 void Bridge::Impl::device_lost(const std::string& reason) {
   if (!device_) return;
-  record(RecordKind::device_lost, json::ObjectWriter().add("error", reason).str());
+  record(RecordKind::device_lost, json::ObjectWriter().add(event_field::error, reason).str());
   update_stats([](BridgeStats& s) { ++s.device_losses; });
   message("the device (" + device_description_ + ") went away: " + reason);
   try {
@@ -947,7 +949,7 @@ void Bridge::Impl::device_lost(const std::string& reason) {
 
 void Bridge::Impl::try_reopen() {
   try {
-    open_device(false, "reopened");
+    open_device(false, event_field::reopened);
     update_stats([](BridgeStats& s) { ++s.device_reopens; });
     message("the device is back: " + device_description_);
     if (pty_ && options_.mirror_settings) {
@@ -975,7 +977,7 @@ void Bridge::Impl::restart_device() {
     device_.reset();
   }
   to_device_.clear();
-  open_device(false, "restarted");
+  open_device(false, event_field::restarted);
   message("a new client: the device starts over");
 }
 
@@ -1059,13 +1061,13 @@ bool Bridge::Impl::apply_settings(const SerialSettings& target, const char* sour
   virtual_settings_ = target;
   update_stats([](BridgeStats& s) { ++s.settings_changes; });
   record(RecordKind::settings, json::ObjectWriter()
-                                   .add("baud", target.baud)
-                                   .add("databits", target.data_bits)
-                                   .add("stopbits", target.stop_bits)
-                                   .add("parity", to_string(target.parity))
-                                   .add("flow", to_string(target.flow))
-                                   .add("applied", applied)
-                                   .add("source", source)
+                                   .add(event_field::baud, target.baud)
+                                   .add(event_field::databits, target.data_bits)
+                                   .add(event_field::stopbits, target.stop_bits)
+                                   .add(event_field::parity, to_string(target.parity))
+                                   .add(event_field::flow, to_string(target.flow))
+                                   .add(event_field::applied, applied)
+                                   .add(event_field::source, source)
                                    .str());
   message(std::string(applied ? "device set to " : "line set to (device has no line settings) ") +
           settings_text(target) + " by the " + source);
@@ -1074,7 +1076,7 @@ bool Bridge::Impl::apply_settings(const SerialSettings& target, const char* sour
 
 void Bridge::Impl::record_modem_line(const char* line, bool level, bool applied) {
   record(RecordKind::modem_lines,
-         json::ObjectWriter().add(line, level).add("applied", applied).str());
+         json::ObjectWriter().add(line, level).add(event_field::applied, applied).str());
 }
 
 // RFC 2217 clients are told when CTS, DSR, RI or CD change.

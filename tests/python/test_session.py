@@ -192,3 +192,56 @@ def test_port_with_log_option_records_what_crossed(tmp_path):
     assert records[-1].kind == "close"
     assert b"".join(r.data for r in records if r.kind == "tx") == b"ping"
     assert b"".join(r.data for r in records if r.kind == "rx") == b"ping"
+
+
+# --- the format's knowledge, bound once from the library ----------------------
+
+DOC = ROOT / "docs" / "session-format.md"
+
+
+def markdown_table(text, heading):
+    """The rows of the first table after `heading`, as lists of cell texts
+    with their backticks removed."""
+    section = text.split(heading + "\n", 1)[1]
+    rows = []
+    for line in section.splitlines():
+        if not line.startswith("|"):
+            if rows:
+                break
+            continue
+        cells = [cell.strip().strip("`") for cell in line.strip().strip("|").split("|")]
+        if set("".join(cells)) <= set("-"):
+            continue
+        rows.append(cells)
+    return rows[1:]  # without the column names
+
+
+def test_record_kind_table_in_the_spec_says_what_the_library_says():
+    text = DOC.read_text()
+    kinds = [
+        [f"0x{kind['code']:02X}", kind["name"], "event" if kind["is_event"] else "direction",
+         kind["meaning"]]
+        for kind in _core.RECORD_KINDS
+    ]
+    assert markdown_table(text, "### Record kinds") == kinds
+    fields = [
+        [kind["name"], field["name"], field["type"], "yes" if field["required"] else "no",
+         field["meaning"]]
+        for kind in _core.RECORD_KINDS
+        for field in kind["fields"]
+    ]
+    assert markdown_table(text, "### Event payloads") == fields
+
+
+def test_record_kinds_are_the_ones_records_and_writers_know(tmp_path):
+    names = [kind["name"] for kind in _core.RECORD_KINDS]
+    assert names[:2] == ["rx", "tx"] and "break" in names and "client_connect" in names
+    path = tmp_path / "kinds.wtape"
+    with _core.SessionWriter(path) as writer:
+        for kind in _core.RECORD_KINDS:
+            writer.write(kind["name"], 0, b"{}")
+    assert [(r.kind, r.kind_code) for r in _core.SessionReader(path)] == [
+        (kind["name"], kind["code"]) for kind in _core.RECORD_KINDS
+    ]
+    with pytest.raises(ValueError, match="one of rx, tx, open, .*device_lost"):
+        _core.Record(0, "nonsense")
