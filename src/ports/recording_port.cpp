@@ -242,7 +242,15 @@ class RecordingPort final : public Port {
     closed_recorded_ = true;
     record(RecordKind::close, now_ns(), "{}");
     finished_.store(true, std::memory_order_release);
-    if (!recording_.load()) return;
+    if (!recording_.load()) {
+      // Recording stopped at a failure that was already reported: the file
+      // is released all the same.
+      try {
+        writer_.close();
+      } catch (const PortError&) {
+      }
+      return;
+    }
     try {
       writer_.close();
     } catch (const PortError& e) {

@@ -541,6 +541,203 @@ TEST(SessionWriter, FsyncOptionWritesReadableFiles) {
   EXPECT_FALSE(reader.damage());
 }
 
+// --- closing ----------------------------------------------------------------
+
+namespace {
+
+namespace sys = wiretape::detail::sys;
+using wiretape::test::Event;
+using wiretape::test::kEventDeadline;
+
+// Whether this process holds a descriptor open on `path`.
+bool holds_fd_on(const std::string& path) {
+  const std::filesystem::path wanted = std::filesystem::weakly_canonical(path);
+  for (const auto& entry : std::filesystem::directory_iterator("/proc/self/fd")) {
+    std::error_code error;
+    const std::filesystem::path target = std::filesystem::read_symlink(entry.path(), error);
+    if (!error && target == wanted) return true;
+  }
+  return false;
+}
+
+pid_t this_thread_id() { return static_cast<pid_t>(::syscall(SYS_gettid)); }
+
+// Whether thread `tid` of this process sleeps (on a lock, in a join) or has
+// ended: the kernel's own view, so no guessing with timers.
+bool asleep_or_gone(pid_t tid) {
+  std::ifstream stat("/proc/self/task/" + std::to_string(tid) + "/stat");
+  if (!stat) return true;
+  const std::string text((std::istreambuf_iterator<char>(stat)), std::istreambuf_iterator<char>());
+  const std::size_t name_end = text.rfind(')');
+  if (name_end == std::string::npos || name_end + 2 >= text.size()) return true;
+  const char state = text[name_end + 2];
+  return state == 'S' || state == 'Z' || state == 'X';
+}
+
+// Waits until the thread that stored its id in `tid` sleeps or has ended.
+bool wait_asleep_or_gone(const std::atomic<pid_t>& tid) {
+  const auto deadline = std::chrono::steady_clock::now() + kEventDeadline;
+  while (std::chrono::steady_clock::now() < deadline) {
+    const pid_t id = tid.load();
+    if (id != 0 && asleep_or_gone(id)) return true;
+    std::this_thread::yield();
+  }
+  return false;
+}
+
+}  // namespace
+
+TEST(SessionWriterClose, AWriteDuringTheFinalFlushIsWrittenOrRefusedNeverLost) {
+  TempDir dir;
+  const std::string path = dir.file("late.wtape");
+  SessionWriter* target = nullptr;
+  std::atomic<bool> write_late{false};
+  bool late_accepted = false;
+  std::string late_refusal;
+  sys::ScopedOverride seam;
+  seam->write = [&](int fd, const void* data, size_t size) -> ssize_t {
+    if (write_late.exchange(false)) {
+      // close() has taken the buffer and is handing it to the OS.
+      try {
+        target->write(RecordKind::rx, 2, "late");
+        late_accepted = true;
+      } catch (const PortError& e) {
+        late_refusal = e.what();
+      }
+    }
+    return sys::real().write(fd, data, size);
+  };
+  SessionWriterOptions options;
+  options.flush_ms = 60'000;  // only close() flushes
+  SessionWriter writer(path, options);
+  target = &writer;
+  writer.write(RecordKind::tx, 1, "before");
+  write_late = true;
+  writer.close();
+
+  SessionReader reader(path);
+  const auto records = read_all(reader);
+  EXPECT_FALSE(reader.damage());
+  ASSERT_GE(records.size(), 1u);
+  EXPECT_EQ(records[0].data, "before");
+  if (late_accepted) {
+    ASSERT_EQ(records.size(), 2u) << "a write close() accepted is not in the file";
+    EXPECT_EQ(records[1].data, "late");
+  } else {
+    EXPECT_EQ(records.size(), 1u);
+    EXPECT_NE(late_refusal.find(path), std::string::npos) << late_refusal;
+    EXPECT_NE(late_refusal.find("closed"), std::string::npos) << late_refusal;
+  }
+}
+
+TEST(SessionWriterClose, TwoThreadsClosingAtOnceCloseOnce) {
+  TempDir dir;
+  const std::string path = dir.file("twice.wtape");
+  std::atomic<bool> hold_flusher{false};
+  Event flusher_in_write;
+  Event release_flusher;
+  sys::ScopedOverride seam;
+  seam->write = [&](int fd, const void* data, size_t size) -> ssize_t {
+    if (hold_flusher.exchange(false)) {
+      flusher_in_write.set();
+      release_flusher.wait();
+    }
+    return sys::real().write(fd, data, size);
+  };
+  SessionWriterOptions options;
+  options.flush_ms = 1;
+  SessionWriter writer(path, options);
+  hold_flusher = true;
+  writer.write(RecordKind::tx, 1, "held");
+  // The flusher is now busy, so the first close() waits in its join.
+  ASSERT_TRUE(flusher_in_write.wait());
+
+  std::atomic<pid_t> first_id{0};
+  std::atomic<pid_t> second_id{0};
+  std::string first_error;
+  std::string second_error;
+  const auto close_from = [&writer](std::atomic<pid_t>& id, std::string& error) {
+    id = this_thread_id();
+    try {
+      writer.close();
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+  };
+  std::thread first(close_from, std::ref(first_id), std::ref(first_error));
+  ASSERT_TRUE(wait_asleep_or_gone(first_id));
+  std::thread second(close_from, std::ref(second_id), std::ref(second_error));
+  const bool second_waited = wait_asleep_or_gone(second_id);
+  release_flusher.set();
+  first.join();
+  second.join();
+  ASSERT_TRUE(second_waited);
+  EXPECT_EQ(first_error, "");
+  EXPECT_EQ(second_error, "");
+  EXPECT_FALSE(holds_fd_on(path));
+  EXPECT_THROW(writer.write(RecordKind::tx, 2, "after"), PortError);
+
+  SessionReader reader(path);
+  const auto records = read_all(reader);
+  EXPECT_FALSE(reader.damage());
+  ASSERT_EQ(records.size(), 1u);
+  EXPECT_EQ(records[0].data, "held");
+}
+
+TEST(SessionWriterClose, CloseAfterAWriteFailureReleasesTheFile) {
+  TempDir dir;
+  const std::string path = dir.file("failed.wtape");
+  std::atomic<bool> fail{false};
+  sys::ScopedOverride seam;
+  seam->write = [&](int fd, const void* data, size_t size) -> ssize_t {
+    if (fail.load()) {
+      errno = ENOSPC;
+      return -1;
+    }
+    return sys::real().write(fd, data, size);
+  };
+  SessionWriterOptions options;
+  options.flush_ms = 0;  // every write reaches the OS at once
+  SessionWriter writer(path, options);
+  ASSERT_TRUE(holds_fd_on(path));
+  fail = true;
+  EXPECT_THROW(writer.write(RecordKind::tx, 1, "lost"), PortError);
+  EXPECT_THROW(writer.close(), PortError);
+  EXPECT_FALSE(holds_fd_on(path));
+  EXPECT_NO_THROW(writer.close());
+}
+
+TEST(SessionWriterClose, ClosingARecordingPortAfterARecordingFailureReleasesTheFile) {
+  TempDir dir;
+  const std::string path = dir.file("port.wtape");
+  std::atomic<int> session_fd{-1};
+  std::atomic<bool> fail{false};
+  sys::ScopedOverride seam;
+  seam->open = [&](const char* name, int flags, mode_t mode) {
+    const int fd = sys::real().open(name, flags, mode);
+    if (name == path) session_fd = fd;
+    return fd;
+  };
+  seam->write = [&](int fd, const void* data, size_t size) -> ssize_t {
+    if (fail.load() && fd == session_fd.load()) {
+      errno = ENOSPC;
+      return -1;
+    }
+    return sys::real().write(fd, data, size);
+  };
+  detail::RecordingConfig config;
+  config.path = path;
+  config.flush_ms = 0;  // every record reaches the OS at once
+  config.raise_errors = true;
+  auto port = detail::record_port(open_port("type=loopback"), config);
+  ASSERT_TRUE(holds_fd_on(path));
+  fail = true;
+  port->write("x");  // recorded: the recording fails here
+  EXPECT_THROW(port->write("y"), PortError);  // and says so
+  port->close();
+  EXPECT_FALSE(holds_fd_on(path)) << "the port is closed but the session file is still open";
+}
+
 // --- the record-kind table ----------------------------------------------------
 
 TEST(RecordKindTable, CoversEveryNamedKindOnceInCodeOrder) {
