@@ -202,6 +202,18 @@ def crc32c(data: bytes, crc: int = 0) -> int: ...
 # lists them.
 RECORD_KINDS: tuple[dict[str, Any], ...]
 
+# The byte layout (docs/session-format.md), for code that reads files itself.
+SESSION_MAGIC: bytes
+SESSION_VERSION: tuple[int, int]
+FILE_HEADER_FIXED_SIZE: int
+FILE_HEADER_OVERHEAD: int
+MAX_HEADER_JSON: int
+RECORD_HEADER_SIZE: int
+CRC_SIZE: int
+RECORD_OVERHEAD: int
+
+def flexiport_prefix(path: _Path) -> Optional[str]: ...
+
 # --- bridges (see wiretape.bridge) ----------------------------------------------------
 
 class Bridge:

@@ -12,6 +12,8 @@
 #include <nanobind/stl/string.h>
 
 #include "python/bindings.hpp"
+#include "session/flexiport.hpp"
+#include "session/format.hpp"
 #include "session/header.hpp"
 #include "session/record_kinds.hpp"
 #include "wiretape/errors.hpp"
@@ -130,10 +132,33 @@ nb::tuple record_kinds_tuple() {
   return nb::tuple(kinds);
 }
 
+// The byte layout's constants, for Python code that reads files itself.
+void bind_format_constants(nb::module_& m) {
+  m.attr("SESSION_MAGIC") = nb::bytes(detail::session_magic, sizeof detail::session_magic);
+  m.attr("SESSION_VERSION") =
+      nb::make_tuple(detail::session_version_major, detail::session_version_minor);
+  // magic, major, minor, JSON length: the JSON follows, then its CRC.
+  m.attr("FILE_HEADER_FIXED_SIZE") = detail::file_header_fixed_size;
+  m.attr("MAX_HEADER_JSON") = detail::max_header_json;
+  // length, kind, flags, reserved, t_ns: the payload follows, then its CRC.
+  m.attr("RECORD_HEADER_SIZE") = detail::record_header_size;
+  m.attr("CRC_SIZE") = detail::crc_size;
+  // Bytes a file header and a record take besides their JSON or payload.
+  m.attr("FILE_HEADER_OVERHEAD") = detail::file_header_fixed_size + detail::crc_size;
+  m.attr("RECORD_OVERHEAD") = detail::record_header_size + detail::crc_size;
+}
+
 }  // namespace
 
 void bind_session(nb::module_& m) {
+  bind_format_constants(m);
   m.attr("RECORD_KINDS") = record_kinds_tuple();
+  m.def(
+      "flexiport_prefix",
+      [](nb::handle path) { return detail::flexiport_prefix(path_from_python(path)); },
+      "path"_a,
+      "The 'name.log' prefix PATH stands for when it is a flexiport log ('name.log', "
+      "'name.logr' or 'name.logw' with the pair on disk), else None.");
 
   nb::class_<PyRecord>(m, "Record", "One record of a session: t_ns, kind, data.")
       .def(

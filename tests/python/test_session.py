@@ -245,3 +245,29 @@ def test_record_kinds_are_the_ones_records_and_writers_know(tmp_path):
     ]
     with pytest.raises(ValueError, match="one of rx, tx, open, .*device_lost"):
         _core.Record(0, "nonsense")
+
+
+def test_layout_constants_match_a_written_file(tmp_path):
+    path = tmp_path / "layout.wtape"
+    with _core.SessionWriter(path, start_utc="x", host="h", wiretape_version="1") as writer:
+        writer.write("tx", 7, b"abc")
+    data = path.read_bytes()
+    assert data.startswith(_core.SESSION_MAGIC)
+    assert _core.SESSION_MAGIC == b"\x89WTAPE\r\n"
+    assert struct.unpack_from("<HH", data, 8) == _core.SESSION_VERSION
+    json_length = struct.unpack_from("<I", data, 12)[0]
+    assert _core.FILE_HEADER_FIXED_SIZE == 16 and _core.CRC_SIZE == 4
+    header_end = json_length + _core.FILE_HEADER_OVERHEAD
+    assert len(data) == header_end + _core.RECORD_OVERHEAD + 3
+    assert data[header_end + _core.RECORD_HEADER_SIZE:][:3] == b"abc"
+    assert _core.MAX_HEADER_JSON == 16 << 20
+
+
+def test_flexiport_prefix_is_the_library_rule(tmp_path):
+    (tmp_path / "scan.logr").write_bytes(b"")
+    (tmp_path / "scan.logw").write_bytes(b"")
+    prefix = str(tmp_path / "scan.log")
+    assert _core.flexiport_prefix(tmp_path / "scan.log") == prefix
+    assert _core.flexiport_prefix(str(tmp_path / "scan.logr")) == prefix
+    assert _core.flexiport_prefix(str(tmp_path / "scan.logw")) == prefix
+    assert _core.flexiport_prefix(str(tmp_path / "other.wtape")) is None
