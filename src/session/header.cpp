@@ -44,17 +44,18 @@ const char* capture_name(Capture capture) {
 }
 
 std::string header_json(const SessionWriterOptions& options) {
+  namespace field = header_field;
   json::ObjectWriter object;
-  object.add("port_options", options.port_options)
-      .add("port_type", options.port_type)
-      .add("start_utc",
+  object.add(field::port_options, options.port_options)
+      .add(field::port_type, options.port_type)
+      .add(field::start_utc,
            options.start_utc.empty() ? utc_now_iso8601() : options.start_utc)
-      .add("wiretape_version", options.wiretape_version.empty()
-                                   ? std::string(wiretape::version)
-                                   : options.wiretape_version)
-      .add("host", options.host.empty() ? host_name() : options.host)
-      .add("capture", capture_name(options.capture))
-      .add("metadata", options.metadata);
+      .add(field::wiretape_version, options.wiretape_version.empty()
+                                        ? std::string(wiretape::version)
+                                        : options.wiretape_version)
+      .add(field::host, options.host.empty() ? host_name() : options.host)
+      .add(field::capture, capture_name(options.capture))
+      .add(field::metadata, options.metadata);
   return object.str();
 }
 
@@ -74,16 +75,18 @@ void parse_header_json(const std::string& text, const std::string& path,
                            std::to_string(offset) + " is not a JSON object",
                        offset);
   }
+  namespace field = header_field;
   header.metadata_json = text;
-  header.port_options = root.string_member("port_options").value_or("");
-  header.port_type = root.string_member("port_type").value_or("");
-  header.start_utc = root.string_member("start_utc").value_or("");
-  header.wiretape_version = root.string_member("wiretape_version").value_or("");
-  header.host = root.string_member("host").value_or("");
-  const std::string capture = root.string_member("capture").value_or("client");
-  if (capture == "client") {
+  header.port_options = root.string_member(field::port_options).value_or("");
+  header.port_type = root.string_member(field::port_type).value_or("");
+  header.start_utc = root.string_member(field::start_utc).value_or("");
+  header.wiretape_version = root.string_member(field::wiretape_version).value_or("");
+  header.host = root.string_member(field::host).value_or("");
+  const std::string capture =
+      root.string_member(field::capture).value_or(capture_name(Capture::client));
+  if (capture == capture_name(Capture::client)) {
     header.capture = Capture::client;
-  } else if (capture == "wire") {
+  } else if (capture == capture_name(Capture::wire)) {
     header.capture = Capture::wire;
   } else {
     throw SessionError(path + ": unknown capture \"" + capture +
@@ -92,7 +95,7 @@ void parse_header_json(const std::string& text, const std::string& path,
                        offset);
   }
   header.user_metadata.clear();
-  if (const json::Value* metadata = root.find("metadata");
+  if (const json::Value* metadata = root.find(field::metadata);
       metadata != nullptr && metadata->is_object()) {
     for (const auto& [key, value] : metadata->members) {
       header.user_metadata[key] =

@@ -9,6 +9,22 @@
 
 namespace wiretape::detail {
 
+// The member names of the header JSON (docs/session-format.md, "Metadata"),
+// spelled here once.
+namespace header_field {
+inline constexpr char port_options[] = "port_options";
+inline constexpr char port_type[] = "port_type";
+inline constexpr char start_utc[] = "start_utc";
+inline constexpr char wiretape_version[] = "wiretape_version";
+inline constexpr char host[] = "host";
+inline constexpr char capture[] = "capture";
+inline constexpr char metadata[] = "metadata";
+// Sessions read from flexiport's logs.
+inline constexpr char source_format[] = "source_format";
+inline constexpr char flexiport_read_format[] = "flexiport_read_format";
+inline constexpr char flexiport_write_format[] = "flexiport_write_format";
+}  // namespace header_field
+
 // The header JSON of a session file.
 std::string header_json(const SessionWriterOptions& options);
 // Parses the header JSON into `header` (metadata_json included); throws
