@@ -8,7 +8,7 @@ GENERATOR ?= Ninja
 CMAKE_ARGS ?=
 export PATH := $(abspath $(VENV))/bin:$(PATH)
 
-.PHONY: all cpp python stubs test test-cpp test-python demo bench fuzz test-sanitize soak clean
+.PHONY: all cpp python stubs test test-cpp test-python test-odr demo bench fuzz test-sanitize soak clean
 
 all: python
 
@@ -48,6 +48,23 @@ test: python
 
 demo: python
 	$(VENV)/bin/wiretape demo
+
+# The One Definition Rule checked across the whole program: its own tree,
+# built with link-time optimisation so the linker sees every translation
+# unit of the library, the tests and the extension at once; -Werror=odr makes
+# two different definitions of one name (say two classes RecordSource of
+# different layouts) a build error instead of silent undefined behaviour.
+# -O1: the check needs the whole program, not the optimisation.
+ODR_BUILD := $(BUILD)/odr
+ODR_FLAGS := -O1 -Werror=odr -Werror=lto-type-mismatch
+
+test-odr: $(VENV)/.deps
+	cmake -S . -B $(ODR_BUILD) -G $(GENERATOR) -DCMAKE_BUILD_TYPE=None \
+	  -DCMAKE_INTERPROCEDURAL_OPTIMIZATION=ON -DCMAKE_CXX_FLAGS="$(ODR_FLAGS)" \
+	  -DWIRETAPE_PYTHON=ON -DWIRETAPE_PYTHON_OUTPUT_DIR=$(abspath $(ODR_BUILD))/python \
+	  -DPython_EXECUTABLE=$(abspath $(PYTHON))
+	cmake --build $(ODR_BUILD)
+	cd $(ODR_BUILD) && ctest --output-on-failure -j2 --timeout 300
 
 # Benchmarks, sanitizers, fuzzing and soak (docs/benchmarks.md).
 BENCH_TOOLS   := clang-14 libclang-rt-14-dev socat libbenchmark-dev tshark

@@ -234,7 +234,7 @@ void Bridge::Impl::device_lost(const std::string& reason) {
 
 void Bridge::Impl::try_reopen() {
   try {
-    device_.open(false, "reopened");
+    device_.open(false, detail::event_field::reopened);
     status_.update_stats([](BridgeStats& s) { ++s.device_reopens; });
     status_.message("the device is back: " + device_.description());
     endpoint_->device_reopened();

@@ -4,10 +4,13 @@
 #include <cerrno>
 #include <cstdio>
 
+#include "session/record_kinds.hpp"
 #include "util/json.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail::bridge {
+
+namespace event_field = detail::event_field;
 
 namespace {
 
@@ -41,7 +44,7 @@ void DeviceSide::open(bool first, const char* why) {
   } catch (const PortError&) {
   }
   json::ObjectWriter event;
-  event.add("description", description_);
+  event.add(event_field::description, description_);
   if (why) event.add(why, true);
   // Time zero is the device's first open.
   record_at(RecordKind::open, first ? 0 : now_ns(), event.str());
@@ -57,7 +60,7 @@ void DeviceSide::open_session_file() {
   writer_options.flush_ms = options_.flush_ms;
   writer_ = std::make_unique<SessionWriter>(options_.output, std::move(writer_options));
   // Time zero is the device's open, which came just before the file.
-  record_at(RecordKind::open, 0, json::ObjectWriter().add("description", description_).str());
+  record_at(RecordKind::open, 0, json::ObjectWriter().add(event_field::description, description_).str());
 }
 
 PortCapabilities DeviceSide::capabilities() const {
@@ -66,7 +69,7 @@ PortCapabilities DeviceSide::capabilities() const {
 
 void DeviceSide::lost(const std::string& reason) {
   if (!device_) return;
-  record(RecordKind::device_lost, json::ObjectWriter().add("error", reason).str());
+  record(RecordKind::device_lost, json::ObjectWriter().add(event_field::error, reason).str());
   status_.update_stats([](BridgeStats& s) { ++s.device_losses; });
   status_.message("the device (" + description_ + ") went away: " + reason);
   try {
@@ -87,7 +90,7 @@ void DeviceSide::restart() {
     device_.reset();
   }
   to_device_.clear();
-  open(false, "restarted");
+  open(false, event_field::restarted);
   status_.message("a new client: the device starts over");
 }
 
@@ -147,13 +150,13 @@ void DeviceSide::record_at(RecordKind kind, std::uint64_t t_ns, std::string_view
 }
 
 void DeviceSide::client_connected(const std::string& peer, const char* role) {
-  record(RecordKind::client_connect, json::ObjectWriter().add("peer", peer).add("role", role).str());
+  record(RecordKind::client_connect, json::ObjectWriter().add(event_field::peer, peer).add(event_field::role, role).str());
   status_.update_stats([](BridgeStats& s) { ++s.clients_accepted; });
 }
 
 void DeviceSide::client_disconnected(const std::string& peer, const std::string& reason) {
   record(RecordKind::client_disconnect,
-         json::ObjectWriter().add("peer", peer).add("reason", reason).str());
+         json::ObjectWriter().add(event_field::peer, peer).add(event_field::reason, reason).str());
 }
 
 // --- client -> device ------------------------------------------------------------------
@@ -222,13 +225,13 @@ bool DeviceSide::apply_settings(const SerialSettings& target, const char* source
   virtual_settings_ = target;
   status_.update_stats([](BridgeStats& s) { ++s.settings_changes; });
   record(RecordKind::settings, json::ObjectWriter()
-                                   .add("baud", target.baud)
-                                   .add("databits", target.data_bits)
-                                   .add("stopbits", target.stop_bits)
-                                   .add("parity", to_string(target.parity))
-                                   .add("flow", to_string(target.flow))
-                                   .add("applied", applied)
-                                   .add("source", source)
+                                   .add(event_field::baud, target.baud)
+                                   .add(event_field::databits, target.data_bits)
+                                   .add(event_field::stopbits, target.stop_bits)
+                                   .add(event_field::parity, to_string(target.parity))
+                                   .add(event_field::flow, to_string(target.flow))
+                                   .add(event_field::applied, applied)
+                                   .add(event_field::source, source)
                                    .str());
   status_.message(std::string(applied ? "device set to "
                                       : "line set to (device has no line settings) ") +
@@ -251,8 +254,8 @@ void DeviceSide::set_output_level(ModemOutput line, bool level) {
   }
   (line == ModemOutput::dtr ? dtr_ : rts_) = level;
   record(RecordKind::modem_lines, json::ObjectWriter()
-                                      .add(line == ModemOutput::dtr ? "dtr" : "rts", level)
-                                      .add("applied", applied)
+                                      .add(line == ModemOutput::dtr ? event_field::dtr : event_field::rts, level)
+                                      .add(event_field::applied, applied)
                                       .str());
 }
 
@@ -277,8 +280,8 @@ void DeviceSide::end_break() {
     }
   }
   record(RecordKind::line_break, json::ObjectWriter()
-                                     .add("duration_ms", static_cast<std::int64_t>(on.count()))
-                                     .add("applied", applied)
+                                     .add(event_field::duration_ms, static_cast<std::int64_t>(on.count()))
+                                     .add(event_field::applied, applied)
                                      .str());
 }
 

@@ -13,6 +13,7 @@
 
 #include "util/json.hpp"
 #include "core/open_port.hpp"
+#include "session/record_kinds.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 
@@ -31,7 +32,7 @@ class RecordingPort final : public Port {
     set_timeout(inner_->timeout());
     set_access(inner_->access());
     record(RecordKind::open, 0,
-           json::ObjectWriter().add("description", inner_->description()).str());
+           json::ObjectWriter().add(event_field::description, inner_->description()).str());
   }
 
   ~RecordingPort() override {
@@ -81,7 +82,7 @@ class RecordingPort final : public Port {
     report_failure();
     inner_->set_baud(baud);
     record(RecordKind::settings, now_ns(),
-           json::ObjectWriter().add("baud", baud).str());
+           json::ObjectWriter().add(event_field::baud, baud).str());
   }
 
   void configure(const SerialSettings& settings) override {
@@ -89,11 +90,11 @@ class RecordingPort final : public Port {
     inner_->configure(settings);
     record(RecordKind::settings, now_ns(),
            json::ObjectWriter()
-               .add("baud", settings.baud)
-               .add("databits", settings.data_bits)
-               .add("stopbits", settings.stop_bits)
-               .add("parity", to_string(settings.parity))
-               .add("flow", to_string(settings.flow))
+               .add(event_field::baud, settings.baud)
+               .add(event_field::databits, settings.data_bits)
+               .add(event_field::stopbits, settings.stop_bits)
+               .add(event_field::parity, to_string(settings.parity))
+               .add(event_field::flow, to_string(settings.flow))
                .str());
   }
 
@@ -102,13 +103,13 @@ class RecordingPort final : public Port {
   void set_dtr(bool level) override {
     report_failure();
     inner_->set_dtr(level);
-    record(RecordKind::modem_lines, now_ns(), json::ObjectWriter().add("dtr", level).str());
+    record(RecordKind::modem_lines, now_ns(), json::ObjectWriter().add(event_field::dtr, level).str());
   }
 
   void set_rts(bool level) override {
     report_failure();
     inner_->set_rts(level);
-    record(RecordKind::modem_lines, now_ns(), json::ObjectWriter().add("rts", level).str());
+    record(RecordKind::modem_lines, now_ns(), json::ObjectWriter().add(event_field::rts, level).str());
   }
 
   bool cts() override { return inner_->cts(); }
@@ -121,7 +122,7 @@ class RecordingPort final : public Port {
     inner_->send_break(duration);
     record(RecordKind::line_break, now_ns(),
            json::ObjectWriter()
-               .add("duration_ms", static_cast<std::int64_t>(duration.count()))
+               .add(event_field::duration_ms, static_cast<std::int64_t>(duration.count()))
                .str());
   }
 
@@ -206,8 +207,8 @@ class RecordingPort final : public Port {
     if (!lost_.compare_exchange_strong(expected, true)) return;
     record(RecordKind::device_lost, now_ns(),
            json::ObjectWriter()
-               .add("error", error.what())
-               .add("errno", error.code().value())
+               .add(event_field::error, error.what())
+               .add(event_field::error_number, error.code().value())
                .str());
   }
 
@@ -266,7 +267,15 @@ class RecordingPort final : public Port {
     closed_recorded_ = true;
     record(RecordKind::close, now_ns(), "{}");
     finished_.store(true, std::memory_order_release);
-    if (!recording_.load()) return;
+    if (!recording_.load()) {
+      // Recording stopped at a failure that was already reported: the file
+      // is released all the same.
+      try {
+        writer_.close();
+      } catch (const PortError&) {
+      }
+      return;
+    }
     try {
       writer_.close();
     } catch (const PortError& e) {

@@ -12,6 +12,10 @@
 #include <nanobind/stl/string.h>
 
 #include "python/bindings.hpp"
+#include "session/flexiport.hpp"
+#include "session/format.hpp"
+#include "session/header.hpp"
+#include "session/record_kinds.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 
@@ -47,10 +51,7 @@ RecordKind kind_from_python(nb::handle kind) {
   const std::string name = nb::cast<std::string>(kind);
   if (auto known = record_kind_from_string(name)) return *known;
   throw nb::value_error(
-      ("unknown record kind '" + name +
-       "': one of rx, tx, open, close, flush_input, flush_output, drain, settings, "
-       "modem_lines, break, client_connect, client_disconnect, device_lost")
-          .c_str());
+      ("unknown record kind '" + name + "': one of " + detail::record_kind_names()).c_str());
 }
 
 Capture capture_from_python(const std::string& capture) {
@@ -98,7 +99,7 @@ nb::dict header_dict(const SessionHeader& header) {
   out["start_utc"] = header.start_utc;
   out["wiretape_version"] = header.wiretape_version;
   out["host"] = header.host;
-  out["capture"] = header.capture == Capture::wire ? "wire" : "client";
+  out["capture"] = detail::capture_name(header.capture);
   out["source_format"] = header.source_format;
   nb::dict metadata;
   for (const auto& [key, value] : header.user_metadata) metadata[key.c_str()] = value;
@@ -107,9 +108,58 @@ nb::dict header_dict(const SessionHeader& header) {
   return out;
 }
 
+// The record-kind table as Python sees it: a tuple of dicts, in code order.
+nb::tuple record_kinds_tuple() {
+  nb::list kinds;
+  for (const detail::RecordKindSpec& spec : detail::record_kinds()) {
+    nb::list fields;
+    for (const detail::EventFieldSpec& field : spec) {
+      nb::dict f;
+      f["name"] = std::string(field.name);
+      f["type"] = std::string(detail::to_string(field.type));
+      f["required"] = field.required;
+      f["meaning"] = std::string(field.meaning);
+      fields.append(f);
+    }
+    nb::dict kind;
+    kind["name"] = std::string(spec.name);
+    kind["code"] = static_cast<int>(spec.code());
+    kind["is_event"] = spec.is_event;
+    kind["meaning"] = std::string(spec.meaning);
+    kind["fields"] = nb::tuple(fields);
+    kinds.append(kind);
+  }
+  return nb::tuple(kinds);
+}
+
+// The byte layout's constants, for Python code that reads files itself.
+void bind_format_constants(nb::module_& m) {
+  m.attr("SESSION_MAGIC") = nb::bytes(detail::session_magic, sizeof detail::session_magic);
+  m.attr("SESSION_VERSION") =
+      nb::make_tuple(detail::session_version_major, detail::session_version_minor);
+  // magic, major, minor, JSON length: the JSON follows, then its CRC.
+  m.attr("FILE_HEADER_FIXED_SIZE") = detail::file_header_fixed_size;
+  m.attr("MAX_HEADER_JSON") = detail::max_header_json;
+  // length, kind, flags, reserved, t_ns: the payload follows, then its CRC.
+  m.attr("RECORD_HEADER_SIZE") = detail::record_header_size;
+  m.attr("CRC_SIZE") = detail::crc_size;
+  // Bytes a file header and a record take besides their JSON or payload.
+  m.attr("FILE_HEADER_OVERHEAD") = detail::file_header_fixed_size + detail::crc_size;
+  m.attr("RECORD_OVERHEAD") = detail::record_header_size + detail::crc_size;
+}
+
 }  // namespace
 
 void bind_session(nb::module_& m) {
+  bind_format_constants(m);
+  m.attr("RECORD_KINDS") = record_kinds_tuple();
+  m.def(
+      "flexiport_prefix",
+      [](nb::handle path) { return detail::flexiport_prefix(path_from_python(path)); },
+      "path"_a,
+      "The 'name.log' prefix PATH stands for when it is a flexiport log ('name.log', "
+      "'name.logr' or 'name.logw' with the pair on disk), else None.");
+
   nb::class_<PyRecord>(m, "Record", "One record of a session: t_ns, kind, data.")
       .def(
           "__init__",

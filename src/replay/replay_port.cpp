@@ -16,6 +16,7 @@
 #include "replay/replay_engine.hpp"
 #include "replay/replay_port.hpp"
 #include "session/reader.hpp"
+#include "session/record_kinds.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 
@@ -153,7 +154,7 @@ class ReplayPort final : public Port {
   void set_baud(unsigned baud) override {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
-    engine_.client_event(RecordKind::settings, {{"baud", std::to_string(baud)}},
+    engine_.client_event(RecordKind::settings, {{event_field::baud, std::to_string(baud)}},
                          ReplayClock::now());
     settings_.baud = baud;
   }
@@ -161,11 +162,11 @@ class ReplayPort final : public Port {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
     engine_.client_event(RecordKind::settings,
-                         {{"baud", std::to_string(settings.baud)},
-                          {"databits", std::to_string(settings.data_bits)},
-                          {"stopbits", std::to_string(settings.stop_bits)},
-                          {"parity", parity_name(settings.parity)},
-                          {"flow", flow_name(settings.flow)}},
+                         {{event_field::baud, std::to_string(settings.baud)},
+                          {event_field::databits, std::to_string(settings.data_bits)},
+                          {event_field::stopbits, std::to_string(settings.stop_bits)},
+                          {event_field::parity, parity_name(settings.parity)},
+                          {event_field::flow, flow_name(settings.flow)}},
                          ReplayClock::now());
     settings_ = settings;
   }
@@ -173,8 +174,8 @@ class ReplayPort final : public Port {
     std::lock_guard<std::mutex> lock(mutex_);
     return settings_;
   }
-  void set_dtr(bool level) override { modem_line("dtr", level); }
-  void set_rts(bool level) override { modem_line("rts", level); }
+  void set_dtr(bool level) override { modem_line(event_field::dtr, level); }
+  void set_rts(bool level) override { modem_line(event_field::rts, level); }
   bool cts() override { return true; }
   bool dsr() override { return true; }
   bool ri() override { return false; }
@@ -183,7 +184,7 @@ class ReplayPort final : public Port {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
     engine_.client_event(RecordKind::line_break,
-                         {{"duration_ms", std::to_string(duration.count())}},
+                         {{event_field::duration_ms, std::to_string(duration.count())}},
                          ReplayClock::now());
   }
 

@@ -6,6 +6,8 @@
 // with times counted from the port's open. The format of each file is
 // detected from its first chunks; the two files are merged by time, a write
 // before a read at equal times.
+#include "session/flexiport.hpp"
+
 #include <sys/stat.h>
 
 #include <cerrno>
@@ -14,8 +16,10 @@
 #include <memory>
 #include <string>
 
-#include "util/json.hpp"
+#include "session/buffered_file.hpp"
 #include "session/format.hpp"
+#include "session/header.hpp"
+#include "util/json.hpp"
 #include "wiretape/session.hpp"
 
 namespace wiretape {
@@ -269,12 +273,12 @@ std::unique_ptr<RecordSource> open_flexiport(const std::string& prefix,
   header.capture = Capture::client;
   header.metadata_json =
       json::ObjectWriter()
-          .add("port_options", "")
-          .add("port_type", "")
-          .add("capture", "client")
-          .add("source_format", "flexiport")
-          .add("flexiport_read_format", format_name(source->reads().format()))
-          .add("flexiport_write_format", format_name(source->writes().format()))
+          .add(header_field::port_options, "")
+          .add(header_field::port_type, "")
+          .add(header_field::capture, capture_name(header.capture))
+          .add(header_field::source_format, header.source_format)
+          .add(header_field::flexiport_read_format, format_name(source->reads().format()))
+          .add(header_field::flexiport_write_format, format_name(source->writes().format()))
           .str();
   return source;
 }

@@ -1,5 +1,5 @@
 // Reading sessions: .wtape files (specified in docs/session-format.md) and,
-// through session_flexiport.cpp, flexiport's two-file logs.
+// through session/flexiport.cpp, flexiport's two-file logs.
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -7,7 +7,10 @@
 #include <cstring>
 #include <string>
 
+#include "session/buffered_file.hpp"
+#include "session/flexiport.hpp"
 #include "session/format.hpp"
+#include "session/header.hpp"
 #include "session/reader.hpp"
 #include "wiretape/session.hpp"
 

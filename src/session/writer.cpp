@@ -18,13 +18,16 @@
 #include <thread>
 #include <vector>
 
+#include "posix/syscalls.hpp"
 #include "session/format.hpp"
+#include "session/header.hpp"
 #include "wiretape/session.hpp"
 
 namespace wiretape {
 
 namespace {
 
+namespace sys = detail::sys;
 using Clock = std::chrono::steady_clock;
 
 // Above this much buffered data the flusher is woken at once, without
@@ -68,8 +71,12 @@ struct SessionWriter::Impl {
   bool closed = false;
   std::thread flusher;
 
+  // Held for the whole of close(), so that a second close() waits for the
+  // first to finish instead of racing it.
+  std::mutex close_mutex;
+
   ~Impl() {
-    if (fd >= 0) ::close(fd);
+    if (fd >= 0) sys::close(fd);
   }
 
   void fail_locked(int error, const std::string& what) {
@@ -106,7 +113,7 @@ struct SessionWriter::Impl {
     std::size_t written = 0;
     int error = 0;
     while (written < data.size()) {
-      const ssize_t n = ::write(fd, data.data() + written, data.size() - written);
+      const ssize_t n = sys::write(fd, data.data() + written, data.size() - written);
       if (n < 0) {
         if (errno == EINTR) continue;
         error = errno;
@@ -210,7 +217,7 @@ SessionWriter::SessionWriter(const std::string& path, SessionWriterOptions optio
   impl_->options = std::move(options);
   if (impl_->options.flush_ms < 0) impl_->options.flush_ms = 0;
   do {
-    impl_->fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    impl_->fd = sys::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   } while (impl_->fd < 0 && errno == EINTR);
   if (impl_->fd < 0) {
     const int error = errno;
@@ -258,7 +265,8 @@ void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view 
     std::lock_guard<std::mutex> lock(impl_->mutex);
     if (impl_->failure) throw *impl_->failure;
     if (impl_->closed) {
-      throw PortError(EBADF, impl_->path + ": the session writer is closed");
+      throw PortError(EBADF, impl_->path +
+                                 ": the session writer is closed; the record was not written");
     }
     std::string& buffer = impl_->buffer;
     buffer.append(head, sizeof head);
@@ -290,9 +298,13 @@ void SessionWriter::flush() {
 }
 
 void SessionWriter::close() {
+  std::lock_guard<std::mutex> closing(impl_->close_mutex);
   {
     std::lock_guard<std::mutex> lock(impl_->mutex);
     if (impl_->closed) return;
+    // Refused from here on: a write that came after the final flush took
+    // the buffer would never reach the file.
+    impl_->closed = true;
     impl_->closing = true;
     impl_->wake.notify_all();
   }
@@ -301,14 +313,13 @@ void SessionWriter::close() {
   std::optional<PortError> failure;
   {
     std::lock_guard<std::mutex> lock(impl_->mutex);
-    impl_->closed = true;
     failure = impl_->failure;
   }
   {
     std::lock_guard<std::mutex> io(impl_->io_mutex);
     if (impl_->fd >= 0) {
       impl_->release_reserve();
-      ::close(impl_->fd);
+      sys::close(impl_->fd);
       impl_->fd = -1;
     }
   }

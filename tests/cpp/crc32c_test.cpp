@@ -6,7 +6,7 @@
 #include <random>
 #include <vector>
 
-#include "session/format.hpp"
+#include "session/crc32c.hpp"
 #include "wiretape/session.hpp"
 
 namespace {

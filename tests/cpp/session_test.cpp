@@ -5,6 +5,7 @@
 #include <signal.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/syscall.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -12,18 +13,31 @@
 
 #include "support/port_test_support.hpp"
 
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
+#include <set>
+#include <iterator>
 #include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+
+#include "core/open_port.hpp"
+#include "posix/syscalls.hpp"
 #include "session/format.hpp"
+#include "session/record_kinds.hpp"
+#include "wiretape/bridge.hpp"
 #include "wiretape/errors.hpp"
+#include "wiretape/port.hpp"
 #include "wiretape/session.hpp"
 #include "wiretape/version.hpp"
 
@@ -525,4 +539,379 @@ TEST(SessionWriter, FsyncOptionWritesReadableFiles) {
   SessionReader reader(path);
   EXPECT_EQ(read_all(reader).size(), 20u);
   EXPECT_FALSE(reader.damage());
+}
+
+// --- closing ----------------------------------------------------------------
+
+namespace {
+
+namespace sys = wiretape::detail::sys;
+using wiretape::test::Event;
+using wiretape::test::kEventDeadline;
+
+// Whether this process holds a descriptor open on `path`.
+bool holds_fd_on(const std::string& path) {
+  const std::filesystem::path wanted = std::filesystem::weakly_canonical(path);
+  for (const auto& entry : std::filesystem::directory_iterator("/proc/self/fd")) {
+    std::error_code error;
+    const std::filesystem::path target = std::filesystem::read_symlink(entry.path(), error);
+    if (!error && target == wanted) return true;
+  }
+  return false;
+}
+
+pid_t this_thread_id() { return static_cast<pid_t>(::syscall(SYS_gettid)); }
+
+// Whether thread `tid` of this process sleeps (on a lock, in a join) or has
+// ended: the kernel's own view, so no guessing with timers.
+bool asleep_or_gone(pid_t tid) {
+  std::ifstream stat("/proc/self/task/" + std::to_string(tid) + "/stat");
+  if (!stat) return true;
+  const std::string text((std::istreambuf_iterator<char>(stat)), std::istreambuf_iterator<char>());
+  const std::size_t name_end = text.rfind(')');
+  if (name_end == std::string::npos || name_end + 2 >= text.size()) return true;
+  const char state = text[name_end + 2];
+  return state == 'S' || state == 'Z' || state == 'X';
+}
+
+// Waits until the thread that stored its id in `tid` sleeps or has ended.
+bool wait_asleep_or_gone(const std::atomic<pid_t>& tid) {
+  const auto deadline = std::chrono::steady_clock::now() + kEventDeadline;
+  while (std::chrono::steady_clock::now() < deadline) {
+    const pid_t id = tid.load();
+    if (id != 0 && asleep_or_gone(id)) return true;
+    std::this_thread::yield();
+  }
+  return false;
+}
+
+}  // namespace
+
+TEST(SessionWriterClose, AWriteDuringTheFinalFlushIsWrittenOrRefusedNeverLost) {
+  TempDir dir;
+  const std::string path = dir.file("late.wtape");
+  SessionWriter* target = nullptr;
+  std::atomic<bool> write_late{false};
+  bool late_accepted = false;
+  std::string late_refusal;
+  sys::ScopedOverride seam;
+  seam->write = [&](int fd, const void* data, size_t size) -> ssize_t {
+    if (write_late.exchange(false)) {
+      // close() has taken the buffer and is handing it to the OS.
+      try {
+        target->write(RecordKind::rx, 2, "late");
+        late_accepted = true;
+      } catch (const PortError& e) {
+        late_refusal = e.what();
+      }
+    }
+    return sys::real().write(fd, data, size);
+  };
+  SessionWriterOptions options;
+  options.flush_ms = 60'000;  // only close() flushes
+  SessionWriter writer(path, options);
+  target = &writer;
+  writer.write(RecordKind::tx, 1, "before");
+  write_late = true;
+  writer.close();
+
+  SessionReader reader(path);
+  const auto records = read_all(reader);
+  EXPECT_FALSE(reader.damage());
+  ASSERT_GE(records.size(), 1u);
+  EXPECT_EQ(records[0].data, "before");
+  if (late_accepted) {
+    ASSERT_EQ(records.size(), 2u) << "a write close() accepted is not in the file";
+    EXPECT_EQ(records[1].data, "late");
+  } else {
+    EXPECT_EQ(records.size(), 1u);
+    EXPECT_NE(late_refusal.find(path), std::string::npos) << late_refusal;
+    EXPECT_NE(late_refusal.find("closed"), std::string::npos) << late_refusal;
+  }
+}
+
+TEST(SessionWriterClose, TwoThreadsClosingAtOnceCloseOnce) {
+  TempDir dir;
+  const std::string path = dir.file("twice.wtape");
+  std::atomic<bool> hold_flusher{false};
+  Event flusher_in_write;
+  Event release_flusher;
+  sys::ScopedOverride seam;
+  seam->write = [&](int fd, const void* data, size_t size) -> ssize_t {
+    if (hold_flusher.exchange(false)) {
+      flusher_in_write.set();
+      release_flusher.wait();
+    }
+    return sys::real().write(fd, data, size);
+  };
+  SessionWriterOptions options;
+  options.flush_ms = 1;
+  SessionWriter writer(path, options);
+  hold_flusher = true;
+  writer.write(RecordKind::tx, 1, "held");
+  // The flusher is now busy, so the first close() waits in its join.
+  ASSERT_TRUE(flusher_in_write.wait());
+
+  std::atomic<pid_t> first_id{0};
+  std::atomic<pid_t> second_id{0};
+  std::string first_error;
+  std::string second_error;
+  const auto close_from = [&writer](std::atomic<pid_t>& id, std::string& error) {
+    id = this_thread_id();
+    try {
+      writer.close();
+    } catch (const std::exception& e) {
+      error = e.what();
+    }
+  };
+  std::thread first(close_from, std::ref(first_id), std::ref(first_error));
+  ASSERT_TRUE(wait_asleep_or_gone(first_id));
+  std::thread second(close_from, std::ref(second_id), std::ref(second_error));
+  const bool second_waited = wait_asleep_or_gone(second_id);
+  release_flusher.set();
+  first.join();
+  second.join();
+  ASSERT_TRUE(second_waited);
+  EXPECT_EQ(first_error, "");
+  EXPECT_EQ(second_error, "");
+  EXPECT_FALSE(holds_fd_on(path));
+  EXPECT_THROW(writer.write(RecordKind::tx, 2, "after"), PortError);
+
+  SessionReader reader(path);
+  const auto records = read_all(reader);
+  EXPECT_FALSE(reader.damage());
+  ASSERT_EQ(records.size(), 1u);
+  EXPECT_EQ(records[0].data, "held");
+}
+
+TEST(SessionWriterClose, CloseAfterAWriteFailureReleasesTheFile) {
+  TempDir dir;
+  const std::string path = dir.file("failed.wtape");
+  std::atomic<bool> fail{false};
+  sys::ScopedOverride seam;
+  seam->write = [&](int fd, const void* data, size_t size) -> ssize_t {
+    if (fail.load()) {
+      errno = ENOSPC;
+      return -1;
+    }
+    return sys::real().write(fd, data, size);
+  };
+  SessionWriterOptions options;
+  options.flush_ms = 0;  // every write reaches the OS at once
+  SessionWriter writer(path, options);
+  ASSERT_TRUE(holds_fd_on(path));
+  fail = true;
+  EXPECT_THROW(writer.write(RecordKind::tx, 1, "lost"), PortError);
+  EXPECT_THROW(writer.close(), PortError);
+  EXPECT_FALSE(holds_fd_on(path));
+  EXPECT_NO_THROW(writer.close());
+}
+
+TEST(SessionWriterClose, ClosingARecordingPortAfterARecordingFailureReleasesTheFile) {
+  TempDir dir;
+  const std::string path = dir.file("port.wtape");
+  std::atomic<int> session_fd{-1};
+  std::atomic<bool> fail{false};
+  sys::ScopedOverride seam;
+  seam->open = [&](const char* name, int flags, mode_t mode) {
+    const int fd = sys::real().open(name, flags, mode);
+    if (name == path) session_fd = fd;
+    return fd;
+  };
+  seam->write = [&](int fd, const void* data, size_t size) -> ssize_t {
+    if (fail.load() && fd == session_fd.load()) {
+      errno = ENOSPC;
+      return -1;
+    }
+    return sys::real().write(fd, data, size);
+  };
+  detail::RecordingConfig config;
+  config.path = path;
+  config.flush_ms = 0;  // every record reaches the OS at once
+  config.raise_errors = true;
+  auto port = detail::record_port(open_port("type=loopback"), config);
+  ASSERT_TRUE(holds_fd_on(path));
+  fail = true;
+  port->write("x");  // recorded: the recording fails here
+  EXPECT_THROW(port->write("y"), PortError);  // and says so
+  port->close();
+  EXPECT_FALSE(holds_fd_on(path)) << "the port is closed but the session file is still open";
+}
+
+// --- the record-kind table ----------------------------------------------------
+
+TEST(RecordKindTable, CoversEveryNamedKindOnceInCodeOrder) {
+  std::set<std::string_view> names;
+  int previous_code = -1;
+  for (const detail::RecordKindSpec& spec : detail::record_kinds()) {
+    EXPECT_GT(static_cast<int>(spec.code()), previous_code) << spec.name;
+    previous_code = spec.code();
+    EXPECT_TRUE(names.insert(spec.name).second) << spec.name;
+    EXPECT_EQ(to_string(spec.kind), spec.name);
+    EXPECT_FALSE(spec.meaning.empty()) << spec.name;
+    EXPECT_EQ(spec.is_event, spec.kind != RecordKind::rx && spec.kind != RecordKind::tx)
+        << spec.name;
+    if (!spec.is_event) EXPECT_EQ(spec.field_count, 0u) << spec.name;
+    std::set<std::string_view> fields;
+    for (const detail::EventFieldSpec& field : spec) {
+      EXPECT_TRUE(fields.insert(field.name).second) << spec.name << "." << field.name;
+      EXPECT_FALSE(field.meaning.empty()) << spec.name << "." << field.name;
+    }
+  }
+  std::size_t named = 0;
+  for (int code = 0; code < 256; ++code) {
+    if (detail::find_record_kind(static_cast<RecordKind>(code)) != nullptr) ++named;
+  }
+  EXPECT_EQ(named, names.size());
+  EXPECT_EQ(names.size(), 13u);
+}
+
+TEST(RecordKindTable, PayloadCheckNamesTheProblem) {
+  using detail::event_payload_problem;
+  EXPECT_FALSE(event_payload_problem(RecordKind::close, ""));
+  EXPECT_FALSE(event_payload_problem(RecordKind::line_break, R"({"duration_ms":250})"));
+  EXPECT_EQ(event_payload_problem(RecordKind::line_break, "{}"),
+            "break payload lacks \"duration_ms\"");
+  EXPECT_EQ(event_payload_problem(RecordKind::line_break, R"({"duration_ms":2.5})"),
+            "break payload member \"duration_ms\" is not a integer: 2.5");
+  EXPECT_EQ(event_payload_problem(RecordKind::modem_lines, R"({"dsr":true})"),
+            "modem_lines payload member \"dsr\" is not in the table");
+  EXPECT_EQ(event_payload_problem(RecordKind::drain, "[]"), "drain payload is not a JSON object");
+  EXPECT_TRUE(event_payload_problem(RecordKind::rx, "{}"));
+}
+
+namespace {
+
+// A serial device that takes every line setting and can be made to go away.
+class FakeSerialDevice final : public Port {
+ public:
+  std::atomic<bool> gone{false};
+
+  std::size_t available() override { return 0; }
+  void flush_input() override {}
+  void flush_output() override {}
+  void drain() override {}
+  void close() override { open_ = false; }
+  bool is_open() const override { return open_; }
+  std::string description() const override { return "fake serial @ 9600 8N1"; }
+  std::string type() const override { return "serial"; }
+  int native_handle() const override { return -1; }
+  void set_baud(unsigned baud) override { settings_.baud = baud; }
+  void configure(const SerialSettings& settings) override { settings_ = settings; }
+  SerialSettings serial_settings() const override { return settings_; }
+  void set_dtr(bool) override {}
+  void set_rts(bool) override {}
+  void send_break(std::chrono::milliseconds) override {}
+
+ protected:
+  std::size_t read_some(void*, std::size_t, Deadline) override {
+    if (gone) throw PortClosed("fake serial: the device went away", ENXIO);
+    return 0;
+  }
+  std::size_t write_some(const void*, std::size_t size, Deadline) override { return size; }
+  bool wait_readable_until(Deadline) override { return gone; }
+
+ private:
+  bool open_ = true;
+  SerialSettings settings_;
+};
+
+std::vector<Record> events_of(const std::string& path) {
+  SessionReader reader(path);
+  std::vector<Record> events;
+  Record record;
+  while (reader.next(record)) {
+    const detail::RecordKindSpec* spec = detail::find_record_kind(record.kind);
+    if (spec != nullptr && spec->is_event) events.push_back(record);
+  }
+  EXPECT_FALSE(reader.damage());
+  return events;
+}
+
+int connect_tcp(const std::string& address) {
+  const std::size_t colon = address.rfind(':');
+  sockaddr_in peer{};
+  peer.sin_family = AF_INET;
+  peer.sin_port = htons(static_cast<std::uint16_t>(std::stoi(address.substr(colon + 1))));
+  ::inet_pton(AF_INET, address.substr(0, colon).c_str(), &peer.sin_addr);
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd >= 0 && ::connect(fd, reinterpret_cast<const sockaddr*>(&peer), sizeof peer) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+}  // namespace
+
+// Every event payload the library's writers produce follows the table: the
+// recording port with each event it records, and the proxy with a client.
+TEST(RecordKindTable, EveryEventTheWritersRecordFollowsTheSchema) {
+  TempDir dir;
+  std::vector<Record> events;
+
+  const std::string recorded = dir.file("port.wtape");
+  {
+    auto device = std::make_unique<FakeSerialDevice>();
+    FakeSerialDevice& fake = *device;
+    detail::RecordingConfig config;
+    config.path = recorded;
+    config.port_type = "serial";
+    auto port = detail::record_port(std::move(device), config);
+    port->set_baud(115200);
+    SerialSettings settings;
+    settings.baud = 57600;
+    settings.data_bits = 7;
+    settings.stop_bits = 2;
+    settings.parity = Parity::even;
+    settings.flow = FlowControl::rtscts;
+    port->configure(settings);
+    port->set_dtr(true);
+    port->set_rts(false);
+    port->send_break(std::chrono::milliseconds(250));
+    port->flush_input();
+    port->flush_output();
+    port->drain();
+    port->write("ping");
+    fake.gone = true;
+    char byte = 0;
+    EXPECT_THROW(port->read(&byte, 1), PortClosed);
+    port->close();
+  }
+  for (Record& event : events_of(recorded)) events.push_back(std::move(event));
+
+  const std::string proxied = dir.file("proxy.wtape");
+  {
+    BridgeOptions options;
+    options.device = "type=loopback";
+    options.client_side = BridgeClientSide::tcp;
+    options.output = proxied;
+    options.quiet = true;
+    Bridge bridge(options);
+    bridge.start();
+    const int client = connect_tcp(bridge.listen_address());
+    ASSERT_GE(client, 0);
+    ASSERT_EQ(::write(client, "hi", 2), 2);
+    char echo[2] = {};
+    std::size_t got = 0;
+    while (got < sizeof echo) {
+      const ssize_t n = ::read(client, echo + got, sizeof echo - got);
+      ASSERT_GT(n, 0);
+      got += static_cast<std::size_t>(n);
+    }
+    ::close(client);
+    bridge.stop();
+    ASSERT_TRUE(bridge.wait(std::chrono::seconds(30)));
+  }
+  for (Record& event : events_of(proxied)) events.push_back(std::move(event));
+
+  std::set<RecordKind> seen;
+  for (const Record& event : events) {
+    seen.insert(event.kind);
+    const auto problem = detail::event_payload_problem(event.kind, event.data);
+    EXPECT_FALSE(problem) << *problem << " in " << event.data;
+  }
+  for (const detail::RecordKindSpec& spec : detail::record_kinds()) {
+    if (spec.is_event) EXPECT_TRUE(seen.count(spec.kind)) << "no " << spec.name << " recorded";
+  }
 }

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "session/buffered_file.hpp"
 #include "session/format.hpp"
 #include "session/reader.hpp"
 #include "support/port_test_support.hpp"

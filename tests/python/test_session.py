@@ -192,3 +192,82 @@ def test_port_with_log_option_records_what_crossed(tmp_path):
     assert records[-1].kind == "close"
     assert b"".join(r.data for r in records if r.kind == "tx") == b"ping"
     assert b"".join(r.data for r in records if r.kind == "rx") == b"ping"
+
+
+# --- the format's knowledge, bound once from the library ----------------------
+
+DOC = ROOT / "docs" / "session-format.md"
+
+
+def markdown_table(text, heading):
+    """The rows of the first table after `heading`, as lists of cell texts
+    with their backticks removed."""
+    section = text.split(heading + "\n", 1)[1]
+    rows = []
+    for line in section.splitlines():
+        if not line.startswith("|"):
+            if rows:
+                break
+            continue
+        cells = [cell.strip().strip("`") for cell in line.strip().strip("|").split("|")]
+        if set("".join(cells)) <= set("-"):
+            continue
+        rows.append(cells)
+    return rows[1:]  # without the column names
+
+
+def test_record_kind_table_in_the_spec_says_what_the_library_says():
+    text = DOC.read_text()
+    kinds = [
+        [f"0x{kind['code']:02X}", kind["name"], "event" if kind["is_event"] else "direction",
+         kind["meaning"]]
+        for kind in _core.RECORD_KINDS
+    ]
+    assert markdown_table(text, "### Record kinds") == kinds
+    fields = [
+        [kind["name"], field["name"], field["type"], "yes" if field["required"] else "no",
+         field["meaning"]]
+        for kind in _core.RECORD_KINDS
+        for field in kind["fields"]
+    ]
+    assert markdown_table(text, "### Event payloads") == fields
+
+
+def test_record_kinds_are_the_ones_records_and_writers_know(tmp_path):
+    names = [kind["name"] for kind in _core.RECORD_KINDS]
+    assert names[:2] == ["rx", "tx"] and "break" in names and "client_connect" in names
+    path = tmp_path / "kinds.wtape"
+    with _core.SessionWriter(path) as writer:
+        for kind in _core.RECORD_KINDS:
+            writer.write(kind["name"], 0, b"{}")
+    assert [(r.kind, r.kind_code) for r in _core.SessionReader(path)] == [
+        (kind["name"], kind["code"]) for kind in _core.RECORD_KINDS
+    ]
+    with pytest.raises(ValueError, match="one of rx, tx, open, .*device_lost"):
+        _core.Record(0, "nonsense")
+
+
+def test_layout_constants_match_a_written_file(tmp_path):
+    path = tmp_path / "layout.wtape"
+    with _core.SessionWriter(path, start_utc="x", host="h", wiretape_version="1") as writer:
+        writer.write("tx", 7, b"abc")
+    data = path.read_bytes()
+    assert data.startswith(_core.SESSION_MAGIC)
+    assert _core.SESSION_MAGIC == b"\x89WTAPE\r\n"
+    assert struct.unpack_from("<HH", data, 8) == _core.SESSION_VERSION
+    json_length = struct.unpack_from("<I", data, 12)[0]
+    assert _core.FILE_HEADER_FIXED_SIZE == 16 and _core.CRC_SIZE == 4
+    header_end = json_length + _core.FILE_HEADER_OVERHEAD
+    assert len(data) == header_end + _core.RECORD_OVERHEAD + 3
+    assert data[header_end + _core.RECORD_HEADER_SIZE:][:3] == b"abc"
+    assert _core.MAX_HEADER_JSON == 16 << 20
+
+
+def test_flexiport_prefix_is_the_library_rule(tmp_path):
+    (tmp_path / "scan.logr").write_bytes(b"")
+    (tmp_path / "scan.logw").write_bytes(b"")
+    prefix = str(tmp_path / "scan.log")
+    assert _core.flexiport_prefix(tmp_path / "scan.log") == prefix
+    assert _core.flexiport_prefix(str(tmp_path / "scan.logr")) == prefix
+    assert _core.flexiport_prefix(str(tmp_path / "scan.logw")) == prefix
+    assert _core.flexiport_prefix(str(tmp_path / "other.wtape")) is None

@@ -1,0 +1,181 @@
+#include "session/buffered_file.hpp"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+
+#include "wiretape/errors.hpp"
+
+namespace wiretape {
+namespace detail {
+
+namespace {
+constexpr std::size_t buffer_size = 128 * 1024;
+}  // namespace
+
+BufferedFile::BufferedFile(const std::string& path)
+    : path_(path), buffer_(new char[buffer_size]) {
+  do {
+    fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  } while (fd_ < 0 && errno == EINTR);
+  if (fd_ < 0) {
+    throw SessionError(path + ": cannot open: " + std::strerror(errno), 0);
+  }
+  struct stat info {};
+  if (::fstat(fd_, &info) == 0 && S_ISDIR(info.st_mode)) {
+    ::close(fd_);
+    fd_ = -1;
+    throw SessionError(path + ": is a directory, not a session file", 0);
+  }
+  refresh_size();
+}
+
+BufferedFile::~BufferedFile() {
+  if (fd_ >= 0) ::close(fd_);
+}
+
+void BufferedFile::refresh_size() {
+  struct stat info {};
+  if (::fstat(fd_, &info) == 0) size_ = static_cast<std::uint64_t>(info.st_size);
+}
+
+std::uint64_t BufferedFile::remaining() {
+  // At the known end, look again: the file may still be being written.
+  if (position_ >= size_) refresh_size();
+  return size_ > position_ ? size_ - position_ : 0;
+}
+
+std::size_t BufferedFile::fill() {
+  if (buffer_.use_count() > 1 && (begin_ > 0 || end_ == 0)) {
+    // Views still point into this buffer: go on in a fresh one rather than
+    // move or overwrite their bytes.
+    std::shared_ptr<char[]> fresh;
+    for (auto& retired : retired_) {
+      if (retired.use_count() == 1) {  // its views are all gone: reuse it
+        fresh = std::move(retired);
+        retired = std::move(retired_.back());
+        retired_.pop_back();
+        break;
+      }
+    }
+    // A fresh allocation costs page faults every time; reuse is what pays.
+    if (!fresh) fresh.reset(new char[buffer_size]);
+    std::memcpy(fresh.get(), buffer_.get() + begin_, end_ - begin_);
+    end_ -= begin_;
+    begin_ = 0;
+    if (retired_.size() < max_retired_buffers) retired_.push_back(std::move(buffer_));
+    buffer_ = std::move(fresh);
+  } else if (begin_ > 0) {
+    std::memmove(buffer_.get(), buffer_.get() + begin_, end_ - begin_);
+    end_ -= begin_;
+    begin_ = 0;
+  }
+  while (end_ < buffer_size) {
+    const ssize_t n = ::read(fd_, buffer_.get() + end_, buffer_size - end_);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    end_ += static_cast<std::size_t>(n);
+    break;
+  }
+  return end_ - begin_;
+}
+
+bool BufferedFile::read(void* out, std::size_t size) {
+  auto* dst = static_cast<char*>(out);
+  if (end_ - begin_ >= size) {
+    std::memcpy(dst, buffer_.get() + begin_, size);
+    begin_ += size;
+    position_ += size;
+    return true;
+  }
+  if (remaining() < size) refresh_size();
+  if (remaining() < size) return false;
+  // Large reads go straight to the destination.
+  std::size_t done = end_ - begin_;
+  std::memcpy(dst, buffer_.get() + begin_, done);
+  begin_ = end_ = 0;
+  if (size - done >= buffer_size) {
+    while (done < size) {
+      const ssize_t n = ::read(fd_, dst + done, size - done);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        seek(position_);
+        return false;
+      }
+      done += static_cast<std::size_t>(n);
+    }
+    position_ += size;
+    return true;
+  }
+  while (done < size) {
+    if (fill() == 0) {
+      seek(position_);
+      return false;
+    }
+    const std::size_t take = std::min(size - done, end_ - begin_);
+    std::memcpy(dst + done, buffer_.get() + begin_, take);
+    begin_ += take;
+    done += take;
+  }
+  position_ += size;
+  return true;
+}
+
+bool BufferedFile::read_into(std::string& out, std::size_t size) {
+  if (end_ - begin_ >= size) {
+    // One copy, without the zero-fill a resize() would do first.
+    out.assign(buffer_.get() + begin_, size);
+    begin_ += size;
+    position_ += size;
+    return true;
+  }
+  out.resize(size);
+  return size == 0 || read(&out[0], size);
+}
+
+std::size_t BufferedFile::max_view_size() { return buffer_size / 2; }
+
+bool BufferedFile::read_view(std::size_t size, PayloadView& out) {
+  if (size > max_view_size()) return false;
+  if (end_ - begin_ < size) {
+    if (remaining() < size) refresh_size();
+    if (remaining() < size) return false;
+    while (end_ - begin_ < size) {
+      const std::size_t before = end_ - begin_;
+      if (fill() == before) {
+        seek(position_);
+        return false;
+      }
+    }
+  }
+  out.owner = buffer_;
+  out.bytes = std::string_view(buffer_.get() + begin_, size);
+  begin_ += size;
+  position_ += size;
+  return true;
+}
+
+bool BufferedFile::skip(std::uint64_t size) {
+  if (end_ - begin_ >= size) {
+    begin_ += static_cast<std::size_t>(size);
+    position_ += size;
+    return true;
+  }
+  if (remaining() < size) refresh_size();
+  if (remaining() < size) return false;
+  seek(position_ + size);
+  return true;
+}
+
+void BufferedFile::seek(std::uint64_t position) {
+  ::lseek(fd_, static_cast<off_t>(position), SEEK_SET);
+  position_ = position;
+  begin_ = end_ = 0;
+}
+
+}  // namespace detail
+}  // namespace wiretape

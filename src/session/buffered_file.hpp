@@ -1,0 +1,61 @@
+// Sequential reads of a session file (or a flexiport log) through a fixed
+// buffer, for the session reader and the flexiport importer.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "session/record_source.hpp"
+
+namespace wiretape::detail {
+
+// Sequential reads from a file through a fixed buffer; memory independent of
+// the file's size. Knows how many bytes the file still holds, so that length
+// fields can be checked before anything is allocated.
+class BufferedFile {
+ public:
+  // Throws SessionError naming `path` if it cannot be opened.
+  explicit BufferedFile(const std::string& path);
+  ~BufferedFile();
+  BufferedFile(const BufferedFile&) = delete;
+  BufferedFile& operator=(const BufferedFile&) = delete;
+
+  // Reads exactly `size` bytes; false (nothing consumed) if the file holds
+  // fewer.
+  bool read(void* out, std::size_t size);
+  // Reads `size` bytes into `out`; the caller has checked remaining().
+  bool read_into(std::string& out, std::size_t size);
+  // Reads `size` bytes (at most max_view_size()) as a view into the buffer,
+  // which is then never overwritten while the view lives; false (nothing
+  // consumed) if the file holds fewer.
+  bool read_view(std::size_t size, PayloadView& out);
+  static std::size_t max_view_size();
+  bool skip(std::uint64_t size);
+  std::uint64_t position() const { return position_; }
+  // Bytes after position(); re-reads the file's size so a file still being
+  // written is followed.
+  std::uint64_t remaining();
+  std::uint64_t size() const { return size_; }
+  void seek(std::uint64_t position);
+  const std::string& path() const { return path_; }
+
+ private:
+  std::size_t fill();
+  void refresh_size();
+
+  std::string path_;
+  int fd_ = -1;
+  std::shared_ptr<char[]> buffer_;  // shared with the views handed out
+  // Earlier buffers, reused once no view holds them any more.
+  static constexpr std::size_t max_retired_buffers = 32;
+  std::vector<std::shared_ptr<char[]>> retired_;
+  std::size_t begin_ = 0;  // unread bytes are buffer_[begin_, end_)
+  std::size_t end_ = 0;
+  std::uint64_t position_ = 0;  // file offset of buffer_[begin_]
+  std::uint64_t size_ = 0;
+};
+
+}  // namespace wiretape::detail

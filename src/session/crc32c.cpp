@@ -1,0 +1,232 @@
+#include "session/crc32c.hpp"
+
+#include <array>
+#include <cstring>
+
+#if defined(__x86_64__)
+#include <nmmintrin.h>
+#elif defined(__aarch64__) && defined(__ARM_FEATURE_CRC32)
+#include <arm_acle.h>
+#endif
+
+#include "wiretape/session.hpp"
+
+namespace wiretape {
+
+namespace {
+
+// Slicing-by-8 tables of the reflected Castagnoli polynomial.
+using CrcTables = std::array<std::array<std::uint32_t, 256>, 8>;
+
+CrcTables make_crc_tables() {
+  CrcTables tables{};
+  for (std::uint32_t i = 0; i < 256; ++i) {
+    std::uint32_t crc = i;
+    for (int bit = 0; bit < 8; ++bit) crc = (crc >> 1) ^ (0x82F63B78u & (0u - (crc & 1u)));
+    tables[0][i] = crc;
+  }
+  for (std::size_t i = 0; i < 256; ++i) {
+    for (std::size_t slice = 1; slice < 8; ++slice) {
+      const std::uint32_t previous = tables[slice - 1][i];
+      tables[slice][i] = (previous >> 8) ^ tables[0][previous & 0xFF];
+    }
+  }
+  return tables;
+}
+
+const CrcTables& crc_tables() {
+  static const CrcTables tables = make_crc_tables();
+  return tables;
+}
+
+}  // namespace
+
+namespace {
+
+// The hardware paths run three independent streams over consecutive blocks
+// (the crc32 instruction's latency is three times its issue interval) and
+// join them by advancing a stream's register over the blocks that follow it.
+constexpr std::size_t crc_long_block = 8192;
+constexpr std::size_t crc_short_block = 256;
+static_assert(crc_long_block % 8 == 0 && crc_short_block % 8 == 0,
+              "the streams advance eight bytes a step");
+
+// Advancing a raw CRC register over n zero bytes is linear over GF(2): one
+// table per byte of the register.
+using CrcShiftTable = std::array<std::array<std::uint32_t, 256>, 4>;
+
+CrcShiftTable make_crc_shift_table(std::size_t zero_bytes) {
+  // zero_bytes is a multiple of 8: eight zero bytes at a time by the
+  // slicing tables (the data bytes' lookups are all t[k][0] == 0).
+  const CrcTables& t = crc_tables();
+  std::array<std::uint32_t, 32> basis{};
+  for (std::size_t bit = 0; bit < 32; ++bit) {
+    std::uint32_t crc = 1u << bit;
+    for (std::size_t i = 0; i < zero_bytes; i += 8) {
+      crc = t[7][crc & 0xFF] ^ t[6][(crc >> 8) & 0xFF] ^ t[5][(crc >> 16) & 0xFF] ^
+            t[4][crc >> 24];
+    }
+    basis[bit] = crc;
+  }
+  CrcShiftTable table{};
+  for (std::size_t byte = 0; byte < 4; ++byte) {
+    for (std::uint32_t value = 0; value < 256; ++value) {
+      std::uint32_t shifted = 0;
+      for (std::size_t bit = 0; bit < 8; ++bit) {
+        if ((value >> bit) & 1u) shifted ^= basis[byte * 8 + bit];
+      }
+      table[byte][value] = shifted;
+    }
+  }
+  return table;
+}
+
+inline std::uint32_t crc_shift(const CrcShiftTable& table, std::uint32_t crc) {
+  return table[0][crc & 0xFF] ^ table[1][(crc >> 8) & 0xFF] ^ table[2][(crc >> 16) & 0xFF] ^
+         table[3][crc >> 24];
+}
+
+const CrcShiftTable& crc_long_shift() {
+  static const CrcShiftTable table = make_crc_shift_table(crc_long_block);
+  return table;
+}
+const CrcShiftTable& crc_short_shift() {
+  static const CrcShiftTable table = make_crc_shift_table(crc_short_block);
+  return table;
+}
+
+inline std::uint64_t load_u64(const unsigned char* p) {
+  std::uint64_t value;
+  std::memcpy(&value, p, sizeof value);
+  return value;
+}
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define WIRETAPE_CRC32C_HARDWARE 1
+
+__attribute__((target("sse4.2"))) inline std::uint32_t crc_step(std::uint32_t crc,
+                                                                  const unsigned char* p) {
+  return static_cast<std::uint32_t>(_mm_crc32_u64(crc, load_u64(p)));
+}
+__attribute__((target("sse4.2"))) inline std::uint32_t crc_step_byte(std::uint32_t crc,
+                                                                       unsigned char byte) {
+  return _mm_crc32_u8(crc, byte);
+}
+#define WIRETAPE_CRC32C_TARGET __attribute__((target("sse4.2")))
+
+bool cpu_has_crc32c() { return __builtin_cpu_supports("sse4.2"); }
+
+#elif defined(__aarch64__) && defined(__ARM_FEATURE_CRC32)
+#define WIRETAPE_CRC32C_HARDWARE 1
+
+inline std::uint32_t crc_step(std::uint32_t crc, const unsigned char* p) {
+  return __crc32cd(crc, load_u64(p));
+}
+inline std::uint32_t crc_step_byte(std::uint32_t crc, unsigned char byte) {
+  return __crc32cb(crc, byte);
+}
+#define WIRETAPE_CRC32C_TARGET
+
+bool cpu_has_crc32c() { return true; }
+#endif
+
+#ifdef WIRETAPE_CRC32C_HARDWARE
+// Three streams over [p, p + 3 * block), joined into `crc`.
+template <std::size_t block>
+WIRETAPE_CRC32C_TARGET inline std::uint32_t crc_three_blocks(std::uint32_t crc,
+                                                             const unsigned char* p,
+                                                             const CrcShiftTable& shift) {
+  std::uint32_t crc1 = 0;
+  std::uint32_t crc2 = 0;
+  for (std::size_t i = 0; i < block; i += 8) {
+    crc = crc_step(crc, p + i);
+    crc1 = crc_step(crc1, p + block + i);
+    crc2 = crc_step(crc2, p + 2 * block + i);
+  }
+  crc = crc_shift(shift, crc) ^ crc1;
+  return crc_shift(shift, crc) ^ crc2;
+}
+
+WIRETAPE_CRC32C_TARGET std::uint32_t crc32c_instructions(const void* data, std::size_t size,
+                                                         std::uint32_t crc) {
+  const auto* p = static_cast<const unsigned char*>(data);
+  crc = ~crc;
+  while (size >= 3 * crc_long_block) {
+    crc = crc_three_blocks<crc_long_block>(crc, p, crc_long_shift());
+    p += 3 * crc_long_block;
+    size -= 3 * crc_long_block;
+  }
+  while (size >= 3 * crc_short_block) {
+    crc = crc_three_blocks<crc_short_block>(crc, p, crc_short_shift());
+    p += 3 * crc_short_block;
+    size -= 3 * crc_short_block;
+  }
+  while (size >= 8) {
+    crc = crc_step(crc, p);
+    p += 8;
+    size -= 8;
+  }
+  while (size-- > 0) crc = crc_step_byte(crc, *p++);
+  return ~crc;
+}
+#endif
+
+using Crc32cFunction = std::uint32_t (*)(const void*, std::size_t, std::uint32_t);
+
+Crc32cFunction pick_crc32c() {
+#ifdef WIRETAPE_CRC32C_HARDWARE
+  if (cpu_has_crc32c()) {
+    // Built now so that the first checksum on a recording thread does not.
+    crc_long_shift();
+    crc_short_shift();
+    return crc32c_instructions;
+  }
+#endif
+  return detail::crc32c_table;
+}
+
+}  // namespace
+
+namespace detail {
+
+std::uint32_t crc32c_table(const void* data, std::size_t size, std::uint32_t crc) {
+  const CrcTables& t = crc_tables();
+  const auto* p = static_cast<const unsigned char*>(data);
+  crc = ~crc;
+  while (size >= 8) {
+    const std::uint32_t low = crc ^ (static_cast<std::uint32_t>(p[0]) |
+                                     (static_cast<std::uint32_t>(p[1]) << 8) |
+                                     (static_cast<std::uint32_t>(p[2]) << 16) |
+                                     (static_cast<std::uint32_t>(p[3]) << 24));
+    crc = t[7][low & 0xFF] ^ t[6][(low >> 8) & 0xFF] ^ t[5][(low >> 16) & 0xFF] ^
+          t[4][low >> 24] ^ t[3][p[4]] ^ t[2][p[5]] ^ t[1][p[6]] ^ t[0][p[7]];
+    p += 8;
+    size -= 8;
+  }
+  while (size-- > 0) crc = (crc >> 8) ^ t[0][(crc ^ *p++) & 0xFF];
+  return ~crc;
+}
+
+bool crc32c_hardware_available() {
+#ifdef WIRETAPE_CRC32C_HARDWARE
+  return cpu_has_crc32c();
+#else
+  return false;
+#endif
+}
+
+std::uint32_t crc32c_hardware(const void* data, std::size_t size, std::uint32_t crc) {
+#ifdef WIRETAPE_CRC32C_HARDWARE
+  if (cpu_has_crc32c()) return crc32c_instructions(data, size, crc);
+#endif
+  return crc32c_table(data, size, crc);
+}
+
+}  // namespace detail
+
+std::uint32_t crc32c(const void* data, std::size_t size, std::uint32_t crc) {
+  static const Crc32cFunction implementation = pick_crc32c();
+  return implementation(data, size, crc);
+}
+
+}  // namespace wiretape

@@ -1,0 +1,39 @@
+// The header of a .wtape file: its metadata JSON, written and parsed (the
+// fixed bytes around it are in session/format.hpp).
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "wiretape/session.hpp"
+
+namespace wiretape::detail {
+
+// The member names of the header JSON (docs/session-format.md, "Metadata"),
+// spelled here once.
+namespace header_field {
+inline constexpr char port_options[] = "port_options";
+inline constexpr char port_type[] = "port_type";
+inline constexpr char start_utc[] = "start_utc";
+inline constexpr char wiretape_version[] = "wiretape_version";
+inline constexpr char host[] = "host";
+inline constexpr char capture[] = "capture";
+inline constexpr char metadata[] = "metadata";
+// Sessions read from flexiport's logs.
+inline constexpr char source_format[] = "source_format";
+inline constexpr char flexiport_read_format[] = "flexiport_read_format";
+inline constexpr char flexiport_write_format[] = "flexiport_write_format";
+}  // namespace header_field
+
+// The header JSON of a session file.
+std::string header_json(const SessionWriterOptions& options);
+// Parses the header JSON into `header` (metadata_json included); throws
+// SessionError(offset) naming `path` when it is not valid.
+void parse_header_json(const std::string& json, const std::string& path,
+                       std::uint64_t offset, SessionHeader& header);
+// Now, as 2026-11-23T10:00:00.123456Z.
+std::string utc_now_iso8601();
+// The header's spelling of `capture`: "client" or "wire".
+const char* capture_name(Capture capture);
+
+}  // namespace wiretape::detail

@@ -1,0 +1,88 @@
+// The record kinds of a .wtape file and the payload schema of each event:
+// the one table the writers, the readers, the Python bindings and
+// docs/session-format.md ("Record kinds", "Event payloads") all follow.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include "wiretape/session.hpp"
+
+namespace wiretape::detail {
+
+// The member names of event payloads, spelled here once. Every writer of an
+// event payload names its members by these constants.
+namespace event_field {
+inline constexpr char description[] = "description";
+inline constexpr char reopened[] = "reopened";
+inline constexpr char restarted[] = "restarted";
+inline constexpr char baud[] = "baud";
+inline constexpr char databits[] = "databits";
+inline constexpr char stopbits[] = "stopbits";
+inline constexpr char parity[] = "parity";
+inline constexpr char flow[] = "flow";
+inline constexpr char applied[] = "applied";
+inline constexpr char source[] = "source";
+inline constexpr char dtr[] = "dtr";
+inline constexpr char rts[] = "rts";
+inline constexpr char duration_ms[] = "duration_ms";
+inline constexpr char peer[] = "peer";
+inline constexpr char role[] = "role";
+inline constexpr char reason[] = "reason";
+inline constexpr char error[] = "error";
+inline constexpr char error_number[] = "errno";
+}  // namespace event_field
+
+// The JSON type of an event payload member. Integers are JSON numbers
+// without a fraction or exponent.
+enum class JsonType { string, integer, boolean };
+std::string_view to_string(JsonType type);
+
+struct EventFieldSpec {
+  std::string_view name;
+  JsonType type;
+  bool required;            // every writer writes it
+  std::string_view meaning;  // one line, as in docs/session-format.md
+};
+
+struct RecordKindSpec {
+  RecordKind kind;
+  std::string_view name;  // as in files converted to text and in Python
+  bool is_event;          // false: a direction (rx, tx), the payload is bytes
+  std::string_view meaning;
+  const EventFieldSpec* fields;  // the event payload's members, in writing order
+  std::size_t field_count;
+
+  std::uint8_t code() const { return static_cast<std::uint8_t>(kind); }
+  const EventFieldSpec* begin() const { return fields; }
+  const EventFieldSpec* end() const { return fields + field_count; }
+};
+
+// Every kind this version knows, in code order.
+struct RecordKindTable {
+  const RecordKindSpec* entries;
+  std::size_t count;
+  const RecordKindSpec* begin() const { return entries; }
+  const RecordKindSpec* end() const { return entries + count; }
+};
+RecordKindTable record_kinds();
+
+// The table's entry for `kind`, or nullptr for a kind this version does not
+// know (read from a newer file).
+const RecordKindSpec* find_record_kind(RecordKind kind);
+// By name; "line_break" is accepted for "break".
+const RecordKindSpec* find_record_kind(std::string_view name);
+
+// The kinds' names joined by ", " (for error messages that list them).
+std::string record_kind_names();
+
+// Why `payload` does not follow the table's schema for `kind` (a member it
+// lacks, has in the wrong type, or does not know; not a JSON object), or
+// std::nullopt when it does. An empty payload stands for {}. Readers ignore
+// unknown members; this check is strict so that the table stays complete.
+std::optional<std::string> event_payload_problem(RecordKind kind, std::string_view payload);
+
+}  // namespace wiretape::detail
