@@ -1,255 +1,464 @@
-"""Typing stubs of wiretape._core, the C++ core (see docs/python.md)."""
+"""wiretape's C++ core"""
 
-import os
-from collections.abc import Iterator, Mapping
-from types import EllipsisType, TracebackType
-from typing import Any, Literal, Optional, Union
+from collections.abc import Mapping
+import datetime
 
-from typing_extensions import Buffer
+from wiretape import (
+    OptionError as OptionError,
+    PortClosed as PortClosed,
+    PortError as PortError,
+    ReplayMismatch as ReplayMismatch,
+    SessionError as SessionError
+)
 
-__version__: str
-
-# Timeouts are seconds: None blocks, 0 polls. Where a method takes
-# `timeout=...`, the Ellipsis (omitted) means the port's own timeout.
-_Timeout = Optional[float]
-_CallTimeout = Union[float, None, EllipsisType]
-_Path = Union[str, bytes, os.PathLike[str], os.PathLike[bytes]]
-_Parity = Literal["none", "even", "odd", "mark", "space"]
-_Flow = Literal["none", "rtscts", "xonxoff"]
-
-# --- exceptions --------------------------------------------------------------------
-
-class OptionError(ValueError):
-    """A bad option string; `key` names the offending key ("" for syntax)."""
-
-    key: str
-    def __init__(self, message: str = "", key: str = "") -> None: ...
-
-class PortError(OSError):
-    """An OS error on a port; `errno` is its number (None if not from the OS)."""
-
-class PortClosed(PortError):
-    """The device went away, or the port was closed (maybe by another thread)."""
-
-class ReplayMismatch(AssertionError):
-    """What a replayed client wrote differs from the recording."""
-
-    tx_offset: int
-    session_time_ns: int
-    exchange: Optional[int]
-    def __init__(
-        self,
-        message: str = "",
-        tx_offset: int = 0,
-        session_time_ns: int = 0,
-        exchange: Optional[int] = None,
-    ) -> None: ...
-
-class SessionError(ValueError):
-    """A session file that cannot be read; `offset` is where the problem is."""
-
-    offset: int
-    message: str  # set on SessionReader.damage
-    def __init__(self, message: str = "", offset: int = 0) -> None: ...
-
-# --- ports ---------------------------------------------------------------------------
 
 class Port:
-    """A connection to a device, made by open_port()."""
+    """
+    A connection to a device: serial line, TCP, UDP,
+    pseudo-terminal, in-memory loopback, or a replayed recording. Made by open_port().
 
-    # reading
-    def read(self, size: int = 1, timeout: _CallTimeout = ...) -> bytes: ...
-    def read_exactly(self, count: int, timeout: _CallTimeout = ...) -> bytes: ...
-    def read_until(
-        self, expected: Buffer = b"\n", size: Optional[int] = None, timeout: _CallTimeout = ...
-    ) -> bytes: ...
-    def read_line(self, size: Optional[int] = None, timeout: _CallTimeout = ...) -> bytes: ...
-    def skip(self, count: int, timeout: _CallTimeout = ...) -> int: ...
-    def skip_until(self, delimiter: Buffer, timeout: _CallTimeout = ...) -> bool: ...
-    def available(self) -> int: ...
+    Reads follow wiretape's (C++) semantics: read(size) returns what is there,
+    at least one byte and at most size, or b"" when the timeout expires; the
+    compound reads (read_exactly, read_until, read_line, skip_until) return what
+    they have when the timeout expires and never raise on a timeout.
+
+    Every `timeout` argument is in seconds (a float, or a datetime.timedelta):
+    None blocks, 0 polls; omitted means
+    the port's own `timeout`. Ctrl-C interrupts a blocked read. One reader and
+    one writer may run at once on different threads; close() from another thread
+    wakes a blocked read, which then raises PortClosed.
+    """
+
+    def read(self, size: int = 1, timeout: float | datetime.timedelta | None = ...) -> bytes:
+        """
+        What is there, at least one byte and at most `size`; b"" when the timeout expires.
+        """
+
+    def read_exactly(self, count: int, timeout: float | datetime.timedelta | None = ...) -> bytes:
+        """Exactly `count` bytes, or what came before the timeout expired."""
+
+    def read_until(self, expected: bytes = b"\n", size: int | None = None, timeout: float | datetime.timedelta | None = ...) -> bytes:
+        """
+        Up to and including `expected`, or `size` bytes, or what came before the timeout expired. Nothing past `expected` is consumed.
+        """
+
+    def read_line(self, size: int | None = None, timeout: float | datetime.timedelta | None = ...) -> bytes:
+        """Up to and including b"\\n" (see read_until)."""
+
+    def skip(self, count: int, timeout: float | datetime.timedelta | None = ...) -> int:
+        """Discards up to `count` bytes; returns how many were discarded."""
+
+    def skip_until(self, delimiter: bytes, timeout: float | datetime.timedelta | None = ...) -> bool:
+        """Discards through `delimiter`; False if the timeout expired first."""
+
+    def available(self) -> int:
+        """Bytes that a read would return at once."""
+
     @property
-    def in_waiting(self) -> int: ...
-    def wait_readable(self, timeout: _CallTimeout = ...) -> bool: ...
-    # writing
-    def write(self, data: Buffer) -> int: ...
-    def write_all(self, data: Buffer) -> int: ...
-    # buffers
-    def flush_input(self) -> None: ...
-    def flush_output(self) -> None: ...
-    def drain(self) -> None: ...
-    # state
+    def in_waiting(self) -> int:
+        """Bytes that a read would return at once (pyserial's name)."""
+
+    def wait_readable(self, timeout: float | datetime.timedelta | None = ...) -> bool:
+        """
+        True once a read would not block (data, or the device is gone); False when the timeout expired.
+        """
+
+    def write(self, data: bytes) -> int:
+        """
+        Writes what the device accepts, at least one byte, or 0 when the port's timeout expires; returns the count written.
+        """
+
+    def write_all(self, data: bytes) -> int:
+        """
+        Writes everything; returns less than len(data) only when the port's timeout expired.
+        """
+
+    def flush_input(self) -> None:
+        """Drops what was received and not yet read."""
+
+    def flush_output(self) -> None:
+        """Drops what was written and not yet sent."""
+
+    def drain(self) -> None:
+        """Waits until written data has left."""
+
     @property
-    def timeout(self) -> _Timeout: ...
+    def timeout(self) -> float | None:
+        """
+        The port's timeout in seconds (or a datetime.timedelta): None blocks, 0 polls.
+        """
+
     @timeout.setter
-    def timeout(self, value: _Timeout) -> None: ...
-    def close(self) -> None: ...
+    def timeout(self, value: float | datetime.timedelta | None, /) -> None: ...
+
+    def close(self) -> None:
+        """Closes the port; a read blocked in another thread raises PortClosed."""
+
     @property
     def is_open(self) -> bool: ...
+
     @property
-    def description(self) -> str: ...
+    def description(self) -> str:
+        """Human-readable, e.g. 'serial /dev/ttyUSB0 @ 115200 8N1'."""
+
     @property
-    def type(self) -> str: ...
+    def type(self) -> str:
+        """The port's type as in the option string: 'serial', 'tcp', ..."""
+
     @property
-    def access(self) -> Literal["readwrite", "readonly", "writeonly"]: ...
-    def fileno(self) -> int: ...
-    def native_handle(self) -> int: ...
-    # serial line control (PortError ENOTSUP where the port has none)
+    def access(self) -> str:
+        """'readwrite', 'readonly' or 'writeonly'."""
+
+    def fileno(self) -> int:
+        """
+        A file descriptor that polls readable exactly when available() > 0 (for select, selectors, asyncio). Raises PortClosed after close().
+        """
+
+    def native_handle(self) -> int:
+        """As fileno(), but -1 after close()."""
+
     def set_baud(self, baud: int) -> None: ...
+
     @property
-    def baud(self) -> int: ...
+    def baud(self) -> int:
+        """The line rate; PortError (ENOTSUP) on a port without one."""
+
     @baud.setter
-    def baud(self, value: int) -> None: ...
-    def configure(
-        self,
-        *,
-        baud: Optional[int] = None,
-        databits: Optional[int] = None,
-        stopbits: Optional[int] = None,
-        parity: Optional[_Parity] = None,
-        flow: Optional[_Flow] = None,
-    ) -> None: ...
-    def serial_settings(self) -> dict[str, Any]: ...
+    def baud(self, arg: int, /) -> None: ...
+
+    def configure(self, *, baud: int | None = None, databits: int | None = None, stopbits: int | None = None, parity: str | None = None, flow: str | None = None) -> None:
+        """Changes the given line settings, keeping the others."""
+
+    def serial_settings(self) -> dict:
+        """The line settings: {'baud', 'databits', 'stopbits', 'parity', 'flow'}."""
+
     def set_dtr(self, level: bool) -> None: ...
+
     def set_rts(self, level: bool) -> None: ...
+
     @property
-    def dtr(self) -> bool: ...  # write-only: reading raises AttributeError
+    def dtr(self) -> bool:
+        """
+        DTR: the level last set (True before any: the OS raises it at open); settable.
+        """
+
     @dtr.setter
-    def dtr(self, level: bool) -> None: ...
+    def dtr(self, arg: bool, /) -> None: ...
+
     @property
-    def rts(self) -> bool: ...  # write-only: reading raises AttributeError
+    def rts(self) -> bool:
+        """
+        RTS: the level last set (True before any: the OS raises it at open); settable.
+        """
+
     @rts.setter
-    def rts(self, level: bool) -> None: ...
-    def cts(self) -> bool: ...
-    def dsr(self) -> bool: ...
-    def ri(self) -> bool: ...
-    def cd(self) -> bool: ...
-    def send_break(self, duration: float = 0.25) -> None: ...
-    # context manager
-    def __enter__(self) -> "Port": ...
-    def __exit__(
-        self,
-        exc_type: Optional[type[BaseException]],
-        exc: Optional[BaseException],
-        traceback: Optional[TracebackType],
-    ) -> None: ...
+    def rts(self, arg: bool, /) -> None: ...
 
-def open_port(options: str) -> Port: ...
+    @property
+    def cts(self) -> bool:
+        """CTS as the device drives it."""
 
-# --- session files -------------------------------------------------------------------
+    @property
+    def dsr(self) -> bool:
+        """DSR as the device drives it."""
 
-_Kind = Union[str, int]
+    @property
+    def ri(self) -> bool:
+        """RI (ring indicator) as the device drives it."""
+
+    @property
+    def cd(self) -> bool:
+        """CD (carrier detect) as the device drives it."""
+
+    def send_break(self, duration: float = 0.25) -> None:
+        """Holds the line in break for `duration` seconds."""
+
+    def __enter__(self) -> Port: ...
+
+    def __exit__(self, arg0: object | None, arg1: object | None, arg2: object | None, /) -> None: ...
+
+    def __repr__(self) -> str: ...
+
+def open_port(options: str) -> Port:
+    """
+    Opens the port an option string describes, e.g. 'type=serial,device=/dev/ttyUSB0,baud=115200'. Raises OptionError for a bad string, PortError when the device cannot be opened.
+    """
+
+def quote_option_value(value: str) -> str:
+    """
+    A value as it is written in an option string: as is, or in double quotes with \\" and \\\\ escaped when it is empty or holds a separator, '=', '"' or '\\\\'.
+    """
+
+def device_options(device: str) -> str:
+    """
+    The option string a device setting stands for: a bare path (no '=') means type=serial,device=PATH; an option string is returned as given. Raises OptionError when the setting is empty.
+    """
+
+SESSION_MAGIC: bytes = ...
+
+SESSION_VERSION: tuple = (1, 0)
+
+FILE_HEADER_FIXED_SIZE: int = 16
+
+MAX_HEADER_JSON: int = 16777216
+
+RECORD_HEADER_SIZE: int = 16
+
+CRC_SIZE: int = 4
+
+FILE_HEADER_OVERHEAD: int = 20
+
+RECORD_OVERHEAD: int = 20
+
+RECORD_KINDS: tuple = ...
+
+def flexiport_prefix(path: object) -> str | None:
+    """
+    The 'name.log' prefix PATH stands for when it is a flexiport log ('name.log', 'name.logr' or 'name.logw' with the pair on disk), else None.
+    """
 
 class Record:
-    """One record of a session."""
+    """One record of a session: t_ns, kind, data."""
 
-    def __init__(self, t_ns: int, kind: _Kind, data: bytes = b"") -> None: ...
+    def __init__(self, t_ns: int, kind: object, data: bytes = ...) -> None: ...
+
     @property
-    def t_ns(self) -> int: ...
+    def t_ns(self) -> int:
+        """nanoseconds since the device was opened"""
+
     @property
-    def kind(self) -> str: ...
+    def kind(self) -> str:
+        """'rx' (device to host), 'tx' (host to device), or an event name"""
+
     @property
     def kind_code(self) -> int: ...
+
     @property
-    def data(self) -> bytes: ...
+    def data(self) -> bytes:
+        """the bytes (rx, tx) or the event's JSON object as bytes"""
+
+    def __eq__(self, arg: Record, /) -> bool: ...
+
+    def __repr__(self) -> str: ...
 
 class SessionReader:
-    """Streams the records of a .wtape file or a flexiport name.log pair."""
+    """
+    Reads a .wtape file or a flexiport log (name.log) record by record, with memory independent of its size. Iterating yields Record objects; at a damaged record iteration ends and .damage says where.
+    """
 
-    def __init__(self, path: _Path) -> None: ...
-    def __iter__(self) -> Iterator[Record]: ...
+    def __init__(self, path: object) -> None: ...
+
+    def __iter__(self) -> object: ...
+
     def __next__(self) -> Record: ...
+
     @property
-    def header(self) -> dict[str, Any]: ...
+    def header(self) -> dict:
+        """
+        the header as a dict: capture, port_options, port_type, start_utc, wiretape_version, host, metadata, source_format, version_major, ...
+        """
+
     @property
-    def damage(self) -> Optional[SessionError]: ...
-    def rewind(self) -> None: ...
+    def damage(self) -> object:
+        """
+        None, or a SessionError (not raised) with .offset and .message: where reading stopped and why
+        """
+
+    def rewind(self) -> None:
+        """back to the first record"""
+
     @property
     def path(self) -> str: ...
+
     def close(self) -> None: ...
-    def __enter__(self) -> "SessionReader": ...
-    def __exit__(self, *args: object) -> None: ...
+
+    def __enter__(self) -> object: ...
+
+    def __exit__(self, *args) -> None: ...
 
 class SessionWriter:
-    """Appends records to a new .wtape file."""
+    """
+    Writes a new .wtape file (truncating PATH). Buffered; buffered records reach the OS at most flush_ms after they were written. A full disk or file-size limit raises PortError; what was written before stays readable.
+    """
 
-    def __init__(
-        self,
-        path: _Path,
-        *,
-        capture: Literal["client", "wire"] = "client",
-        port_options: str = "",
-        port_type: str = "",
-        metadata: Optional[Mapping[str, str]] = None,
-        flush_ms: int = 100,
-        fsync: bool = False,
-        start_utc: str = "",
-        host: str = "",
-        wiretape_version: str = "",
-    ) -> None: ...
-    def write(self, kind: _Kind, t_ns: int, data: bytes = b"") -> None: ...
+    def __init__(self, path: object, *, capture: str = 'client', port_options: str = '', port_type: str = '', metadata: Mapping[str, str] | None = None, flush_ms: int = 100, fsync: bool = False, start_utc: str = '', host: str = '', wiretape_version: str = '') -> None: ...
+
+    def write(self, kind: object, t_ns: int, data: bytes = ...) -> None:
+        """Appends a record: kind is a name ('rx', 'tx', 'open', ...) or a code."""
+
     def flush(self) -> None: ...
+
     def close(self) -> None: ...
+
     @property
     def path(self) -> str: ...
-    def __enter__(self) -> "SessionWriter": ...
-    def __exit__(self, *args: object) -> None: ...
 
-def export_flexiport(source: _Path, prefix: _Path) -> None: ...
-def crc32c(data: bytes, crc: int = 0) -> int: ...
+    def __enter__(self) -> object: ...
 
-# The record kinds, in code order: dicts of name, code, is_event, meaning and
-# fields (dicts of name, type, required, meaning), as docs/session-format.md
-# lists them.
-RECORD_KINDS: tuple[dict[str, Any], ...]
+    def __exit__(self, *args) -> None: ...
 
-# The byte layout (docs/session-format.md), for code that reads files itself.
-SESSION_MAGIC: bytes
-SESSION_VERSION: tuple[int, int]
-FILE_HEADER_FIXED_SIZE: int
-FILE_HEADER_OVERHEAD: int
-MAX_HEADER_JSON: int
-RECORD_HEADER_SIZE: int
-CRC_SIZE: int
-RECORD_OVERHEAD: int
+def export_flexiport(source: object, prefix: object) -> None:
+    """
+    Writes a session (.wtape or flexiport) as flexiport's new-format logs PREFIX + 'r' (reads) and PREFIX + 'w' (writes); events are dropped.
+    """
 
-def flexiport_prefix(path: _Path) -> Optional[str]: ...
+def crc32c(data: bytes, crc: int = 0) -> int:
+    """The CRC32C (Castagnoli) of data, continuing from crc."""
 
-# --- bridges (see wiretape.bridge) ----------------------------------------------------
+class BridgeStats:
+    """A bridge's counters so far (read-only)."""
+
+    @property
+    def bytes_to_device(self) -> int: ...
+
+    @property
+    def bytes_from_device(self) -> int: ...
+
+    @property
+    def bytes_dropped(self) -> int: ...
+
+    @property
+    def clients_accepted(self) -> int: ...
+
+    @property
+    def clients_refused(self) -> int: ...
+
+    @property
+    def settings_changes(self) -> int: ...
+
+    @property
+    def device_losses(self) -> int: ...
+
+    @property
+    def device_reopens(self) -> int: ...
+
+    @property
+    def records_written(self) -> int: ...
+
+    def items(self) -> list[tuple[str, int]]:
+        """(name, count) pairs, in declaration order."""
+
+    def __repr__(self) -> str: ...
+
+class BridgeResult:
+    """How a bridge ended (or that it is running), read-only."""
+
+    @property
+    def outcome(self) -> str:
+        """running, stopped, finished, device_closed, mismatch or failed."""
+
+    @property
+    def ok(self) -> bool:
+        """False for a mismatch or a failure."""
+
+    @property
+    def message(self) -> str:
+        """The mismatch report, the error, or why the device closed."""
+
+    @property
+    def stats(self) -> BridgeStats: ...
+
+    def __repr__(self) -> str: ...
 
 class Bridge:
-    """A proxy, port server or virtual device running on its own threads."""
+    """
+    Forwards bytes between a device port and a pty or TCP clients, optionally recording them (see wiretape.bridge).
+    """
 
-    def __init__(
-        self,
-        device: str,
-        *,
-        client_side: Literal["pty", "tcp"] = "pty",
-        pty_link: str = "",
-        listen_host: str = "127.0.0.1",
-        listen_port: int = 0,
-        protocol: Literal["raw", "rfc2217"] = "raw",
-        shared: bool = False,
-        output: str = "",
-        metadata: Mapping[str, str] = ...,
-        flush_ms: int = 100,
-        mirror_settings: bool = True,
-        reopen: bool = False,
-        restart: bool = False,
-        duration: Optional[float] = None,
-        buffer_limit: int = 1048576,
-        quiet: bool = False,
-    ) -> None: ...
-    def start(self) -> None: ...
-    def stop(self) -> None: ...
-    def wait(self, timeout: _Timeout = None) -> bool: ...
+    def __init__(self, device: str, *, client_side: str = 'pty', pty_link: str = '', listen_host: str = '127.0.0.1', listen_port: int = 0, protocol: str = 'raw', shared: bool = False, output: str = '', metadata: Mapping[str, str] = {}, flush_ms: int = 100, mirror_settings: bool = True, reopen: bool = False, restart: bool = False, duration: object | None = None, buffer_limit: int = 1048576, quiet: bool = False) -> None: ...
+
+    def start(self) -> None:
+        """
+        Opens the device, the client side and the session file and starts forwarding.
+        """
+
+    def stop(self) -> None:
+        """Ends forwarding (thread-safe); the session file is closed complete."""
+
+    def wait(self, timeout: object | None = None) -> bool:
+        """
+        True once the bridge has ended; False if `timeout` (seconds) expired first.
+        """
+
     @property
     def running(self) -> bool: ...
-    def result(self) -> dict[str, Any]: ...
-    def stats(self) -> dict[str, int]: ...
+
+    def result(self) -> BridgeResult:
+        """
+        A BridgeResult: outcome (running, stopped, finished, device_closed, mismatch or failed), ok, message and stats.
+        """
+
+    def stats(self) -> BridgeStats:
+        """A BridgeStats: the counters so far."""
+
     @property
     def pty_path(self) -> str: ...
+
     @property
     def listen_address(self) -> str: ...
+
     @property
     def device_description(self) -> str: ...
+
     def messages(self) -> list[str]: ...
+
+class Profile:
+    """
+    What wiretape knows of a protocol: how each direction is cut into frames, the bytes of a request compared when matching, and frame names. Get one with find_profile(name).
+    """
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def summary(self) -> str: ...
+
+    def frames(self, direction: str, data: bytes) -> list:
+        """
+        The frames of one direction's whole byte stream ('tx' or 'rx'); an incomplete tail is the last frame.
+        """
+
+    def match_key(self, request: bytes) -> bytes:
+        """The bytes of a request frame that are compared when matching."""
+
+    def frame_name(self, direction: str, frame: bytes) -> str:
+        """The frame's short name (for SCIP, the command code)."""
+
+    def describe(self, direction: str, frame: bytes) -> str:
+        """The frame's one-line description, as show prints it."""
+
+    def decode_session(self, source: object) -> DecodedSession:
+        """
+        Decodes a session for show: `source` is a session file's path or an iterable of records. Yields (t_ns, kind, data, description): frames of 'tx' and 'rx' (re-assembled however the recording split them; t_ns is that of the frame's first byte) with their description, once complete; events as they come, with their payload and None. Frames incomplete at the end come last, rx before tx.
+        """
+
+    def __repr__(self) -> str: ...
+
+class DecodedSession:
+    """The items of a session decoded with a profile (an iterator)."""
+
+    def __iter__(self) -> object: ...
+
+    def __next__(self) -> object: ...
+
+    @property
+    def damage(self) -> object:
+        """
+        None, or a SessionError (not raised) saying where reading a session file stopped
+        """
+
+def profile_names() -> list[str]:
+    """The built-in protocol profiles' names, `scip` first."""
+
+def find_profile(name: str) -> Profile:
+    """The built-in profile called `name`; OptionError for an unknown name."""
+
+def hex_ascii(data: bytes) -> str:
+    """
+    The bytes as hex, then as ASCII with '.' for what is not printable: '56 56 0a  |VV.|'; '(none)' for no bytes.
+    """
+
+def escape_bytes(data: bytes, limit: int = 64) -> str:
+    """
+    The bytes as one line of terminal-safe text: printable ASCII kept, a backslash doubled, \\n \\r \\t and \\xNN for every other byte (ESC included); beyond `limit` bytes, '... (+N bytes)'.
+    """

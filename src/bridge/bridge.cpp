@@ -22,6 +22,7 @@
 #include "bridge/device_side.hpp"
 #include "bridge/endpoint.hpp"
 #include "bridge/status.hpp"
+#include "session/record_kinds.hpp"
 #include "posix/poll_set.hpp"
 #include "posix/wake_pipe.hpp"
 #include "wiretape/errors.hpp"

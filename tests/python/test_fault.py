@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 import wiretape
+from wiretape import _core
 
 from devices import wait_until
 
@@ -145,10 +146,10 @@ def recorder_command(device, link, output):
 def file_ends_inside_record(path, offset):
     """True when the file ends inside the record that starts at `offset`."""
     data = path.read_bytes()
-    if offset + 16 > len(data):
+    if offset + _core.RECORD_HEADER_SIZE > len(data):
         return True
     length = int.from_bytes(data[offset:offset + 4], "little")
-    return offset + 16 + length + 4 > len(data)
+    return offset + _core.RECORD_OVERHEAD + length > len(data)
 
 
 def test_record_proxy_killed_mid_stream_leaves_a_file_readable_to_its_end(tmp_path, pty_device):

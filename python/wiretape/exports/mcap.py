@@ -8,7 +8,7 @@ import json
 from typing import Dict
 
 from .._core import __version__
-from ..tools._records import SessionPath, escape_bytes, header_fields, open_session
+from ..tools._records import DIRECTIONS, SessionPath, escape_bytes, header_fields, open_session
 from ._common import event_json, replacing, start_epoch_ns
 
 __all__ = ["write_mcap", "MCAP_TOPICS"]
@@ -21,7 +21,7 @@ _BYTES_SCHEMA = {
     "type": "object",
     "properties": {
         "t_ns": {"type": "integer", "description": "ns since the device was opened"},
-        "kind": {"type": "string", "enum": ["rx", "tx"],
+        "kind": {"type": "string", "enum": list(DIRECTIONS),
                  "description": "rx: device to host; tx: host to device"},
         "size": {"type": "integer", "description": "number of bytes"},
         "data": {"type": "string", "contentEncoding": "base64",
@@ -78,7 +78,7 @@ def write_mcap(src: SessionPath, dst: SessionPath) -> Dict[str, int]:
         sequence = 0
         for record in reader:
             t_ns, kind, data = record.t_ns, record.kind, record.data
-            if kind in ("rx", "tx"):
+            if kind in DIRECTIONS:
                 channel = channels[kind]
                 message = {"t_ns": t_ns, "kind": kind, "size": len(data),
                            "data": base64.b64encode(data).decode("ascii"),

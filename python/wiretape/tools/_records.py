@@ -14,7 +14,8 @@ from .. import _core
 #: ``name.logr`` + ``name.logw``).
 SessionPath = Union[str, "os.PathLike[str]"]
 
-DIRECTIONS = ("rx", "tx")
+#: The record kinds that carry bytes (rx, tx); every other kind is an event.
+DIRECTIONS = tuple(kind["name"] for kind in _core.RECORD_KINDS if not kind["is_event"])
 
 
 def open_session(path: SessionPath) -> _core.SessionReader:

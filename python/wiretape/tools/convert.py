@@ -42,7 +42,6 @@ _SUFFIXES = {
     ".pcapng": "pcapng",
     ".mcap": "mcap",
 }
-_MAGIC = b"\x89WTAPE\r\n"
 
 
 def detect_format(path, reading: bool) -> str:
@@ -54,11 +53,11 @@ def detect_format(path, reading: bool) -> str:
     if reading:
         try:
             with open(path, "rb") as handle:
-                if handle.read(len(_MAGIC)) == _MAGIC:
+                if handle.read(len(_core.SESSION_MAGIC)) == _core.SESSION_MAGIC:
                     return "wiretape"
         except OSError:
             pass
-        if os.path.exists(path + "r") or os.path.exists(path + "w"):
+        if _core.flexiport_prefix(path) is not None:
             return "flexiport"
     known = ", ".join(sorted(_SUFFIXES))
     raise ValueError(
@@ -66,10 +65,6 @@ def detect_format(path, reading: bool) -> str:
         f"say it with --{'from' if reading else 'to'} "
         f"({'|'.join(_READABLE if reading else FORMATS)})"
     )
-
-
-def _flexiport_prefix(path: str) -> str:
-    return path[:-1] if path.endswith((".logr", ".logw")) else path
 
 
 def _check_format(name: str, allowed) -> str:
@@ -165,7 +160,7 @@ class _Progress:
 
 def _source_size(path: str, fmt: str) -> int:
     if fmt == "flexiport":
-        prefix = _flexiport_prefix(path)
+        prefix = _core.flexiport_prefix(path) or path
         return sum(os.path.getsize(prefix + s) for s in "rw" if os.path.exists(prefix + s))
     return os.path.getsize(path) if os.path.exists(path) else 0
 
@@ -247,7 +242,7 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
         raise ValueError(f"{src}: {source_format} files cannot be read, only written")
     target_format = _check_format(to_format, FORMATS) if to_format else detect_format(dst, False)
     if source_format == "flexiport":
-        src = _flexiport_prefix(src)
+        src = _core.flexiport_prefix(src) or src
     report = _Progress(progress, _source_size(src, source_format))
 
     if target_format in ("pcapng", "mcap"):
@@ -263,7 +258,7 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
         return ConvertResult(written, source_format, target_format)
 
     if target_format == "flexiport":
-        prefix = _flexiport_prefix(dst)
+        prefix = _core.flexiport_prefix(dst) or dst
         if source_format == "jsonl":
             with tempfile.TemporaryDirectory(prefix="wiretape-convert-") as scratch:
                 session = os.path.join(scratch, "session.wtape")
