@@ -6,7 +6,7 @@ The C++ core (``wiretape._core``) does the work; this package re-exports it:
   replay ports from one option string;
 * the exceptions :class:`OptionError`, :class:`PortError`, :class:`PortClosed`,
   :class:`ReplayMismatch`, :class:`SessionError`;
-* session files: :class:`SessionReader`, :class:`SessionWriter`,
+* session files: :class:`SessionReader`, :class:`SessionWriter`, :class:`SessionHeader`,
   :class:`Record`, and the flexiport export :func:`export_flexiport`.
 
 The commands that read session files are in :mod:`wiretape.tools`, the
@@ -25,6 +25,7 @@ from ._core import (
     Record,
     ReplayMismatch,
     SessionError,
+    SessionHeader,
     SessionReader,
     SessionWriter,
     __version__,
@@ -42,6 +43,7 @@ __all__ = [
     "PortClosed",
     "ReplayMismatch",
     "SessionError",
+    "SessionHeader",
     "SessionReader",
     "SessionWriter",
     "Record",

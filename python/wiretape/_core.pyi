@@ -241,6 +241,61 @@ class Record:
 
     def __repr__(self) -> str: ...
 
+class SessionHeader:
+    """
+    A session file's header (docs/session-format.md): what was recorded, where, when and how. Read-only.
+    """
+
+    @property
+    def version_major(self) -> int:
+        """the file's format version"""
+
+    @property
+    def version_minor(self) -> int: ...
+
+    @property
+    def port_options(self) -> str:
+        """the option string the port was opened with"""
+
+    @property
+    def port_type(self) -> str:
+        """serial, tcp, udp, pty, loopback, ..."""
+
+    @property
+    def start_utc(self) -> str:
+        """when the device was opened, ISO 8601 UTC"""
+
+    @property
+    def wiretape_version(self) -> str:
+        """the version of wiretape that wrote the file"""
+
+    @property
+    def host(self) -> str:
+        """the recording machine's name"""
+
+    @property
+    def capture(self) -> str:
+        """'client' (library recording) or 'wire' (proxy recording)"""
+
+    @property
+    def source_format(self) -> str:
+        """'wiretape' or 'flexiport'"""
+
+    @property
+    def metadata(self) -> dict[str, str]:
+        """the free user metadata (--meta)"""
+
+    @property
+    def metadata_json(self) -> str:
+        """the header's JSON, as stored"""
+
+    def to_dict(self) -> dict:
+        """the fields above as a dict"""
+
+    def __eq__(self, arg: SessionHeader, /) -> bool: ...
+
+    def __repr__(self) -> str: ...
+
 class SessionReader:
     """
     Reads a .wtape file or a flexiport log (name.log) record by record, with memory independent of its size. Iterating yields Record objects; at a damaged record iteration ends and .damage says where.
@@ -248,18 +303,16 @@ class SessionReader:
 
     def __init__(self, path: object) -> None: ...
 
-    def __iter__(self) -> object: ...
+    def __iter__(self) -> SessionReader: ...
 
     def __next__(self) -> Record: ...
 
     @property
-    def header(self) -> dict:
-        """
-        the header as a dict: capture, port_options, port_type, start_utc, wiretape_version, host, metadata, source_format, version_major, ...
-        """
+    def header(self) -> SessionHeader:
+        """the session's header (a SessionHeader)"""
 
     @property
-    def damage(self) -> object:
+    def damage(self, /) -> SessionError | None:
         """
         None, or a SessionError (not raised) with .offset and .message: where reading stopped and why
         """
@@ -272,7 +325,7 @@ class SessionReader:
 
     def close(self) -> None: ...
 
-    def __enter__(self) -> object: ...
+    def __enter__(self) -> SessionReader: ...
 
     def __exit__(self, *args) -> None: ...
 
@@ -293,7 +346,7 @@ class SessionWriter:
     @property
     def path(self) -> str: ...
 
-    def __enter__(self) -> object: ...
+    def __enter__(self) -> SessionWriter: ...
 
     def __exit__(self, *args) -> None: ...
 

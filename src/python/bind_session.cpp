@@ -90,6 +90,7 @@ struct PyWriter {
   }
 };
 
+// The header's fields by name, as show, stats and convert lay them out.
 nb::dict header_dict(const SessionHeader& header) {
   nb::dict out;
   out["version_major"] = header.version_major;
@@ -189,6 +190,43 @@ void bind_session(nb::module_& m) {
                std::string(nb::repr(data).c_str()) + ")";
       });
 
+  nb::class_<SessionHeader>(m, "SessionHeader",
+                           "A session file's header (docs/session-format.md): what was "
+                           "recorded, where, when and how. Read-only.")
+      .def_ro("version_major", &SessionHeader::version_major, "the file's format version")
+      .def_ro("version_minor", &SessionHeader::version_minor)
+      .def_ro("port_options", &SessionHeader::port_options,
+              "the option string the port was opened with")
+      .def_ro("port_type", &SessionHeader::port_type, "serial, tcp, udp, pty, loopback, ...")
+      .def_ro("start_utc", &SessionHeader::start_utc,
+              "when the device was opened, ISO 8601 UTC")
+      .def_ro("wiretape_version", &SessionHeader::wiretape_version,
+              "the version of wiretape that wrote the file")
+      .def_ro("host", &SessionHeader::host, "the recording machine's name")
+      .def_prop_ro(
+          "capture",
+          [](const SessionHeader& h) { return std::string(detail::capture_name(h.capture)); },
+          "'client' (library recording) or 'wire' (proxy recording)")
+      .def_ro("source_format", &SessionHeader::source_format, "'wiretape' or 'flexiport'")
+      .def_ro("metadata", &SessionHeader::user_metadata, "the free user metadata (--meta)")
+      .def_ro("metadata_json", &SessionHeader::metadata_json, "the header's JSON, as stored")
+      .def("to_dict", &header_dict, "the fields above as a dict")
+      .def("__eq__", [](const SessionHeader& a, const SessionHeader& b) {
+        return header_dict(a).equal(header_dict(b));
+      })
+      .def("__repr__", [](const SessionHeader& h) {
+        std::string text = "SessionHeader(";
+        bool first = true;
+        for (auto [key, value] : header_dict(h)) {
+          if (!first) text += ", ";
+          first = false;
+          text += nb::str(key).c_str();
+          text += "=";
+          text += nb::repr(value).c_str();
+        }
+        return text + ")";
+      });
+
   nb::class_<PyReader>(m, "SessionReader",
                        "Reads a .wtape file or a flexiport log (name.log) record by record, "
                        "with memory independent of its size. Iterating yields Record objects; "
@@ -202,7 +240,8 @@ void bind_session(nb::module_& m) {
             self->reader = std::make_unique<SessionReader>(p);
           },
           "path"_a)
-      .def("__iter__", [](nb::handle self) { return self; })
+      .def("__iter__", [](nb::handle self) { return self; },
+           nb::sig("def __iter__(self) -> SessionReader"))
       .def("__next__",
            [](PyReader& self) {
              PyRecord out;
@@ -215,9 +254,8 @@ void bind_session(nb::module_& m) {
              if (!more) throw nb::stop_iteration();
              return out;
            })
-      .def_prop_ro("header", [](PyReader& self) { return header_dict(self.get().header()); },
-                   "the header as a dict: capture, port_options, port_type, start_utc, "
-                   "wiretape_version, host, metadata, source_format, version_major, ...")
+      .def_prop_ro("header", [](PyReader& self) { return self.get().header(); },
+                   "the session's header (a SessionHeader)")
       .def_prop_ro(
           "damage",
           [](PyReader& self) -> nb::object {
@@ -229,12 +267,14 @@ void bind_session(nb::module_& m) {
             error.attr("message") = std::string(damage->what());
             return error;
           },
+          nb::for_getter(nb::sig("def damage(self, /) -> SessionError | None")),
           "None, or a SessionError (not raised) with .offset and .message: where "
           "reading stopped and why")
       .def("rewind", [](PyReader& self) { self.get().rewind(); }, "back to the first record")
       .def_prop_ro("path", [](PyReader& self) { return self.get().path(); })
       .def("close", [](PyReader& self) { self.reader.reset(); })
-      .def("__enter__", [](nb::handle self) { return self; })
+      .def("__enter__", [](nb::handle self) { return self; },
+           nb::sig("def __enter__(self) -> SessionReader"))
       .def("__exit__", [](PyReader& self, nb::args) { self.reader.reset(); });
 
   nb::class_<PyWriter>(m, "SessionWriter",
@@ -286,7 +326,8 @@ void bind_session(nb::module_& m) {
            })
       .def("close", [](PyWriter& self) { self.close(); })
       .def_prop_ro("path", [](PyWriter& self) { return self.path; })
-      .def("__enter__", [](nb::handle self) { return self; })
+      .def("__enter__", [](nb::handle self) { return self; },
+           nb::sig("def __enter__(self) -> SessionWriter"))
       .def("__exit__", [](PyWriter& self, nb::args) { self.close(); });
 
   m.def(

@@ -318,7 +318,7 @@ def test_record_through_tcp_then_ctrl_c_exits_0_with_a_complete_file(tmp_path):
     records = list(reader)
     assert reader.damage is None
     assert b"".join(r.data for r in records if r.kind == "tx") == b"echo me\n"
-    assert reader.header["metadata"]["who"] == "test"
+    assert reader.header.metadata["who"] == "test"
 
 
 def test_replay_serves_a_recording_over_tcp(tmp_path, session_file):

@@ -68,9 +68,9 @@ def test_pty_proxy_forwards_and_records_every_byte_in_order(device, tmp_path):
     assert bytes(device.received) == bytes(sent)
 
     header, records = read_records(out)
-    assert header["capture"] == "wire"
-    assert header["port_type"] == "tcp"
-    assert header["metadata"] == {"robot": "r2"}
+    assert header.capture == "wire"
+    assert header.port_type == "tcp"
+    assert header.metadata == {"robot": "r2"}
     assert records[0].kind == "open" and records[0].t_ns == 0
     assert records[-1].kind == "close"
     assert joined(records, "tx") == bytes(sent)

@@ -27,7 +27,7 @@ def load_jsonl(name):
 def test_golden_file_reads_as_its_jsonl_says(name):
     header, records, corrupt = load_jsonl(name)
     reader = _core.SessionReader(GOLDEN / f"{name}.wtape")
-    got = reader.header
+    got = reader.header.to_dict()
     for key in ("port_options", "port_type", "start_utc", "wiretape_version", "host", "capture"):
         assert got[key] == header[key], key
     assert got["metadata"] == header["metadata"]
@@ -86,10 +86,10 @@ def test_writer_and_reader_round_trip_with_paths_and_rewind(tmp_path):
     with pytest.raises(ValueError, match="closed"):
         writer.write("rx", 30, b"late")
     reader = _core.SessionReader(path)
-    assert reader.header["capture"] == "wire"
-    assert reader.header["port_type"] == "tcp"
-    assert reader.header["metadata"] == {"k": "v"}
-    assert reader.header["source_format"] == "wiretape"
+    assert reader.header.capture == "wire"
+    assert reader.header.port_type == "tcp"
+    assert reader.header.metadata == {"k": "v"}
+    assert reader.header.source_format == "wiretape"
     first = [(r.kind, r.t_ns, r.data) for r in reader]
     assert first == [("open", 0, b"{}"), ("tx", 10, b"hello"), ("rx", 20, bytes(range(256)) * 10)]
     reader.rewind()
@@ -152,7 +152,7 @@ def flexiport_chunks(path):
 def test_flexiport_import_keeps_every_byte_and_time(name):
     prefix = FLEXIPORT / f"{name}.log"
     reader = _core.SessionReader(prefix)
-    assert reader.header["source_format"] == "flexiport"
+    assert reader.header.source_format == "flexiport"
     records = list(reader)
     assert reader.damage is None
     assert [(r.t_ns, r.data) for r in records if r.kind == "rx"] == flexiport_chunks(FLEXIPORT / f"{name}.logr")
@@ -185,8 +185,8 @@ def test_port_with_log_option_records_what_crossed(tmp_path):
     assert port.read_exactly(4) == b"ping"
     port.close()
     reader = _core.SessionReader(path)
-    assert reader.header["port_type"] == "loopback"
-    assert reader.header["metadata"] == {"robot": "r2"}
+    assert reader.header.port_type == "loopback"
+    assert reader.header.metadata == {"robot": "r2"}
     records = list(reader)
     assert records[0].kind == "open" and records[0].t_ns == 0
     assert records[-1].kind == "close"

@@ -29,8 +29,6 @@ def test_the_tools_typed_results_and_a_port_pass_mypy_strict():
     assert result.returncode == 0, result.stdout + result.stderr
 
 
-@pytest.mark.xfail(strict=True, reason="the generated stub types SessionReader and "
-                   "SessionWriter's __enter__ and __iter__ as object: the bindings need nb::sig")
 def test_writing_and_reading_a_session_passes_mypy_strict():
     result = mypy_strict("sessions.py")
     assert result.returncode == 0, result.stdout + result.stderr

@@ -269,5 +269,5 @@ def test_the_url_handler_records_as_the_library_does(thermometer, tmp_path):
         "open", "flush_input", "tx", "rx", "settings", "close"]
     url_header = wiretape.SessionReader(str(through_url)).header
     library_header = wiretape.SessionReader(str(through_library)).header
-    assert url_header["capture"] == library_header["capture"] == "client"
-    assert url_header["port_type"] == library_header["port_type"] == "serial"
+    assert url_header.capture == library_header.capture == "client"
+    assert url_header.port_type == library_header.port_type == "serial"

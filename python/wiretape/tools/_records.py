@@ -25,8 +25,10 @@ def open_session(path: SessionPath) -> _core.SessionReader:
 
 
 def header_fields(reader: _core.SessionReader) -> Dict[str, Any]:
-    """The session header's fields, as a dict the caller may change."""
-    return dict(reader.header)
+    """The session header's fields as a dict the caller may change, for
+    output as JSON (exports, jsonl); read ``reader.header``'s attributes
+    otherwise."""
+    return dict(reader.header.to_dict())
 
 
 def event_of(record: _core.Record) -> Optional[Dict[str, Any]]:

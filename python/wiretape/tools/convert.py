@@ -27,7 +27,7 @@ from typing import Iterator, Optional
 
 from .. import _core, exports
 from ..exports import jsonl
-from ._records import SessionPath, header_fields, open_session
+from ._records import SessionPath, open_session
 
 __all__ = ["convert", "detect_format", "ConvertResult", "FORMATS"]
 
@@ -119,16 +119,16 @@ def _jsonl_records(path: str) -> Iterator[tuple]:
 
 
 def _header_of_reader(reader) -> dict:
-    header = header_fields(reader)
+    header = reader.header
     return {
-        "port_options": header["port_options"],
-        "port_type": header["port_type"],
-        "start_utc": header["start_utc"],
-        "wiretape_version": header["wiretape_version"],
-        "host": header["host"],
-        "capture": header["capture"],
-        "metadata": dict(header["metadata"]),
-        "source_format": header["source_format"],
+        "port_options": header.port_options,
+        "port_type": header.port_type,
+        "start_utc": header.start_utc,
+        "wiretape_version": header.wiretape_version,
+        "host": header.host,
+        "capture": header.capture,
+        "metadata": dict(header.metadata),
+        "source_format": header.source_format,
     }
 
 

@@ -15,7 +15,7 @@ from typing import IO, Iterable, Iterator, Optional
 from .. import _core
 from ..exports.jsonl import json_line, record_to_json
 from ._records import DIRECTIONS as _DIRECTIONS
-from ._records import SessionPath, event_of, event_payload, header_fields, open_session
+from ._records import SessionPath, event_of, event_payload, open_session
 from ._records import printable as _printable
 
 __all__ = ["show"]
@@ -26,22 +26,22 @@ def _seconds(t_ns: int) -> str:
 
 
 def _header_lines(reader: _core.SessionReader, path: SessionPath) -> Iterator[str]:
-    header = header_fields(reader)
+    header = reader.header
     yield f"session {os.fspath(path)}"
-    if header["source_format"] == "flexiport":
+    if header.source_format == "flexiport":
         yield "  format       flexiport log (name.logr + name.logw)"
-        meta = json.loads(header["metadata_json"] or "{}")
+        meta = json.loads(header.metadata_json or "{}")
         yield (
             f"  flexiport    reads: {meta.get('flexiport_read_format', '?')} format, "
             f"writes: {meta.get('flexiport_write_format', '?')} format"
         )
         return
-    yield f"  format       wiretape {header['version_major']}.{header['version_minor']}"
-    yield f"  port         {header['port_type'] or '?'}: {header['port_options']}"
-    yield f"  capture      {header['capture']}"
-    yield f"  started      {header['start_utc']} on {header['host'] or '?'}"
-    yield f"  written by   wiretape {header['wiretape_version']}"
-    for key, value in sorted(header["metadata"].items()):
+    yield f"  format       wiretape {header.version_major}.{header.version_minor}"
+    yield f"  port         {header.port_type or '?'}: {header.port_options}"
+    yield f"  capture      {header.capture}"
+    yield f"  started      {header.start_utc} on {header.host or '?'}"
+    yield f"  written by   wiretape {header.wiretape_version}"
+    for key, value in sorted(header.metadata.items()):
         yield f"  meta         {key}={value}"
 
 

@@ -7,7 +7,7 @@ import dataclasses
 import os
 from typing import Any, Dict, Optional
 
-from ._records import DIRECTIONS, SessionPath, header_fields, open_session
+from ._records import DIRECTIONS, SessionPath, open_session
 
 __all__ = ["stats", "SessionStats"]
 
@@ -66,7 +66,7 @@ def stats(path: SessionPath) -> SessionStats:
             size[record.kind] += len(record.data)
         else:
             events[record.kind] = events.get(record.kind, 0) + 1
-    header = header_fields(reader)
+    header = reader.header
     damage = reader.damage
     return SessionStats(
         path=os.fspath(path),
@@ -80,16 +80,16 @@ def stats(path: SessionPath) -> SessionStats:
         last_t_ns=last,
         duration_s=(last - first) / 1e9 if first is not None and last is not None else 0.0,
         events=events,
-        capture=header["capture"],
-        port_type=header["port_type"],
-        port_options=header["port_options"],
-        start_utc=header["start_utc"],
-        host=header["host"],
-        wiretape_version=header["wiretape_version"],
-        source_format=header["source_format"],
-        version_major=header["version_major"],
-        version_minor=header["version_minor"],
-        metadata=dict(header["metadata"]),
+        capture=header.capture,
+        port_type=header.port_type,
+        port_options=header.port_options,
+        start_utc=header.start_utc,
+        host=header.host,
+        wiretape_version=header.wiretape_version,
+        source_format=header.source_format,
+        version_major=header.version_major,
+        version_minor=header.version_minor,
+        metadata=dict(header.metadata),
         damaged=damage is not None,
         damage_offset=damage.offset if damage is not None else None,
         damage_message=damage.message if damage is not None else None,

@@ -6,7 +6,7 @@ from __future__ import annotations
 import tempfile
 from pathlib import Path
 
-from wiretape import SessionReader, SessionWriter
+from wiretape import SessionHeader, SessionReader, SessionWriter
 
 
 def record_and_read(folder: Path) -> list[bytes]:
@@ -15,6 +15,9 @@ def record_and_read(folder: Path) -> list[bytes]:
         writer.write("tx", 1_000, b"PING\n")
         writer.write("rx", 2_000, b"PONG\n")
     with SessionReader(str(path)) as reader:
+        header: SessionHeader = reader.header
+        assert header.port_type == "loopback" and header.metadata == {}
+        assert reader.damage is None
         return [record.data for record in reader if record.kind == "rx"]
 
 
