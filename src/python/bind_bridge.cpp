@@ -5,6 +5,7 @@
 // Python's signals between them, so Ctrl-C interrupts a wait.
 #include <chrono>
 #include <cstdint>
+#include <initializer_list>
 #include <map>
 #include <string>
 #include <utility>
@@ -84,6 +85,20 @@ void bind_results(nb::module_& m) {
       });
 }
 
+// The value `text` names among `choices`, or OptionError naming `key` and the
+// choices.
+template <typename Value>
+Value one_of(const char* key, const std::string& text,
+             std::initializer_list<std::pair<const char*, Value>> choices) {
+  std::string names;
+  for (const auto& [name, value] : choices) {
+    if (text == name) return value;
+    names += names.empty() ? "" : " or ";
+    names += std::string("'") + name + "'";
+  }
+  throw OptionError(key, std::string(key) + " must be " + names + ", not '" + text + "'");
+}
+
 BridgeOptions make_options(const std::string& device, const std::string& client_side,
                            const std::string& pty_link, const std::string& listen_host,
                            int listen_port, const std::string& protocol, bool shared,
@@ -93,15 +108,15 @@ BridgeOptions make_options(const std::string& device, const std::string& client_
                            nb::handle duration, std::size_t buffer_limit, bool quiet) {
   BridgeOptions o;
   o.device = device;
-  if (client_side == "pty") o.client_side = BridgeClientSide::pty;
-  else if (client_side == "tcp") o.client_side = BridgeClientSide::tcp;
-  else throw OptionError("client_side", "client_side must be 'pty' or 'tcp', not '" + client_side + "'");
+  o.client_side = one_of<BridgeClientSide>("client_side", client_side,
+                                           {{"pty", BridgeClientSide::pty},
+                                            {"tcp", BridgeClientSide::tcp}});
   o.pty_link = pty_link;
   o.listen_host = listen_host;
   o.listen_port = listen_port;
-  if (protocol == "raw") o.protocol = BridgeProtocol::raw;
-  else if (protocol == "rfc2217") o.protocol = BridgeProtocol::rfc2217;
-  else throw OptionError("protocol", "protocol must be 'raw' or 'rfc2217', not '" + protocol + "'");
+  o.protocol = one_of<BridgeProtocol>("protocol", protocol,
+                                      {{"raw", BridgeProtocol::raw},
+                                       {"rfc2217", BridgeProtocol::rfc2217}});
   o.shared = shared;
   o.output = output;
   o.metadata = metadata;

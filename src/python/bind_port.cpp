@@ -232,29 +232,20 @@ bool wait_readable(Port& port, nb::handle timeout) {
 
 // Writes wait in slices too, so that Ctrl-C reaches a write to a device that
 // does not drain (flow control held, a full pty) however long the timeout.
-std::size_t write(Port& port, nb::handle data) {
+// `all`: go on until every byte is written (write_all), else stop after the
+// first bytes the device took (write).
+std::size_t write_in_slices(Port& port, nb::handle data, bool all) {
   ByteView view(data, "data");
   if (view.size() == 0) return port.write(view.data(), 0);
-  std::size_t written = 0;
-  run_in_slices(
-      port, port.timeout(),
-      [&](Deadline slice_end) {
-        written = port.write(view.data(), view.size(), remaining(slice_end));
-        return written > 0;
-      },
-      Direction::writing);
-  return written;
-}
-
-std::size_t write_all(Port& port, nb::handle data) {
-  ByteView view(data, "data");
-  if (view.size() == 0) return port.write_all(view.data(), 0);
   std::size_t sent = 0;
   run_in_slices(
       port, port.timeout(),
       [&](Deadline slice_end) {
-        sent += port.write_all(view.data() + sent, view.size() - sent, remaining(slice_end));
-        return sent == view.size();
+        const char* rest = view.data() + sent;
+        const std::size_t left = view.size() - sent;
+        sent += all ? port.write_all(rest, left, remaining(slice_end))
+                    : port.write(rest, left, remaining(slice_end));
+        return all ? sent == view.size() : sent > 0;
       },
       Direction::writing);
   return sent;
@@ -446,10 +437,10 @@ void bind_port(nb::module_& m) {
            "True once a read would not block (data, or the device is gone); "
            "False when the timeout expired.")
       // --- writing ---------------------------------------------------------
-      .def("write", &write, nb::sig("def write(self, data: bytes) -> int"), "data"_a,
+      .def("write", [](Port& port, nb::handle data) { return write_in_slices(port, data, false); }, nb::sig("def write(self, data: bytes) -> int"), "data"_a,
            "Writes what the device accepts, at least one byte, or 0 when the "
            "port's timeout expires; returns the count written.")
-      .def("write_all", &write_all, nb::sig("def write_all(self, data: bytes) -> int"), "data"_a,
+      .def("write_all", [](Port& port, nb::handle data) { return write_in_slices(port, data, true); }, nb::sig("def write_all(self, data: bytes) -> int"), "data"_a,
            "Writes everything; returns less than len(data) only when the "
            "port's timeout expired.")
       // --- buffers -----------------------------------------------------------

@@ -87,12 +87,8 @@ void RequestStrategy::serve(std::size_t index, std::string_view request,
                             ReplayTime now) {
   Exchange& exchange = exchanges_[index];
   if (config_.check == ReplayCheck::timing) {
-    std::optional<ReplayTimeline::Anchor> anchor;
-    if (last_match_time_) {
-      anchor = ReplayTimeline::Anchor{*last_match_time_, last_match_t_ns_};
-    }
-    const ReplayTime due = timeline_.due(exchange.last_tx_t_ns, anchor);
-    if (const auto miss = timeline_.check(due, now)) {
+    if (const auto miss = timeline_.check_write(exchange.last_tx_t_ns, last_match_time_,
+                                                last_match_t_ns_, now)) {
       report_.raise(miss->title, tx_written_,
                     std::string_view(exchange.request).substr(0, kReplayContext),
                     request.substr(0, kReplayContext), last_match_t_ns_,

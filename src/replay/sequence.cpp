@@ -202,12 +202,8 @@ void SequenceStrategy::write_records(const char* data, std::size_t size,
                     rest.substr(0, kReplayContext), missing.t_ns, tx_exchange_);
     }
     if (tx_position_ == 0 && config_.check == ReplayCheck::timing) {
-      std::optional<ReplayTimeline::Anchor> anchor;
-      if (previous_tx_finished_) {
-        anchor = ReplayTimeline::Anchor{*previous_tx_finished_, previous_tx_t_ns_};
-      }
-      const ReplayTime due = timeline_.due(tx_record_.t_ns, anchor);
-      if (const auto miss = timeline_.check(due, now)) {
+      if (const auto miss = timeline_.check_write(tx_record_.t_ns, previous_tx_finished_,
+                                                  previous_tx_t_ns_, now)) {
         report_.raise(miss->title, tx_written_,
                       std::string_view(expected).substr(0, kReplayContext),
                       rest.substr(0, kReplayContext), tx_record_.t_ns,

@@ -44,6 +44,16 @@ class ReplayTimeline {
   // nullopt when `now` is within the window around `due`, or when timing is
   // not checked.
   std::optional<Miss> check(ReplayTime due, ReplayTime now) const;
+  // check() for a client's write of what was recorded at `t_ns`, anchored on
+  // the write before it when the client has finished one (finished at
+  // `previous_finished`, recorded at `previous_t_ns`).
+  std::optional<Miss> check_write(std::uint64_t t_ns,
+                                  std::optional<ReplayTime> previous_finished,
+                                  std::uint64_t previous_t_ns, ReplayTime now) const {
+    std::optional<Anchor> anchor;
+    if (previous_finished) anchor = Anchor{*previous_finished, previous_t_ns};
+    return check(due(t_ns, anchor), now);
+  }
 
  private:
   std::chrono::nanoseconds scaled(std::uint64_t ns) const;
