@@ -12,6 +12,7 @@
 #include <netdb.h>
 #include <poll.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/types.h>
 #include <termios.h>
 
@@ -62,6 +63,12 @@ struct Table {
   std::function<int(int fd, sockaddr* address, socklen_t* length, int flags)>
       accept4;
   std::function<int(int fds[2], int flags)> pipe2;
+  // Session files.
+  std::function<int(int fd, struct stat* info)> fstat;
+  std::function<int(const char* path, struct stat* info)> stat;
+  std::function<off_t(int fd, off_t offset, int whence)> lseek;
+  std::function<int(int fd)> fsync;
+  std::function<int(int fd, off_t length)> ftruncate;
 };
 
 // The real libc calls.
@@ -162,6 +169,13 @@ inline int accept4(int fd, sockaddr* address, socklen_t* length, int flags) {
   return current().accept4(fd, address, length, flags);
 }
 inline int pipe2(int fds[2], int flags) { return current().pipe2(fds, flags); }
+inline int fstat(int fd, struct stat* info) { return current().fstat(fd, info); }
+inline int stat(const char* path, struct stat* info) { return current().stat(path, info); }
+inline off_t lseek(int fd, off_t offset, int whence) {
+  return current().lseek(fd, offset, whence);
+}
+inline int fsync(int fd) { return current().fsync(fd); }
+inline int ftruncate(int fd, off_t length) { return current().ftruncate(fd, length); }
 
 // Closes a descriptor once, keeping errno (for clean-up paths).
 void close_quietly(int fd);

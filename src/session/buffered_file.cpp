@@ -8,6 +8,7 @@
 #include <cerrno>
 #include <cstring>
 
+#include "posix/syscalls.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape {
@@ -20,14 +21,14 @@ constexpr std::size_t buffer_size = 128 * 1024;
 BufferedFile::BufferedFile(const std::string& path)
     : path_(path), buffer_(new char[buffer_size]) {
   do {
-    fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+    fd_ = sys::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   } while (fd_ < 0 && errno == EINTR);
   if (fd_ < 0) {
     throw SessionError(path + ": cannot open: " + std::strerror(errno), 0);
   }
   struct stat info {};
-  if (::fstat(fd_, &info) == 0 && S_ISDIR(info.st_mode)) {
-    ::close(fd_);
+  if (sys::fstat(fd_, &info) == 0 && S_ISDIR(info.st_mode)) {
+    sys::close(fd_);
     fd_ = -1;
     throw SessionError(path + ": is a directory, not a session file", 0);
   }
@@ -35,12 +36,12 @@ BufferedFile::BufferedFile(const std::string& path)
 }
 
 BufferedFile::~BufferedFile() {
-  if (fd_ >= 0) ::close(fd_);
+  if (fd_ >= 0) sys::close(fd_);
 }
 
 void BufferedFile::refresh_size() {
   struct stat info {};
-  if (::fstat(fd_, &info) == 0) size_ = static_cast<std::uint64_t>(info.st_size);
+  if (sys::fstat(fd_, &info) == 0) size_ = static_cast<std::uint64_t>(info.st_size);
 }
 
 std::uint64_t BufferedFile::remaining() {
@@ -75,7 +76,7 @@ std::size_t BufferedFile::fill() {
     begin_ = 0;
   }
   while (end_ < buffer_size) {
-    const ssize_t n = ::read(fd_, buffer_.get() + end_, buffer_size - end_);
+    const ssize_t n = sys::read(fd_, buffer_.get() + end_, buffer_size - end_);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) break;
     end_ += static_cast<std::size_t>(n);
@@ -100,7 +101,7 @@ bool BufferedFile::read(void* out, std::size_t size) {
   begin_ = end_ = 0;
   if (size - done >= buffer_size) {
     while (done < size) {
-      const ssize_t n = ::read(fd_, dst + done, size - done);
+      const ssize_t n = sys::read(fd_, dst + done, size - done);
       if (n < 0 && errno == EINTR) continue;
       if (n <= 0) {
         seek(position_);
@@ -172,7 +173,7 @@ bool BufferedFile::skip(std::uint64_t size) {
 }
 
 void BufferedFile::seek(std::uint64_t position) {
-  ::lseek(fd_, static_cast<off_t>(position), SEEK_SET);
+  sys::lseek(fd_, static_cast<off_t>(position), SEEK_SET);
   position_ = position;
   begin_ = end_ = 0;
 }

@@ -6,6 +6,7 @@
 // with times counted from the port's open. The format of each file is
 // detected from its first chunks; the two files are merged by time, a write
 // before a read at equal times.
+#include "posix/syscalls.hpp"
 #include "session/flexiport.hpp"
 
 #include <sys/stat.h>
@@ -239,7 +240,7 @@ class FlexiportSource final : public RecordSource {
 
 bool exists(const std::string& path) {
   struct stat info {};
-  return ::stat(path.c_str(), &info) == 0 && S_ISREG(info.st_mode);
+  return sys::stat(path.c_str(), &info) == 0 && S_ISREG(info.st_mode);
 }
 
 bool ends_with(const std::string& text, const std::string& suffix) {

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <string>
 
+#include "posix/syscalls.hpp"
 #include "session/buffered_file.hpp"
 #include "session/flexiport.hpp"
 #include "session/format.hpp"
@@ -178,11 +179,11 @@ class WtapeSource final : public RecordSource {
 };
 
 bool starts_with_magic(const std::string& path) {
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  const int fd = sys::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) return false;
   char head[sizeof session_magic] = {};
-  const ssize_t n = ::read(fd, head, sizeof head);
-  ::close(fd);
+  const ssize_t n = sys::read(fd, head, sizeof head);
+  sys::close(fd);
   return n == static_cast<ssize_t>(sizeof head) &&
          std::memcmp(head, session_magic, sizeof head) == 0;
 }

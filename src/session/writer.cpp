@@ -125,7 +125,7 @@ struct SessionWriter::Impl {
       }
       written += static_cast<std::size_t>(n);
     }
-    if (error == 0 && options.fsync && ::fsync(fd) != 0 && errno != EINVAL) {
+    if (error == 0 && options.fsync && sys::fsync(fd) != 0 && errno != EINVAL) {
       error = errno;
       written = 0;  // nothing is known to be on the disk
     }
@@ -142,8 +142,8 @@ struct SessionWriter::Impl {
       if (end <= written) whole = end;
     }
     committed += whole;
-    if (::ftruncate(fd, static_cast<off_t>(committed)) == 0) {
-      ::lseek(fd, static_cast<off_t>(committed), SEEK_SET);
+    if (sys::ftruncate(fd, static_cast<off_t>(committed)) == 0) {
+      sys::lseek(fd, static_cast<off_t>(committed), SEEK_SET);
     }
     std::lock_guard<std::mutex> lock(mutex);
     fail_locked(error, "cannot write the session file");
@@ -185,7 +185,7 @@ struct SessionWriter::Impl {
   void release_reserve() {
 #ifdef FALLOC_FL_KEEP_SIZE
     if (reserved > committed && fd >= 0) {
-      (void)::ftruncate(fd, static_cast<off_t>(committed));
+      (void)sys::ftruncate(fd, static_cast<off_t>(committed));
       reserved = committed;
     }
 #endif
