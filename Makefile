@@ -13,11 +13,13 @@ export PATH := $(abspath $(VENV))/bin:$(PATH)
 all: python
 
 # pip and the build tools of the extension, once per pyproject change.
+# nanobind and mypy are pinned: the checked-in stubs are stubgen's output of
+# that nanobind, and the typing test holds them to that mypy.
 $(VENV)/.deps: pyproject.toml
 	test -x $(PYTHON) || python3 -m venv $(VENV)
 	$(PYTHON) -m pip install -q --upgrade pip
-	$(PYTHON) -m pip install -q "scikit-build-core>=0.10" "nanobind>=2.0" \
-	  "pyserial>=3.5" "rich>=13" "mcap>=1.1" "pytest>=7" "hypothesis>=6" "mypy>=1.5"
+	$(PYTHON) -m pip install -q "scikit-build-core>=0.10" "nanobind==3.1.0" \
+	  "pyserial>=3.5" "rich>=13" "mcap>=1.1" "pytest>=7" "hypothesis>=6" "mypy==2.4.1"
 	touch $@
 
 $(BUILD)/build.ninja: $(VENV)/.deps CMakeLists.txt
