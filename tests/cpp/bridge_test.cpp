@@ -52,35 +52,6 @@ std::string temp_path(const std::string& name) {
          std::to_string(::getpid()) + "-" + name;
 }
 
-int connect_to(const std::string& address) {
-  const auto colon = address.rfind(':');
-  sockaddr_in peer{};
-  peer.sin_family = AF_INET;
-  peer.sin_port = htons(static_cast<std::uint16_t>(std::stoi(address.substr(colon + 1))));
-  ::inet_pton(AF_INET, address.substr(0, colon).c_str(), &peer.sin_addr);
-  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-  if (::connect(fd, reinterpret_cast<sockaddr*>(&peer), sizeof peer) != 0) {
-    ::close(fd);
-    return -1;
-  }
-  return fd;
-}
-
-// Reads until `count` bytes came or the deadline passed.
-std::string read_until_count(int fd, std::size_t count) {
-  std::string data;
-  const auto deadline = std::chrono::steady_clock::now() + kDeadline;
-  while (data.size() < count && std::chrono::steady_clock::now() < deadline) {
-    pollfd p{fd, POLLIN, 0};
-    if (::poll(&p, 1, 100) <= 0) continue;
-    char buffer[4096];
-    const ssize_t n = ::read(fd, buffer, sizeof buffer);
-    if (n <= 0) break;
-    data.append(buffer, static_cast<std::size_t>(n));
-  }
-  return data;
-}
-
 void write_all(int fd, const std::string& data) {
   std::size_t done = 0;
   while (done < data.size()) {
@@ -88,15 +59,6 @@ void write_all(int fd, const std::string& data) {
     ASSERT_GT(n, 0);
     done += static_cast<std::size_t>(n);
   }
-}
-
-std::vector<wiretape::Record> read_session(const std::string& path) {
-  wiretape::SessionReader reader(path);
-  std::vector<wiretape::Record> records;
-  wiretape::Record record;
-  while (reader.next(record)) records.push_back(record);
-  EXPECT_FALSE(reader.damage().has_value());
-  return records;
 }
 
 std::string joined(const std::vector<wiretape::Record>& records, RecordKind kind) {
@@ -122,10 +84,10 @@ TEST(Bridge, TcpClientThroughLoopbackDeviceIsForwardedAndRecorded) {
   std::string payload;
   for (int i = 0; i < 200'000; ++i) payload.push_back(static_cast<char>(i * 7));
   {
-    Fd client(connect_to(bridge.listen_address()));
+    Fd client(wiretape::test::connect_tcp(bridge.listen_address()));
     ASSERT_GE(client.get(), 0);
     write_all(client.get(), payload);
-    EXPECT_EQ(read_until_count(client.get(), payload.size()), payload);
+    EXPECT_EQ(wiretape::test::read_count(client.get(), payload.size()), payload);
   }
   bridge.stop();
   ASSERT_TRUE(bridge.wait(kDeadline));
@@ -140,7 +102,7 @@ TEST(Bridge, TcpClientThroughLoopbackDeviceIsForwardedAndRecorded) {
   EXPECT_EQ(reader.header().capture, wiretape::Capture::wire);
   EXPECT_EQ(reader.header().port_type, "loopback");
   EXPECT_EQ(reader.header().user_metadata.at("bench"), "a");
-  const auto records = read_session(path);
+  const auto records = wiretape::test::load_records(path);
   ASSERT_GE(records.size(), 4u);
   EXPECT_EQ(records.front().kind, RecordKind::open);
   EXPECT_EQ(records.front().t_ns, 0u);
@@ -169,10 +131,10 @@ TEST(Bridge, SerialDeviceAheadOfTheBridgeArrivesWholeAndRecordedInOrder) {
   std::string payload;
   for (int i = 0; i < 512 * 1024; ++i) payload.push_back(static_cast<char>(i % 251));
   {
-    Fd client(connect_to(bridge.listen_address()));
+    Fd client(wiretape::test::connect_tcp(bridge.listen_address()));
     ASSERT_GE(client.get(), 0);
     std::thread feeder([&] { device.write_master(payload); });
-    const std::string received = read_until_count(client.get(), payload.size());
+    const std::string received = wiretape::test::read_count(client.get(), payload.size());
     feeder.join();
     EXPECT_EQ(received.size(), payload.size());
     EXPECT_TRUE(received == payload) << "the client's bytes differ from the device's";
@@ -181,7 +143,7 @@ TEST(Bridge, SerialDeviceAheadOfTheBridgeArrivesWholeAndRecordedInOrder) {
   ASSERT_TRUE(bridge.wait(kDeadline));
   EXPECT_TRUE(bridge.result().ok()) << bridge.result().message;
   EXPECT_EQ(bridge.result().stats.bytes_from_device, payload.size());
-  const auto records = read_session(path);
+  const auto records = wiretape::test::load_records(path);
   EXPECT_TRUE(joined(records, RecordKind::rx) == payload);
   std::remove(path.c_str());
 }
@@ -196,7 +158,7 @@ TEST(Bridge, PtyClientThroughLoopbackDevice) {
   Fd terminal(::open(bridge.pty_path().c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC));
   ASSERT_GE(terminal.get(), 0);
   write_all(terminal.get(), "hello through a pty");
-  EXPECT_EQ(read_until_count(terminal.get(), 19), "hello through a pty");
+  EXPECT_EQ(wiretape::test::read_count(terminal.get(), 19), "hello through a pty");
   bridge.stop();
   ASSERT_TRUE(bridge.wait(kDeadline));
   EXPECT_TRUE(bridge.result().ok());

@@ -12,6 +12,7 @@
 
 #include "replay/profile.hpp"
 #include "replay/profiles/builtin.hpp"
+#include "support/port_test_support.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 
@@ -22,15 +23,6 @@ namespace {
 
 const std::string kRecordingsDir = std::string(WIRETAPE_TEST_DATA_DIR) + "/../../examples/hokuyo/recordings/";
 const std::string kFlexiportDir = std::string(WIRETAPE_SHARED_DATA_DIR) + "/flexiport/";
-
-std::vector<Record> load(const std::string& path) {
-  SessionReader reader(path);
-  std::vector<Record> records;
-  Record record;
-  while (reader.next(record)) records.push_back(record);
-  if (reader.damage()) throw *reader.damage();
-  return records;
-}
 
 // One direction's bytes, concatenated.
 std::string stream_of(const std::vector<Record>& records, RecordKind kind) {
@@ -167,7 +159,7 @@ TEST(ScipFraming, RealRecordingsFrameTheSameUnderEverySplit) {
         kRecordingsDir + "utm30lx_me.wtape", kFlexiportDir + "urg04lx_2011.log",
         kFlexiportDir + "utm30lx_2011.log"}) {
     SCOPED_TRACE(path);
-    const auto records = load(path);
+    const auto records = wiretape::test::load_records(path);
     for (auto [kind, direction] : {std::pair{RecordKind::tx, StreamDirection::tx},
                                    std::pair{RecordKind::rx, StreamDirection::rx}}) {
       const std::string stream = stream_of(records, kind);
@@ -182,7 +174,7 @@ TEST(ScipFraming, RealRecordingsFrameTheSameUnderEverySplit) {
 
 TEST(ScipFraming, TheFlexiportUrgSessionHasItsTenCommands) {
   const auto scip = find_profile("scip");
-  const auto records = load(kFlexiportDir + "urg04lx_2011.log");
+  const auto records = wiretape::test::load_records(kFlexiportDir + "urg04lx_2011.log");
   std::vector<std::string> names;
   for (const Frame& frame :
        frame_in_chunks(*scip, StreamDirection::tx, stream_of(records, RecordKind::tx), {}))

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "session/record_source.hpp"
+#include "support/port_test_support.hpp"
 #include "replay/replay_config.hpp"
 #include "replay/replay_port.hpp"
 #include "wiretape/errors.hpp"
@@ -24,15 +25,6 @@ using namespace std::chrono_literals;
 namespace {
 
 const std::string kFlexiportDir = std::string(WIRETAPE_SHARED_DATA_DIR) + "/flexiport/";
-
-std::vector<Record> load(const std::string& path) {
-  SessionReader reader(path);
-  std::vector<Record> records;
-  Record record;
-  while (reader.next(record)) records.push_back(record);
-  if (reader.damage()) throw *reader.damage();
-  return records;
-}
 
 std::unique_ptr<Port> replay(std::vector<Record> records, const std::string& keys) {
   Options options = Options::parse("file=synthetic.wtape," + keys);
@@ -115,7 +107,7 @@ TEST(ReplayChunking, RandomSplitsOfSyntheticSessionsReplayTheSameBytes) {
 TEST(ReplayChunking, RandomSplitsOfRealRecordingsReplayTheSameBytes) {
   std::mt19937 random(4242);
   for (const char* name : {"urg04lx_2011.log", "utm30lx_2011.log"}) {
-    const std::vector<Record> session = load(kFlexiportDir + name);
+    const std::vector<Record> session = wiretape::test::load_records(kFlexiportDir + name);
     ASSERT_FALSE(session.empty()) << name;
     for (int round = 0; round < 5; ++round) {
       EXPECT_EQ(replay_with_random_splits(session, random),
@@ -159,7 +151,7 @@ TEST(ReplayRealRecordings, RequestModeServesAClientInItsOwnOrderAndSplits) {
        std::vector<std::pair<std::string, std::string>>{
            {"urg04lx_2011.log", "GD0044072501\n"},
            {"utm30lx_2011.log", "ME0000108001101\n"}}) {
-    const std::vector<Record> session = load(kFlexiportDir + name);
+    const std::vector<Record> session = wiretape::test::load_records(kFlexiportDir + name);
     const auto answers = recorded_answers(session);
     ASSERT_TRUE(answers.count("VV\n") && answers.count("PP\n") && answers.count(scan))
         << name;
@@ -186,7 +178,7 @@ TEST(ReplayRealRecordings, SequenceModeReplaysTheRecordedProgram) {
   for (const char* name : {"urg04lx_2011.log", "utm30lx_2011.log"}) {
     auto port = open_port(std::string("type=replay,timing=none,timeout=5,unused=error,file=") +
                           kFlexiportDir + name);
-    const std::vector<Record> session = load(kFlexiportDir + name);
+    const std::vector<Record> session = wiretape::test::load_records(kFlexiportDir + name);
     std::string got;
     for (const Record& record : session) {
       if (record.kind == RecordKind::tx) port->write_all(record.data);

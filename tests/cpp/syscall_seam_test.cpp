@@ -89,40 +89,6 @@ TEST(SyscallSeam, ErrorsNameThePortAndTheOperation) {
   }
 }
 
-namespace {
-
-// A TCP client made with libc directly, so that the seam's fakes touch only
-// the bridge.
-int connect_to(const std::string& address) {
-  const auto colon = address.rfind(':');
-  sockaddr_in peer{};
-  peer.sin_family = AF_INET;
-  peer.sin_port = htons(static_cast<std::uint16_t>(std::stoi(address.substr(colon + 1))));
-  ::inet_pton(AF_INET, address.substr(0, colon).c_str(), &peer.sin_addr);
-  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-  if (::connect(fd, reinterpret_cast<sockaddr*>(&peer), sizeof peer) != 0) {
-    ::close(fd);
-    return -1;
-  }
-  return fd;
-}
-
-std::string read_count(int fd, std::size_t count) {
-  std::string data;
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(10);
-  while (data.size() < count && std::chrono::steady_clock::now() < deadline) {
-    pollfd p{fd, POLLIN, 0};
-    if (::poll(&p, 1, 100) <= 0) continue;
-    char buffer[256];
-    const ssize_t n = ::read(fd, buffer, sizeof buffer);
-    if (n <= 0) break;
-    data.append(buffer, static_cast<std::size_t>(n));
-  }
-  return data;
-}
-
-}  // namespace
-
 TEST(SyscallSeam, TheBridgeCarriesOnThroughInterruptedPollAndAccept) {
   std::atomic<int> polls{0};
   std::atomic<int> interrupted_polls{0};
@@ -155,12 +121,12 @@ TEST(SyscallSeam, TheBridgeCarriesOnThroughInterruptedPollAndAccept) {
   options.quiet = true;
   wiretape::Bridge bridge(options);
   bridge.start();
-  const int client = connect_to(bridge.listen_address());
+  const int client = wiretape::test::connect_tcp(bridge.listen_address());
   ASSERT_GE(client, 0);
   const std::string message = "through every interruption\n";
   ASSERT_EQ(::write(client, message.data(), message.size()),
             static_cast<ssize_t>(message.size()));
-  EXPECT_EQ(read_count(client, message.size()), message);
+  EXPECT_EQ(wiretape::test::read_count(client, message.size()), message);
   ::close(client);
   bridge.stop();
   ASSERT_TRUE(bridge.wait(std::chrono::seconds(10)));

@@ -131,4 +131,41 @@ TempDir::~TempDir() {
   std::filesystem::remove_all(path, ignored);
 }
 
+int connect_tcp(const std::string& address) {
+  const auto colon = address.rfind(':');
+  sockaddr_in peer{};
+  peer.sin_family = AF_INET;
+  peer.sin_port = htons(static_cast<std::uint16_t>(std::stoi(address.substr(colon + 1))));
+  ::inet_pton(AF_INET, address.substr(0, colon).c_str(), &peer.sin_addr);
+  const int fd = ::socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&peer), sizeof peer) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  return fd;
+}
+
+std::string read_count(int fd, std::size_t count) {
+  std::string data;
+  const auto deadline = std::chrono::steady_clock::now() + kEventDeadline;
+  while (data.size() < count && std::chrono::steady_clock::now() < deadline) {
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, 100) <= 0) continue;  // a hang-up ends the loop at the read
+    char buffer[4096];
+    const ssize_t n = ::read(fd, buffer, sizeof buffer);
+    if (n <= 0) break;
+    data.append(buffer, static_cast<std::size_t>(n));
+  }
+  return data;
+}
+
+std::vector<Record> load_records(const std::string& path) {
+  SessionReader reader(path);
+  std::vector<Record> records;
+  Record record;
+  while (reader.next(record)) records.push_back(record);
+  if (reader.damage()) throw *reader.damage();
+  return records;
+}
+
 }  // namespace wiretape::test

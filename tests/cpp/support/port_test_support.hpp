@@ -34,9 +34,12 @@ int free_port(bool udp = false);
 }  // namespace wiretape::test
 
 #include <atomic>
+#include <cstddef>
 #include <string>
+#include <vector>
 
 #include "posix/syscalls.hpp"
+#include "wiretape/session.hpp"
 
 namespace wiretape::test {
 
@@ -71,6 +74,15 @@ struct PtyPair {
 std::string read_file(const std::string& path);
 // Replaces the file's content with `bytes`.
 void write_file(const std::string& path, const std::string& bytes);
+
+// A TCP connection to "HOST:PORT" made with libc directly, so that a test's
+// fakes in the OS-call seam touch only the code under test; -1 if refused.
+int connect_tcp(const std::string& address);
+// Reads `fd` until `count` bytes came or kEventDeadline passed.
+std::string read_count(int fd, std::size_t count);
+
+// Every record of a session file; throws its SessionError when it is damaged.
+std::vector<Record> load_records(const std::string& path);
 
 // A fresh directory under /tmp, removed with its content at destruction.
 struct TempDir {
