@@ -189,7 +189,6 @@ class Port {
                                                  Deadline deadline) {
     return port.peek_some(buffer, size, deadline);
   }
-  static void read_returned_of(Port& port) { port.read_returned(); }
 
   // Copies up to `size` bytes that the next read_some would return, without
   // consuming them: at least one byte, or 0 once `deadline` passed; raises
@@ -199,15 +198,18 @@ class Port {
   // buffer, which keeps native_handle() truthful).
   virtual std::optional<std::size_t> peek_some(void* buffer, std::size_t size,
                                                Deadline deadline);
-  // Called once when a read, simple or compound, hands its bytes to the
-  // caller, or ends by an exception, after all the read_some calls it made:
-  // the recording port records them there as one rx.
+  // Called once when a compound read hands its bytes to the caller, or ends
+  // by an exception, after all the read_some calls it made: the recording
+  // port records them there as one rx.
   virtual void read_returned() {}
+  // True while a CompoundRead is reading: its read_some calls are parts of
+  // one read. A simple read() is one read_some call.
+  bool in_compound_read() const noexcept { return compound_read_; }
 
  private:
   friend class CompoundRead;
-  class ReadReturned;
   Timeout timeout_ = forever;
+  bool compound_read_ = false;  // owned by the reading thread
   Access access_ = Access::read_write;
 };
 

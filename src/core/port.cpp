@@ -51,25 +51,6 @@ constexpr std::size_t bulk_size = 1 << 16;
 
 }  // namespace
 
-// Tells the port, however the read ends, that it handed its bytes over.
-class Port::ReadReturned {
- public:
-  explicit ReadReturned(Port& port) : port_(port) {}
-  ~ReadReturned() {
-    try {
-      port_.read_returned();
-    } catch (...) {
-      // A destructor never throws; the recorder reports its own failures
-      // from the next port call.
-    }
-  }
-  ReadReturned(const ReadReturned&) = delete;
-  ReadReturned& operator=(const ReadReturned&) = delete;
-
- private:
-  Port& port_;
-};
-
 std::size_t Port::read(void* buffer, std::size_t size) {
   return read(buffer, size, timeout_);
 }
@@ -77,7 +58,6 @@ std::size_t Port::read(void* buffer, std::size_t size) {
 std::size_t Port::read(void* buffer, std::size_t size, Timeout timeout) {
   require(access_ != Access::write_only, "read", *this);
   if (size == 0) return 0;
-  ReadReturned returned(*this);
   return read_some(buffer, size, deadline_after(timeout));
 }
 
@@ -219,6 +199,7 @@ CompoundRead::~CompoundRead() { end_read(); }
 void CompoundRead::end_read() noexcept {
   Port* port = std::exchange(port_, nullptr);
   if (port == nullptr || !read_started_) return;
+  port->compound_read_ = false;
   try {
     port->read_returned();
   } catch (...) {
@@ -229,7 +210,10 @@ void CompoundRead::end_read() noexcept {
 
 std::string CompoundRead::finish() {
   Port* port = std::exchange(port_, nullptr);
-  if (port != nullptr && read_started_) port->read_returned();
+  if (port != nullptr && read_started_) {
+    port->compound_read_ = false;
+    port->read_returned();
+  }
   return std::move(data_);
 }
 
@@ -267,6 +251,7 @@ bool CompoundRead::advance(Deadline deadline) {
   char chunk[chunk_size];
   while (!complete_) {
     read_started_ = true;
+    port.compound_read_ = true;
     if (goal_ == Goal::count && keep_) {
       // Nothing to look for: read straight into the result, in large pieces.
       const std::size_t want = std::min(bulk_size, limit_ - consumed_);

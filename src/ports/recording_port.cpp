@@ -127,8 +127,9 @@ class RecordingPort final : public Port {
   }
 
  protected:
-  // The bytes of one read collect here until the read returns: a compound
-  // read is one rx record however many read_some calls it took.
+  // A simple read is recorded as it returns; the bytes of a compound read
+  // collect in pending_rx_ until it returns: one rx record however many
+  // read_some calls it took.
   std::size_t read_some(void* buffer, std::size_t size, Deadline deadline) override {
     report_failure();
     std::size_t n = 0;
@@ -139,7 +140,12 @@ class RecordingPort final : public Port {
       device_lost(e);
       throw;
     }
-    pending_rx_.append(static_cast<const char*>(buffer), n);
+    if (n == 0) return 0;
+    if (in_compound_read()) {
+      pending_rx_.append(static_cast<const char*>(buffer), n);
+    } else {
+      record(RecordKind::rx, now_ns(), std::string_view(static_cast<const char*>(buffer), n));
+    }
     return n;
   }
 
@@ -154,10 +160,7 @@ class RecordingPort final : public Port {
     }
   }
 
-  void read_returned() override {
-    read_returned_of(*inner_);
-    record_pending_rx();
-  }
+  void read_returned() override { record_pending_rx(); }
 
   std::size_t write_some(const void* data, std::size_t size, Deadline deadline) override {
     report_failure();
