@@ -9,24 +9,12 @@
 #include <memory>
 
 #include "posix/platform.hpp"
+#include "posix/socket_port.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail {
 
 namespace {
-
-std::string address_of(const sockaddr* address, socklen_t length) {
-  char host[NI_MAXHOST] = "";
-  char service[NI_MAXSERV] = "";
-  if (::getnameinfo(address, length, host, sizeof host, service, sizeof service,
-                    NI_NUMERICHOST | NI_NUMERICSERV) != 0) {
-    return "?";
-  }
-  if (address->sa_family == AF_INET6) {
-    return std::string("[") + host + "]:" + service;
-  }
-  return std::string(host) + ":" + service;
-}
 
 [[noreturn]] void raise_errno(const std::string& what) {
   const int error = errno;
@@ -68,19 +56,9 @@ Transfer Connection::send(const void* data, std::size_t size) {
 }
 
 Listener::Listener(const std::string& host, int port) {
-  addrinfo hints{};
-  hints.ai_family = AF_UNSPEC;
-  hints.ai_socktype = SOCK_STREAM;
-  hints.ai_flags = AI_PASSIVE | AI_NUMERICSERV;
-  addrinfo* found = nullptr;
-  const std::string port_text = std::to_string(port);
-  const std::string where = "listen " + host + ":" + port_text;
-  const int status = ::getaddrinfo(host.empty() ? nullptr : host.c_str(),
-                                   port_text.c_str(), &hints, &found);
-  if (status != 0) {
-    throw PortError(EINVAL, where + ": cannot resolve the host: " + ::gai_strerror(status));
-  }
-  std::unique_ptr<addrinfo, void (*)(addrinfo*)> list(found, ::freeaddrinfo);
+  const std::string where = "listen " + host + ":" + std::to_string(port);
+  const AddrInfoList list = resolve(host, port, SOCK_STREAM, /*passive=*/true, where);
+  const addrinfo* found = list.get();
   sys::UniqueFd fd(sys::socket(found->ai_family,
                                found->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC,
                                found->ai_protocol));
@@ -92,7 +70,7 @@ Listener::Listener(const std::string& host, int port) {
   sockaddr_storage bound{};
   socklen_t length = sizeof bound;
   sys::getsockname(fd.get(), reinterpret_cast<sockaddr*>(&bound), &length);
-  address_ = address_of(reinterpret_cast<sockaddr*>(&bound), length);
+  address_ = address_text(reinterpret_cast<sockaddr*>(&bound), length);
   fd_ = std::move(fd);
 }
 
@@ -109,7 +87,7 @@ std::optional<Connection> Listener::accept() {
     platform::prevent_sigpipe(fd.get());
     const int on = 1;
     sys::setsockopt(fd.get(), IPPROTO_TCP, TCP_NODELAY, &on, sizeof on);
-    return Connection(std::move(fd), address_of(reinterpret_cast<sockaddr*>(&peer), length));
+    return Connection(std::move(fd), address_text(reinterpret_cast<sockaddr*>(&peer), length));
   }
 }
 
