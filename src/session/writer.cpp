@@ -15,12 +15,14 @@
 #include <condition_variable>
 #include <cstring>
 #include <mutex>
+#include <stdexcept>
 #include <thread>
 #include <vector>
 
 #include "posix/syscalls.hpp"
 #include "session/format.hpp"
 #include "session/header.hpp"
+#include "session/reader.hpp"
 #include "wiretape/session.hpp"
 
 namespace wiretape {
@@ -250,6 +252,10 @@ SessionWriter::~SessionWriter() {
 }
 
 void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view data) {
+  // Nothing is written that the reader would stop at.
+  if (const auto problem = detail::record_content_problem(kind, t_ns, data)) {
+    throw std::invalid_argument(impl_->path + ": refusing to write a record: " + *problem);
+  }
   if (data.size() > 0xFFFFFFFFull) {
     throw PortError(EFBIG, impl_->path + ": a record of " + std::to_string(data.size()) +
                                " bytes is larger than the 4 GiB a record can hold");
