@@ -218,6 +218,8 @@ SessionWriter::SessionWriter(const std::string& path, SessionWriterOptions optio
   impl_->path = path;
   impl_->options = std::move(options);
   if (impl_->options.flush_ms < 0) impl_->options.flush_ms = 0;
+  // A header the reader would refuse is refused before the file is created.
+  const std::string json = detail::header_json(impl_->options);
   do {
     impl_->fd = sys::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   } while (impl_->fd < 0 && errno == EINTR);
@@ -226,7 +228,6 @@ SessionWriter::SessionWriter(const std::string& path, SessionWriterOptions optio
     throw PortError(error, path + ": cannot create the session file: " +
                                std::strerror(error));
   }
-  const std::string json = detail::header_json(impl_->options);
   std::string header(detail::file_header_fixed_size, '\0');
   std::memcpy(&header[0], detail::session_magic, sizeof detail::session_magic);
   detail::put_u16le(&header[8], detail::session_version_major);

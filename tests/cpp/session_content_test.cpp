@@ -2,6 +2,8 @@
 // limits, and the reader refusing what a command could not use (non-UTF-8
 // header strings, deeply nested event payloads, absurd times), so that what
 // `verify` accepts every command can read.
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -270,6 +272,9 @@ TEST(HostileSession, TheWriterRefusesAHeaderTheReaderWouldRefuse) {
   options.metadata.clear();
   options.start_utc = "9999-01-01T00:00:00Z";
   EXPECT_THROW(SessionWriter(dir.file("b.wtape"), options), OptionError);
+  // Refused before the file is created.
+  EXPECT_NE(::access(dir.file("a.wtape").c_str(), F_OK), 0);
+  EXPECT_NE(::access(dir.file("b.wtape").c_str(), F_OK), 0);
 }
 
 TEST(HostileSession, TheWriterRefusesARecordTheReaderWouldStopAt) {
