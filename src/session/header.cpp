@@ -8,6 +8,7 @@
 #include <optional>
 #include <string_view>
 
+#include "util/hex.hpp"
 #include "util/json.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/version.hpp"
@@ -39,22 +40,11 @@ std::string host_name() {
   return name;
 }
 
-// A header string as it may appear in an error message: escaped, so that a
-// hostile file cannot send control sequences to a terminal through it.
+// A header string as it may appear in an error message: in quotes and
+// escaped as payload bytes are, so that a hostile file cannot send control
+// sequences to a terminal through it.
 std::string quoted(std::string_view text) {
-  std::string out = json::quote(text);
-  std::string safe;
-  for (const char c : out) {
-    const auto byte = static_cast<unsigned char>(c);
-    if (byte >= 0x20 && byte < 0x7f) {
-      safe.push_back(c);
-    } else {
-      char escape[8];
-      std::snprintf(escape, sizeof escape, "\\x%02x", byte);
-      safe += escape;
-    }
-  }
-  return safe;
+  return "\"" + escape_bytes(text, text.size()) + "\"";
 }
 
 bool digits_at(std::string_view text, std::size_t at, std::size_t count) {

@@ -6,6 +6,8 @@
 #include <cstdlib>
 #include <string>
 
+#include "util/hex.hpp"
+
 namespace wiretape::detail::json {
 
 namespace {
@@ -152,12 +154,12 @@ class Parser {
     if (c == '-' || (c >= '0' && c <= '9')) return parse_number();
     // The character is shown escaped unless printable: the message may reach
     // a terminal, and the text is whatever a file held.
+    std::string shown;
     const auto byte = static_cast<unsigned char>(c);
-    char shown[8];
     if (byte >= 0x20 && byte < 0x7f) {
-      std::snprintf(shown, sizeof shown, "'%c'", c);
+      shown = std::string("'") + c + "'";
     } else {
-      std::snprintf(shown, sizeof shown, "\\x%02x", static_cast<unsigned>(byte));
+      append_hex_escape(shown, byte);
     }
     fail(std::string("unexpected character ") + shown);
   }
