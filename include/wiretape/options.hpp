@@ -14,6 +14,7 @@
 #include <set>
 #include <string>
 #include <string_view>
+#include <unordered_map>
 #include <vector>
 
 #include "wiretape/timeout.hpp"
@@ -29,13 +30,15 @@ class Options {
 
   Options() = default;
   // Throws OptionError on bad syntax (unterminated quote, empty key, duplicate
-  // key), naming the position in the text.
+  // key, a NUL byte), naming the key or the position in the text. Linear in
+  // the length of the text.
   static Options parse(std::string_view text);
 
   const std::vector<Entry>& entries() const noexcept { return entries_; }
   bool has(std::string_view key) const;
   // The raw value, without consuming it.
   std::optional<std::string> peek(std::string_view key) const;
+  // Throws OptionError when `value` holds a NUL byte.
   void set(std::string_view key, std::string value);
   void erase(std::string_view key);
 
@@ -70,7 +73,12 @@ class Options {
 
  private:
   const Entry* find(std::string_view key) const;
+  void add(std::string key, std::string value);
+  void reindex();
   std::vector<Entry> entries_;
+  // key -> its position in entries_, so that parsing and taking n keys stays
+  // linear instead of scanning every entry per key.
+  std::unordered_map<std::string, std::size_t> index_;
   std::set<std::string, std::less<>> consumed_;
   std::vector<std::string> declared_;
 };

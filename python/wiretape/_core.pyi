@@ -184,6 +184,11 @@ def open_port(options: str) -> Port:
     Opens the port an option string describes, e.g. 'type=serial,device=/dev/ttyUSB0,baud=115200'. Raises OptionError for a bad string, PortError when the device cannot be opened.
     """
 
+def check_replay_options(options: str) -> None:
+    """
+    Checks a replay's option string ('type=replay,file=...,timing=none') as open_port() would, opening nothing, not even the session file. Raises OptionError naming the key.
+    """
+
 def quote_option_value(value: str) -> str:
     """
     A value as it is written in an option string: as is, or in double quotes with \\" and \\\\ escaped when it is empty or holds a separator, '=', '"' or '\\\\'.

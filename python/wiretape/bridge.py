@@ -176,6 +176,9 @@ def serve_replay(file, *, pty=None, listen=None, replay_options: str = "",
     options = "type=replay,file=" + _quote(os.fspath(file))
     if replay_options.strip():
         options += "," + replay_options.strip()
+    # Bad keys are refused before anything is opened: no listener, no pty,
+    # no replay whose closing would warn about unused data.
+    _core.check_replay_options(options)
     # The terminal settings of a replayed device are not applied anywhere.
     return _start(options, pty=pty, listen=listen, restart=restart,
                   output=os.fspath(output) if output else "",

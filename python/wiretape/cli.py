@@ -318,38 +318,23 @@ def _silence_stdout() -> None:
         pass
 
 
-def _print_stats(stats: dict, out: _Output) -> None:
-    order = ["path", "port_type", "port_options", "capture", "start_utc", "host",
-             "wiretape_version", "source_format", "records", "rx_records", "rx_bytes",
-             "tx_records", "tx_bytes", "event_records", "duration_s"]
-    width = max(len(key) for key in order + ["events", "metadata", "damaged"])
-    for key in order:
-        if key in stats and stats[key] not in (None, ""):
-            value = stats[key]
-            if key == "duration_s":
-                value = f"{value:.6f}"
-            out.print(f"{key:<{width}}  {value}")
-    if stats.get("events"):
-        events = ", ".join(f"{kind} {count}" for kind, count in sorted(stats["events"].items()))
-        out.print(f"{'events':<{width}}  {events}")
-    if stats.get("metadata"):
-        metadata = ", ".join(f"{k}={v}" for k, v in sorted(stats["metadata"].items()))
-        out.print(f"{'metadata':<{width}}  {metadata}")
-    if stats.get("damaged"):
-        out.print(f"{'damaged':<{width}}  at byte {stats.get('damage_offset')}: "
-                  f"{stats.get('damage_message')}", style="bold red")
+def _print_stats(stats, out: _Output) -> None:
+    rows = stats.text_rows()
+    width = max([len("wiretape_version")] + [len(name) for name, _ in rows])
+    for name, value in rows:
+        out.print(f"{name:<{width}}  {value}", style="bold red" if name == "damaged" else None)
 
 
 def cmd_stats(args, out: _Output) -> int:
     from .tools.stats import stats as session_stats
 
     _require_input(args.file)
-    stats = session_stats(args.file).to_json()
+    result = session_stats(args.file)
     if args.json:
-        print(json.dumps(stats, indent=2, sort_keys=True, default=str))
+        print(json.dumps(result.to_json(), indent=2, sort_keys=True, default=str))
     else:
-        _print_stats(stats, out)
-    return EXIT_CHECK_FAILED if stats.get("damaged") else EXIT_OK
+        _print_stats(result, out)
+    return EXIT_CHECK_FAILED if result.damaged else EXIT_OK
 
 
 def cmd_verify(args, out: _Output) -> int:

@@ -1,7 +1,13 @@
+#include <algorithm>
+#include <cctype>
 #include <cstdio>
+#include <optional>
 #include <string>
+#include <string_view>
 
 #include "core/open_port.hpp"
+#include "replay/replay_config.hpp"
+#include "util/json.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/options.hpp"
 #include "wiretape/port.hpp"
@@ -31,14 +37,103 @@ Access take_access(Options& options) {
   return Access::read_write;
 }
 
-}  // namespace
-
-std::unique_ptr<Port> open_port(std::string_view text) {
-  return open_port(Options::parse(text));
+bool value_is(const Options& options, std::string_view key, std::string_view expected) {
+  const auto value = options.peek(key);
+  if (!value) return false;
+  std::string folded(*value);
+  std::transform(folded.begin(), folded.end(), folded.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return folded == expected;
 }
 
-std::unique_ptr<Port> open_port(Options options) {
-  const std::string given = options.to_string();
+bool is_true(const Options& options, std::string_view key) {
+  for (const char* spelling : {"1", "true", "yes", "on"}) {
+    if (value_is(options, key, spelling)) return true;
+  }
+  return false;
+}
+
+// Keys that only do something next to another key (or another key's value).
+// Accepted alone they would silently do nothing, so each is an error naming
+// the key and what it needs. This table is the one place that knows these
+// dependencies; docs/options.md says the same in its "with ..." columns.
+struct KeyDependency {
+  std::string_view key;
+  bool is_prefix;          // key is a prefix (meta_KEY)
+  std::string_view type;   // the port type the key belongs to; empty: every type
+  std::string_view needs;  // what it needs, as the error says it
+  bool (*satisfied)(const Options&);
+};
+
+bool recorded(const Options& options) { return options.has("log"); }
+bool request_matching(const Options& options) {
+  return value_is(options, "match", "request");
+}
+bool timing_checked(const Options& options) {
+  return value_is(options, "check", "timing") || value_is(options, "strictness", "2");
+}
+bool clocked(const Options& options) {
+  return !value_is(options, "timing", "none") && !is_true(options, "ignoretimes");
+}
+
+constexpr KeyDependency key_dependencies[] = {
+    {"flush_ms", false, "", "log=FILE (it tunes the recording)", recorded},
+    {"fsync", false, "", "log=FILE (it tunes the recording)", recorded},
+    {"log_errors", false, "", "log=FILE (it tunes the recording)", recorded},
+    {"meta_", true, "", "log=FILE (metadata goes into the recording's header)", recorded},
+    {"unmatched", false, "replay", "match=request", request_matching},
+    {"repeat", false, "replay", "match=request", request_matching},
+    {"tolerance", false, "replay", "check=timing", timing_checked},
+    {"jitter", false, "replay", "check=timing (or strictness=2)", timing_checked},
+    {"speed", false, "replay", "a clock: timing=session or timing=causal", clocked},
+};
+
+// Throws OptionError for the first key given without what it needs.
+void check_key_dependencies(const Options& options, std::string_view type) {
+  for (const KeyDependency& rule : key_dependencies) {
+    if (!rule.type.empty() && rule.type != type) continue;
+    for (const Options::Entry& entry : options.entries()) {
+      const bool named =
+          rule.is_prefix ? entry.key.size() > rule.key.size() &&
+                               std::string_view(entry.key).substr(0, rule.key.size()) == rule.key
+                         : entry.key == rule.key;
+      if (!named || rule.satisfied(options)) continue;
+      throw OptionError(entry.key, "option '" + entry.key + "' has no effect without " +
+                                       std::string(rule.needs) + "; add it or leave '" +
+                                       entry.key + "' out");
+    }
+  }
+}
+
+// A recorded port's option string and metadata go into the session
+// header, which is UTF-8 JSON: refused here, before anything is opened,
+// rather than when the recording starts.
+void check_recordable(const Options& options) {
+  for (const Options::Entry& entry : options.entries()) {
+    for (const std::string* text : {&entry.key, &entry.value}) {
+      if (const auto bad = detail::json::invalid_utf8_offset(*text)) {
+        throw OptionError(entry.key, "option '" + entry.key + "': its " +
+                                         (text == &entry.key ? "name" : "value") +
+                                         " is not valid UTF-8 (byte " + std::to_string(*bad) +
+                                         "), and a recorded port's options are kept in "
+                                         "the session header, which is UTF-8");
+      }
+    }
+  }
+}
+
+// The keys every type shares, taken and checked before a port is opened.
+struct CommonKeys {
+  std::string type;  // serial, tcp, udp, pty, loopback, replay
+  Timeout timeout = forever;
+  Access access = Access::read_write;
+  int debug = 0;
+  std::optional<std::string> log;
+  detail::RecordingConfig recording;
+};
+
+CommonKeys take_common_keys(Options& options) {
+  CommonKeys common;
   std::string type = options.take_choice(
       "type", "",
       {"serial", "tcp", "udp", "pty", "loopback", "replay", "logreader",
@@ -52,26 +147,48 @@ std::unique_ptr<Port> open_port(Options options) {
   if (type == "logreader") type = "replay";
   // flexiport's logging port types: the named port, recorded to `file`.
   if (type == "seriallog" || type == "tcplog" || type == "udplog") {
-    type.resize(type.size() - 3);
+    const std::string base = type.substr(0, type.size() - 3);
+    if (!options.has("file")) {
+      throw OptionError("file", "type=" + type + " records the " + base +
+                                    " port into 'file', which is missing: give "
+                                    "file=FILE (or use type=" + base + ")");
+    }
+    type = base;
     options.alias("file", "log");
   }
+  if (options.has("log")) check_recordable(options);
+  common.type = type;
 
-  const Timeout timeout = options.take_timeout("timeout", forever);
-  const Access access = take_access(options);
-  const int debug = static_cast<int>(options.take_int("debug", 0, 0, 3));
+  common.timeout = options.take_timeout("timeout", forever);
+  common.access = take_access(options);
+  common.debug = static_cast<int>(options.take_int("debug", 0, 0, 3));
 
-  detail::RecordingConfig recording;
-  const auto log = options.take("log");
-  const bool recorded = log.has_value();
-  recording.flush_ms = static_cast<int>(options.take_int("flush_ms", 100, 1, 3'600'000));
-  recording.fsync = options.take_bool("fsync", false);
-  recording.raise_errors =
+  common.log = options.take("log");
+  common.recording.flush_ms =
+      static_cast<int>(options.take_int("flush_ms", 100, 1, 3'600'000));
+  common.recording.fsync = options.take_bool("fsync", false);
+  common.recording.raise_errors =
       options.take_choice("log_errors", "raise", {"raise", "warn"}) == "raise";
-  recording.metadata = options.take_prefixed("meta_");
+  common.recording.metadata = options.take_prefixed("meta_");
 
-  if (recorded && log->empty()) {
+  if (common.log && common.log->empty()) {
     throw OptionError("log", "option 'log' needs a file name (log=FILE)");
   }
+  // After the common keys' values were checked, before the port is opened.
+  check_key_dependencies(options, type);
+  return common;
+}
+
+}  // namespace
+
+std::unique_ptr<Port> open_port(std::string_view text) {
+  return open_port(Options::parse(text));
+}
+
+std::unique_ptr<Port> open_port(Options options) {
+  const std::string given = options.to_string();
+  CommonKeys common = take_common_keys(options);
+  const std::string& type = common.type;
 
   std::unique_ptr<Port> port;
   if (type == "serial") port = detail::open_serial(options);
@@ -82,18 +199,32 @@ std::unique_ptr<Port> open_port(Options options) {
   else port = detail::open_replay(options);
   options.finish(type);
 
-  port->set_timeout(timeout);
-  port->set_access(access);
-  if (debug > 0) {
+  port->set_timeout(common.timeout);
+  port->set_access(common.access);
+  if (common.debug > 0) {
     std::fprintf(stderr, "wiretape: opened %s\n", port->description().c_str());
   }
-  if (recorded) {
-    recording.path = *log;
-    recording.options_text = given;
-    recording.port_type = type;
-    port = detail::record_port(std::move(port), std::move(recording));
+  if (common.log) {
+    common.recording.path = *common.log;
+    common.recording.options_text = given;
+    common.recording.port_type = type;
+    port = detail::record_port(std::move(port), std::move(common.recording));
   }
   return port;
 }
+
+namespace detail {
+
+void check_replay_options(std::string_view text) {
+  Options options = Options::parse(text);
+  const CommonKeys common = take_common_keys(options);
+  if (common.type != "replay") {
+    throw OptionError("type", "expected the option string of a replay (type=replay), "
+                              "not type=" + common.type);
+  }
+  take_replay_config(options);  // checks every key left
+}
+
+}  // namespace detail
 
 }  // namespace wiretape

@@ -5,6 +5,7 @@
 #include <map>
 #include <memory>
 #include <string>
+#include <string_view>
 
 #include "wiretape/options.hpp"
 #include "wiretape/port.hpp"
@@ -17,6 +18,13 @@ std::unique_ptr<Port> open_udp(Options& options);
 std::unique_ptr<Port> open_pty(Options& options);
 std::unique_ptr<Port> open_loopback(Options& options);
 std::unique_ptr<Port> open_replay(Options& options);
+
+// Checks the option string of a replay as open_port() would, and opens
+// nothing (not even the session file): the syntax, the common keys, every
+// replay key and the keys' dependencies. Throws OptionError naming the key.
+// For callers that must refuse bad keys before any side effect of their own
+// (the CLI's replay, before it listens or makes a pty).
+void check_replay_options(std::string_view options);
 
 // What `log=FILE` asks for: a recording of the port into a session file.
 struct RecordingConfig {

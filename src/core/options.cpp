@@ -59,6 +59,17 @@ const std::vector<std::string_view>& all_known_keys() {
   return keys;
 }
 
+// A NUL byte cuts a value short where it reaches the OS as a C string (a
+// path, a device): refused everywhere a value enters an Options.
+void reject_nul(std::string_view key, std::string_view value) {
+  const auto nul = value.find('\0');
+  if (nul == std::string_view::npos) return;
+  throw OptionError(std::string(key), "option '" + std::string(key) +
+                                          "': its value holds a NUL byte (at byte " +
+                                          std::to_string(nul) +
+                                          " of the value), which would cut it short");
+}
+
 }  // namespace
 
 Options Options::parse(std::string_view text) {
@@ -75,6 +86,10 @@ Options Options::parse(std::string_view text) {
       if (text[i] == '"') {
         throw OptionError("", "option string: unexpected '\"' in a key at "
                               "position " + std::to_string(i));
+      }
+      if (text[i] == '\0') {
+        throw OptionError("", "option string: a NUL byte in a key at position " +
+                                  std::to_string(i));
       }
       ++i;
     }
@@ -130,16 +145,25 @@ Options Options::parse(std::string_view text) {
     if (options.find(key)) {
       throw OptionError(key, "option '" + key + "' is given twice");
     }
-    options.entries_.push_back({std::move(key), std::move(value)});
+    reject_nul(key, value);
+    options.add(std::move(key), std::move(value));
   }
   return options;
 }
 
+void Options::add(std::string key, std::string value) {
+  index_.emplace(key, entries_.size());
+  entries_.push_back({std::move(key), std::move(value)});
+}
+
+void Options::reindex() {
+  index_.clear();
+  for (std::size_t i = 0; i < entries_.size(); ++i) index_.emplace(entries_[i].key, i);
+}
+
 const Options::Entry* Options::find(std::string_view key) const {
-  for (const auto& entry : entries_) {
-    if (entry.key == key) return &entry;
-  }
-  return nullptr;
+  const auto found = index_.find(std::string(key));
+  return found == index_.end() ? nullptr : &entries_[found->second];
 }
 
 bool Options::has(std::string_view key) const { return find(key) != nullptr; }
@@ -150,19 +174,19 @@ std::optional<std::string> Options::peek(std::string_view key) const {
 }
 
 void Options::set(std::string_view key, std::string value) {
-  for (auto& entry : entries_) {
-    if (entry.key == key) {
-      entry.value = std::move(value);
-      return;
-    }
+  reject_nul(key, value);
+  if (const auto found = index_.find(std::string(key)); found != index_.end()) {
+    entries_[found->second].value = std::move(value);
+    return;
   }
-  entries_.push_back({std::string(key), std::move(value)});
+  add(std::string(key), std::move(value));
 }
 
 void Options::erase(std::string_view key) {
-  entries_.erase(std::remove_if(entries_.begin(), entries_.end(),
-                                [&](const Entry& e) { return e.key == key; }),
-                 entries_.end());
+  const auto found = index_.find(std::string(key));
+  if (found == index_.end()) return;
+  entries_.erase(entries_.begin() + static_cast<std::ptrdiff_t>(found->second));
+  reindex();
 }
 
 void Options::alias(std::string_view alias, std::string_view canonical) {

@@ -23,6 +23,7 @@
 #include "python/bindings.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/options.hpp"
+#include "core/open_port.hpp"
 #include "wiretape/port.hpp"
 
 namespace nb = nanobind;
@@ -534,6 +535,12 @@ void bind_port(nb::module_& m) {
         "Opens the port an option string describes, e.g. "
         "'type=serial,device=/dev/ttyUSB0,baud=115200'. Raises OptionError for "
         "a bad string, PortError when the device cannot be opened.");
+  m.def("check_replay_options",
+        [](const std::string& options) { detail::check_replay_options(options); },
+        "options"_a,
+        "Checks a replay's option string ('type=replay,file=...,timing=none') as "
+        "open_port() would, opening nothing, not even the session file. Raises "
+        "OptionError naming the key.");
 
   m.def("quote_option_value",
         [](std::string_view value) { return quote_option_value(value); }, "value"_a,

@@ -113,6 +113,10 @@ ReplayConfig take_replay_config(Options& options) {
         "timing=none (or ignoretimes) replays without one; use "
         "timing=causal or timing=session, or check=data");
   }
+  // Every other key was taken before (open_port takes the common ones
+  // first): what is left is refused now, before the session is opened and a
+  // replay exists whose closing would report unused data.
+  options.finish("replay");
   return config;
 }
 

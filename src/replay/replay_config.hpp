@@ -32,7 +32,9 @@ struct ReplayConfig {
 };
 
 // Consumes the replay keys of `options` (and flexiport's spellings:
-// strictness, ignoretimes, jitter). Throws OptionError naming the key.
+// strictness, ignoretimes, jitter), then refuses any key left, so the keys
+// that are not replay keys must have been taken before. Throws OptionError
+// naming the key.
 ReplayConfig take_replay_config(Options& options);
 
 }  // namespace wiretape::detail

@@ -34,8 +34,8 @@ const char* format_name(FlexiportFormat format) {
 }
 
 constexpr std::uint64_t usec_per_sec = 1'000'000;
-// Seconds beyond this would overflow a nanosecond count in 64 bits.
-constexpr std::uint64_t max_legacy_seconds = 18'000'000'000ull;
+// Later seconds would give a t_ns beyond what a .wtape reader accepts.
+constexpr std::uint64_t max_legacy_seconds = max_record_t_ns / 1'000'000'000ull;
 
 struct Chunk {
   std::uint64_t t_ns = 0;

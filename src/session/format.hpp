@@ -20,6 +20,12 @@ inline constexpr std::uint32_t max_header_json = 16u << 20;
 // length, kind, flags, reserved, t_ns
 inline constexpr std::size_t record_header_size = 16;
 inline constexpr std::size_t crc_size = 4;
+// The largest t_ns a reader accepts: the last nanosecond of the 32-bit
+// seconds of flexiport's logs (about 136 years), so that every session can be
+// exported to them, and far from overflowing the signed 64-bit nanosecond
+// clocks of replay (std::chrono) or, added to the session's start, the
+// unsigned ones of pcapng and MCAP.
+inline constexpr std::uint64_t max_record_t_ns = 4'294'967'295'999'999'999ull;
 
 inline void put_u16le(char* out, std::uint16_t v) {
   out[0] = static_cast<char>(v & 0xFF);

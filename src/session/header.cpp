@@ -5,7 +5,10 @@
 #include <chrono>
 #include <cstdio>
 #include <ctime>
+#include <optional>
+#include <string_view>
 
+#include "util/hex.hpp"
 #include "util/json.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/version.hpp"
@@ -37,7 +40,72 @@ std::string host_name() {
   return name;
 }
 
+// A header string as it may appear in an error message: in quotes and
+// escaped as payload bytes are, so that a hostile file cannot send control
+// sequences to a terminal through it.
+std::string quoted(std::string_view text) {
+  return "\"" + escape_bytes(text, text.size()) + "\"";
+}
+
+bool digits_at(std::string_view text, std::size_t at, std::size_t count) {
+  if (text.size() < at + count) return false;
+  for (std::size_t i = at; i < at + count; ++i) {
+    if (text[i] < '0' || text[i] > '9') return false;
+  }
+  return true;
+}
+
+int number_at(std::string_view text, std::size_t at, std::size_t count) {
+  int value = 0;
+  for (std::size_t i = at; i < at + count; ++i) value = value * 10 + (text[i] - '0');
+  return value;
+}
+
+// Throws OptionError naming `field` when `value` is not valid UTF-8, which
+// the header's JSON must be.
+void require_utf8(const std::string& field, std::string_view value) {
+  if (const auto bad = json::invalid_utf8_offset(value)) {
+    throw OptionError(field, "the session header's " + field +
+                                 " is not valid UTF-8 (byte " + std::to_string(*bad) +
+                                 " of " + quoted(value) + ")");
+  }
+}
+
 }  // namespace
+
+std::optional<std::string> start_utc_problem(std::string_view text) {
+  if (text.empty()) return std::nullopt;  // not known (imported sessions)
+  // YYYY-MM-DDTHH:MM:SS, then an optional fraction, then Z.
+  const bool shaped = digits_at(text, 0, 4) && text.size() > 19 && text[4] == '-' &&
+                      digits_at(text, 5, 2) && text[7] == '-' && digits_at(text, 8, 2) &&
+                      text[10] == 'T' && digits_at(text, 11, 2) && text[13] == ':' &&
+                      digits_at(text, 14, 2) && text[16] == ':' && digits_at(text, 17, 2);
+  std::size_t end = 19;
+  if (shaped && text[end] == '.') {
+    const std::size_t fraction = ++end;
+    while (end < text.size() && text[end] >= '0' && text[end] <= '9') ++end;
+    if (end == fraction || end - fraction > 9) end = 0;
+  }
+  if (!shaped || end == 0 || end + 1 != text.size() || text[end] != 'Z') {
+    return "start_utc " + quoted(text) +
+           " is not an ISO 8601 UTC time such as 2026-11-23T10:00:00.123456Z";
+  }
+  const int year = number_at(text, 0, 4);
+  const int month = number_at(text, 5, 2);
+  const int day = number_at(text, 8, 2);
+  const int hour = number_at(text, 11, 2);
+  const int minute = number_at(text, 14, 2);
+  const int second = number_at(text, 17, 2);
+  if (year < min_start_year || year > max_start_year) {
+    return "start_utc " + quoted(text) + " is outside the years " +
+           std::to_string(min_start_year) + " to " + std::to_string(max_start_year);
+  }
+  if (month < 1 || month > 12 || day < 1 || day > 31 || hour > 23 || minute > 59 ||
+      second > 60) {
+    return "start_utc " + quoted(text) + " is not a valid date and time";
+  }
+  return std::nullopt;
+}
 
 const char* capture_name(Capture capture) {
   return capture == Capture::wire ? "wire" : "client";
@@ -45,6 +113,19 @@ const char* capture_name(Capture capture) {
 
 std::string header_json(const SessionWriterOptions& options) {
   namespace field = header_field;
+  // What is written here must read back: the reader refuses a header that
+  // is not UTF-8 or has a start time out of range.
+  require_utf8(field::port_options, options.port_options);
+  require_utf8(field::port_type, options.port_type);
+  require_utf8(field::host, options.host);
+  require_utf8(field::wiretape_version, options.wiretape_version);
+  for (const auto& [key, value] : options.metadata) {
+    require_utf8("meta_" + key, key);
+    require_utf8("meta_" + key, value);
+  }
+  if (const auto problem = start_utc_problem(options.start_utc)) {
+    throw OptionError(field::start_utc, "the session header's " + *problem);
+  }
   json::ObjectWriter object;
   object.add(field::port_options, options.port_options)
       .add(field::port_type, options.port_type)
@@ -89,9 +170,14 @@ void parse_header_json(const std::string& text, const std::string& path,
   } else if (capture == capture_name(Capture::wire)) {
     header.capture = Capture::wire;
   } else {
-    throw SessionError(path + ": unknown capture \"" + capture +
-                           "\" in the header at byte " + std::to_string(offset) +
+    throw SessionError(path + ": unknown capture " + quoted(capture) +
+                           " in the header at byte " + std::to_string(offset) +
                            " (expected client or wire)",
+                       offset);
+  }
+  if (const auto problem = start_utc_problem(header.start_utc)) {
+    throw SessionError(path + ": the header at byte " + std::to_string(offset) +
+                           " has a " + *problem,
                        offset);
   }
   header.user_metadata.clear();

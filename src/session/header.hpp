@@ -3,7 +3,9 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <string_view>
 
 #include "wiretape/session.hpp"
 
@@ -25,8 +27,20 @@ inline constexpr char flexiport_read_format[] = "flexiport_read_format";
 inline constexpr char flexiport_write_format[] = "flexiport_write_format";
 }  // namespace header_field
 
-// The header JSON of a session file.
+// The years a header's start_utc may name: the session's start in ns since
+// the epoch then fits a signed 64-bit count, and start + t_ns (at most
+// max_record_t_ns) fits the unsigned 64-bit clocks of pcapng and MCAP.
+inline constexpr int min_start_year = 1970;
+inline constexpr int max_start_year = 2261;
+
+// The header JSON of a session file. Throws OptionError naming the field
+// when a string is not valid UTF-8 or start_utc is not a time the reader
+// accepts (start_utc_problem), so that nothing is written that cannot be read.
 std::string header_json(const SessionWriterOptions& options);
+// Why `start_utc` is not what the header allows (empty, or ISO 8601 UTC
+// YYYY-MM-DDTHH:MM:SS[.fraction]Z within min_start_year..max_start_year),
+// or std::nullopt when it is.
+std::optional<std::string> start_utc_problem(std::string_view start_utc);
 // Parses the header JSON into `header` (metadata_json included); throws
 // SessionError(offset) naming `path` when it is not valid.
 void parse_header_json(const std::string& json, const std::string& path,

@@ -13,11 +13,35 @@
 #include "session/format.hpp"
 #include "session/header.hpp"
 #include "session/reader.hpp"
+#include "session/record_kinds.hpp"
+#include "util/json.hpp"
 #include "wiretape/session.hpp"
 
 namespace wiretape {
 
 namespace detail {
+
+std::optional<std::string> record_content_problem(RecordKind kind, std::uint64_t t_ns,
+                                          std::string_view payload) {
+  if (t_ns > max_record_t_ns) {
+    return "its time t_ns " + std::to_string(t_ns) + " is beyond the format's bound of " +
+           std::to_string(max_record_t_ns) + " ns (about 136 years)";
+  }
+  const RecordKindSpec* spec = find_record_kind(kind);
+  if (spec == nullptr || !spec->is_event || payload.empty()) return std::nullopt;
+  json::Value root;
+  try {
+    root = json::parse(payload);
+  } catch (const json::ParseError& e) {
+    return "its " + std::string(spec->name) + " event payload is not valid JSON (" +
+           e.what() + " of the payload)";
+  }
+  if (!root.is_object()) {
+    return "its " + std::string(spec->name) + " event payload is not a JSON object";
+  }
+  return std::nullopt;
+}
+
 namespace {
 
 std::string hex32(std::uint32_t value) {
@@ -101,6 +125,13 @@ class WtapeSource final : public RecordSource {
       if (!known_kind(kind_byte)) continue;  // newer kind: skipped
       record.kind = static_cast<RecordKind>(kind_byte);
       record.t_ns = get_u64le(head + 8);
+      if (const auto problem =
+              record_content_problem(record.kind, record.t_ns,
+                                     std::string_view(payload, length))) {
+        if (view) *view = PayloadView{};
+        return stop(offset, "record at byte " + std::to_string(offset) +
+                                " is intact (its CRC matches) but unusable: " + *problem);
+      }
       ++records_;
       return true;
     }

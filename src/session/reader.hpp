@@ -3,8 +3,11 @@
 // as views (RecordSource::next(record, view)) instead of copies.
 #pragma once
 
+#include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
+#include <string_view>
 
 #include "session/record_source.hpp"
 #include "wiretape/session.hpp"
@@ -16,5 +19,14 @@ namespace wiretape::detail {
 // all; damage later on ends the records and is reported by damage().
 std::unique_ptr<RecordSource> open_session_source(const std::string& path,
                                                   SessionHeader& header);
+
+// Why a record whose CRC is good still cannot be handed to the commands that
+// read it, or std::nullopt. What verify accepts, every consumer (Python's
+// json module included) must be able to take: t_ns within max_record_t_ns,
+// event payloads empty or JSON objects of valid UTF-8 within the JSON
+// parser's nesting limit (unknown members are fine: readers ignore them).
+// The reader stops at such a record; the writer refuses to write one.
+std::optional<std::string> record_content_problem(RecordKind kind, std::uint64_t t_ns,
+                                                  std::string_view payload);
 
 }  // namespace wiretape::detail

@@ -15,12 +15,14 @@
 #include <condition_variable>
 #include <cstring>
 #include <mutex>
+#include <stdexcept>
 #include <thread>
 #include <vector>
 
 #include "posix/syscalls.hpp"
 #include "session/format.hpp"
 #include "session/header.hpp"
+#include "session/reader.hpp"
 #include "wiretape/session.hpp"
 
 namespace wiretape {
@@ -216,6 +218,8 @@ SessionWriter::SessionWriter(const std::string& path, SessionWriterOptions optio
   impl_->path = path;
   impl_->options = std::move(options);
   if (impl_->options.flush_ms < 0) impl_->options.flush_ms = 0;
+  // A header the reader would refuse is refused before the file is created.
+  const std::string json = detail::header_json(impl_->options);
   do {
     impl_->fd = sys::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   } while (impl_->fd < 0 && errno == EINTR);
@@ -224,7 +228,6 @@ SessionWriter::SessionWriter(const std::string& path, SessionWriterOptions optio
     throw PortError(error, path + ": cannot create the session file: " +
                                std::strerror(error));
   }
-  const std::string json = detail::header_json(impl_->options);
   std::string header(detail::file_header_fixed_size, '\0');
   std::memcpy(&header[0], detail::session_magic, sizeof detail::session_magic);
   detail::put_u16le(&header[8], detail::session_version_major);
@@ -250,6 +253,10 @@ SessionWriter::~SessionWriter() {
 }
 
 void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view data) {
+  // Nothing is written that the reader would stop at.
+  if (const auto problem = detail::record_content_problem(kind, t_ns, data)) {
+    throw std::invalid_argument(impl_->path + ": refusing to write a record: " + *problem);
+  }
   if (data.size() > 0xFFFFFFFFull) {
     throw PortError(EFBIG, impl_->path + ": a record of " + std::to_string(data.size()) +
                                " bytes is larger than the 4 GiB a record can hold");

@@ -6,13 +6,41 @@
 #include <cstdlib>
 #include <string>
 
+#include "util/hex.hpp"
+
 namespace wiretape::detail::json {
 
 namespace {
 
-// Deep enough for any metadata a person writes; shallow enough that hostile
-// input cannot overflow the stack.
-constexpr int max_depth = 64;
+// The length of the UTF-8 sequence of a non-ASCII character at `pos`, or 0
+// when RFC 3629 does not allow it there: a stray continuation byte, a
+// truncated sequence, an overlong form, a surrogate, a code point above
+// U+10FFFF.
+std::size_t utf8_sequence_length(std::string_view text, std::size_t pos) {
+  const auto byte = [&](std::size_t at) { return static_cast<unsigned char>(text[at]); };
+  const unsigned char lead = byte(pos);
+  std::size_t length = 0;
+  unsigned char low = 0x80, high = 0xBF;  // the range of the second byte
+  if (lead >= 0xC2 && lead <= 0xDF) {
+    length = 2;
+  } else if (lead >= 0xE0 && lead <= 0xEF) {
+    length = 3;
+    if (lead == 0xE0) low = 0xA0;   // overlong
+    if (lead == 0xED) high = 0x9F;  // surrogates
+  } else if (lead >= 0xF0 && lead <= 0xF4) {
+    length = 4;
+    if (lead == 0xF0) low = 0x90;   // overlong
+    if (lead == 0xF4) high = 0x8F;  // above U+10FFFF
+  } else {
+    return 0;
+  }
+  if (text.size() - pos < length) return 0;
+  for (std::size_t i = 1; i < length; ++i) {
+    const unsigned char next = byte(pos + i);
+    if (next < (i == 1 ? low : 0x80) || next > (i == 1 ? high : 0xBF)) return 0;
+  }
+  return length;
+}
 
 class Parser {
  public:
@@ -47,11 +75,15 @@ class Parser {
     return false;
   }
 
+  // `depth`: how many arrays and objects enclose this value.
   Value parse_value(int depth) {
-    if (depth > max_depth) fail("nesting deeper than 64 levels");
     if (pos_ >= text_.size()) fail("unexpected end of text");
     Value value;
     const char c = text_[pos_];
+    if ((c == '{' || c == '[') && depth >= max_nesting_depth) {
+      fail("arrays and objects nested deeper than " + std::to_string(max_nesting_depth) +
+           " levels");
+    }
     if (c == '{') {
       value.type = Value::Type::object;
       ++pos_;
@@ -120,7 +152,16 @@ class Parser {
     }
     if (consume_word("null")) return value;
     if (c == '-' || (c >= '0' && c <= '9')) return parse_number();
-    fail(std::string("unexpected character '") + c + "'");
+    // The character is shown escaped unless printable: the message may reach
+    // a terminal, and the text is whatever a file held.
+    std::string shown;
+    const auto byte = static_cast<unsigned char>(c);
+    if (byte >= 0x20 && byte < 0x7f) {
+      shown = std::string("'") + c + "'";
+    } else {
+      append_hex_escape(shown, byte);
+    }
+    fail(std::string("unexpected character ") + shown);
   }
 
   Value parse_number() {
@@ -180,6 +221,15 @@ class Parser {
     }
   }
 
+  // Copies one UTF-8 encoded character starting at pos_ (a byte of 0x80 or
+  // more).
+  void append_utf8_sequence(std::string& out) {
+    const std::size_t length = utf8_sequence_length(text_, pos_);
+    if (length == 0) fail("invalid UTF-8 in a string");
+    out.append(text_.substr(pos_, length));
+    pos_ += length;
+  }
+
   std::string parse_string() {
     ++pos_;  // opening quote
     std::string out;
@@ -190,6 +240,11 @@ class Parser {
       if (static_cast<unsigned char>(c) < 0x20) {
         --pos_;
         fail("control character in string");
+      }
+      if (static_cast<unsigned char>(c) >= 0x80) {
+        --pos_;
+        append_utf8_sequence(out);
+        continue;
       }
       if (c != '\\') {
         out.push_back(c);
@@ -207,6 +262,7 @@ class Parser {
         case 'r': out.push_back('\r'); break;
         case 't': out.push_back('\t'); break;
         case 'u': {
+          const std::size_t escape_start = pos_ - 2;
           unsigned code = parse_hex4();
           if (code >= 0xD800 && code < 0xDC00 && text_.substr(pos_, 2) == "\\u") {
             pos_ += 2;
@@ -214,8 +270,15 @@ class Parser {
             if (low >= 0xDC00 && low < 0xE000) {
               code = 0x10000 + ((code - 0xD800) << 10) + (low - 0xDC00);
             } else {
+              pos_ = escape_start;
               fail("bad surrogate pair");
             }
+          }
+          // A lone surrogate has no UTF-8 form: encoded anyway it would make
+          // the string invalid UTF-8 for every reader after this one.
+          if (code >= 0xD800 && code < 0xE000) {
+            pos_ = escape_start;
+            fail("a \\u escape of a lone surrogate (not valid Unicode)");
           }
           append_utf8(out, code);
           break;
@@ -280,6 +343,20 @@ std::optional<std::string> Value::string_member(std::string_view key) const {
 }
 
 Value parse(std::string_view text) { return Parser(text).parse_document(); }
+
+std::optional<std::size_t> invalid_utf8_offset(std::string_view text) {
+  std::size_t pos = 0;
+  while (pos < text.size()) {
+    if (static_cast<unsigned char>(text[pos]) < 0x80) {
+      ++pos;
+      continue;
+    }
+    const std::size_t length = utf8_sequence_length(text, pos);
+    if (length == 0) return pos;
+    pos += length;
+  }
+  return std::nullopt;
+}
 
 void append_string(std::string& out, std::string_view value) {
   out.push_back('"');

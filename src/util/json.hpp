@@ -16,6 +16,13 @@
 
 namespace wiretape::detail::json {
 
+// The deepest nesting of arrays and objects parse() accepts (the outermost
+// object is level 1): deep enough for any metadata a person writes, shallow
+// enough that hostile input cannot exhaust the stack of this parser or of the
+// readers the JSON is handed to (Python's json module recurses too).
+// docs/session-format.md states it.
+inline constexpr int max_nesting_depth = 64;
+
 // A parse error; offset() is the byte offset in the text.
 class ParseError : public std::runtime_error {
  public:
@@ -45,7 +52,15 @@ struct Value {
 };
 
 // Parses one JSON value that must fill `text` (whitespace around allowed).
+// Strings must be valid UTF-8, raw or escaped (no lone surrogates), so that
+// every string it returns is valid UTF-8; nesting is bounded by
+// max_nesting_depth. Throws ParseError with the byte offset of the problem.
 Value parse(std::string_view text);
+
+// The offset of the first byte of `text` that is not valid UTF-8 (RFC 3629),
+// or std::nullopt when all of it is: what writers check before they put text
+// into JSON that parse() must read back.
+std::optional<std::size_t> invalid_utf8_offset(std::string_view text);
 
 // Writes `value` as a JSON string literal (with quotes).
 void append_string(std::string& out, std::string_view value);

@@ -209,3 +209,23 @@ TEST(OpenPort, ConflictingAccessModesAreRefused) {
   EXPECT_EQ(open_port("type=loopback,readonly=false")->access(), Access::read_write);
   expect_option_error("type=loopback,colour=1", "colour", "readonly");
 }
+
+// Keys that would do nothing alone are refused, naming what they need
+// (the table in src/core/open_port.cpp), before anything is opened.
+TEST(OpenPort, KeysThatNeedAnotherKeyNameIt) {
+  for (const char* key : {"flush_ms=50", "fsync", "log_errors=warn", "meta_robot=r2"}) {
+    const std::string name = std::string(key).substr(0, std::string(key).find('='));
+    expect_option_error(std::string("type=loopback,") + key, name, "without log=FILE");
+  }
+  expect_option_error("type=seriallog,device=/dev/null", "file", "type=seriallog");
+  expect_option_error("type=udplog,port=1", "file", "type=udplog");
+  // Replay keys: checked before the session file is even looked for.
+  const std::string replay = "type=replay,file=/nonexistent/s.wtape,";
+  expect_option_error(replay + "repeat=last", "repeat", "match=request");
+  expect_option_error(replay + "match=sequence,unmatched=silent", "unmatched", "match=request");
+  expect_option_error(replay + "tolerance=5", "tolerance", "check=timing");
+  expect_option_error(replay + "timing=none,speed=2", "speed", "timing=session");
+  expect_option_error(replay + "bogus=1", "bogus", "unknown option");
+  // A key of another type is still "does not apply", not a dependency.
+  expect_option_error("type=loopback,repeat=last", "repeat", "does not apply");
+}

@@ -101,6 +101,15 @@ TEST(RecordKinds, NamesRoundTrip) {
   EXPECT_FALSE(record_kind_from_string("nonsense"));
 }
 
+// Directions carry any bytes; events a JSON object (the reader checks it).
+static std::string payload_of(RecordKind kind) {
+  const std::string name(to_string(kind));
+  if (kind == RecordKind::rx || kind == RecordKind::tx) {
+    return name + std::string(1, '\0') + "\xff";
+  }
+  return "{\"name\":\"" + name + "\",\"odd\":\"\\u0000\xc3\xbf\"}";
+}
+
 TEST(SessionFile, WritesAndReadsBackEveryKindAndTheHeader) {
   TempDir dir;
   const std::string path = dir.file("all.wtape");
@@ -112,7 +121,7 @@ TEST(SessionFile, WritesAndReadsBackEveryKindAndTheHeader) {
   {
     SessionWriter writer(path, fixed_options());
     std::uint64_t t = 0;
-    for (RecordKind kind : kinds) writer.write(kind, t += 17, std::string(to_string(kind)) + std::string(1, '\0') + "\xff");
+    for (RecordKind kind : kinds) writer.write(kind, t += 17, payload_of(kind));
     writer.write(RecordKind::rx, t + 1, "");
   }
   SessionReader reader(path);
@@ -133,7 +142,7 @@ TEST(SessionFile, WritesAndReadsBackEveryKindAndTheHeader) {
   for (std::size_t i = 0; i < kinds.size(); ++i) {
     EXPECT_EQ(records[i].kind, kinds[i]);
     EXPECT_EQ(records[i].t_ns, t += 17);
-    EXPECT_EQ(records[i].data, std::string(to_string(kinds[i])) + std::string(1, '\0') + "\xff");
+    EXPECT_EQ(records[i].data, payload_of(kinds[i]));
   }
   EXPECT_TRUE(records.back().data.empty());
   EXPECT_FALSE(reader.damage());

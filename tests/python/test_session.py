@@ -249,7 +249,7 @@ def test_record_kinds_are_the_ones_records_and_writers_know(tmp_path):
 
 def test_layout_constants_match_a_written_file(tmp_path):
     path = tmp_path / "layout.wtape"
-    with _core.SessionWriter(path, start_utc="x", host="h", wiretape_version="1") as writer:
+    with _core.SessionWriter(path, start_utc="2026-01-01T00:00:00Z", host="h", wiretape_version="1") as writer:
         writer.write("tx", 7, b"abc")
     data = path.read_bytes()
     assert data.startswith(_core.SESSION_MAGIC)

@@ -51,6 +51,42 @@ def quote_option(value: Any) -> str:
 
 
 # --------------------------------------------------------------------------
+# publishing a recording
+
+
+def publish_recording(recording: Path, cassette: Path) -> None:
+    """Moves a finished recording to `cassette`.
+
+    The library writes the option string of the recorded port into the
+    session header, and it names the file recorded to: this machine's
+    temporary path (``log=/tmp/pytest-of-me/.../t.wtape.recording-4242``).
+    That becomes the cassette's own name, a path relative to the cassette
+    (``log=t.wtape``), so that the header says nothing about the machine's
+    directories. A recording that is damaged (a failed write) is moved as it
+    is, so that nothing it holds is lost."""
+    recorded_as = "log=" + quote_option(str(recording))
+    rewritten = recording.with_name(recording.name + ".header")
+    with _core.SessionReader(str(recording)) as reader:
+        header = reader.header
+        if recorded_as in header.port_options:
+            with _core.SessionWriter(
+                    str(rewritten), capture=header.capture,
+                    port_options=header.port_options.replace(
+                        recorded_as, "log=" + quote_option(cassette.name)),
+                    port_type=header.port_type, metadata=dict(header.metadata),
+                    start_utc=header.start_utc, host=header.host,
+                    wiretape_version=header.wiretape_version) as writer:
+                for record in reader:
+                    writer.write(record.kind, record.t_ns, record.data)
+            if reader.damage is None:
+                os.replace(rewritten, cassette)
+                os.unlink(recording)
+                return
+            os.unlink(rewritten)
+    os.replace(recording, cassette)
+
+
+# --------------------------------------------------------------------------
 # cassette names
 
 
@@ -257,7 +293,7 @@ class WiretapeCassette:
                 f"{self.item.nodeid} passed while recording but opened no port from "
                 f"wiretape_options: nothing was written to {self.path}"))
             return
-        os.replace(self.partial_path, self.path)
+        publish_recording(self.partial_path, self.path)
 
     def describe(self) -> str:
         lines = [f"cassette: {self.path}",

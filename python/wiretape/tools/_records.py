@@ -56,6 +56,24 @@ def escape_bytes(data: bytes) -> str:
     return _core.escape_bytes(bytes(data), len(data))
 
 
+def header_text(value: object) -> str:
+    """A session header's text (port options, host, metadata keys and
+    values...) as it may reach a terminal: the only way header text is
+    printed. The file is anyone's, so every character that is not printable
+    (control characters such as ESC, DEL, C1 controls, bidirectional
+    overrides, line separators) and the backslash are escaped as payload
+    bytes are (escape_bytes of their UTF-8: ``\\x1b``, ``\\n``, ``\\\\``);
+    printable letters of any script are kept."""
+    text = value if isinstance(value, str) else str(value)
+    if text.isprintable() and "\\" not in text:
+        return text
+    return "".join(
+        char if char.isprintable() and char != "\\"
+        else escape_bytes(char.encode("utf-8", "surrogatepass"))
+        for char in text
+    )
+
+
 def printable(data: bytes, limit: int = 64) -> str:
     """The first `limit` bytes as escape_bytes() text, and how many more there are."""
     return _core.escape_bytes(bytes(data), limit)

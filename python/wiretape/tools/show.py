@@ -15,7 +15,7 @@ from typing import IO, Iterable, Iterator, Optional
 from .. import _core
 from ..exports.jsonl import json_line, record_to_json
 from ._records import DIRECTIONS as _DIRECTIONS
-from ._records import SessionPath, event_of, event_payload, open_session
+from ._records import SessionPath, event_of, event_payload, header_text, open_session
 from ._records import printable as _printable
 
 __all__ = ["show"]
@@ -26,23 +26,24 @@ def _seconds(t_ns: int) -> str:
 
 
 def _header_lines(reader: _core.SessionReader, path: SessionPath) -> Iterator[str]:
+    """The header for people; every field from the file goes through
+    header_text() (the file may hold terminal escape sequences)."""
     header = reader.header
     yield f"session {os.fspath(path)}"
     if header.source_format == "flexiport":
         yield "  format       flexiport log (name.logr + name.logw)"
         meta = json.loads(header.metadata_json or "{}")
-        yield (
-            f"  flexiport    reads: {meta.get('flexiport_read_format', '?')} format, "
-            f"writes: {meta.get('flexiport_write_format', '?')} format"
-        )
+        reads = header_text(meta.get("flexiport_read_format", "?"))
+        writes = header_text(meta.get("flexiport_write_format", "?"))
+        yield f"  flexiport    reads: {reads} format, writes: {writes} format"
         return
     yield f"  format       wiretape {header.version_major}.{header.version_minor}"
-    yield f"  port         {header.port_type or '?'}: {header.port_options}"
-    yield f"  capture      {header.capture}"
-    yield f"  started      {header.start_utc} on {header.host or '?'}"
-    yield f"  written by   wiretape {header.wiretape_version}"
+    yield f"  port         {header_text(header.port_type or '?')}: {header_text(header.port_options)}"
+    yield f"  capture      {header_text(header.capture)}"
+    yield f"  started      {header_text(header.start_utc)} on {header_text(header.host or '?')}"
+    yield f"  written by   wiretape {header_text(header.wiretape_version)}"
     for key, value in sorted(header.metadata.items()):
-        yield f"  meta         {key}={value}"
+        yield f"  meta         {header_text(key)}={header_text(value)}"
 
 
 def _hexdump(data: bytes) -> Iterator[str]:
@@ -81,7 +82,7 @@ def show(path: SessionPath, fmt: str = "text", profile: Optional[str] = None,
             out.write(json_line(record_to_json(record)))
             count += 1
         if reader.damage is not None:
-            print(f"wiretape: damaged: {reader.damage.message}", file=sys.stderr)
+            print(f"wiretape: damaged: {header_text(reader.damage.message)}", file=sys.stderr)
         return count
     for line in _header_lines(reader, path):
         out.write(line + "\n")
@@ -110,7 +111,8 @@ def show(path: SessionPath, fmt: str = "text", profile: Optional[str] = None,
                 text = json.dumps(event, separators=(",", ":")) if event is not None else _printable(record.data)
                 out.write(f"{_seconds(record.t_ns)}  {record.kind:<17} {'':>8}  {text}\n".rstrip() + "\n")
     if reader.damage is not None:
-        out.write(f"\nDAMAGED at byte {reader.damage.offset}: {reader.damage.message}\n")
+        out.write(f"\nDAMAGED at byte {reader.damage.offset}: "
+                  f"{header_text(reader.damage.message)}\n")
     else:
         out.write(f"\n{count} records\n")
     return count

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from typing import Any, Dict, Optional
+from typing import Any, Dict, List, Optional, Tuple
 
-from ._records import DIRECTIONS, SessionPath, open_session
+from ._records import DIRECTIONS, SessionPath, header_text, open_session
 
 __all__ = ["stats", "SessionStats"]
 
@@ -45,6 +45,31 @@ class SessionStats:
 
     def to_json(self) -> Dict[str, Any]:
         return dataclasses.asdict(self)
+
+    def text_rows(self) -> List[Tuple[str, str]]:
+        """(name, value) rows for people, as ``wiretape stats`` prints them:
+        empty fields left out, and every text from the file through
+        header_text() (a file may hold terminal escape sequences)."""
+        rows: List[Tuple[str, str]] = [("path", self.path)]
+        for name in ("port_type", "port_options", "capture", "start_utc", "host",
+                     "wiretape_version", "source_format"):
+            value = getattr(self, name)
+            if value:
+                rows.append((name, header_text(value)))
+        for name in ("records", "rx_records", "rx_bytes", "tx_records", "tx_bytes",
+                     "event_records"):
+            rows.append((name, str(getattr(self, name))))
+        rows.append(("duration_s", f"{self.duration_s:.6f}"))
+        if self.events:
+            rows.append(("events", ", ".join(f"{kind} {count}"
+                                             for kind, count in sorted(self.events.items()))))
+        if self.metadata:
+            rows.append(("metadata", ", ".join(f"{header_text(key)}={header_text(value)}"
+                                               for key, value in sorted(self.metadata.items()))))
+        if self.damaged:
+            rows.append(("damaged", f"at byte {self.damage_offset}: "
+                                    f"{header_text(self.damage_message or '')}"))
+        return rows
 
 
 def stats(path: SessionPath) -> SessionStats:
