@@ -14,7 +14,10 @@
 //   - device -> read-only monitor clients (--shared): when a monitor falls
 //     behind by more than the bound, the new data is dropped for it (and
 //     counted in BridgeStats::bytes_dropped); the device is never held back
-//     for a monitor.
+//     for a monitor;
+//   - server -> a client, RFC 2217 answers and device data in one queue:
+//     while it is full the bridge stops reading that client, whose requests
+//     (and data) wait in TCP until it reads its answers.
 #pragma once
 
 #include <chrono>

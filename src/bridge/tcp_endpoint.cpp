@@ -2,6 +2,12 @@
 // controls the device at a time; with `shared`, later ones get read-only
 // monitoring instead of a refusal. With RFC 2217 each connection carries a
 // Telnet session whose COM-PORT requests act on the device.
+//
+// What the server holds for a client is its outgoing queue, bounded by
+// buffer_limit (byte_queue.hpp): device data and, under RFC 2217, the
+// answers to its requests. Answers come only from reading the client, so a
+// client whose queue is full is not read until it drains: a client that
+// never reads holds at most its queue, whatever it sends.
 #include <algorithm>
 #include <array>
 #include <cstring>
@@ -19,7 +25,11 @@ namespace wiretape::detail::bridge {
 namespace {
 
 struct Client {
-  explicit Client(Connection accepted) : connection(std::move(accepted)) {}
+  Client(Connection accepted, std::size_t queue_limit)
+      : connection(std::move(accepted)), outgoing(queue_limit) {}
+  // Reading this client could add answers to a queue that is full already.
+  bool input_held_back() const { return telnet && outgoing.full(); }
+
   Connection connection;
   bool monitor = false;
   ByteQueue outgoing;
@@ -51,9 +61,8 @@ class TcpEndpoint final : public ClientEndpoint {
 
   void add_to_poll(PollSet& poll_set) override {
     listener_slot_ = poll_set.add(listener_.fd(), true, false);
-    const bool device_has_room = device_.room_for_client_data() > 0;
     for (auto& client : clients_) {
-      client->slot = poll_set.add(client->connection.fd(), client->monitor || device_has_room,
+      client->slot = poll_set.add(client->connection.fd(), wants_input(*client),
                                   !client->outgoing.empty());
     }
   }
@@ -65,7 +74,14 @@ class TcpEndpoint final : public ClientEndpoint {
       Client& client = *clients_[i];
       if (client.gone) continue;
       const Readiness ready = poll_set.ready(client.slot);
-      if (ready.readable || ready.hung_up) read_client(client);
+      if (ready.readable || (ready.hung_up && wants_input(client))) {
+        read_client(client);
+      } else if (ready.hung_up) {
+        // Not read now, so no read will tell the end: without this, poll()
+        // would report the hang-up again at once, round after round.
+        write_client(client);
+        drop_client(client, "the connection hung up");
+      }
       if (!client.gone && !client.outgoing.empty()) write_client(client);
     }
     clients_.erase(std::remove_if(clients_.begin(), clients_.end(),
@@ -78,7 +94,7 @@ class TcpEndpoint final : public ClientEndpoint {
     const Client* control = controller();
     if (!control) return false;  // the device waits for a client
     if (control->telnet && control->telnet->suspended()) return false;
-    return control->outgoing.size() < options_.buffer_limit;
+    return !control->outgoing.full();
   }
 
   void deliver_from_device(const char* data, std::size_t size) override {
@@ -92,7 +108,7 @@ class TcpEndpoint final : public ClientEndpoint {
         bytes = escaped.data();
         length = escaped.size();
       }
-      if (client->monitor && client->outgoing.size() + length > options_.buffer_limit) {
+      if (client->monitor && length > client->outgoing.room()) {
         status_.update_stats([size](BridgeStats& s) { s.bytes_dropped += size; });
         continue;
       }
@@ -134,6 +150,13 @@ class TcpEndpoint final : public ClientEndpoint {
     return nullptr;
   }
 
+  // Whether to read the client now: not while its answers could overflow
+  // its queue, nor (the controller) while the device's queue is full.
+  bool wants_input(const Client& client) const {
+    if (client.input_held_back()) return false;
+    return client.monitor || device_.room_for_client_data() > 0;
+  }
+
   void accept_clients() {
     while (auto connection = listener_.accept()) {
       const std::string peer = connection->peer();
@@ -156,7 +179,7 @@ class TcpEndpoint final : public ClientEndpoint {
                "more clients watch");
         continue;
       }
-      auto client = std::make_unique<Client>(std::move(*connection));
+      auto client = std::make_unique<Client>(std::move(*connection), options_.buffer_limit);
       client->monitor = control != nullptr;
       if (!client->monitor && options_.restart && had_client_) device_.restart();
       if (options_.protocol == BridgeProtocol::rfc2217) {
@@ -174,6 +197,7 @@ class TcpEndpoint final : public ClientEndpoint {
   }
 
   void read_client(Client& client) {
+    if (client.input_held_back()) return;
     std::array<char, kChunk> buffer;
     std::size_t want = buffer.size();
     if (!client.monitor) {

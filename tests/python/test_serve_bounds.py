@@ -1,0 +1,188 @@
+"""wiretape serve under pressure: what a server holds for clients that never
+read is bounded (RFC 2217 answers, monitors' data, the number of monitors),
+running out of file descriptors does not make it spin, pyserial's RFC 2217
+client works as a monitor, and a device loss never turns into a client that
+is accepted and then cut off.
+
+The memory and CPU figures are measured on a server in a child process
+(`python -m wiretape.cli serve`), from /proc."""
+
+import os
+import re
+import resource
+import select
+import socket
+import struct
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+import serial
+
+from wiretape import bridge, cli
+
+from devices import TcpDevice, wait_until
+
+DEADLINE = 10.0
+MIB = 1 << 20
+
+# pyserial's rfc2217 client uses threading names deprecated in Python 3.10.
+pytestmark = pytest.mark.filterwarnings("ignore:set.*is deprecated:DeprecationWarning")
+
+# A SET-BAUDRATE request (IAC SB COM-PORT-OPTION 1 <baud> IAC SE) and the
+# start of the server's answer to it (command + 100).
+SET_BAUDRATE_115200 = b"\xff\xfa\x2c\x01" + struct.pack("!I", 115200) + b"\xff\xf0"
+BAUDRATE_ANSWER = b"\xff\xfa\x2c\x65"
+
+
+class ServeProcess:
+    """`wiretape serve ARGS` in a child process; its stderr lines are kept
+    (`lines`) and can be awaited (`wait_for_line`)."""
+
+    def __init__(self, *args):
+        self.child = subprocess.Popen(
+            [sys.executable, "-m", "wiretape.cli", "serve", *args],
+            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        self.lines = []
+        self._changed = threading.Condition()
+        self._reader = threading.Thread(target=self._read_stderr, daemon=True)
+        self._reader.start()
+        match = self.wait_for_line(r"clients use tcp (\S+):(\d+)")
+        self.address = (match.group(1), int(match.group(2)))
+
+    def _read_stderr(self):
+        for line in self.child.stderr:
+            with self._changed:
+                self.lines.append(line.rstrip("\n"))
+                self._changed.notify_all()
+        with self._changed:
+            self.lines.append(None)  # the end
+            self._changed.notify_all()
+
+    def count(self, pattern):
+        with self._changed:
+            return sum(1 for line in self.lines if line and re.search(pattern, line))
+
+    def wait_for_line(self, pattern, times=1, deadline=DEADLINE):
+        """The last of `times` lines that match `pattern`."""
+        end = time.monotonic() + deadline
+        with self._changed:
+            while True:
+                found = [m for m in (re.search(pattern, line) for line in self.lines if line) if m]
+                if len(found) >= times:
+                    return found[times - 1]
+                left = end - time.monotonic()
+                if left <= 0 or None in self.lines:
+                    raise AssertionError(
+                        f"no {times} line(s) matching {pattern!r} from the server: "
+                        + "\n".join(str(line) for line in self.lines))
+                self._changed.wait(left)
+
+    def rss(self):
+        with open(f"/proc/{self.child.pid}/status") as status:
+            for line in status:
+                if line.startswith("VmRSS:"):
+                    return int(line.split()[1]) * 1024
+        raise AssertionError("no VmRSS in /proc status")
+
+    def cpu_seconds(self):
+        with open(f"/proc/{self.child.pid}/stat") as stat:
+            fields = stat.read().rsplit(")", 1)[1].split()
+        # utime and stime are fields 14 and 15 of stat(5); fields[0] is 3.
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+    def open_descriptors(self):
+        return len(os.listdir(f"/proc/{self.child.pid}/fd"))
+
+    def connect(self, receive_buffer=None):
+        sock = socket.socket()
+        if receive_buffer:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, receive_buffer)
+        sock.settimeout(DEADLINE)
+        sock.connect(self.address)
+        return sock
+
+    def stop(self):
+        if self.child.poll() is None:
+            self.child.send_signal(2)  # SIGINT: the CLI's Ctrl-C
+        try:
+            self.child.wait(DEADLINE)
+        except subprocess.TimeoutExpired:
+            self.child.kill()
+            self.child.wait()
+        self._reader.join(DEADLINE)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()
+
+
+def send_until_stalled(sock, block, total, stall_s=2.0):
+    """Sends `block` repeatedly, up to `total` bytes, until the peer stops
+    taking data for `stall_s`; returns the bytes sent."""
+    sock.setblocking(False)
+    sent = 0
+    view = memoryview(block)
+    offset = 0
+    while sent < total:
+        _, writable, _ = select.select([], [sock], [], stall_s)
+        if not writable:
+            break
+        try:
+            n = sock.send(view[offset:])
+        except BlockingIOError:
+            continue
+        sent += n
+        offset = (offset + n) % len(block)
+    sock.setblocking(True)
+    return sent
+
+
+def receive_exactly(sock, count):
+    data = bytearray()
+    sock.settimeout(DEADLINE)
+    while len(data) < count:
+        chunk = sock.recv(min(count - len(data), 1 << 20))
+        if not chunk:
+            break
+        data += chunk
+    return bytes(data)
+
+
+def read_to_end(sock):
+    data = bytearray()
+    while True:
+        chunk = sock.recv(4096)
+        if not chunk:
+            return bytes(data)
+        data += chunk
+
+
+# --- what the server holds for clients that do not read ---------------------------------
+
+
+def test_rfc2217_answers_for_a_client_that_never_reads_are_bounded():
+    """A client that sends setting requests and never reads the answers is
+    held back (the server stops reading it once 1 MiB of answers waits),
+    and gets every answer once it reads: backpressure, not loss."""
+    with ServeProcess("--device", "type=loopback", "--listen", "127.0.0.1:0",
+                      "--protocol", "rfc2217") as server:
+        before = server.rss()
+        with server.connect(receive_buffer=4096) as client:
+            block = SET_BAUDRATE_115200 * 6000
+            total = 16 * MIB
+            sent = send_until_stalled(client, block, total=total)
+            growth = server.rss() - before
+            # Unbounded, the answers (as many bytes as the requests) pile up.
+            assert growth < 4 * MIB, (f"the server grew by {growth / MIB:.1f} MiB "
+                                      f"for {sent / MIB:.1f} MiB of requests")
+            assert sent < total, "the server kept reading a client that never reads"
+            requests = sent // len(SET_BAUDRATE_115200)
+            greeting = b"\xff\xfb\x00\xff\xfd\x00"  # WILL BINARY, DO BINARY
+            answers = receive_exactly(client, len(greeting) + requests * 10)
+        assert answers.startswith(greeting)
+        assert answers.count(BAUDRATE_ANSWER) == requests
