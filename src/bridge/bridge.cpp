@@ -271,6 +271,9 @@ Bridge::Bridge(BridgeOptions options) : impl_(std::make_unique<Impl>(std::move(o
   if (o.client_side == BridgeClientSide::pty && o.protocol == BridgeProtocol::rfc2217) {
     throw OptionError("protocol", "protocol rfc2217 needs a TCP listener, not a pty");
   }
+  if (o.client_side == BridgeClientSide::tcp && o.shared && o.max_monitors < 1) {
+    throw OptionError("max_monitors", "max_monitors must be at least 1 with shared");
+  }
   if (o.buffer_limit < kChunk) {
     throw OptionError("buffer_limit", "buffer_limit must be at least 65536 bytes");
   }

@@ -1,7 +1,8 @@
 // The TCP endpoint: a listener and the connections it accepts. One client
-// controls the device at a time; with `shared`, later ones get read-only
-// monitoring instead of a refusal. With RFC 2217 each connection carries a
-// Telnet session whose COM-PORT requests act on the device.
+// controls the device at a time; with `shared`, later ones (up to
+// max_monitors) get read-only monitoring instead of a refusal. With RFC 2217
+// each connection carries a Telnet session whose COM-PORT requests act on
+// the device.
 //
 // What the server holds for a client is its outgoing queue, bounded by
 // buffer_limit (byte_queue.hpp): device data and, under RFC 2217, the
@@ -150,6 +151,12 @@ class TcpEndpoint final : public ClientEndpoint {
     return nullptr;
   }
 
+  std::size_t monitor_count() const {
+    return static_cast<std::size_t>(std::count_if(
+        clients_.begin(), clients_.end(),
+        [](const std::unique_ptr<Client>& c) { return c->monitor && !c->gone; }));
+  }
+
   // Whether to read the client now: not while its answers could overflow
   // its queue, nor (the controller) while the device's queue is full.
   bool wants_input(const Client& client) const {
@@ -177,6 +184,12 @@ class TcpEndpoint final : public ClientEndpoint {
         refuse("the device is in use by another client (" + control->connection.peer() +
                "); try again later, or start the server with --shared to let "
                "more clients watch");
+        continue;
+      }
+      if (control && monitor_count() >= options_.max_monitors) {
+        refuse(std::to_string(options_.max_monitors) +
+               " monitors are connected already, the most this server takes "
+               "(--max-monitors); try again later");
         continue;
       }
       auto client = std::make_unique<Client>(std::move(*connection), options_.buffer_limit);

@@ -186,3 +186,81 @@ def test_rfc2217_answers_for_a_client_that_never_reads_are_bounded():
             answers = receive_exactly(client, len(greeting) + requests * 10)
         assert answers.startswith(greeting)
         assert answers.count(BAUDRATE_ANSWER) == requests
+
+
+def test_monitors_beyond_the_limit_are_refused_with_a_message():
+    with TcpDevice() as device:
+        handle = bridge.serve(device.options, "127.0.0.1:0", shared=True, max_monitors=2,
+                              quiet=True)
+        try:
+            host, port = handle.address.rsplit(":", 1)
+            address = (host, int(port))
+            control = socket.create_connection(address, timeout=DEADLINE)
+            monitors = [socket.create_connection(address, timeout=DEADLINE) for _ in range(2)]
+            wait_until(lambda: handle.stats().clients_accepted == 3, DEADLINE,
+                       what="the controller and two monitors to be accepted")
+            with socket.create_connection(address, timeout=DEADLINE) as extra:
+                refusal = read_to_end(extra)
+            assert b"2 monitors are connected" in refusal
+            assert b"--max-monitors" in refusal
+            assert handle.stats().clients_refused == 1
+            assert any(m.startswith("refused client") and "monitors" in m
+                       for m in handle.messages())
+            # A monitor that leaves makes room for another.
+            monitors.pop().close()
+            wait_until(lambda: sum("disconnected" in m for m in handle.messages()) == 1,
+                       DEADLINE, what="the monitor's departure to be logged")
+            monitors.append(socket.create_connection(address, timeout=DEADLINE))
+            wait_until(lambda: handle.stats().clients_accepted == 4, DEADLINE,
+                       what="a new monitor to be accepted")
+            control.sendall(b"hi")
+            assert receive_exactly(control, 2) == b"HI"
+            assert all(receive_exactly(m, 2) == b"HI" for m in monitors)
+            for sock in [control, *monitors]:
+                sock.close()
+        finally:
+            handle.stop()
+            assert handle.wait(DEADLINE)
+
+
+def test_max_monitors_needs_a_positive_count(capsys):
+    with pytest.raises(ValueError, match="max_monitors"):
+        bridge.serve("type=loopback", "127.0.0.1:0", shared=True, max_monitors=0, quiet=True)
+    for argv, words in ((["--max-monitors", "4"], "give --shared too"),
+                        (["--shared", "--max-monitors", "0"], "at least 1")):
+        code = cli.main(["serve", "--device", "type=loopback", "--listen", "0", *argv])
+        assert code == 2
+        assert words in capsys.readouterr().err
+
+
+def test_monitors_that_never_read_cost_a_bounded_amount():
+    """40 monitors that never read, while the controller moves 8 MiB: at most
+    16 (the default limit) are accepted, and each holds at most its 1 MiB
+    queue."""
+    connect_count = 40
+    with ServeProcess("--device", "type=loopback", "--listen", "127.0.0.1:0",
+                      "--shared") as server:
+        before = server.rss()
+        control = server.connect()
+        server.wait_for_line(r"client \S+ connected$")
+        monitors = []
+        for _ in range(connect_count):
+            monitors.append(server.connect(receive_buffer=4096))
+        server.wait_for_line(r"client \S+ connected \(read-only monitor\)|refused client",
+                             times=connect_count)
+        accepted = server.count(r"read-only monitor")
+        assert accepted <= 16
+        assert server.count(r"refused client .*monitors") == connect_count - accepted
+        chunk = bytes(range(256)) * 256
+        total = 8 * MIB
+        sender = threading.Thread(target=lambda: [control.sendall(chunk)
+                                                  for _ in range(total // len(chunk))])
+        sender.start()
+        assert len(receive_exactly(control, total)) == total
+        sender.join(DEADLINE)
+        growth = server.rss() - before
+        bound = (accepted + 2) * MIB * 1.25 + 4 * MIB
+        assert growth < bound, (f"{accepted} monitors cost {growth / MIB:.1f} MiB "
+                                f"(bound {bound / MIB:.1f} MiB)")
+        for sock in [control, *monitors]:
+            sock.close()
