@@ -61,11 +61,18 @@ class TcpEndpoint final : public ClientEndpoint {
   }
 
   void add_to_poll(PollSet& poll_set) override {
-    listener_slot_ = poll_set.add(listener_.fd(), true, false);
+    listener_slot_ = PollSet::none;
+    if (!listener_.resting(Clock::now())) {
+      listener_slot_ = poll_set.add(listener_.fd(), true, false);
+    }
     for (auto& client : clients_) {
       client->slot = poll_set.add(client->connection.fd(), wants_input(*client),
                                   !client->outgoing.empty());
     }
+  }
+
+  Clock::time_point next_timer() const override {
+    return listener_.resting(Clock::now()) ? listener_.resume_at() : Clock::time_point::max();
   }
 
   void handle_events(const PollSet& poll_set) override {
@@ -88,7 +95,10 @@ class TcpEndpoint final : public ClientEndpoint {
     clients_.erase(std::remove_if(clients_.begin(), clients_.end(),
                                   [](const std::unique_ptr<Client>& c) { return c->gone; }),
                    clients_.end());
-    if (poll_set.ready(listener_slot_).readable) accept_clients();
+    if (poll_set.ready(listener_slot_).readable) {
+      accept_clients();
+      report_listener_rest();
+    }
   }
 
   bool wants_device_data() const override {
@@ -164,8 +174,26 @@ class TcpEndpoint final : public ClientEndpoint {
     return client.monitor || device_.room_for_client_data() > 0;
   }
 
+  // Said once when the listener starts resting (out of descriptors), not
+  // on every retry, and once when a connection is accepted after that.
+  void report_listener_rest() {
+    const int error = listener_.rest_error();
+    if (error != 0 && !rest_reported_) {
+      rest_reported_ = true;
+      status_.message(std::string("cannot accept clients: ") + std::strerror(error) +
+                      "; new clients wait in the listen queue, tried again at most every " +
+                      std::to_string(Listener::kLongestRest.count()) + " ms");
+    }
+  }
+
   void accept_clients() {
-    while (auto connection = listener_.accept()) {
+    for (;;) {
+      auto connection = listener_.accept();
+      if (!connection) return;
+      if (rest_reported_) {
+        rest_reported_ = false;
+        status_.message("accepting clients again");
+      }
       const std::string peer = connection->peer();
       const auto refuse = [&](const std::string& why) {
         const std::string text = "wiretape: " + why + "\r\n";
@@ -271,6 +299,7 @@ class TcpEndpoint final : public ClientEndpoint {
   Listener listener_;
   std::vector<std::unique_ptr<Client>> clients_;
   bool had_client_ = false;
+  bool rest_reported_ = false;
   PollSet::Slot listener_slot_ = PollSet::none;
 };
 

@@ -1,14 +1,47 @@
-// The bounds that keep a port server's memory independent of what clients
-// do: queues that hold at most their limit.
+// The bounds that keep a port server's memory and CPU independent of what
+// clients do: queues that hold at most their limit, and a listener that
+// rests instead of spinning when it cannot accept (out of descriptors).
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <chrono>
 #include <string>
 
 #include "bridge/byte_queue.hpp"
+#include "posix/syscalls.hpp"
+#include "support/port_test_support.hpp"
+#include "wiretape/bridge.hpp"
 
+namespace sys = wiretape::detail::sys;
 using wiretape::detail::bridge::ByteQueue;
 using wiretape::detail::bridge::kChunk;
+
+namespace {
+
+std::size_t count_messages(const wiretape::Bridge& bridge, const std::string& part) {
+  const auto messages = bridge.messages();
+  return static_cast<std::size_t>(std::count_if(
+      messages.begin(), messages.end(),
+      [&](const std::string& m) { return m.find(part) != std::string::npos; }));
+}
+
+template <typename Condition>
+bool wait_for(Condition condition) {
+  const auto end = std::chrono::steady_clock::now() + wiretape::test::kEventDeadline;
+  while (!condition()) {
+    if (std::chrono::steady_clock::now() > end) return false;
+    ::poll(nullptr, 0, 5);
+  }
+  return true;
+}
+
+}  // namespace
 
 TEST(ByteQueue, HoldsAboutItsLimitNotTwice) {
   constexpr std::size_t limit = 1 << 20;
@@ -33,4 +66,48 @@ TEST(ByteQueue, ReusesTheConsumedFrontBeforeGrowing) {
   }
   EXPECT_LE(queue.capacity(), limit + chunk.size());
   EXPECT_EQ(std::string(queue.data(), 10), std::string(10, 'y'));
+}
+
+TEST(BridgeBounds, OutOfDescriptorsTheListenerRestsAndResumes) {
+  std::atomic<bool> out_of_descriptors{true};
+  std::atomic<int> failed_accepts{0};
+  sys::ScopedOverride seam;
+  seam->accept4 = [&](int fd, sockaddr* address, socklen_t* length, int flags) {
+    if (out_of_descriptors.load()) {
+      ++failed_accepts;
+      errno = EMFILE;
+      return -1;
+    }
+    return sys::real().accept4(fd, address, length, flags);
+  };
+
+  wiretape::BridgeOptions options;
+  options.device = "type=loopback";
+  options.client_side = wiretape::BridgeClientSide::tcp;
+  options.shared = true;
+  options.quiet = true;
+  wiretape::Bridge bridge(options);
+  bridge.start();
+  const int client = wiretape::test::connect_tcp(bridge.listen_address());
+  ASSERT_GE(client, 0);
+  ASSERT_TRUE(wait_for([&] { return count_messages(bridge, "cannot accept clients") > 0; }));
+
+  // A spinning loop retries accept() thousands of times a second; a resting
+  // one a few times (the rest doubles from 50 ms to 1 s).
+  const int before = failed_accepts.load();
+  ::poll(nullptr, 0, 500);  // the measurement window
+  EXPECT_LT(failed_accepts.load() - before, 20);
+  EXPECT_EQ(count_messages(bridge, "cannot accept clients"), 1u);
+
+  // Descriptors free again: the waiting client is accepted and served.
+  out_of_descriptors.store(false);
+  const std::string message = "served after the shortage\n";
+  ASSERT_EQ(::write(client, message.data(), message.size()),
+            static_cast<ssize_t>(message.size()));
+  EXPECT_EQ(wiretape::test::read_count(client, message.size()), message);
+  EXPECT_EQ(count_messages(bridge, "accepting clients again"), 1u);
+  ::close(client);
+  bridge.stop();
+  ASSERT_TRUE(bridge.wait(std::chrono::seconds(10)));
+  EXPECT_EQ(bridge.result().stats.clients_accepted, 1u);
 }

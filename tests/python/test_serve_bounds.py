@@ -264,3 +264,35 @@ def test_monitors_that_never_read_cost_a_bounded_amount():
                                 f"(bound {bound / MIB:.1f} MiB)")
         for sock in [control, *monitors]:
             sock.close()
+
+
+# --- out of file descriptors --------------------------------------------------------------
+
+
+def test_out_of_file_descriptors_the_server_waits_instead_of_spinning():
+    with ServeProcess("--device", "type=loopback", "--listen", "127.0.0.1:0",
+                      "--shared") as server:
+        # Room for exactly three more descriptors: a controller and two
+        # monitors; the next connections cannot be accepted.
+        spare = 3
+        limit = server.open_descriptors() + spare
+        _, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+        resource.prlimit(server.child.pid, resource.RLIMIT_NOFILE, (limit, hard))
+        clients = [server.connect() for _ in range(spare)]
+        server.wait_for_line(r"client \S+ connected", times=spare)
+        waiting = [server.connect() for _ in range(2)]  # in the listen queue
+        server.wait_for_line(r"cannot accept clients")
+        start = server.cpu_seconds()
+        window = 2.0
+        select.select([], [], [], window)  # the measurement window
+        used = server.cpu_seconds() - start
+        # A spin takes a whole core (a share of one on a loaded machine); a
+        # waiting server takes next to nothing.
+        assert used < 0.1 * window, f"the server used {used:.2f} s of CPU in {window} s"
+        assert server.count(r"cannot accept clients") == 1
+        # A client that leaves frees a descriptor: the next one is served.
+        clients.pop().close()
+        server.wait_for_line(r"accepting clients again")
+        server.wait_for_line(r"client \S+ connected", times=spare + 1)
+        for sock in clients + waiting:
+            sock.close()
