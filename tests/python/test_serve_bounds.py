@@ -296,3 +296,37 @@ def test_out_of_file_descriptors_the_server_waits_instead_of_spinning():
         server.wait_for_line(r"client \S+ connected", times=spare + 1)
         for sock in clients + waiting:
             sock.close()
+
+
+# --- pyserial's rfc2217 client on a shared server -----------------------------------------
+
+
+def test_pyserial_rfc2217_clients_control_and_monitor_a_shared_device():
+    """The controller sets 115200; a monitor opens with pyserial's defaults
+    (9600): its requests are acknowledged, not applied, so it opens and
+    watches."""
+    with TcpDevice() as device:
+        handle = bridge.serve(device.options, "127.0.0.1:0", protocol="rfc2217", shared=True,
+                              quiet=True)
+        url = "rfc2217://" + handle.address
+        try:
+            with serial.serial_for_url(url, baudrate=115200, timeout=DEADLINE) as control:
+                with serial.serial_for_url(url, timeout=DEADLINE) as monitor:
+                    assert monitor.baudrate == 9600
+                    monitor.dtr = False
+                    monitor.reset_input_buffer()
+                    control.write(b"hello\n")
+                    assert control.read_until(b"\n") == b"HELLO\n"
+                    assert monitor.read_until(b"\n") == b"HELLO\n"
+                    monitor.write(b"ignored\n")
+                control.baudrate = 57600
+                control.write(b"again\n")
+                assert control.read_until(b"\n") == b"AGAIN\n"
+            assert bytes(device.received) == b"hello\nagain\n"
+        finally:
+            handle.stop()
+            assert handle.wait(DEADLINE)
+        result = handle.result()
+        assert result.ok, result
+        # Only the controller's settings are applied.
+        assert result.stats.settings_changes == 2
