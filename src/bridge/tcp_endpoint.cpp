@@ -61,8 +61,11 @@ class TcpEndpoint final : public ClientEndpoint {
   }
 
   void add_to_poll(PollSet& poll_set) override {
+    // While the device is away, new clients wait in the listen queue and
+    // are served once it is back: accepting them now could only end in
+    // closing them.
     listener_slot_ = PollSet::none;
-    if (!listener_.resting(Clock::now())) {
+    if (device_.is_open() && !listener_.resting(Clock::now())) {
       listener_slot_ = poll_set.add(listener_.fd(), true, false);
     }
     for (auto& client : clients_) {
@@ -187,7 +190,8 @@ class TcpEndpoint final : public ClientEndpoint {
   }
 
   void accept_clients() {
-    for (;;) {
+    // The device can go away during this round: the rest wait for it.
+    while (device_.is_open()) {
       auto connection = listener_.accept();
       if (!connection) return;
       if (rest_reported_) {
@@ -202,11 +206,6 @@ class TcpEndpoint final : public ClientEndpoint {
         status_.update_stats([](BridgeStats& s) { ++s.clients_refused; });
         status_.message("refused client " + peer + ": " + why);
       };
-      if (!device_.is_open()) {
-        refuse("the device (" + device_.description() + ") is unavailable" +
-               (options_.reopen ? "; waiting for it to come back, try again later" : ""));
-        continue;
-      }
       Client* control = controller();
       if (control && !options_.shared) {
         refuse("the device is in use by another client (" + control->connection.peer() +

@@ -330,3 +330,54 @@ def test_pyserial_rfc2217_clients_control_and_monitor_a_shared_device():
         assert result.ok, result
         # Only the controller's settings are applied.
         assert result.stats.settings_changes == 2
+
+
+# --- device loss ----------------------------------------------------------------------------
+
+
+def test_a_client_that_arrives_while_the_device_is_away_is_served_once_it_is_back():
+    with TcpDevice() as device:
+        handle = bridge.serve(device.options, "127.0.0.1:0", reopen=True, quiet=True)
+        try:
+            host, port = handle.address.rsplit(":", 1)
+            address = (host, int(port))
+            with socket.create_connection(address, timeout=DEADLINE) as first:
+                first.sendall(b"one")
+                assert receive_exactly(first, 3) == b"ONE"
+                device.accepting.clear()
+                device.drop()
+                assert read_to_end(first) == b""
+            wait_until(lambda: handle.stats().device_losses == 1, DEADLINE,
+                       what="the device loss to be counted")
+            # A driver connects and talks at once, while the device is away.
+            with socket.create_connection(address, timeout=DEADLINE) as second:
+                second.sendall(b"two")
+                device.accepting.set()
+                assert receive_exactly(second, 3) == b"TWO"
+            assert handle.stats().clients_refused == 0
+        finally:
+            handle.stop()
+            assert handle.wait(DEADLINE)
+
+
+def test_a_device_lost_while_no_client_is_connected_is_noticed_at_once():
+    """The loss is seen without a client, so the next client is not
+    accepted only to be cut off when the server finds the device gone."""
+    with TcpDevice() as device:
+        handle = bridge.serve(device.options, "127.0.0.1:0", reopen=True, quiet=True)
+        try:
+            wait_until(lambda: device.connections == 1, DEADLINE,
+                       what="the server to open the device")
+            device.accepting.clear()
+            device.drop()
+            wait_until(lambda: handle.stats().device_losses == 1, DEADLINE,
+                       what="the device loss to be noticed without a client")
+            host, port = handle.address.rsplit(":", 1)
+            with socket.create_connection((host, int(port)), timeout=DEADLINE) as client:
+                client.sendall(b"hello")
+                device.accepting.set()
+                assert receive_exactly(client, 5) == b"HELLO"
+            assert handle.stats().clients_refused == 0
+        finally:
+            handle.stop()
+            assert handle.wait(DEADLINE)
