@@ -37,6 +37,8 @@ struct Client {
   std::unique_ptr<ComPortAdapter> com_port;
   std::unique_ptr<rfc2217::ServerSession> telnet;
   bool gone = false;
+  // The device's modem inputs changed and this client has not been told.
+  bool modem_state_due = false;
   PollSet::Slot slot = PollSet::none;
 };
 
@@ -94,6 +96,7 @@ class TcpEndpoint final : public ClientEndpoint {
         drop_client(client, "the connection hung up");
       }
       if (!client.gone && !client.outgoing.empty()) write_client(client);
+      if (!client.gone) tell_modem_state(client);
     }
     clients_.erase(std::remove_if(clients_.begin(), clients_.end(),
                                   [](const std::unique_ptr<Client>& c) { return c->gone; }),
@@ -141,8 +144,8 @@ class TcpEndpoint final : public ClientEndpoint {
   void modem_inputs_changed() override {
     for (auto& client : clients_) {
       if (client->gone || !client->telnet) continue;
-      client->outgoing.append(client->telnet->modem_state_notification());
-      write_client(*client);
+      client->modem_state_due = true;
+      tell_modem_state(*client);
     }
   }
 
@@ -281,6 +284,16 @@ class TcpEndpoint final : public ClientEndpoint {
       }
       client.outgoing.consume(sent.bytes);
     }
+  }
+
+  // A client whose queue is full is told the modem state once it has room,
+  // the state as it is then: changes coalesce instead of piling up behind
+  // a client that does not read.
+  void tell_modem_state(Client& client) {
+    if (!client.modem_state_due || client.outgoing.full()) return;
+    client.modem_state_due = false;
+    client.outgoing.append(client.telnet->modem_state_notification());
+    write_client(client);
   }
 
   void drop_client(Client& client, const std::string& reason) {
