@@ -11,7 +11,10 @@
 // never reads holds at most its queue, whatever it sends.
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cstring>
+#include <deque>
+#include <iterator>
 #include <optional>
 #include <string>
 #include <vector>
@@ -24,6 +27,21 @@
 namespace wiretape::detail::bridge {
 
 namespace {
+
+// A refused connection is closed only once the client has closed its end
+// (or after kRefusalLinger): closing a socket with unread input resets the
+// connection, and a reset discards the refusal message before a client that
+// spoke first (a driver, pyserial's Telnet negotiation) reads it. Its input
+// is read and dropped meanwhile. At most kMaxRefusalsLingering linger; the
+// oldest is closed to make room.
+constexpr auto kRefusalLinger = std::chrono::seconds(2);
+constexpr std::size_t kMaxRefusalsLingering = 16;
+
+struct Refusal {
+  Connection connection;
+  Clock::time_point close_at;
+  PollSet::Slot slot = PollSet::none;
+};
 
 struct Client {
   Client(Connection accepted, std::size_t queue_limit)
@@ -74,13 +92,24 @@ class TcpEndpoint final : public ClientEndpoint {
       client->slot = poll_set.add(client->connection.fd(), wants_input(*client),
                                   !client->outgoing.empty());
     }
+    for (auto& refusal : refusals_) {
+      refusal.slot = poll_set.add(refusal.connection.fd(), true, false);
+    }
   }
 
   Clock::time_point next_timer() const override {
-    return listener_.resting(Clock::now()) ? listener_.resume_at() : Clock::time_point::max();
+    Clock::time_point next =
+        listener_.resting(Clock::now()) ? listener_.resume_at() : Clock::time_point::max();
+    if (!refusals_.empty()) next = std::min(next, refusals_.front().close_at);
+    return next;
+  }
+
+  void run_timers(Clock::time_point now) override {
+    while (!refusals_.empty() && refusals_.front().close_at <= now) refusals_.pop_front();
   }
 
   void handle_events(const PollSet& poll_set) override {
+    drain_refusals(poll_set);
     // Clients accepted below were not polled this round.
     const std::size_t polled = clients_.size();
     for (std::size_t i = 0; i < polled; ++i) {
@@ -150,6 +179,7 @@ class TcpEndpoint final : public ClientEndpoint {
   }
 
   void shut_down() override {
+    refusals_.clear();
     for (auto& client : clients_) {
       if (!client->gone) {
         write_client(*client);
@@ -206,6 +236,9 @@ class TcpEndpoint final : public ClientEndpoint {
         const std::string text = "wiretape: " + why + "\r\n";
         // A short text fits in a fresh socket's buffer: no need to wait.
         connection->send(text.data(), text.size());
+        connection->shutdown_sending();
+        if (refusals_.size() >= kMaxRefusalsLingering) refusals_.pop_front();
+        refusals_.push_back({std::move(*connection), Clock::now() + kRefusalLinger});
         status_.update_stats([](BridgeStats& s) { ++s.clients_refused; });
         status_.message("refused client " + peer + ": " + why);
       };
@@ -286,6 +319,21 @@ class TcpEndpoint final : public ClientEndpoint {
     }
   }
 
+  // Reads and drops what refused clients still send; closes the ones that
+  // have closed their end (or failed) without a reset.
+  void drain_refusals(const PollSet& poll_set) {
+    std::array<char, 4096> discard;
+    for (auto it = refusals_.begin(); it != refusals_.end();) {
+      const Readiness ready = poll_set.ready(it->slot);
+      bool done = false;
+      if (ready.readable || ready.hung_up) {
+        const Transfer got = it->connection.receive(discard.data(), discard.size());
+        done = got.status == Transfer::Status::closed || got.status == Transfer::Status::failed;
+      }
+      it = done ? refusals_.erase(it) : std::next(it);
+    }
+  }
+
   // A client whose queue is full is told the modem state once it has room,
   // the state as it is then: changes coalesce instead of piling up behind
   // a client that does not read.
@@ -310,6 +358,8 @@ class TcpEndpoint final : public ClientEndpoint {
   Status& status_;
   Listener listener_;
   std::vector<std::unique_ptr<Client>> clients_;
+  // Oldest first: their close_at times are in order.
+  std::deque<Refusal> refusals_;
   bool had_client_ = false;
   bool rest_reported_ = false;
   PollSet::Slot listener_slot_ = PollSet::none;

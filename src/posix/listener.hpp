@@ -34,6 +34,8 @@ class Connection {
   const std::string& peer() const noexcept { return peer_; }
   Transfer receive(void* buffer, std::size_t size);
   Transfer send(const void* data, std::size_t size);
+  // Sends FIN: the peer reads what was sent, then the end.
+  void shutdown_sending() { sys::shutdown(fd_.get(), SHUT_WR); }
   void close() { fd_.reset(); }
 
  private:

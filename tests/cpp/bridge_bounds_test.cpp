@@ -111,3 +111,52 @@ TEST(BridgeBounds, OutOfDescriptorsTheListenerRestsAndResumes) {
   ASSERT_TRUE(bridge.wait(std::chrono::seconds(10)));
   EXPECT_EQ(bridge.result().stats.clients_accepted, 1u);
 }
+
+TEST(BridgeBounds, ARefusedClientThatSpokeFirstReadsTheRefusalNotAReset) {
+  // The second connection is accepted only after its client has sent
+  // something: closing a socket with unread input resets the connection,
+  // and the reset would discard the refusal message.
+  std::atomic<bool> hold_accepts{false};
+  wiretape::test::Event release;
+  sys::ScopedOverride seam;
+  seam->accept4 = [&](int fd, sockaddr* address, socklen_t* length, int flags) {
+    if (hold_accepts.load()) release.wait();
+    return sys::real().accept4(fd, address, length, flags);
+  };
+
+  wiretape::BridgeOptions options;
+  options.device = "type=loopback";
+  options.client_side = wiretape::BridgeClientSide::tcp;
+  options.quiet = true;
+  wiretape::Bridge bridge(options);
+  bridge.start();
+  const int control = wiretape::test::connect_tcp(bridge.listen_address());
+  ASSERT_GE(control, 0);
+  ASSERT_TRUE(wait_for([&] { return bridge.stats().clients_accepted == 1; }));
+
+  hold_accepts.store(true);
+  const int refused = wiretape::test::connect_tcp(bridge.listen_address());
+  ASSERT_GE(refused, 0);
+  const std::string greeting = "a driver talks first\n";
+  ASSERT_EQ(::write(refused, greeting.data(), greeting.size()),
+            static_cast<ssize_t>(greeting.size()));
+  release.set();
+
+  std::string received;
+  int error = 0;
+  for (;;) {
+    ASSERT_TRUE(wiretape::test::fd_readable(refused, wiretape::test::kEventDeadline));
+    char buffer[512];
+    const ssize_t n = ::read(refused, buffer, sizeof buffer);
+    if (n < 0) error = errno;
+    if (n <= 0) break;
+    received.append(buffer, static_cast<std::size_t>(n));
+  }
+  EXPECT_EQ(error, 0) << "the refused client saw its connection reset";
+  EXPECT_NE(received.find("in use by another client"), std::string::npos) << received;
+  ::close(refused);
+  ::close(control);
+  bridge.stop();
+  ASSERT_TRUE(bridge.wait(std::chrono::seconds(10)));
+  EXPECT_EQ(bridge.result().stats.clients_refused, 1u);
+}
