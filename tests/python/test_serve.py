@@ -11,7 +11,8 @@ import pytest
 
 from wiretape import _core, bridge
 
-from devices import TcpDevice, skip_unless_serial_opens_on_a_pty, wait_until
+from devices import (TcpDevice, read_exactly, read_to_end, skip_unless_serial_opens_on_a_pty,
+                     wait_until)
 
 DEADLINE = 10.0
 
@@ -25,25 +26,6 @@ def device():
 def connect(handle):
     host, port = handle.address.rsplit(":", 1)
     return socket.create_connection((host, int(port)), timeout=DEADLINE)
-
-
-def read_exactly(sock, count):
-    data = bytearray()
-    while len(data) < count:
-        chunk = sock.recv(count - len(data))
-        if not chunk:
-            break
-        data += chunk
-    return bytes(data)
-
-
-def read_to_end(sock):
-    data = bytearray()
-    while True:
-        chunk = sock.recv(4096)
-        if not chunk:
-            return bytes(data)
-        data += chunk
 
 
 def finish(handle):

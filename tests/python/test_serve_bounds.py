@@ -23,7 +23,7 @@ import serial
 
 from wiretape import bridge, cli
 
-from devices import TcpDevice, wait_until
+from devices import TcpDevice, read_exactly, read_to_end, wait_until
 
 DEADLINE = 10.0
 MIB = 1 << 20
@@ -138,28 +138,13 @@ def send_until_stalled(sock, block, total, stall_s=2.0):
             continue
         sent += n
         offset = (offset + n) % len(block)
-    sock.setblocking(True)
+    sock.settimeout(DEADLINE)
     return sent
 
 
-def receive_exactly(sock, count):
-    data = bytearray()
-    sock.settimeout(DEADLINE)
-    while len(data) < count:
-        chunk = sock.recv(min(count - len(data), 1 << 20))
-        if not chunk:
-            break
-        data += chunk
-    return bytes(data)
-
-
-def read_to_end(sock):
-    data = bytearray()
-    while True:
-        chunk = sock.recv(4096)
-        if not chunk:
-            return bytes(data)
-        data += chunk
+def address_of(handle):
+    host, port = handle.address.rsplit(":", 1)
+    return host, int(port)
 
 
 # --- what the server holds for clients that do not read ---------------------------------
@@ -183,7 +168,7 @@ def test_rfc2217_answers_for_a_client_that_never_reads_are_bounded():
             assert sent < total, "the server kept reading a client that never reads"
             requests = sent // len(SET_BAUDRATE_115200)
             greeting = b"\xff\xfb\x00\xff\xfd\x00"  # WILL BINARY, DO BINARY
-            answers = receive_exactly(client, len(greeting) + requests * 10)
+            answers = read_exactly(client, len(greeting) + requests * 10)
         assert answers.startswith(greeting)
         assert answers.count(BAUDRATE_ANSWER) == requests
 
@@ -193,8 +178,7 @@ def test_monitors_beyond_the_limit_are_refused_with_a_message():
         handle = bridge.serve(device.options, "127.0.0.1:0", shared=True, max_monitors=2,
                               quiet=True)
         try:
-            host, port = handle.address.rsplit(":", 1)
-            address = (host, int(port))
+            address = address_of(handle)
             control = socket.create_connection(address, timeout=DEADLINE)
             monitors = [socket.create_connection(address, timeout=DEADLINE) for _ in range(2)]
             wait_until(lambda: handle.stats().clients_accepted == 3, DEADLINE,
@@ -214,8 +198,8 @@ def test_monitors_beyond_the_limit_are_refused_with_a_message():
             wait_until(lambda: handle.stats().clients_accepted == 4, DEADLINE,
                        what="a new monitor to be accepted")
             control.sendall(b"hi")
-            assert receive_exactly(control, 2) == b"HI"
-            assert all(receive_exactly(m, 2) == b"HI" for m in monitors)
+            assert read_exactly(control, 2) == b"HI"
+            assert all(read_exactly(m, 2) == b"HI" for m in monitors)
             for sock in [control, *monitors]:
                 sock.close()
         finally:
@@ -256,7 +240,7 @@ def test_monitors_that_never_read_cost_a_bounded_amount():
         sender = threading.Thread(target=lambda: [control.sendall(chunk)
                                                   for _ in range(total // len(chunk))])
         sender.start()
-        assert len(receive_exactly(control, total)) == total
+        assert len(read_exactly(control, total)) == total
         sender.join(DEADLINE)
         growth = server.rss() - before
         bound = (accepted + 2) * MIB * 1.25 + 4 * MIB
@@ -339,11 +323,10 @@ def test_a_client_that_arrives_while_the_device_is_away_is_served_once_it_is_bac
     with TcpDevice() as device:
         handle = bridge.serve(device.options, "127.0.0.1:0", reopen=True, quiet=True)
         try:
-            host, port = handle.address.rsplit(":", 1)
-            address = (host, int(port))
+            address = address_of(handle)
             with socket.create_connection(address, timeout=DEADLINE) as first:
                 first.sendall(b"one")
-                assert receive_exactly(first, 3) == b"ONE"
+                assert read_exactly(first, 3) == b"ONE"
                 device.accepting.clear()
                 device.drop()
                 assert read_to_end(first) == b""
@@ -353,7 +336,7 @@ def test_a_client_that_arrives_while_the_device_is_away_is_served_once_it_is_bac
             with socket.create_connection(address, timeout=DEADLINE) as second:
                 second.sendall(b"two")
                 device.accepting.set()
-                assert receive_exactly(second, 3) == b"TWO"
+                assert read_exactly(second, 3) == b"TWO"
             assert handle.stats().clients_refused == 0
         finally:
             handle.stop()
@@ -372,11 +355,10 @@ def test_a_device_lost_while_no_client_is_connected_is_noticed_at_once():
             device.drop()
             wait_until(lambda: handle.stats().device_losses == 1, DEADLINE,
                        what="the device loss to be noticed without a client")
-            host, port = handle.address.rsplit(":", 1)
-            with socket.create_connection((host, int(port)), timeout=DEADLINE) as client:
+            with socket.create_connection(address_of(handle), timeout=DEADLINE) as client:
                 client.sendall(b"hello")
                 device.accepting.set()
-                assert receive_exactly(client, 5) == b"HELLO"
+                assert read_exactly(client, 5) == b"HELLO"
             assert handle.stats().clients_refused == 0
         finally:
             handle.stop()
