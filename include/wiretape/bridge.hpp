@@ -14,7 +14,10 @@
 //   - device -> read-only monitor clients (--shared): when a monitor falls
 //     behind by more than the bound, the new data is dropped for it (and
 //     counted in BridgeStats::bytes_dropped); the device is never held back
-//     for a monitor.
+//     for a monitor. At most max_monitors monitors are accepted;
+//   - server -> a client, RFC 2217 answers and device data in one queue:
+//     while it is full the bridge stops reading that client, whose requests
+//     (and data) wait in TCP until it reads its answers.
 #pragma once
 
 #include <chrono>
@@ -59,6 +62,9 @@ struct BridgeOptions {
   // read-only monitoring (device data, its input ignored) instead of being
   // refused.
   bool shared = false;
+  // tcp, shared: at most this many monitors at once (at least 1); more are
+  // refused with a message. Each may hold buffer_limit bytes the device sent.
+  std::size_t max_monitors = 16;
 
   // Session file to record into ("" records nothing), with free metadata.
   std::string output;

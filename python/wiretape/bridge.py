@@ -30,6 +30,7 @@ from . import _core
 from ._core import BridgeResult, BridgeStats
 
 __all__ = [
+    "DEFAULT_MAX_MONITORS",
     "BridgeHandle",
     "BridgeResult",
     "BridgeStats",
@@ -152,17 +153,22 @@ def record(device: str, output, *, pty=None, listen=None,
                   duration=duration, quiet=quiet)
 
 
+DEFAULT_MAX_MONITORS = 16
+
+
 def serve(device: str, listen, *, output=None, protocol: str = "raw",
-          shared: bool = False, reopen: bool = False,
-          quiet: bool = False) -> BridgeHandle:
+          shared: bool = False, max_monitors: int = DEFAULT_MAX_MONITORS,
+          reopen: bool = False, quiet: bool = False) -> BridgeHandle:
     """``wiretape serve``: shares ``device`` with TCP clients at ``listen``
     (127.0.0.1 unless a host is given), raw or RFC 2217, one controlling
-    client at a time (``shared``: later ones get read-only monitoring),
-    recording server-side to ``output`` if given; ``reopen`` waits for a
-    device that went away to come back."""
+    client at a time (``shared``: later ones, up to ``max_monitors``, get
+    read-only monitoring), recording server-side to ``output`` if given;
+    ``reopen`` waits for a device that went away to come back."""
+    if shared and max_monitors < 1:
+        raise ValueError(f"max_monitors must be at least 1, not {max_monitors}")
     return _start(device_options(device), pty=None, listen=listen,
                   output=os.fspath(output) if output else "", protocol=protocol,
-                  shared=shared, reopen=reopen, quiet=quiet)
+                  shared=shared, max_monitors=max_monitors, reopen=reopen, quiet=quiet)
 
 
 def serve_replay(file, *, pty=None, listen=None, replay_options: str = "",

@@ -278,9 +278,15 @@ def cmd_replay(args, out: _Output) -> int:
 def cmd_serve(args, out: _Output) -> int:
     from . import bridge
 
+    if args.max_monitors is not None and not args.shared:
+        raise UsageError("--max-monitors limits the monitors of --shared: give --shared too")
+    if args.max_monitors is not None and args.max_monitors < 1:
+        raise UsageError(f"--max-monitors must be at least 1, not {args.max_monitors}")
+    max_monitors = (bridge.DEFAULT_MAX_MONITORS if args.max_monitors is None
+                    else args.max_monitors)
     handle = bridge.serve(args.device, args.listen, output=args.output,
-                          protocol=args.protocol, shared=args.shared, reopen=args.reopen,
-                          quiet=args.quiet)
+                          protocol=args.protocol, shared=args.shared,
+                          max_monitors=max_monitors, reopen=args.reopen, quiet=args.quiet)
     return _run_bridge(handle, out, "serve", lambda: _announce(handle, out, "serving"))
 
 
@@ -568,6 +574,9 @@ def build_parser() -> argparse.ArgumentParser:
                        help="raw bytes or RFC 2217 (default raw)")
     serve.add_argument("--shared", action="store_true",
                        help="later clients may connect to monitor (read-only)")
+    serve.add_argument("--max-monitors", dest="max_monitors", type=int, metavar="N",
+                       help="with --shared: at most N monitors at once, more are refused "
+                            "(default 16)")
     serve.add_argument("--reopen", action="store_true",
                        help="wait for a device that went away to come back")
     serve.add_argument("-q", "--quiet", action="store_true", help="no client messages")

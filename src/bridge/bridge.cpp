@@ -149,12 +149,15 @@ void Bridge::Impl::loop() {
     poll_set.clear();
     const PollSet::Slot wake_slot = poll_set.add(wake_->fd(), true, false);
     PollSet::Slot device_slot = PollSet::none;
+    bool device_read_wanted = false;
     if (device_.is_open()) {
-      const bool want_read = endpoint_->wants_device_data();
+      device_read_wanted = endpoint_->wants_device_data();
       const bool want_write = device_.has_data_for_device() && output_pollable;
-      if (want_read || want_write) {
-        device_slot = poll_set.add(device_.port().native_handle(), want_read, want_write);
-      }
+      // Polled even when neither is wanted: poll() reports a hang-up or an
+      // error (adapter unplugged, connection reset) anyway, so a loss is
+      // noticed while no client is connected, not by the next client, who
+      // would be accepted only to be cut off.
+      device_slot = poll_set.add(device_.port().native_handle(), device_read_wanted, want_write);
     }
     endpoint_->add_to_poll(poll_set);
 
@@ -178,7 +181,13 @@ void Bridge::Impl::loop() {
 
     if (poll_set.ready(wake_slot).readable) wake_->drain();
     const Readiness device_ready = poll_set.ready(device_slot);
-    if (device_ready.any()) read_device(device_ready);
+    if (device_ready.hung_up && !device_read_wanted) {
+      // Reading now would overfill the clients' queues; what the device
+      // still holds goes with it.
+      device_.lost("the device hung up");
+    } else if (device_ready.any()) {
+      read_device(device_ready);
+    }
     endpoint_->handle_events(poll_set);
     if (watch_modem && Clock::now() >= next_modem_poll_) {
       if (device_.modem_inputs_changed()) endpoint_->modem_inputs_changed();
@@ -270,6 +279,9 @@ Bridge::Bridge(BridgeOptions options) : impl_(std::make_unique<Impl>(std::move(o
   }
   if (o.client_side == BridgeClientSide::pty && o.protocol == BridgeProtocol::rfc2217) {
     throw OptionError("protocol", "protocol rfc2217 needs a TCP listener, not a pty");
+  }
+  if (o.client_side == BridgeClientSide::tcp && o.shared && o.max_monitors < 1) {
+    throw OptionError("max_monitors", "max_monitors must be at least 1 with shared");
   }
   if (o.buffer_limit < kChunk) {
     throw OptionError("buffer_limit", "buffer_limit must be at least 65536 bytes");

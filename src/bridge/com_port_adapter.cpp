@@ -2,8 +2,28 @@
 
 namespace wiretape::detail::bridge {
 
+ComPortAdapter::OwnLine& ComPortAdapter::own_line() {
+  if (!own_line_) {
+    OwnLine line;
+    line.settings = device_.current_settings();
+    line.dtr = device_.output_level(ModemOutput::dtr);
+    line.rts = device_.output_level(ModemOutput::rts);
+    line.break_on = device_.break_on();
+    own_line_ = line;
+  }
+  return *own_line_;
+}
+
+SerialSettings ComPortAdapter::settings() {
+  return control_ ? device_.current_settings() : own_line().settings;
+}
+
 template <typename Change>
 void ComPortAdapter::change_settings(Change change) {
+  if (!control_) {
+    change(own_line().settings);
+    return;
+  }
   if (!acts()) return;
   SerialSettings target = device_.current_settings();
   change(target);
@@ -12,17 +32,17 @@ void ComPortAdapter::change_settings(Change change) {
 
 std::uint32_t ComPortAdapter::set_baud(std::optional<std::uint32_t> baud) {
   if (baud) change_settings([&](SerialSettings& s) { s.baud = *baud; });
-  return device_.current_settings().baud;
+  return settings().baud;
 }
 
 int ComPortAdapter::set_data_bits(std::optional<int> bits) {
   if (bits) change_settings([&](SerialSettings& s) { s.data_bits = *bits; });
-  return device_.current_settings().data_bits;
+  return settings().data_bits;
 }
 
 Parity ComPortAdapter::set_parity(std::optional<Parity> parity) {
   if (parity) change_settings([&](SerialSettings& s) { s.parity = *parity; });
-  return device_.current_settings().parity;
+  return settings().parity;
 }
 
 rfc2217::StopBits ComPortAdapter::set_stop_bits(std::optional<rfc2217::StopBits> stop_bits) {
@@ -32,16 +52,19 @@ rfc2217::StopBits ComPortAdapter::set_stop_bits(std::optional<rfc2217::StopBits>
       s.stop_bits = *stop_bits == rfc2217::StopBits::two ? 2 : 1;
     });
   }
-  return device_.current_settings().stop_bits == 2 ? rfc2217::StopBits::two
-                                                   : rfc2217::StopBits::one;
+  return settings().stop_bits == 2 ? rfc2217::StopBits::two : rfc2217::StopBits::one;
 }
 
 FlowControl ComPortAdapter::set_flow_control(std::optional<FlowControl> flow) {
   if (flow) change_settings([&](SerialSettings& s) { s.flow = *flow; });
-  return device_.current_settings().flow;
+  return settings().flow;
 }
 
 bool ComPortAdapter::set_break(std::optional<bool> on) {
+  if (!control_) {
+    if (on) own_line().break_on = *on;
+    return own_line().break_on;
+  }
   if (!on) return device_.break_on();
   if (acts()) {
     if (*on) device_.start_break();
@@ -51,6 +74,11 @@ bool ComPortAdapter::set_break(std::optional<bool> on) {
 }
 
 bool ComPortAdapter::set_output(ModemOutput line, std::optional<bool> on) {
+  if (!control_) {
+    bool& level = line == ModemOutput::dtr ? own_line().dtr : own_line().rts;
+    if (on) level = *on;
+    return level;
+  }
   if (on && acts()) device_.set_output_level(line, *on);
   return device_.output_level(line);
 }

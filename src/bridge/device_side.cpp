@@ -162,7 +162,7 @@ void DeviceSide::client_disconnected(const std::string& peer, const std::string&
 // --- client -> device ------------------------------------------------------------------
 
 std::size_t DeviceSide::room_for_client_data() const {
-  return options_.buffer_limit - std::min(options_.buffer_limit, to_device_.size());
+  return to_device_.room();
 }
 
 void DeviceSide::send(const char* data, std::size_t size) {

@@ -115,7 +115,7 @@ class DeviceSide {
   std::string description_;
   std::unique_ptr<SessionWriter> writer_;
   Clock::time_point t0_;
-  ByteQueue to_device_;
+  ByteQueue to_device_{options_.buffer_limit};
   LostHandler on_lost_;
   // Line state for devices that have none (tcp): what clients set.
   SerialSettings virtual_settings_;

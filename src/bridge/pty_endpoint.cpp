@@ -69,7 +69,7 @@ class PtyEndpoint final : public ClientEndpoint {
     }
   }
 
-  bool wants_device_data() const override { return to_pty_.size() < options_.buffer_limit; }
+  bool wants_device_data() const override { return !to_pty_.full(); }
 
   void deliver_from_device(const char* data, std::size_t size) override {
     to_pty_.append(data, size);
@@ -180,7 +180,7 @@ class PtyEndpoint final : public ClientEndpoint {
   int openers_ = 0;
   bool had_client_ = false;
   bool dropped_input_logged_ = false;
-  ByteQueue to_pty_;
+  ByteQueue to_pty_{options_.buffer_limit};
   SerialSettings last_settings_;
   Clock::time_point next_settings_check_;
   PollSet::Slot pty_slot_ = PollSet::none;

@@ -1,10 +1,20 @@
 // The TCP endpoint: a listener and the connections it accepts. One client
-// controls the device at a time; with `shared`, later ones get read-only
-// monitoring instead of a refusal. With RFC 2217 each connection carries a
-// Telnet session whose COM-PORT requests act on the device.
+// controls the device at a time; with `shared`, later ones (up to
+// max_monitors) get read-only monitoring instead of a refusal. With RFC 2217
+// each connection carries a Telnet session whose COM-PORT requests act on
+// the device.
+//
+// What the server holds for a client is its outgoing queue, bounded by
+// buffer_limit (byte_queue.hpp): device data and, under RFC 2217, the
+// answers to its requests. Answers come only from reading the client, so a
+// client whose queue is full is not read until it drains: a client that
+// never reads holds at most its queue, whatever it sends.
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cstring>
+#include <deque>
+#include <iterator>
 #include <optional>
 #include <string>
 #include <vector>
@@ -18,14 +28,35 @@ namespace wiretape::detail::bridge {
 
 namespace {
 
+// A refused connection is closed only once the client has closed its end
+// (or after kRefusalLinger): closing a socket with unread input resets the
+// connection, and a reset discards the refusal message before a client that
+// spoke first (a driver, pyserial's Telnet negotiation) reads it. Its input
+// is read and dropped meanwhile. At most kMaxRefusalsLingering linger; the
+// oldest is closed to make room.
+constexpr auto kRefusalLinger = std::chrono::seconds(2);
+constexpr std::size_t kMaxRefusalsLingering = 16;
+
+struct Refusal {
+  Connection connection;
+  Clock::time_point close_at;
+  PollSet::Slot slot = PollSet::none;
+};
+
 struct Client {
-  explicit Client(Connection accepted) : connection(std::move(accepted)) {}
+  Client(Connection accepted, std::size_t queue_limit)
+      : connection(std::move(accepted)), outgoing(queue_limit) {}
+  // Reading this client could add answers to a queue that is full already.
+  bool input_held_back() const { return telnet && outgoing.full(); }
+
   Connection connection;
   bool monitor = false;
   ByteQueue outgoing;
   std::unique_ptr<ComPortAdapter> com_port;
   std::unique_ptr<rfc2217::ServerSession> telnet;
   bool gone = false;
+  // The device's modem inputs changed and this client has not been told.
+  bool modem_state_due = false;
   PollSet::Slot slot = PollSet::none;
 };
 
@@ -50,35 +81,66 @@ class TcpEndpoint final : public ClientEndpoint {
   }
 
   void add_to_poll(PollSet& poll_set) override {
-    listener_slot_ = poll_set.add(listener_.fd(), true, false);
-    const bool device_has_room = device_.room_for_client_data() > 0;
+    // While the device is away, new clients wait in the listen queue and
+    // are served once it is back: accepting them now could only end in
+    // closing them.
+    listener_slot_ = PollSet::none;
+    if (device_.is_open() && !listener_.resting(Clock::now())) {
+      listener_slot_ = poll_set.add(listener_.fd(), true, false);
+    }
     for (auto& client : clients_) {
-      client->slot = poll_set.add(client->connection.fd(), client->monitor || device_has_room,
+      client->slot = poll_set.add(client->connection.fd(), wants_input(*client),
                                   !client->outgoing.empty());
+    }
+    for (auto& refusal : refusals_) {
+      refusal.slot = poll_set.add(refusal.connection.fd(), true, false);
     }
   }
 
+  Clock::time_point next_timer() const override {
+    Clock::time_point next =
+        listener_.resting(Clock::now()) ? listener_.resume_at() : Clock::time_point::max();
+    if (!refusals_.empty()) next = std::min(next, refusals_.front().close_at);
+    return next;
+  }
+
+  void run_timers(Clock::time_point now) override {
+    while (!refusals_.empty() && refusals_.front().close_at <= now) refusals_.pop_front();
+  }
+
   void handle_events(const PollSet& poll_set) override {
+    drain_refusals(poll_set);
     // Clients accepted below were not polled this round.
     const std::size_t polled = clients_.size();
     for (std::size_t i = 0; i < polled; ++i) {
       Client& client = *clients_[i];
       if (client.gone) continue;
       const Readiness ready = poll_set.ready(client.slot);
-      if (ready.readable || ready.hung_up) read_client(client);
+      if (ready.readable || (ready.hung_up && wants_input(client))) {
+        read_client(client);
+      } else if (ready.hung_up) {
+        // Not read now, so no read will tell the end: without this, poll()
+        // would report the hang-up again at once, round after round.
+        write_client(client);
+        drop_client(client, "the connection hung up");
+      }
       if (!client.gone && !client.outgoing.empty()) write_client(client);
+      if (!client.gone) tell_modem_state(client);
     }
     clients_.erase(std::remove_if(clients_.begin(), clients_.end(),
                                   [](const std::unique_ptr<Client>& c) { return c->gone; }),
                    clients_.end());
-    if (poll_set.ready(listener_slot_).readable) accept_clients();
+    if (poll_set.ready(listener_slot_).readable) {
+      accept_clients();
+      report_listener_rest();
+    }
   }
 
   bool wants_device_data() const override {
     const Client* control = controller();
     if (!control) return false;  // the device waits for a client
     if (control->telnet && control->telnet->suspended()) return false;
-    return control->outgoing.size() < options_.buffer_limit;
+    return !control->outgoing.full();
   }
 
   void deliver_from_device(const char* data, std::size_t size) override {
@@ -92,7 +154,7 @@ class TcpEndpoint final : public ClientEndpoint {
         bytes = escaped.data();
         length = escaped.size();
       }
-      if (client->monitor && client->outgoing.size() + length > options_.buffer_limit) {
+      if (client->monitor && length > client->outgoing.room()) {
         status_.update_stats([size](BridgeStats& s) { s.bytes_dropped += size; });
         continue;
       }
@@ -111,12 +173,13 @@ class TcpEndpoint final : public ClientEndpoint {
   void modem_inputs_changed() override {
     for (auto& client : clients_) {
       if (client->gone || !client->telnet) continue;
-      client->outgoing.append(client->telnet->modem_state_notification());
-      write_client(*client);
+      client->modem_state_due = true;
+      tell_modem_state(*client);
     }
   }
 
   void shut_down() override {
+    refusals_.clear();
     for (auto& client : clients_) {
       if (!client->gone) {
         write_client(*client);
@@ -134,21 +197,51 @@ class TcpEndpoint final : public ClientEndpoint {
     return nullptr;
   }
 
+  std::size_t monitor_count() const {
+    return static_cast<std::size_t>(std::count_if(
+        clients_.begin(), clients_.end(),
+        [](const std::unique_ptr<Client>& c) { return c->monitor && !c->gone; }));
+  }
+
+  // Whether to read the client now: not while its answers could overflow
+  // its queue, nor (the controller) while the device's queue is full.
+  bool wants_input(const Client& client) const {
+    if (client.input_held_back()) return false;
+    return client.monitor || device_.room_for_client_data() > 0;
+  }
+
+  // Said once when the listener starts resting (out of descriptors), not
+  // on every retry, and once when a connection is accepted after that.
+  void report_listener_rest() {
+    const int error = listener_.rest_error();
+    if (error != 0 && !rest_reported_) {
+      rest_reported_ = true;
+      status_.message(std::string("cannot accept clients: ") + std::strerror(error) +
+                      "; new clients wait in the listen queue, tried again at most every " +
+                      std::to_string(Listener::kLongestRest.count()) + " ms");
+    }
+  }
+
   void accept_clients() {
-    while (auto connection = listener_.accept()) {
+    // The device can go away during this round: the rest wait for it.
+    while (device_.is_open()) {
+      auto connection = listener_.accept();
+      if (!connection) return;
+      if (rest_reported_) {
+        rest_reported_ = false;
+        status_.message("accepting clients again");
+      }
       const std::string peer = connection->peer();
       const auto refuse = [&](const std::string& why) {
         const std::string text = "wiretape: " + why + "\r\n";
         // A short text fits in a fresh socket's buffer: no need to wait.
         connection->send(text.data(), text.size());
+        connection->shutdown_sending();
+        if (refusals_.size() >= kMaxRefusalsLingering) refusals_.pop_front();
+        refusals_.push_back({std::move(*connection), Clock::now() + kRefusalLinger});
         status_.update_stats([](BridgeStats& s) { ++s.clients_refused; });
         status_.message("refused client " + peer + ": " + why);
       };
-      if (!device_.is_open()) {
-        refuse("the device (" + device_.description() + ") is unavailable" +
-               (options_.reopen ? "; waiting for it to come back, try again later" : ""));
-        continue;
-      }
       Client* control = controller();
       if (control && !options_.shared) {
         refuse("the device is in use by another client (" + control->connection.peer() +
@@ -156,7 +249,13 @@ class TcpEndpoint final : public ClientEndpoint {
                "more clients watch");
         continue;
       }
-      auto client = std::make_unique<Client>(std::move(*connection));
+      if (control && monitor_count() >= options_.max_monitors) {
+        refuse(std::to_string(options_.max_monitors) +
+               " monitors are connected already, the most this server takes "
+               "(--max-monitors); try again later");
+        continue;
+      }
+      auto client = std::make_unique<Client>(std::move(*connection), options_.buffer_limit);
       client->monitor = control != nullptr;
       if (!client->monitor && options_.restart && had_client_) device_.restart();
       if (options_.protocol == BridgeProtocol::rfc2217) {
@@ -174,6 +273,7 @@ class TcpEndpoint final : public ClientEndpoint {
   }
 
   void read_client(Client& client) {
+    if (client.input_held_back()) return;
     std::array<char, kChunk> buffer;
     std::size_t want = buffer.size();
     if (!client.monitor) {
@@ -219,6 +319,31 @@ class TcpEndpoint final : public ClientEndpoint {
     }
   }
 
+  // Reads and drops what refused clients still send; closes the ones that
+  // have closed their end (or failed) without a reset.
+  void drain_refusals(const PollSet& poll_set) {
+    std::array<char, 4096> discard;
+    for (auto it = refusals_.begin(); it != refusals_.end();) {
+      const Readiness ready = poll_set.ready(it->slot);
+      bool done = false;
+      if (ready.readable || ready.hung_up) {
+        const Transfer got = it->connection.receive(discard.data(), discard.size());
+        done = got.status == Transfer::Status::closed || got.status == Transfer::Status::failed;
+      }
+      it = done ? refusals_.erase(it) : std::next(it);
+    }
+  }
+
+  // A client whose queue is full is told the modem state once it has room,
+  // the state as it is then: changes coalesce instead of piling up behind
+  // a client that does not read.
+  void tell_modem_state(Client& client) {
+    if (!client.modem_state_due || client.outgoing.full()) return;
+    client.modem_state_due = false;
+    client.outgoing.append(client.telnet->modem_state_notification());
+    write_client(client);
+  }
+
   void drop_client(Client& client, const std::string& reason) {
     if (client.gone) return;
     client.gone = true;
@@ -233,7 +358,10 @@ class TcpEndpoint final : public ClientEndpoint {
   Status& status_;
   Listener listener_;
   std::vector<std::unique_ptr<Client>> clients_;
+  // Oldest first: their close_at times are in order.
+  std::deque<Refusal> refusals_;
   bool had_client_ = false;
+  bool rest_reported_ = false;
   PollSet::Slot listener_slot_ = PollSet::none;
 };
 

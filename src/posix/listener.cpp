@@ -4,6 +4,7 @@
 #include <netinet/in.h>
 #include <netinet/tcp.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <memory>
@@ -30,6 +31,25 @@ Transfer failed_or_would_block(int error) {
     transfer.error = error;
   }
   return transfer;
+}
+
+// Failures of one waiting connection (it is gone from the queue), not of
+// the listener; Linux reports pending network errors this way too.
+bool connection_failed_on_its_own(int error) {
+  switch (error) {
+    case EINTR:
+    case ECONNABORTED:
+    case EPROTO:
+    case ENETDOWN:
+    case ENETUNREACH:
+    case EHOSTDOWN:
+    case EHOSTUNREACH:
+    case ENOPROTOOPT:
+    case EOPNOTSUPP:
+      return true;
+    default:
+      return false;
+  }
 }
 
 }  // namespace
@@ -81,14 +101,28 @@ std::optional<Connection> Listener::accept() {
     sys::UniqueFd fd(sys::accept4(fd_.get(), reinterpret_cast<sockaddr*>(&peer), &length,
                                   SOCK_NONBLOCK | SOCK_CLOEXEC));
     if (!fd) {
-      if (errno == EINTR || errno == ECONNABORTED) continue;
-      return std::nullopt;  // EAGAIN: no more waiting; anything else is retried next time
+      const int error = errno;
+      if (error == EAGAIN || error == EWOULDBLOCK) return std::nullopt;  // none waits
+      if (connection_failed_on_its_own(error)) continue;
+      // Out of descriptors or memory, or a failure we cannot place: the
+      // connection may still be queued.
+      rest(error);
+      return std::nullopt;
     }
+    rest_error_ = 0;
+    rest_ = std::chrono::milliseconds(0);
     platform::prevent_sigpipe(fd.get());
     const int on = 1;
     sys::setsockopt(fd.get(), IPPROTO_TCP, TCP_NODELAY, &on, sizeof on);
     return Connection(std::move(fd), address_text(reinterpret_cast<sockaddr*>(&peer), length));
   }
+}
+
+void Listener::rest(int error) {
+  rest_error_ = error;
+  rest_ = std::clamp(rest_ * 2, std::chrono::milliseconds(kFirstRest),
+                     std::chrono::milliseconds(kLongestRest));
+  resume_at_ = Clock::now() + rest_;
 }
 
 }  // namespace wiretape::detail

@@ -2,6 +2,7 @@
 // loop that polls their descriptors (the bridge's TCP client side).
 #pragma once
 
+#include <chrono>
 #include <cstddef>
 #include <optional>
 #include <string>
@@ -33,6 +34,8 @@ class Connection {
   const std::string& peer() const noexcept { return peer_; }
   Transfer receive(void* buffer, std::size_t size);
   Transfer send(const void* data, std::size_t size);
+  // Sends FIN: the peer reads what was sent, then the end.
+  void shutdown_sending() { sys::shutdown(fd_.get(), SHUT_WR); }
   void close() { fd_.reset(); }
 
  private:
@@ -49,13 +52,38 @@ class Listener {
   int fd() const noexcept { return fd_.get(); }
   // Where clients connect, with the port the system picked: "HOST:PORT".
   const std::string& address() const noexcept { return address_; }
+  using Clock = std::chrono::steady_clock;
+
   // The next waiting connection, or nothing when none waits (or accepting
-  // failed in a way the next poll retries).
+  // failed; see resting()).
   std::optional<Connection> accept();
 
+  // Out of descriptors or memory (EMFILE, ENFILE, ENOBUFS, ENOMEM) the
+  // waiting connection stays queued and the listener stays readable: polled
+  // again at once it would wake the loop for nothing, endlessly. So after
+  // such a failure (or any the listener cannot place) it rests: until
+  // resume_at() it must be left out of poll(); accept() is tried again after
+  // that, the rest doubling from kFirstRest to kLongestRest while the
+  // failure lasts.
+  static constexpr std::chrono::milliseconds kFirstRest{50};
+  static constexpr std::chrono::milliseconds kLongestRest{1000};
+  bool resting(Clock::time_point now) const { return rest_error_ != 0 && now < resume_at_; }
+  // When the rest ends (Clock::time_point::max() when there is none).
+  Clock::time_point resume_at() const {
+    return rest_error_ != 0 ? resume_at_ : Clock::time_point::max();
+  }
+  // The errno of the failure that began the current rest; 0 once a
+  // connection was accepted again.
+  int rest_error() const noexcept { return rest_error_; }
+
  private:
+  void rest(int error);
+
   sys::UniqueFd fd_;
   std::string address_;
+  int rest_error_ = 0;
+  std::chrono::milliseconds rest_{0};
+  Clock::time_point resume_at_{};
 };
 
 }  // namespace wiretape::detail

@@ -102,7 +102,7 @@ Value one_of(const char* key, const std::string& text,
 BridgeOptions make_options(const std::string& device, const std::string& client_side,
                            const std::string& pty_link, const std::string& listen_host,
                            int listen_port, const std::string& protocol, bool shared,
-                           const std::string& output,
+                           std::size_t max_monitors, const std::string& output,
                            const std::map<std::string, std::string>& metadata,
                            int flush_ms, bool mirror_settings, bool reopen, bool restart,
                            nb::handle duration, std::size_t buffer_limit, bool quiet) {
@@ -118,6 +118,7 @@ BridgeOptions make_options(const std::string& device, const std::string& client_
                                       {{"raw", BridgeProtocol::raw},
                                        {"rfc2217", BridgeProtocol::rfc2217}});
   o.shared = shared;
+  o.max_monitors = max_monitors;
   o.output = output;
   o.metadata = metadata;
   o.flush_ms = flush_ms;
@@ -141,18 +142,20 @@ void bind_bridge(nb::module_& m) {
           "__init__",
           [](Bridge* self, const std::string& device, const std::string& client_side,
              const std::string& pty_link, const std::string& listen_host, int listen_port,
-             const std::string& protocol, bool shared, const std::string& output,
+             const std::string& protocol, bool shared, std::size_t max_monitors,
+             const std::string& output,
              const std::map<std::string, std::string>& metadata, int flush_ms,
              bool mirror_settings, bool reopen, bool restart, nb::handle duration,
              std::size_t buffer_limit, bool quiet) {
             new (self) Bridge(make_options(device, client_side, pty_link, listen_host,
-                                           listen_port, protocol, shared, output, metadata,
+                                           listen_port, protocol, shared, max_monitors,
+                                           output, metadata,
                                            flush_ms, mirror_settings, reopen, restart,
                                            duration, buffer_limit, quiet));
           },
           "device"_a, nb::kw_only(), "client_side"_a = "pty", "pty_link"_a = "",
           "listen_host"_a = "127.0.0.1", "listen_port"_a = 0, "protocol"_a = "raw",
-          "shared"_a = false, "output"_a = "",
+          "shared"_a = false, "max_monitors"_a = std::size_t{16}, "output"_a = "",
           "metadata"_a = std::map<std::string, std::string>{}, "flush_ms"_a = 100,
           "mirror_settings"_a = true, "reopen"_a = false, "restart"_a = false,
           "duration"_a = nb::none(), "buffer_limit"_a = std::size_t{1} << 20,

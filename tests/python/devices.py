@@ -139,6 +139,28 @@ class TcpDevice:
                 conn.setblocking(False)
 
 
+def read_exactly(sock, count):
+    """`count` bytes from socket `sock`, or fewer if it closes first (its
+    own timeout bounds each wait)."""
+    data = bytearray()
+    while len(data) < count:
+        chunk = sock.recv(min(count - len(data), 1 << 20))
+        if not chunk:
+            break
+        data += chunk
+    return bytes(data)
+
+
+def read_to_end(sock):
+    """Everything socket `sock` receives until the peer closes it."""
+    data = bytearray()
+    while True:
+        chunk = sock.recv(4096)
+        if not chunk:
+            return bytes(data)
+        data += chunk
+
+
 def skip_unless_serial_opens_on_a_pty():
     """Skips the calling test, saying why, when a serial port cannot be
     opened on a pseudo-terminal here."""

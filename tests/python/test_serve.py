@@ -11,7 +11,8 @@ import pytest
 
 from wiretape import _core, bridge
 
-from devices import TcpDevice, skip_unless_serial_opens_on_a_pty, wait_until
+from devices import (TcpDevice, read_exactly, read_to_end, skip_unless_serial_opens_on_a_pty,
+                     wait_until)
 
 DEADLINE = 10.0
 
@@ -25,25 +26,6 @@ def device():
 def connect(handle):
     host, port = handle.address.rsplit(":", 1)
     return socket.create_connection((host, int(port)), timeout=DEADLINE)
-
-
-def read_exactly(sock, count):
-    data = bytearray()
-    while len(data) < count:
-        chunk = sock.recv(count - len(data))
-        if not chunk:
-            break
-        data += chunk
-    return bytes(data)
-
-
-def read_to_end(sock):
-    data = bytearray()
-    while True:
-        chunk = sock.recv(4096)
-        if not chunk:
-            return bytes(data)
-        data += chunk
 
 
 def finish(handle):
@@ -144,12 +126,13 @@ def test_reopen_after_device_loss(device, tmp_path):
             # The loss reaches the client as the end of its connection.
             assert read_to_end(client) == b""
         assert handle.running
-        # While the device is away, clients are told so.
+        # While the device is away, a new client waits in the listen queue
+        # and is served once the device is back.
         with connect(handle) as early:
-            assert b"unavailable" in read_to_end(early)
-        device.accepting.set()
-        wait_until(lambda: handle.stats().device_reopens == 1, DEADLINE,
-                   what="the device to be reopened")
+            early.sendall(b"early")
+            device.accepting.set()
+            assert read_exactly(early, 5) == b"EARLY"
+        assert handle.stats().device_reopens == 1
         with connect(handle) as client:
             client.sendall(b"after")
             assert read_exactly(client, 5) == b"AFTER"
@@ -167,7 +150,7 @@ def test_reopen_after_device_loss(device, tmp_path):
     assert all(c["peer"].startswith("127.0.0.1:") for c in connects)
     assert kinds.count("client_disconnect") == kinds.count("client_connect")
     assert b"".join(r.data for r in records if r.kind == "tx").startswith(b"before")
-    assert b"".join(r.data for r in records if r.kind == "rx") == b"BEFOREAFTER"
+    assert b"".join(r.data for r in records if r.kind == "rx") == b"BEFOREEARLYAFTER"
 
 
 def test_bad_listen_address_is_a_clear_error(device):
