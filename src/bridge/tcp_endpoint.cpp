@@ -4,7 +4,6 @@
 // Telnet session whose COM-PORT requests act on the device.
 #include <algorithm>
 #include <array>
-#include <cstring>
 #include <optional>
 #include <string>
 #include <vector>
@@ -13,6 +12,7 @@
 #include "bridge/endpoint.hpp"
 #include "bridge/rfc2217.hpp"
 #include "posix/listener.hpp"
+#include "wiretape/errors.hpp"
 
 namespace wiretape::detail::bridge {
 
@@ -185,7 +185,7 @@ class TcpEndpoint final : public ClientEndpoint {
       case Transfer::Status::closed: drop_client(client, "disconnected"); return;
       case Transfer::Status::would_block: return;
       case Transfer::Status::failed:
-        drop_client(client, std::string("connection failed: ") + std::strerror(got.error));
+        drop_client(client, system_error_message("connection failed", got.error));
         return;
       case Transfer::Status::done: break;
     }
@@ -212,7 +212,7 @@ class TcpEndpoint final : public ClientEndpoint {
           client.connection.send(client.outgoing.data(), client.outgoing.size());
       if (sent.status == Transfer::Status::would_block) return;
       if (sent.status == Transfer::Status::failed) {
-        drop_client(client, std::string("connection failed: ") + std::strerror(sent.error));
+        drop_client(client, system_error_message("connection failed", sent.error));
         return;
       }
       client.outgoing.consume(sent.bytes);

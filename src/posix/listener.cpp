@@ -5,7 +5,6 @@
 #include <netinet/tcp.h>
 
 #include <cerrno>
-#include <cstring>
 #include <memory>
 
 #include "posix/platform.hpp"
@@ -18,7 +17,7 @@ namespace {
 
 [[noreturn]] void raise_errno(const std::string& what) {
   const int error = errno;
-  throw PortError(error, what + ": " + std::strerror(error));
+  throw PortError(error, what);
 }
 
 Transfer failed_or_would_block(int error) {

@@ -81,7 +81,7 @@ struct SessionWriter::Impl {
 
   void fail_locked(int error, const std::string& what) {
     if (!failure) {
-      failure.emplace(error, path + ": " + what + ": " + std::strerror(error) +
+      failure.emplace(error, system_error_message(path + ": " + what, error) +
                                  "; the records written before are intact");
     }
   }
@@ -221,8 +221,7 @@ SessionWriter::SessionWriter(const std::string& path, SessionWriterOptions optio
   } while (impl_->fd < 0 && errno == EINTR);
   if (impl_->fd < 0) {
     const int error = errno;
-    throw PortError(error, path + ": cannot create the session file: " +
-                               std::strerror(error));
+    throw PortError(error, path + ": cannot create the session file");
   }
   const std::string json = detail::header_json(impl_->options);
   std::string header(detail::file_header_fixed_size, '\0');
