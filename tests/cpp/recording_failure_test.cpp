@@ -1,4 +1,6 @@
-// Recording that fails part-way (issue 16): how an OS error becomes text.
+// Recording that fails part-way (issue 16): how an OS error becomes text, a
+// writer past the file-size limit (EFBIG, never SIGXFSZ), the session file
+// released after a failure.
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/resource.h>
@@ -40,6 +42,54 @@ std::size_t count_of(const std::string& text, const std::string& part) {
   return count;
 }
 
+bool holds_fd_on(const std::string& path) {
+  const std::filesystem::path wanted = std::filesystem::weakly_canonical(path);
+  for (const auto& entry : std::filesystem::directory_iterator("/proc/self/fd")) {
+    std::error_code error;
+    const std::filesystem::path target = std::filesystem::read_symlink(entry.path(), error);
+    if (!error && target == wanted) return true;
+  }
+  return false;
+}
+
+// Polls `condition` until it holds or the deadline passes (no blind sleep of
+// the whole deadline).
+bool eventually(const std::function<bool()>& condition) {
+  const auto end = std::chrono::steady_clock::now() + kDeadline;
+  while (!condition()) {
+    if (std::chrono::steady_clock::now() > end) return false;
+    std::this_thread::sleep_for(1ms);
+  }
+  return true;
+}
+
+// Fails writes of the file at `path` with `error` once `failing` is set;
+// everything else reaches the OS.
+class FailingFileWrites {
+ public:
+  FailingFileWrites(std::string path, int error) : path_(std::move(path)), error_(error) {
+    seam_->open = [this](const char* name, int flags, mode_t mode) {
+      const int fd = sys::real().open(name, flags, mode);
+      if (name == path_ && (flags & O_ACCMODE) != O_RDONLY) fd_ = fd;  // not a reader's
+      return fd;
+    };
+    seam_->write = [this](int fd, const void* data, size_t size) -> ssize_t {
+      if (failing && fd == fd_.load()) {
+        errno = error_;
+        return -1;
+      }
+      return sys::real().write(fd, data, size);
+    };
+  }
+  std::atomic<bool> failing{false};
+
+ private:
+  std::string path_;
+  int error_;
+  std::atomic<int> fd_{-1};
+  sys::ScopedOverride seam_;  // last: restored before the members it uses go
+};
+
 // --- messages ---------------------------------------------------------------------
 
 TEST(SystemErrorMessage, NamesTheErrnoOnceAndNothingForErrnoZero) {
@@ -74,6 +124,153 @@ TEST(SystemErrorMessage, ADeviceThatWentAwayIsNamedOnce) {
       EXPECT_EQ(text.rfind("serial /dev/ttyX: read failed", 0), 0u) << text;
     }
   }
+}
+
+// --- the writer past the file-size limit --------------------------------------------
+
+struct ChildOutcome {
+  bool exited = false;      // false: killed by a signal
+  int signal = 0;
+  std::string report;       // what the child wrote to the pipe
+};
+
+// Runs `body` in a child under a 4 KiB file-size limit with SIGXFSZ at its
+// default action (kill), as in a C++ program that never heard of it.
+ChildOutcome run_under_file_size_limit(const std::function<std::string()>& body) {
+  int report_pipe[2];
+  if (::pipe(report_pipe) != 0) throw std::runtime_error("pipe");
+  const pid_t child = ::fork();
+  if (child == 0) {
+    ::close(report_pipe[0]);
+    ::signal(SIGXFSZ, SIG_DFL);
+    rlimit limit{};
+    limit.rlim_cur = limit.rlim_max = 4096;
+    ::setrlimit(RLIMIT_FSIZE, &limit);
+    std::string report;
+    try {
+      report = body();
+    } catch (const std::exception& e) {
+      report = std::string("unexpected: ") + e.what();
+    }
+    (void)!::write(report_pipe[1], report.data(), report.size());
+    ::_exit(0);
+  }
+  ::close(report_pipe[1]);
+  ChildOutcome outcome;
+  char chunk[512];
+  ssize_t n;
+  while ((n = ::read(report_pipe[0], chunk, sizeof chunk)) > 0) outcome.report.append(chunk, n);
+  ::close(report_pipe[0]);
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  outcome.exited = WIFEXITED(status);
+  if (WIFSIGNALED(status)) outcome.signal = WTERMSIG(status);
+  return outcome;
+}
+
+void expect_whole_records_only(const std::string& path) {
+  SessionReader reader(path);
+  Record record;
+  std::size_t count = 0;
+  while (reader.next(record)) ++count;
+  EXPECT_FALSE(reader.damage()) << reader.damage()->what();
+  EXPECT_GT(count, 0u);
+  EXPECT_LE(std::filesystem::file_size(path), 4096u);
+}
+
+TEST(WriterPastTheFileSizeLimit, AWriteOnTheCallersThreadFailsWithEfbigNotSigxfsz) {
+  TempDir dir;
+  const std::string path = dir.file("limited.wtape");
+  const ChildOutcome outcome = run_under_file_size_limit([&] {
+    SessionWriterOptions options;
+    options.flush_ms = 0;  // every record is written on this thread
+    SessionWriter writer(path, options);
+    for (int i = 0; i < 1000; ++i) {
+      try {
+        writer.write(RecordKind::rx, static_cast<std::uint64_t>(i), std::string(100, 'r'));
+      } catch (const PortError& e) {
+        return std::to_string(e.code().value()) + " " + e.what();
+      }
+    }
+    return std::string("no error");
+  });
+  ASSERT_TRUE(outcome.exited) << "the writer was killed by signal " << outcome.signal;
+  EXPECT_EQ(outcome.report.rfind(std::to_string(EFBIG) + " ", 0), 0u) << outcome.report;
+  EXPECT_NE(outcome.report.find(path), std::string::npos) << outcome.report;
+  EXPECT_NE(outcome.report.find("file-size limit of 4096 bytes"), std::string::npos)
+      << outcome.report;
+  EXPECT_EQ(count_of(outcome.report, std::generic_category().message(EFBIG)), 1u)
+      << outcome.report;
+  expect_whole_records_only(path);
+}
+
+TEST(WriterPastTheFileSizeLimit, TheFlusherThreadFailsWithEfbigNotSigxfsz) {
+  TempDir dir;
+  const std::string path = dir.file("flusher.wtape");
+  const ChildOutcome outcome = run_under_file_size_limit([&] {
+    SessionWriterOptions options;
+    options.flush_ms = 1;  // the flusher thread does the writing
+    SessionWriter writer(path, options);
+    int written = 0;
+    const bool failed = eventually([&] {
+      try {
+        writer.write(RecordKind::tx, static_cast<std::uint64_t>(written++), std::string(100, 't'));
+      } catch (const PortError&) {
+        return true;
+      }
+      return writer.failure().has_value();
+    });
+    if (!failed) return std::string("no error");
+    return std::to_string(writer.failure()->code().value()) + " " + writer.failure()->what();
+  });
+  ASSERT_TRUE(outcome.exited) << "the writer was killed by signal " << outcome.signal;
+  EXPECT_EQ(outcome.report.rfind(std::to_string(EFBIG) + " ", 0), 0u) << outcome.report;
+  expect_whole_records_only(path);
+}
+
+TEST(WriterPastTheFileSizeLimit, ASignalBlockedByTheCallerStaysBlocked) {
+  sigset_t blocked;
+  sigemptyset(&blocked);
+  sigaddset(&blocked, SIGXFSZ);
+  sigset_t before;
+  ASSERT_EQ(pthread_sigmask(SIG_BLOCK, nullptr, &before), 0);
+  TempDir dir;
+  {
+    SessionWriterOptions options;
+    options.flush_ms = 0;
+    SessionWriter writer(dir.file("mask.wtape"), options);
+    writer.write(RecordKind::tx, 1, "x");
+  }
+  sigset_t after;
+  ASSERT_EQ(pthread_sigmask(SIG_BLOCK, nullptr, &after), 0);
+  EXPECT_EQ(sigismember(&before, SIGXFSZ), sigismember(&after, SIGXFSZ));
+}
+
+// --- the file is released after a failure ----------------------------------------------
+
+TEST(ReleasedAfterAFailure, AWriterLetsGoOfItsFileAtTheFailure) {
+  TempDir dir;
+  const std::string path = dir.file("full.wtape");
+  FailingFileWrites disk(path, ENOSPC);
+  SessionWriterOptions options;
+  options.flush_ms = 0;
+  SessionWriter writer(path, options);
+  writer.write(RecordKind::tx, 1, "kept");
+  disk.failing = true;
+  try {
+    writer.write(RecordKind::tx, 2, "lost");
+    FAIL() << "no error";
+  } catch (const PortError& e) {
+    EXPECT_EQ(e.code().value(), ENOSPC);
+    EXPECT_NE(std::string(e.what()).find(path + ": cannot write the session file: No space left"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(holds_fd_on(path)) << "the file is held after the failure, before close()";
+  EXPECT_THROW(writer.close(), PortError);
+  const auto records = test::load_records(path);
+  ASSERT_EQ(records.size(), 1u);
+  EXPECT_EQ(records[0].data, "kept");
 }
 
 }  // namespace
