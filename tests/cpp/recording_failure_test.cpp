@@ -273,5 +273,28 @@ TEST(ReleasedAfterAFailure, AWriterLetsGoOfItsFileAtTheFailure) {
   EXPECT_EQ(records[0].data, "kept");
 }
 
+TEST(ReleasedAfterAFailure, ARecordingPortWhosePortFailsToCloseLetsGoOfItsFile) {
+  TempDir dir;
+  const std::string session = dir.file("recorded.wtape");
+  const std::string log = dir.file("log.wtape");
+  {
+    SessionWriter writer(session, {});
+    writer.write(RecordKind::open, 0, "{}");
+    writer.write(RecordKind::rx, 1, "never read");
+  }
+  // unused=error: close() raises the mismatch for the rx never read.
+  auto port = open_port("type=replay,file=" + session + ",unused=error,log=" + log);
+  ASSERT_TRUE(holds_fd_on(log));
+  EXPECT_THROW(port->close(), ReplayMismatch);
+  EXPECT_FALSE(holds_fd_on(log)) << "the port is closed but its session file is still open";
+  SessionReader reader(log);
+  Record record;
+  std::vector<RecordKind> kinds;
+  while (reader.next(record)) kinds.push_back(record.kind);
+  EXPECT_FALSE(reader.damage());
+  ASSERT_FALSE(kinds.empty());
+  EXPECT_EQ(kinds.back(), RecordKind::close);
+}
+
 }  // namespace
 }  // namespace wiretape
