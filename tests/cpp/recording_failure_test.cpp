@@ -1,6 +1,7 @@
 // Recording that fails part-way (issue 16): how an OS error becomes text, a
 // writer past the file-size limit (EFBIG, never SIGXFSZ), the session file
-// released after a failure.
+// released after a failure, and a bridge that keeps forwarding when its
+// recording fails.
 #include <fcntl.h>
 #include <signal.h>
 #include <sys/resource.h>
@@ -294,6 +295,68 @@ TEST(ReleasedAfterAFailure, ARecordingPortWhosePortFailsToCloseLetsGoOfItsFile) 
   EXPECT_FALSE(reader.damage());
   ASSERT_FALSE(kinds.empty());
   EXPECT_EQ(kinds.back(), RecordKind::close);
+}
+
+// --- a bridge whose recording fails ----------------------------------------------------
+
+std::string exchange(int fd, const std::string& data) {
+  std::size_t done = 0;
+  while (done < data.size()) {
+    const ssize_t n = ::write(fd, data.data() + done, data.size() - done);
+    if (n <= 0) return "write failed";
+    done += static_cast<std::size_t>(n);
+  }
+  return test::read_count(fd, data.size());
+}
+
+std::size_t messages_with(const Bridge& bridge, const std::string& part) {
+  std::size_t count = 0;
+  for (const auto& message : bridge.messages()) count += message.find(part) != std::string::npos;
+  return count;
+}
+
+TEST(BridgeRecordingFailure, ForwardingGoesOnTheFailureIsReportedOnceAndTheFileIsValid) {
+  TempDir dir;
+  const std::string path = dir.file("bridge.wtape");
+  FailingFileWrites disk(path, ENOSPC);
+  BridgeOptions options;
+  options.device = "type=loopback";
+  options.client_side = BridgeClientSide::tcp;
+  options.output = path;
+  options.flush_ms = 1;
+  options.quiet = true;
+  Bridge bridge(options);
+  bridge.start();
+  const int client = test::connect_tcp(bridge.listen_address());
+  ASSERT_GE(client, 0);
+  EXPECT_EQ(exchange(client, "before"), "before");
+  ASSERT_TRUE(eventually([&] {
+    try {
+      return test::load_records(path).size() >= 3;  // open, client_connect, tx
+    } catch (const SessionError&) {
+      return false;  // caught in the middle of a flush
+    }
+  })) << "the first records never reached the file";
+  disk.failing = true;
+  ASSERT_TRUE(eventually([&] {
+    EXPECT_EQ(exchange(client, "during"), "during");
+    return messages_with(bridge, "recording stopped") > 0;
+  })) << "the failure was not reported";
+  EXPECT_TRUE(bridge.running());
+  for (int i = 0; i < 5; ++i) EXPECT_EQ(exchange(client, "after"), "after");
+  ::close(client);
+  bridge.stop();
+  ASSERT_TRUE(bridge.wait(kDeadline));
+  const BridgeResult result = bridge.result();
+  EXPECT_EQ(result.outcome, BridgeOutcome::failed);
+  EXPECT_NE(result.message.find(path), std::string::npos) << result.message;
+  EXPECT_NE(result.message.find("No space left on device"), std::string::npos) << result.message;
+  EXPECT_EQ(messages_with(bridge, "recording stopped"), 1u);
+  EXPECT_FALSE(holds_fd_on(path));
+  const auto records = test::load_records(path);  // throws when damaged
+  ASSERT_FALSE(records.empty());
+  EXPECT_EQ(records.front().kind, RecordKind::open);
+  EXPECT_NE(records.back().kind, RecordKind::close);
 }
 
 }  // namespace
