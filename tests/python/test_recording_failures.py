@@ -1,7 +1,8 @@
 """Recording that fails part-way (issue 16): `wiretape record -o` and
 `wiretape serve -o` under a file-size limit (RLIMIT_FSIZE, the deterministic
 stand-in for a full disk) report the failure once, keep forwarding, end with
-exit 3 naming the file, and leave a session that `wiretape verify` accepts."""
+exit 3 naming the file, and leave a session that `wiretape verify` accepts.
+An empty -o is a usage error."""
 
 import re
 import resource
@@ -14,7 +15,7 @@ import threading
 import pytest
 
 import wiretape
-from wiretape import cli
+from wiretape import bridge, cli
 
 from devices import wait_until
 
@@ -129,3 +130,26 @@ def test_a_file_that_cannot_grow_stops_the_recording_not_the_forwarding(command,
     assert "close" not in [r.kind for r in records]
     tx = b"".join(r.data for r in records if r.kind == "tx")
     assert len(tx) > 0 and bytes(sent).startswith(tx)
+
+
+# --- an empty -o ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("argv", [
+    ["record", "--device", "type=loopback", "--listen", "127.0.0.1:0", "-o", ""],
+    ["record", "--device", "type=loopback", "--listen", "127.0.0.1:0", "--output=  "],
+    ["serve", "--device", "type=loopback", "--listen", "127.0.0.1:0", "-o", ""],
+    ["replay", "any.wtape", "--listen", "127.0.0.1:0", "-o", ""],
+])
+def test_an_empty_output_is_a_usage_error_naming_the_option(capsys, argv):
+    code = cli.main(argv)
+    err = capsys.readouterr().err
+    assert code == cli.EXIT_USAGE, err
+    lines = [line for line in err.splitlines() if "error:" in line]
+    assert len(lines) == 1, err
+    assert "-o/--output" in lines[0] and "empty" in lines[0], lines[0]
+
+
+def test_the_python_recorder_refuses_an_empty_output():
+    with pytest.raises(ValueError, match="output"):
+        bridge.record("type=loopback", "", listen="127.0.0.1:0")
