@@ -22,11 +22,27 @@ class OptionError : public std::invalid_argument {
   std::string key_;
 };
 
-// An operating-system error on a port; code() carries the errno.
+// The one way an operating-system error becomes text: "<context>: <the
+// errno's text>". errno 0 adds nothing (never ": Success"), and neither does
+// an errno whose text `context` already holds (a message wrapped again), so
+// the text never repeats. `context` names where and what failed
+// ("/dev/ttyUSB0: read failed"), without the errno's text.
+std::string system_error_message(const std::string& context, int errno_value);
+
+// An operating-system error on a port; code() carries the errno (0 when the
+// failure did not come from the OS). what() is
+// system_error_message(context, errno): callers give the context only.
 class PortError : public std::system_error {
  public:
-  PortError(int errno_value, const std::string& what)
-      : std::system_error(errno_value, std::generic_category(), what) {}
+  PortError(int errno_value, const std::string& context)
+      : std::system_error(errno_value, std::generic_category()),
+        message_(system_error_message(context, errno_value)) {}
+  // std::system_error's own text would append the errno's text whatever the
+  // message already says, ": Success" included.
+  const char* what() const noexcept override { return message_.what(); }
+
+ private:
+  std::runtime_error message_;  // copies share the text and never throw
 };
 
 // The device went away (EOF, ENXIO, ECONNRESET, a recorded close on replay) or

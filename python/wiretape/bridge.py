@@ -148,8 +148,11 @@ def record(device: str, output, *, pty=None, listen=None,
     ``listen``; every byte both ways is recorded to ``output``
     (capture=wire). On a pty, the terminal settings the client sets are
     applied to the device."""
+    path = os.fspath(output)
+    if not path.strip():
+        raise ValueError("output: the file name is empty; give the session file to record to")
     return _start(device_options(device), pty=pty, listen=listen,
-                  output=os.fspath(output), metadata=dict(meta or {}),
+                  output=path, metadata=dict(meta or {}),
                   duration=duration, quiet=quiet)
 
 

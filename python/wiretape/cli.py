@@ -184,6 +184,15 @@ _positive_float = _number_checker("a number", 0, inclusive=False)
 _non_negative_float = _number_checker("a number", 0, inclusive=True)
 
 
+def _session_output(text: str) -> str:
+    """An argparse type: the session file a bridge records into (-o). An
+    empty name would silently record nothing."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            "the file name is empty: give the session file to write (.wtape)")
+    return text
+
+
 def _format_number(value: float) -> str:
     return repr(int(value)) if float(value).is_integer() else repr(value)
 
@@ -519,7 +528,7 @@ def build_parser() -> argparse.ArgumentParser:
     record.add_argument("--device", required=True, metavar="OPTS",
                         help="the real device: a port option string or a serial device path")
     _add_client_side(record, "the driver connects")
-    record.add_argument("-o", "--output", required=True, metavar="FILE",
+    record.add_argument("-o", "--output", required=True, metavar="FILE", type=_session_output,
                         help="the session file to write (.wtape)")
     record.add_argument("--duration", type=_positive_seconds, metavar="S",
                         help="stop after S seconds (default: until Ctrl-C)")
@@ -557,7 +566,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="further replay keys as an option string (k=v,k=v)")
     replay.add_argument("--restart", action="store_true",
                         help="each new client starts the session over")
-    replay.add_argument("-o", "--output", metavar="FILE",
+    replay.add_argument("-o", "--output", metavar="FILE", type=_session_output,
                         help="also record what the client does to FILE")
     replay.add_argument("-q", "--quiet", action="store_true", help="no client messages")
 
@@ -569,7 +578,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="the device: a port option string or a serial device path")
     serve.add_argument("--listen", required=True, metavar="HOST:PORT",
                        help="where clients connect (PORT alone means 127.0.0.1:PORT)")
-    serve.add_argument("-o", "--output", metavar="FILE", help="record the session to FILE")
+    serve.add_argument("-o", "--output", metavar="FILE", type=_session_output,
+                       help="record the session to FILE")
     serve.add_argument("--protocol", choices=("raw", "rfc2217"), default="raw",
                        help="raw bytes or RFC 2217 (default raw)")
     serve.add_argument("--shared", action="store_true",

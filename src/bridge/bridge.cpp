@@ -259,8 +259,15 @@ void Bridge::Impl::try_reopen() {
   }
 }
 
+// Runs on the bridge's thread, where an exception would terminate the
+// process: whatever the clients' side does, the device and the session file
+// are closed.
 void Bridge::Impl::shut_down() {
-  endpoint_->shut_down();
+  try {
+    endpoint_->shut_down();
+  } catch (const std::exception& error) {
+    status_.message(std::string("closing the clients' side: ") + error.what());
+  }
   device_.shut_down(end_outcome_, end_message_);
   endpoint_.reset();
 }

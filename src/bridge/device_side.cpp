@@ -116,11 +116,16 @@ void DeviceSide::shut_down(BridgeOutcome& outcome, std::string& message) {
     try {
       writer_->close();
     } catch (const std::exception& error) {
+      // The session file misses what came after the failure: that is the
+      // bridge's result, whatever else ended it.
       if (outcome != BridgeOutcome::mismatch) {
         outcome = BridgeOutcome::failed;
-        message = std::string("writing the session file: ") + error.what();
+        message = std::string(recording_failed_ ? "the recording stopped early: "
+                                                : "writing the session file: ") +
+                  error.what();
       }
     }
+    writer_.reset();
   }
 }
 
@@ -144,9 +149,20 @@ std::uint64_t DeviceSide::now_ns() const {
 }
 
 void DeviceSide::record_at(RecordKind kind, std::uint64_t t_ns, std::string_view data) {
-  if (!writer_) return;
-  writer_->write(kind, t_ns, data);
+  if (!writer_ || recording_failed_) return;
+  try {
+    writer_->write(kind, t_ns, data);
+  } catch (const PortError& error) {
+    recording_stopped(error);
+    return;
+  }
   status_.update_stats([](BridgeStats& s) { ++s.records_written; });
+}
+
+void DeviceSide::recording_stopped(const PortError& error) {
+  recording_failed_ = true;
+  status_.message(std::string("recording stopped: ") + error.what() +
+                  "; forwarding goes on without recording");
 }
 
 void DeviceSide::client_connected(const std::string& peer, const char* role) {

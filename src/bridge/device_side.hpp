@@ -71,6 +71,11 @@ class DeviceSide {
 
   // --- recording -----------------------------------------------------------
   std::uint64_t now_ns() const;
+  // Records an event or data into the session file, if there is one. Never
+  // throws for the file: the first write that fails (full disk, file-size
+  // limit) is reported once, recording stops there and forwarding goes on;
+  // the file keeps the whole records before the failure, and shut_down()
+  // turns the failure into the bridge's result.
   void record(RecordKind kind, std::string_view data) { record_at(kind, now_ns(), data); }
   void record_at(RecordKind kind, std::uint64_t t_ns, std::string_view data);
   // A client arriving and leaving, as every endpoint reports it.
@@ -114,6 +119,7 @@ class DeviceSide {
   std::unique_ptr<Port> device_;
   std::string description_;
   std::unique_ptr<SessionWriter> writer_;
+  bool recording_failed_ = false;
   Clock::time_point t0_;
   ByteQueue to_device_{options_.buffer_limit};
   LostHandler on_lost_;
@@ -124,6 +130,8 @@ class DeviceSide {
   std::optional<Clock::time_point> break_since_;
   std::optional<ModemInputs> last_modem_inputs_;
   bool modem_inputs_unreadable_ = false;
+
+  void recording_stopped(const PortError& error);
 };
 
 }  // namespace wiretape::detail::bridge

@@ -12,7 +12,6 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
-#include <cstring>
 #include <deque>
 #include <iterator>
 #include <optional>
@@ -23,6 +22,7 @@
 #include "bridge/endpoint.hpp"
 #include "bridge/rfc2217.hpp"
 #include "posix/listener.hpp"
+#include "wiretape/errors.hpp"
 
 namespace wiretape::detail::bridge {
 
@@ -216,7 +216,7 @@ class TcpEndpoint final : public ClientEndpoint {
     const int error = listener_.rest_error();
     if (error != 0 && !rest_reported_) {
       rest_reported_ = true;
-      status_.message(std::string("cannot accept clients: ") + std::strerror(error) +
+      status_.message(system_error_message("cannot accept clients", error) +
                       "; new clients wait in the listen queue, tried again at most every " +
                       std::to_string(Listener::kLongestRest.count()) + " ms");
     }
@@ -285,7 +285,7 @@ class TcpEndpoint final : public ClientEndpoint {
       case Transfer::Status::closed: drop_client(client, "disconnected"); return;
       case Transfer::Status::would_block: return;
       case Transfer::Status::failed:
-        drop_client(client, std::string("connection failed: ") + std::strerror(got.error));
+        drop_client(client, system_error_message("connection failed", got.error));
         return;
       case Transfer::Status::done: break;
     }
@@ -312,7 +312,7 @@ class TcpEndpoint final : public ClientEndpoint {
           client.connection.send(client.outgoing.data(), client.outgoing.size());
       if (sent.status == Transfer::Status::would_block) return;
       if (sent.status == Transfer::Status::failed) {
-        drop_client(client, std::string("connection failed: ") + std::strerror(sent.error));
+        drop_client(client, system_error_message("connection failed", sent.error));
         return;
       }
       client.outgoing.consume(sent.bytes);

@@ -66,9 +66,21 @@ class RecordingPort final : public Port {
     record(RecordKind::drain, now_ns(), "{}");
   }
 
+  // The session file is released whatever happens to the port under it (a
+  // replay's mismatch at close, an OS error): a close that throws must not
+  // leave the file open until the port object goes away.
   void close() override {
     closing_ = true;
-    inner_->close();
+    try {
+      inner_->close();
+    } catch (...) {
+      try {
+        finish_recording();
+      } catch (const PortError&) {
+        // The port's own failure is the one to report.
+      }
+      throw;
+    }
     finish_recording();
   }
 

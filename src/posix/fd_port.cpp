@@ -5,7 +5,6 @@
 #include <cerrno>
 #include <chrono>
 #include <climits>
-#include <cstring>
 
 #include "wiretape/errors.hpp"
 
@@ -29,11 +28,9 @@ bool is_disconnect(int errno_value) {
 
 void raise_os_error(int errno_value, const std::string& where,
                     const std::string& operation) {
-  std::string message = where + ": " + operation + " failed";
+  const std::string message = where + ": " + operation + " failed";
   if (is_disconnect(errno_value)) {
-    throw PortClosed(message + ", the device went away (" +
-                         std::strerror(errno_value) + ")",
-                     errno_value);
+    throw PortClosed(message + ", the device went away", errno_value);
   }
   throw PortError(errno_value, message);
 }

@@ -17,7 +17,7 @@ namespace wiretape::detail {
 // True for the errno values that mean the device or peer went away.
 bool is_disconnect(int errno_value);
 // Raises PortClosed for a disconnect, PortError otherwise, as
-// "<where>: <operation> failed: <strerror>".
+// "<where>: <operation> failed: <the errno's text>" (system_error_message).
 [[noreturn]] void raise_os_error(int errno_value, const std::string& where,
                                  const std::string& operation);
 // poll()'s timeout argument for `deadline`: -1 forever, else milliseconds

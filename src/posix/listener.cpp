@@ -6,7 +6,6 @@
 
 #include <algorithm>
 #include <cerrno>
-#include <cstring>
 #include <memory>
 
 #include "posix/platform.hpp"
@@ -19,7 +18,7 @@ namespace {
 
 [[noreturn]] void raise_errno(const std::string& what) {
   const int error = errno;
-  throw PortError(error, what + ": " + std::strerror(error));
+  throw PortError(error, what);
 }
 
 Transfer failed_or_would_block(int error) {

@@ -1,7 +1,6 @@
 #include "posix/poll_set.hpp"
 
 #include <cerrno>
-#include <cstring>
 #include <string>
 
 #include "posix/syscalls.hpp"
@@ -24,7 +23,7 @@ void PollSet::wait(std::optional<std::chrono::milliseconds> timeout) {
   const int error = errno;
   for (auto& entry : fds_) entry.revents = 0;
   if (error == EINTR) return;
-  throw PortError(error, std::string(owner_) + ": poll: " + std::strerror(error));
+  throw PortError(error, std::string(owner_) + ": poll");
 }
 
 Readiness PollSet::ready(Slot slot) const {

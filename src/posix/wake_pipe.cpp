@@ -3,7 +3,6 @@
 #include <fcntl.h>
 
 #include <cerrno>
-#include <cstring>
 #include <string>
 
 #include "wiretape/errors.hpp"
@@ -14,8 +13,7 @@ WakePipe::WakePipe(const char* owner) {
   int fds[2];
   if (sys::pipe2(fds, O_NONBLOCK | O_CLOEXEC) != 0) {
     const int error = errno;
-    throw PortError(error, std::string(owner) + ": creating the wake-up pipe: " +
-                               std::strerror(error));
+    throw PortError(error, std::string(owner) + ": creating the wake-up pipe");
   }
   read_end_.reset(fds[0]);
   write_end_.reset(fds[1]);

@@ -3,11 +3,8 @@
 // each derives from the built-in exception a Python user would catch
 // (ValueError, OSError, AssertionError) and carries attributes; nanobind's
 // nb::exception<T> gives neither.
-#include <cerrno>
-#include <cstring>
 #include <exception>
 #include <string>
-#include <system_error>
 
 #include <nanobind/eval.h>
 #include <nanobind/stl/string.h>
@@ -115,20 +112,6 @@ void set_error(PyObject* cls, nb::tuple args) {
   Py_DECREF(instance);
 }
 
-// std::system_error appends ": <strerror>" to the message; for errno 0 that
-// is ": Success", which says nothing to a reader.
-std::string port_error_message(const PortError& error) {
-  std::string message = error.what();
-  if (error.code().value() == 0) {
-    const std::string noise = ": " + std::generic_category().message(0);
-    if (message.size() >= noise.size() &&
-        message.compare(message.size() - noise.size(), noise.size(), noise) == 0) {
-      message.resize(message.size() - noise.size());
-    }
-  }
-  return message;
-}
-
 nb::object errno_value(const PortError& error) {
   const int value = error.code().value();
   if (value == 0) return nb::none();
@@ -140,10 +123,10 @@ void translate(const std::exception_ptr& exception, void*) {
     std::rethrow_exception(exception);
   } catch (const PortClosed& error) {
     set_error(classes.port_closed,
-              nb::make_tuple(errno_value(error), port_error_message(error)));
+              nb::make_tuple(errno_value(error), error.what()));
   } catch (const PortError& error) {
     set_error(classes.port_error,
-              nb::make_tuple(errno_value(error), port_error_message(error)));
+              nb::make_tuple(errno_value(error), error.what()));
   } catch (const OptionError& error) {
     set_error(classes.option_error, nb::make_tuple(error.what(), error.key()));
   } catch (const ReplayMismatch& error) {

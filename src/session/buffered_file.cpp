@@ -24,7 +24,7 @@ BufferedFile::BufferedFile(const std::string& path)
     fd_ = sys::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   } while (fd_ < 0 && errno == EINTR);
   if (fd_ < 0) {
-    throw SessionError(path + ": cannot open: " + std::strerror(errno), 0);
+    throw SessionError(system_error_message(path + ": cannot open", errno), 0);
   }
   struct stat info {};
   if (sys::fstat(fd_, &info) == 0 && S_ISDIR(info.st_mode)) {

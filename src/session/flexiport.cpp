@@ -13,7 +13,6 @@
 
 #include <cerrno>
 #include <cstdio>
-#include <cstring>
 #include <memory>
 #include <string>
 
@@ -294,7 +293,7 @@ class OutputFile {
   explicit OutputFile(std::string path) : path_(std::move(path)) {
     file_ = std::fopen(path_.c_str(), "wb");
     if (file_ == nullptr) {
-      throw PortError(errno, path_ + ": cannot create: " + std::strerror(errno));
+      throw PortError(errno, path_ + ": cannot create");
     }
   }
   ~OutputFile() {
@@ -302,14 +301,14 @@ class OutputFile {
   }
   void write(const void* data, std::size_t size) {
     if (size > 0 && std::fwrite(data, 1, size, file_) != size) {
-      throw PortError(errno, path_ + ": write failed: " + std::strerror(errno));
+      throw PortError(errno, path_ + ": write failed");
     }
   }
   void close() {
     std::FILE* file = file_;
     file_ = nullptr;
     if (std::fclose(file) != 0) {
-      throw PortError(errno, path_ + ": write failed: " + std::strerror(errno));
+      throw PortError(errno, path_ + ": write failed");
     }
   }
 

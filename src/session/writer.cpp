@@ -19,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "posix/file_size_limit.hpp"
 #include "posix/syscalls.hpp"
 #include "session/format.hpp"
 #include "session/header.hpp"
@@ -81,11 +82,33 @@ struct SessionWriter::Impl {
     if (fd >= 0) sys::close(fd);
   }
 
-  void fail_locked(int error, const std::string& what) {
-    if (!failure) {
-      failure.emplace(error, path + ": " + what + ": " + std::strerror(error) +
-                                 "; the records written before are intact");
+  // What a failed write means for the user: which limit was hit, and what
+  // the file still holds.
+  std::string write_failure_message(int error) const {
+    std::string message = system_error_message(path + ": cannot write the session file", error);
+    if (error == EFBIG) {
+      const auto limit = detail::file_size_limit();
+      message += limit ? " (the file-size limit of " + std::to_string(*limit) +
+                             " bytes, RLIMIT_FSIZE or ulimit -f, is reached)"
+                       : " (the largest file size allowed is reached)";
     }
+    return message + "; its " + std::to_string(committed) +
+           " bytes are whole records and stay readable, nothing more is recorded";
+  }
+
+  // Called with io_mutex held. The file is cut back to its last whole
+  // record and let go at once: nothing more will be written to it, and a
+  // writer that failed holds no descriptor, whoever forgets to close it.
+  void fail_and_release(int error) {
+    // Fails only where nothing can be left half-written either (a device
+    // such as /dev/full).
+    (void)sys::ftruncate(fd, static_cast<off_t>(committed));
+    reserved = committed;
+    sys::close(fd);
+    fd = -1;
+    std::lock_guard<std::mutex> lock(mutex);
+    if (!failure) failure.emplace(error, write_failure_message(error));
+    buffered_total = committed;
   }
 
   // Writes what is buffered. On a failure the file is cut back to the last
@@ -111,6 +134,9 @@ struct SessionWriter::Impl {
       flush_requested = false;
     }
     seal(data, ends);
+    // Past RLIMIT_FSIZE the write must fail (EFBIG) rather than the process
+    // die between two pages of a record.
+    const detail::FileSizeSignalBlocked no_file_size_signal;
     reserve_ahead(committed + data.size());
     std::size_t written = 0;
     int error = 0;
@@ -144,12 +170,7 @@ struct SessionWriter::Impl {
       if (end <= written) whole = end;
     }
     committed += whole;
-    if (sys::ftruncate(fd, static_cast<off_t>(committed)) == 0) {
-      sys::lseek(fd, static_cast<off_t>(committed), SEEK_SET);
-    }
-    std::lock_guard<std::mutex> lock(mutex);
-    fail_locked(error, "cannot write the session file");
-    buffered_total = committed;
+    fail_and_release(error);
   }
 
   // Fills each record's CRC slot with the CRC32C of the bytes before it (the
@@ -225,8 +246,7 @@ SessionWriter::SessionWriter(const std::string& path, SessionWriterOptions optio
   } while (impl_->fd < 0 && errno == EINTR);
   if (impl_->fd < 0) {
     const int error = errno;
-    throw PortError(error, path + ": cannot create the session file: " +
-                               std::strerror(error));
+    throw PortError(error, path + ": cannot create the session file");
   }
   std::string header(detail::file_header_fixed_size, '\0');
   std::memcpy(&header[0], detail::session_magic, sizeof detail::session_magic);
