@@ -18,6 +18,7 @@
 #include <thread>
 #include <vector>
 
+#include "posix/file_checks.hpp"
 #include "posix/syscalls.hpp"
 #include "session/format.hpp"
 #include "session/header.hpp"
@@ -216,14 +217,7 @@ SessionWriter::SessionWriter(const std::string& path, SessionWriterOptions optio
   impl_->path = path;
   impl_->options = std::move(options);
   if (impl_->options.flush_ms < 0) impl_->options.flush_ms = 0;
-  do {
-    impl_->fd = sys::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  } while (impl_->fd < 0 && errno == EINTR);
-  if (impl_->fd < 0) {
-    const int error = errno;
-    throw PortError(error, path + ": cannot create the session file: " +
-                               std::strerror(error));
-  }
+  impl_->fd = detail::open_output_file(path).release();
   const std::string json = detail::header_json(impl_->options);
   std::string header(detail::file_header_fixed_size, '\0');
   std::memcpy(&header[0], detail::session_magic, sizeof detail::session_magic);
