@@ -24,8 +24,6 @@ from wiretape import _core, cli
 from wiretape.tools import _files
 from wiretape.tools.convert import convert
 
-from conftest import write_session
-
 # A command that hangs fails the test here instead of hanging the suite.
 DEADLINE_S = 60
 
@@ -63,8 +61,8 @@ def error_line(err):
 
 
 @pytest.fixture
-def good(tmp_path):
-    return write_session(tmp_path / "good.wtape", SESSION)
+def good(session_file):
+    return session_file(SESSION, name="good.wtape")
 
 
 def snapshot(path):
@@ -345,19 +343,31 @@ def _device_node(path):
     return path
 
 
+@pytest.fixture
+def target(tmp_path):
+    """A file a symbolic link points to: it must keep its bytes."""
+    path = tmp_path / "target.bin"
+    path.write_bytes(b"keep me")
+    return path
+
+
+def make_node(path, what, target):
+    """What is not a regular file, at `path`: a FIFO, a symbolic link to
+    `target`, or a character device."""
+    if what == "fifo":
+        os.mkfifo(path)
+    elif what == "symlink":
+        os.symlink(target, path)
+    else:
+        _device_node(path)
+
+
 @pytest.mark.parametrize("what", ["fifo", "symlink", "device"])
 @pytest.mark.parametrize("fmt", OUTPUT_FORMATS)
-def test_convert_writes_regular_files_only(good, tmp_path, fmt, what):
-    target = tmp_path / "target.bin"
-    target.write_bytes(b"keep me")
+def test_convert_writes_regular_files_only(good, tmp_path, target, fmt, what):
     path = tmp_path / ("out" + SUFFIX[fmt])
     node = tmp_path / "out.logr" if fmt == "flexiport" else path
-    if what == "fifo":
-        os.mkfifo(node)
-    elif what == "symlink":
-        os.symlink(target, node)
-    else:
-        _device_node(node)
+    make_node(node, what, target)
     before = snapshot(node)
     code, err = run_cli("convert", good, path, "--to", fmt)
     assert code == 3, err
@@ -368,15 +378,9 @@ def test_convert_writes_regular_files_only(good, tmp_path, fmt, what):
 
 
 @pytest.mark.parametrize("what", ["fifo", "symlink"])
-def test_a_partial_file_of_the_wrong_kind_is_refused_too(good, tmp_path, what):
+def test_a_partial_file_of_the_wrong_kind_is_refused_too(good, tmp_path, target, what):
     path = tmp_path / "out.pcapng"
-    partial = tmp_path / "out.pcapng.partial"
-    target = tmp_path / "target.bin"
-    target.write_bytes(b"keep me")
-    if what == "fifo":
-        os.mkfifo(partial)
-    else:
-        os.symlink(target, partial)
+    make_node(tmp_path / "out.pcapng.partial", what, target)
     code, err = run_cli("convert", good, path)
     assert code == 3, err
     assert "not a regular file" in error_line(err)
@@ -403,16 +407,9 @@ def test_dev_null_is_not_an_output():
 
 
 @pytest.mark.parametrize("what", ["fifo", "symlink", "device"])
-def test_the_session_writer_writes_regular_files_only(tmp_path, what):
+def test_the_session_writer_writes_regular_files_only(tmp_path, target, what):
     path = tmp_path / "out.wtape"
-    target = tmp_path / "target.bin"
-    target.write_bytes(b"keep me")
-    if what == "fifo":
-        os.mkfifo(path)
-    elif what == "symlink":
-        os.symlink(target, path)
-    else:
-        _device_node(path)
+    make_node(path, what, target)
     before = snapshot(path)
     code = ("import wiretape\n"
             f"try:\n    wiretape.SessionWriter({str(path)!r})\n"
