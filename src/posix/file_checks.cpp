@@ -60,6 +60,16 @@ std::vector<OpenInput>& open_inputs() {
   return inputs;
 }
 
+void refuse_if_being_read(const std::string& path, const struct stat& info) {
+  std::lock_guard<std::mutex> lock(inputs_mutex());
+  for (const OpenInput& input : open_inputs()) {
+    if (input.device == info.st_dev && input.inode == info.st_ino) {
+      refuse(path + " is the same file as " + input.path +
+             ", which is being read: refusing to overwrite the input");
+    }
+  }
+}
+
 }  // namespace
 
 std::string not_regular_file_problem(const std::string& path, mode_t mode) {
@@ -94,13 +104,18 @@ InputFile::~InputFile() {
   if (found != inputs.end()) inputs.erase(found);
 }
 
+void check_output_file(const std::string& path) {
+  struct stat info {};
+  if (sys::lstat(path.c_str(), &info) != 0) return;  // to be created
+  const std::string problem = not_regular_file_problem(path, info.st_mode);
+  if (!problem.empty()) refuse(problem);
+  refuse_if_being_read(path, info);
+}
+
 sys::UniqueFd open_output_file(const std::string& path) {
   // Look before opening: opening a device can have effects of its own.
+  check_output_file(path);
   struct stat info {};
-  if (sys::lstat(path.c_str(), &info) == 0) {
-    const std::string problem = not_regular_file_problem(path, info.st_mode);
-    if (!problem.empty()) refuse(problem);
-  }
   // No O_TRUNC yet: nothing is emptied before the checks below. O_NOFOLLOW
   // and the fstat close the race with a file replaced since the lstat.
   sys::UniqueFd fd(open_retrying(
@@ -117,15 +132,7 @@ sys::UniqueFd open_output_file(const std::string& path) {
   if (sys::fstat(fd.get(), &info) != 0) throw PortError(errno, path + ": cannot create");
   const std::string problem = not_regular_file_problem(path, info.st_mode);
   if (!problem.empty()) refuse(problem);
-  {
-    std::lock_guard<std::mutex> lock(inputs_mutex());
-    for (const OpenInput& input : open_inputs()) {
-      if (input.device == info.st_dev && input.inode == info.st_ino) {
-        refuse(path + " is the same file as " + input.path +
-               ", which is being read: refusing to overwrite the input");
-      }
-    }
-  }
+  refuse_if_being_read(path, info);
   if (sys::ftruncate(fd.get(), 0) != 0) throw PortError(errno, path + ": cannot empty");
   clear_nonblocking(fd.get());
   return fd;

@@ -47,4 +47,8 @@ class InputFile {
 // for a file being read).
 sys::UniqueFd open_output_file(const std::string& path);
 
+// What open_output_file() refuses, checked without opening anything, for a
+// writer of several files that must refuse before it empties any of them.
+void check_output_file(const std::string& path);
+
 }  // namespace wiretape::detail

@@ -332,6 +332,8 @@ class OutputFile {
 
 void export_flexiport(const std::string& session_path, const std::string& prefix) {
   SessionReader reader(session_path);
+  // Both refused or both written: a refused .logw must not cost the .logr.
+  for (const char* suffix : {"r", "w"}) detail::check_output_file(prefix + suffix);
   OutputFile reads(prefix + "r");
   OutputFile writes(prefix + "w");
   Record record;

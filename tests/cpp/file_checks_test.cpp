@@ -124,12 +124,15 @@ TEST_F(FileChecks, AFifoAsAFlexiportExportIsRefusedAtOnce) {
   const std::string session = dir.file("s.wtape");
   write_sample(session);
   const std::string prefix = dir.file("out.log");
+  write_file(prefix + "r", "an earlier export");
   ASSERT_EQ(::mkfifo((prefix + "w").c_str(), 0600), 0);
   std::string message;
   finishes_promptly(prefix + "w", [&] {
     message = error_of<PortError>([&] { export_flexiport(session, prefix); });
   });
   EXPECT_TRUE(contains(message, prefix + "w is a FIFO, not a regular file")) << message;
+  // Refused before either file was emptied.
+  EXPECT_EQ(read_file(prefix + "r"), "an earlier export");
 }
 
 TEST_F(FileChecks, ADeviceIsNotAnEmptySession) {
