@@ -67,8 +67,10 @@ struct SessionHeader {
 // Streams records with memory independent of the file's size.
 class SessionReader {
  public:
-  // Throws SessionError (with the byte offset) when the file cannot be used
-  // at all: missing, empty, wrong magic, newer major version, bad header.
+  // Throws PortError when the file cannot be opened (missing, permission
+  // denied) or is not a regular file (a FIFO or a device is refused at once,
+  // never waited on); SessionError (with the byte offset) when it is not a
+  // usable session: empty, wrong magic, newer major version, bad header.
   explicit SessionReader(const std::string& path);
   ~SessionReader();
   SessionReader(SessionReader&&) noexcept;
@@ -110,7 +112,10 @@ struct SessionWriterOptions {
 // writer thread of a port may record at once.
 class SessionWriter {
  public:
-  // Truncates/creates `path`; throws PortError (errno) if it cannot.
+  // Truncates/creates `path`; throws PortError (errno) if it cannot. Only a
+  // regular file is written: a symbolic link, a FIFO or a device at `path`
+  // is refused untouched, and so is a file this process is reading as a
+  // session (same device and inode: links to it included).
   SessionWriter(const std::string& path, SessionWriterOptions options);
   ~SessionWriter();  // closes; never throws
   SessionWriter(const SessionWriter&) = delete;
@@ -141,8 +146,9 @@ class SessionWriter {
 // flexiport's two-file logs. `prefix` is "name.log" for name.logr/name.logw.
 // Import (reading) is done by SessionReader; this writes the new format.
 // Events are not representable there and are dropped; times are truncated to
-// microseconds. Throws SessionError if the source cannot be read (or is
-// damaged: what was written up to the damage stays), PortError on I/O errors.
+// microseconds. Throws SessionError if the source is not a session (or is
+// damaged: what was written up to the damage stays), PortError when a file
+// cannot be opened or written; the outputs are written as SessionWriter's.
 void export_flexiport(const std::string& session_path, const std::string& prefix);
 
 // The CRC32C (Castagnoli) of `data`, continuing from `crc` (0 to start): the

@@ -273,9 +273,12 @@ def replay_options_of(args) -> str:
 
 def cmd_replay(args, out: _Output) -> int:
     from . import bridge
+    from .tools._files import refuse_same_file, session_files
 
     pty, listen = _client_side(args)
     _require_input(args.file)
+    if args.output:
+        refuse_same_file(session_files(args.file), [args.output])
     handle = bridge.serve_replay(args.file, pty=pty, listen=listen,
                                  replay_options=replay_options_of(args),
                                  restart=args.restart, output=args.output,
@@ -393,7 +396,7 @@ def cmd_diff(args, out: _Output) -> int:
         elif line == "sessions differ" or "damaged" in line:
             style = "bold red"
         out.print(line, style=style)
-    return EXIT_OK if result.identical else EXIT_CHECK_FAILED
+    return EXIT_OK if result.identical and not result.damaged else EXIT_CHECK_FAILED
 
 
 # --------------------------------------------------------------------------

@@ -91,6 +91,7 @@ Table make_real() {
   t.pipe2 = [](int fds[2], int flags) { return ::pipe2(fds, flags); };
   t.fstat = [](int fd, struct stat* info) { return ::fstat(fd, info); };
   t.stat = [](const char* path, struct stat* info) { return ::stat(path, info); };
+  t.lstat = [](const char* path, struct stat* info) { return ::lstat(path, info); };
   t.lseek = [](int fd, off_t offset, int whence) { return ::lseek(fd, offset, whence); };
   t.fsync = [](int fd) { return ::fsync(fd); };
   t.ftruncate = [](int fd, off_t length) { return ::ftruncate(fd, length); };

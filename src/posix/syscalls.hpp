@@ -66,6 +66,8 @@ struct Table {
   // Session files.
   std::function<int(int fd, struct stat* info)> fstat;
   std::function<int(const char* path, struct stat* info)> stat;
+  // What a path names without following a final symbolic link.
+  std::function<int(const char* path, struct stat* info)> lstat;
   std::function<off_t(int fd, off_t offset, int whence)> lseek;
   std::function<int(int fd)> fsync;
   std::function<int(int fd, off_t length)> ftruncate;
@@ -171,6 +173,7 @@ inline int accept4(int fd, sockaddr* address, socklen_t* length, int flags) {
 inline int pipe2(int fds[2], int flags) { return current().pipe2(fds, flags); }
 inline int fstat(int fd, struct stat* info) { return current().fstat(fd, info); }
 inline int stat(const char* path, struct stat* info) { return current().stat(path, info); }
+inline int lstat(const char* path, struct stat* info) { return current().lstat(path, info); }
 inline off_t lseek(int fd, off_t offset, int whence) {
   return current().lseek(fd, offset, whence);
 }

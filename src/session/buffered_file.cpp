@@ -19,29 +19,13 @@ constexpr std::size_t buffer_size = 128 * 1024;
 }  // namespace
 
 BufferedFile::BufferedFile(const std::string& path)
-    : path_(path), buffer_(new char[buffer_size]) {
-  do {
-    fd_ = sys::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  } while (fd_ < 0 && errno == EINTR);
-  if (fd_ < 0) {
-    throw SessionError(system_error_message(path + ": cannot open", errno), 0);
-  }
-  struct stat info {};
-  if (sys::fstat(fd_, &info) == 0 && S_ISDIR(info.st_mode)) {
-    sys::close(fd_);
-    fd_ = -1;
-    throw SessionError(path + ": is a directory, not a session file", 0);
-  }
+    : file_(path), buffer_(new char[buffer_size]) {
   refresh_size();
-}
-
-BufferedFile::~BufferedFile() {
-  if (fd_ >= 0) sys::close(fd_);
 }
 
 void BufferedFile::refresh_size() {
   struct stat info {};
-  if (sys::fstat(fd_, &info) == 0) size_ = static_cast<std::uint64_t>(info.st_size);
+  if (sys::fstat(file_.fd(), &info) == 0) size_ = static_cast<std::uint64_t>(info.st_size);
 }
 
 std::uint64_t BufferedFile::remaining() {
@@ -76,7 +60,7 @@ std::size_t BufferedFile::fill() {
     begin_ = 0;
   }
   while (end_ < buffer_size) {
-    const ssize_t n = sys::read(fd_, buffer_.get() + end_, buffer_size - end_);
+    const ssize_t n = sys::read(file_.fd(), buffer_.get() + end_, buffer_size - end_);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) break;
     end_ += static_cast<std::size_t>(n);
@@ -101,7 +85,7 @@ bool BufferedFile::read(void* out, std::size_t size) {
   begin_ = end_ = 0;
   if (size - done >= buffer_size) {
     while (done < size) {
-      const ssize_t n = sys::read(fd_, dst + done, size - done);
+      const ssize_t n = sys::read(file_.fd(), dst + done, size - done);
       if (n < 0 && errno == EINTR) continue;
       if (n <= 0) {
         seek(position_);
@@ -173,7 +157,7 @@ bool BufferedFile::skip(std::uint64_t size) {
 }
 
 void BufferedFile::seek(std::uint64_t position) {
-  sys::lseek(fd_, static_cast<off_t>(position), SEEK_SET);
+  sys::lseek(file_.fd(), static_cast<off_t>(position), SEEK_SET);
   position_ = position;
   begin_ = end_ = 0;
 }

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "posix/file_checks.hpp"
 #include "session/record_source.hpp"
 
 namespace wiretape::detail {
@@ -17,9 +18,9 @@ namespace wiretape::detail {
 // fields can be checked before anything is allocated.
 class BufferedFile {
  public:
-  // Throws SessionError naming `path` if it cannot be opened.
+  // Throws PortError naming `path` if it cannot be opened or is not a
+  // regular file (InputFile).
   explicit BufferedFile(const std::string& path);
-  ~BufferedFile();
   BufferedFile(const BufferedFile&) = delete;
   BufferedFile& operator=(const BufferedFile&) = delete;
 
@@ -40,14 +41,13 @@ class BufferedFile {
   std::uint64_t remaining();
   std::uint64_t size() const { return size_; }
   void seek(std::uint64_t position);
-  const std::string& path() const { return path_; }
+  const std::string& path() const { return file_.path(); }
 
  private:
   std::size_t fill();
   void refresh_size();
 
-  std::string path_;
-  int fd_ = -1;
+  InputFile file_;
   std::shared_ptr<char[]> buffer_;  // shared with the views handed out
   // Earlier buffers, reused once no view holds them any more.
   static constexpr std::size_t max_retired_buffers = 32;

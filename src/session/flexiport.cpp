@@ -6,8 +6,10 @@
 // with times counted from the port's open. The format of each file is
 // detected from its first chunks; the two files are merged by time, a write
 // before a read at equal times.
-#include "posix/syscalls.hpp"
 #include "session/flexiport.hpp"
+
+#include "posix/file_checks.hpp"
+#include "posix/syscalls.hpp"
 
 #include <sys/stat.h>
 
@@ -237,9 +239,11 @@ class FlexiportSource final : public RecordSource {
   std::optional<SessionError> damage_;
 };
 
+// Anything by that name counts: opening it then says what is wrong with a
+// FIFO or a directory, rather than calling it missing.
 bool exists(const std::string& path) {
   struct stat info {};
-  return sys::stat(path.c_str(), &info) == 0 && S_ISREG(info.st_mode);
+  return sys::stat(path.c_str(), &info) == 0;
 }
 
 bool ends_with(const std::string& text, const std::string& suffix) {
@@ -290,37 +294,45 @@ namespace {
 // A file written through a buffer; every failure is a PortError naming it.
 class OutputFile {
  public:
-  explicit OutputFile(std::string path) : path_(std::move(path)) {
-    file_ = std::fopen(path_.c_str(), "wb");
-    if (file_ == nullptr) {
-      throw PortError(errno, path_ + ": cannot create");
-    }
-  }
-  ~OutputFile() {
-    if (file_ != nullptr) std::fclose(file_);
-  }
+  explicit OutputFile(std::string path)
+      : path_(std::move(path)), fd_(detail::open_output_file(path_)) {}
   void write(const void* data, std::size_t size) {
-    if (size > 0 && std::fwrite(data, 1, size, file_) != size) {
-      throw PortError(errno, path_ + ": write failed");
-    }
+    buffer_.append(static_cast<const char*>(data), size);
+    if (buffer_.size() >= flush_size) flush();
   }
   void close() {
-    std::FILE* file = file_;
-    file_ = nullptr;
-    if (std::fclose(file) != 0) {
+    flush();
+    if (detail::sys::close(fd_.release()) != 0) {
       throw PortError(errno, path_ + ": write failed");
     }
   }
 
  private:
+  static constexpr std::size_t flush_size = 64 * 1024;
+
+  void flush() {
+    std::size_t done = 0;
+    while (done < buffer_.size()) {
+      const ssize_t n =
+          detail::sys::write(fd_.get(), buffer_.data() + done, buffer_.size() - done);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) throw PortError(n < 0 ? errno : ENOSPC, path_ + ": write failed");
+      done += static_cast<std::size_t>(n);
+    }
+    buffer_.clear();
+  }
+
   std::string path_;
-  std::FILE* file_ = nullptr;
+  detail::sys::UniqueFd fd_;
+  std::string buffer_;
 };
 
 }  // namespace
 
 void export_flexiport(const std::string& session_path, const std::string& prefix) {
   SessionReader reader(session_path);
+  // Both refused or both written: a refused .logw must not cost the .logr.
+  for (const char* suffix : {"r", "w"}) detail::check_output_file(prefix + suffix);
   OutputFile reads(prefix + "r");
   OutputFile writes(prefix + "w");
   Record record;

@@ -12,7 +12,8 @@
 namespace wiretape::detail {
 
 // flexiport's logs: `prefix` is "name.log" for name.logr + name.logw. Throws
-// SessionError when they cannot be used at all.
+// PortError when one cannot be opened or is not a regular file, SessionError
+// when one is missing or not a flexiport log.
 std::unique_ptr<RecordSource> open_flexiport(const std::string& prefix,
                                              SessionHeader& header);
 // The "name.log" prefix `path` names when it is a flexiport log ("name.log",

@@ -3,10 +3,12 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <string>
 
+#include "posix/file_checks.hpp"
 #include "posix/syscalls.hpp"
 #include "session/buffered_file.hpp"
 #include "session/flexiport.hpp"
@@ -209,14 +211,21 @@ class WtapeSource final : public RecordSource {
   std::optional<SessionError> damage_;
 };
 
+// False also when `path` cannot be opened: opening it as a .wtape file then
+// reports why.
 bool starts_with_magic(const std::string& path) {
-  const int fd = sys::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return false;
-  char head[sizeof session_magic] = {};
-  const ssize_t n = sys::read(fd, head, sizeof head);
-  sys::close(fd);
-  return n == static_cast<ssize_t>(sizeof head) &&
-         std::memcmp(head, session_magic, sizeof head) == 0;
+  try {
+    const InputFile file(path);
+    char head[sizeof session_magic] = {};
+    ssize_t n = 0;
+    do {
+      n = sys::read(file.fd(), head, sizeof head);
+    } while (n < 0 && errno == EINTR);
+    return n == static_cast<ssize_t>(sizeof head) &&
+           std::memcmp(head, session_magic, sizeof head) == 0;
+  } catch (const PortError&) {
+    return false;
+  }
 }
 
 }  // namespace

@@ -15,8 +15,9 @@
 namespace wiretape::detail {
 
 // The records of a .wtape file or a flexiport log pair ("name.log"), and its
-// header into `header`. Throws SessionError when the file cannot be used at
-// all; damage later on ends the records and is reported by damage().
+// header into `header`. Throws PortError when a file cannot be opened or is
+// not a regular file, SessionError when it is not a usable session; damage
+// later on ends the records and is reported by damage().
 std::unique_ptr<RecordSource> open_session_source(const std::string& path,
                                                   SessionHeader& header);
 

@@ -19,6 +19,7 @@
 #include <thread>
 #include <vector>
 
+#include "posix/file_checks.hpp"
 #include "posix/file_size_limit.hpp"
 #include "posix/syscalls.hpp"
 #include "session/format.hpp"
@@ -100,8 +101,8 @@ struct SessionWriter::Impl {
   // record and let go at once: nothing more will be written to it, and a
   // writer that failed holds no descriptor, whoever forgets to close it.
   void fail_and_release(int error) {
-    // Fails only where nothing can be left half-written either (a device
-    // such as /dev/full).
+    // Best effort: if even the cut fails, a reader still stops at the
+    // partial record, at its offset, and returns every record before it.
     (void)sys::ftruncate(fd, static_cast<off_t>(committed));
     reserved = committed;
     sys::close(fd);
@@ -241,13 +242,7 @@ SessionWriter::SessionWriter(const std::string& path, SessionWriterOptions optio
   if (impl_->options.flush_ms < 0) impl_->options.flush_ms = 0;
   // A header the reader would refuse is refused before the file is created.
   const std::string json = detail::header_json(impl_->options);
-  do {
-    impl_->fd = sys::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  } while (impl_->fd < 0 && errno == EINTR);
-  if (impl_->fd < 0) {
-    const int error = errno;
-    throw PortError(error, path + ": cannot create the session file");
-  }
+  impl_->fd = detail::open_output_file(path).release();
   std::string header(detail::file_header_fixed_size, '\0');
   std::memcpy(&header[0], detail::session_magic, sizeof detail::session_magic);
   detail::put_u16le(&header[8], detail::session_version_major);

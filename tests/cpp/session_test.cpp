@@ -195,7 +195,8 @@ TEST(SessionFile, MissingEmptyAndForeignFilesAreClearErrors) {
       EXPECT_EQ(e.offset(), offset) << e.what();
     }
   };
-  expect_error(dir.file("missing.wtape"), "No such file", 0);
+  // A file that cannot be opened is an I/O error, not a damaged session.
+  EXPECT_THROW(SessionReader(dir.file("missing.wtape")), PortError);
   write_file(dir.file("empty.wtape"), "");
   expect_error(dir.file("empty.wtape"), "empty file", 0);
   write_file(dir.file("text.wtape"), "hello, I am a text file and no session\n");
@@ -522,13 +523,20 @@ TEST(SessionReader, FollowsAFileThatIsStillBeingWritten) {
 }
 
 TEST(SessionWriter, FullDiskIsAClearPortError) {
-  if (::access("/dev/full", W_OK) != 0) GTEST_SKIP() << "no writable /dev/full on this system";
+  // A full disk through the seam: /dev/full is a device, not a session file.
+  TempDir dir;
+  const std::string path = dir.file("full.wtape");
+  detail::sys::ScopedOverride seam;
+  seam->write = [](int, const void*, size_t) -> ssize_t {
+    errno = ENOSPC;
+    return -1;
+  };
   try {
-    SessionWriter writer("/dev/full", {});
-    FAIL() << "no error writing to /dev/full";
+    SessionWriter writer(path, {});
+    FAIL() << "no error writing to a full disk";
   } catch (const PortError& e) {
     EXPECT_EQ(e.code().value(), ENOSPC);
-    EXPECT_NE(std::string(e.what()).find("/dev/full: cannot write the session file"),
+    EXPECT_NE(std::string(e.what()).find(path + ": cannot write the session file"),
               std::string::npos)
         << e.what();
   }

@@ -111,7 +111,7 @@ def test_a_damaged_session_decodes_up_to_the_damage():
 
 def test_bad_sources_are_clear_errors():
     scip = _core.find_profile("scip")
-    with pytest.raises(_core.SessionError):
+    with pytest.raises(_core.PortError, match="no-such-session.wtape: cannot open"):
         scip.decode_session(ROOT / "no-such-session.wtape")
     with pytest.raises(TypeError, match="has no t_ns"):
         list(scip.decode_session([object()]))

@@ -107,7 +107,6 @@ def test_bad_arguments_are_clear_errors(tmp_path):
 @pytest.mark.parametrize(
     "content, words, offset",
     [
-        (None, "No such file", 0),
         (b"", "empty file", 0),
         (b"not a session at all, just text\n", "wrong magic", 0),
         (b"\x89WTAPE\r\n\x01\x00", "truncated header", 10),
@@ -116,8 +115,7 @@ def test_bad_arguments_are_clear_errors(tmp_path):
 )
 def test_unusable_files_raise_session_error_with_offset(tmp_path, content, words, offset):
     path = tmp_path / "bad.wtape"
-    if content is not None:
-        path.write_bytes(content)
+    path.write_bytes(content)
     with pytest.raises(_core.SessionError) as info:
         _core.SessionReader(path)
     assert words in str(info.value)

@@ -9,6 +9,7 @@ import json
 import os
 from typing import IO, Any, Dict, Iterator
 
+from ..tools._files import check_output, open_output
 from ..tools._records import SessionPath
 
 
@@ -54,11 +55,16 @@ def event_json(data: bytes) -> Any:
 def replacing(dst: SessionPath) -> Iterator[IO[bytes]]:
     """A file to write that becomes `dst` only once the block completes: a
     failed or interrupted export never leaves a half-written file under the
-    name asked for."""
-    temporary = os.fspath(dst) + ".partial"
+    name asked for. Only a regular file is replaced: a symbolic link, a FIFO
+    or a device at `dst` is refused (tools._files), before the work and
+    again just before the rename."""
+    dst = os.fspath(dst)
+    check_output(dst)
+    temporary = dst + ".partial"
     try:
-        with open(temporary, "wb") as out:
+        with open_output(temporary) as out:
             yield out
+        check_output(dst)
         os.replace(temporary, dst)
     except BaseException:
         try:

@@ -6,10 +6,10 @@ one JSON object per record, as ``wiretape show --format jsonl`` prints it
 from __future__ import annotations
 
 import json
-import os
 from typing import Any, Dict, Iterable
 
 from .. import _core
+from ..tools._files import open_output
 from ..tools._records import SessionPath, event_of
 
 __all__ = ["write_records", "record_to_json"]
@@ -40,7 +40,7 @@ def write_records(dst: SessionPath, header: Dict[str, Any],
     """Writes `header` and `records` to `dst`; returns the number of records.
     The file is written as it goes: what came before a failure stays."""
     count = 0
-    with open(os.fspath(dst), "w", encoding="utf-8") as out:
+    with open_output(dst, text=True) as out:
         out.write(json_line({"header": header}))
         for record in records:
             out.write(json_line(record_to_json(record)))

@@ -8,7 +8,9 @@ import json
 from typing import Dict
 
 from .._core import __version__
-from ..tools._records import DIRECTIONS, SessionPath, escape_bytes, header_fields, open_session
+from ..tools._files import refuse_same_file, session_files
+from ..tools._records import (DIRECTIONS, SessionPath, escape_bytes, header_fields,
+                              open_session, raise_damage)
 from ._common import event_json, replacing, start_epoch_ns
 
 __all__ = ["write_mcap", "MCAP_TOPICS"]
@@ -47,12 +49,14 @@ _EVENT_SCHEMA = {
 
 def write_mcap(src: SessionPath, dst: SessionPath) -> Dict[str, int]:
     """Writes the session `src` to `dst` as MCAP (see wiretape.exports for
-    the topics and encoding); returns counts of what was written."""
+    the topics and encoding); returns counts of what was written. A damaged
+    session is written up to the damage, then its SessionError is raised."""
     try:
         from mcap.writer import Writer
     except ImportError as error:
         raise RuntimeError("the mcap export needs the 'mcap' package: pip install mcap") from error
 
+    refuse_same_file(session_files(src), [dst])
     reader = open_session(src)
     header = header_fields(reader)
     start_ns = start_epoch_ns(header)
@@ -97,4 +101,5 @@ def write_mcap(src: SessionPath, dst: SessionPath) -> Dict[str, int]:
             data={key: value if isinstance(value, str) else json.dumps(value, default=str)
                   for key, value in header.items()})
         writer.finish()
+    raise_damage(reader)  # after the rename: the export keeps what came before
     return counts

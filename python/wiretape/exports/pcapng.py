@@ -8,7 +8,8 @@ import struct
 from typing import Dict, Iterable, Optional, Tuple
 
 from .._core import __version__
-from ..tools._records import SessionPath, header_fields, open_session
+from ..tools._files import refuse_same_file, session_files
+from ..tools._records import SessionPath, header_fields, open_session, raise_damage
 from ._common import event_json, replacing, start_epoch_ns
 
 __all__ = ["write_pcapng", "LINKTYPE_USER0"]
@@ -106,7 +107,9 @@ def _packet(interface: int, timestamp_ns: int, payload: bytes, flags: int,
 def write_pcapng(src: SessionPath, dst: SessionPath) -> Dict[str, int]:
     """Writes the session `src` (a .wtape, or a flexiport ``name.log``) to
     `dst` as pcapng; returns counts of what was written
-    (``{"rx": n, "tx": n, "events": n}``)."""
+    (``{"rx": n, "tx": n, "events": n}``). A damaged session is written up
+    to the damage, then its SessionError is raised."""
+    refuse_same_file(session_files(src), [dst])
     reader = open_session(src)
     header = header_fields(reader)
     start_ns = start_epoch_ns(header)
@@ -130,6 +133,7 @@ def write_pcapng(src: SessionPath, dst: SessionPath) -> Dict[str, int]:
                 out.write(_packet(_EVENT_INTERFACE, stamp, payload, 0,
                                   comment=f"wiretape event: {kind}"))
                 counts["events"] += 1
+    raise_damage(reader)  # after the rename: the export keeps what came before
     return counts
 
 

@@ -19,9 +19,24 @@ DIRECTIONS = tuple(kind["name"] for kind in _core.RECORD_KINDS if not kind["is_e
 
 
 def open_session(path: SessionPath) -> _core.SessionReader:
-    """A reader streaming the session's records; raises SessionError when
-    the file cannot be read at all."""
+    """A reader streaming the session's records.
+
+    The rule for damaged input, the same in every command (docs/cli.md):
+    a file that cannot be opened or read (missing, permission denied, not a
+    regular file) raises PortError here, an OSError: exit 3. A file that is
+    not a session, or is damaged, is read up to the damage, every record
+    before it is used (shown, counted, compared, converted), and then
+    raise_damage() raises the damage, a SessionError: exit 1
+    (cli.exit_code_for maps both)."""
     return _core.SessionReader(os.fspath(path))
+
+
+def raise_damage(reader: _core.SessionReader) -> None:
+    """Raises the session's damage (SessionError, exit 1), if reading it
+    stopped at some; call it once the records before the damage are used."""
+    damage = reader.damage
+    if damage is not None:
+        raise damage
 
 
 def header_fields(reader: _core.SessionReader) -> Dict[str, Any]:

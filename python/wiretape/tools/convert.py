@@ -27,7 +27,8 @@ from typing import Iterator, Optional
 
 from .. import _core, exports
 from ..exports import jsonl
-from ._records import SessionPath, open_session
+from ._files import FileRefused, open_input, refuse_same_file, session_files
+from ._records import SessionPath, open_session, raise_damage
 
 __all__ = ["convert", "detect_format", "ConvertResult", "FORMATS"]
 
@@ -52,9 +53,11 @@ def detect_format(path, reading: bool) -> str:
         return _SUFFIXES[suffix]
     if reading:
         try:
-            with open(path, "rb") as handle:
+            with open_input(path) as handle:
                 if handle.read(len(_core.SESSION_MAGIC)) == _core.SESSION_MAGIC:
                     return "wiretape"
+        except FileRefused:
+            raise
         except OSError:
             pass
         if _core.flexiport_prefix(path) is not None:
@@ -77,7 +80,7 @@ def _check_format(name: str, allowed) -> str:
 
 def _jsonl_records(path: str) -> Iterator[tuple]:
     """(header dict or None) first, then (kind, t_ns, data) per record."""
-    with open(path, "r", encoding="utf-8") as handle:
+    with open_input(path, text=True) as handle:
         header_seen = False
         for number, line in enumerate(handle, start=1):
             line = line.strip()
@@ -167,8 +170,17 @@ def _source_size(path: str, fmt: str) -> int:
 
 # --- the conversion ----------------------------------------------------------
 
+def _output_files(dst: str, fmt: str):
+    """The files writing `dst` as `fmt` creates."""
+    if fmt == "flexiport":
+        prefix = _core.flexiport_prefix(dst) or dst
+        return [prefix + "r", prefix + "w"]
+    return [dst]
+
+
 def _records_of(src: str, fmt: str):
-    """(header dict, record iterator of (kind, t_ns, data), damage getter)."""
+    """(header dict, record iterator of (kind, t_ns, data), a function that
+    raises the damage the records stopped at, if any)."""
     if fmt == "jsonl":
         items = _jsonl_records(src)
         _, header = next(items)
@@ -184,7 +196,7 @@ def _records_of(src: str, fmt: str):
         for record in reader:
             yield record.kind, record.t_ns, record.data
 
-    return _header_of_reader(reader), records(), lambda: reader.damage
+    return _header_of_reader(reader), records(), lambda: raise_damage(reader)
 
 
 def _write_wiretape(dst: str, header: dict, records, progress: _Progress) -> int:
@@ -243,6 +255,7 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
     target_format = _check_format(to_format, FORMATS) if to_format else detect_format(dst, False)
     if source_format == "flexiport":
         src = _core.flexiport_prefix(src) or src
+    refuse_same_file(session_files(src), _output_files(dst, target_format))
     report = _Progress(progress, _source_size(src, source_format))
 
     if target_format in ("pcapng", "mcap"):
@@ -253,7 +266,7 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
                 header, records, _ = _records_of(src, "jsonl")
                 _write_wiretape(session, header, records, _Progress(False, 0))
             writer = exports.write_pcapng if target_format == "pcapng" else exports.write_mcap
-            writer(session, dst)
+            writer(session, dst)  # raises the damage once dst is written
             written = sum(1 for _ in open_session(session))
         return ConvertResult(written, source_format, target_format)
 
@@ -273,13 +286,11 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
         report.finish()
         return ConvertResult(written, source_format, target_format)
 
-    header, records, damage = _records_of(src, source_format)
+    header, records, raise_source_damage = _records_of(src, source_format)
     if target_format == "wiretape":
         written = _write_wiretape(dst, header, records, report)
     else:
         written = _write_jsonl(dst, header, records, report)
     report.finish()
-    problem = damage()
-    if problem is not None:
-        raise problem
+    raise_source_damage()
     return ConvertResult(written, source_format, target_format)

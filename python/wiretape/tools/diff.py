@@ -155,6 +155,12 @@ class DiffResult:
     def identical(self) -> bool:
         return all(d.identical for d in self.directions)
 
+    @property
+    def damaged(self) -> bool:
+        """Either session is damaged: compared up to the damage, and, as for
+        every command reading a damaged session, ``wiretape diff`` exits 1."""
+        return bool(self.damage_a or self.damage_b)
+
     def __bool__(self) -> bool:  # truthy when the sessions differ, like a diff
         return not self.identical
 
@@ -215,8 +221,9 @@ def _compare(a: _Records, b: _Records, direction: str) -> DirectionDiff:
 def diff(a: SessionLike, b: SessionLike) -> DiffResult:
     """Compares sessions ``a`` and ``b``: the first divergence per direction.
 
-    Raises wiretape.SessionError if a file cannot be read at all; a damaged
-    file is compared up to its damage, which the report mentions.
+    Raises wiretape.PortError if a file cannot be opened, SessionError if
+    it is not a session; a damaged file is compared up to its damage, which
+    the report mentions (and ``damaged`` says).
     """
     if not isinstance(a, (str, os.PathLike)):
         a = list(a)
