@@ -73,9 +73,11 @@ BENCH_TOOLS   := clang-14 libclang-rt-14-dev socat libbenchmark-dev tshark
 FUZZ_SECONDS  ?= 300
 SOAK_MINUTES  ?= 30
 
+# README's benchmark table is rewritten from the run's results, never by hand.
 bench: python
 	bench/install-tools.sh $(BENCH_TOOLS)
 	$(PYTHON) bench/run.py --build $(BUILD)
+	$(PYTHON) bench/readme_table.py $(BUILD)/bench/results.json README.md
 
 # ASan+UBSan and TSan trees next to the main one, C++ tests only.
 test-sanitize:
