@@ -1,14 +1,20 @@
 """The jsonl importer (wiretape convert X.jsonl OUT --from jsonl): every bad
 line is one clean error naming the file, the line and the field, with the
-CLI's exit code for a damaged session file (1), never a traceback."""
+CLI's exit code for a damaged session file (1), never a traceback; and every
+file of the fuzz corpus either converts or fails that way."""
 
+import importlib.util
 import json
+from pathlib import Path
 
 import pytest
 
 import wiretape
 from wiretape import cli
 from wiretape.tools import convert as convert_module
+
+ROOT = Path(__file__).resolve().parents[2]
+CORPUS = ROOT / "fuzz" / "corpus" / "jsonl_import_fuzz"
 
 HEADER = json.dumps({"header": {"port_type": "serial", "capture": "client"}})
 GOOD = '{"t_ns":5,"kind":"rx","data_hex":"41"}'
@@ -146,3 +152,18 @@ def test_valid_edges_convert(tmp_path):
     records = list(wiretape.SessionReader(str(tmp_path / "out.wtape")))
     assert [(r.t_ns, r.kind, r.data) for r in records] == [
         ((1 << 64) - 1, "rx", b"A"), (1, "settings", b'{"baud":9600}'), (2, "close", b"")]
+
+
+def _load_fuzz_script():
+    spec = importlib.util.spec_from_file_location("jsonl_import_fuzz",
+                                                  ROOT / "fuzz" / "jsonl_import_fuzz.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("seed", sorted(p.name for p in CORPUS.iterdir()))
+def test_the_fuzz_corpus_converts_or_fails_cleanly(tmp_path, seed):
+    """What ctest's corpus replay is for the C++ fuzz targets."""
+    fuzz = _load_fuzz_script()
+    fuzz.check_input((CORPUS / seed).read_bytes(), str(tmp_path))
