@@ -25,21 +25,8 @@ import tempfile
 import time
 
 import wiretape
-from wiretape import _core  # noqa: F401  (loaded before instrumenting)
 from wiretape.cli import EXIT_CHECK_FAILED, exit_code_for
-
-try:
-    import atheris
-except ImportError:
-    atheris = None
-
-from wiretape.tools import convert as convert_module  # noqa: E402
-
-if atheris is not None:
-    # Every function loaded so far, the importer's included: the editable
-    # install loads wiretape through its own finder, which
-    # atheris.instrument_imports() does not see into.
-    atheris.instrument_all()
+from wiretape.tools import convert as convert_module
 
 
 def check_input(data: bytes, scratch: str) -> None:
@@ -118,8 +105,14 @@ def _random_fuzz(argv: list[str], scratch: str) -> int:
 def main() -> int:
     scratch = _scratch()
     atexit.register(shutil.rmtree, scratch, ignore_errors=True)
-    if atheris is None:
+    try:
+        import atheris
+    except ImportError:
         return _random_fuzz(sys.argv[1:], scratch)
+    # Every function loaded so far, the importer's included: the editable
+    # install loads wiretape through its own finder, which
+    # atheris.instrument_imports() does not see into.
+    atheris.instrument_all()
     atheris.Setup(sys.argv, lambda data: check_input(data, scratch))
     atheris.Fuzz()
     return 0
