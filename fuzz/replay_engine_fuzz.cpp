@@ -6,15 +6,17 @@
 // ReplayMismatch, SessionError); anything else aborts.
 //
 // Replay never paces in real time here: timing=none, or timing=session at
-// speed 1e6 (a session of at most ~16 ms plays in nanoseconds) for the
-// check=timing event checks, which timing=none refuses. Reads wait at most
+// speed 1e6 (a session of microsecond steps plays in nanoseconds; data
+// stamped decades ahead is simply never due) for the check=timing event
+// checks, which timing=none refuses. Reads wait at most
 // 1 ms and never block without a timeout, so no input can hang.
 //
 // Layout (every field optional: a short input uses defaults):
 //   byte 0   options: match, check, unmatched, repeat, at_end, unused
 //   byte 1   port type (serial, tcp, udp) and capture
 //   byte 2   record count (mod 48); then per record:
-//            kind, time step (µs), size (mod 64), that many payload bytes
+//            kind, time step (µs, or with the top bit set (step & 0x7F) << 57
+//            ns), size (mod 64), that many payload bytes
 //            (an event's payload is a canned valid JSON when the kind byte's
 //            top bit is set, else the raw bytes)
 //   rest     client calls: an opcode byte and its arguments, at most 256
@@ -114,7 +116,10 @@ Session write_session(InputBytes& input, const std::string& path) {
   for (std::size_t i = 0; i < count && !input.empty(); ++i) {
     const std::uint8_t kind_byte = input.byte();
     const RecordKind kind = kKinds[(kind_byte & 0x7F) % std::size(kKinds)];
-    t_ns += std::uint64_t{input.byte()} * 1000;
+    // A step with the top bit set is huge (up to ~2^64 ns, wrapping), for
+    // the due-time arithmetic at its limits; otherwise microseconds.
+    const std::uint8_t step = input.byte();
+    t_ns += step & 0x80 ? std::uint64_t{step & 0x7Fu} << 57 : std::uint64_t{step} * 1000;
     const std::size_t size = input.byte() % 64;
     std::string payload = input.bytes(size);
     const bool data_kind = kind == RecordKind::rx || kind == RecordKind::tx;
@@ -229,9 +234,17 @@ void run_call(InputBytes& input, std::unique_ptr<wiretape::Port>& port,
       port->skip_until(std::string_view(delimiter, 1), std::chrono::nanoseconds(0));
       break;
     }
-    case 7: {
+    case 7: {  // what available() promises: a readable handle, a read that takes it at once
       const std::size_t available = port->available();
-      if (available > 0 && !handle_readable(port->native_handle())) std::abort();
+      if (available == 0) break;
+      if (!handle_readable(port->native_handle())) std::abort();
+      if (!port->wait_readable(std::chrono::nanoseconds(0))) std::abort();
+      if (arg & 1) {
+        const std::size_t want = std::min(available, sizeof(buffer));
+        const std::size_t got = port->read(buffer, want, std::chrono::nanoseconds(0));
+        if (got != want) std::abort();
+        check.got(std::string_view(buffer, got));
+      }
       break;
     }
     case 8:
