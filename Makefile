@@ -73,23 +73,34 @@ BENCH_TOOLS   := clang-14 libclang-rt-14-dev socat libbenchmark-dev tshark
 FUZZ_SECONDS  ?= 300
 SOAK_MINUTES  ?= 30
 
+# README's benchmark table is rewritten from the run's results, never by hand.
 bench: python
 	bench/install-tools.sh $(BENCH_TOOLS)
 	$(PYTHON) bench/run.py --build $(BUILD)
+	$(PYTHON) bench/readme_table.py $(BUILD)/bench/results.json README.md
 
 # ASan+UBSan and TSan trees next to the main one, C++ tests only.
 test-sanitize:
 	bench/install-tools.sh clang-14 libclang-rt-14-dev
 	bench/sanitize.sh $(BUILD)/sanitize
 
-# libFuzzer needs clang: its own tree, fuzz targets only.
-fuzz:
+# libFuzzer needs clang: its own tree, fuzz targets only. The Python targets
+# (fuzz/*_fuzz.py) run in .venv under atheris, installed here from a wheel
+# (3.0.0 is the newest with one for CPython 3.11); where none installs they
+# fall back to random mutation of their corpus.
+ATHERIS := atheris==3.0.0
+
+$(VENV)/.atheris: $(VENV)/.deps
+	if $(PYTHON) -m pip install -q --only-binary=:all: "$(ATHERIS)"; then touch $@; \
+	else echo "fuzz: no atheris wheel for this Python: fuzz/*_fuzz.py mutate at random"; fi
+
+fuzz: python $(VENV)/.atheris
 	bench/install-tools.sh clang-14 libclang-rt-14-dev
 	cmake -S . -B $(BUILD)/fuzz -G $(GENERATOR) -DCMAKE_CXX_COMPILER=clang++-14 \
 	  -DCMAKE_BUILD_TYPE=RelWithDebInfo -DWIRETAPE_FUZZ=ON -DWIRETAPE_TESTS=OFF \
 	  -DWIRETAPE_EXAMPLES=OFF -DWIRETAPE_PYTHON=OFF -DWIRETAPE_INSTALL=OFF
 	cmake --build $(BUILD)/fuzz
-	bench/fuzz.sh $(BUILD)/fuzz $(FUZZ_SECONDS)
+	bench/fuzz.sh $(BUILD)/fuzz $(FUZZ_SECONDS) $(PYTHON)
 
 # Record+replay loop for SOAK_MINUTES; fails if RSS or open fds grow.
 soak: python

@@ -1,14 +1,17 @@
 #!/usr/bin/env bash
-# Runs every libFuzzer target (fuzz/*_fuzz.cpp) for SECONDS each, starting
-# from its seed corpus in fuzz/corpus/<name>/ (never modified: new inputs go
-# to BUILD_DIR/corpus/<name>/). Crashes are written to BUILD_DIR/artifacts/.
-# Usage: bench/fuzz.sh BUILD_DIR SECONDS
+# Runs every libFuzzer target (fuzz/*_fuzz.cpp, and fuzz/*_fuzz.py under
+# atheris with PYTHON) for SECONDS each, starting from its seed corpus in
+# fuzz/corpus/<name>/ (never modified: new inputs go to
+# BUILD_DIR/corpus/<name>/). Crashes are written to BUILD_DIR/artifacts/.
+# Usage: bench/fuzz.sh BUILD_DIR SECONDS [PYTHON]
 set -euo pipefail
-build=${1:?usage: fuzz.sh BUILD_DIR SECONDS}
-seconds=${2:?usage: fuzz.sh BUILD_DIR SECONDS}
+usage="usage: fuzz.sh BUILD_DIR SECONDS [PYTHON]"
+build=${1:?$usage}
+seconds=${2:?$usage}
+python=${3:-}
 root="$(cd "$(dirname "$0")/.." && pwd)"
 shopt -s nullglob
-sources=("$root"/fuzz/*_fuzz.cpp)
+sources=("$root"/fuzz/*_fuzz.cpp "$root"/fuzz/*_fuzz.py)
 if [ ${#sources[@]} -eq 0 ]; then
   echo "fuzz: no fuzz/*_fuzz.cpp targets yet; nothing to run"
   exit 0
@@ -16,16 +19,27 @@ fi
 mkdir -p "$build/artifacts"
 failed=()
 for source in "${sources[@]}"; do
-  name=$(basename "$source" .cpp)
-  program=$(find "$build" -type f -perm -u+x -name "$name" | head -n 1)
-  if [ -z "$program" ]; then
-    echo "fuzz: $name was not built (see $build); failing" >&2
-    failed+=("$name")
-    continue
+  if [[ "$source" == *.py ]]; then
+    name=$(basename "$source" .py)
+    if [ -z "$python" ]; then
+      echo "fuzz: $name needs the PYTHON argument (the venv with wiretape and atheris); failing" >&2
+      failed+=("$name")
+      continue
+    fi
+    program=("$python" "$source")
+  else
+    name=$(basename "$source" .cpp)
+    program=($(find "$build" -type f -perm -u+x -name "$name" | head -n 1))
+    if [ ${#program[@]} -eq 0 ]; then
+      echo "fuzz: $name was not built (see $build); failing" >&2
+      failed+=("$name")
+      continue
+    fi
   fi
-  help=$("$program" -help=1 2>&1 || true)
-  if [[ "$help" != *libFuzzer* ]]; then
-    echo "fuzz: $program is not a libFuzzer program (built without clang?); failing" >&2
+  help=$("${program[@]}" -help=1 2>&1 || true)
+  # A Python target without atheris mutates at random (it says so).
+  if [[ "$source" != *.py && "$help" != *libFuzzer* ]]; then
+    echo "fuzz: ${program[*]} is not a libFuzzer program (built without clang, or no atheris?); failing" >&2
     failed+=("$name")
     continue
   fi
@@ -33,14 +47,15 @@ for source in "${sources[@]}"; do
   seeds=()
   [ -d "$root/fuzz/corpus/$name" ] && seeds+=("$root/fuzz/corpus/$name")
   echo "fuzz: $name for ${seconds}s"
-  if ! "$program" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
+  if ! "${program[@]}" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \
       -print_final_stats=1 -artifact_prefix="$build/artifacts/$name-" \
       "$build/corpus/$name" "${seeds[@]}" >"$build/$name.log" 2>&1; then
     echo "fuzz: $name FAILED; the last lines of $build/$name.log:" >&2
     tail -n 40 "$build/$name.log" >&2
     failed+=("$name")
   else
-    grep -E "stat::number_of_executed_units|stat::peak_rss_mb" "$build/$name.log" | sed "s/^/  /"
+    grep -E "stat::number_of_executed_units|stat::peak_rss_mb|ran cleanly" "$build/$name.log" \
+      | sed "s/^/  /" || true
   fi
 done
 if [ ${#failed[@]} -gt 0 ]; then

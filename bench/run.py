@@ -12,8 +12,10 @@ missing is skipped with the reason (printed, and kept in notes.json).
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import os
+import platform
 import shutil
 import statistics
 import subprocess
@@ -304,6 +306,26 @@ FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_prox
            "serve", "reserial", "gbench"]
 
 
+def machine_note() -> dict:
+    """Where and when the figures were taken, for README's table (bench/readme_table.py)."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    release = ".".join(platform.release().split(".")[:2])
+    return {
+        "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d"),
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "system": f"{platform.system()} {release}",
+        "load_average": round(os.getloadavg()[0], 1),
+    }
+
+
 def build_programs(build: Path) -> None:
     subprocess.run(["cmake", "-S", str(ROOT), "-B", str(build), "-DWIRETAPE_BENCH=ON"],
                    check=True, stdout=subprocess.DEVNULL)
@@ -373,6 +395,7 @@ def main(argv: list[str] | None = None) -> int:
         if notes_path.exists():
             bench.notes.update(json.loads(notes_path.read_text()).get("notes", {}))
     skipped: dict[str, str] = {}
+    machine = machine_note()
     for name in groups:
         print(f"bench: {name} ...", flush=True)
         started = time.perf_counter()
@@ -392,7 +415,8 @@ def main(argv: list[str] | None = None) -> int:
             + ", ".join(sorted(bench_devices.USED_RUNNER)) + ")")
     results_path.write_text(json.dumps(bench.results, indent=2, sort_keys=True) + "\n")
     notes_path.write_text(
-        json.dumps({"notes": bench.notes, "skipped": skipped}, indent=2, ensure_ascii=False) + "\n")
+        json.dumps({"notes": bench.notes, "skipped": skipped, "machine": machine},
+                   indent=2, ensure_ascii=False) + "\n")
     print_table(bench.results, bench.notes, skipped)
     print(f"results: {results_path}")
     return 0

@@ -215,7 +215,14 @@ FILE_HEADER_OVERHEAD: int = 20
 
 RECORD_OVERHEAD: int = 20
 
+MAX_RECORD_T_NS: int = 4294967295999999999
+
 RECORD_KINDS: tuple = ...
+
+def record_content_problem(kind: object, t_ns: int, data: bytes) -> str | None:
+    """
+    Why a reader would stop at this record although its CRC matches (a time past MAX_RECORD_T_NS, an event payload that is not a JSON object within the limits), or None: the rule the writer and every reader apply.
+    """
 
 def flexiport_prefix(path: object) -> str | None:
     """

@@ -15,6 +15,7 @@
 #include "session/flexiport.hpp"
 #include "session/format.hpp"
 #include "session/header.hpp"
+#include "session/reader.hpp"
 #include "session/record_kinds.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
@@ -44,8 +45,11 @@ nb::bytes to_bytes(const std::string& data) { return nb::bytes(data.data(), data
 // does not name: conversions keep them).
 RecordKind kind_from_python(nb::handle kind) {
   if (PyLong_Check(kind.ptr())) {
-    const long code = PyLong_AsLong(kind.ptr());
-    if (code < 0 || code > 255) throw nb::value_error("a record kind code is 0..255");
+    int overflow = 0;
+    const long code = PyLong_AsLongAndOverflow(kind.ptr(), &overflow);
+    if (overflow != 0 || code < 0 || code > 255) {
+      throw nb::value_error("a record kind code is 0..255");
+    }
     return static_cast<RecordKind>(code);
   }
   const std::string name = nb::cast<std::string>(kind);
@@ -147,6 +151,7 @@ void bind_format_constants(nb::module_& m) {
   // Bytes a file header and a record take besides their JSON or payload.
   m.attr("FILE_HEADER_OVERHEAD") = detail::file_header_fixed_size + detail::crc_size;
   m.attr("RECORD_OVERHEAD") = detail::record_header_size + detail::crc_size;
+  m.attr("MAX_RECORD_T_NS") = detail::max_record_t_ns;
 }
 
 }  // namespace
@@ -154,6 +159,16 @@ void bind_format_constants(nb::module_& m) {
 void bind_session(nb::module_& m) {
   bind_format_constants(m);
   m.attr("RECORD_KINDS") = record_kinds_tuple();
+  m.def(
+      "record_content_problem",
+      [](nb::handle kind, std::uint64_t t_ns, nb::bytes data) {
+        return detail::record_content_problem(kind_from_python(kind), t_ns,
+                                              std::string_view(data.c_str(), data.size()));
+      },
+      "kind"_a, "t_ns"_a, "data"_a,
+      "Why a reader would stop at this record although its CRC matches (a time past "
+      "MAX_RECORD_T_NS, an event payload that is not a JSON object within the limits), "
+      "or None: the rule the writer and every reader apply.");
   m.def(
       "flexiport_prefix",
       [](nb::handle path) { return detail::flexiport_prefix(path_from_python(path)); },

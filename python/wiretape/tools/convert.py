@@ -77,46 +77,167 @@ def _check_format(name: str, allowed) -> str:
 
 
 # --- jsonl -------------------------------------------------------------------
+#
+# One validation layer for the whole jsonl source: every problem a line can
+# have is raised as SessionError naming the file, the line and the field, so
+# the CLI reports it in one line with exit 1 (a damaged session file, as for
+# .wtape sources) and what came before the bad line is converted.
+
+_HEADER_TEXT_FIELDS = ("port_options", "port_type", "start_utc", "wiretape_version", "host")
+_CAPTURES = ("client", "wire")
+
+
+class _BadLine(Exception):
+    """A problem of one line; _jsonl_records adds the file and line number."""
+
+
+def _json_type(value) -> str:
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return "a boolean"
+    if isinstance(value, (int, float)):
+        return f"the number {value!r:.40}"
+    if isinstance(value, str):
+        return f"the string {value!r:.40}"
+    return "an array" if isinstance(value, list) else "an object"
+
+
+def _record_kinds():
+    return {kind["name"]: kind for kind in _core.RECORD_KINDS}
+
+
+def _jsonl_header(value) -> dict:
+    if not isinstance(value, dict):
+        raise _BadLine(f"header: expected a JSON object, got {_json_type(value)}")
+    for name in _HEADER_TEXT_FIELDS:
+        if name in value and value[name] is not None and not isinstance(value[name], str):
+            raise _BadLine(f"header.{name}: expected a string, got {_json_type(value[name])}")
+    capture = value.get("capture")
+    if capture is not None and capture not in _CAPTURES:
+        raise _BadLine(f"header.capture: expected one of {', '.join(_CAPTURES)}, "
+                       f"got {_json_type(capture)}")
+    metadata = value.get("metadata")
+    if metadata is not None and not isinstance(metadata, dict):
+        raise _BadLine(f"header.metadata: expected a JSON object, got {_json_type(metadata)}")
+    return value
+
+
+def _jsonl_t_ns(item: dict) -> int:
+    if "t_ns" not in item:
+        raise _BadLine("t_ns: missing (every record needs t_ns, kind and data_hex)")
+    t_ns = item["t_ns"]
+    if isinstance(t_ns, bool) or not isinstance(t_ns, int):
+        raise _BadLine(f"t_ns: expected a whole number of nanoseconds, got {_json_type(t_ns)}")
+    if not 0 <= t_ns <= _core.MAX_RECORD_T_NS:
+        shown = str(t_ns) if len(str(t_ns)) <= 30 else f"a number of {len(str(t_ns))} digits"
+        raise _BadLine(f"t_ns: out of range 0..{_core.MAX_RECORD_T_NS}: {shown}")
+    return t_ns
+
+
+def _jsonl_kind(item: dict, kinds: dict):
+    """The record's kind: its name, or for kinds without one its code."""
+    if "kind" in item:
+        kind = item["kind"]
+        if isinstance(kind, str):
+            if kind not in kinds:
+                raise _BadLine(f"kind: unknown record kind {kind[:40]!r}: one of "
+                               f"{', '.join(kinds)}")
+            return kind
+        if isinstance(kind, bool) or not isinstance(kind, int):
+            raise _BadLine(f"kind: expected a record kind name, got {_json_type(kind)}")
+        field = "kind"
+    elif "kind_code" in item:
+        kind = item["kind_code"]
+        field = "kind_code"
+    else:
+        raise _BadLine("kind: missing (every record needs t_ns, kind and data_hex)")
+    if isinstance(kind, bool) or not isinstance(kind, int) or not 0 <= kind <= 255:
+        raise _BadLine(f"{field}: expected a record kind code 0..255, got {_json_type(kind)}")
+    return kind
+
+
+def _jsonl_data(item: dict, kind, kinds: dict) -> bytes:
+    if "data_hex" in item:
+        text = item["data_hex"]
+        if not isinstance(text, str):
+            raise _BadLine(f"data_hex: expected a string of hex digits, got {_json_type(text)}")
+        try:
+            data = bytes.fromhex(text)
+        except ValueError as error:
+            raise _BadLine(f"data_hex: not hex: {error}") from None
+    elif "event" in item:
+        event = item["event"]
+        if not isinstance(event, dict):
+            raise _BadLine(f"event: expected a JSON object, got {_json_type(event)}")
+        data = json.dumps(event, separators=(",", ":")).encode()
+    elif kind in kinds and kinds[kind]["is_event"]:
+        data = b""
+    else:
+        raise _BadLine("data_hex: missing (every data record needs t_ns, kind and data_hex)")
+    return data
+
+
+def _jsonl_line(text: str):
+    """("header", dict) or ("record", (kind, t_ns, data)) for one line."""
+    try:
+        item = json.loads(text)
+    except RecursionError:
+        raise _BadLine("not JSON: nested too deeply") from None
+    except json.JSONDecodeError as error:  # its own "line 1" would mislead
+        raise _BadLine(f"not JSON: {error.msg} at column {error.colno}") from None
+    except ValueError as error:  # an integer of more digits than Python converts
+        raise _BadLine(f"not JSON: {error}") from None
+    if not isinstance(item, dict):
+        raise _BadLine(f"expected a JSON object, got {_json_type(item)}")
+    if "header" in item:
+        return "header", _jsonl_header(item["header"])
+    kinds = _record_kinds()
+    t_ns = _jsonl_t_ns(item)
+    kind = _jsonl_kind(item, kinds)
+    data = _jsonl_data(item, kind, kinds)
+    problem = _core.record_content_problem(kind, t_ns, data)
+    if problem is not None:
+        raise _BadLine(f"record: {problem}")
+    return "record", (kind, t_ns, data)
+
 
 def _jsonl_records(path: str) -> Iterator[tuple]:
-    """(header dict or None) first, then (kind, t_ns, data) per record."""
-    with open_input(path, text=True) as handle:
+    """(header dict or None) first, then (kind, t_ns, data) per record.
+
+    Raises SessionError ("PATH:LINE: FIELD: problem", offset = the line's
+    first byte) at the first bad line, after yielding every record before it.
+    """
+    with open_input(path) as handle:
         header_seen = False
-        for number, line in enumerate(handle, start=1):
-            line = line.strip()
-            if not line:
-                continue
+        records_seen = False
+        offset = 0
+        for number, raw in enumerate(handle, start=1):
+            line_offset, offset = offset, offset + len(raw)
             try:
-                item = json.loads(line)
-            except ValueError as error:
-                raise ValueError(f"{path}:{number}: not JSON: {error}") from None
-            if not isinstance(item, dict):
-                raise ValueError(f"{path}:{number}: expected a JSON object")
-            if "header" in item:
-                if header_seen:
-                    raise ValueError(f"{path}:{number}: a second header line")
+                text = raw.decode("utf-8").strip()
+                if not text:
+                    continue
+                what, value = _jsonl_line(text)
+                if what == "header" and records_seen:
+                    raise _BadLine("header: must be the first line, before every record")
+                if what == "header" and header_seen:
+                    raise _BadLine("header: a second header line")
+            except UnicodeDecodeError as error:
+                raise _core.SessionError(
+                    f"{path}:{number}: not UTF-8 text ({error.reason} at column "
+                    f"{error.start + 1})", line_offset) from None
+            except _BadLine as problem:
+                raise _core.SessionError(f"{path}:{number}: {problem}", line_offset) from None
+            if what == "header":
                 header_seen = True
-                yield ("header", item["header"])
+                yield ("header", value)
                 continue
             if not header_seen:
                 header_seen = True
                 yield ("header", None)
-            try:
-                t_ns = int(item["t_ns"])
-                kind = item["kind"] if "kind" in item else int(item["kind_code"])
-                if "data_hex" in item:
-                    data = bytes.fromhex(item["data_hex"])
-                elif "event" in item:
-                    data = json.dumps(item["event"], separators=(",", ":")).encode()
-                else:
-                    data = b""
-            except (KeyError, TypeError, ValueError) as error:
-                raise ValueError(
-                    f"{path}:{number}: a record needs t_ns, kind and data_hex ({error!r})"
-                ) from None
-            if t_ns < 0:
-                raise ValueError(f"{path}:{number}: t_ns must be >= 0")
-            yield ("record", (kind, t_ns, data))
+            records_seen = True
+            yield ("record", value)
         if not header_seen:
             yield ("header", None)
 

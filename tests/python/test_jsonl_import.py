@@ -1,0 +1,176 @@
+"""The jsonl importer (wiretape convert X.jsonl OUT --from jsonl): every bad
+line is one clean error naming the file, the line and the field, with the
+CLI's exit code for a damaged session file (1), never a traceback; and every
+file of the fuzz corpus either converts or fails that way."""
+
+import importlib.util
+import json
+from pathlib import Path
+
+import pytest
+
+import wiretape
+from wiretape import cli
+from wiretape.tools import convert as convert_module
+
+ROOT = Path(__file__).resolve().parents[2]
+CORPUS = ROOT / "fuzz" / "corpus" / "jsonl_import_fuzz"
+
+HEADER = json.dumps({"header": {"port_type": "serial", "capture": "client"}})
+GOOD = '{"t_ns":5,"kind":"rx","data_hex":"41"}'
+MAX_T_NS = wiretape._core.MAX_RECORD_T_NS  # the format's bound, about 136 years
+RANGE = f"t_ns: out of range 0..{MAX_T_NS}"
+
+
+def run_cli(capsys, *argv):
+    code = cli.main(list(argv))
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+# (lines after the header, the bad line's number, what the message must say)
+BAD_FILES = {
+    "not_json": ([GOOD, '{"t_ns": 1,'], 3, "not JSON"),
+    "deeply_nested": ([GOOD, "[" * 5000], 3, "not JSON: nested too deeply"),
+    "a_list": ([GOOD, "[1, 2]"], 3, "expected a JSON object, got an array"),
+    "a_number": (["7"], 2, "expected a JSON object, got the number 7"),
+    "a_string": (['"rx"'], 2, "expected a JSON object, got the string 'rx'"),
+    "null": (["null"], 2, "expected a JSON object, got null"),
+    "missing_t_ns": (['{"kind":"rx","data_hex":"41"}'], 2, "t_ns: missing"),
+    "missing_kind": (['{"t_ns":1,"data_hex":"41"}'], 2, "kind: missing"),
+    "missing_data_hex": (['{"t_ns":1,"kind":"tx"}'], 2, "data_hex: missing"),
+    "t_ns_string": (['{"t_ns":"5","kind":"rx","data_hex":"41"}'], 2,
+                    "t_ns: expected a whole number of nanoseconds, got the string '5'"),
+    "t_ns_bool": (['{"t_ns":true,"kind":"rx","data_hex":"41"}'], 2,
+                  "t_ns: expected a whole number of nanoseconds, got a boolean"),
+    "t_ns_float": (['{"t_ns":1.5,"kind":"rx","data_hex":"41"}'], 2,
+                   "t_ns: expected a whole number of nanoseconds, got the number 1.5"),
+    "t_ns_float_whole": (['{"t_ns":2.0,"kind":"rx","data_hex":"41"}'], 2,
+                         "t_ns: expected a whole number of nanoseconds"),
+    "t_ns_exponent": (['{"t_ns":1e1000,"kind":"rx","data_hex":"41"}'], 2,
+                      "t_ns: expected a whole number of nanoseconds, got the number inf"),
+    "t_ns_negative": (['{"t_ns":-1,"kind":"rx","data_hex":"41"}'], 2,
+                      f"{RANGE}: -1"),
+    "t_ns_past_2_64": (['{"t_ns":18446744073709551616,"kind":"rx","data_hex":"41"}'], 2,
+                       f"{RANGE}: 18446744073709551616"),
+    "t_ns_past_the_bound": (['{"t_ns":%d,"kind":"rx","data_hex":"41"}' % (MAX_T_NS + 1)], 2,
+                            f"{RANGE}: {MAX_T_NS + 1}"),
+    "event_nested_past_the_limit": (
+        ['{"t_ns":1,"kind":"settings","event":{"a":' + "[" * 70 + "]" * 70 + "}}"], 2,
+        "record: its settings event payload is not valid JSON"),
+    "t_ns_10_to_1000": (['{"t_ns":1' + "0" * 1000 + ',"kind":"rx","data_hex":"41"}'], 2,
+                        f"{RANGE}: a number of 1001 digits"),
+    "t_ns_too_many_digits": (['{"t_ns":' + "9" * 5000 + ',"kind":"rx","data_hex":"41"}'], 2,
+                             "not JSON"),
+    "kind_unknown": (['{"t_ns":1,"kind":"rxx","data_hex":"41"}'], 2,
+                     "kind: unknown record kind 'rxx': one of rx, tx"),
+    "kind_wrong_type": (['{"t_ns":1,"kind":[1],"data_hex":"41"}'], 2,
+                        "kind: expected a record kind name, got an array"),
+    "kind_code_range": (['{"t_ns":1,"kind_code":256,"data_hex":"41"}'], 2,
+                        "kind_code: expected a record kind code 0..255, got the number 256"),
+    "kind_code_huge": (['{"t_ns":1,"kind_code":' + "9" * 40 + ',"data_hex":"41"}'], 2,
+                       "kind_code: expected a record kind code 0..255"),
+    "kind_negative": (['{"t_ns":1,"kind":-3,"data_hex":"41"}'], 2,
+                      "kind: expected a record kind code 0..255, got the number -3"),
+    "bad_hex": (['{"t_ns":1,"kind":"rx","data_hex":"4g"}'], 2, "data_hex: not hex"),
+    "odd_hex": (['{"t_ns":1,"kind":"rx","data_hex":"414"}'], 2, "data_hex: not hex"),
+    "non_ascii_hex": (['{"t_ns":1,"kind":"rx","data_hex":"\u00e9\u00e9"}'], 2, "data_hex: not hex"),
+    "hex_not_string": (['{"t_ns":1,"kind":"rx","data_hex":65}'], 2,
+                       "data_hex: expected a string of hex digits, got the number 65"),
+    "event_not_object": (['{"t_ns":1,"kind":"settings","event":[1]}'], 2,
+                         "event: expected a JSON object, got an array"),
+    "header_not_first": ([GOOD, HEADER], 3,
+                         "header: must be the first line, before every record"),
+    "second_header": ([HEADER], 2, "header: a second header line"),
+}
+BAD_HEADERS = {
+    "header_not_object": ('{"header": [1]}', "header: expected a JSON object, got an array"),
+    "header_field_type": ('{"header": {"host": 5}}', "header.host: expected a string, got the number 5"),
+    "header_capture": ('{"header": {"capture": "radio"}}',
+                       "header.capture: expected one of client, wire, got the string 'radio'"),
+    "header_metadata": ('{"header": {"metadata": "x"}}',
+                        "header.metadata: expected a JSON object, got the string 'x'"),
+}
+
+
+def write_lines(path, lines):
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+@pytest.mark.parametrize("name", sorted(BAD_FILES))
+def test_a_bad_line_is_a_clean_session_error_naming_line_and_field(tmp_path, capsys, name):
+    lines, number, expected = BAD_FILES[name]
+    src = write_lines(tmp_path / "in.jsonl", [HEADER, *lines])
+    with pytest.raises(wiretape.SessionError) as raised:
+        convert_module.convert(src, tmp_path / "out.wtape")
+    message = str(raised.value)
+    assert message.startswith(f"{src}:{number}: "), message
+    assert expected in message
+    assert "\n" not in message
+    # The error's offset is where the bad line starts.
+    assert raised.value.offset == len("\n".join([HEADER, *lines][:number - 1])) + 1
+    # The CLI: one line, exit 1 (a damaged session file), no traceback.
+    code, _, err = run_cli(capsys, "convert", str(src), str(tmp_path / "cli.wtape"),
+                           "--from", "jsonl")
+    assert code == cli.EXIT_CHECK_FAILED
+    assert err.strip().splitlines() == [f"wiretape convert: error: {message}"]
+
+
+@pytest.mark.parametrize("name", sorted(BAD_HEADERS))
+def test_a_bad_header_is_a_clean_session_error(tmp_path, capsys, name):
+    line, expected = BAD_HEADERS[name]
+    src = write_lines(tmp_path / "in.jsonl", [line, GOOD])
+    with pytest.raises(wiretape.SessionError, match=f"^{src}:1: ") as raised:
+        convert_module.convert(src, tmp_path / "out.wtape")
+    assert expected in str(raised.value)
+    code, _, err = run_cli(capsys, "convert", str(src), str(tmp_path / "cli.jsonl.wtape"))
+    assert code == cli.EXIT_CHECK_FAILED
+    assert "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_not_utf8_is_a_clean_error(tmp_path, capsys):
+    src = tmp_path / "in.jsonl"
+    src.write_bytes(HEADER.encode() + b"\n" + b'{"t_ns":1,"kind":"rx","data_hex":"\xff"}\n')
+    with pytest.raises(wiretape.SessionError, match=rf"^{src}:2: not UTF-8 text"):
+        convert_module.convert(src, tmp_path / "out.wtape")
+
+
+def test_records_before_the_bad_line_are_converted(tmp_path):
+    src = write_lines(tmp_path / "in.jsonl", [HEADER, GOOD, GOOD, '{"t_ns":-1,"kind":"rx"}'])
+    out = tmp_path / "out.wtape"
+    with pytest.raises(wiretape.SessionError):
+        convert_module.convert(src, out)
+    assert [r.data for r in wiretape.SessionReader(str(out))] == [b"A", b"A"]
+
+
+def test_valid_edges_convert(tmp_path):
+    lines = [
+        '{"t_ns":%d,"kind":"rx","data_hex":"41"}' % MAX_T_NS,
+        '{"t_ns":0,"kind_code":200,"data_hex":"ff"}',  # a kind this version does not name
+        '{"t_ns":1,"kind":"settings","event":{"baud":9600}}',
+        '{"t_ns":2,"kind":"close"}',  # an event needs no payload
+        "",
+    ]
+    src = write_lines(tmp_path / "in.jsonl", [HEADER, *lines])
+    result = convert_module.convert(src, tmp_path / "out.wtape")
+    assert result.records == 4
+    # Readers skip the kind they do not name (docs/session-format.md).
+    records = list(wiretape.SessionReader(str(tmp_path / "out.wtape")))
+    assert [(r.t_ns, r.kind, r.data) for r in records] == [
+        (MAX_T_NS, "rx", b"A"), (1, "settings", b'{"baud":9600}'), (2, "close", b"")]
+
+
+def _load_fuzz_script():
+    spec = importlib.util.spec_from_file_location("jsonl_import_fuzz",
+                                                  ROOT / "fuzz" / "jsonl_import_fuzz.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("seed", sorted(p.name for p in CORPUS.iterdir()))
+def test_the_fuzz_corpus_converts_or_fails_cleanly(tmp_path, seed):
+    """What ctest's corpus replay is for the C++ fuzz targets."""
+    fuzz = _load_fuzz_script()
+    fuzz.check_input((CORPUS / seed).read_bytes(), str(tmp_path))
