@@ -29,11 +29,13 @@
 #include <cstdlib>
 #include <iterator>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "fuzz_files.hpp"
+#include "session/format.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/port.hpp"
 #include "wiretape/session.hpp"
@@ -117,17 +119,27 @@ Session write_session(InputBytes& input, const std::string& path) {
   for (std::size_t i = 0; i < count && !input.empty(); ++i) {
     const std::uint8_t kind_byte = input.byte();
     const RecordKind kind = kKinds[(kind_byte & 0x7F) % std::size(kKinds)];
-    // A step with the top bit set is huge (up to ~2^64 ns, wrapping), for
-    // the due-time arithmetic at its limits; otherwise microseconds.
+    // A step with the top bit set is huge, for the due-time arithmetic at
+    // its limits: it saturates at the format's bound (a writer refuses
+    // later times, so no valid file has them); otherwise microseconds.
     const std::uint8_t step = input.byte();
-    t_ns += step & 0x80 ? std::uint64_t{step & 0x7Fu} << 57 : std::uint64_t{step} * 1000;
+    const std::uint64_t room = wiretape::detail::max_record_t_ns - t_ns;
+    const std::uint64_t delta =
+        step & 0x80 ? std::uint64_t{step & 0x7Fu} << 57 : std::uint64_t{step} * 1000;
+    t_ns += delta < room ? delta : room;
     const std::size_t size = input.byte() % 64;
     std::string payload = input.bytes(size);
     const bool data_kind = kind == RecordKind::rx || kind == RecordKind::tx;
     if (!data_kind && (kind_byte & 0x80)) payload = canned_event(kind, kind_byte);
+    try {
+      writer.write(kind, t_ns, payload);
+    } catch (const std::invalid_argument&) {
+      // Content no valid file holds (an event payload that is not a JSON
+      // object): the reader's refusal of it is session_reader_fuzz's job.
+      continue;
+    }
     if (kind == RecordKind::rx) session.rx_stream += payload;
     if (kind == RecordKind::tx) session.tx.push_back(payload);
-    writer.write(kind, t_ns, payload);
   }
   writer.close();
   return session;
