@@ -219,6 +219,11 @@ MAX_RECORD_T_NS: int = 4294967295999999999
 
 RECORD_KINDS: tuple = ...
 
+def start_utc_problem(start_utc: str) -> str | None:
+    """
+    Why a session header's start_utc would be refused (not YYYY-MM-DDTHH:MM:SS[.frac]Z, out of range), or None.
+    """
+
 def record_content_problem(kind: object, t_ns: int, data: bytes) -> str | None:
     """
     Why a reader would stop at this record although its CRC matches (a time past MAX_RECORD_T_NS, an event payload that is not a JSON object within the limits), or None: the rule the writer and every reader apply.

@@ -160,6 +160,12 @@ void bind_session(nb::module_& m) {
   bind_format_constants(m);
   m.attr("RECORD_KINDS") = record_kinds_tuple();
   m.def(
+      "start_utc_problem",
+      [](const std::string& start_utc) { return detail::start_utc_problem(start_utc); },
+      "start_utc"_a,
+      "Why a session header's start_utc would be refused (not YYYY-MM-DDTHH:MM:SS[.frac]Z, "
+      "out of range), or None.");
+  m.def(
       "record_content_problem",
       [](nb::handle kind, std::uint64_t t_ns, nb::bytes data) {
         return detail::record_content_problem(kind_from_python(kind), t_ns,

@@ -90,6 +90,16 @@ BAD_HEADERS = {
                        "header.capture: expected one of client, wire, got the string 'radio'"),
     "header_metadata": ('{"header": {"metadata": "x"}}',
                         "header.metadata: expected a JSON object, got the string 'x'"),
+    # Found by jsonl_import_fuzz: the writer refused it after the importer
+    # had let it through.
+    "header_start_utc": ('{"header": {"start_utc": "20w6-11-23T10:00:00Z"}}',
+                         'header.start_utc: start_utc "20w6-11-23T10:00:00Z"'),
+    "header_start_utc_year": ('{"header": {"start_utc": "9999-01-01T00:00:00Z"}}',
+                              "header.start_utc: start_utc"),
+    "header_lone_surrogate": ('{"header": {"host": "\\ud800"}}',
+                              "header.host: not valid UTF-8"),
+    "header_metadata_surrogate": ('{"header": {"metadata": {"k": "\\udfff"}}}',
+                                  "header.metadata.k: not valid UTF-8"),
 }
 
 

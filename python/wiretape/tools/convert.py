@@ -120,7 +120,29 @@ def _jsonl_header(value) -> dict:
     metadata = value.get("metadata")
     if metadata is not None and not isinstance(metadata, dict):
         raise _BadLine(f"header.metadata: expected a JSON object, got {_json_type(metadata)}")
+    # What a session header must hold to be written and read back (the C++
+    # rules of docs/session-format.md#limits), checked here so that the
+    # problem is reported at this line rather than by the writer.
+    texts = [(f"header.{name}", value.get(name)) for name in _HEADER_TEXT_FIELDS]
+    for key, item in (metadata or {}).items():
+        texts += [(f"header.metadata key {key[:40]!r}", key),
+                  (f"header.metadata.{key[:40]}", str(item))]
+    for where, text in texts:
+        if isinstance(text, str) and not _is_utf8(text):
+            raise _BadLine(f"{where}: not valid UTF-8 (a lone surrogate escape)")
+    start_utc = value.get("start_utc")
+    problem = _core.start_utc_problem(start_utc) if start_utc else None
+    if problem is not None:
+        raise _BadLine(f"header.start_utc: {problem}")
     return value
+
+
+def _is_utf8(text: str) -> bool:
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
 
 
 def _jsonl_t_ns(item: dict) -> int:
