@@ -107,6 +107,7 @@ class PtyEndpoint final : public ClientEndpoint {
     std::array<char, kChunk> buffer;
     const std::size_t room = std::min(device_.room_for_client_data(), buffer.size());
     const std::size_t n = pty_->read(buffer.data(), room, std::chrono::nanoseconds(0));
+    last_read_took_data_ = n > 0;
     if (n == 0) return;
     if (!device_.is_open()) {
       if (!dropped_input_logged_) {
@@ -126,6 +127,18 @@ class PtyEndpoint final : public ClientEndpoint {
     }
   }
 
+  // Everything the client wrote before it closed the terminal, so that its
+  // last bytes are recorded before it leaves. A non-blocking read of the
+  // master waits for the terminal's pending input to be pushed through
+  // first, so what the client's write() returned for is all here.
+  // (Bounded by the queue to the device: a device that takes nothing leaves
+  // the rest for after the disconnect.)
+  void drain_pty() {
+    do {
+      read_pty();
+    } while (last_read_took_data_ && device_.room_for_client_data() > 0);
+  }
+
   // The first opener of the terminal is a client arriving, the last close
   // its leaving (a program may open the terminal more than once, and tools
   // such as stty open and close it too).
@@ -142,6 +155,7 @@ class PtyEndpoint final : public ClientEndpoint {
         device_.client_connected("pty", "control");
         status_.message("client connected to " + pty_->description());
       } else if (openers_ > 0 && --openers_ == 0) {
+        drain_pty();
         device_.client_disconnected("pty", "closed the terminal");
         status_.message("client closed " + pty_->description());
       }
@@ -180,6 +194,7 @@ class PtyEndpoint final : public ClientEndpoint {
   int openers_ = 0;
   bool had_client_ = false;
   bool dropped_input_logged_ = false;
+  bool last_read_took_data_ = false;
   ByteQueue to_pty_{options_.buffer_limit};
   SerialSettings last_settings_;
   Clock::time_point next_settings_check_;
