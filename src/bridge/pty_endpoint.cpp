@@ -1,8 +1,14 @@
 // The pty endpoint: a pseudo-terminal that a program opens as if it were the
 // device. One client at a time by nature; where the system can tell (Linux),
-// its first open and last close are the client arriving and leaving. The
-// terminal settings the client programs are mirrored onto the device.
+// its first open and last close are the client arriving and leaving, and its
+// reads show that device data reached it. The terminal settings the client
+// programs are mirrored onto the device. The terminal's node gets a serial
+// device's mode and group, so that a client that drops root can open it.
+#include <unistd.h>
+
 #include <array>
+#include <cerrno>
+#include <optional>
 #include <string>
 
 #include "bridge/endpoint.hpp"
@@ -35,6 +41,7 @@ class PtyEndpoint final : public ClientEndpoint {
     pty_ = open_port(pty_options(options_.pty_link));
     pty_->set_timeout(std::chrono::nanoseconds(0));
     const std::string path = pty_terminal_path(*pty_);
+    grant_access();
     // Best effort: without it, a pty client's coming and going goes unseen.
     opens_and_closes_ = sys::UniqueFd(platform::watch_opens_and_closes(path));
     status_.set(&Status::pty_path, path);
@@ -91,6 +98,12 @@ class PtyEndpoint final : public ClientEndpoint {
 
   bool has_clients() const override { return openers_ > 0; }
 
+  // Without a watch on the terminal its reads go unseen: data written to it
+  // counts as taken, so that a replay is not failed for what cannot be known.
+  bool served_device_data() const override {
+    return opens_and_closes_ ? client_read_ : wrote_device_data_;
+  }
+
   // The terminal closes last, after the device (see the destructor).
   void shut_down() override {}
 
@@ -124,6 +137,7 @@ class PtyEndpoint final : public ClientEndpoint {
       const std::size_t n = pty_->write(to_pty_.data(), to_pty_.size());
       if (n == 0) return;
       to_pty_.consume(n);
+      wrote_device_data_ = true;
     }
   }
 
@@ -139,12 +153,43 @@ class PtyEndpoint final : public ClientEndpoint {
     } while (last_read_took_data_ && device_.room_for_client_data() > 0);
   }
 
+  void grant_access() {
+    const mode_t mode = static_cast<mode_t>(options_.pty_mode);
+    if (!options_.pty_group.empty()) {
+      // Checked by the Bridge's constructor; a group removed since is a
+      // runtime error like any refusal.
+      const std::optional<gid_t> group = find_group(options_.pty_group);
+      if (!group) {
+        throw PortError(ENOENT, "pty: there is no group " + options_.pty_group);
+      }
+      set_terminal_access(*pty_, mode, *group);
+      return;
+    }
+    const std::optional<gid_t> serial_group = find_group(kSerialDeviceGroup);
+    if (serial_group) {
+      try {
+        set_terminal_access(*pty_, mode, *serial_group);
+        return;
+      } catch (const PortError& refused) {
+        // A user outside that group may not give it the terminal.
+        status_.message(std::string("the terminal keeps this process's group: ") +
+                        refused.what());
+      }
+    }
+    set_terminal_access(*pty_, mode, ::getegid());
+  }
+
   // The first opener of the terminal is a client arriving, the last close
   // its leaving (a program may open the terminal more than once, and tools
   // such as stty open and close it too).
   void watch_clients() {
-    for (const bool opened : platform::read_opens_and_closes(opens_and_closes_.get())) {
-      if (opened) {
+    for (const platform::TerminalEvent event :
+         platform::read_opens_and_closes(opens_and_closes_.get())) {
+      if (event == platform::TerminalEvent::read) {
+        client_read_ = true;
+        continue;
+      }
+      if (event == platform::TerminalEvent::opened) {
         if (openers_++ > 0) continue;
         if (options_.restart && had_client_ && device_.is_open()) {
           pty_->flush_output();  // what the previous client left unread
@@ -195,6 +240,8 @@ class PtyEndpoint final : public ClientEndpoint {
   bool had_client_ = false;
   bool dropped_input_logged_ = false;
   bool last_read_took_data_ = false;
+  bool wrote_device_data_ = false;
+  bool client_read_ = false;
   ByteQueue to_pty_{options_.buffer_limit};
   SerialSettings last_settings_;
   Clock::time_point next_settings_check_;
