@@ -38,6 +38,7 @@ from ._core import BridgeResult, BridgeStats
 
 __all__ = [
     "DEFAULT_MAX_MONITORS",
+    "DEFAULT_PTY_MODE",
     "BridgeHandle",
     "BridgeResult",
     "BridgeStats",
@@ -133,6 +134,8 @@ class BridgeHandle:
 
 
 PtyGroup = Union[str, int, None]
+# A serial device's permission bits: owner and group read and write.
+DEFAULT_PTY_MODE = 0o660
 
 
 def _start(device: str, *, pty, listen, pty_mode: Optional[int] = None,
@@ -143,12 +146,10 @@ def _start(device: str, *, pty, listen, pty_mode: Optional[int] = None,
         raise ValueError("pty_mode and pty_group set who may open a pty: give pty=PATH")
     if pty is not None:
         link = "" if pty is True else os.fspath(pty)
-        access = {}
-        if pty_mode is not None:
-            access["pty_mode"] = pty_mode
-        if pty_group is not None:
-            access["pty_group"] = str(pty_group)
-        bridge = _core.Bridge(device, client_side="pty", pty_link=link, **access, **options)
+        bridge = _core.Bridge(device, client_side="pty", pty_link=link,
+                              pty_mode=DEFAULT_PTY_MODE if pty_mode is None else pty_mode,
+                              pty_group="" if pty_group is None else str(pty_group),
+                              **options)
     else:
         host, port = parse_listen(listen)
         bridge = _core.Bridge(device, client_side="tcp", listen_host=host,
