@@ -104,8 +104,16 @@ class PtyEndpoint final : public ClientEndpoint {
     return opens_and_closes_ ? client_read_ : wrote_device_data_;
   }
 
-  // The terminal closes last, after the device (see the destructor).
-  void shut_down() override {}
+  // The terminal closes last, after the device (see the destructor). A
+  // client that read just before the end was served: its last reads may
+  // still wait in the watch.
+  void shut_down() override {
+    if (!opens_and_closes_) return;
+    for (const platform::TerminalEvent event :
+         platform::read_opens_and_closes(opens_and_closes_.get())) {
+      if (event == platform::TerminalEvent::read) client_read_ = true;
+    }
+  }
 
   ~PtyEndpoint() override {
     try {
