@@ -53,6 +53,14 @@ struct BridgeOptions {
   // pty: a symbolic link to the terminal ("" for none; the terminal's own
   // path is in Bridge::pty_path()).
   std::string pty_link;
+  // pty: who may open the terminal, set on its node (/dev/pts/N) as on a
+  // real serial device, so that a client that drops root can open it:
+  // permission bits (at most 0777) and a group, by name or number. "" means
+  // dialout where that group exists (falling back, with a message, to the
+  // process's group where this user may not give the terminal to it), else
+  // the process's own group.
+  unsigned pty_mode = 0660;
+  std::string pty_group;
   // tcp: where to listen. 127.0.0.1 unless told otherwise; port 0 picks a
   // free port (see Bridge::listen_address()).
   std::string listen_host = "127.0.0.1";
@@ -120,6 +128,11 @@ struct BridgeResult {
   // The mismatch report, the error, or why the device closed.
   std::string message;
   BridgeStats stats;
+  // A replay whose recording has rx but that served none of it to any
+  // client says why here ("no client connected before the end", ...); ""
+  // otherwise, and for every device that is not a replay. The outcome is
+  // left as it was: `wiretape replay` turns this into exit 1.
+  std::string nothing_served;
   // True unless outcome is mismatch or failed.
   bool ok() const {
     return outcome != BridgeOutcome::mismatch && outcome != BridgeOutcome::failed;

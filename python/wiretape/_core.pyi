@@ -428,6 +428,12 @@ class BridgeResult:
     @property
     def stats(self) -> BridgeStats: ...
 
+    @property
+    def nothing_served(self) -> str:
+        """
+        Why a replay with rx served none of it to any client (no client connected, nothing matched, the greeting was lost); '' otherwise.
+        """
+
     def __repr__(self) -> str: ...
 
 class Bridge:
@@ -435,7 +441,7 @@ class Bridge:
     Forwards bytes between a device port and a pty or TCP clients, optionally recording them (see wiretape.bridge).
     """
 
-    def __init__(self, device: str, *, client_side: str = 'pty', pty_link: str = '', listen_host: str = '127.0.0.1', listen_port: int = 0, protocol: str = 'raw', shared: bool = False, max_monitors: int = 16, output: str = '', metadata: Mapping[str, str] = {}, flush_ms: int = 100, mirror_settings: bool = True, reopen: bool = False, restart: bool = False, duration: object | None = None, buffer_limit: int = 1048576, quiet: bool = False) -> None: ...
+    def __init__(self, device: str, *, client_side: str = 'pty', pty_link: str = '', pty_mode: int = 432, pty_group: str = '', listen_host: str = '127.0.0.1', listen_port: int = 0, protocol: str = 'raw', shared: bool = False, max_monitors: int = 16, output: str = '', metadata: Mapping[str, str] = {}, flush_ms: int = 100, mirror_settings: bool = True, reopen: bool = False, restart: bool = False, duration: object | None = None, buffer_limit: int = 1048576, quiet: bool = False) -> None: ...
 
     def start(self) -> None:
         """

@@ -17,8 +17,15 @@ it::
 ``result()`` is a :class:`BridgeResult`: ``outcome`` (``running``,
 ``stopped``, ``finished``, ``device_closed``, ``mismatch``, ``failed``), ``ok``
 (False for a mismatch or a failure: the CLI exits 1 or 3), ``message`` (the
-mismatch report or error) and ``stats``, a :class:`BridgeStats` of counters
-(``bytes_to_device``, ``clients_accepted``...; ``stats.items()`` lists them).
+mismatch report or error), ``nothing_served`` (a replay whose recording has
+rx but that served none of it says why: ``wiretape replay`` exits 1 then) and
+``stats``, a :class:`BridgeStats` of counters (``bytes_to_device``,
+``clients_accepted``...; ``stats.items()`` lists them).
+
+A pty the bridge creates is mode 0660, group ``dialout`` where that group
+exists (else the process's group), as a real serial device is, so that a
+client that drops root can open it; ``pty_mode`` (an int, e.g. ``0o666``) and
+``pty_group`` (a name or a gid) change that.
 """
 
 from __future__ import annotations
@@ -31,6 +38,7 @@ from ._core import BridgeResult, BridgeStats
 
 __all__ = [
     "DEFAULT_MAX_MONITORS",
+    "DEFAULT_PTY_MODE",
     "BridgeHandle",
     "BridgeResult",
     "BridgeStats",
@@ -125,12 +133,23 @@ class BridgeHandle:
         self.wait()
 
 
-def _start(device: str, *, pty, listen, **options) -> BridgeHandle:
+PtyGroup = Union[str, int, None]
+# A serial device's permission bits: owner and group read and write.
+DEFAULT_PTY_MODE = 0o660
+
+
+def _start(device: str, *, pty, listen, pty_mode: Optional[int] = None,
+           pty_group: PtyGroup = None, **options) -> BridgeHandle:
     if (pty is None) == (listen is None):
         raise ValueError("give exactly one client side: pty=PATH or listen=HOST:PORT")
+    if pty is None and (pty_mode is not None or pty_group is not None):
+        raise ValueError("pty_mode and pty_group set who may open a pty: give pty=PATH")
     if pty is not None:
         link = "" if pty is True else os.fspath(pty)
-        bridge = _core.Bridge(device, client_side="pty", pty_link=link, **options)
+        bridge = _core.Bridge(device, client_side="pty", pty_link=link,
+                              pty_mode=DEFAULT_PTY_MODE if pty_mode is None else pty_mode,
+                              pty_group="" if pty_group is None else str(pty_group),
+                              **options)
     else:
         host, port = parse_listen(listen)
         bridge = _core.Bridge(device, client_side="tcp", listen_host=host,
@@ -142,18 +161,20 @@ def _start(device: str, *, pty, listen, **options) -> BridgeHandle:
 def record(device: str, output, *, pty=None, listen=None,
            duration: Optional[float] = None,
            meta: Optional[Mapping[str, str]] = None,
-           quiet: bool = False) -> BridgeHandle:
+           quiet: bool = False, pty_mode: Optional[int] = None,
+           pty_group: PtyGroup = None) -> BridgeHandle:
     """``wiretape record``: a transparent proxy between ``device`` and a pty
     at ``pty`` (a symlink path; True for none) or a TCP listener at
     ``listen``; every byte both ways is recorded to ``output``
     (capture=wire). On a pty, the terminal settings the client sets are
-    applied to the device."""
+    applied to the device; ``pty_mode``/``pty_group`` set who may open it
+    (default 0o660, group dialout)."""
     path = os.fspath(output)
     if not path.strip():
         raise ValueError("output: the file name is empty; give the session file to record to")
     return _start(device_options(device), pty=pty, listen=listen,
                   output=path, metadata=dict(meta or {}),
-                  duration=duration, quiet=quiet)
+                  duration=duration, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group)
 
 
 DEFAULT_MAX_MONITORS = 16
@@ -176,12 +197,16 @@ def serve(device: str, listen, *, output=None, protocol: str = "raw",
 
 def serve_replay(file, *, pty=None, listen=None, replay_options: str = "",
                  restart: bool = False, output=None,
-                 quiet: bool = False) -> BridgeHandle:
+                 quiet: bool = False, pty_mode: Optional[int] = None,
+                 pty_group: PtyGroup = None) -> BridgeHandle:
     """``wiretape replay --pty/--listen``: the recording ``file`` becomes a
     virtual device. ``replay_options`` are replay keys (``"timing=none,
     check=data"``). A client that reconnects continues the session;
     ``restart`` starts it over for each new client (TCP, or pty on Linux). The result is ok,
-    or ``outcome == "mismatch"`` with the report in ``message``."""
+    or ``outcome == "mismatch"`` with the report in ``message``; a recording
+    with rx that no client was served leaves the reason in
+    ``nothing_served``. ``pty_mode``/``pty_group`` set who may open the pty
+    (default 0o660, group dialout)."""
     options = "type=replay,file=" + _quote(os.fspath(file))
     if replay_options.strip():
         options += "," + replay_options.strip()
@@ -191,4 +216,4 @@ def serve_replay(file, *, pty=None, listen=None, replay_options: str = "",
     # The terminal settings of a replayed device are not applied anywhere.
     return _start(options, pty=pty, listen=listen, restart=restart,
                   output=os.fspath(output) if output else "",
-                  mirror_settings=False, quiet=quiet)
+                  mirror_settings=False, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group)

@@ -193,6 +193,38 @@ def _session_output(text: str) -> str:
     return text
 
 
+def _pty_mode(text: str) -> int:
+    """An argparse type: the permission bits of a pty, in octal (0660, 666,
+    0o666)."""
+    digits = text.strip()
+    if digits[:2] in ("0o", "0O"):
+        digits = digits[2:]
+    try:
+        mode = int(digits, 8)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not an octal mode (such as 0660 or 0666)") from None
+    if not 0 <= mode <= 0o777:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} has bits beyond the permission bits 0777")
+    return mode
+
+
+def _pty_group(text: str) -> str:
+    """An argparse type: a group by name or number that exists (a number
+    is taken as it stands, as chown takes it)."""
+    import grp
+
+    name = text.strip()
+    if name.isdigit():
+        return name
+    try:
+        grp.getgrnam(name)
+    except KeyError:
+        raise argparse.ArgumentTypeError(f"there is no group {text!r}") from None
+    return name
+
+
 def _format_number(value: float) -> str:
     return repr(int(value)) if float(value).is_integer() else repr(value)
 
@@ -201,9 +233,12 @@ def _format_number(value: float) -> str:
 # bridges: record, replay, serve
 
 
-def _run_bridge(handle, out: _Output, what: str, announce: Callable[[], None]) -> int:
+def _run_bridge(handle, out: _Output, what: str, announce: Callable[[], None],
+                must_serve: bool = False) -> int:
     """Announces a started bridge and waits until it ends or Ctrl-C (or
-    SIGTERM, see main) stops it; prints the outcome; returns the exit code."""
+    SIGTERM, see main) stops it; prints the outcome; returns the exit code.
+    `must_serve`: a replay that served its clients none of the recording's
+    rx failed (exit 1), however it ended."""
     try:
         announce()
         while not handle.wait(_POLL_S):
@@ -216,6 +251,8 @@ def _run_bridge(handle, out: _Output, what: str, announce: Callable[[], None]) -
     figures = ", ".join(f"{key}={value}" for key, value in result.stats.items() if value)
     out.note(f"{what}: {result.outcome}" + (f" ({figures})" if figures else ""))
     if result.ok:
+        if must_serve and result.nothing_served:
+            raise CheckFailed(result.nothing_served)
         return EXIT_OK
     message = result.message or result.outcome
     if result.outcome == "mismatch":
@@ -228,6 +265,10 @@ def _run_bridge(handle, out: _Output, what: str, announce: Callable[[], None]) -
 def _client_side(args) -> Tuple[Optional[str], Optional[str]]:
     if args.pty is None and args.listen is None:
         raise UsageError("give where the client connects: --pty PATH or --listen HOST:PORT")
+    if args.pty is None:
+        for flag, value in (("--pty-mode", args.pty_mode), ("--pty-group", args.pty_group)):
+            if value is not None:
+                raise UsageError(f"{flag} sets who may open the pty: give --pty PATH too")
     return args.pty, args.listen
 
 
@@ -247,7 +288,8 @@ def cmd_record(args, out: _Output) -> int:
     pty, listen = _client_side(args)
     handle = bridge.record(args.device, args.output, pty=pty, listen=listen,
                            duration=args.duration, meta=_meta_pairs(args.meta),
-                           quiet=args.quiet)
+                           quiet=args.quiet, pty_mode=args.pty_mode,
+                           pty_group=args.pty_group)
     return _run_bridge(handle, out, "record",
                        lambda: _announce(handle, out, f"recording to {args.output}", pty))
 
@@ -282,9 +324,11 @@ def cmd_replay(args, out: _Output) -> int:
     handle = bridge.serve_replay(args.file, pty=pty, listen=listen,
                                  replay_options=replay_options_of(args),
                                  restart=args.restart, output=args.output,
-                                 quiet=args.quiet)
+                                 quiet=args.quiet, pty_mode=args.pty_mode,
+                                 pty_group=args.pty_group)
     return _run_bridge(handle, out, "replay",
-                       lambda: _announce(handle, out, f"replaying {args.file}", pty))
+                       lambda: _announce(handle, out, f"replaying {args.file}", pty),
+                       must_serve=True)
 
 
 def cmd_serve(args, out: _Output) -> int:
@@ -506,6 +550,12 @@ def _add_client_side(parser, verb: str) -> None:
     side.add_argument("--listen", metavar="HOST:PORT",
                       help=f"{verb} on TCP: the client connects to HOST:PORT "
                            "(PORT alone means 127.0.0.1:PORT; 0 picks a free port)")
+    parser.add_argument("--pty-mode", dest="pty_mode", type=_pty_mode, metavar="MODE",
+                        help="with --pty: the terminal's permission bits, octal "
+                             "(default 0660, as a serial device)")
+    parser.add_argument("--pty-group", dest="pty_group", type=_pty_group, metavar="NAME|GID",
+                        help="with --pty: the terminal's group (default dialout where it "
+                             "exists, else this process's group)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -544,7 +594,9 @@ def build_parser() -> argparse.ArgumentParser:
         "The recording becomes a virtual device any program can open: a "
         "pseudo-terminal (--pty PATH) or a TCP server (--listen HOST:PORT). A "
         "client that closes and reopens continues the session (--restart starts it "
-        "over). The replay keys are those of type=replay (docs/options.md).")
+        "over). The replay keys are those of type=replay (docs/options.md). Exit 1 on a "
+        "mismatch, and when the recording has rx but no client was served any of it "
+        "(no client connected, nothing matched, or the greeting was lost).")
     replay.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
     _add_client_side(replay, "the client connects")
     replay.add_argument("--timing", choices=("none", "session", "causal"),

@@ -14,6 +14,7 @@
 #include <array>
 #include <atomic>
 #include <condition_variable>
+#include <cstdio>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -24,7 +25,9 @@
 #include "bridge/status.hpp"
 #include "session/record_kinds.hpp"
 #include "posix/poll_set.hpp"
+#include "posix/pty_terminal.hpp"
 #include "posix/wake_pipe.hpp"
+#include "replay/replay_port.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/port.hpp"
 
@@ -62,6 +65,12 @@ constexpr auto kWriteRetryInterval = std::chrono::milliseconds(2);
 constexpr auto kModemPollInterval = std::chrono::milliseconds(250);
 constexpr auto kLongestSleep = std::chrono::milliseconds(60'000);
 
+std::string octal(unsigned value) {
+  char text[16];
+  std::snprintf(text, sizeof text, "0%o", value);
+  return text;
+}
+
 }  // namespace
 
 struct Bridge::Impl {
@@ -87,6 +96,9 @@ struct Bridge::Impl {
   bool reopen_failure_logged_ = false;
   BridgeOutcome end_outcome_ = BridgeOutcome::running;
   std::string end_message_;
+  // The device is a replay whose recording has rx for the clients.
+  bool replay_has_rx_ = false;
+  std::string nothing_served_;
 
   void end(BridgeOutcome outcome, std::string text) {
     if (end_outcome_ != BridgeOutcome::running) return;
@@ -102,6 +114,7 @@ struct Bridge::Impl {
   void device_lost(const std::string& reason);
   void try_reopen();
   void shut_down();
+  std::string why_nothing_was_served() const;
 };
 
 void Bridge::Impl::open_all() {
@@ -110,6 +123,7 @@ void Bridge::Impl::open_all() {
     endpoint_ = detail::bridge::make_tcp_endpoint(options_, device_, status_);
   }
   device_.open(true, nullptr);
+  replay_has_rx_ = detail::replay_recording_has_rx(device_.port());
   device_.open_session_file();
   if (options_.client_side == BridgeClientSide::pty) {
     endpoint_ = detail::bridge::make_pty_endpoint(options_, device_, status_);
@@ -269,7 +283,28 @@ void Bridge::Impl::shut_down() {
     status_.message(std::string("closing the clients' side: ") + error.what());
   }
   device_.shut_down(end_outcome_, end_message_);
+  nothing_served_ = why_nothing_was_served();
   endpoint_.reset();
+}
+
+// Asked once the bridge has ended. A mismatch or failure has its own report.
+std::string Bridge::Impl::why_nothing_was_served() const {
+  if (!replay_has_rx_ || endpoint_->served_device_data()) return "";
+  if (end_outcome_ == BridgeOutcome::mismatch || end_outcome_ == BridgeOutcome::failed) return "";
+  BridgeStats stats;
+  {
+    std::lock_guard<std::mutex> lock(status_.mutex);
+    stats = status_.result.stats;
+  }
+  const std::string none = "no client was served any of the recording's rx: ";
+  if (stats.clients_accepted == 0) return none + "no client connected before the end";
+  if (stats.bytes_from_device == 0) {
+    return none + "nothing the client sent matched what the recording answers, so no rx was "
+                  "released";
+  }
+  return none + "the client read none of the " + std::to_string(stats.bytes_from_device) +
+         " bytes released to it (the greeting was lost: flushed, or left unread when the "
+         "client closed)";
 }
 
 // --- Bridge ------------------------------------------------------------------------------
@@ -297,6 +332,13 @@ Bridge::Bridge(BridgeOptions options) : impl_(std::make_unique<Impl>(std::move(o
     throw OptionError("duration", "duration must be positive (seconds)");
   }
   if (o.flush_ms < 1) throw OptionError("flush_ms", "flush_ms must be at least 1");
+  if (o.pty_mode > 0777) {
+    throw OptionError("pty_mode", "pty_mode " + octal(o.pty_mode) +
+                                      " has bits beyond the permission bits 0777");
+  }
+  if (!o.pty_group.empty() && !detail::find_group(o.pty_group)) {
+    throw OptionError("pty_group", "pty_group: there is no group " + o.pty_group);
+  }
 }
 
 Bridge::~Bridge() {
@@ -344,6 +386,7 @@ void Bridge::start() {
     std::lock_guard<std::mutex> lock(impl.status_.mutex);
     impl.status_.result.outcome = impl.end_outcome_;
     impl.status_.result.message = impl.end_message_;
+    impl.status_.result.nothing_served = impl.nothing_served_;
     impl.status_.finished = true;
     impl.status_.finished_cv.notify_all();
   });

@@ -44,6 +44,10 @@ class ClientEndpoint {
   // Whether any client is connected (the device's modem inputs are watched
   // only then).
   virtual bool has_clients() const = 0;
+  // Whether a client has taken any of the device's data so far (read it from
+  // the terminal, or its connection accepted it): a replay that served its
+  // clients nothing is no success.
+  virtual bool served_device_data() const = 0;
   // The device's modem inputs changed (RFC 2217 clients are told).
   virtual void modem_inputs_changed() {}
   // The bridge ends: flush what can be flushed, say goodbye, close.

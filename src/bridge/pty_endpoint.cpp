@@ -1,8 +1,14 @@
 // The pty endpoint: a pseudo-terminal that a program opens as if it were the
 // device. One client at a time by nature; where the system can tell (Linux),
-// its first open and last close are the client arriving and leaving. The
-// terminal settings the client programs are mirrored onto the device.
+// its first open and last close are the client arriving and leaving, and its
+// reads show that device data reached it. The terminal settings the client
+// programs are mirrored onto the device. The terminal's node gets a serial
+// device's mode and group, so that a client that drops root can open it.
+#include <unistd.h>
+
 #include <array>
+#include <cerrno>
+#include <optional>
 #include <string>
 
 #include "bridge/endpoint.hpp"
@@ -35,6 +41,7 @@ class PtyEndpoint final : public ClientEndpoint {
     pty_ = open_port(pty_options(options_.pty_link));
     pty_->set_timeout(std::chrono::nanoseconds(0));
     const std::string path = pty_terminal_path(*pty_);
+    grant_access();
     // Best effort: without it, a pty client's coming and going goes unseen.
     opens_and_closes_ = sys::UniqueFd(platform::watch_opens_and_closes(path));
     status_.set(&Status::pty_path, path);
@@ -91,8 +98,22 @@ class PtyEndpoint final : public ClientEndpoint {
 
   bool has_clients() const override { return openers_ > 0; }
 
-  // The terminal closes last, after the device (see the destructor).
-  void shut_down() override {}
+  // Without a watch on the terminal its reads go unseen: data written to it
+  // counts as taken, so that a replay is not failed for what cannot be known.
+  bool served_device_data() const override {
+    return opens_and_closes_ ? client_read_ : wrote_device_data_;
+  }
+
+  // The terminal closes last, after the device (see the destructor). A
+  // client that read just before the end was served: its last reads may
+  // still wait in the watch.
+  void shut_down() override {
+    if (!opens_and_closes_) return;
+    for (const platform::TerminalEvent event :
+         platform::read_opens_and_closes(opens_and_closes_.get())) {
+      if (event == platform::TerminalEvent::read) client_read_ = true;
+    }
+  }
 
   ~PtyEndpoint() override {
     try {
@@ -107,6 +128,7 @@ class PtyEndpoint final : public ClientEndpoint {
     std::array<char, kChunk> buffer;
     const std::size_t room = std::min(device_.room_for_client_data(), buffer.size());
     const std::size_t n = pty_->read(buffer.data(), room, std::chrono::nanoseconds(0));
+    last_read_took_data_ = n > 0;
     if (n == 0) return;
     if (!device_.is_open()) {
       if (!dropped_input_logged_) {
@@ -123,15 +145,59 @@ class PtyEndpoint final : public ClientEndpoint {
       const std::size_t n = pty_->write(to_pty_.data(), to_pty_.size());
       if (n == 0) return;
       to_pty_.consume(n);
+      wrote_device_data_ = true;
     }
+  }
+
+  // Everything the client wrote before it closed the terminal, so that its
+  // last bytes are recorded before it leaves. A non-blocking read of the
+  // master waits for the terminal's pending input to be pushed through
+  // first, so what the client's write() returned for is all here.
+  // (Bounded by the queue to the device: a device that takes nothing leaves
+  // the rest for after the disconnect.)
+  void drain_pty() {
+    do {
+      read_pty();
+    } while (last_read_took_data_ && device_.room_for_client_data() > 0);
+  }
+
+  void grant_access() {
+    const mode_t mode = static_cast<mode_t>(options_.pty_mode);
+    if (!options_.pty_group.empty()) {
+      // Checked by the Bridge's constructor; a group removed since is a
+      // runtime error like any refusal.
+      const std::optional<gid_t> group = find_group(options_.pty_group);
+      if (!group) {
+        throw PortError(ENOENT, "pty: there is no group " + options_.pty_group);
+      }
+      set_terminal_access(*pty_, mode, *group);
+      return;
+    }
+    const std::optional<gid_t> serial_group = find_group(kSerialDeviceGroup);
+    if (serial_group) {
+      try {
+        set_terminal_access(*pty_, mode, *serial_group);
+        return;
+      } catch (const PortError& refused) {
+        // A user outside that group may not give it the terminal.
+        status_.message(std::string("the terminal keeps this process's group: ") +
+                        refused.what());
+      }
+    }
+    set_terminal_access(*pty_, mode, ::getegid());
   }
 
   // The first opener of the terminal is a client arriving, the last close
   // its leaving (a program may open the terminal more than once, and tools
   // such as stty open and close it too).
   void watch_clients() {
-    for (const bool opened : platform::read_opens_and_closes(opens_and_closes_.get())) {
-      if (opened) {
+    for (const platform::TerminalEvent event :
+         platform::read_opens_and_closes(opens_and_closes_.get())) {
+      if (event == platform::TerminalEvent::read) {
+        client_read_ = true;
+        continue;
+      }
+      if (event == platform::TerminalEvent::opened) {
         if (openers_++ > 0) continue;
         if (options_.restart && had_client_ && device_.is_open()) {
           pty_->flush_output();  // what the previous client left unread
@@ -142,6 +208,7 @@ class PtyEndpoint final : public ClientEndpoint {
         device_.client_connected("pty", "control");
         status_.message("client connected to " + pty_->description());
       } else if (openers_ > 0 && --openers_ == 0) {
+        drain_pty();
         device_.client_disconnected("pty", "closed the terminal");
         status_.message("client closed " + pty_->description());
       }
@@ -180,6 +247,9 @@ class PtyEndpoint final : public ClientEndpoint {
   int openers_ = 0;
   bool had_client_ = false;
   bool dropped_input_logged_ = false;
+  bool last_read_took_data_ = false;
+  bool wrote_device_data_ = false;
+  bool client_read_ = false;
   ByteQueue to_pty_{options_.buffer_limit};
   SerialSettings last_settings_;
   Clock::time_point next_settings_check_;

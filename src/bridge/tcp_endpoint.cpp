@@ -57,6 +57,9 @@ struct Client {
   bool gone = false;
   // The device's modem inputs changed and this client has not been told.
   bool modem_state_due = false;
+  // Device data has been queued for this (controlling) client: what it is
+  // sent from then on carries some.
+  bool holds_device_data = false;
   PollSet::Slot slot = PollSet::none;
 };
 
@@ -159,6 +162,7 @@ class TcpEndpoint final : public ClientEndpoint {
         continue;
       }
       client->outgoing.append(bytes, length);
+      if (!client->monitor) client->holds_device_data = true;
       write_client(*client);
     }
   }
@@ -169,6 +173,8 @@ class TcpEndpoint final : public ClientEndpoint {
   }
 
   bool has_clients() const override { return !clients_.empty(); }
+
+  bool served_device_data() const override { return served_device_data_; }
 
   void modem_inputs_changed() override {
     for (auto& client : clients_) {
@@ -316,6 +322,7 @@ class TcpEndpoint final : public ClientEndpoint {
         return;
       }
       client.outgoing.consume(sent.bytes);
+      if (sent.bytes > 0 && client.holds_device_data) served_device_data_ = true;
     }
   }
 
@@ -362,6 +369,7 @@ class TcpEndpoint final : public ClientEndpoint {
   std::deque<Refusal> refusals_;
   bool had_client_ = false;
   bool rest_reported_ = false;
+  bool served_device_data_ = false;
   PollSet::Slot listener_slot_ = PollSet::none;
 };
 

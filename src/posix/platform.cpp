@@ -70,7 +70,7 @@ void precise_timers_for_this_thread() {
 int watch_opens_and_closes(const std::string& path) {
   const int fd = ::inotify_init1(IN_NONBLOCK | IN_CLOEXEC);
   if (fd < 0) return -1;
-  if (::inotify_add_watch(fd, path.c_str(), IN_OPEN | IN_CLOSE) < 0) {
+  if (::inotify_add_watch(fd, path.c_str(), IN_OPEN | IN_ACCESS | IN_CLOSE) < 0) {
     const int error = errno;
     ::close(fd);
     errno = error;
@@ -79,8 +79,8 @@ int watch_opens_and_closes(const std::string& path) {
   return fd;
 }
 
-std::vector<bool> read_opens_and_closes(int watch_fd) {
-  std::vector<bool> events;
+std::vector<TerminalEvent> read_opens_and_closes(int watch_fd) {
+  std::vector<TerminalEvent> events;
   alignas(inotify_event) char buffer[4096];
   for (;;) {
     const ssize_t n = ::read(watch_fd, buffer, sizeof buffer);
@@ -88,8 +88,10 @@ std::vector<bool> read_opens_and_closes(int watch_fd) {
     if (n <= 0) return events;
     for (ssize_t at = 0; at + static_cast<ssize_t>(sizeof(inotify_event)) <= n;) {
       const auto* event = reinterpret_cast<const inotify_event*>(buffer + at);
-      if (event->mask & IN_OPEN) events.push_back(true);
-      if (event->mask & IN_CLOSE) events.push_back(false);
+      // One event carries one of these; in this order should it carry more.
+      if (event->mask & IN_OPEN) events.push_back(TerminalEvent::opened);
+      if (event->mask & IN_ACCESS) events.push_back(TerminalEvent::read);
+      if (event->mask & IN_CLOSE) events.push_back(TerminalEvent::closed);
       at += static_cast<ssize_t>(sizeof(inotify_event) + event->len);
     }
   }
@@ -125,7 +127,7 @@ int watch_opens_and_closes(const std::string&) {
   return -1;
 }
 
-std::vector<bool> read_opens_and_closes(int) { return {}; }
+std::vector<TerminalEvent> read_opens_and_closes(int) { return {}; }
 
 #endif
 

@@ -34,13 +34,14 @@ void prevent_sigpipe(int socket_fd);
 // no such setting.
 void precise_timers_for_this_thread();
 
-// Watches the file at `path` (a pseudo-terminal's terminal side) being opened
-// and closed by any process, so that a pty's client can be seen to arrive
-// and leave (Linux: inotify). Returns a descriptor that polls readable when
-// something happened, or -1 with errno set where the system cannot do it.
+// Watches the file at `path` (a pseudo-terminal's terminal side) being opened,
+// read and closed by any process, so that a pty's client can be seen to
+// arrive, take data and leave (Linux: inotify). Returns a descriptor that
+// polls readable when something happened, or -1 with errno set where the
+// system cannot do it.
 int watch_opens_and_closes(const std::string& path);
-// What happened since the last call, in order: true for an open, false for a
-// close. Empty when nothing did.
-std::vector<bool> read_opens_and_closes(int watch_fd);
+enum class TerminalEvent { opened, read, closed };
+// What happened since the last call, in order. Empty when nothing did.
+std::vector<TerminalEvent> read_opens_and_closes(int watch_fd);
 
 }  // namespace wiretape::detail::platform

@@ -1,11 +1,13 @@
 // type=pty: a pseudo-terminal whose device side this port is. A program
 // opens the terminal (the path in description(), or `link`) as if it were a
 // serial device; what it writes is read here and vice versa.
+#include <grp.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstdlib>
+#include <vector>
 
 #include "core/open_port.hpp"
 #include "posix/fd_port.hpp"
@@ -42,6 +44,18 @@ class PtyPort final : public FdPort {
   }
 
   const std::string& terminal_path() const { return path_; }
+
+  // Through the descriptor held open, not the path: the node cannot be
+  // swapped in between.
+  void set_access(mode_t mode, gid_t group) {
+    if (sys::fchown(terminal_.get(), static_cast<uid_t>(-1), group) != 0) {
+      raise_os_error(errno, description(),
+                     "giving the terminal to group " + std::to_string(group));
+    }
+    if (sys::fchmod(terminal_.get(), mode & 0777) != 0) {
+      raise_os_error(errno, description(), "setting the terminal's mode");
+    }
+  }
 
   void set_dtr(bool) override { no_modem_lines(); }
   void set_rts(bool) override { no_modem_lines(); }
@@ -87,6 +101,40 @@ class PtyPort final : public FdPort {
 std::string pty_terminal_path(const Port& port) {
   const auto* pty = dynamic_cast<const PtyPort*>(&port);
   return pty ? pty->terminal_path() : std::string();
+}
+
+std::optional<gid_t> find_group(const std::string& name_or_id) {
+  if (name_or_id.empty()) return std::nullopt;
+  if (name_or_id.find_first_not_of("0123456789") == std::string::npos) {
+    errno = 0;
+    char* end = nullptr;
+    const unsigned long long id = std::strtoull(name_or_id.c_str(), &end, 10);
+    // (gid_t)-1 means "leave the group" to chown: not a group.
+    if (errno != 0 || id >= static_cast<unsigned long long>(static_cast<gid_t>(-1))) {
+      return std::nullopt;
+    }
+    return static_cast<gid_t>(id);
+  }
+  std::vector<char> buffer(4096);
+  for (;;) {
+    group entry{};
+    group* found = nullptr;
+    const int error = ::getgrnam_r(name_or_id.c_str(), &entry, buffer.data(), buffer.size(), &found);
+    if (error == ERANGE && buffer.size() < (1u << 20)) {
+      buffer.resize(buffer.size() * 2);
+      continue;
+    }
+    if (error != 0 || found == nullptr) return std::nullopt;
+    return found->gr_gid;
+  }
+}
+
+void set_terminal_access(Port& port, mode_t mode, gid_t group) {
+  auto* pty = dynamic_cast<PtyPort*>(&port);
+  if (pty == nullptr) {
+    throw std::logic_error("set_terminal_access: " + port.description() + " is not a pty");
+  }
+  pty->set_access(mode, group);
 }
 
 std::unique_ptr<Port> open_pty(Options& options) {

@@ -1,7 +1,11 @@
-// The terminal path of a type=pty port, for a bridge that watches the
-// terminal being opened and closed by its clients.
+// The terminal side of a type=pty port, for a bridge that watches the
+// terminal being opened and closed by its clients and decides who may open
+// it.
 #pragma once
 
+#include <sys/types.h>
+
+#include <optional>
 #include <string>
 
 namespace wiretape {
@@ -13,5 +17,19 @@ namespace wiretape::detail {
 // The path a program opens to reach `port` ("/dev/pts/7"), or "" if `port`
 // is not a pseudo-terminal.
 std::string pty_terminal_path(const Port& port);
+
+// The group a real serial device belongs to on most systems; a virtual
+// device joins it where it exists, so that the same clients may open it.
+inline constexpr const char* kSerialDeviceGroup = "dialout";
+
+// The group `name_or_id` names: a group name, or a number taken as a group
+// id as it stands (chown accepts ids without a name too). Nothing when no
+// group has that name.
+std::optional<gid_t> find_group(const std::string& name_or_id);
+
+// Makes the terminal of the pty `port` mode `mode` (permission bits only)
+// and group `group`, as a real serial device's node is. PortError when the
+// system refuses (not the owner, not a member of the group).
+void set_terminal_access(Port& port, mode_t mode, gid_t group);
 
 }  // namespace wiretape::detail

@@ -95,6 +95,8 @@ Table make_real() {
   t.lseek = [](int fd, off_t offset, int whence) { return ::lseek(fd, offset, whence); };
   t.fsync = [](int fd) { return ::fsync(fd); };
   t.ftruncate = [](int fd, off_t length) { return ::ftruncate(fd, length); };
+  t.fchmod = [](int fd, mode_t mode) { return ::fchmod(fd, mode); };
+  t.fchown = [](int fd, uid_t owner, gid_t group) { return ::fchown(fd, owner, group); };
   return t;
 }
 

@@ -71,6 +71,9 @@ struct Table {
   std::function<off_t(int fd, off_t offset, int whence)> lseek;
   std::function<int(int fd)> fsync;
   std::function<int(int fd, off_t length)> ftruncate;
+  // Who may open a pseudo-terminal wiretape creates.
+  std::function<int(int fd, mode_t mode)> fchmod;
+  std::function<int(int fd, uid_t owner, gid_t group)> fchown;
 };
 
 // The real libc calls.
@@ -179,6 +182,10 @@ inline off_t lseek(int fd, off_t offset, int whence) {
 }
 inline int fsync(int fd) { return current().fsync(fd); }
 inline int ftruncate(int fd, off_t length) { return current().ftruncate(fd, length); }
+inline int fchmod(int fd, mode_t mode) { return current().fchmod(fd, mode); }
+inline int fchown(int fd, uid_t owner, gid_t group) {
+  return current().fchown(fd, owner, group);
+}
 
 // Closes a descriptor once, keeping errno (for clean-up paths).
 void close_quietly(int fd);

@@ -77,6 +77,9 @@ void bind_results(nb::module_& m) {
       .def_ro("message", &BridgeResult::message,
               "The mismatch report, the error, or why the device closed.")
       .def_ro("stats", &BridgeResult::stats)
+      .def_ro("nothing_served", &BridgeResult::nothing_served,
+              "Why a replay with rx served none of it to any client (no client "
+              "connected, nothing matched, the greeting was lost); '' otherwise.")
       .def("__repr__", [](const BridgeResult& r) {
         return "BridgeResult(outcome=" + std::string(to_string(r.outcome)) +
                ", ok=" + (r.ok() ? "True" : "False") + ", message=" +
@@ -100,7 +103,8 @@ Value one_of(const char* key, const std::string& text,
 }
 
 BridgeOptions make_options(const std::string& device, const std::string& client_side,
-                           const std::string& pty_link, const std::string& listen_host,
+                           const std::string& pty_link, long long pty_mode,
+                           const std::string& pty_group, const std::string& listen_host,
                            int listen_port, const std::string& protocol, bool shared,
                            std::size_t max_monitors, const std::string& output,
                            const std::map<std::string, std::string>& metadata,
@@ -112,6 +116,13 @@ BridgeOptions make_options(const std::string& device, const std::string& client_
                                            {{"pty", BridgeClientSide::pty},
                                             {"tcp", BridgeClientSide::tcp}});
   o.pty_link = pty_link;
+  // Python's int has no bound: checked here before it is narrowed.
+  if (pty_mode < 0 || pty_mode > 0777) {
+    throw OptionError("pty_mode", "pty_mode must be permission bits, 0 to 0o777, not " +
+                                      std::to_string(pty_mode));
+  }
+  o.pty_mode = static_cast<unsigned>(pty_mode);
+  o.pty_group = pty_group;
   o.listen_host = listen_host;
   o.listen_port = listen_port;
   o.protocol = one_of<BridgeProtocol>("protocol", protocol,
@@ -141,19 +152,21 @@ void bind_bridge(nb::module_& m) {
       .def(
           "__init__",
           [](Bridge* self, const std::string& device, const std::string& client_side,
-             const std::string& pty_link, const std::string& listen_host, int listen_port,
-             const std::string& protocol, bool shared, std::size_t max_monitors,
+             const std::string& pty_link, long long pty_mode, const std::string& pty_group,
+             const std::string& listen_host, int listen_port, const std::string& protocol, bool shared, std::size_t max_monitors,
              const std::string& output,
              const std::map<std::string, std::string>& metadata, int flush_ms,
              bool mirror_settings, bool reopen, bool restart, nb::handle duration,
              std::size_t buffer_limit, bool quiet) {
-            new (self) Bridge(make_options(device, client_side, pty_link, listen_host,
+            new (self) Bridge(make_options(device, client_side, pty_link, pty_mode,
+                                           pty_group, listen_host,
                                            listen_port, protocol, shared, max_monitors,
                                            output, metadata,
                                            flush_ms, mirror_settings, reopen, restart,
                                            duration, buffer_limit, quiet));
           },
           "device"_a, nb::kw_only(), "client_side"_a = "pty", "pty_link"_a = "",
+          "pty_mode"_a = 0660LL, "pty_group"_a = "",
           "listen_host"_a = "127.0.0.1", "listen_port"_a = 0, "protocol"_a = "raw",
           "shared"_a = false, "max_monitors"_a = std::size_t{16}, "output"_a = "",
           "metadata"_a = std::map<std::string, std::string>{}, "flush_ms"_a = 100,

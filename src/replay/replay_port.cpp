@@ -77,6 +77,7 @@ class ReplayPort final : public Port {
  public:
   ReplayPort(ReplayConfig config, RecordSourceFactory sources)
       : description_(describe(config)),
+        sources_(sources),
         engine_(std::move(config), std::move(sources), ReplayClock::now()) {
     int fds[2];
     if (sys::pipe(fds) != 0) {
@@ -129,6 +130,16 @@ class ReplayPort final : public Port {
   }
 
   void close() override { shut(/*may_throw=*/true); }
+
+  // One pass over the recording, stopping at its first rx.
+  bool recording_has_rx() const {
+    const std::unique_ptr<RecordSource> source = sources_();
+    Record record;
+    while (source->next(record)) {
+      if (record.kind == RecordKind::rx) return true;
+    }
+    return false;
+  }
 
   bool read_would_block_forever() {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -445,6 +456,9 @@ class ReplayPort final : public Port {
   }
 
   const std::string description_;
+  // The recording, for questions about all of it (the engine reads as the
+  // client goes).
+  const RecordSourceFactory sources_;
   mutable std::mutex mutex_;
   std::condition_variable changed_;
   ReplayEngine engine_;
@@ -475,6 +489,11 @@ std::unique_ptr<Port> open_replay_session(ReplayConfig config,
 bool replay_read_would_block_forever(Port& port) {
   auto* replay = dynamic_cast<ReplayPort*>(&port);
   return replay != nullptr && replay->read_would_block_forever();
+}
+
+bool replay_recording_has_rx(const Port& port) {
+  const auto* replay = dynamic_cast<const ReplayPort*>(&port);
+  return replay != nullptr && replay->recording_has_rx();
 }
 
 std::unique_ptr<Port> open_replay(Options& options) {

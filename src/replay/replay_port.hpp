@@ -22,4 +22,9 @@ std::unique_ptr<Port> open_replay_session(ReplayConfig config,
 // would otherwise wait forever. False for every other port.
 bool replay_read_would_block_forever(Port& port);
 
+// True when `port` is a replay whose recording holds any rx (data the
+// device sent): a client served none of it was not given the device. False
+// for every other port.
+bool replay_recording_has_rx(const Port& port);
+
 }  // namespace wiretape::detail
