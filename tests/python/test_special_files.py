@@ -104,6 +104,7 @@ READING = {
     "stats": ["stats", "{f}"],
     "verify": ["verify", "{f}"],
     "convert-jsonl": ["convert", "{f}", "{tmp}/out.jsonl", "-q"],
+    "convert-wiretape": ["convert", "{f}", "{tmp}/out.wtape", "-q"],
     "convert-pcapng": ["convert", "{f}", "{tmp}/out.pcapng", "-q"],
     "convert-flexiport": ["convert", "{f}", "{tmp}/out.log", "-q"],
     "diff-a": ["diff", "{f}", "{good}"],
@@ -113,7 +114,7 @@ READING = {
 
 def _outputs(tmp_path):
     return {name: (tmp_path / name).read_bytes()
-            for name in ("out.jsonl", "out.logr", "out.logw") if (tmp_path / name).exists()}
+            for name in ("out.jsonl", "out.logr", "out.logw", "out.wtape") if (tmp_path / name).exists()}
 
 
 @pytest.mark.parametrize("command_name", sorted(READING))
@@ -399,3 +400,24 @@ def test_export_flexiport_reads_a_fifo_and_writes_through_links(good, tmp_path):
         writer.join(DEADLINE_S)
     reads = [r for r in wiretape.SessionReader(tmp_path / "out.log") if r.kind in ("rx", "tx")]
     assert [(r.kind, r.data) for r in reads] == [("tx", b"PING\n"), ("rx", b"PONG\n")]
+
+
+def test_a_flexiport_export_waiting_for_its_fifo_reader_ends_with_a_signal(good, tmp_path):
+    fifo = tmp_path / "out.logr"
+    os.mkfifo(fifo)
+    child = subprocess.Popen(command("convert", good, tmp_path / "out.log", "-q"),
+                             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, preexec_fn=_default_sigint)
+    try:
+        # The C++ export opens its source, then waits for the FIFO's reader.
+        wait_until(lambda: _has_open(child.pid, good) or child.poll() is not None,
+                   what="the export to open its source")
+        assert child.poll() is None, child.communicate()
+        child.send_signal(signal.SIGINT)
+        _, err = child.communicate(timeout=DEADLINE_S)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+    assert child.returncode == 0, err
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
