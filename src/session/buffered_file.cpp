@@ -110,7 +110,7 @@ bool BufferedFile::read(void* out, std::size_t size) {
 }
 
 bool BufferedFile::read_stream(char* out, std::size_t size) {
-  if (size > buffer_size) {  // only read_into() asks for more; it grows a string
+  if (size > buffer_size) {  // through a string that grows only as bytes arrive
     std::string bytes;
     if (!read_into(bytes, size)) return false;
     std::memcpy(out, bytes.data(), size);
