@@ -7,6 +7,7 @@ Commands run in child processes; nothing waits with a blind sleep: a FIFO's
 other end is a thread, and a command blocked on a FIFO is recognised by the
 FIFO among its open descriptors (/proc/PID/fd)."""
 
+import contextlib
 import os
 import signal
 import stat
@@ -50,18 +51,24 @@ def run_cli(*argv, stdin=subprocess.DEVNULL, input=None):
     return result.returncode, result.stdout, result.stderr.decode("utf-8", "replace")
 
 
-class FifoWriter(threading.Thread):
-    """Writes `data` into the FIFO `path` once a reader opens it."""
+@contextlib.contextmanager
+def fifo_written(path, data):
+    """A thread writes `data` into the FIFO `path`, a few bytes at a time,
+    once a reader opens it; it is released and joined at the end."""
 
-    def __init__(self, path, data):
-        super().__init__(daemon=True)
-        self.path, self.data = path, data
-
-    def run(self):
-        with open(self.path, "wb") as fifo:
-            for start in range(0, len(self.data), 7):  # a few bytes at a time
-                fifo.write(self.data[start:start + 7])
+    def write():
+        with open(path, "wb") as fifo:
+            for start in range(0, len(data), 7):
+                fifo.write(data[start:start + 7])
                 fifo.flush()
+
+    writer = threading.Thread(target=write, daemon=True)
+    writer.start()
+    try:
+        yield
+    finally:
+        release(path)
+        writer.join(DEADLINE_S)
 
 
 class FifoReader(threading.Thread):
@@ -113,8 +120,8 @@ READING = {
 
 
 def _outputs(tmp_path):
-    return {name: (tmp_path / name).read_bytes()
-            for name in ("out.jsonl", "out.logr", "out.logw", "out.wtape") if (tmp_path / name).exists()}
+    names = ("out.jsonl", "out.logr", "out.logw", "out.wtape")
+    return {name: (tmp_path / name).read_bytes() for name in names if (tmp_path / name).exists()}
 
 
 @pytest.mark.parametrize("command_name", sorted(READING))
@@ -125,13 +132,8 @@ def test_a_fifo_input_is_read_as_a_stream(good, tmp_path, command_name):
     assert expected[0] == 0, expected
     fifo = tmp_path / "fifo"  # no suffix: read as .wtape, not sniffed
     os.mkfifo(fifo)
-    writer = FifoWriter(fifo, good.read_bytes())
-    writer.start()
-    try:
+    with fifo_written(fifo, good.read_bytes()):
         got = run_cli(*[_as_arg(a, f=fifo, good=good, tmp=tmp_path) for a in argv])
-    finally:
-        release(fifo)
-        writer.join(DEADLINE_S)
     assert got[0] == 0, got
     assert got[1].replace(str(fifo).encode(), str(good).encode()) == expected[1]
     assert _outputs(tmp_path) == expected_files
@@ -153,13 +155,8 @@ def test_a_jsonl_fifo_is_read_as_a_stream(good, tmp_path):
     assert run_cli("convert", good, source, "-q")[0] == 0
     fifo = tmp_path / "fifo.jsonl"
     os.mkfifo(fifo)
-    writer = FifoWriter(fifo, source.read_bytes())
-    writer.start()
-    try:
+    with fifo_written(fifo, source.read_bytes()):
         code, _, err = run_cli("convert", fifo, tmp_path / "out.wtape", "-q")
-    finally:
-        release(fifo)
-        writer.join(DEADLINE_S)
     assert code == 0, err
     assert [(r.kind, r.t_ns, r.data) for r in wiretape.SessionReader(tmp_path / "out.wtape")] \
         == [(kind, t_ns, data) for kind, t_ns, data in SESSION]
@@ -182,16 +179,11 @@ def test_a_hostile_length_on_a_stream_is_damage_not_an_allocation(good):
 def test_a_stream_is_read_once(good, tmp_path):
     fifo = tmp_path / "fifo.wtape"
     os.mkfifo(fifo)
-    writer = FifoWriter(fifo, good.read_bytes())
-    writer.start()
-    try:
+    with fifo_written(fifo, good.read_bytes()):
         with wiretape.SessionReader(fifo) as reader:
             assert len(list(reader)) == len(SESSION)
             with pytest.raises(wiretape.PortError, match="cannot be read again"):
                 reader.rewind()
-    finally:
-        release(fifo)
-        writer.join(DEADLINE_S)
 
 
 def test_devices_and_directories_stay_refused(capsys, tmp_path):
@@ -241,17 +233,14 @@ def _waits_for_partner(pid, opened_first):
     return where == "wait_for_partner"
 
 
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
-@pytest.mark.parametrize("command_name", sorted(WAITING))
-def test_waiting_for_a_writer_ends_with_a_signal(good, tmp_path, command_name, signum):
-    fifo = tmp_path / "fifo"
-    os.mkfifo(fifo)
-    argv = [_as_arg(a, f=fifo, good=good, tmp=tmp_path) for a in WAITING[command_name]]
+def interrupted_while_blocked(argv, blocked, signum=signal.SIGINT):
+    """Starts the command, waits until `blocked(pid)` says it is waiting,
+    sends `signum`; (exit code, stderr) once it has ended."""
     child = subprocess.Popen(command(*argv), stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                              stderr=subprocess.PIPE, preexec_fn=_default_sigint)
     try:
-        wait_until(lambda: _has_open(child.pid, fifo) or child.poll() is not None,
-                   what="the command to open the FIFO")
+        wait_until(lambda: blocked(child.pid) or child.poll() is not None,
+                   what=f"{argv[0]} to block")
         assert child.poll() is None, child.communicate()
         child.send_signal(signum)
         _, err = child.communicate(timeout=DEADLINE_S)
@@ -259,7 +248,17 @@ def test_waiting_for_a_writer_ends_with_a_signal(good, tmp_path, command_name, s
         if child.poll() is None:
             child.kill()
             child.wait()
-    assert child.returncode == 0, err  # the CLI's clean end of an interruption
+    return child.returncode, err
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
+@pytest.mark.parametrize("command_name", sorted(WAITING))
+def test_waiting_for_a_writer_ends_with_a_signal(good, tmp_path, command_name, signum):
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    argv = [_as_arg(a, f=fifo, good=good, tmp=tmp_path) for a in WAITING[command_name]]
+    code, err = interrupted_while_blocked(argv, lambda pid: _has_open(pid, fifo), signum)
+    assert code == 0, err  # the CLI's clean end of an interruption
     assert b"Traceback" not in err
     assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
 
@@ -361,21 +360,10 @@ def test_an_export_writes_through_a_terminal(good, tmp_path, fmt):
 def test_an_export_to_a_fifo_waiting_for_its_reader_ends_with_a_signal(good, tmp_path):
     fifo = tmp_path / "out.pcapng"
     os.mkfifo(fifo)
-    child = subprocess.Popen(command("convert", good, fifo, "-q"), stdin=subprocess.DEVNULL,
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                             preexec_fn=_default_sigint)
-    try:
-        # Blocked in open(), waiting for the FIFO's reader.
-        wait_until(lambda: _waits_for_partner(child.pid, good) or child.poll() is not None,
-                   what="the command to wait for the FIFO's reader")
-        assert child.poll() is None, child.communicate()
-        child.send_signal(signal.SIGINT)
-        _, err = child.communicate(timeout=DEADLINE_S)
-    finally:
-        if child.poll() is None:
-            child.kill()
-            child.wait()
-    assert child.returncode == 0, err
+    # Blocked in open(), waiting for the FIFO's reader.
+    code, err = interrupted_while_blocked(["convert", good, fifo, "-q"],
+                                          lambda pid: _waits_for_partner(pid, good))
+    assert code == 0, err
     assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
 
 
@@ -391,13 +379,8 @@ def test_the_same_fifo_as_input_and_output_is_refused(tmp_path):
 def test_export_flexiport_reads_a_fifo_and_writes_through_links(good, tmp_path):
     fifo = tmp_path / "fifo"
     os.mkfifo(fifo)
-    writer = FifoWriter(fifo, good.read_bytes())
-    writer.start()
-    try:
+    with fifo_written(fifo, good.read_bytes()):
         _core.export_flexiport(str(fifo), str(tmp_path / "out.log"))
-    finally:
-        release(fifo)
-        writer.join(DEADLINE_S)
     reads = [r for r in wiretape.SessionReader(tmp_path / "out.log") if r.kind in ("rx", "tx")]
     assert [(r.kind, r.data) for r in reads] == [("tx", b"PING\n"), ("rx", b"PONG\n")]
 
@@ -405,19 +388,8 @@ def test_export_flexiport_reads_a_fifo_and_writes_through_links(good, tmp_path):
 def test_a_flexiport_export_waiting_for_its_fifo_reader_ends_with_a_signal(good, tmp_path):
     fifo = tmp_path / "out.logr"
     os.mkfifo(fifo)
-    child = subprocess.Popen(command("convert", good, tmp_path / "out.log", "-q"),
-                             stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                             stderr=subprocess.PIPE, preexec_fn=_default_sigint)
-    try:
-        # The C++ export opens its source, then waits for the FIFO's reader.
-        wait_until(lambda: _has_open(child.pid, good) or child.poll() is not None,
-                   what="the export to open its source")
-        assert child.poll() is None, child.communicate()
-        child.send_signal(signal.SIGINT)
-        _, err = child.communicate(timeout=DEADLINE_S)
-    finally:
-        if child.poll() is None:
-            child.kill()
-            child.wait()
-    assert child.returncode == 0, err
+    # The C++ export opens its source, then waits for the FIFO's reader.
+    code, err = interrupted_while_blocked(["convert", good, tmp_path / "out.log", "-q"],
+                                          lambda pid: _has_open(pid, good))
+    assert code == 0, err
     assert stat.S_ISFIFO(os.lstat(fifo).st_mode)

@@ -102,26 +102,30 @@ def _never_an_output(path: str, mode: int) -> None:
         raise FileRefused(not_regular_file_problem(path, mode))
 
 
+def _mode_of(path: str, follow_links: bool) -> Optional[int]:
+    """What is at `path` (st_mode), or None when nothing is."""
+    try:
+        return (os.stat if follow_links else os.lstat)(path).st_mode
+    except FileNotFoundError:
+        return None
+
+
 def check_output(path) -> None:
     """Refuses an output path that cannot be written through, following
     symbolic links: a directory, a socket. A FIFO or a device is fine:
     open_output() writes through it."""
     path = os.fspath(path)
-    try:
-        mode = os.stat(path).st_mode
-    except FileNotFoundError:
-        return
-    _never_an_output(path, mode)
+    mode = _mode_of(path, follow_links=True)
+    if mode is not None:
+        _never_an_output(path, mode)
 
 
 def is_written_through(path) -> bool:
     """Whether an output at `path` is written in place because it is not a
     regular file (a FIFO, a device; through a symbolic link too), rather
     than replaced by renaming a finished file over it."""
-    try:
-        return not stat.S_ISREG(os.stat(path).st_mode)
-    except FileNotFoundError:
-        return False
+    mode = _mode_of(os.fspath(path), follow_links=True)
+    return mode is not None and not stat.S_ISREG(mode)
 
 
 def open_output(path, text: bool = False) -> IO:
@@ -148,11 +152,9 @@ def check_regular_output(path) -> None:
     """Refuses an output path that exists and is not a regular file, a
     symbolic link included: for a file that is renamed over another."""
     path = os.fspath(path)
-    try:
-        mode = os.lstat(path).st_mode
-    except FileNotFoundError:
-        return
-    _refuse_unless_regular(path, mode)
+    mode = _mode_of(path, follow_links=False)
+    if mode is not None:
+        _refuse_unless_regular(path, mode)
 
 
 def open_regular_output(path, text: bool = False) -> IO:
