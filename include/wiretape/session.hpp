@@ -148,8 +148,11 @@ class SessionWriter {
 // Events are not representable there and are dropped; times are truncated to
 // microseconds. Throws SessionError if the source is not a session (or is
 // damaged: what was written up to the damage stays), PortError when a file
-// cannot be opened or written; the outputs are written as SessionWriter's.
-void export_flexiport(const std::string& session_path, const std::string& prefix);
+// cannot be opened or written. The source may be a pipe or FIFO (read once,
+// as SessionReader reads it); an output that is a FIFO or a device is written
+// through (a symbolic link is followed), a directory is refused. Returns the
+// number of records written (rx and tx).
+std::uint64_t export_flexiport(const std::string& session_path, const std::string& prefix);
 
 // The CRC32C (Castagnoli) of `data`, continuing from `crc` (0 to start): the
 // checksum of every header and record of a .wtape file.

@@ -315,7 +315,7 @@ class SessionHeader:
 
 class SessionReader:
     """
-    Reads a .wtape file or a flexiport log (name.log) record by record, with memory independent of its size. Iterating yields Record objects; at a damaged record iteration ends and .damage says where.
+    Reads a .wtape file or a flexiport log (name.log) record by record, with memory independent of its size; a pipe or FIFO is read once, as a stream, waiting for its writer (Ctrl-C ends the wait). Iterating yields Record objects; at a damaged record iteration ends and .damage says where.
     """
 
     def __init__(self, path: object) -> None: ...
@@ -367,9 +367,9 @@ class SessionWriter:
 
     def __exit__(self, *args) -> None: ...
 
-def export_flexiport(source: object, prefix: object) -> None:
+def export_flexiport(source: object, prefix: object) -> int:
     """
-    Writes a session (.wtape or flexiport) as flexiport's new-format logs PREFIX + 'r' (reads) and PREFIX + 'w' (writes); events are dropped.
+    Writes a session (.wtape or flexiport) as flexiport's new-format logs PREFIX + 'r' (reads) and PREFIX + 'w' (writes); events are dropped. A FIFO or a device there (through a symbolic link too) is written through. Returns the number of records written.
     """
 
 def crc32c(data: bytes, crc: int = 0) -> int:

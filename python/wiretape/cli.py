@@ -351,8 +351,7 @@ def cmd_serve(args, out: _Output) -> int:
 
 
 def cmd_show(args, out: _Output) -> int:
-    from .tools.show import show
-    from .tools.verify import verify
+    from .tools.show import show_reporting_damage
 
     _require_input(args.file)
     profile = args.profile or args.decode
@@ -362,14 +361,12 @@ def cmd_show(args, out: _Output) -> int:
         option = "--profile" if args.profile else "--decode"
         raise UsageError(f"{option} works with --format text only")
     try:
-        show(args.file, fmt=args.format, profile=profile)
+        _, damage = show_reporting_damage(args.file, fmt=args.format, profile=profile)
     except BrokenPipeError:  # `wiretape show big.wtape | head`
         _silence_stdout()
         return EXIT_OK
     # show reports damage itself and shows everything before it.
-    if verify(args.file).ok:
-        return EXIT_OK
-    return EXIT_CHECK_FAILED
+    return EXIT_OK if damage is None else EXIT_CHECK_FAILED
 
 
 def _silence_stdout() -> None:

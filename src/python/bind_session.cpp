@@ -11,6 +11,7 @@
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
 
+#include "posix/file_checks.hpp"
 #include "python/bindings.hpp"
 #include "session/flexiport.hpp"
 #include "session/format.hpp"
@@ -26,6 +27,14 @@ using namespace nb::literals;
 namespace wiretape::python {
 
 namespace {
+
+// A session read from a FIFO waits for its writer without the GIL, where
+// Python's signal handlers only set a flag: the wait runs them (Ctrl-C, and
+// SIGTERM as the CLI maps it), and their exception ends it.
+void run_python_signal_handlers() {
+  nb::gil_scoped_acquire acquire;
+  check_signals();
+}
 
 // str, bytes or os.PathLike, as open() takes.
 std::string path_from_python(nb::handle value) {
@@ -157,6 +166,7 @@ void bind_format_constants(nb::module_& m) {
 }  // namespace
 
 void bind_session(nb::module_& m) {
+  detail::set_interruption_check(&run_python_signal_handlers);
   bind_format_constants(m);
   m.attr("RECORD_KINDS") = record_kinds_tuple();
   m.def(
@@ -250,7 +260,8 @@ void bind_session(nb::module_& m) {
 
   nb::class_<PyReader>(m, "SessionReader",
                        "Reads a .wtape file or a flexiport log (name.log) record by record, "
-                       "with memory independent of its size. Iterating yields Record objects; "
+                       "with memory independent of its size; a pipe or FIFO is read once, as "
+                       "a stream, waiting for its writer (Ctrl-C ends the wait). Iterating yields Record objects; "
                        "at a damaged record iteration ends and .damage says where.")
       .def(
           "__init__",
@@ -357,11 +368,13 @@ void bind_session(nb::module_& m) {
         const std::string s = path_from_python(source);
         const std::string p = path_from_python(prefix);
         nb::gil_scoped_release release;
-        export_flexiport(s, p);
+        return export_flexiport(s, p);
       },
       "source"_a, "prefix"_a,
       "Writes a session (.wtape or flexiport) as flexiport's new-format logs "
-      "PREFIX + 'r' (reads) and PREFIX + 'w' (writes); events are dropped.");
+      "PREFIX + 'r' (reads) and PREFIX + 'w' (writes); events are dropped. A FIFO or a "
+      "device there (through a symbolic link too) is written through. Returns the "
+      "number of records written.");
 
   m.def(
       "crc32c",

@@ -499,10 +499,13 @@ bool replay_recording_has_rx(const Port& port) {
 std::unique_ptr<Port> open_replay(Options& options) {
   ReplayConfig config = take_replay_config(options);
   // The file is opened here once, so that a missing or unreadable session
-  // fails at open with the reason.
+  // fails at open with the reason. Not as a SessionReader, which would wait
+  // on a FIFO: a replay reads its session again and again, so a FIFO is
+  // refused at once.
   {
-    SessionReader reader(config.file);
-    config.datagrams = reader.header().port_type == "udp";
+    SessionHeader header;
+    open_session_source(config.file, header);
+    config.datagrams = header.port_type == "udp";
   }
   RecordSourceFactory sources = session_source_factory(config.file);
   return open_replay_session(std::move(config), std::move(sources));

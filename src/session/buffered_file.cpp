@@ -18,17 +18,22 @@ namespace {
 constexpr std::size_t buffer_size = 128 * 1024;
 }  // namespace
 
-BufferedFile::BufferedFile(const std::string& path)
-    : file_(path), buffer_(new char[buffer_size]) {
+BufferedFile::BufferedFile(const std::string& path, Streams streams)
+    : file_(path, streams), buffer_(new char[buffer_size]) {
   refresh_size();
 }
 
 void BufferedFile::refresh_size() {
+  if (is_stream()) return;
   struct stat info {};
   if (sys::fstat(file_.fd(), &info) == 0) size_ = static_cast<std::uint64_t>(info.st_size);
 }
 
 std::uint64_t BufferedFile::remaining() {
+  if (is_stream()) {
+    if (end_ == begin_) fill();
+    return end_ - begin_;
+  }
   // At the known end, look again: the file may still be being written.
   if (position_ >= size_) refresh_size();
   return size_ > position_ ? size_ - position_ : 0;
@@ -59,13 +64,7 @@ std::size_t BufferedFile::fill() {
     end_ -= begin_;
     begin_ = 0;
   }
-  while (end_ < buffer_size) {
-    const ssize_t n = sys::read(file_.fd(), buffer_.get() + end_, buffer_size - end_);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) break;
-    end_ += static_cast<std::size_t>(n);
-    break;
-  }
+  if (end_ < buffer_size) end_ += file_.read_some(buffer_.get() + end_, buffer_size - end_);
   return end_ - begin_;
 }
 
@@ -77,6 +76,7 @@ bool BufferedFile::read(void* out, std::size_t size) {
     position_ += size;
     return true;
   }
+  if (is_stream()) return read_stream(dst, size);
   if (remaining() < size) refresh_size();
   if (remaining() < size) return false;
   // Large reads go straight to the destination.
@@ -85,13 +85,12 @@ bool BufferedFile::read(void* out, std::size_t size) {
   begin_ = end_ = 0;
   if (size - done >= buffer_size) {
     while (done < size) {
-      const ssize_t n = sys::read(file_.fd(), dst + done, size - done);
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) {
+      const std::size_t n = file_.read_some(dst + done, size - done);
+      if (n == 0) {
         seek(position_);
         return false;
       }
-      done += static_cast<std::size_t>(n);
+      done += n;
     }
     position_ += size;
     return true;
@@ -110,12 +109,46 @@ bool BufferedFile::read(void* out, std::size_t size) {
   return true;
 }
 
+bool BufferedFile::read_stream(char* out, std::size_t size) {
+  if (size > buffer_size) {  // through a string that grows only as bytes arrive
+    std::string bytes;
+    if (!read_into(bytes, size)) return false;
+    std::memcpy(out, bytes.data(), size);
+    return true;
+  }
+  // Nothing consumed until all of it is there.
+  while (end_ - begin_ < size) {
+    const std::size_t before = end_ - begin_;
+    if (fill() == before) return false;
+  }
+  std::memcpy(out, buffer_.get() + begin_, size);
+  begin_ += size;
+  position_ += size;
+  return true;
+}
+
 bool BufferedFile::read_into(std::string& out, std::size_t size) {
   if (end_ - begin_ >= size) {
     // One copy, without the zero-fill a resize() would do first.
     out.assign(buffer_.get() + begin_, size);
     begin_ += size;
     position_ += size;
+    return true;
+  }
+  if (is_stream()) {
+    // The length came from the stream itself: never allocate more than
+    // twice what has arrived, whatever it claims.
+    out.clear();
+    while (out.size() < size) {
+      if (begin_ == end_ && fill() == 0) return false;
+      const std::size_t take = std::min(size - out.size(), end_ - begin_);
+      if (out.capacity() < out.size() + take) {
+        out.reserve(std::min(size, std::max(2 * out.capacity(), out.size() + take)));
+      }
+      out.append(buffer_.get() + begin_, take);
+      begin_ += take;
+      position_ += take;
+    }
     return true;
   }
   out.resize(size);
@@ -125,7 +158,7 @@ bool BufferedFile::read_into(std::string& out, std::size_t size) {
 std::size_t BufferedFile::max_view_size() { return buffer_size / 2; }
 
 bool BufferedFile::read_view(std::size_t size, PayloadView& out) {
-  if (size > max_view_size()) return false;
+  if (size > max_view_size() || is_stream()) return false;
   if (end_ - begin_ < size) {
     if (remaining() < size) refresh_size();
     if (remaining() < size) return false;
@@ -150,6 +183,17 @@ bool BufferedFile::skip(std::uint64_t size) {
     position_ += size;
     return true;
   }
+  if (is_stream()) {
+    while (size > 0) {
+      if (begin_ == end_ && fill() == 0) return false;
+      const std::size_t take =
+          static_cast<std::size_t>(std::min<std::uint64_t>(size, end_ - begin_));
+      begin_ += take;
+      position_ += take;
+      size -= take;
+    }
+    return true;
+  }
   if (remaining() < size) refresh_size();
   if (remaining() < size) return false;
   seek(position_ + size);
@@ -157,6 +201,7 @@ bool BufferedFile::skip(std::uint64_t size) {
 }
 
 void BufferedFile::seek(std::uint64_t position) {
+  if (is_stream()) throw PortError(ESPIPE, path() + ": a pipe or FIFO cannot be read again");
   sys::lseek(file_.fd(), static_cast<off_t>(position), SEEK_SET);
   position_ = position;
   begin_ = end_ = 0;

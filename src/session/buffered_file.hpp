@@ -14,38 +14,46 @@
 namespace wiretape::detail {
 
 // Sequential reads from a file through a fixed buffer; memory independent of
-// the file's size. Knows how many bytes the file still holds, so that length
-// fields can be checked before anything is allocated.
+// the file's size. Knows how many bytes a regular file still holds, so that
+// length fields can be checked before anything is allocated. A stream (a
+// pipe or FIFO, with Streams::read) has no size: reads wait for its bytes,
+// and read_into() grows its string only as they arrive.
 class BufferedFile {
  public:
   // Throws PortError naming `path` if it cannot be opened or is not a
-  // regular file (InputFile).
-  explicit BufferedFile(const std::string& path);
+  // regular file (nor, with Streams::read, a pipe or FIFO): InputFile.
+  explicit BufferedFile(const std::string& path, Streams streams = Streams::refused);
   BufferedFile(const BufferedFile&) = delete;
   BufferedFile& operator=(const BufferedFile&) = delete;
 
   // Reads exactly `size` bytes; false (nothing consumed) if the file holds
   // fewer.
   bool read(void* out, std::size_t size);
-  // Reads `size` bytes into `out`; the caller has checked remaining().
+  // Reads `size` bytes into `out`; the caller has checked remaining(). On a
+  // stream, which cannot be checked first, `out` grows as bytes arrive, and
+  // on false holds the bytes that did.
   bool read_into(std::string& out, std::size_t size);
   // Reads `size` bytes (at most max_view_size()) as a view into the buffer,
   // which is then never overwritten while the view lives; false (nothing
-  // consumed) if the file holds fewer.
+  // consumed) if the file holds fewer, or is a stream.
   bool read_view(std::size_t size, PayloadView& out);
   static std::size_t max_view_size();
   bool skip(std::uint64_t size);
   std::uint64_t position() const { return position_; }
   // Bytes after position(); re-reads the file's size so a file still being
-  // written is followed.
+  // written is followed. On a stream: the bytes already arrived, waiting for
+  // some if none have, so 0 means the end.
   std::uint64_t remaining();
   std::uint64_t size() const { return size_; }
+  // Throws PortError on a stream, which cannot go back.
   void seek(std::uint64_t position);
+  bool is_stream() const { return file_.is_stream(); }
   const std::string& path() const { return file_.path(); }
 
  private:
   std::size_t fill();
   void refresh_size();
+  bool read_stream(char* out, std::size_t size);
 
   InputFile file_;
   std::shared_ptr<char[]> buffer_;  // shared with the views handed out

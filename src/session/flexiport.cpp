@@ -292,10 +292,12 @@ std::unique_ptr<RecordSource> open_flexiport(const std::string& prefix,
 namespace {
 
 // A file written through a buffer; every failure is a PortError naming it.
+// An export: a FIFO or device at the path is written through (DESIGN §6).
 class OutputFile {
  public:
   explicit OutputFile(std::string path)
-      : path_(std::move(path)), fd_(detail::open_output_file(path_)) {}
+      : path_(std::move(path)),
+        fd_(detail::open_output_file(path_, detail::SpecialOutputs::written_through)) {}
   void write(const void* data, std::size_t size) {
     buffer_.append(static_cast<const char*>(data), size);
     if (buffer_.size() >= flush_size) flush();
@@ -315,7 +317,10 @@ class OutputFile {
     while (done < buffer_.size()) {
       const ssize_t n =
           detail::sys::write(fd_.get(), buffer_.data() + done, buffer_.size() - done);
-      if (n < 0 && errno == EINTR) continue;
+      if (n < 0 && errno == EINTR) {
+        detail::check_interruption();  // a FIFO's reader may keep it waiting
+        continue;
+      }
       if (n <= 0) throw PortError(n < 0 ? errno : ENOSPC, path_ + ": write failed");
       done += static_cast<std::size_t>(n);
     }
@@ -329,12 +334,15 @@ class OutputFile {
 
 }  // namespace
 
-void export_flexiport(const std::string& session_path, const std::string& prefix) {
+std::uint64_t export_flexiport(const std::string& session_path, const std::string& prefix) {
   SessionReader reader(session_path);
   // Both refused or both written: a refused .logw must not cost the .logr.
-  for (const char* suffix : {"r", "w"}) detail::check_output_file(prefix + suffix);
+  for (const char* suffix : {"r", "w"}) {
+    detail::check_output_file(prefix + suffix, detail::SpecialOutputs::written_through);
+  }
   OutputFile reads(prefix + "r");
   OutputFile writes(prefix + "w");
+  std::uint64_t written = 0;
   Record record;
   while (reader.next(record)) {
     if (record.kind != RecordKind::rx && record.kind != RecordKind::tx) continue;
@@ -352,10 +360,12 @@ void export_flexiport(const std::string& session_path, const std::string& prefix
     OutputFile& out = record.kind == RecordKind::rx ? reads : writes;
     out.write(header, sizeof header);
     out.write(record.data.data(), record.data.size());
+    ++written;
   }
   reads.close();
   writes.close();
   if (reader.damage()) throw *reader.damage();
+  return written;
 }
 
 }  // namespace wiretape

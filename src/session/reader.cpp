@@ -54,7 +54,8 @@ std::string hex32(std::uint32_t value) {
 
 class WtapeSource final : public RecordSource {
  public:
-  WtapeSource(const std::string& path, SessionHeader& header) : file_(path) {
+  WtapeSource(const std::string& path, SessionHeader& header, Streams streams)
+      : file_(path, streams) {
     read_header(header);
     first_record_ = file_.position();
   }
@@ -82,24 +83,28 @@ class WtapeSource final : public RecordSource {
       if (damage_) return false;
       const std::uint64_t offset = file_.position();
       char head[record_header_size];
-      const std::uint64_t left = file_.remaining();
-      if (left == 0) return false;
+      if (file_.remaining() == 0) return false;
       if (!file_.read(head, sizeof head)) {
+        // What is left now: a stream's bytes are known only once they came.
         return stop(offset, "truncated record at byte " + std::to_string(offset) +
                                 ": a record header needs 16 bytes, the file ends " +
-                                std::to_string(left) + " bytes later");
+                                std::to_string(file_.remaining()) + " bytes later");
       }
       const std::uint32_t length = get_u32le(head);
-      if (static_cast<std::uint64_t>(length) + crc_size > file_.remaining()) {
+      const auto claims_too_much = [&](std::uint64_t held) {
         return stop(offset, "record at byte " + std::to_string(offset) +
                                 " claims a payload of " + std::to_string(length) +
-                                " bytes, but the file holds only " +
-                                std::to_string(file_.remaining()) +
+                                " bytes, but the file holds only " + std::to_string(held) +
                                 " more bytes (truncated, or a corrupt length)");
+      };
+      // A stream's length is checked as its bytes arrive (read_into).
+      if (!file_.is_stream() &&
+          static_cast<std::uint64_t>(length) + crc_size > file_.remaining()) {
+        return claims_too_much(file_.remaining());
       }
       std::uint32_t crc = crc32c(head, sizeof head);
       const char* payload = nullptr;
-      if (view && length >= min_view_payload &&
+      if (view && !file_.is_stream() && length >= min_view_payload &&
           length <= BufferedFile::max_view_size()) {
         if (!file_.read_view(length, *view)) {
           return stop(offset, "truncated record at byte " + std::to_string(offset));
@@ -108,6 +113,7 @@ class WtapeSource final : public RecordSource {
         payload = view->bytes.data();
       } else {
         if (!file_.read_into(record.data, length)) {
+          if (file_.is_stream()) return claims_too_much(record.data.size());
           return stop(offset, "truncated record at byte " + std::to_string(offset));
         }
         payload = record.data.data();
@@ -159,8 +165,9 @@ class WtapeSource final : public RecordSource {
     if (size == 0) fail(0, "empty file (0 bytes): not a wiretape session");
     char fixed[file_header_fixed_size];
     const bool complete = file_.read(fixed, sizeof fixed);
+    // Counted after the read: a stream's bytes are known once they came.
     const std::size_t have =
-        complete ? sizeof fixed : static_cast<std::size_t>(size);
+        complete ? sizeof fixed : static_cast<std::size_t>(file_.remaining());
     if (!complete) file_.read(fixed, have);
     const std::size_t magic_bytes = std::min(have, sizeof session_magic);
     if (std::memcmp(fixed, session_magic, magic_bytes) != 0) {
@@ -182,8 +189,11 @@ class WtapeSource final : public RecordSource {
     }
     if (header.version_major == 0) fail(8, "invalid format version 0");
     const std::uint32_t json_length = get_u32le(fixed + 12);
+    // A stream's length is checked as its bytes arrive (read_into), within
+    // max_header_json.
     if (json_length > max_header_json ||
-        static_cast<std::uint64_t>(json_length) + crc_size > file_.remaining()) {
+        (!file_.is_stream() &&
+         static_cast<std::uint64_t>(json_length) + crc_size > file_.remaining())) {
       fail(12, "truncated or corrupt header: its metadata claims " +
                    std::to_string(json_length) + " bytes, the file holds " +
                    std::to_string(file_.remaining()) + " after byte 16");
@@ -212,8 +222,10 @@ class WtapeSource final : public RecordSource {
 };
 
 // False also when `path` cannot be opened: opening it as a .wtape file then
-// reports why.
-bool starts_with_magic(const std::string& path) {
+// reports why. A stream is not looked into (what is read from it is gone, and
+// closing it could cost its writer its reader): it is read as a .wtape file.
+bool starts_with_magic(const std::string& path, Streams streams) {
+  if (streams == Streams::read && is_stream(path)) return true;
   try {
     const InputFile file(path);
     char head[sizeof session_magic] = {};
@@ -231,11 +243,11 @@ bool starts_with_magic(const std::string& path) {
 }  // namespace
 
 std::unique_ptr<RecordSource> open_session_source(const std::string& path,
-                                                  SessionHeader& header) {
-  if (!starts_with_magic(path)) {
+                                                  SessionHeader& header, Streams streams) {
+  if (!starts_with_magic(path, streams)) {
     if (auto prefix = flexiport_prefix(path)) return open_flexiport(*prefix, header);
   }
-  return std::make_unique<WtapeSource>(path, header);
+  return std::make_unique<WtapeSource>(path, header, streams);
 }
 
 }  // namespace detail
@@ -248,7 +260,8 @@ struct SessionReader::Impl {
 
 SessionReader::SessionReader(const std::string& path) : impl_(std::make_unique<Impl>()) {
   impl_->path = path;
-  impl_->source = detail::open_session_source(path, impl_->header);
+  // The commands that read sessions read pipes and FIFOs too (DESIGN §6).
+  impl_->source = detail::open_session_source(path, impl_->header, detail::Streams::read);
 }
 
 SessionReader::~SessionReader() = default;

@@ -9,6 +9,7 @@
 #include <string>
 #include <string_view>
 
+#include "posix/file_checks.hpp"
 #include "session/record_source.hpp"
 #include "wiretape/session.hpp"
 
@@ -16,10 +17,13 @@ namespace wiretape::detail {
 
 // The records of a .wtape file or a flexiport log pair ("name.log"), and its
 // header into `header`. Throws PortError when a file cannot be opened or is
-// not a regular file, SessionError when it is not a usable session; damage
-// later on ends the records and is reported by damage().
+// not a regular file (a pipe or FIFO is read as a stream with Streams::read;
+// flexiport logs are always regular files), SessionError when it is not a
+// usable session; damage later on ends the records and is reported by
+// damage().
 std::unique_ptr<RecordSource> open_session_source(const std::string& path,
-                                                  SessionHeader& header);
+                                                  SessionHeader& header,
+                                                  Streams streams = Streams::refused);
 
 // Why a record whose CRC is good still cannot be handed to the commands that
 // read it, or std::nullopt. What verify accepts, every consumer (Python's

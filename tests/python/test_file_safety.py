@@ -2,12 +2,15 @@
 
 * input and output the same file is refused, hard and symbolic links
   included, naming both paths (exit 3);
-* a FIFO or a device as a session is refused at once, never waited on
-  (exit 3, "X is a FIFO, not a regular file");
+* a device as a session is refused at once (exit 3, "X is a character
+  device, not a regular file"); so is a FIFO where a regular file is needed
+  (replay, a flexiport import, the session writer): never waited on. FIFOs
+  as inputs of the reading commands and outputs written through are
+  test_special_files.py's;
 * a damaged input is used up to the damage, then exit 1, in every command;
   a file that cannot be opened (permission denied) is exit 3;
-* outputs are written to regular files only: a FIFO, a symbolic link or a
-  device node at the output path is refused and left as it was.
+* the session writer writes regular files only: a FIFO, a symbolic link or
+  a device node at its path is refused and left as it was.
 
 Commands that might hang run in a subprocess with a generous deadline."""
 
@@ -176,7 +179,7 @@ def test_record_with_a_replay_device_onto_its_file_is_refused(good):
     assert snapshot(good) == before
 
 
-# --- 5 and 12: FIFOs and devices are not sessions ---------------------------------------
+# --- 5 and 12: FIFOs where regular files are needed, devices -------------------------------
 
 
 @pytest.fixture
@@ -188,22 +191,11 @@ def fifo(tmp_path):
 
 def _fifo_commands():
     inputs = [
-        ("show", ["show", "{fifo}"]),
-        ("stats", ["stats", "{fifo}"]),
-        ("verify", ["verify", "{fifo}"]),
-        ("convert-in", ["convert", "{fifo}", "{tmp}/out.jsonl"]),
-        ("convert-in-sniffed", ["convert", "{tmp}/fifo", "{tmp}/out.jsonl"]),
-        ("convert-in-jsonl", ["convert", "{tmp}/fifo.jsonl", "{tmp}/out.wtape"]),
-        ("diff-a", ["diff", "{fifo}", "{good}"]),
-        ("diff-b", ["diff", "{good}", "{fifo}"]),
         ("replay", ["replay", "{fifo}", "--listen", "127.0.0.1:0"]),
         ("flexiport-import", ["show", "{tmp}/pair.log"]),
     ]
     outputs = [
-        (f"convert-to-{fmt}", ["convert", "{good}", "{fifo}", "--to", fmt])
-        for fmt in ["wiretape", "jsonl", "pcapng", "mcap"]
-    ] + [
-        ("convert-to-flexiport", ["convert", "{good}", "{tmp}/pair.log"]),
+        ("convert-to-wiretape", ["convert", "{good}", "{fifo}", "--to", "wiretape"]),
         ("replay-o", ["replay", "{good}", "--listen", "127.0.0.1:0", "-o", "{fifo}"]),
         ("record-o", ["record", "--device", "type=loopback", "--listen", "127.0.0.1:0",
                       "-o", "{fifo}", "-q"]),
@@ -215,13 +207,9 @@ def _fifo_commands():
 
 @pytest.mark.parametrize("name,argv", _fifo_commands(), ids=[c[0] for c in _fifo_commands()])
 def test_a_fifo_is_refused_at_once_not_waited_on(good, fifo, tmp_path, name, argv):
-    os.mkfifo(tmp_path / "fifo")
-    os.mkfifo(tmp_path / "fifo.jsonl")
     if name == "flexiport-import":
         os.mkfifo(tmp_path / "pair.logr")
         (tmp_path / "pair.logw").write_bytes(b"")
-    if name == "convert-to-flexiport":
-        os.mkfifo(tmp_path / "pair.logr")
     values = {"fifo": fifo, "good": good, "tmp": tmp_path}
     code, err = run_cli(*[arg.format(**values) for arg in argv])
     assert code == 3, err
@@ -331,7 +319,7 @@ def test_an_export_of_a_damaged_session_keeps_what_came_before(capsys, good, tmp
     assert not (tmp_path / (out.name + ".partial")).exists()
 
 
-# --- 7: outputs are regular files ---------------------------------------------------------
+# --- 7: the session writer writes regular files ----------------------------------------------
 
 
 def _device_node(path):
@@ -363,13 +351,12 @@ def make_node(path, what, target):
 
 
 @pytest.mark.parametrize("what", ["fifo", "symlink", "device"])
-@pytest.mark.parametrize("fmt", OUTPUT_FORMATS)
-def test_convert_writes_regular_files_only(good, tmp_path, target, fmt, what):
-    path = tmp_path / ("out" + SUFFIX[fmt])
-    node = tmp_path / "out.logr" if fmt == "flexiport" else path
+def test_convert_to_a_session_writes_regular_files_only(good, tmp_path, target, what):
+    # Exports write through instead: test_special_files.py.
+    path = node = tmp_path / "out.wtape"
     make_node(node, what, target)
     before = snapshot(node)
-    code, err = run_cli("convert", good, path, "--to", fmt)
+    code, err = run_cli("convert", good, path, "--to", "wiretape")
     assert code == 3, err
     line = error_line(err)
     assert f"{node} is a " in line and "not a regular file" in line
@@ -397,13 +384,16 @@ def test_an_existing_regular_output_is_replaced(capsys, good, tmp_path):
         assert out.stat().st_size < 100_000
 
 
-def test_dev_null_is_not_an_output():
-    # Checks only: nothing is written to /dev/null or renamed over it.
+def test_dev_null_is_written_through_never_replaced(tmp_path):
+    _files.check_output("/dev/null")
+    assert _files.is_written_through("/dev/null")
+    with _files.open_output("/dev/null") as out:
+        out.write(b"discarded")
     with pytest.raises(_files.FileRefused, match="/dev/null is a character device"):
-        _files.check_output("/dev/null")
-    with pytest.raises(_files.FileRefused, match="/dev/null is a character device"):
-        _files.open_output("/dev/null")
+        _files.check_regular_output("/dev/null")
     assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
+    with pytest.raises(_files.FileRefused, match=f"{tmp_path} is a directory"):
+        _files.open_output(tmp_path)
 
 
 @pytest.mark.parametrize("what", ["fifo", "symlink", "device"])

@@ -9,7 +9,8 @@ import json
 import os
 from typing import IO, Any, Dict, Iterator
 
-from ..tools._files import check_output, open_output
+from ..tools._files import (check_output, check_regular_output, is_written_through,
+                            open_output, open_regular_output)
 from ..tools._records import SessionPath
 
 
@@ -51,21 +52,49 @@ def event_json(data: bytes) -> Any:
         return {"raw_hex": data.hex()}
 
 
+class _CountingPosition:
+    """A FIFO or device written through, whose tell() is the number of bytes
+    written: writers that note offsets (mcap) need it, and such a file
+    cannot tell where it is."""
+
+    def __init__(self, out: IO[bytes]):
+        self._out = out
+        self._position = 0
+
+    def write(self, data) -> int:
+        written = self._out.write(data)
+        self._position += len(data)
+        return written
+
+    def tell(self) -> int:
+        return self._position
+
+    def flush(self) -> None:
+        self._out.flush()
+
+
 @contextlib.contextmanager
 def replacing(dst: SessionPath) -> Iterator[IO[bytes]]:
     """A file to write that becomes `dst` only once the block completes: a
     failed or interrupted export never leaves a half-written file under the
-    name asked for. Only a regular file is replaced: a symbolic link, a FIFO
-    or a device at `dst` is refused (tools._files), before the work and
-    again just before the rename."""
+    name asked for (DESIGN §6, "Special files"). A regular file is replaced
+    by renaming; through a symbolic link, the link's target is (the link
+    stays). What is not a regular file (a FIFO, a device) is written through,
+    in place, never renamed over. A directory or a socket is refused
+    (tools._files)."""
     dst = os.fspath(dst)
     check_output(dst)
-    temporary = dst + ".partial"
+    if is_written_through(dst):
+        with open_output(dst) as out:
+            yield _CountingPosition(out)  # type: ignore[misc]
+        return
+    target = os.path.realpath(dst)
+    temporary = target + ".partial"
     try:
-        with open_output(temporary) as out:
+        with open_regular_output(temporary) as out:
             yield out
-        check_output(dst)
-        os.replace(temporary, dst)
+        check_regular_output(target)  # nothing else appeared there meanwhile
+        os.replace(temporary, target)
     except BaseException:
         try:
             os.unlink(temporary)

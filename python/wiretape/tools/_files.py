@@ -1,8 +1,11 @@
 """Opening the files the tools read and write themselves (jsonl, pcapng,
-mcap): regular files only, never blocking in ``open()``, never writing
-through a symbolic link or over the input. The C++ library applies the same
-rules, in the same words, to the .wtape files and flexiport logs it opens
-(src/posix/file_checks.cpp).
+mcap), by DESIGN §6, "Special files": an input is a regular file, or a pipe
+or FIFO read as a stream (waiting for its writer, interruptibly); an output
+that is not a regular file (a FIFO, a device, through a symbolic link too) is
+written through, never renamed over; nothing is written over the input. The
+C++ library applies the same rules, in the same words, to the .wtape files
+and flexiport logs it opens (src/posix/file_checks.cpp), where replay and the
+session writer keep to regular files.
 
 Every refusal is a :class:`FileRefused`, an OSError: the command line exits
 3 (a file that cannot be opened, read or written)."""
@@ -11,13 +14,15 @@ from __future__ import annotations
 
 import errno
 import os
+import select
 import stat
 from typing import IO, Iterable, List, Optional
 
 from .. import _core
 
 __all__ = ["FileRefused", "open_input", "open_output", "check_output",
-           "session_files", "refuse_same_file"]
+           "is_stream", "is_written_through", "open_regular_output",
+           "check_regular_output", "session_files", "refuse_same_file"]
 
 
 class FileRefused(OSError):
@@ -51,14 +56,39 @@ def _refuse_unless_regular(path: str, mode: int) -> None:
         raise FileRefused(problem)
 
 
+def is_stream(path) -> bool:
+    """Whether `path` is a pipe or FIFO (following symbolic links), found
+    without opening it: opening and closing a FIFO a writer is using would
+    cost the writer its reader."""
+    try:
+        return stat.S_ISFIFO(os.stat(path).st_mode)
+    except OSError:
+        return False
+
+
+def _wait_for_writer(fd: int) -> None:
+    # Until a writer first connects a read reports the end at once, so wait in
+    # poll(), which Python restarts after running signal handlers (PEP 475):
+    # Ctrl-C and SIGTERM end the wait.
+    poller = select.poll()
+    poller.register(fd, select.POLLIN)
+    while not poller.poll():
+        pass
+
+
 def open_input(path, text: bool = False) -> IO:
-    """`path` opened to read (binary, or UTF-8 text). Never blocks: it is
-    opened non-blocking and refused unless it is a regular file, so a FIFO
-    cannot hang the command. Symbolic links are followed."""
+    """`path` opened to read (binary, or UTF-8 text), following symbolic
+    links: a regular file, or a pipe or FIFO read as a stream, once a writer
+    has come (the wait is interruptible). Anything else (a device, a
+    directory, a socket) is refused. Opening itself never blocks."""
     path = os.fspath(path)
     fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
     try:
-        _refuse_unless_regular(path, os.fstat(fd).st_mode)
+        mode = os.fstat(fd).st_mode
+        if stat.S_ISFIFO(mode):
+            _wait_for_writer(fd)
+        else:
+            _refuse_unless_regular(path, mode)
         os.set_blocking(fd, True)
         return os.fdopen(fd, "r", encoding="utf-8") if text else os.fdopen(fd, "rb")
     except BaseException:
@@ -66,29 +96,80 @@ def open_input(path, text: bool = False) -> IO:
         raise
 
 
-def check_output(path) -> None:
-    """Refuses an output path that exists and is not a regular file: a
-    symbolic link (never written through), a FIFO, a device, a directory."""
-    path = os.fspath(path)
+def _never_an_output(path: str, mode: int) -> None:
+    # Nothing can be written into a directory or a socket as into a file.
+    if stat.S_ISDIR(mode) or stat.S_ISSOCK(mode):
+        raise FileRefused(not_regular_file_problem(path, mode))
+
+
+def _mode_of(path: str, follow_links: bool) -> Optional[int]:
+    """What is at `path` (st_mode), or None when nothing is."""
     try:
-        mode = os.lstat(path).st_mode
+        return (os.stat if follow_links else os.lstat)(path).st_mode
     except FileNotFoundError:
-        return
-    _refuse_unless_regular(path, mode)
+        return None
+
+
+def check_output(path) -> None:
+    """Refuses an output path that cannot be written through, following
+    symbolic links: a directory, a socket. A FIFO or a device is fine:
+    open_output() writes through it."""
+    path = os.fspath(path)
+    mode = _mode_of(path, follow_links=True)
+    if mode is not None:
+        _never_an_output(path, mode)
+
+
+def is_written_through(path) -> bool:
+    """Whether an output at `path` is written in place because it is not a
+    regular file (a FIFO, a device; through a symbolic link too), rather
+    than replaced by renaming a finished file over it."""
+    mode = _mode_of(os.fspath(path), follow_links=True)
+    return mode is not None and not stat.S_ISREG(mode)
 
 
 def open_output(path, text: bool = False) -> IO:
-    """`path` created, or emptied if it is a regular file, to write (binary,
-    or UTF-8 text). Refuses what check_output() refuses, without touching it
-    and without blocking."""
+    """`path` opened to write (binary, or UTF-8 text), following symbolic
+    links: created, or emptied if it is a regular file; a FIFO or a device
+    is written through as it is (a FIFO waits for its reader, interruptibly:
+    Python restarts the open after running signal handlers). Refuses what
+    check_output() refuses."""
     path = os.fspath(path)
-    check_output(path)  # before opening: opening a device can do things
+    check_output(path)
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_CLOEXEC, 0o644)
+    try:
+        info = os.fstat(fd)
+        _never_an_output(path, info.st_mode)
+        if stat.S_ISREG(info.st_mode):
+            os.ftruncate(fd, 0)
+        return os.fdopen(fd, "w", encoding="utf-8") if text else os.fdopen(fd, "wb")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def check_regular_output(path) -> None:
+    """Refuses an output path that exists and is not a regular file, a
+    symbolic link included: for a file that is renamed over another."""
+    path = os.fspath(path)
+    mode = _mode_of(path, follow_links=False)
+    if mode is not None:
+        _refuse_unless_regular(path, mode)
+
+
+def open_regular_output(path, text: bool = False) -> IO:
+    """`path` created, or emptied if it is a regular file, to write (binary,
+    or UTF-8 text): the temporary file an export renames at the end. Refuses
+    what check_regular_output() refuses, without touching it and without
+    blocking."""
+    path = os.fspath(path)
+    check_regular_output(path)  # before opening: opening a device can do things
     try:
         fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK
                      | os.O_CLOEXEC, 0o644)
     except OSError as error:
         if error.errno in (errno.ELOOP, errno.ENXIO):  # replaced since the check
-            check_output(path)
+            check_regular_output(path)
         raise
     try:
         # Again on the descriptor: what was checked is what is written.

@@ -22,8 +22,9 @@ def open_session(path: SessionPath) -> _core.SessionReader:
     """A reader streaming the session's records.
 
     The rule for damaged input, the same in every command (docs/cli.md):
-    a file that cannot be opened or read (missing, permission denied, not a
-    regular file) raises PortError here, an OSError: exit 3. A file that is
+    a file that cannot be opened or read (missing, permission denied, neither
+    a regular file nor a pipe or FIFO, which is read as a stream) raises
+    PortError here, an OSError: exit 3. A file that is
     not a session, or is damaged, is read up to the damage, every record
     before it is used (shown, counted, compared, converted), and then
     raise_damage() raises the damage, a SessionError: exit 1

@@ -12,7 +12,9 @@ Formats:
 
 A format not given is taken from the file name: ``.wtape``; ``.log``,
 ``.logr``, ``.logw``; ``.jsonl``; ``.pcapng``; ``.mcap``. A source with
-another name is sniffed (a ``.wtape`` file starts with its magic number).
+another name is sniffed (a ``.wtape`` file starts with its magic number),
+unless it is a pipe or FIFO: that is read as a ``.wtape`` stream (its bytes
+cannot be looked at twice), or as ``--from jsonl``.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from typing import Iterator, Optional
 
 from .. import _core, exports
 from ..exports import jsonl
-from ._files import FileRefused, open_input, refuse_same_file, session_files
+from ._files import FileRefused, is_stream, open_input, refuse_same_file, session_files
 from ._records import SessionPath, open_session, raise_damage
 
 __all__ = ["convert", "detect_format", "ConvertResult", "FORMATS"]
@@ -52,6 +54,8 @@ def detect_format(path, reading: bool) -> str:
     if suffix in _SUFFIXES:
         return _SUFFIXES[suffix]
     if reading:
+        if is_stream(path):
+            return "wiretape"
         try:
             with open_input(path) as handle:
                 if handle.read(len(_core.SESSION_MAGIC)) == _core.SESSION_MAGIC:
@@ -409,8 +413,9 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
                 header, records, _ = _records_of(src, "jsonl")
                 _write_wiretape(session, header, records, _Progress(False, 0))
             writer = exports.write_pcapng if target_format == "pcapng" else exports.write_mcap
-            writer(session, dst)  # raises the damage once dst is written
-            written = sum(1 for _ in open_session(session))
+            # Raises the damage once dst is written. Its counts, not a second
+            # reading: a pipe or FIFO can be read only once.
+            written = sum(writer(session, dst).values())
         return ConvertResult(written, source_format, target_format)
 
     if target_format == "flexiport":
@@ -422,10 +427,9 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
                 written = _write_wiretape(session, header, records, report)
                 _core.export_flexiport(session, prefix)
         else:
-            _core.export_flexiport(src, prefix)
-            written = sum(
-                1 for record in open_session(prefix) if record.kind in ("rx", "tx")
-            )
+            # Its count, not a reading of the output, which may be a FIFO or
+            # /dev/null written through.
+            written = _core.export_flexiport(src, prefix)
         report.finish()
         return ConvertResult(written, source_format, target_format)
 

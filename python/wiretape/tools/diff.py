@@ -5,7 +5,9 @@ streams of two sessions. How the bytes were split into records does not
 matter (a recording made by another program, or converted from flexiport's
 one-byte chunks, compares equal if the bytes are the same); events are
 counted in the summary but not compared. Both sessions are streamed: memory
-does not depend on their size.
+does not depend on their size. A pipe or FIFO, which can be read only once
+while each direction is compared in a reading of its own, is first copied
+to a temporary file (on disk, not in memory).
 
 ``a`` and ``b`` are paths of session files (``.wtape`` or a flexiport
 ``name.log``) or iterables of records (objects with ``t_ns``, ``kind`` and
@@ -15,10 +17,12 @@ does not depend on their size.
 from __future__ import annotations
 
 import os
+import tempfile
 from dataclasses import dataclass, field
 from typing import Iterable, Iterator, List, Optional, Union
 
 from .. import _core
+from ._files import is_stream
 from ._records import DIRECTIONS, open_session
 
 _CONTEXT = 16
@@ -42,9 +46,12 @@ class _Records:
         self.damage: Optional[str] = None
         self.events = 0
         self._source = source
+        self._scratch: Optional[tempfile.TemporaryDirectory] = None
 
     def __iter__(self) -> Iterator:
         if isinstance(self._source, (str, os.PathLike)):
+            if self._scratch is None and is_stream(self._source):
+                self._source = self._copy_of_stream(self._source)
             with open_session(self._source) as reader:
                 yield from reader
                 damage = reader.damage
@@ -52,6 +59,22 @@ class _Records:
                     self.damage = damage.message
         else:
             yield from self._source
+
+    def _copy_of_stream(self, path) -> str:
+        """The records of the stream `path` (up to its damage, which is noted)
+        in a temporary file, to be read once per direction."""
+        self._scratch = tempfile.TemporaryDirectory(prefix="wiretape-diff-")
+        copy = os.path.join(self._scratch.name, "stream.wtape")
+        with open_session(path) as reader, _core.SessionWriter(copy) as writer:
+            for record in reader:
+                writer.write(record.kind, record.t_ns, record.data)
+            if reader.damage is not None:
+                self.damage = reader.damage.message
+        return copy
+
+    def close(self) -> None:
+        if self._scratch is not None:
+            self._scratch.cleanup()
 
 
 class _Cursor:
@@ -231,8 +254,12 @@ def diff(a: SessionLike, b: SessionLike) -> DiffResult:
         b = list(b)
     records_a, records_b = _Records(a), _Records(b)
     result = DiffResult(records_a.name, records_b.name)
-    for direction in DIRECTIONS:
-        result.directions.append(_compare(records_a, records_b, direction))
+    try:
+        for direction in DIRECTIONS:
+            result.directions.append(_compare(records_a, records_b, direction))
+    finally:
+        records_a.close()
+        records_b.close()
     result.damage_a, result.damage_b = records_a.damage, records_b.damage
     return result
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import os
 import sys
-from typing import IO, Iterable, Iterator, Optional
+from typing import IO, Iterable, Iterator, Optional, Tuple
 
 from .. import _core
 from ..exports.jsonl import json_line, record_to_json
@@ -18,7 +18,7 @@ from ._records import DIRECTIONS as _DIRECTIONS
 from ._records import SessionPath, event_of, event_payload, header_text, open_session
 from ._records import printable as _printable
 
-__all__ = ["show"]
+__all__ = ["show", "show_reporting_damage"]
 
 
 def _seconds(t_ns: int) -> str:
@@ -68,6 +68,15 @@ def show(path: SessionPath, fmt: str = "text", profile: Optional[str] = None,
     damaged file is reported at the end (on stderr for jsonl) and everything
     before the damage is shown.
     """
+    return show_reporting_damage(path, fmt, profile, out, decode)[0]
+
+
+def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optional[str] = None,
+                          out: Optional[IO[str]] = None, decode: Optional[str] = None
+                          ) -> Tuple[int, Optional[_core.SessionError]]:
+    """show(), and the damage reading stopped at (None for an intact
+    session): what the command line's exit code needs, without a second
+    reading, which a pipe or FIFO would not allow."""
     if fmt not in ("text", "hex", "jsonl"):
         raise ValueError(f"unknown format {fmt!r}: use text, hex or jsonl")
     if profile is not None and decode is not None and profile != decode:
@@ -83,7 +92,7 @@ def show(path: SessionPath, fmt: str = "text", profile: Optional[str] = None,
             count += 1
         if reader.damage is not None:
             print(f"wiretape: damaged: {header_text(reader.damage.message)}", file=sys.stderr)
-        return count
+        return count, reader.damage
     for line in _header_lines(reader, path):
         out.write(line + "\n")
     out.write("\n")
@@ -115,7 +124,7 @@ def show(path: SessionPath, fmt: str = "text", profile: Optional[str] = None,
                   f"{header_text(reader.damage.message)}\n")
     else:
         out.write(f"\n{count} records\n")
-    return count
+    return count, reader.damage
 
 
 class _counting:
