@@ -116,7 +116,9 @@ class UdpEndpoint final : public ClientEndpoint {
 
   void handle_events(const PollSet& poll_set) override {
     const Readiness ready = poll_set.ready(slot_);
-    if (ready.readable) read_clients();
+    // An error pending on the socket is polled as one: a read takes it, or
+    // poll() would report it round after round.
+    if (ready.readable || ready.hung_up) read_clients();
     if (!to_client_.empty()) send_to_client();
     pass_to_device();
   }
