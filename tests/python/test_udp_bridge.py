@@ -405,3 +405,58 @@ def test_socat_as_a_udp_client_gets_the_replayed_reply(session_file):
         out, err = _interrupt(child)
     assert bytes(got) == b"PONG\nDONE\n"
     assert child.returncode == 0, err
+
+
+def _socat_exchange(socat, host, port, request, count):
+    """socat as the driver: sends `request` as one datagram, returns what it
+    printed once `count` answers' worth of lines came."""
+    client = subprocess.Popen([socat, "-t", "10", "-", f"UDP:{host}:{port}"],
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+    got = bytearray()
+    try:
+        client.stdin.write(request)
+        client.stdin.flush()
+
+        def enough():
+            ready, _, _ = select.select([client.stdout], [], [], 0)
+            if ready:
+                got.extend(client.stdout.read1(4096))
+            return got.count(b"\n") >= count
+
+        wait_until(enough, DEADLINE, lambda: f"socat to print the answers (got {got!r})")
+    finally:
+        client.kill()
+        client.wait()
+    return bytes(got)
+
+
+def test_socat_through_the_record_proxy_then_through_the_replay(tmp_path):
+    socat = shutil.which("socat")
+    if socat is None:
+        pytest.skip("SKIPPED LOUDLY: socat is not installed (apt-get install socat); "
+                    "the UDP proxy is not tested against a real UDP client")
+    out = tmp_path / "socat.wtape"
+    with UdpDevice() as device:
+        child = _start_cli("record", "--device", device.options, "--udp", "127.0.0.1:0",
+                           "-o", str(out))
+        try:
+            host, port = _udp_address(child)
+            recorded = _socat_exchange(socat, host, port, b"ping\n", 1)
+        finally:
+            _, err = _interrupt(child)
+        assert child.returncode == 0, err
+    # The device's answers are two datagrams, "PING\n" and "#5": the file
+    # keeps them apart.
+    assert recorded.startswith(b"PING\n")
+    _, records = read_records(out)
+    assert [r.data for r in records if r.kind == "tx"] == [b"ping\n"]
+    assert [r.data for r in records if r.kind == "rx"] == [b"PING\n", b"#5"]
+
+    child = _start_cli("replay", str(out), "--udp", "127.0.0.1:0", "--timing", "none")
+    try:
+        host, port = _udp_address(child)
+        replayed = _socat_exchange(socat, host, port, b"ping\n", 1)
+    finally:
+        _, err = _interrupt(child)
+    assert child.returncode == 0, err
+    assert replayed.startswith(b"PING\n")
