@@ -1,9 +1,17 @@
 // The bridge: forwards bytes between a device port and a client side (a
-// pseudo-terminal a program opens, or a TCP listener), optionally recording
+// pseudo-terminal a program opens, a TCP listener, or a UDP socket programs
+// send datagrams to), optionally recording
 // everything that crosses into a session file (capture=wire: every byte,
 // stamped on arrival, time zero at the device's open). It is the engine of
 // `wiretape record` (transparent proxy), `wiretape replay --pty/--listen`
 // (virtual devices) and `wiretape serve` (port server, raw or RFC 2217).
+//
+// On UDP one datagram is one record both ways: each client datagram is one
+// write to the device, each read of the device one datagram to the client.
+// UDP cannot hold a client back, so a client that sends faster than the
+// device takes its datagrams loses the excess (at most 1024 datagrams and
+// buffer_limit bytes wait), counted in BridgeStats::datagrams_dropped and
+// never recorded.
 //
 // Buffers are bounded (BridgeOptions::buffer_limit per direction and client):
 //   - client -> device: when full, the bridge stops reading that client, so
@@ -36,6 +44,7 @@ namespace wiretape {
 enum class BridgeClientSide {
   pty,  // a pseudo-terminal; a program opens it as if it were the device
   tcp,  // a TCP listener; programs connect to it
+  udp,  // a UDP socket at listen_host:listen_port; programs send datagrams to it
 };
 
 enum class BridgeProtocol {
@@ -61,10 +70,15 @@ struct BridgeOptions {
   // the process's own group.
   unsigned pty_mode = 0660;
   std::string pty_group;
-  // tcp: where to listen. 127.0.0.1 unless told otherwise; port 0 picks a
+  // tcp (and udp): where to listen. 127.0.0.1 unless told otherwise; port 0 picks a
   // free port (see Bridge::listen_address()).
   std::string listen_host = "127.0.0.1";
   int listen_port = 0;
+  // udp: where device datagrams go. "" (the default): to the last sender,
+  // and a client session starts with its first datagram; a host and port:
+  // always there, and the client session starts at once.
+  std::string udp_peer_host;
+  int udp_peer_port = 0;
   BridgeProtocol protocol = BridgeProtocol::raw;
   // tcp: a client that connects while another one controls the device gets
   // read-only monitoring (device data, its input ignored) instead of being
@@ -109,6 +123,9 @@ struct BridgeStats {
   std::uint64_t device_losses = 0;
   std::uint64_t device_reopens = 0;
   std::uint64_t records_written = 0;
+  // udp: datagrams a client sent while the queue to the device was full,
+  // neither forwarded nor recorded.
+  std::uint64_t datagrams_dropped = 0;
 };
 
 enum class BridgeOutcome {
@@ -163,7 +180,8 @@ class Bridge {
 
   // The terminal a client opens (pty side), e.g. "/dev/pts/7".
   std::string pty_path() const;
-  // The address clients connect to (tcp side), e.g. "127.0.0.1:5000".
+  // The address clients connect (tcp) or send datagrams (udp) to, e.g.
+  // "127.0.0.1:5000".
   std::string listen_address() const;
   std::string device_description() const;
   // The diagnostics so far (the most recent 1000).

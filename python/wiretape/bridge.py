@@ -1,5 +1,5 @@
 """Bridges between a device and a client: the record proxy, the port server
-and virtual devices (replay on a pty or TCP).
+and virtual devices (replay on a pty, TCP or UDP).
 
 Each function starts the bridge and returns a running :class:`BridgeHandle`
 at once; the caller waits on it in short slices (so Ctrl-C works) and stops
@@ -26,11 +26,19 @@ A pty the bridge creates is mode 0660, group ``dialout`` where that group
 exists (else the process's group), as a real serial device is, so that a
 client that drops root can open it; ``pty_mode`` (an int, e.g. ``0o666``) and
 ``pty_group`` (a name or a gid) change that.
+
+``udp="HOST:PORT"`` (``record``, ``serve_replay``) is a datagram client side:
+the driver sends to HOST:PORT; each datagram is one write to the device (one
+``tx`` record) and each read of the device goes back as one datagram (one
+``rx`` record) to the last sender, or to ``peer`` (``serve_replay``). A client
+that floods faster than the device takes its datagrams loses the excess:
+``stats.datagrams_dropped`` counts them (never recorded, never forwarded).
 """
 
 from __future__ import annotations
 
 import os
+import socket
 from typing import List, Mapping, Optional, Tuple, Union
 
 from . import _core
@@ -44,6 +52,7 @@ __all__ = [
     "BridgeStats",
     "device_options",
     "parse_listen",
+    "parse_udp_address",
     "record",
     "serve",
     "serve_replay",
@@ -80,6 +89,39 @@ def parse_listen(listen: Union[str, int]) -> Tuple[str, int]:
     return host, port
 
 
+def parse_udp_address(address: str, what: str = "udp", minimum_port: int = 0) -> Tuple[str, int]:
+    """``HOST:PORT`` or ``[v6]:PORT`` as (host, port) for a UDP side; both
+    parts are needed and the host must resolve. ``what`` names the option in
+    the error (a ValueError). Port 0 (where ``minimum_port`` allows it)
+    picks a free port."""
+    text = str(address).strip()
+    if text.startswith("["):
+        close = text.find("]")
+        if close < 0 or not text[close + 1:].startswith(":"):
+            raise ValueError(f"{what} address {text!r}: expected HOST:PORT")
+        host, port_text = text[1:close], text[close + 2:]
+    elif ":" in text:
+        host, port_text = text.rsplit(":", 1)
+    else:
+        raise ValueError(f"{what} address {text!r}: expected HOST:PORT (the port is missing)")
+    if not host:
+        raise ValueError(f"{what} address {text!r}: expected HOST:PORT (the host is missing)")
+    try:
+        port = int(port_text)
+    except ValueError:
+        raise ValueError(
+            f"{what} address {text!r}: the port must be a number (HOST:PORT)") from None
+    if not minimum_port <= port <= 65535:
+        raise ValueError(
+            f"{what} address {text!r}: port {port} is out of range ({minimum_port}-65535)")
+    try:
+        socket.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
+    except (socket.gaierror, UnicodeError) as error:
+        raise ValueError(f"{what} address {text!r}: host {host!r} does not resolve "
+                         f"({error})") from None
+    return host, port
+
+
 class BridgeHandle:
     """A running bridge."""
 
@@ -112,7 +154,8 @@ class BridgeHandle:
 
     @property
     def address(self) -> Optional[str]:
-        """``HOST:PORT`` clients connect to (TCP side)."""
+        """``HOST:PORT`` clients connect to (TCP side) or send datagrams to
+        (UDP side)."""
         return self._bridge.listen_address or None
 
     listen_address = address
@@ -138,10 +181,14 @@ PtyGroup = Union[str, int, None]
 DEFAULT_PTY_MODE = 0o660
 
 
-def _start(device: str, *, pty, listen, pty_mode: Optional[int] = None,
+def _start(device: str, *, pty, listen, udp=None, peer=None,
+           pty_mode: Optional[int] = None,
            pty_group: PtyGroup = None, **options) -> BridgeHandle:
-    if (pty is None) == (listen is None):
-        raise ValueError("give exactly one client side: pty=PATH or listen=HOST:PORT")
+    if sum(side is not None for side in (pty, listen, udp)) != 1:
+        raise ValueError("give exactly one client side: pty=PATH, listen=HOST:PORT "
+                         "or udp=HOST:PORT")
+    if peer is not None and udp is None:
+        raise ValueError("peer is where a UDP side sends: give udp=HOST:PORT too")
     if pty is None and (pty_mode is not None or pty_group is not None):
         raise ValueError("pty_mode and pty_group set who may open a pty: give pty=PATH")
     if pty is not None:
@@ -150,6 +197,11 @@ def _start(device: str, *, pty, listen, pty_mode: Optional[int] = None,
                               pty_mode=DEFAULT_PTY_MODE if pty_mode is None else pty_mode,
                               pty_group="" if pty_group is None else str(pty_group),
                               **options)
+    elif udp is not None:
+        host, port = parse_udp_address(udp, "udp")
+        peer_host, peer_port = ("", 0) if peer is None else parse_udp_address(peer, "peer", 1)
+        bridge = _core.Bridge(device, client_side="udp", listen_host=host, listen_port=port,
+                              udp_peer_host=peer_host, udp_peer_port=peer_port, **options)
     else:
         host, port = parse_listen(listen)
         bridge = _core.Bridge(device, client_side="tcp", listen_host=host,
@@ -158,21 +210,22 @@ def _start(device: str, *, pty, listen, pty_mode: Optional[int] = None,
     return BridgeHandle(bridge)
 
 
-def record(device: str, output, *, pty=None, listen=None,
+def record(device: str, output, *, pty=None, listen=None, udp=None,
            duration: Optional[float] = None,
            meta: Optional[Mapping[str, str]] = None,
            quiet: bool = False, pty_mode: Optional[int] = None,
            pty_group: PtyGroup = None) -> BridgeHandle:
     """``wiretape record``: a transparent proxy between ``device`` and a pty
     at ``pty`` (a symlink path; True for none) or a TCP listener at
-    ``listen``; every byte both ways is recorded to ``output``
+    ``listen`` or a UDP socket at ``udp`` (a datagram proxy: replies go to
+    the last sender); every byte both ways is recorded to ``output``
     (capture=wire). On a pty, the terminal settings the client sets are
     applied to the device; ``pty_mode``/``pty_group`` set who may open it
     (default 0o660, group dialout)."""
     path = os.fspath(output)
     if not path.strip():
         raise ValueError("output: the file name is empty; give the session file to record to")
-    return _start(device_options(device), pty=pty, listen=listen,
+    return _start(device_options(device), pty=pty, listen=listen, udp=udp,
                   output=path, metadata=dict(meta or {}),
                   duration=duration, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group)
 
@@ -195,7 +248,8 @@ def serve(device: str, listen, *, output=None, protocol: str = "raw",
                   shared=shared, max_monitors=max_monitors, reopen=reopen, quiet=quiet)
 
 
-def serve_replay(file, *, pty=None, listen=None, replay_options: str = "",
+def serve_replay(file, *, pty=None, listen=None, udp=None, peer=None,
+                 replay_options: str = "",
                  restart: bool = False, output=None,
                  quiet: bool = False, pty_mode: Optional[int] = None,
                  pty_group: PtyGroup = None) -> BridgeHandle:
@@ -206,7 +260,9 @@ def serve_replay(file, *, pty=None, listen=None, replay_options: str = "",
     or ``outcome == "mismatch"`` with the report in ``message``; a recording
     with rx that no client was served leaves the reason in
     ``nothing_served``. ``pty_mode``/``pty_group`` set who may open the pty
-    (default 0o660, group dialout)."""
+    (default 0o660, group dialout). ``udp="HOST:PORT"`` answers request
+    datagrams there with the recorded rx datagrams and sends unprompted ones
+    to the last sender, or from the start to ``peer="HOST:PORT"``."""
     options = "type=replay,file=" + _quote(os.fspath(file))
     if replay_options.strip():
         options += "," + replay_options.strip()
@@ -214,6 +270,6 @@ def serve_replay(file, *, pty=None, listen=None, replay_options: str = "",
     # no replay whose closing would warn about unused data.
     _core.check_replay_options(options)
     # The terminal settings of a replayed device are not applied anywhere.
-    return _start(options, pty=pty, listen=listen, restart=restart,
+    return _start(options, pty=pty, listen=listen, udp=udp, peer=peer, restart=restart,
                   output=os.fspath(output) if output else "",
                   mirror_settings=False, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group)

@@ -225,6 +225,20 @@ def _pty_group(text: str) -> str:
     return name
 
 
+def _udp_address(what: str, minimum_port: int):
+    """An argparse type: a HOST:PORT for UDP, checked as the bridge will (a
+    bad one is a usage error naming the flag)."""
+    def check(text: str) -> str:
+        from .bridge import parse_udp_address
+
+        try:
+            parse_udp_address(text, what, minimum_port)
+        except ValueError as error:
+            raise argparse.ArgumentTypeError(str(error)) from None
+        return text
+    return check
+
+
 def _format_number(value: float) -> str:
     return repr(int(value)) if float(value).is_integer() else repr(value)
 
@@ -263,8 +277,11 @@ def _run_bridge(handle, out: _Output, what: str, announce: Callable[[], None],
 
 
 def _client_side(args) -> Tuple[Optional[str], Optional[str]]:
-    if args.pty is None and args.listen is None:
-        raise UsageError("give where the client connects: --pty PATH or --listen HOST:PORT")
+    if args.pty is None and args.listen is None and args.udp is None:
+        raise UsageError("give where the client connects: --pty PATH or --listen HOST:PORT "
+                         "(datagrams: --udp HOST:PORT)")
+    if getattr(args, "peer", None) is not None and args.udp is None:
+        raise UsageError("--peer is where --udp sends datagrams: give --udp HOST:PORT too")
     if args.pty is None:
         for flag, value in (("--pty-mode", args.pty_mode), ("--pty-group", args.pty_group)):
             if value is not None:
@@ -272,12 +289,13 @@ def _client_side(args) -> Tuple[Optional[str], Optional[str]]:
     return args.pty, args.listen
 
 
-def _announce(handle, out: _Output, what: str, link: Optional[str] = None) -> None:
+def _announce(handle, out: _Output, what: str, link: Optional[str] = None,
+              udp: bool = False) -> None:
     where = []
     if handle.pty_path:
         where.append(f"pty {link} -> {handle.pty_path}" if link else f"pty {handle.pty_path}")
     if handle.address:
-        where.append(f"tcp {handle.address}")
+        where.append(f"{'udp' if udp else 'tcp'} {handle.address}")
     out.note(f"{what}: {handle.device_description}; clients use "
              + (", ".join(where) or "the client side") + "; Ctrl-C ends")
 
@@ -286,12 +304,13 @@ def cmd_record(args, out: _Output) -> int:
     from . import bridge
 
     pty, listen = _client_side(args)
-    handle = bridge.record(args.device, args.output, pty=pty, listen=listen,
+    handle = bridge.record(args.device, args.output, pty=pty, listen=listen, udp=args.udp,
                            duration=args.duration, meta=_meta_pairs(args.meta),
                            quiet=args.quiet, pty_mode=args.pty_mode,
                            pty_group=args.pty_group)
     return _run_bridge(handle, out, "record",
-                       lambda: _announce(handle, out, f"recording to {args.output}", pty))
+                       lambda: _announce(handle, out, f"recording to {args.output}", pty,
+                                         udp=args.udp is not None))
 
 
 _REPLAY_KEYS = ("timing", "speed", "check", "match", "tolerance", "unmatched",
@@ -321,13 +340,14 @@ def cmd_replay(args, out: _Output) -> int:
     _require_input(args.file)
     if args.output:
         refuse_same_file(session_files(args.file), [args.output])
-    handle = bridge.serve_replay(args.file, pty=pty, listen=listen,
-                                 replay_options=replay_options_of(args),
+    handle = bridge.serve_replay(args.file, pty=pty, listen=listen, udp=args.udp,
+                                 peer=args.peer, replay_options=replay_options_of(args),
                                  restart=args.restart, output=args.output,
                                  quiet=args.quiet, pty_mode=args.pty_mode,
                                  pty_group=args.pty_group)
     return _run_bridge(handle, out, "replay",
-                       lambda: _announce(handle, out, f"replaying {args.file}", pty),
+                       lambda: _announce(handle, out, f"replaying {args.file}", pty,
+                                         udp=args.udp is not None),
                        must_serve=True)
 
 
@@ -547,6 +567,10 @@ def _add_client_side(parser, verb: str) -> None:
     side.add_argument("--listen", metavar="HOST:PORT",
                       help=f"{verb} on TCP: the client connects to HOST:PORT "
                            "(PORT alone means 127.0.0.1:PORT; 0 picks a free port)")
+    side.add_argument("--udp", metavar="HOST:PORT", type=_udp_address("udp", 0),
+                      help=f"{verb} over UDP: the client sends datagrams to HOST:PORT "
+                           "and gets the device's back, one datagram per record "
+                           "(0 picks a free port)")
     parser.add_argument("--pty-mode", dest="pty_mode", type=_pty_mode, metavar="MODE",
                         help="with --pty: the terminal's permission bits, octal "
                              "(default 0660, as a serial device)")
@@ -571,7 +595,8 @@ def build_parser() -> argparse.ArgumentParser:
     record = command(
         "record", cmd_record, "record a driver's session with a device (transparent proxy)",
         "A transparent proxy: the driver under test opens the --pty PATH (or connects "
-        "to --listen HOST:PORT) as if it were the device; every byte both ways is "
+        "to --listen HOST:PORT, or sends datagrams to --udp HOST:PORT) as if it were "
+        "the device; every byte both ways is "
         "forwarded to the --device and recorded. Ctrl-C ends cleanly. On a pty the "
         "terminal settings the driver sets (baud, parity, stop bits) are applied to "
         "the device and recorded; a pty has no modem lines.")
@@ -587,9 +612,10 @@ def build_parser() -> argparse.ArgumentParser:
     record.add_argument("-q", "--quiet", action="store_true", help="no client/device messages")
 
     replay = command(
-        "replay", cmd_replay, "replay a recording as a virtual device (pty or TCP)",
+        "replay", cmd_replay, "replay a recording as a virtual device (pty, TCP or UDP)",
         "The recording becomes a virtual device any program can open: a "
-        "pseudo-terminal (--pty PATH) or a TCP server (--listen HOST:PORT). A "
+        "pseudo-terminal (--pty PATH), a TCP server (--listen HOST:PORT) or a UDP "
+        "socket (--udp HOST:PORT; one datagram per recorded record). A "
         "client that closes and reopens continues the session (--restart starts it "
         "over). The replay keys are those of type=replay (docs/options.md). Exit 1 on a "
         "mismatch, and when the recording has rx but no client was served any of it "
@@ -616,6 +642,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="after the last record (default silent)")
     replay.add_argument("--options", metavar="KEYS",
                         help="further replay keys as an option string (k=v,k=v)")
+    replay.add_argument("--peer", metavar="HOST:PORT", type=_udp_address("peer", 1),
+                        help="with --udp: send the device's datagrams to HOST:PORT from "
+                             "the start (default: to the last sender, once one has sent)")
     replay.add_argument("--restart", action="store_true",
                         help="each new client starts the session over")
     replay.add_argument("-o", "--output", metavar="FILE", type=_session_output,

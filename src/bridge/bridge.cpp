@@ -4,8 +4,8 @@
 // 2217's IAC escaping when that protocol is on.
 //
 // The pieces: DeviceSide (device_side.hpp) owns the device, the queue to it,
-// its line state and the session file; a ClientEndpoint (endpoint.hpp: pty
-// or TCP) owns the clients; ComPortAdapter (com_port_adapter.hpp) is RFC
+// its line state and the session file; a ClientEndpoint (endpoint.hpp: pty,
+// TCP or UDP) owns the clients; ComPortAdapter (com_port_adapter.hpp) is RFC
 // 2217's view of the device. This file is the loop that ties them together
 // and the public Bridge.
 #include "wiretape/bridge.hpp"
@@ -128,6 +128,9 @@ void Bridge::Impl::open_all() {
   if (options_.client_side == BridgeClientSide::pty) {
     endpoint_ = detail::bridge::make_pty_endpoint(options_, device_, status_);
   }
+  if (options_.client_side == BridgeClientSide::udp) {
+    endpoint_ = detail::bridge::make_udp_endpoint(options_, device_, status_);
+  }
   if (options_.duration) end_at_ = Clock::now() + *options_.duration;
 }
 
@@ -218,6 +221,7 @@ void Bridge::Impl::read_device(Readiness ready) {
     status_.update_stats([filled](BridgeStats& s) { s.bytes_from_device += filled; });
     endpoint_->deliver_from_device(buffer.data(), filled);
   };
+  const bool one_read_per_delivery = endpoint_->keeps_datagram_boundaries();
   try {
     if (ready.readable || ready.hung_up) {
       // A read that took a whole line-discipline buffer means the device is
@@ -230,6 +234,15 @@ void Bridge::Impl::read_device(Readiness ready) {
           device_.record(RecordKind::rx, std::string_view(buffer.data() + filled, n));
         }
         filled += n;
+        if (one_read_per_delivery) {
+          // One read is one datagram: delivered alone, and read on while
+          // the client side takes more.
+          if (n == 0) break;
+          deliver();
+          filled = 0;
+          if (!endpoint_->wants_device_data() || !device_.is_open()) break;
+          continue;
+        }
         if (n < kLineDisciplineBuffer || buffer.size() - filled < kLineDisciplineBuffer) break;
       }
     }
@@ -318,6 +331,22 @@ Bridge::Bridge(BridgeOptions options) : impl_(std::make_unique<Impl>(std::move(o
   if (o.client_side == BridgeClientSide::tcp && (o.listen_port < 0 || o.listen_port > 65535)) {
     throw OptionError("listen", "listen port " + std::to_string(o.listen_port) +
                                     " is out of range (0 to 65535; 0 picks a free port)");
+  }
+  if (o.client_side == BridgeClientSide::udp) {
+    if (o.listen_port < 0 || o.listen_port > 65535) {
+      throw OptionError("udp", "udp port " + std::to_string(o.listen_port) +
+                                   " is out of range (0 to 65535; 0 picks a free port)");
+    }
+    if (o.protocol == BridgeProtocol::rfc2217) {
+      throw OptionError("protocol", "protocol rfc2217 needs a TCP listener, not udp");
+    }
+    if (!o.udp_peer_host.empty() && (o.udp_peer_port < 1 || o.udp_peer_port > 65535)) {
+      throw OptionError("peer", "udp peer port " + std::to_string(o.udp_peer_port) +
+                                    " is out of range (1 to 65535)");
+    }
+  }
+  if (o.client_side != BridgeClientSide::udp && !o.udp_peer_host.empty()) {
+    throw OptionError("peer", "a udp peer needs the udp client side");
   }
   if (o.client_side == BridgeClientSide::pty && o.protocol == BridgeProtocol::rfc2217) {
     throw OptionError("protocol", "protocol rfc2217 needs a TCP listener, not a pty");

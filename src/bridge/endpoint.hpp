@@ -36,6 +36,10 @@ class ClientEndpoint {
   // the device (backpressure).
   virtual bool wants_device_data() const = 0;
   virtual void deliver_from_device(const char* data, std::size_t size) = 0;
+  // Whether each read of the device must be delivered on its own (a
+  // datagram endpoint: one read is one datagram) rather than joined with
+  // the reads after it.
+  virtual bool keeps_datagram_boundaries() const { return false; }
   // The device went away (it is closed already): clients learn it as the
   // endpoint's medium allows.
   virtual void device_lost() {}
@@ -60,6 +64,11 @@ std::unique_ptr<ClientEndpoint> make_pty_endpoint(const BridgeOptions& options,
 // The TCP endpoint: listens at once (before the device opens, so that a
 // busy address fails the start early).
 std::unique_ptr<ClientEndpoint> make_tcp_endpoint(const BridgeOptions& options,
+                                                  DeviceSide& device, Status& status);
+
+// The UDP endpoint: binds its socket at once (a busy address fails the
+// start early).
+std::unique_ptr<ClientEndpoint> make_udp_endpoint(const BridgeOptions& options,
                                                   DeviceSide& device, Status& status);
 
 }  // namespace wiretape::detail::bridge

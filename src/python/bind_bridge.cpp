@@ -41,6 +41,7 @@ constexpr std::pair<const char*, std::uint64_t BridgeStats::*> kStatFields[] = {
     {"device_losses", &BridgeStats::device_losses},
     {"device_reopens", &BridgeStats::device_reopens},
     {"records_written", &BridgeStats::records_written},
+    {"datagrams_dropped", &BridgeStats::datagrams_dropped},
 };
 
 std::string stats_repr(const BridgeStats& stats) {
@@ -105,7 +106,8 @@ Value one_of(const char* key, const std::string& text,
 BridgeOptions make_options(const std::string& device, const std::string& client_side,
                            const std::string& pty_link, long long pty_mode,
                            const std::string& pty_group, const std::string& listen_host,
-                           int listen_port, const std::string& protocol, bool shared,
+                           int listen_port, const std::string& udp_peer_host,
+                           int udp_peer_port, const std::string& protocol, bool shared,
                            std::size_t max_monitors, const std::string& output,
                            const std::map<std::string, std::string>& metadata,
                            int flush_ms, bool mirror_settings, bool reopen, bool restart,
@@ -114,7 +116,8 @@ BridgeOptions make_options(const std::string& device, const std::string& client_
   o.device = device;
   o.client_side = one_of<BridgeClientSide>("client_side", client_side,
                                            {{"pty", BridgeClientSide::pty},
-                                            {"tcp", BridgeClientSide::tcp}});
+                                            {"tcp", BridgeClientSide::tcp},
+                                            {"udp", BridgeClientSide::udp}});
   o.pty_link = pty_link;
   // Python's int has no bound: checked here before it is narrowed.
   if (pty_mode < 0 || pty_mode > 0777) {
@@ -125,6 +128,8 @@ BridgeOptions make_options(const std::string& device, const std::string& client_
   o.pty_group = pty_group;
   o.listen_host = listen_host;
   o.listen_port = listen_port;
+  o.udp_peer_host = udp_peer_host;
+  o.udp_peer_port = udp_peer_port;
   o.protocol = one_of<BridgeProtocol>("protocol", protocol,
                                       {{"raw", BridgeProtocol::raw},
                                        {"rfc2217", BridgeProtocol::rfc2217}});
@@ -147,27 +152,30 @@ BridgeOptions make_options(const std::string& device, const std::string& client_
 void bind_bridge(nb::module_& m) {
   bind_results(m);
   nb::class_<Bridge>(m, "Bridge",
-                     "Forwards bytes between a device port and a pty or TCP clients, "
+                     "Forwards bytes between a device port and a pty, TCP clients or UDP clients, "
                      "optionally recording them (see wiretape.bridge).")
       .def(
           "__init__",
           [](Bridge* self, const std::string& device, const std::string& client_side,
              const std::string& pty_link, long long pty_mode, const std::string& pty_group,
-             const std::string& listen_host, int listen_port, const std::string& protocol, bool shared, std::size_t max_monitors,
+             const std::string& listen_host, int listen_port, const std::string& udp_peer_host,
+             int udp_peer_port, const std::string& protocol, bool shared, std::size_t max_monitors,
              const std::string& output,
              const std::map<std::string, std::string>& metadata, int flush_ms,
              bool mirror_settings, bool reopen, bool restart, nb::handle duration,
              std::size_t buffer_limit, bool quiet) {
             new (self) Bridge(make_options(device, client_side, pty_link, pty_mode,
                                            pty_group, listen_host,
-                                           listen_port, protocol, shared, max_monitors,
+                                           listen_port, udp_peer_host, udp_peer_port,
+                                           protocol, shared, max_monitors,
                                            output, metadata,
                                            flush_ms, mirror_settings, reopen, restart,
                                            duration, buffer_limit, quiet));
           },
           "device"_a, nb::kw_only(), "client_side"_a = "pty", "pty_link"_a = "",
           "pty_mode"_a = 0660LL, "pty_group"_a = "",
-          "listen_host"_a = "127.0.0.1", "listen_port"_a = 0, "protocol"_a = "raw",
+          "listen_host"_a = "127.0.0.1", "listen_port"_a = 0, "udp_peer_host"_a = "",
+          "udp_peer_port"_a = 0, "protocol"_a = "raw",
           "shared"_a = false, "max_monitors"_a = std::size_t{16}, "output"_a = "",
           "metadata"_a = std::map<std::string, std::string>{}, "flush_ms"_a = 100,
           "mirror_settings"_a = true, "reopen"_a = false, "restart"_a = false,
