@@ -78,8 +78,12 @@ class DeviceSide {
   // turns the failure into the bridge's result.
   void record(RecordKind kind, std::string_view data) { record_at(kind, now_ns(), data); }
   void record_at(RecordKind kind, std::uint64_t t_ns, std::string_view data);
-  // A client arriving and leaving, as every endpoint reports it.
-  void client_connected(const std::string& peer, const char* role);
+  // A client arriving and leaving, as every endpoint reports it. A
+  // controlling client's arrival begins a client session of a replayed
+  // device (DESIGN.md section 12); true when that session starts afresh,
+  // so that device data still queued for an earlier client or for nobody
+  // is dropped.
+  bool client_connected(const std::string& peer, const char* role);
   void client_disconnected(const std::string& peer, const std::string& reason);
 
   // --- client -> device ------------------------------------------------------
@@ -130,6 +134,8 @@ class DeviceSide {
   std::optional<Clock::time_point> break_since_;
   std::optional<ModemInputs> last_modem_inputs_;
   bool modem_inputs_unreadable_ = false;
+  // The controlling client whose session a replayed device serves.
+  std::optional<std::string> session_peer_;
 
   void recording_stopped(const PortError& error);
 };

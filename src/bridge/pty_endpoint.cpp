@@ -205,7 +205,12 @@ class PtyEndpoint final : public ClientEndpoint {
           device_.restart();
         }
         had_client_ = true;
-        device_.client_connected("pty", "control");
+        if (device_.client_connected("pty", "control")) {
+          // A replay's new client session: what waits in the terminal was
+          // meant for nobody, or for the previous client.
+          pty_->flush_output();
+          to_pty_.clear();
+        }
         status_.message("client connected to " + pty_->description());
       } else if (openers_ > 0 && --openers_ == 0) {
         drain_pty();

@@ -32,9 +32,9 @@ bool is_due(const RxItem& item, ReplayTime now) { return item.due <= now; }
 }  // namespace
 
 ReplayEngine::ReplayEngine(ReplayConfig config, RecordSourceFactory sources,
-                           ReplayTime open_time)
+                           ReplayTime open_time, std::uint64_t origin_ns)
     : config_(std::move(config)),
-      timeline_(config_, open_time),
+      timeline_(config_, open_time, origin_ns),
       // Only the sequence strategy reads records into reused buffers.
       released_(config_.match == ReplayMatch::sequence),
       report_(config_.file, config_.match),

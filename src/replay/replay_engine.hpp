@@ -27,8 +27,10 @@ namespace wiretape::detail {
 
 class ReplayEngine {
  public:
+  // `origin_ns`: the recorded time that `open_time` stands for (see
+  // ReplayTimeline).
   ReplayEngine(ReplayConfig config, RecordSourceFactory sources,
-               ReplayTime open_time);
+               ReplayTime open_time, std::uint64_t origin_ns = 0);
   ~ReplayEngine();
   ReplayEngine(const ReplayEngine&) = delete;
   ReplayEngine& operator=(const ReplayEngine&) = delete;
