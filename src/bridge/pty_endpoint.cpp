@@ -17,6 +17,8 @@
 #include "posix/platform.hpp"
 #include "posix/pty_terminal.hpp"
 #include "posix/syscalls.hpp"
+#include "replay/replay_port.hpp"
+#include "session/record_kinds.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail::bridge {
@@ -185,25 +187,37 @@ class PtyEndpoint final : public ClientEndpoint {
     if (unread < retained_.size()) retained_.erase(0, retained_.size() - unread);
   }
 
+  // The client flushed its input or output (seen in packet mode). Recorded
+  // as events, so that a replay can wait for the same flush (DESIGN.md
+  // section 12).
   void client_flushed(unsigned control) {
-    if (!(control & TIOCPKT_FLUSHREAD) || !device_.is_virtual()) return;
-    if (!client_wrote_) {
-      // Opening flushes (pyserial, gpsd) must not eat a greeting. What the
-      // terminal still holds was written after the flush (the flush is
-      // seen late): only the retained bytes before it were discarded. (The
-      // client's reads were seen first, in handle_events.)
-      const std::size_t kept = std::min(terminal_unread(*pty_), retained_.size());
-      std::string again = retained_.substr(0, retained_.size() - kept);
-      retained_.erase(0, retained_.size() - kept);
-      again.append(to_pty_.data(), to_pty_.size());
+    const bool input = (control & TIOCPKT_FLUSHREAD) != 0;
+    const bool output = (control & TIOCPKT_FLUSHWRITE) != 0;
+    if (!input && !output) return;
+    if (input) device_.record(RecordKind::flush_input, "{}");
+    if (output) device_.record(RecordKind::flush_output, "{}");
+    if (!device_.is_virtual()) return;
+    if (output) replay_client_flushed(device_.port());
+    if (!input) return;
+    if (client_wrote_) {
+      // DESIGN.md section 7: a flush drops released rx the client has not
+      // read (and the replay counts the flush).
       to_pty_.clear();
-      to_pty_.append(again);
-      write_pty();
+      device_.port().flush_input();
       return;
     }
-    // DESIGN.md section 7: a flush drops released rx the client has not read.
+    // Opening flushes (pyserial, gpsd) must not eat a greeting. What the
+    // terminal still holds was written after the flush (the flush is seen
+    // late): only the retained bytes before it were discarded. (The
+    // client's reads were seen first, in handle_events.)
+    const std::size_t kept = std::min(terminal_unread(*pty_), retained_.size());
+    std::string again = retained_.substr(0, retained_.size() - kept);
+    retained_.erase(0, retained_.size() - kept);
+    again.append(to_pty_.data(), to_pty_.size());
     to_pty_.clear();
-    if (device_.is_open()) device_.purge(true, false);
+    to_pty_.append(again);
+    write_pty();
+    replay_client_flushed(device_.port());
   }
 
   // Everything the client wrote before it closed the terminal, so that its

@@ -112,7 +112,11 @@ void ReplayEngine::flush_input(ReplayTime now) {
     released_.pop_front();
     if (released_.empty()) prepare();
   }
+  // What the flush entitles is released after it, not dropped by it.
+  client_flushed();
 }
+
+void ReplayEngine::client_flushed() { strategy_->client_flushed(); }
 
 void ReplayEngine::write(const char* data, std::size_t size, ReplayTime now) {
   if (size == 0) return;

@@ -165,6 +165,13 @@ class ReplayPort final : public Port {
   void flush_output() override {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
+    client_flushed_locked();
+  }
+
+  void client_flushed() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (closed_) return;
+    client_flushed_locked();
   }
   void drain() override {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -330,6 +337,12 @@ class ReplayPort final : public Port {
   }
 
  private:
+  void client_flushed_locked() {
+    engine_->client_flushed();
+    update_signal(ReplayClock::now());
+    changed_.notify_all();
+  }
+
   ReplayEngine::Outlook outlook_at(ReplayTime now) {
     if (awaiting_client_) return {ReplayEngine::ReadState::waiting, std::nullopt};
     return engine_->outlook(now);
@@ -570,6 +583,10 @@ bool replay_await_client(Port& port) {
 bool replay_begin_client_session(Port& port) {
   auto* replay = dynamic_cast<ReplayPort*>(&port);
   return replay != nullptr && replay->begin_client_session();
+}
+
+void replay_client_flushed(Port& port) {
+  if (auto* replay = dynamic_cast<ReplayPort*>(&port)) replay->client_flushed();
 }
 
 bool replay_recording_greets(const Port& port) {

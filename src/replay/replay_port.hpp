@@ -27,6 +27,12 @@ bool replay_read_would_block_forever(Port& port);
 // for every other port.
 bool replay_recording_has_rx(const Port& port);
 
+// A virtual device's client flushed (its input, with the dropped bytes
+// delivered again, or its output): rx the recording shows after a recorded
+// client flush is entitled once the client has made as many. No-op for
+// other ports.
+void replay_client_flushed(Port& port);
+
 // True when `port` is a replay whose first client session begins with rx
 // before any tx (a greeting). False for every other port.
 bool replay_recording_greets(const Port& port);
