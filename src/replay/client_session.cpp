@@ -28,7 +28,7 @@ class ClientSessionSource final : public RecordSource {
   void rewind() override {
     inner_->rewind();
     started_ = false;
-    client_present_ = true;
+    ended_ = false;
   }
   const std::optional<SessionError>& damage() const override { return inner_->damage(); }
 
@@ -43,21 +43,22 @@ class ClientSessionSource final : public RecordSource {
       }
       started_ = true;
     }
-    for (;;) {
-      const bool got = view ? inner_->next(record, *view) : inner_->next(record);
-      if (!got) return false;
-      if (record.kind == RecordKind::client_connect) client_present_ = true;
-      if (record.kind == RecordKind::client_disconnect) client_present_ = false;
-      // What the device said to nobody is not replayed.
-      if (record.kind == RecordKind::rx && !client_present_) continue;
-      return true;
+    if (ended_) return false;
+    const bool got = view ? inner_->next(record, *view) : inner_->next(record);
+    if (!got) return false;
+    // What follows the client's recorded disconnect was said to nobody, or
+    // belongs to the next client's session.
+    if (record.kind == RecordKind::client_disconnect) {
+      ended_ = true;
+      return false;
     }
+    return true;
   }
 
   std::unique_ptr<RecordSource> inner_;
   const int k_;
   bool started_ = false;
-  bool client_present_ = true;
+  bool ended_ = false;
 };
 
 }  // namespace

@@ -16,8 +16,8 @@ namespace wiretape::detail {
 std::optional<std::uint64_t> find_client_connect(RecordSource& source, int k);
 
 // Sources over what client session `k` is served: the records after the
-// `k`-th client_connect, without the rx recorded between a
-// client_disconnect and the next client_connect.
+// `k`-th client_connect, up to the client_disconnect that follows it (what
+// comes after was said to nobody, or to the next client).
 RecordSourceFactory client_session_sources(RecordSourceFactory sources, int k);
 
 }  // namespace wiretape::detail

@@ -161,3 +161,55 @@ def test_a_tcp_client_of_a_proxy_recording_is_not_served_what_came_before_it(tmp
         handle.stop()
         assert handle.wait(DEADLINE)
     assert got == GREETING + LATER
+
+
+def write_two_client_recording(path):
+    writer = _core.SessionWriter(str(path), capture="wire",
+                                 port_options="type=serial,device=/dev/ttyX", port_type="serial")
+    writer.write("open", 0, b"{}")
+    writer.write("rx", 1_000, b"to nobody\n")
+    writer.write("client_connect", 2_000, b'{"peer":"pty","role":"control"}')
+    writer.write("rx", 3_000, b"one\n")
+    writer.write("client_disconnect", 4_000, b'{"peer":"pty","reason":"closed"}')
+    writer.write("rx", 5_000, b"between clients\n")
+    writer.write("client_connect", 6_000, b'{"peer":"pty","role":"control"}')
+    writer.write("rx", 7_000, b"two\n")
+    writer.close()
+    return path
+
+
+@linux_only
+def test_a_pty_clients_second_connection_continues_at_the_second_client_connect(tmp_path):
+    recording = write_two_client_recording(tmp_path / "two.wtape")
+    link = str(tmp_path / "tty")
+    handle = bridge.serve_replay(recording, pty=link, replay_options="timing=none",
+                                 quiet=True)
+    try:
+        for number, expected in enumerate([b"one\n", b"two\n"], start=1):
+            fd = os.open(link, os.O_RDWR | os.O_NOCTTY)
+            try:
+                assert read_until(fd, len(expected)) == expected
+            finally:
+                os.close(fd)
+            wait_until(lambda: sum(m.startswith("client closed") for m in handle.messages())
+                       >= number, DEADLINE, f"client {number}'s close to be seen")
+    finally:
+        handle.stop()
+        assert handle.wait(DEADLINE)
+    assert handle.result().ok, handle.result()
+
+
+def test_a_tcp_clients_second_connection_continues_at_the_second_client_connect(tmp_path):
+    recording = write_two_client_recording(tmp_path / "two.wtape")
+    handle = bridge.serve_replay(recording, listen="127.0.0.1:0",
+                                 replay_options="timing=none", quiet=True)
+    try:
+        host, port = handle.address.rsplit(":", 1)
+        for number, expected in enumerate([b"one\n", b"two\n"], start=1):
+            with socket.create_connection((host, int(port)), timeout=DEADLINE) as client:
+                assert read_until(client.fileno(), len(expected)) == expected
+            wait_until(lambda: sum("disconnected" in m for m in handle.messages()) >= number,
+                       DEADLINE, f"client {number}'s disconnect to be seen")
+    finally:
+        handle.stop()
+        assert handle.wait(DEADLINE)
