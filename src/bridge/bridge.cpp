@@ -98,6 +98,7 @@ struct Bridge::Impl {
   std::string end_message_;
   // The device is a replay whose recording has rx for the clients.
   bool replay_has_rx_ = false;
+  bool replay_greets_ = false;
   std::string nothing_served_;
 
   void end(BridgeOutcome outcome, std::string text) {
@@ -124,6 +125,7 @@ void Bridge::Impl::open_all() {
   }
   device_.open(true, nullptr);
   replay_has_rx_ = detail::replay_recording_has_rx(device_.port());
+  replay_greets_ = detail::replay_recording_greets(device_.port());
   device_.open_session_file();
   if (options_.client_side == BridgeClientSide::pty) {
     endpoint_ = detail::bridge::make_pty_endpoint(options_, device_, status_);
@@ -311,6 +313,12 @@ std::string Bridge::Impl::why_nothing_was_served() const {
   }
   const std::string none = "no client was served any of the recording's rx: ";
   if (stats.clients_accepted == 0) return none + "no client connected before the end";
+  if (stats.bytes_from_device == 0 && stats.bytes_to_device == 0 && replay_greets_) {
+    // A client session releases the greeting at the client's connect; a
+    // client that closes at once can leave before the bridge passed it on.
+    return none + "the client read none of the recording's rx: it closed before any was "
+                  "passed to it (the greeting was lost)";
+  }
   if (stats.bytes_from_device == 0) {
     return none + "nothing the client sent matched what the recording answers, so no rx was "
                   "released";

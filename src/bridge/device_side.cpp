@@ -4,6 +4,7 @@
 #include <cerrno>
 #include <cstdio>
 
+#include "replay/replay_port.hpp"
 #include "session/record_kinds.hpp"
 #include "util/json.hpp"
 #include "wiretape/errors.hpp"
@@ -39,6 +40,11 @@ void DeviceSide::open(bool first, const char* why) {
   if (first) t0_ = Clock::now();
   description_ = device_->description();
   status_.set(&Status::device_description, description_);
+  // A replayed device serves client sessions: nothing before a client
+  // connects (a device reopened while its client stays goes on serving it).
+  if (replay_await_client(*device_) && session_peer_ && !first) {
+    replay_begin_client_session(*device_);
+  }
   try {
     virtual_settings_ = device_->serial_settings();
   } catch (const PortError&) {
@@ -165,14 +171,20 @@ void DeviceSide::recording_stopped(const PortError& error) {
                   "; forwarding goes on without recording");
 }
 
-void DeviceSide::client_connected(const std::string& peer, const char* role) {
+bool DeviceSide::client_connected(const std::string& peer, const char* role) {
   record(RecordKind::client_connect, json::ObjectWriter().add(event_field::peer, peer).add(event_field::role, role).str());
   status_.update_stats([](BridgeStats& s) { ++s.clients_accepted; });
+  if (session_peer_ || std::string_view(role) == "monitor") return false;
+  session_peer_ = peer;
+  return device_ && replay_begin_client_session(*device_);
 }
 
 void DeviceSide::client_disconnected(const std::string& peer, const std::string& reason) {
   record(RecordKind::client_disconnect,
          json::ObjectWriter().add(event_field::peer, peer).add(event_field::reason, reason).str());
+  if (session_peer_ != peer) return;
+  session_peer_.reset();
+  if (device_) replay_await_client(*device_);
 }
 
 // --- client -> device ------------------------------------------------------------------

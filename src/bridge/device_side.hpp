@@ -54,6 +54,9 @@ class DeviceSide {
   // open.
   void open_session_file();
   bool is_open() const { return device_ != nullptr; }
+  // The device is a recording played back: a virtual device (DESIGN.md
+  // section 12).
+  bool is_virtual() const { return device_ != nullptr && device_->type() == "replay"; }
   Port& port() { return *device_; }
   PortCapabilities capabilities() const;
   const std::string& description() const { return description_; }
@@ -78,8 +81,12 @@ class DeviceSide {
   // turns the failure into the bridge's result.
   void record(RecordKind kind, std::string_view data) { record_at(kind, now_ns(), data); }
   void record_at(RecordKind kind, std::uint64_t t_ns, std::string_view data);
-  // A client arriving and leaving, as every endpoint reports it.
-  void client_connected(const std::string& peer, const char* role);
+  // A client arriving and leaving, as every endpoint reports it. A
+  // controlling client's arrival begins a client session of a replayed
+  // device (DESIGN.md section 12); true when that session starts afresh,
+  // so that device data still queued for an earlier client or for nobody
+  // is dropped.
+  bool client_connected(const std::string& peer, const char* role);
   void client_disconnected(const std::string& peer, const std::string& reason);
 
   // --- client -> device ------------------------------------------------------
@@ -130,6 +137,8 @@ class DeviceSide {
   std::optional<Clock::time_point> break_since_;
   std::optional<ModemInputs> last_modem_inputs_;
   bool modem_inputs_unreadable_ = false;
+  // The controlling client whose session a replayed device serves.
+  std::optional<std::string> session_peer_;
 
   void recording_stopped(const PortError& error);
 };

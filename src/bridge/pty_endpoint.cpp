@@ -4,10 +4,12 @@
 // reads show that device data reached it. The terminal settings the client
 // programs are mirrored onto the device. The terminal's node gets a serial
 // device's mode and group, so that a client that drops root can open it.
+#include <sys/ioctl.h>
 #include <unistd.h>
 
 #include <array>
 #include <cerrno>
+#include <cstring>
 #include <optional>
 #include <string>
 
@@ -15,6 +17,8 @@
 #include "posix/platform.hpp"
 #include "posix/pty_terminal.hpp"
 #include "posix/syscalls.hpp"
+#include "replay/replay_port.hpp"
+#include "session/record_kinds.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail::bridge {
@@ -40,6 +44,8 @@ class PtyEndpoint final : public ClientEndpoint {
       : options_(options), device_(device), status_(status) {
     pty_ = open_port(pty_options(options_.pty_link));
     pty_->set_timeout(std::chrono::nanoseconds(0));
+    // The client's flushes show only in packet mode.
+    set_packet_mode(*pty_);
     const std::string path = pty_terminal_path(*pty_);
     grant_access();
     // Best effort: without it, a pty client's coming and going goes unseen.
@@ -111,7 +117,7 @@ class PtyEndpoint final : public ClientEndpoint {
     if (!opens_and_closes_) return;
     for (const platform::TerminalEvent event :
          platform::read_opens_and_closes(opens_and_closes_.get())) {
-      if (event == platform::TerminalEvent::read) client_read_ = true;
+      if (event == platform::TerminalEvent::read) client_read();
     }
   }
 
@@ -125,11 +131,21 @@ class PtyEndpoint final : public ClientEndpoint {
  private:
   void read_pty() {
     if (options_.mirror_settings) check_settings();
-    std::array<char, kChunk> buffer;
-    const std::size_t room = std::min(device_.room_for_client_data(), buffer.size());
-    const std::size_t n = pty_->read(buffer.data(), room, std::chrono::nanoseconds(0));
-    last_read_took_data_ = n > 0;
+    std::array<char, kChunk + 1> buffer;
+    const std::size_t room = std::min(device_.room_for_client_data(), kChunk);
+    // One more for packet mode's control byte.
+    const std::size_t got = pty_->read(buffer.data(), room + 1, std::chrono::nanoseconds(0));
+    last_read_took_data_ = got > 0;
+    if (got == 0) return;
+    if (buffer[0] != TIOCPKT_DATA) {
+      client_flushed(static_cast<unsigned char>(buffer[0]));
+      return;
+    }
+    const std::size_t n = got - 1;
     if (n == 0) return;
+    std::memmove(buffer.data(), buffer.data() + 1, n);
+    client_wrote_ = true;
+    retained_.clear();
     if (!device_.is_open()) {
       if (!dropped_input_logged_) {
         status_.message("the device is away: input from the client is dropped until it is back");
@@ -144,9 +160,64 @@ class PtyEndpoint final : public ClientEndpoint {
     while (!to_pty_.empty()) {
       const std::size_t n = pty_->write(to_pty_.data(), to_pty_.size());
       if (n == 0) return;
+      if (retaining()) retain(to_pty_.data(), n);
       to_pty_.consume(n);
       wrote_device_data_ = true;
     }
+  }
+
+  // A virtual device keeps what it wrote to the terminal until its client
+  // has written (and so is past its opening flushes), to deliver it again
+  // should the client flush it unread (DESIGN.md section 12).
+  bool retaining() const { return openers_ > 0 && !client_wrote_ && device_.is_virtual(); }
+
+  void retain(const char* data, std::size_t size) {
+    retained_.append(data, size);
+    // Bounded like the queue to the terminal: a client that reads nothing
+    // can be flushed its last bytes again, no more.
+    if (retained_.size() > options_.buffer_limit) {
+      retained_.erase(0, retained_.size() - options_.buffer_limit);
+    }
+  }
+
+  // The client read: what it took is no longer retained.
+  void client_read() {
+    client_read_ = true;
+    const std::size_t unread = terminal_unread(*pty_);
+    if (unread < retained_.size()) retained_.erase(0, retained_.size() - unread);
+  }
+
+  // The client flushed its input or output (seen in packet mode). Recorded
+  // as events, so that a replay can wait for the same flush (DESIGN.md
+  // section 12).
+  void client_flushed(unsigned control) {
+    const bool input = (control & TIOCPKT_FLUSHREAD) != 0;
+    const bool output = (control & TIOCPKT_FLUSHWRITE) != 0;
+    if (!input && !output) return;
+    if (input) device_.record(RecordKind::flush_input, "{}");
+    if (output) device_.record(RecordKind::flush_output, "{}");
+    if (!device_.is_virtual()) return;
+    if (output) replay_client_flushed(device_.port());
+    if (!input) return;
+    if (client_wrote_) {
+      // DESIGN.md section 7: a flush drops released rx the client has not
+      // read (and the replay counts the flush).
+      to_pty_.clear();
+      device_.port().flush_input();
+      return;
+    }
+    // Opening flushes (pyserial, gpsd) must not eat a greeting. What the
+    // terminal still holds was written after the flush (the flush is seen
+    // late): only the retained bytes before it were discarded. (The
+    // client's reads were seen first, in handle_events.)
+    const std::size_t kept = std::min(terminal_unread(*pty_), retained_.size());
+    std::string again = retained_.substr(0, retained_.size() - kept);
+    retained_.erase(0, retained_.size() - kept);
+    again.append(to_pty_.data(), to_pty_.size());
+    to_pty_.clear();
+    to_pty_.append(again);
+    write_pty();
+    replay_client_flushed(device_.port());
   }
 
   // Everything the client wrote before it closed the terminal, so that its
@@ -194,7 +265,7 @@ class PtyEndpoint final : public ClientEndpoint {
     for (const platform::TerminalEvent event :
          platform::read_opens_and_closes(opens_and_closes_.get())) {
       if (event == platform::TerminalEvent::read) {
-        client_read_ = true;
+        client_read();
         continue;
       }
       if (event == platform::TerminalEvent::opened) {
@@ -205,7 +276,14 @@ class PtyEndpoint final : public ClientEndpoint {
           device_.restart();
         }
         had_client_ = true;
-        device_.client_connected("pty", "control");
+        client_wrote_ = false;
+        retained_.clear();
+        if (device_.client_connected("pty", "control")) {
+          // A replay's new client session: what waits in the terminal was
+          // meant for nobody, or for the previous client.
+          pty_->flush_output();
+          to_pty_.clear();
+        }
         status_.message("client connected to " + pty_->description());
       } else if (openers_ > 0 && --openers_ == 0) {
         drain_pty();
@@ -250,6 +328,10 @@ class PtyEndpoint final : public ClientEndpoint {
   bool last_read_took_data_ = false;
   bool wrote_device_data_ = false;
   bool client_read_ = false;
+  // The current client has written to the terminal.
+  bool client_wrote_ = false;
+  // See retaining().
+  std::string retained_;
   ByteQueue to_pty_{options_.buffer_limit};
   SerialSettings last_settings_;
   Clock::time_point next_settings_check_;

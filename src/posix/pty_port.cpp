@@ -2,6 +2,7 @@
 // opens the terminal (the path in description(), or `link`) as if it were a
 // serial device; what it writes is read here and vice versa.
 #include <grp.h>
+#include <sys/ioctl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -13,6 +14,7 @@
 #include "posix/fd_port.hpp"
 #include "posix/platform.hpp"
 #include "posix/pty_terminal.hpp"
+#include "posix/syscalls.hpp"
 #include "posix/termios_settings.hpp"
 #include "wiretape/errors.hpp"
 
@@ -44,6 +46,19 @@ class PtyPort final : public FdPort {
   }
 
   const std::string& terminal_path() const { return path_; }
+
+  void set_packet_mode() {
+    int on = 1;
+    if (sys::ioctl(native_handle(), TIOCPKT, &on) != 0) {
+      raise_os_error(errno, description(), "putting the pty in packet mode");
+    }
+  }
+
+  std::size_t terminal_unread() const {
+    int unread = 0;
+    if (sys::ioctl(terminal_.get(), FIONREAD, &unread) != 0 || unread < 0) return 0;
+    return static_cast<std::size_t>(unread);
+  }
 
   // Through the descriptor held open, not the path: the node cannot be
   // swapped in between.
@@ -135,6 +150,19 @@ void set_terminal_access(Port& port, mode_t mode, gid_t group) {
     throw std::logic_error("set_terminal_access: " + port.description() + " is not a pty");
   }
   pty->set_access(mode, group);
+}
+
+void set_packet_mode(Port& port) {
+  auto* pty = dynamic_cast<PtyPort*>(&port);
+  if (pty == nullptr) {
+    throw std::logic_error("set_packet_mode: " + port.description() + " is not a pty");
+  }
+  pty->set_packet_mode();
+}
+
+std::size_t terminal_unread(const Port& port) {
+  const auto* pty = dynamic_cast<const PtyPort*>(&port);
+  return pty ? pty->terminal_unread() : 0;
 }
 
 std::unique_ptr<Port> open_pty(Options& options) {

@@ -5,6 +5,7 @@
 
 #include <sys/types.h>
 
+#include <cstddef>
 #include <optional>
 #include <string>
 
@@ -31,5 +32,16 @@ std::optional<gid_t> find_group(const std::string& name_or_id);
 // and group `group`, as a real serial device's node is. PortError when the
 // system refuses (not the owner, not a member of the group).
 void set_terminal_access(Port& port, mode_t mode, gid_t group);
+
+// Puts the master of the pty `port` in packet mode (TIOCPKT): each read of
+// it then starts with a control byte, 0 before data, or TIOCPKT_FLUSHREAD /
+// TIOCPKT_FLUSHWRITE alone when the client flushed its input or output.
+// For the bridge's pty endpoint only (type=pty reads plain data).
+// PortError when the system refuses.
+void set_packet_mode(Port& port);
+
+// Bytes written to the pty `port` that its client has not read yet (0 when
+// that cannot be told).
+std::size_t terminal_unread(const Port& port);
 
 }  // namespace wiretape::detail

@@ -32,9 +32,9 @@ bool is_due(const RxItem& item, ReplayTime now) { return item.due <= now; }
 }  // namespace
 
 ReplayEngine::ReplayEngine(ReplayConfig config, RecordSourceFactory sources,
-                           ReplayTime open_time)
+                           ReplayTime open_time, std::uint64_t origin_ns)
     : config_(std::move(config)),
-      timeline_(config_, open_time),
+      timeline_(config_, open_time, origin_ns),
       // Only the sequence strategy reads records into reused buffers.
       released_(config_.match == ReplayMatch::sequence),
       report_(config_.file, config_.match),
@@ -112,7 +112,11 @@ void ReplayEngine::flush_input(ReplayTime now) {
     released_.pop_front();
     if (released_.empty()) prepare();
   }
+  // What the flush entitles is released after it, not dropped by it.
+  client_flushed();
 }
+
+void ReplayEngine::client_flushed() { strategy_->client_flushed(); }
 
 void ReplayEngine::write(const char* data, std::size_t size, ReplayTime now) {
   if (size == 0) return;

@@ -27,8 +27,10 @@ namespace wiretape::detail {
 
 class ReplayEngine {
  public:
+  // `origin_ns`: the recorded time that `open_time` stands for (see
+  // ReplayTimeline).
   ReplayEngine(ReplayConfig config, RecordSourceFactory sources,
-               ReplayTime open_time);
+               ReplayTime open_time, std::uint64_t origin_ns = 0);
   ~ReplayEngine();
   ReplayEngine(const ReplayEngine&) = delete;
   ReplayEngine& operator=(const ReplayEngine&) = delete;
@@ -64,8 +66,11 @@ class ReplayEngine {
   void client_event(RecordKind kind,
                     const std::map<std::string, std::string>& fields,
                     ReplayTime now);
-  // Drops rx that was released and is due but not yet read.
+  // Drops rx that was released and is due but not yet read; a client flush.
   void flush_input(ReplayTime now);
+  // The client flushed without dropping released rx (its output, or its
+  // input where the bytes dropped are delivered again).
+  void client_flushed();
   // What the recording held that the client never consumed; empty if all.
   std::string unused_report();
 

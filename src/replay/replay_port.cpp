@@ -13,6 +13,7 @@
 #include "core/open_port.hpp"
 #include "posix/platform.hpp"
 #include "posix/syscalls.hpp"
+#include "replay/client_session.hpp"
 #include "replay/replay_engine.hpp"
 #include "replay/replay_port.hpp"
 #include "session/reader.hpp"
@@ -78,7 +79,9 @@ class ReplayPort final : public Port {
   ReplayPort(ReplayConfig config, RecordSourceFactory sources)
       : description_(describe(config)),
         sources_(sources),
-        engine_(std::move(config), std::move(sources), ReplayClock::now()) {
+        config_(config),
+        engine_(std::make_unique<ReplayEngine>(std::move(config), std::move(sources),
+                                               ReplayClock::now())) {
     int fds[2];
     if (sys::pipe(fds) != 0) {
       throw PortError(errno, description_ + ": creating the readiness pipe");
@@ -93,7 +96,7 @@ class ReplayPort final : public Port {
       std::lock_guard<std::mutex> lock(mutex_);
       update_signal(ReplayClock::now());
     }
-    if (engine_.config().timing != ReplayTiming::none) {
+    if (engine_->config().timing != ReplayTiming::none) {
       scheduler_ = std::thread([this] { schedule(); });
     }
   }
@@ -109,20 +112,66 @@ class ReplayPort final : public Port {
   std::size_t available() override {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
-    return engine_.available(ReplayClock::now());
+    if (awaiting_client_) return 0;
+    return engine_->available(ReplayClock::now());
+  }
+
+  // A virtual device with no client: holds everything until the next client
+  // session begins.
+  void await_client() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (closed_) return;
+    awaiting_client_ = true;
+    update_signal(ReplayClock::now());
+    changed_.notify_all();
+  }
+
+  // A client connected: the k-th session starts now, at the recording's
+  // k-th client_connect (the first: at the recording's start when it has
+  // none). A later client of a recording without one continues where the
+  // previous one left off. True when the session starts afresh.
+  bool begin_client_session() {
+    const int k = client_sessions_ + 1;
+    std::optional<std::uint64_t> connect_t_ns;
+    {
+      const std::unique_ptr<RecordSource> source = sources_();
+      connect_t_ns = find_client_connect(*source, k);
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (closed_) return false;
+    client_sessions_ = k;
+    awaiting_client_ = false;
+    const auto now = ReplayClock::now();
+    const bool afresh = connect_t_ns || k == 1;
+    if (afresh) {
+      RecordSourceFactory sources =
+          connect_t_ns ? client_session_sources(sources_, k) : sources_;
+      engine_ = std::make_unique<ReplayEngine>(config_, std::move(sources), now,
+                                               connect_t_ns.value_or(0));
+    }
+    update_signal(now);
+    changed_.notify_all();
+    return afresh;
   }
 
   void flush_input() override {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
     const auto now = ReplayClock::now();
-    engine_.flush_input(now);
+    engine_->flush_input(now);
     update_signal(now);
     changed_.notify_all();
   }
   void flush_output() override {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
+    client_flushed_locked();
+  }
+
+  void client_flushed() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (closed_) return;
+    client_flushed_locked();
   }
   void drain() override {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -141,12 +190,29 @@ class ReplayPort final : public Port {
     return false;
   }
 
+  // Whether the first client session opens with rx before any tx.
+  bool recording_greets() const {
+    const bool sessions = [&] {
+      const std::unique_ptr<RecordSource> source = sources_();
+      return find_client_connect(*source, 1).has_value();
+    }();
+    const std::unique_ptr<RecordSource> source =
+        sessions ? client_session_sources(sources_, 1)() : sources_();
+    Record record;
+    while (source->next(record)) {
+      if (record.data.empty()) continue;
+      if (record.kind == RecordKind::rx) return true;
+      if (record.kind == RecordKind::tx) return false;
+    }
+    return false;
+  }
+
   bool read_would_block_forever() {
     std::lock_guard<std::mutex> lock(mutex_);
     return !closed_ &&
-           engine_.outlook(ReplayClock::now()).state ==
+           outlook_at(ReplayClock::now()).state ==
                ReplayEngine::ReadState::ended &&
-           engine_.config().at_end == ReplayAtEnd::silent;
+           engine_->config().at_end == ReplayAtEnd::silent;
   }
   bool is_open() const override {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -165,14 +231,14 @@ class ReplayPort final : public Port {
   void set_baud(unsigned baud) override {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
-    engine_.client_event(RecordKind::settings, {{event_field::baud, std::to_string(baud)}},
+    engine_->client_event(RecordKind::settings, {{event_field::baud, std::to_string(baud)}},
                          ReplayClock::now());
     settings_.baud = baud;
   }
   void configure(const SerialSettings& settings) override {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
-    engine_.client_event(RecordKind::settings,
+    engine_->client_event(RecordKind::settings,
                          {{event_field::baud, std::to_string(settings.baud)},
                           {event_field::databits, std::to_string(settings.data_bits)},
                           {event_field::stopbits, std::to_string(settings.stop_bits)},
@@ -194,7 +260,7 @@ class ReplayPort final : public Port {
   void send_break(std::chrono::milliseconds duration) override {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
-    engine_.client_event(RecordKind::line_break,
+    engine_->client_event(RecordKind::line_break,
                          {{event_field::duration_ms, std::to_string(duration.count())}},
                          ReplayClock::now());
   }
@@ -207,14 +273,14 @@ class ReplayPort final : public Port {
       check_open();
       const auto now = ReplayClock::now();
       const std::size_t n =
-          engine_.read(static_cast<char*>(buffer), size, now);
+          awaiting_client_ ? 0 : engine_->read(static_cast<char*>(buffer), size, now);
       const ReplayEngine::Outlook outlook = update_signal(now);
       if (n > 0) {
         reschedule(outlook);
         return n;
       }
       if (outlook.state == ReplayEngine::ReadState::ended) {
-        if (engine_.config().at_end == ReplayAtEnd::closed) {
+        if (engine_->config().at_end == ReplayAtEnd::closed) {
           throw PortClosed(description_ +
                            ": the recording has ended (at_end=closed)");
         }
@@ -235,7 +301,7 @@ class ReplayPort final : public Port {
     check_open();
     const auto now = ReplayClock::now();
     try {
-      engine_.write(static_cast<const char*>(data), size, now);
+      engine_->write(static_cast<const char*>(data), size, now);
     } catch (...) {
       update_signal(now);
       changed_.notify_all();
@@ -258,7 +324,7 @@ class ReplayPort final : public Port {
           return true;
         case ReplayEngine::ReadState::ended:
           // at_end=closed, or a read that would block forever: both raise.
-          if (engine_.config().at_end == ReplayAtEnd::closed || !deadline) {
+          if (engine_->config().at_end == ReplayAtEnd::closed || !deadline) {
             return true;
           }
           break;
@@ -271,6 +337,17 @@ class ReplayPort final : public Port {
   }
 
  private:
+  void client_flushed_locked() {
+    engine_->client_flushed();
+    update_signal(ReplayClock::now());
+    changed_.notify_all();
+  }
+
+  ReplayEngine::Outlook outlook_at(ReplayTime now) {
+    if (awaiting_client_) return {ReplayEngine::ReadState::waiting, std::nullopt};
+    return engine_->outlook(now);
+  }
+
   void check_open() const {
     if (closed_) throw PortClosed(description_ + " is closed");
   }
@@ -278,7 +355,7 @@ class ReplayPort final : public Port {
   void modem_line(const char* line, bool level) {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
-    engine_.client_event(RecordKind::modem_lines, {{line, level ? "true" : "false"}},
+    engine_->client_event(RecordKind::modem_lines, {{line, level ? "true" : "false"}},
                          ReplayClock::now());
   }
 
@@ -335,12 +412,12 @@ class ReplayPort final : public Port {
 
   // Keeps the pipe readable exactly when a read would not block on data.
   ReplayEngine::Outlook update_signal(ReplayTime now) {
-    const ReplayEngine::Outlook outlook = engine_.outlook(now);
+    const ReplayEngine::Outlook outlook = outlook_at(now);
     const bool readable =
         outlook.state == ReplayEngine::ReadState::readable ||
         outlook.state == ReplayEngine::ReadState::device_gone ||
         (outlook.state == ReplayEngine::ReadState::ended &&
-         engine_.config().at_end == ReplayAtEnd::closed);
+         engine_->config().at_end == ReplayAtEnd::closed);
     if (readable && !signalled_) {
       const char byte = 1;
       while (sys::write(signal_write_.get(), &byte, 1) < 0 && errno == EINTR) {
@@ -444,8 +521,8 @@ class ReplayPort final : public Port {
       std::lock_guard<std::mutex> lock(mutex_);
       signal_read_.reset();
       signal_write_.reset();
-      const ReplayUnused policy = engine_.config().unused;
-      if (policy != ReplayUnused::ignore) unused = engine_.unused_report();
+      const ReplayUnused policy = engine_->config().unused;
+      if (policy != ReplayUnused::ignore) unused = engine_->unused_report();
       if (unused.empty()) return;
       if (policy == ReplayUnused::warn || !may_throw) {
         std::fprintf(stderr, "wiretape: %s\n", unused.c_str());
@@ -461,7 +538,12 @@ class ReplayPort final : public Port {
   const RecordSourceFactory sources_;
   mutable std::mutex mutex_;
   std::condition_variable changed_;
-  ReplayEngine engine_;
+  const ReplayConfig config_;  // for the engine of each client session
+  std::unique_ptr<ReplayEngine> engine_;
+  // A virtual device between client sessions: nothing is released to
+  // nobody (see await_client()).
+  bool awaiting_client_ = false;
+  int client_sessions_ = 0;
   SerialSettings settings_;
   bool closed_ = false;
   sys::UniqueFd signal_read_;
@@ -489,6 +571,27 @@ std::unique_ptr<Port> open_replay_session(ReplayConfig config,
 bool replay_read_would_block_forever(Port& port) {
   auto* replay = dynamic_cast<ReplayPort*>(&port);
   return replay != nullptr && replay->read_would_block_forever();
+}
+
+bool replay_await_client(Port& port) {
+  auto* replay = dynamic_cast<ReplayPort*>(&port);
+  if (replay == nullptr) return false;
+  replay->await_client();
+  return true;
+}
+
+bool replay_begin_client_session(Port& port) {
+  auto* replay = dynamic_cast<ReplayPort*>(&port);
+  return replay != nullptr && replay->begin_client_session();
+}
+
+void replay_client_flushed(Port& port) {
+  if (auto* replay = dynamic_cast<ReplayPort*>(&port)) replay->client_flushed();
+}
+
+bool replay_recording_greets(const Port& port) {
+  const auto* replay = dynamic_cast<const ReplayPort*>(&port);
+  return replay != nullptr && replay->recording_greets();
 }
 
 bool replay_recording_has_rx(const Port& port) {

@@ -27,4 +27,25 @@ bool replay_read_would_block_forever(Port& port);
 // for every other port.
 bool replay_recording_has_rx(const Port& port);
 
+// A virtual device's client flushed (its input, with the dropped bytes
+// delivered again, or its output): rx the recording shows after a recorded
+// client flush is entitled once the client has made as many. No-op for
+// other ports.
+void replay_client_flushed(Port& port);
+
+// True when `port` is a replay whose first client session begins with rx
+// before any tx (a greeting). False for every other port.
+bool replay_recording_greets(const Port& port);
+
+// Client sessions of a virtual device (DESIGN.md section 12). When `port`
+// is a replay, holds back everything until the next client session begins
+// (a bridge calls it at open and when its client leaves) and returns true;
+// false for every other port.
+bool replay_await_client(Port& port);
+// When `port` is a replay, starts the next client session now and returns
+// true if it starts afresh (at the recording's next client_connect, or at
+// its start for the first): whatever was queued for an earlier client is
+// not this client's. False for every other port.
+bool replay_begin_client_session(Port& port);
+
 }  // namespace wiretape::detail

@@ -31,6 +31,11 @@ void SequenceStrategy::release() {
   entitle();
 }
 
+void SequenceStrategy::client_flushed() {
+  ++client_flushes_;
+  entitle();
+}
+
 bool SequenceStrategy::more_to_release() const {
   return !ahead_.empty() || !rx_exhausted_;
 }
@@ -52,6 +57,10 @@ void SequenceStrategy::fill() {
         rx_tx_seen_ += size;
         rx_last_tx_t_ns_ = record.t_ns;
         break;
+      case RecordKind::flush_input:
+      case RecordKind::flush_output:
+        ++rx_flushes_seen_;
+        break;
       case RecordKind::rx:
       case RecordKind::close:
       case RecordKind::device_lost: {
@@ -65,6 +74,7 @@ void SequenceStrategy::fill() {
         ahead.item.t_ns = record.t_ns;
         ahead.tx_before = rx_tx_seen_;
         ahead.anchor_t_ns = rx_last_tx_t_ns_;
+        ahead.flushes_before = rx_flushes_seen_;
         ahead_bytes_ += size;
         if (view) {
           ahead.item.view = std::move(view);
@@ -95,8 +105,11 @@ void SequenceStrategy::entitle() {
   while (!ahead_.empty()) {
     Ahead& ahead = ahead_.front();
     // timing=session: time alone decides, writes do not gate.
+    // A client flush recorded before it (pyserial's, gpsd's on open) would
+    // have discarded it had it come earlier: it waits for the client's.
     const bool entitled = config_.timing == ReplayTiming::session ||
-                          tx_written_ >= ahead.tx_before;
+                          (tx_written_ >= ahead.tx_before &&
+                           client_flushes_ >= ahead.flushes_before);
     if (!entitled) break;  // later records need at least as many tx bytes
     std::optional<ReplayTimeline::Anchor> anchor;
     if (ahead.anchor_t_ns) {

@@ -25,6 +25,7 @@ class SequenceStrategy final : public ReplayStrategy {
 
   void release() override;
   bool more_to_release() const override;
+  void client_flushed() override;
   void write(const char* data, std::size_t size, ReplayTime now) override;
   void client_event(RecordKind kind,
                     const std::map<std::string, std::string>& fields) override;
@@ -39,6 +40,8 @@ class SequenceStrategy final : public ReplayStrategy {
     // before it (none: before any write).
     std::uint64_t tx_before = 0;
     std::optional<std::uint64_t> anchor_t_ns;
+    // Client flushes (flush_input, flush_output) recorded before it.
+    std::uint64_t flushes_before = 0;
   };
   struct TxEnd {  // a recorded tx record the client finished writing
     std::uint64_t end_offset;
@@ -64,6 +67,8 @@ class SequenceStrategy final : public ReplayStrategy {
   bool rx_exhausted_ = false;
   std::uint64_t rx_tx_seen_ = 0;
   std::optional<std::uint64_t> rx_last_tx_t_ns_;
+  std::uint64_t rx_flushes_seen_ = 0;
+  std::uint64_t client_flushes_ = 0;  // the client made
   std::deque<Ahead> ahead_;
   std::size_t ahead_bytes_ = 0;
   std::deque<TxEnd> tx_ends_;

@@ -108,6 +108,9 @@ class ReplayStrategy {
   // Accepts the whole write or raises ReplayMismatch (or PortClosed past a
   // recorded close).
   virtual void write(const char* data, std::size_t size, ReplayTime now) = 0;
+  // The client flushed its input or output: rx the recording shows after a
+  // recorded client flush waits for the client's own (match=sequence).
+  virtual void client_flushed() {}
   // See ReplayEngine::client_event.
   virtual void client_event(RecordKind kind,
                             const std::map<std::string, std::string>& fields) = 0;

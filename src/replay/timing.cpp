@@ -16,12 +16,18 @@ std::string milliseconds_text(std::chrono::nanoseconds ns) {
 
 }  // namespace
 
-ReplayTimeline::ReplayTimeline(const ReplayConfig& config, ReplayTime open_time)
+ReplayTimeline::ReplayTimeline(const ReplayConfig& config, ReplayTime open_time,
+                               std::uint64_t origin_ns)
     : timing_(config.timing),
       speed_(config.speed),
       checked_(config.check == ReplayCheck::timing),
       tolerance_(config.tolerance),
-      open_time_(open_time) {}
+      open_time_(open_time),
+      origin_ns_(origin_ns) {}
+
+std::chrono::nanoseconds ReplayTimeline::since_origin(std::uint64_t t_ns) const {
+  return scaled(t_ns > origin_ns_ ? t_ns - origin_ns_ : 0);
+}
 
 std::chrono::nanoseconds ReplayTimeline::scaled(std::uint64_t ns) const {
   return std::chrono::nanoseconds(
@@ -34,11 +40,11 @@ ReplayTime ReplayTimeline::due(std::uint64_t t_ns,
     case ReplayTiming::none:
       return open_time_;
     case ReplayTiming::session:
-      return open_time_ + scaled(t_ns);
+      return open_time_ + since_origin(t_ns);
     case ReplayTiming::causal:
       break;
   }
-  if (!anchor) return open_time_ + scaled(t_ns);
+  if (!anchor) return open_time_ + since_origin(t_ns);
   // A record stamped before its anchor (clock granularity) is due at once.
   const std::uint64_t gap =
       t_ns > anchor->recorded_t_ns ? t_ns - anchor->recorded_t_ns : 0;

@@ -18,7 +18,10 @@ using ReplayTime = ReplayClock::time_point;
 
 class ReplayTimeline {
  public:
-  ReplayTimeline(const ReplayConfig& config, ReplayTime open_time);
+  // `origin_ns`: the recorded time that `open_time` stands for (a client
+  // session of a virtual device starts at its recorded client_connect).
+  ReplayTimeline(const ReplayConfig& config, ReplayTime open_time,
+                 std::uint64_t origin_ns = 0);
 
   // The client's write that a record follows in the recording: when the
   // client finished it, and when it was recorded. Causal timing counts from
@@ -57,12 +60,14 @@ class ReplayTimeline {
 
  private:
   std::chrono::nanoseconds scaled(std::uint64_t ns) const;
+  std::chrono::nanoseconds since_origin(std::uint64_t t_ns) const;
 
   ReplayTiming timing_;
   double speed_;
   bool checked_;
   std::chrono::nanoseconds tolerance_;
   ReplayTime open_time_;
+  std::uint64_t origin_ns_;
 };
 
 }  // namespace wiretape::detail

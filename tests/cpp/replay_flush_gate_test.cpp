@@ -1,0 +1,87 @@
+// Replay waits for the client's flush where the recording shows one
+// (DESIGN.md section 12): rx recorded after a client's flush_input or
+// flush_output is entitled only once the client has flushed as often.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <string>
+#include <vector>
+
+#include "replay/replay_config.hpp"
+#include "replay/replay_port.hpp"
+#include "session/record_source.hpp"
+#include "wiretape/options.hpp"
+#include "wiretape/port.hpp"
+#include "wiretape/session.hpp"
+
+using namespace wiretape;
+using namespace std::chrono_literals;
+
+namespace {
+
+Record record(std::uint64_t t, RecordKind kind, std::string data = {}) {
+  return {t, kind, std::move(data)};
+}
+
+std::unique_ptr<Port> replay(std::vector<Record> records, const std::string& keys) {
+  Options options = Options::parse("file=synthetic.wtape," + keys);
+  detail::ReplayConfig config = detail::take_replay_config(options);
+  options.finish("replay");
+  return detail::open_replay_session(config, detail::vector_source_factory(std::move(records)));
+}
+
+std::string read_now(Port& port) {
+  std::string buffer(256, '\0');
+  buffer.resize(port.read(buffer.data(), buffer.size(), std::chrono::nanoseconds(0)));
+  return buffer;
+}
+
+std::vector<Record> flushed_greeting() {
+  return {record(0, RecordKind::open, "{}"),
+          record(1'000, RecordKind::rx, "boot"),
+          record(2'000, RecordKind::flush_input, "{}"),
+          record(3'000, RecordKind::rx, "HELLO"),
+          record(4'000, RecordKind::flush_output, "{}"),
+          record(5'000, RecordKind::rx, "AGAIN")};
+}
+
+}  // namespace
+
+TEST(ReplayFlushGate, RxAfterARecordedFlushWaitsForTheClientsFlush) {
+  auto port = replay(flushed_greeting(), "timing=none,unused=ignore");
+  EXPECT_EQ(read_now(*port), "boot");
+  EXPECT_EQ(read_now(*port), "");
+  port->flush_input();
+  EXPECT_EQ(read_now(*port), "HELLO");
+  EXPECT_EQ(read_now(*port), "");
+  port->flush_output();
+  EXPECT_EQ(read_now(*port), "AGAIN");
+  port->close();
+}
+
+TEST(ReplayFlushGate, TheFlushDropsOnlyWhatWasReleasedBeforeIt) {
+  auto port = replay(flushed_greeting(), "timing=none,unused=ignore");
+  port->flush_input();  // "boot" unread: dropped; "HELLO" released after
+  EXPECT_EQ(read_now(*port), "HELLO");
+  port->close();
+}
+
+TEST(ReplayFlushGate, AVirtualDevicesRedeliveringFlushCountsWithoutDropping) {
+  auto port = replay(flushed_greeting(), "timing=none,unused=ignore");
+  detail::replay_client_flushed(*port);
+  EXPECT_EQ(read_now(*port), "bootHELLO");
+  port->close();
+}
+
+TEST(ReplayFlushGate, SessionTimingIsDecidedByTimeAlone) {
+  auto port = replay(flushed_greeting(), "timing=session,unused=ignore");
+  port->set_timeout(5s);
+  std::string got;
+  while (got.size() < 14) {
+    std::string buffer(64, '\0');
+    buffer.resize(port->read(buffer.data(), buffer.size()));
+    got += buffer;
+  }
+  EXPECT_EQ(got, "bootHELLOAGAIN");
+  port->close();
+}
