@@ -442,6 +442,11 @@ def _client_has_closed(handle) -> bool:
     return True
 
 
+def _client_connected(handle) -> bool:
+    return any(message.startswith(("client connected", "client closed"))
+               for message in handle.messages())
+
+
 def _run_bridge_with_command(handle, out: _Output, what: str, argv: Sequence[str],
                              device_path: str, announce: Callable[[], None],
                              must_serve: bool = False) -> int:
@@ -477,11 +482,14 @@ def _run_bridge_with_command(handle, out: _Output, what: str, argv: Sequence[str
         handle.stop()
         handle.wait()
     status = command.exit_status()
-    used = command.used_device_path()
+    # The shim notes each use of the path; a bind mount is seen as the pty's
+    # client arriving.
+    used = command.used_device_path() or _client_connected(handle)
     command.close()
     if not used:
-        out.note(f"{what}: {command.name} never opened {device_path} (a statically linked "
-                 "program, or one that names the device otherwise, is not redirected)")
+        out.note(f"{what}: {command.name} never opened {device_path} (the shim reaches "
+                 "dynamically linked programs; a static one is reached as root, through a "
+                 "bind mount, only where the path exists)")
     try:
         verdict = _run_bridge(handle, out, what, lambda: None, must_serve=must_serve)
     except (CheckFailed, RuntimeFailure) as error:

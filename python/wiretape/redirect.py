@@ -3,13 +3,16 @@ device: ``wiretape record ... -- CMD`` and ``wiretape replay ... --as PATH
 -- CMD`` (DESIGN §12, "Hard-coded device paths").
 
 CMD runs with the preload shim ``_redirect_device.so`` (src/shim/), which
-rewrites the one path in CMD's open and stat calls to the bridge's pty.
-Only dynamically linked programs are reached; a private mount namespace for
-static programs is not done yet (docs/replay.md says so).
+rewrites the one path in CMD's open and stat calls to the bridge's pty; it
+reaches dynamically linked programs. Where the shim cannot reach (static
+programs, programs that scan /dev), CMD also runs in a private mount
+namespace with the pty bind-mounted over the path, when wiretape runs as
+root and the path exists (a bind mount needs something to cover).
 """
 
 from __future__ import annotations
 
+import ctypes
 import os
 import signal
 import subprocess
@@ -103,6 +106,39 @@ def recorded_device_path(session_file: str) -> Optional[str]:
         return device_path_of(reader.header.port_options)
 
 
+# <sched.h> and <sys/mount.h>: Python 3.11 has no os.unshare or os.mount.
+_CLONE_NEWNS = 0x00020000
+_MS_BIND = 4096
+_MS_REC = 16384
+_MS_PRIVATE = 1 << 18
+
+
+def can_bind_mount(device_path: str) -> bool:
+    """A private mount namespace is tried as root over a path that exists
+    and is not a directory (a terminal can only cover a file)."""
+    return (hasattr(os, "geteuid") and os.geteuid() == 0 and os.path.exists(device_path)
+            and not os.path.isdir(device_path))
+
+
+def _bind_mount_in_private_namespace(pty_path: str, device_path: str):
+    """The preexec function of CMD: a mount namespace of its own, nothing
+    propagated back to the host, the pty bound over the device path. A step
+    that fails leaves CMD to the shim alone (the kernel or the container may
+    refuse namespaces); wiretape still sees whether CMD opened the pty."""
+    libc = ctypes.CDLL(None, use_errno=True)  # loaded before the fork
+    unshare, mount = libc.unshare, libc.mount
+    source, target = os.fsencode(pty_path), os.fsencode(device_path)
+
+    def in_child() -> None:
+        if unshare(_CLONE_NEWNS) != 0:
+            return
+        if mount(None, b"/", None, _MS_REC | _MS_PRIVATE, None) != 0:
+            return  # a bind now could show on the host: none
+        mount(source, target, None, _MS_BIND, None)
+
+    return in_child
+
+
 class RedirectedCommand:
     """CMD running with ``device_path`` redirected to ``pty_path``."""
 
@@ -118,8 +154,11 @@ class RedirectedCommand:
         env[ENV_FROM] = device_path
         env[ENV_TO] = pty_path
         env[ENV_HITS] = self._hits_file
+        self.bind_mounted = can_bind_mount(device_path)
+        preexec = (_bind_mount_in_private_namespace(pty_path, device_path)
+                   if self.bind_mounted else None)
         try:
-            self.process = subprocess.Popen(self.argv, env=env)
+            self.process = subprocess.Popen(self.argv, env=env, preexec_fn=preexec)
         except FileNotFoundError:
             self._remove_hits_file()
             raise CommandNotStarted(f"{self.argv[0]}: command not found",

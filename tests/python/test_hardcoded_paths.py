@@ -213,3 +213,39 @@ def test_the_shim_matches_what_the_path_resolves_to(tmp_path):
     assert done.returncode == 0, done.stderr
     assert done.stdout == "redirected\nredirected\n"
     assert hits.read_text().strip() != ""
+
+
+def _mount_namespaces_work():
+    if os.geteuid() != 0 or shutil.which("unshare") is None:
+        return False
+    probe = subprocess.run(["unshare", "--mount", "true"], capture_output=True,
+                           timeout=COMMAND_DEADLINE_S)
+    return probe.returncode == 0
+
+
+def test_a_static_program_is_reached_through_a_bind_mount(c_client, tmp_path):
+    """The shim cannot reach a statically linked program; as root, over a
+    path that exists, CMD runs in a private mount namespace with the pty
+    bound over the path."""
+    if not _mount_namespaces_work():
+        pytest.skip("NOT ROOT OR NO MOUNT NAMESPACES: the bind mount for static "
+                    "programs is not tested")
+    compiler = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+    device_path = tmp_path / "ttyStatic"
+    device_path.write_text("")  # what the bind mount covers, only in CMD's namespace
+    source = tmp_path / "static_client.c"
+    source.write_text(C_CLIENT.replace('"/dev/ttyUSB0"', f'"{device_path}"'))
+    program = tmp_path / "static_client"
+    built = subprocess.run([compiler, "-static", "-o", str(program), str(source)],
+                           capture_output=True, text=True, timeout=COMMAND_DEADLINE_S)
+    if built.returncode != 0:
+        pytest.skip(f"NO STATIC LIBC: the static program is not tested ({built.stderr.strip()})")
+
+    _, session, _ = record_with(c_client, tmp_path)
+    replayed = wiretape("replay", str(session), "--as", str(device_path), "-q", "--",
+                        str(program))
+    assert replayed.returncode == 0, replayed.stderr
+    assert replayed.stdout == "read: HELLO C\n"
+    assert "never opened" not in replayed.stderr
+    # Nothing leaked to this namespace: the path is still the empty file.
+    assert device_path.read_text() == ""
