@@ -464,18 +464,21 @@ def _run_bridge_with_command(handle, out: _Output, what: str, argv: Sequence[str
         handle.stop()
         handle.wait()
         raise
-    interrupted = False
+    # CMD's status counts only when CMD ended by itself: not when Ctrl-C, or
+    # the bridge ending first, ended it.
+    ended_by_us = False
     try:
         while command.poll() is None:
             if handle.wait(_POLL_S):
                 out.note(f"{what}: ended before {command.name}; ending it")
+                ended_by_us = True
                 command.end()
                 break
         # What CMD wrote last is read from the pty before the bridge stops:
         # the bridge sees the terminal's last close after CMD's exit.
         _wait_for_client_close(handle)
     except KeyboardInterrupt:
-        interrupted = True
+        ended_by_us = True
         out.note(f"{what}: stopping")
         command.end()
     finally:
@@ -493,11 +496,11 @@ def _run_bridge_with_command(handle, out: _Output, what: str, argv: Sequence[str
     try:
         verdict = _run_bridge(handle, out, what, lambda: None, must_serve=must_serve)
     except (CheckFailed, RuntimeFailure) as error:
-        if interrupted or status == 0:
+        if ended_by_us or status == 0:
             raise
         out.error(f"wiretape {what}", _describe(error))
         verdict = exit_code_for(error)
-    if interrupted or status == 0:
+    if ended_by_us or status == 0:
         return verdict
     out.note(f"{what}: {command.name} exited with status {status}")
     return status

@@ -249,3 +249,25 @@ def test_a_static_program_is_reached_through_a_bind_mount(c_client, tmp_path):
     assert "never opened" not in replayed.stderr
     # Nothing leaked to this namespace: the path is still the empty file.
     assert device_path.read_text() == ""
+
+
+MISMATCHING_CLIENT = textwrap.dedent("""
+    import os
+
+    # Says what the recording does not expect, then waits for an answer
+    # that a mismatch never sends: wiretape must end it.
+    fd = os.open("/dev/ttyUSB0", os.O_RDWR | os.O_NOCTTY)
+    os.write(fd, b"unexpected\\n")
+    os.read(fd, 1)
+""")
+
+
+def test_a_replay_that_ends_first_ends_the_command_and_gives_its_verdict(c_client, tmp_path):
+    _, session, _ = record_with(c_client, tmp_path)
+    script = tmp_path / "mismatching.py"
+    script.write_text(MISMATCHING_CLIENT)
+    replayed = wiretape("replay", str(session), "--as", HARD_CODED, "-q", "--",
+                        sys.executable, str(script))
+    assert replayed.returncode == 1, replayed.stderr
+    assert "mismatch" in replayed.stderr
+    assert "ending it" in replayed.stderr
