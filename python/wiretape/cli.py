@@ -454,7 +454,7 @@ def _run_bridge_with_command(handle, out: _Output, what: str, argv: Sequence[str
     ends when CMD exits. The exit status is CMD's when it failed, else the
     bridge's (docs/cli.md); a bridge that ends first (a mismatch, --duration)
     ends CMD."""
-    from .redirect import CommandNotStarted, RedirectedCommand
+    from .redirect import RedirectedCommand
 
     try:
         announce()
