@@ -46,8 +46,12 @@ def exit_code_for(error: BaseException) -> int:
     exception classes to exit codes."""
     import wiretape
 
+    from .redirect import CommandNotStarted
+
     if isinstance(error, KeyboardInterrupt):
         return EXIT_OK
+    if isinstance(error, CommandNotStarted):
+        return error.exit_code  # 127 or 126, as a shell says
     if isinstance(error, (CheckFailed, wiretape.ReplayMismatch, wiretape.SessionError)):
         return EXIT_CHECK_FAILED
     if isinstance(error, (UsageError, wiretape.OptionError)):
@@ -303,6 +307,9 @@ def _announce(handle, out: _Output, what: str, link: Optional[str] = None,
 def cmd_record(args, out: _Output) -> int:
     from . import bridge
 
+    if getattr(args, "command_argv", None) is not None:
+        return _record_with_command(args, out)
+    _refuse_as_without_command(args)
     pty, listen = _client_side(args)
     handle = bridge.record(args.device, args.output, pty=pty, listen=listen, udp=args.udp,
                            duration=args.duration, meta=_meta_pairs(args.meta),
@@ -336,6 +343,9 @@ def cmd_replay(args, out: _Output) -> int:
     from . import bridge
     from .tools._files import refuse_same_file, session_files
 
+    if getattr(args, "command_argv", None) is not None:
+        return _replay_with_command(args, out)
+    _refuse_as_without_command(args)
     pty, listen = _client_side(args)
     _require_input(args.file)
     if args.output:
@@ -349,6 +359,164 @@ def cmd_replay(args, out: _Output) -> int:
                        lambda: _announce(handle, out, f"replaying {args.file}", pty,
                                          udp=args.udp is not None),
                        must_serve=True)
+
+
+# --------------------------------------------------------------------------
+# a command with a hard-coded device path: record/replay ... -- CMD
+
+
+def _refuse_as_without_command(args) -> None:
+    if args.redirect_path is not None:
+        raise UsageError("--as PATH names the device path of a command: give the "
+                         "command after --")
+
+
+def _command_client_side(args) -> Tuple[object, Optional[str]]:
+    """The pty of a bridge that runs a command: --pty PATH links it there,
+    else it has no link (the command reaches it through the shim)."""
+    if not args.command_argv:
+        raise UsageError("no command after --: give the program to run, e.g. "
+                         "-- ./driver --port /dev/ttyUSB0")
+    for flag, value in (("--listen", args.listen), ("--udp", args.udp)):
+        if value is not None:
+            raise UsageError(f"{flag} cannot be used with a command after --: the "
+                             "command's device path is redirected to a pty")
+    return (args.pty if args.pty is not None else True), args.pty
+
+
+def _record_with_command(args, out: _Output) -> int:
+    from . import bridge
+    from .redirect import device_path_of
+
+    pty, link = _command_client_side(args)
+    options = bridge.device_options(args.device)
+    path = args.redirect_path or device_path_of(options)
+    if not path:
+        raise UsageError(f"--device {args.device!r} has no device path to redirect: give "
+                         "the path the command opens with --as PATH")
+    _check_redirect_path(path)
+    handle = bridge.record(args.device, args.output, pty=pty, duration=args.duration,
+                           meta=_meta_pairs(args.meta), quiet=args.quiet,
+                           pty_mode=args.pty_mode, pty_group=args.pty_group)
+    return _run_bridge_with_command(
+        handle, out, "record", args.command_argv, path,
+        lambda: _announce(handle, out, f"recording to {args.output}", link))
+
+
+def _replay_with_command(args, out: _Output) -> int:
+    from . import bridge
+    from .redirect import recorded_device_path
+    from .tools._files import refuse_same_file, session_files
+
+    pty, link = _command_client_side(args)
+    _require_input(args.file)
+    if args.output:
+        refuse_same_file(session_files(args.file), [args.output])
+    path = args.redirect_path or recorded_device_path(args.file)
+    if not path:
+        raise UsageError(f"{args.file}: the recording names no device path: give the "
+                         "path the command opens with --as PATH")
+    _check_redirect_path(path)
+    handle = bridge.serve_replay(args.file, pty=pty, replay_options=replay_options_of(args),
+                                 restart=args.restart, output=args.output,
+                                 quiet=args.quiet, pty_mode=args.pty_mode,
+                                 pty_group=args.pty_group)
+    return _run_bridge_with_command(
+        handle, out, "replay", args.command_argv, path,
+        lambda: _announce(handle, out, f"replaying {args.file}", link), must_serve=True)
+
+
+def _check_redirect_path(path: str) -> None:
+    if not os.path.isabs(path):
+        raise UsageError(f"--as {path!r}: the device path must be absolute "
+                         "(as /dev/ttyUSB0)")
+
+
+def _client_has_closed(handle) -> bool:
+    """True when the pty's last client event is a close, or there was none."""
+    for message in reversed(handle.messages()):
+        if message.startswith("client closed"):
+            return True
+        if message.startswith("client connected"):
+            return False
+    return True
+
+
+def _client_connected(handle) -> bool:
+    return any(message.startswith(("client connected", "client closed"))
+               for message in handle.messages())
+
+
+def _run_bridge_with_command(handle, out: _Output, what: str, argv: Sequence[str],
+                             device_path: str, announce: Callable[[], None],
+                             must_serve: bool = False) -> int:
+    """Runs CMD with `device_path` redirected to the bridge's pty; the bridge
+    ends when CMD exits. The exit status is CMD's when it failed, else the
+    bridge's (docs/cli.md); a bridge that ends first (a mismatch, --duration)
+    ends CMD."""
+    from .redirect import RedirectedCommand
+
+    try:
+        announce()
+        out.note(f"{what}: running {' '.join(argv)} with {device_path} -> {handle.pty_path}")
+        command = RedirectedCommand(argv, device_path, handle.pty_path)
+    except BaseException:
+        handle.stop()
+        handle.wait()
+        raise
+    # CMD's status counts only when CMD ended by itself: not when Ctrl-C, or
+    # the bridge ending first, ended it.
+    ended_by_us = False
+    try:
+        while command.poll() is None:
+            if handle.wait(_POLL_S):
+                out.note(f"{what}: ended before {command.name}; ending it")
+                ended_by_us = True
+                command.end()
+                break
+        # What CMD wrote last is read from the pty before the bridge stops:
+        # the bridge sees the terminal's last close after CMD's exit.
+        _wait_for_client_close(handle)
+    except KeyboardInterrupt:
+        ended_by_us = True
+        out.note(f"{what}: stopping")
+        command.end()
+    finally:
+        handle.stop()
+        handle.wait()
+    status = command.exit_status()
+    # The shim notes each use of the path; a bind mount is seen as the pty's
+    # client arriving.
+    used = command.used_device_path() or _client_connected(handle)
+    command.close()
+    if not used:
+        out.note(f"{what}: {command.name} never opened {device_path} (the shim reaches "
+                 "dynamically linked programs; a static one is reached as root, through a "
+                 "bind mount, only where the path exists)")
+    try:
+        verdict = _run_bridge(handle, out, what, lambda: None, must_serve=must_serve)
+    except (CheckFailed, RuntimeFailure) as error:
+        if ended_by_us or status == 0:
+            raise
+        out.error(f"wiretape {what}", _describe(error))
+        verdict = exit_code_for(error)
+    if ended_by_us or status == 0:
+        return verdict
+    out.note(f"{what}: {command.name} exited with status {status}")
+    return status
+
+
+# How long a bridge has to see the terminal's last close after CMD's exit.
+_CLIENT_CLOSE_DEADLINE_S = 5.0
+
+
+def _wait_for_client_close(handle) -> None:
+    import time
+
+    end = time.monotonic() + _CLIENT_CLOSE_DEADLINE_S
+    while not _client_has_closed(handle) and time.monotonic() < end:
+        if handle.wait(0.01):  # the bridge ended: no close will come
+            return
 
 
 def cmd_serve(args, out: _Output) -> int:
@@ -579,6 +747,25 @@ def _add_client_side(parser, verb: str) -> None:
                              "exists, else this process's group)")
 
 
+def _add_redirect(parser, default: str) -> None:
+    parser.add_argument("--as", dest="redirect_path", metavar="PATH",
+                        help="with -- CMD: the device path CMD opens, redirected to the "
+                             f"pty ({default})")
+
+
+_COMMANDS_WITH_CMD = ("record", "replay")
+
+
+def split_command(argv: Sequence[str]) -> Tuple[List[str], Optional[List[str]]]:
+    """wiretape's own arguments and the CMD after ``--`` of ``record`` and
+    ``replay`` (None when there is no ``--``; [] when nothing follows it)."""
+    arguments = list(argv)
+    if arguments and arguments[0] in _COMMANDS_WITH_CMD and "--" in arguments:
+        separator = arguments.index("--")
+        return arguments[:separator], arguments[separator + 1:]
+    return arguments, None
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="wiretape", description=_DESCRIPTION, epilog=_EPILOG,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -597,7 +784,9 @@ def build_parser() -> argparse.ArgumentParser:
         "A transparent proxy: the driver under test opens the --pty PATH (or connects "
         "to --listen HOST:PORT, or sends datagrams to --udp HOST:PORT) as if it were "
         "the device; every byte both ways is "
-        "forwarded to the --device and recorded. Ctrl-C ends cleanly. On a pty the "
+        "forwarded to the --device and recorded. With -- CMD ARG... the proxy runs "
+        "CMD with the device's path (or --as PATH) redirected to its pty and ends "
+        "when CMD does. Ctrl-C ends cleanly. On a pty the "
         "terminal settings the driver sets (baud, parity, stop bits) are applied to "
         "the device and recorded; a pty has no modem lines.")
     record.add_argument("--device", required=True, metavar="OPTS",
@@ -610,6 +799,7 @@ def build_parser() -> argparse.ArgumentParser:
     record.add_argument("--meta", action="append", metavar="KEY=VALUE",
                         help="free metadata for the session header (repeatable)")
     record.add_argument("-q", "--quiet", action="store_true", help="no client/device messages")
+    _add_redirect(record, "default: the --device's path")
 
     replay = command(
         "replay", cmd_replay, "replay a recording as a virtual device (pty, TCP or UDP)",
@@ -617,7 +807,9 @@ def build_parser() -> argparse.ArgumentParser:
         "pseudo-terminal (--pty PATH), a TCP server (--listen HOST:PORT) or a UDP "
         "socket (--udp HOST:PORT; one datagram per recorded record). A "
         "client that closes and reopens continues the session (--restart starts it "
-        "over). The replay keys are those of type=replay (docs/options.md). Exit 1 on a "
+        "over). With --as PATH -- CMD ARG... it runs CMD with PATH redirected to its "
+        "pty and ends when CMD does (exit: CMD's status when it failed, else the "
+        "replay's). The replay keys are those of type=replay (docs/options.md). Exit 1 on a "
         "mismatch, and when the recording has rx but no client was served any of it "
         "(no client connected, nothing matched, or the greeting was lost).")
     replay.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
@@ -650,6 +842,7 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument("-o", "--output", metavar="FILE", type=_session_output,
                         help="also record what the client does to FILE")
     replay.add_argument("-q", "--quiet", action="store_true", help="no client messages")
+    _add_redirect(replay, "default: the recorded device's path")
 
     serve = command(
         "serve", cmd_serve, "share a local device with remote programs over TCP",
@@ -721,8 +914,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     """Runs the command line; returns the exit code."""
     out = _Output()
     parser = build_parser()
+    own_arguments, command_argv = split_command(sys.argv[1:] if argv is None else argv)
     try:
-        args = parser.parse_args(argv)
+        args = parser.parse_args(own_arguments)
     except _ArgumentError as error:
         error.parser.print_usage(sys.stderr)
         out.error(error.parser.prog, str(error))
@@ -734,6 +928,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         out.error("wiretape", "a command is required")
         return EXIT_USAGE
     prog = f"wiretape {args.command}"
+    args.command_argv = command_argv
     # SIGTERM ends a command as Ctrl-C does: cleanly, files complete, exit 0.
     previous_sigterm = None
     try:

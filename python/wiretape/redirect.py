@@ -1,0 +1,212 @@
+"""Running a program whose device path is hard-coded against a virtual
+device: ``wiretape record ... -- CMD`` and ``wiretape replay ... --as PATH
+-- CMD`` (DESIGN §12, "Hard-coded device paths").
+
+CMD runs with the preload shim ``_redirect_device.so`` (src/shim/), which
+rewrites the one path in CMD's open and stat calls to the bridge's pty; it
+reaches dynamically linked programs. Where the shim cannot reach (static
+programs, programs that scan /dev), CMD also runs in a private mount
+namespace with the pty bind-mounted over the path, when wiretape runs as
+root and the path exists (a bind mount needs something to cover).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import subprocess
+import tempfile
+from typing import List, Optional, Sequence
+
+from . import _core
+
+SHIM_NAME = "_redirect_device.so"
+# The variables the shim reads (src/shim/redirect_device.c).
+ENV_FROM = "WIRETAPE_REDIRECT_FROM"
+ENV_TO = "WIRETAPE_REDIRECT_TO"
+ENV_HITS = "WIRETAPE_REDIRECT_HITS"
+
+# Shell conventions for a command that could not be started.
+EXIT_COMMAND_NOT_EXECUTABLE = 126
+EXIT_COMMAND_NOT_FOUND = 127
+# How long a command asked to end (SIGTERM) has before it is killed.
+_TERMINATE_GRACE_S = 5.0
+
+
+class CommandNotStarted(Exception):
+    """CMD could not be run; ``exit_code`` is 127 (not found) or 126."""
+
+    def __init__(self, message: str, exit_code: int):
+        super().__init__(message)
+        self.exit_code = exit_code
+
+
+def shim_path() -> str:
+    """The preload shim, installed next to the extension."""
+    path = os.path.join(os.path.dirname(os.path.abspath(_core.__file__)), SHIM_NAME)
+    if not os.path.isfile(path):
+        raise RuntimeError(f"{path}: the device-redirecting shim is missing "
+                           "(it is built on Linux only; rebuild with make)")
+    return path
+
+
+def _split_options(options: str) -> List[str]:
+    """An option string's ``key=value`` items, separators (commas and white
+    space) outside double quotes; quotes and escapes kept."""
+    items, current, quoted, escaped = [], [], False, False
+    for char in options:
+        if escaped:
+            current.append(char)
+            escaped = False
+        elif quoted and char == "\\":
+            current.append(char)
+            escaped = True
+        elif char == '"':
+            current.append(char)
+            quoted = not quoted
+        elif not quoted and (char == "," or char.isspace()):
+            if current:
+                items.append("".join(current))
+            current = []
+        else:
+            current.append(char)
+    if current:
+        items.append("".join(current))
+    return items
+
+
+def _unquote(value: str) -> str:
+    if len(value) >= 2 and value[0] == '"' and value[-1] == '"':
+        inner, text, index = value[1:-1], [], 0
+        while index < len(inner):
+            if inner[index] == "\\" and index + 1 < len(inner):
+                index += 1
+            text.append(inner[index])
+            index += 1
+        return "".join(text)
+    return value
+
+
+def device_path_of(options: str) -> Optional[str]:
+    """The device path an option string opens (``device=``, as of
+    ``type=serial``), or None when it names none (TCP, UDP, ...)."""
+    for item in _split_options(options):
+        key, sep, value = item.partition("=")
+        if sep and key.strip() == "device":
+            path = _unquote(value)
+            return path or None
+    return None
+
+
+def recorded_device_path(session_file: str) -> Optional[str]:
+    """The device path a recording was made on (its header's port options),
+    or None (a TCP or UDP device, a flexiport log without one)."""
+    with _core.SessionReader(session_file) as reader:
+        return device_path_of(reader.header.port_options)
+
+
+# <sched.h> and <sys/mount.h>: Python 3.11 has no os.unshare or os.mount.
+_CLONE_NEWNS = 0x00020000
+_MS_BIND = 4096
+_MS_REC = 16384
+_MS_PRIVATE = 1 << 18
+
+
+def can_bind_mount(device_path: str) -> bool:
+    """A private mount namespace is tried as root over a path that exists
+    and is not a directory (a terminal can only cover a file)."""
+    return (hasattr(os, "geteuid") and os.geteuid() == 0 and os.path.exists(device_path)
+            and not os.path.isdir(device_path))
+
+
+def _bind_mount_in_private_namespace(pty_path: str, device_path: str):
+    """The preexec function of CMD: a mount namespace of its own, nothing
+    propagated back to the host, the pty bound over the device path. A step
+    that fails leaves CMD to the shim alone (the kernel or the container may
+    refuse namespaces); wiretape still sees whether CMD opened the pty."""
+    libc = ctypes.CDLL(None, use_errno=True)  # loaded before the fork
+    unshare, mount = libc.unshare, libc.mount
+    source, target = os.fsencode(pty_path), os.fsencode(device_path)
+
+    def in_child() -> None:
+        if unshare(_CLONE_NEWNS) != 0:
+            return
+        if mount(None, b"/", None, _MS_REC | _MS_PRIVATE, None) != 0:
+            return  # a bind now could show on the host: none
+        mount(source, target, None, _MS_BIND, None)
+
+    return in_child
+
+
+class RedirectedCommand:
+    """CMD running with ``device_path`` redirected to ``pty_path``."""
+
+    def __init__(self, argv: Sequence[str], device_path: str, pty_path: str):
+        self.argv = list(argv)
+        self.device_path = device_path
+        # Each process of CMD that uses the path appends a line here.
+        hits_fd, self._hits_file = tempfile.mkstemp(prefix="wiretape-redirect-")
+        os.close(hits_fd)
+        env = dict(os.environ)
+        preload = env.get("LD_PRELOAD", "").strip()
+        env["LD_PRELOAD"] = shim_path() + (" " + preload if preload else "")
+        env[ENV_FROM] = device_path
+        env[ENV_TO] = pty_path
+        env[ENV_HITS] = self._hits_file
+        self.bind_mounted = can_bind_mount(device_path)
+        preexec = (_bind_mount_in_private_namespace(pty_path, device_path)
+                   if self.bind_mounted else None)
+        try:
+            self.process = subprocess.Popen(self.argv, env=env, preexec_fn=preexec)
+        except FileNotFoundError:
+            self._remove_hits_file()
+            raise CommandNotStarted(f"{self.argv[0]}: command not found",
+                                    EXIT_COMMAND_NOT_FOUND) from None
+        except PermissionError:
+            self._remove_hits_file()
+            raise CommandNotStarted(f"{self.argv[0]}: permission denied (not executable)",
+                                    EXIT_COMMAND_NOT_EXECUTABLE) from None
+        except OSError as error:
+            self._remove_hits_file()
+            raise CommandNotStarted(f"{self.argv[0]}: cannot be run: {error.strerror or error}",
+                                    EXIT_COMMAND_NOT_EXECUTABLE) from None
+
+    @property
+    def name(self) -> str:
+        return os.path.basename(self.argv[0]) or self.argv[0]
+
+    def poll(self) -> Optional[int]:
+        return self.process.poll()
+
+    def end(self) -> None:
+        """Asks CMD to end (SIGTERM), kills it if it has not after a grace
+        period, and reaps it."""
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGTERM)
+            try:
+                self.process.wait(_TERMINATE_GRACE_S)
+            except subprocess.TimeoutExpired:
+                self.process.kill()
+                self.process.wait()
+
+    def exit_status(self) -> int:
+        """CMD's exit status as a shell reports it (128+N for signal N)."""
+        code = self.process.wait()
+        return 128 - code if code < 0 else code
+
+    def used_device_path(self) -> bool:
+        """True once any process of CMD opened (or looked at) the path."""
+        try:
+            return os.path.getsize(self._hits_file) > 0
+        except OSError:
+            return False
+
+    def close(self) -> None:
+        self._remove_hits_file()
+
+    def _remove_hits_file(self) -> None:
+        try:
+            os.unlink(self._hits_file)
+        except OSError:
+            pass

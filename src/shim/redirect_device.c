@@ -1,0 +1,274 @@
+/* An LD_PRELOAD shim that makes a program open a virtual device where it
+ * opens a hard-coded device path (DESIGN §12, "Hard-coded device paths";
+ * docs/replay.md, "Programs with a hard-coded device path").
+ *
+ * `wiretape record ... -- CMD` and `wiretape replay ... --as PATH -- CMD`
+ * start CMD with this library preloaded and three variables set:
+ *
+ *   WIRETAPE_REDIRECT_FROM  the path CMD opens (/dev/ttyUSB0)
+ *   WIRETAPE_REDIRECT_TO    the pty that stands in for it (/dev/pts/7)
+ *   WIRETAPE_REDIRECT_HITS  optional: a file that gets one line per process
+ *                           that used the path, so that wiretape can say at
+ *                           the end when CMD never opened it
+ *
+ * A path is redirected when it is FROM as written, or when FROM exists and
+ * the path resolves to the same file (a /dev/serial/by-id/ link to it).
+ * Only absolute paths are compared: a relative one, or one given relative to
+ * a directory descriptor, never names a device under /dev in practice.
+ *
+ * It reaches dynamically linked programs only; calls glibc makes internally
+ * (not through the symbols below) and static programs are not redirected.
+ * C only, no allocation after start-up: it runs inside every function the
+ * program calls to open or inspect a file. */
+
+#define _GNU_SOURCE
+/* The fortified inline wrappers of open() would clash with ours. */
+#undef _FORTIFY_SOURCE
+#include <dlfcn.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <limits.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/types.h>
+#include <unistd.h>
+
+static char redirect_from[PATH_MAX];
+static char redirect_from_resolved[PATH_MAX]; /* empty: FROM does not exist */
+static char redirect_to[PATH_MAX];
+static char hits_file[PATH_MAX];
+static int redirect_active;
+static int hit_noted;
+
+/* libc's realpath: ours (below) redirects, and would call back into the
+ * matching that uses it. */
+static char *real_realpath(const char *path, char *resolved) {
+  static char *(*real)(const char *, char *);
+  if (real == NULL) real = (char *(*)(const char *, char *))dlsym(RTLD_NEXT, "realpath");
+  if (real == NULL) {
+    errno = ENOSYS;
+    return NULL;
+  }
+  return real(path, resolved);
+}
+
+static void copy_path(char *destination, const char *source) {
+  size_t length = strlen(source);
+  if (length >= PATH_MAX) length = PATH_MAX - 1;
+  memcpy(destination, source, length);
+  destination[length] = '\0';
+}
+
+__attribute__((constructor)) static void read_configuration(void) {
+  const char *from = getenv("WIRETAPE_REDIRECT_FROM");
+  const char *to = getenv("WIRETAPE_REDIRECT_TO");
+  const char *hits = getenv("WIRETAPE_REDIRECT_HITS");
+  if (from == NULL || to == NULL || from[0] != '/' || to[0] == '\0') return;
+  copy_path(redirect_from, from);
+  copy_path(redirect_to, to);
+  if (hits != NULL) copy_path(hits_file, hits);
+  /* Resolved once, before the program runs: the real device (when there is
+   * one on this machine) is what its by-id links point to. */
+  char resolved[PATH_MAX];
+  if (real_realpath(redirect_from, resolved) != NULL) copy_path(redirect_from_resolved, resolved);
+  redirect_active = 1;
+}
+
+/* Records that this process used the path (once per process; a child that
+ * CMD starts notes its own). Errors are ignored: the note is a courtesy and
+ * must never change what the program sees, errno included. */
+static void note_hit(void) {
+  if (hit_noted || hits_file[0] == '\0') return;
+  hit_noted = 1;
+  int saved_errno = errno;
+  static int (*real_open)(const char *, int, ...);
+  if (real_open == NULL) real_open = (int (*)(const char *, int, ...))dlsym(RTLD_NEXT, "open");
+  if (real_open != NULL) {
+    int fd = real_open(hits_file, O_WRONLY | O_APPEND | O_CLOEXEC);
+    if (fd >= 0) {
+      char line[32];
+      int length = snprintf(line, sizeof line, "%ld\n", (long)getpid());
+      if (length > 0 && write(fd, line, (size_t)length) < 0) { /* ignored, see above */ }
+      close(fd);
+    }
+  }
+  errno = saved_errno;
+}
+
+/* The path to use instead of `path`: the pty when `path` names the device,
+ * else `path` itself. */
+static const char *redirected(const char *path) {
+  if (!redirect_active || path == NULL || path[0] != '/') return path;
+  if (strcmp(path, redirect_from) == 0) {
+    note_hit();
+    return redirect_to;
+  }
+  /* By-id links and other names of the real device: resolving costs system
+   * calls, so only paths under /dev are resolved. */
+  if (redirect_from_resolved[0] != '\0' && strncmp(path, "/dev/", 5) == 0) {
+    int saved_errno = errno;
+    char resolved[PATH_MAX];
+    int same = real_realpath(path, resolved) != NULL &&
+               strcmp(resolved, redirect_from_resolved) == 0;
+    errno = saved_errno;
+    if (same) {
+      note_hit();
+      return redirect_to;
+    }
+  }
+  return path;
+}
+
+/* The next definition of `name` (libc's), looked up on first use. */
+#define REAL(type, name, params)                                        \
+  static type(*real_##name) params;                                     \
+  if (real_##name == NULL) real_##name = (type(*) params)dlsym(RTLD_NEXT, #name); \
+  if (real_##name == NULL) {                                            \
+    errno = ENOSYS;                                                     \
+    return (type)-1;                                                    \
+  }
+
+/* open and friends take a mode only with O_CREAT or O_TMPFILE. */
+static mode_t mode_argument(int flags, va_list arguments) {
+#ifdef O_TMPFILE
+  if ((flags & O_CREAT) || (flags & O_TMPFILE) == O_TMPFILE) return (mode_t)va_arg(arguments, int);
+#else
+  if (flags & O_CREAT) return (mode_t)va_arg(arguments, int);
+#endif
+  return 0;
+}
+
+#define DEFINE_OPEN(name)                                               \
+  int name(const char *path, int flags, ...) {                          \
+    va_list arguments;                                                  \
+    va_start(arguments, flags);                                         \
+    mode_t mode = mode_argument(flags, arguments);                      \
+    va_end(arguments);                                                  \
+    REAL(int, name, (const char *, int, ...))                           \
+    return real_##name(redirected(path), flags, mode);                  \
+  }
+
+#define DEFINE_OPENAT(name)                                             \
+  int name(int directory, const char *path, int flags, ...) {           \
+    va_list arguments;                                                  \
+    va_start(arguments, flags);                                         \
+    mode_t mode = mode_argument(flags, arguments);                      \
+    va_end(arguments);                                                  \
+    REAL(int, name, (int, const char *, int, ...))                      \
+    return real_##name(directory, redirected(path), flags, mode);       \
+  }
+
+DEFINE_OPEN(open)
+DEFINE_OPEN(open64)
+DEFINE_OPENAT(openat)
+DEFINE_OPENAT(openat64)
+
+/* The _FORTIFY_SOURCE entry points. */
+int __open_2(const char *path, int flags) {
+  REAL(int, __open_2, (const char *, int))
+  return real___open_2(redirected(path), flags);
+}
+int __open64_2(const char *path, int flags) {
+  REAL(int, __open64_2, (const char *, int))
+  return real___open64_2(redirected(path), flags);
+}
+int __openat_2(int directory, const char *path, int flags) {
+  REAL(int, __openat_2, (int, const char *, int))
+  return real___openat_2(directory, redirected(path), flags);
+}
+int __openat64_2(int directory, const char *path, int flags) {
+  REAL(int, __openat64_2, (int, const char *, int))
+  return real___openat64_2(directory, redirected(path), flags);
+}
+
+#define DEFINE_FOPEN(name)                                              \
+  FILE *name(const char *path, const char *mode) {                      \
+    static FILE *(*real)(const char *, const char *);                   \
+    if (real == NULL) real = (FILE * (*)(const char *, const char *)) dlsym(RTLD_NEXT, #name); \
+    if (real == NULL) {                                                 \
+      errno = ENOSYS;                                                   \
+      return NULL;                                                      \
+    }                                                                   \
+    return real(redirected(path), mode);                                \
+  }
+
+DEFINE_FOPEN(fopen)
+DEFINE_FOPEN(fopen64)
+
+FILE *freopen(const char *path, const char *mode, FILE *stream) {
+  static FILE *(*real)(const char *, const char *, FILE *);
+  if (real == NULL) real = (FILE * (*)(const char *, const char *, FILE *)) dlsym(RTLD_NEXT, "freopen");
+  if (real == NULL) {
+    errno = ENOSYS;
+    return NULL;
+  }
+  return real(redirected(path), mode, stream);
+}
+
+/* stat and its relatives: a program that checks the device exists before
+ * opening it must see the pty. glibc before 2.33 exports the __xstat
+ * family, later ones stat, lstat and fstatat themselves: both are defined. */
+#define DEFINE_STAT(name, buffer_type)                                  \
+  int name(const char *path, buffer_type *buffer) {                     \
+    REAL(int, name, (const char *, buffer_type *))                      \
+    return real_##name(redirected(path), buffer);                       \
+  }
+#define DEFINE_XSTAT(name, buffer_type)                                 \
+  int name(int version, const char *path, buffer_type *buffer) {        \
+    REAL(int, name, (int, const char *, buffer_type *))                 \
+    return real_##name(version, redirected(path), buffer);              \
+  }
+#define DEFINE_FSTATAT(name, buffer_type)                               \
+  int name(int directory, const char *path, buffer_type *buffer, int flags) { \
+    REAL(int, name, (int, const char *, buffer_type *, int))            \
+    return real_##name(directory, redirected(path), buffer, flags);     \
+  }
+
+DEFINE_STAT(stat, struct stat)
+DEFINE_STAT(stat64, struct stat64)
+DEFINE_STAT(lstat, struct stat)
+DEFINE_STAT(lstat64, struct stat64)
+DEFINE_FSTATAT(fstatat, struct stat)
+DEFINE_FSTATAT(fstatat64, struct stat64)
+DEFINE_XSTAT(__xstat, struct stat)
+DEFINE_XSTAT(__xstat64, struct stat64)
+DEFINE_XSTAT(__lxstat, struct stat)
+DEFINE_XSTAT(__lxstat64, struct stat64)
+
+int __fxstatat(int version, int directory, const char *path, struct stat *buffer, int flags) {
+  REAL(int, __fxstatat, (int, int, const char *, struct stat *, int))
+  return real___fxstatat(version, directory, redirected(path), buffer, flags);
+}
+int __fxstatat64(int version, int directory, const char *path, struct stat64 *buffer, int flags) {
+  REAL(int, __fxstatat64, (int, int, const char *, struct stat64 *, int))
+  return real___fxstatat64(version, directory, redirected(path), buffer, flags);
+}
+
+#ifdef STATX_BASIC_STATS
+int statx(int directory, const char *path, int flags, unsigned int mask, struct statx *buffer) {
+  REAL(int, statx, (int, const char *, int, unsigned int, struct statx *))
+  return real_statx(directory, redirected(path), flags, mask, buffer);
+}
+#endif
+
+int access(const char *path, int mode) {
+  REAL(int, access, (const char *, int))
+  return real_access(redirected(path), mode);
+}
+int euidaccess(const char *path, int mode) {
+  REAL(int, euidaccess, (const char *, int))
+  return real_euidaccess(redirected(path), mode);
+}
+int faccessat(int directory, const char *path, int mode, int flags) {
+  REAL(int, faccessat, (int, const char *, int, int))
+  return real_faccessat(directory, redirected(path), mode, flags);
+}
+
+/* A program that resolves the device before opening it (to follow a by-id
+ * link) gets the pty's own name, which it then opens directly. */
+char *realpath(const char *path, char *resolved) {
+  return real_realpath(redirected(path), resolved);
+}

@@ -1,0 +1,273 @@
+"""Programs with a hard-coded device path: ``wiretape record ... -- CMD`` and
+``wiretape replay FILE --as PATH -- CMD`` run CMD with that path redirected
+to the bridge's pty by the preload shim (DESIGN §12, docs/replay.md
+"Programs with a hard-coded device path").
+
+The programs open ``/dev/ttyUSB0`` literally, a path this machine need not
+have: the shim makes them open the pty instead."""
+
+import os
+import shutil
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from wiretape import _core, redirect
+
+from devices import TcpDevice
+
+pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
+                                reason="the preload shim is Linux only")
+
+HARD_CODED = "/dev/ttyUSB0"
+# Generous: CMD, the bridge and Python start on a loaded CI machine.
+COMMAND_DEADLINE_S = 60.0
+
+C_CLIENT = r"""
+#include <fcntl.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <termios.h>
+#include <unistd.h>
+
+/* Opens the hard-coded device, says hello, prints the reply line, and exits
+ * with the status given as its argument (0 by default). */
+int main(int argc, char **argv) {
+  int fd = open("/dev/ttyUSB0", O_RDWR | O_NOCTTY);
+  if (fd < 0) { perror("/dev/ttyUSB0"); return 4; }
+  struct termios settings;
+  if (tcgetattr(fd, &settings) == 0) {
+    cfmakeraw(&settings);
+    tcsetattr(fd, TCSANOW, &settings);
+  }
+  if (write(fd, "hello c\n", 8) != 8) { perror("write"); return 4; }
+  char line[128];
+  size_t length = 0;
+  while (length < sizeof line - 1) {
+    ssize_t got = read(fd, line + length, 1);
+    if (got <= 0) break;
+    length += (size_t)got;
+    if (line[length - 1] == '\n') break;
+  }
+  line[length] = '\0';
+  printf("read: %s", line);
+  close(fd);
+  return argc > 1 ? atoi(argv[1]) : 0;
+}
+"""
+
+PYTHON_CLIENT = textwrap.dedent("""
+    import sys
+    import serial
+
+    # pyserial, as a Python driver would use it, on the hard-coded path.
+    with serial.Serial("/dev/ttyUSB0", 115200, timeout=30) as port:
+        port.write(b"hello python\\n")
+        print("read: " + port.readline().decode(), end="")
+    sys.exit(int(sys.argv[1]) if len(sys.argv) > 1 else 0)
+""")
+
+
+def wiretape(*arguments):
+    """Runs the wiretape command line; returns the finished process."""
+    return subprocess.run([sys.executable, "-m", "wiretape.cli", *arguments],
+                          capture_output=True, text=True, timeout=COMMAND_DEADLINE_S)
+
+
+@pytest.fixture(scope="module")
+def c_client(tmp_path_factory):
+    compiler = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+    if compiler is None:
+        pytest.skip("NO C COMPILER (cc, gcc, clang): the C program with a hard-coded "
+                    "device path is not tested")
+    folder = tmp_path_factory.mktemp("c_client")
+    source = folder / "client.c"
+    source.write_text(C_CLIENT)
+    program = folder / "client"
+    subprocess.run([compiler, "-o", str(program), str(source)], check=True,
+                   timeout=COMMAND_DEADLINE_S)
+    return [str(program)]
+
+
+@pytest.fixture(scope="module")
+def python_client(tmp_path_factory):
+    script = tmp_path_factory.mktemp("python_client") / "client.py"
+    script.write_text(PYTHON_CLIENT)
+    return [sys.executable, str(script)]
+
+
+@pytest.fixture(params=["c", "python"])
+def client(request):
+    return request.getfixturevalue(f"{request.param}_client")
+
+
+def record_with(client, tmp_path):
+    """Records `client` against a device that answers in upper case."""
+    session = tmp_path / "run.wtape"
+    with TcpDevice() as device:
+        done = wiretape("record", "--device", device.options, "--as", HARD_CODED,
+                        "-o", str(session), "-q", "--", *client)
+        received = bytes(device.received)
+    return done, session, received
+
+
+def test_record_and_replay_a_program_with_a_hard_coded_path(client, tmp_path):
+    recorded, session, received = record_with(client, tmp_path)
+    assert recorded.returncode == 0, recorded.stderr
+    assert received.startswith(b"hello ")
+    answer = received.upper()
+    assert recorded.stdout == "read: " + answer.decode()
+    with _core.SessionReader(str(session)) as reader:
+        records = list(reader)
+    assert b"".join(r.data for r in records if r.kind == "tx") == received
+    assert b"".join(r.data for r in records if r.kind == "rx") == answer
+
+    replayed = wiretape("replay", str(session), "--as", HARD_CODED, "-q", "--", *client)
+    assert replayed.returncode == 0, replayed.stderr
+    assert replayed.stdout == "read: " + answer.decode()
+    assert "never opened" not in replayed.stderr
+
+
+def test_a_failing_command_gives_its_own_exit_status(c_client, tmp_path):
+    recorded, session, _ = record_with(c_client, tmp_path)
+    assert recorded.returncode == 0, recorded.stderr
+    replayed = wiretape("replay", str(session), "--as", HARD_CODED, "-q", "--",
+                        *c_client, "5")
+    assert replayed.returncode == 5, replayed.stderr
+    assert replayed.stdout == "read: HELLO C\n"
+    assert "exited with status 5" in replayed.stderr
+
+
+def test_a_command_that_never_opens_the_path_is_named_and_fails_the_replay(c_client, tmp_path):
+    _, session, _ = record_with(c_client, tmp_path)
+    replayed = wiretape("replay", str(session), "--as", HARD_CODED, "--", "true")
+    # `true` exits 0, so the status is the replay's: nothing was served.
+    assert replayed.returncode == 1, replayed.stderr
+    assert f"true never opened {HARD_CODED}" in replayed.stderr
+    assert "no client connected" in replayed.stderr
+
+
+def test_record_says_when_the_command_never_opened_the_path(tmp_path):
+    with TcpDevice() as device:
+        done = wiretape("record", "--device", device.options, "--as", HARD_CODED,
+                        "-o", str(tmp_path / "run.wtape"), "--", "true")
+    assert done.returncode == 0, done.stderr
+    assert f"true never opened {HARD_CODED}" in done.stderr
+
+
+def test_no_command_after_the_separator_is_a_usage_error(c_client, tmp_path):
+    _, session, _ = record_with(c_client, tmp_path)
+    replayed = wiretape("replay", str(session), "--as", HARD_CODED, "--")
+    assert replayed.returncode == 2
+    assert "no command after --" in replayed.stderr
+    with TcpDevice() as device:
+        recorded = wiretape("record", "--device", device.options, "--as", HARD_CODED,
+                            "-o", str(tmp_path / "other.wtape"), "--")
+    assert recorded.returncode == 2
+    assert "no command after --" in recorded.stderr
+
+
+def test_a_command_that_does_not_exist_exits_127(c_client, tmp_path):
+    _, session, _ = record_with(c_client, tmp_path)
+    missing = str(tmp_path / "no-such-program")
+    replayed = wiretape("replay", str(session), "--as", HARD_CODED, "--", missing)
+    assert replayed.returncode == 127
+    assert f"{missing}: command not found" in replayed.stderr
+
+
+def test_as_without_a_command_and_a_device_without_a_path_are_usage_errors(tmp_path):
+    with TcpDevice() as device:
+        no_command = wiretape("record", "--device", device.options, "--as", HARD_CODED,
+                              "--pty", str(tmp_path / "tty"), "-o", str(tmp_path / "a.wtape"))
+        no_path = wiretape("record", "--device", device.options,
+                           "-o", str(tmp_path / "b.wtape"), "--", "true")
+    assert no_command.returncode == 2
+    assert "give the command after --" in no_command.stderr
+    assert no_path.returncode == 2
+    assert "--as PATH" in no_path.stderr
+
+
+def test_the_device_path_comes_from_the_option_string():
+    assert redirect.device_path_of("type=serial,device=/dev/ttyUSB0,baud=9600") == HARD_CODED
+    assert redirect.device_path_of('type=serial,device="/dev/My Port"') == "/dev/My Port"
+    assert redirect.device_path_of("type=tcp,host=10.0.0.5,port=10940") is None
+
+
+def test_the_shim_matches_what_the_path_resolves_to(tmp_path):
+    """A by-id link is another name of the device: the shim compares what a
+    path under /dev resolves to with what the device path resolves to
+    (here /dev/./null is another name of /dev/null)."""
+    cat = shutil.which("cat")
+    stand_in = tmp_path / "stand-in"
+    stand_in.write_text("redirected\n")
+    hits = tmp_path / "hits"
+    hits.write_text("")
+    environment = dict(os.environ, LD_PRELOAD=redirect.shim_path(),
+                       WIRETAPE_REDIRECT_FROM="/dev/null",
+                       WIRETAPE_REDIRECT_TO=str(stand_in),
+                       WIRETAPE_REDIRECT_HITS=str(hits))
+    done = subprocess.run([cat, "/dev/./null", "/dev/null"], env=environment,
+                          capture_output=True, text=True, timeout=COMMAND_DEADLINE_S)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == "redirected\nredirected\n"
+    assert hits.read_text().strip() != ""
+
+
+def _mount_namespaces_work():
+    if os.geteuid() != 0 or shutil.which("unshare") is None:
+        return False
+    probe = subprocess.run(["unshare", "--mount", "true"], capture_output=True,
+                           timeout=COMMAND_DEADLINE_S)
+    return probe.returncode == 0
+
+
+def test_a_static_program_is_reached_through_a_bind_mount(c_client, tmp_path):
+    """The shim cannot reach a statically linked program; as root, over a
+    path that exists, CMD runs in a private mount namespace with the pty
+    bound over the path."""
+    if not _mount_namespaces_work():
+        pytest.skip("NOT ROOT OR NO MOUNT NAMESPACES: the bind mount for static "
+                    "programs is not tested")
+    compiler = shutil.which("cc") or shutil.which("gcc") or shutil.which("clang")
+    device_path = tmp_path / "ttyStatic"
+    device_path.write_text("")  # what the bind mount covers, only in CMD's namespace
+    source = tmp_path / "static_client.c"
+    source.write_text(C_CLIENT.replace('"/dev/ttyUSB0"', f'"{device_path}"'))
+    program = tmp_path / "static_client"
+    built = subprocess.run([compiler, "-static", "-o", str(program), str(source)],
+                           capture_output=True, text=True, timeout=COMMAND_DEADLINE_S)
+    if built.returncode != 0:
+        pytest.skip(f"NO STATIC LIBC: the static program is not tested ({built.stderr.strip()})")
+
+    _, session, _ = record_with(c_client, tmp_path)
+    replayed = wiretape("replay", str(session), "--as", str(device_path), "-q", "--",
+                        str(program))
+    assert replayed.returncode == 0, replayed.stderr
+    assert replayed.stdout == "read: HELLO C\n"
+    assert "never opened" not in replayed.stderr
+    # Nothing leaked to this namespace: the path is still the empty file.
+    assert device_path.read_text() == ""
+
+
+MISMATCHING_CLIENT = textwrap.dedent("""
+    import os
+
+    # Says what the recording does not expect, then waits for an answer
+    # that a mismatch never sends: wiretape must end it.
+    fd = os.open("/dev/ttyUSB0", os.O_RDWR | os.O_NOCTTY)
+    os.write(fd, b"unexpected\\n")
+    os.read(fd, 1)
+""")
+
+
+def test_a_replay_that_ends_first_ends_the_command_and_gives_its_verdict(c_client, tmp_path):
+    _, session, _ = record_with(c_client, tmp_path)
+    script = tmp_path / "mismatching.py"
+    script.write_text(MISMATCHING_CLIENT)
+    replayed = wiretape("replay", str(session), "--as", HARD_CODED, "-q", "--",
+                        sys.executable, str(script))
+    assert replayed.returncode == 1, replayed.stderr
+    assert "mismatch" in replayed.stderr
+    assert "ending it" in replayed.stderr
