@@ -187,9 +187,13 @@ def test_monitors_beyond_the_limit_are_refused_with_a_message():
                 refusal = read_to_end(extra)
             assert b"2 monitors are connected" in refusal
             assert b"--max-monitors" in refusal
-            assert handle.stats().clients_refused == 1
-            assert any(m.startswith("refused client") and "monitors" in m
-                       for m in handle.messages())
+            # The server counts and logs the refusal after it has ended the
+            # connection, so the client can see the end first.
+            wait_until(lambda: handle.stats().clients_refused == 1, DEADLINE,
+                       what="the refusal to be counted")
+            wait_until(lambda: any(m.startswith("refused client") and "monitors" in m
+                                   for m in handle.messages()),
+                       DEADLINE, what="the refusal to be logged")
             # A monitor that leaves makes room for another.
             monitors.pop().close()
             wait_until(lambda: sum("disconnected" in m for m in handle.messages()) == 1,
