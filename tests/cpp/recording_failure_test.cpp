@@ -43,15 +43,7 @@ std::size_t count_of(const std::string& text, const std::string& part) {
   return count;
 }
 
-bool holds_fd_on(const std::string& path) {
-  const std::filesystem::path wanted = std::filesystem::weakly_canonical(path);
-  for (const auto& entry : std::filesystem::directory_iterator("/proc/self/fd")) {
-    std::error_code error;
-    const std::filesystem::path target = std::filesystem::read_symlink(entry.path(), error);
-    if (!error && target == wanted) return true;
-  }
-  return false;
-}
+using wiretape::test::holds_fd_on;
 
 // Polls `condition` until it holds or the deadline passes (no blind sleep of
 // the whole deadline).

@@ -566,16 +566,7 @@ namespace sys = wiretape::detail::sys;
 using wiretape::test::Event;
 using wiretape::test::kEventDeadline;
 
-// Whether this process holds a descriptor open on `path`.
-bool holds_fd_on(const std::string& path) {
-  const std::filesystem::path wanted = std::filesystem::weakly_canonical(path);
-  for (const auto& entry : std::filesystem::directory_iterator("/proc/self/fd")) {
-    std::error_code error;
-    const std::filesystem::path target = std::filesystem::read_symlink(entry.path(), error);
-    if (!error && target == wanted) return true;
-  }
-  return false;
-}
+using wiretape::test::holds_fd_on;
 
 pid_t this_thread_id() { return static_cast<pid_t>(::syscall(SYS_gettid)); }
 

@@ -142,10 +142,10 @@ def loopback():
         port.close()
 
 
-def write_session(path, records, port_type="serial", capture="client"):
+def write_session(path, records, port_type="serial", capture="client", port_options=None):
     """Writes a session file of (kind, t_ns, data) records."""
     with wiretape.SessionWriter(str(path), port_type=port_type, capture=capture,
-                                port_options=f"type={port_type}") as writer:
+                                port_options=port_options or f"type={port_type}") as writer:
         for kind, t_ns, data in records:
             writer.write(kind, t_ns, data)
     return path
@@ -158,6 +158,19 @@ def session_file(tmp_path):
 
     def make(records, name="s.wtape", **header):
         return write_session(tmp_path / name, records, **header)
+
+    return make
+
+
+@pytest.fixture
+def device_recording(session_file):
+    """``device_recording(records, name)``: a proxy's recording of a serial
+    device (capture=wire) that starts with its open event, as a virtual
+    device replays it."""
+
+    def make(records, name="recording.wtape"):
+        return session_file([("open", 0, b"{}"), *records], name=name, capture="wire",
+                            port_options="type=serial,device=/dev/ttyX")
 
     return make
 

@@ -13,7 +13,7 @@ import termios
 import pytest
 import serial
 
-from wiretape import _core, bridge
+from wiretape import bridge
 
 from test_replay_verdict import Replay
 from devices import wait_until
@@ -26,19 +26,9 @@ pytestmark = pytest.mark.skipif(
     reason="only Linux shows a pty's clients coming and going (inotify)")
 
 
-def write_recording(path, records):
-    writer = _core.SessionWriter(str(path), capture="wire",
-                                 port_options="type=serial,device=/dev/ttyX", port_type="serial")
-    writer.write("open", 0, b"{}")
-    for kind, t_ns, data in records:
-        writer.write(kind, t_ns, data)
-    writer.close()
-    return path
-
-
 @pytest.fixture
-def greeting(tmp_path):
-    return write_recording(tmp_path / "greeting.wtape", [
+def greeting(device_recording):
+    return device_recording(name="greeting.wtape", records=[
         ("rx", 0, GREETING), ("tx", 2_000_000, b"PING\n"), ("rx", 2_500_000, b"PONG\n")])
 
 
@@ -81,8 +71,8 @@ def test_a_greeting_flushed_before_the_first_write_is_delivered_again(greeting, 
         assert handle.result().ok and not handle.result().nothing_served, handle.result()
 
 
-def test_after_the_first_write_a_flush_drops_released_rx(tmp_path):
-    recording = write_recording(tmp_path / "two.wtape", [
+def test_after_the_first_write_a_flush_drops_released_rx(device_recording, tmp_path):
+    recording = device_recording(name="two.wtape", records=[
         ("tx", 1_000_000, b"a"), ("rx", 1_500_000, b"A1"),
         ("tx", 2_000_000, b"b"), ("rx", 2_500_000, b"B1")])
     link = str(tmp_path / "tty")

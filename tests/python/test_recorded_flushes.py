@@ -12,7 +12,6 @@ import serial
 from wiretape import _core, bridge
 
 from devices import TcpDevice, wait_until
-from test_flush_on_open import write_recording
 
 DEADLINE = 10.0
 GREETING = b"HELLO after the flush\r\n"
@@ -49,8 +48,8 @@ def test_the_proxy_records_a_pty_clients_flushes_in_order(tmp_path):
     assert [k for k in kinds if k in wanted] == wanted
 
 
-def test_pyserial_is_greeted_after_its_flush_as_the_recording_shows(tmp_path):
-    recording = write_recording(tmp_path / "gated.wtape", [
+def test_pyserial_is_greeted_after_its_flush_as_the_recording_shows(device_recording, tmp_path):
+    recording = device_recording(name="gated.wtape", records=[
         ("client_connect", 1_000, b'{"peer":"pty","role":"control"}'),
         ("flush_input", 2_000, b"{}"),
         ("rx", 3_000, GREETING)])

@@ -12,40 +12,28 @@ import threading
 import pytest
 import serial
 
-from wiretape import _core
-
 from devices import wait_until
 
 DEADLINE = 10.0
 
 
-def write_recording(path, records):
-    writer = _core.SessionWriter(str(path), capture="wire",
-                                 port_options="type=serial,device=/dev/ttyX", port_type="serial")
-    writer.write("open", 0, b"{}")
-    for kind, t_ns, data in records:
-        writer.write(kind, t_ns, data)
-    writer.close()
-    return path
-
-
 @pytest.fixture
-def greeting(tmp_path):
+def greeting(device_recording):
     """The device speaks first: a greeting at t=0, then one exchange."""
-    return write_recording(tmp_path / "greeting.wtape", [
+    return device_recording(name="greeting.wtape", records=[
         ("rx", 0, b"HELLO\n"), ("tx", 2_000_000, b"PING\n"), ("rx", 2_500_000, b"PONG\n")])
 
 
 @pytest.fixture
-def exchange(tmp_path):
-    return write_recording(tmp_path / "exchange.wtape", [
+def exchange(device_recording):
+    return device_recording(name="exchange.wtape", records=[
         ("tx", 1_000_000, b"PING\n"), ("rx", 1_500_000, b"PONG\n")])
 
 
 @pytest.fixture
-def no_rx(tmp_path):
+def no_rx(device_recording):
     """A device that only listens."""
-    return write_recording(tmp_path / "listener.wtape", [("tx", 1_000_000, b"GO\n")])
+    return device_recording(name="listener.wtape", records=[("tx", 1_000_000, b"GO\n")])
 
 
 class Replay:

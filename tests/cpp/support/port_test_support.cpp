@@ -168,4 +168,14 @@ std::vector<Record> load_records(const std::string& path) {
   return records;
 }
 
+bool holds_fd_on(const std::string& path) {
+  const std::filesystem::path wanted = std::filesystem::weakly_canonical(path);
+  for (const auto& entry : std::filesystem::directory_iterator("/proc/self/fd")) {
+    std::error_code error;
+    const std::filesystem::path target = std::filesystem::read_symlink(entry.path(), error);
+    if (!error && target == wanted) return true;
+  }
+  return false;
+}
+
 }  // namespace wiretape::test

@@ -84,6 +84,9 @@ std::string read_count(int fd, std::size_t count);
 // Every record of a session file; throws its SessionError when it is damaged.
 std::vector<Record> load_records(const std::string& path);
 
+// Whether this process holds a descriptor open on `path` (Linux: /proc).
+bool holds_fd_on(const std::string& path);
+
 // A fresh directory under /tmp, removed with its content at destruction.
 struct TempDir {
   TempDir();
