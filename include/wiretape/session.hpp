@@ -11,6 +11,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include "wiretape/errors.hpp"
 
@@ -32,6 +33,8 @@ enum class RecordKind : std::uint8_t {
   client_connect = 0x18,
   client_disconnect = 0x19,
   device_lost = 0x1a,  // the device went away (EOF, ENXIO, ECONNRESET)
+  fault = 0x1b,        // replay injected a fault here: {"kind":"corrupt","where":"exchange:3"}
+  redaction = 0x1c,    // the next direction record's bytes at offset, length were scrubbed
 };
 
 // "rx", "tx", "open", ... "line_break" is spelled "break".
@@ -42,6 +45,10 @@ struct Record {
   std::uint64_t t_ns = 0;  // since the device was opened, monotonic
   RecordKind kind = RecordKind::rx;
   std::string data;
+  // Which port of a session the record belongs to. Reserved for sessions of
+  // several ports: 0, the session's port, in every file written today;
+  // readers skip records of other channels.
+  std::uint16_t channel = 0;
 };
 
 enum class Capture {
@@ -50,6 +57,7 @@ enum class Capture {
 };
 
 struct SessionHeader {
+  // The file's format version; 0.0 for a flexiport log, read directly.
   std::uint16_t version_major = 1;
   std::uint16_t version_minor = 0;
   std::string metadata_json;  // the header's JSON object, as stored
@@ -60,7 +68,14 @@ struct SessionHeader {
   std::string wiretape_version;
   std::string host;
   Capture capture = Capture::client;
-  std::string source_format = "wiretape";  // or "flexiport"
+  // Where the session came from: "wiretape" (recorded by wiretape), or the
+  // format it was imported from ("flexiport", "pcap", "reserial", ...),
+  // with the imported files' names and what else the import noted.
+  std::string source_format = "wiretape";
+  std::vector<std::string> source_files;
+  std::map<std::string, std::string> source_details;
+  std::string device_address;  // host:port of a network device, when known
+  std::vector<std::string> edits;  // what `wiretape edit` changed, in order
   std::map<std::string, std::string> user_metadata;
 };
 
@@ -103,9 +118,17 @@ struct SessionWriterOptions {
   bool fsync = false;
   // Header fields normally taken from the machine; set them to write a
   // reproducible file (golden files, conversions that keep the original's).
-  std::string start_utc;         // empty: now
-  std::string host;              // empty: this machine's host name
-  std::string wiretape_version;  // empty: this library's version
+  // An empty string says "not known" (an imported session).
+  std::optional<std::string> start_utc;  // unset: now
+  std::optional<std::string> host;       // unset: this machine's host name
+  std::string wiretape_version;          // empty: this library's version
+  // Provenance (SessionHeader has the same fields): empty source_format
+  // means recorded by wiretape.
+  std::string source_format;
+  std::vector<std::string> source_files;
+  std::map<std::string, std::string> source_details;
+  std::string device_address;
+  std::vector<std::string> edits;
 };
 
 // Appends records to a new session file. Thread-safe: a reader thread and a
@@ -123,8 +146,12 @@ class SessionWriter {
 
   // Throws PortError when the file cannot be written (full disk, file-size
   // limit); what was written before stays readable.
-  void write(RecordKind kind, std::uint64_t t_ns, std::string_view data);
-  void write(const Record& record) { write(record.kind, record.t_ns, record.data); }
+  // `channel` is reserved for sessions of several ports (see Record).
+  void write(RecordKind kind, std::uint64_t t_ns, std::string_view data,
+             std::uint16_t channel = 0);
+  void write(const Record& record) {
+    write(record.kind, record.t_ns, record.data, record.channel);
+  }
   // Hands everything buffered to the OS now (and fsyncs if asked).
   void flush();
   // Flushes and closes; throws PortError if the last data could not be

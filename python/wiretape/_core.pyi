@@ -1,6 +1,6 @@
 """wiretape's C++ core"""
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 import datetime
 
 from wiretape import (
@@ -201,7 +201,7 @@ def device_options(device: str) -> str:
 
 SESSION_MAGIC: bytes = ...
 
-SESSION_VERSION: tuple = (1, 0)
+SESSION_VERSION: tuple = (1, 1)
 
 FILE_HEADER_FIXED_SIZE: int = 16
 
@@ -296,7 +296,25 @@ class SessionHeader:
 
     @property
     def source_format(self) -> str:
-        """'wiretape' or 'flexiport'"""
+        """
+        'wiretape' (recorded by wiretape) or the format it was imported from: 'flexiport', 'pcap', 'reserial', 'umockdev', ...
+        """
+
+    @property
+    def source_files(self) -> list[str]:
+        """an imported session's original file names"""
+
+    @property
+    def source_details(self) -> dict[str, str]:
+        """what else the import noted (the stream, the test, the logs' formats)"""
+
+    @property
+    def device_address(self) -> str:
+        """host:port of a network device, when known"""
+
+    @property
+    def edits(self) -> list[str]:
+        """what wiretape edit changed, in order"""
 
     @property
     def metadata(self) -> dict[str, str]:
@@ -351,10 +369,12 @@ class SessionWriter:
     Writes a new .wtape file (truncating PATH). Buffered; buffered records reach the OS at most flush_ms after they were written. A full disk or file-size limit raises PortError; what was written before stays readable.
     """
 
-    def __init__(self, path: object, *, capture: str = 'client', port_options: str = '', port_type: str = '', metadata: Mapping[str, str] | None = None, flush_ms: int = 100, fsync: bool = False, start_utc: str = '', host: str = '', wiretape_version: str = '') -> None: ...
+    def __init__(self, path: object, *, capture: str = 'client', port_options: str = '', port_type: str = '', metadata: Mapping[str, str] | None = None, flush_ms: int = 100, fsync: bool = False, start_utc: str | None = None, host: str | None = None, wiretape_version: str = '', source_format: str = '', source_files: Sequence[str] | None = None, source_details: Mapping[str, str] | None = None, device_address: str = '', edits: Sequence[str] | None = None) -> None: ...
 
-    def write(self, kind: object, t_ns: int, data: bytes = ...) -> None:
-        """Appends a record: kind is a name ('rx', 'tx', 'open', ...) or a code."""
+    def write(self, kind: object, t_ns: int, data: bytes = ..., channel: int = 0) -> None:
+        """
+        Appends a record: kind is a name ('rx', 'tx', 'open', ...) or a code. channel is reserved for sessions of several ports: 0, the session's port.
+        """
 
     def flush(self) -> None: ...
 

@@ -8,6 +8,7 @@
 #include <string>
 
 #include <nanobind/stl/map.h>
+#include <nanobind/stl/vector.h>
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
 
@@ -115,6 +116,16 @@ nb::dict header_dict(const SessionHeader& header) {
   out["host"] = header.host;
   out["capture"] = detail::capture_name(header.capture);
   out["source_format"] = header.source_format;
+  nb::list files;
+  for (const auto& name : header.source_files) files.append(name);
+  out["source_files"] = files;
+  nb::dict details;
+  for (const auto& [key, value] : header.source_details) details[key.c_str()] = value;
+  out["source_details"] = details;
+  out["device_address"] = header.device_address;
+  nb::list edits;
+  for (const auto& edit : header.edits) edits.append(edit);
+  out["edits"] = edits;
   nb::dict metadata;
   for (const auto& [key, value] : header.user_metadata) metadata[key.c_str()] = value;
   out["metadata"] = metadata;
@@ -238,7 +249,16 @@ void bind_session(nb::module_& m) {
           "capture",
           [](const SessionHeader& h) { return std::string(detail::capture_name(h.capture)); },
           "'client' (library recording) or 'wire' (proxy recording)")
-      .def_ro("source_format", &SessionHeader::source_format, "'wiretape' or 'flexiport'")
+      .def_ro("source_format", &SessionHeader::source_format,
+              "'wiretape' (recorded by wiretape) or the format it was imported from: "
+              "'flexiport', 'pcap', 'reserial', 'umockdev', ...")
+      .def_ro("source_files", &SessionHeader::source_files,
+              "an imported session's original file names")
+      .def_ro("source_details", &SessionHeader::source_details,
+              "what else the import noted (the stream, the test, the logs' formats)")
+      .def_ro("device_address", &SessionHeader::device_address,
+              "host:port of a network device, when known")
+      .def_ro("edits", &SessionHeader::edits, "what wiretape edit changed, in order")
       .def_ro("metadata", &SessionHeader::user_metadata, "the free user metadata (--meta)")
       .def_ro("metadata_json", &SessionHeader::metadata_json, "the header's JSON, as stored")
       .def("to_dict", &header_dict, "the fields above as a dict")
@@ -319,8 +339,12 @@ void bind_session(nb::module_& m) {
           [](PyWriter* self, nb::handle path, const std::string& capture,
              const std::string& port_options, const std::string& port_type,
              std::optional<std::map<std::string, std::string>> metadata, int flush_ms,
-             bool fsync, const std::string& start_utc, const std::string& host,
-             const std::string& wiretape_version) {
+             bool fsync, std::optional<std::string> start_utc, std::optional<std::string> host,
+             const std::string& wiretape_version, const std::string& source_format,
+             std::optional<std::vector<std::string>> source_files,
+             std::optional<std::map<std::string, std::string>> source_details,
+             const std::string& device_address,
+             std::optional<std::vector<std::string>> edits) {
             SessionWriterOptions options;
             options.capture = capture_from_python(capture);
             options.port_options = port_options;
@@ -329,9 +353,14 @@ void bind_session(nb::module_& m) {
             if (flush_ms < 0) throw nb::value_error("flush_ms must be >= 0");
             options.flush_ms = flush_ms;
             options.fsync = fsync;
-            options.start_utc = start_utc;
-            options.host = host;
+            options.start_utc = std::move(start_utc);
+            options.host = std::move(host);
             options.wiretape_version = wiretape_version;
+            options.source_format = source_format;
+            if (source_files) options.source_files = std::move(*source_files);
+            if (source_details) options.source_details = std::move(*source_details);
+            options.device_address = device_address;
+            if (edits) options.edits = std::move(*edits);
             const std::string p = path_from_python(path);
             new (self) PyWriter{};
             self->path = p;
@@ -340,16 +369,20 @@ void bind_session(nb::module_& m) {
           },
           "path"_a, nb::kw_only(), "capture"_a = "client", "port_options"_a = "",
           "port_type"_a = "", "metadata"_a = nb::none(), "flush_ms"_a = 100,
-          "fsync"_a = false, "start_utc"_a = "", "host"_a = "", "wiretape_version"_a = "")
+          "fsync"_a = false, "start_utc"_a = nb::none(), "host"_a = nb::none(),
+          "wiretape_version"_a = "", "source_format"_a = "", "source_files"_a = nb::none(),
+          "source_details"_a = nb::none(), "device_address"_a = "", "edits"_a = nb::none())
       .def(
           "write",
-          [](PyWriter& self, nb::handle kind, std::uint64_t t_ns, nb::bytes data) {
+          [](PyWriter& self, nb::handle kind, std::uint64_t t_ns, nb::bytes data,
+             std::uint16_t channel) {
             const RecordKind k = kind_from_python(kind);
             SessionWriter& writer = self.get();
-            writer.write(k, t_ns, std::string_view(data.c_str(), data.size()));
+            writer.write(k, t_ns, std::string_view(data.c_str(), data.size()), channel);
           },
-          "kind"_a, "t_ns"_a, "data"_a = nb::bytes("", 0),
-          "Appends a record: kind is a name ('rx', 'tx', 'open', ...) or a code.")
+          "kind"_a, "t_ns"_a, "data"_a = nb::bytes("", 0), "channel"_a = 0,
+          "Appends a record: kind is a name ('rx', 'tx', 'open', ...) or a code. channel is "
+          "reserved for sessions of several ports: 0, the session's port.")
       .def("flush",
            [](PyWriter& self) {
              SessionWriter& writer = self.get();

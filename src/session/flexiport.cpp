@@ -272,18 +272,24 @@ std::unique_ptr<RecordSource> open_flexiport(const std::string& prefix,
     }
   }
   auto source = std::make_unique<FlexiportSource>(prefix);
+  // flexiport's logs hold no start time, host or port: the header says
+  // "not known" rather than inventing them, and names the logs it came from.
+  SessionWriterOptions provenance;
+  provenance.start_utc = "";
+  provenance.host = "";
+  provenance.source_format = "flexiport";
+  const auto base_name = [](const std::string& path) {
+    const auto slash = path.rfind('/');
+    return slash == std::string::npos ? path : path.substr(slash + 1);
+  };
+  provenance.source_files = {base_name(prefix + "r"), base_name(prefix + "w")};
+  provenance.source_details = {{"read_format", format_name(source->reads().format())},
+                               {"write_format", format_name(source->writes().format())}};
   header = SessionHeader{};
-  header.source_format = "flexiport";
-  header.capture = Capture::client;
-  header.metadata_json =
-      json::ObjectWriter()
-          .add(header_field::port_options, "")
-          .add(header_field::port_type, "")
-          .add(header_field::capture, capture_name(header.capture))
-          .add(header_field::source_format, header.source_format)
-          .add(header_field::flexiport_read_format, format_name(source->reads().format()))
-          .add(header_field::flexiport_write_format, format_name(source->writes().format()))
-          .str();
+  parse_header_json(header_json(provenance), prefix, 0, header);
+  header.version_major = 0;  // not a .wtape file: no format version
+  header.version_minor = 0;
+  header.wiretape_version.clear();  // nor written by wiretape
   return source;
 }
 

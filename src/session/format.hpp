@@ -12,12 +12,12 @@ namespace wiretape::detail {
 // newline translation.
 inline constexpr char session_magic[8] = {'\x89', 'W', 'T', 'A', 'P', 'E', '\r', '\n'};
 inline constexpr std::uint16_t session_version_major = 1;
-inline constexpr std::uint16_t session_version_minor = 0;
+inline constexpr std::uint16_t session_version_minor = 1;
 // magic, major, minor, JSON length
 inline constexpr std::size_t file_header_fixed_size = 16;
 // A header larger than this is corrupt, whatever the file holds.
 inline constexpr std::uint32_t max_header_json = 16u << 20;
-// length, kind, flags, reserved, t_ns
+// length, kind, flags, channel, t_ns
 inline constexpr std::size_t record_header_size = 16;
 inline constexpr std::size_t crc_size = 4;
 // The largest t_ns a reader accepts: the last nanosecond of the 32-bit

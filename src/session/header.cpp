@@ -117,26 +117,64 @@ std::string header_json(const SessionWriterOptions& options) {
   // is not UTF-8 or has a start time out of range.
   require_utf8(field::port_options, options.port_options);
   require_utf8(field::port_type, options.port_type);
-  require_utf8(field::host, options.host);
+  require_utf8(field::host, options.host.value_or(""));
   require_utf8(field::wiretape_version, options.wiretape_version);
   for (const auto& [key, value] : options.metadata) {
     require_utf8("meta_" + key, key);
     require_utf8("meta_" + key, value);
   }
-  if (const auto problem = start_utc_problem(options.start_utc)) {
-    throw OptionError(field::start_utc, "the session header's " + *problem);
+  require_utf8(field::source_format, options.source_format);
+  for (const auto& name : options.source_files) require_utf8(field::source_files, name);
+  for (const auto& [key, value] : options.source_details) {
+    if (key == field::source_format || key == field::source_files) {
+      throw OptionError(field::source, "the session header's source detail \"" + key +
+                                           "\" would hide the source's own " + key);
+    }
+    require_utf8(field::source, key);
+    require_utf8(field::source, value);
+  }
+  require_utf8(field::device_address, options.device_address);
+  for (const auto& edit : options.edits) require_utf8(field::edits, edit);
+  if (options.start_utc) {
+    if (const auto problem = start_utc_problem(*options.start_utc)) {
+      throw OptionError(field::start_utc, "the session header's " + *problem);
+    }
   }
   json::ObjectWriter object;
   object.add(field::port_options, options.port_options)
       .add(field::port_type, options.port_type)
-      .add(field::start_utc,
-           options.start_utc.empty() ? utc_now_iso8601() : options.start_utc)
+      .add(field::start_utc, options.start_utc ? *options.start_utc : utc_now_iso8601())
       .add(field::wiretape_version, options.wiretape_version.empty()
                                         ? std::string(wiretape::version)
                                         : options.wiretape_version)
-      .add(field::host, options.host.empty() ? host_name() : options.host)
+      .add(field::host, options.host ? *options.host : host_name())
       .add(field::capture, capture_name(options.capture))
       .add(field::metadata, options.metadata);
+  // Format 1.1 members, written only when they say something, so that a
+  // recording's header stays as short as before.
+  if (!options.source_format.empty()) {
+    std::string files = "[";
+    for (const auto& name : options.source_files) {
+      if (files.size() > 1) files += ",";
+      json::append_string(files, name);
+    }
+    files += "]";
+    json::ObjectWriter source;
+    source.add(field::source_format, options.source_format).add_raw(field::source_files, files);
+    for (const auto& [key, value] : options.source_details) source.add(key, value);
+    object.add_raw(field::source, source.str());
+  }
+  if (!options.device_address.empty()) {
+    object.add(field::device_address, options.device_address);
+  }
+  if (!options.edits.empty()) {
+    std::string edits = "[";
+    for (const auto& edit : options.edits) {
+      if (edits.size() > 1) edits += ",";
+      json::append_string(edits, edit);
+    }
+    object.add_raw(field::edits, edits + "]");
+  }
   return object.str();
 }
 
@@ -179,6 +217,32 @@ void parse_header_json(const std::string& text, const std::string& path,
     throw SessionError(path + ": the header at byte " + std::to_string(offset) +
                            " has a " + *problem,
                        offset);
+  }
+  // Provenance: members of the wrong type are ignored, like unknown ones
+  // (they can only come from a writer other than ours).
+  header.source_format = "wiretape";
+  header.source_files.clear();
+  header.source_details.clear();
+  if (const json::Value* source = root.find(field::source);
+      source != nullptr && source->is_object()) {
+    header.source_format = source->string_member(field::source_format).value_or("unknown");
+    for (const auto& [key, value] : source->members) {
+      if (key == field::source_format) continue;
+      if (key == field::source_files) {
+        for (const json::Value& item : value.items) {
+          if (item.is_string()) header.source_files.push_back(item.text);
+        }
+      } else if (value.is_string()) {
+        header.source_details[key] = value.text;
+      }
+    }
+  }
+  header.device_address = root.string_member(field::device_address).value_or("");
+  header.edits.clear();
+  if (const json::Value* edits = root.find(field::edits)) {
+    for (const json::Value& item : edits->items) {
+      if (item.is_string()) header.edits.push_back(item.text);
+    }
   }
   header.user_metadata.clear();
   if (const json::Value* metadata = root.find(field::metadata);

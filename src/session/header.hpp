@@ -21,10 +21,12 @@ inline constexpr char wiretape_version[] = "wiretape_version";
 inline constexpr char host[] = "host";
 inline constexpr char capture[] = "capture";
 inline constexpr char metadata[] = "metadata";
-// Sessions read from flexiport's logs.
-inline constexpr char source_format[] = "source_format";
-inline constexpr char flexiport_read_format[] = "flexiport_read_format";
-inline constexpr char flexiport_write_format[] = "flexiport_write_format";
+// Format 1.1: provenance and addresses.
+inline constexpr char source[] = "source";  // {"format":..,"files":[..],more strings}
+inline constexpr char source_format[] = "format";
+inline constexpr char source_files[] = "files";
+inline constexpr char device_address[] = "device_address";
+inline constexpr char edits[] = "edits";
 }  // namespace header_field
 
 // The years a header's start_utc may name: the session's start in ns since

@@ -130,7 +130,11 @@ class WtapeSource final : public RecordSource {
                                 " does not match the stored " + hex32(stored));
       }
       const auto kind_byte = static_cast<std::uint8_t>(head[4]);
-      if (!known_kind(kind_byte)) continue;  // newer kind: skipped
+      if (find_record_kind(static_cast<RecordKind>(kind_byte)) == nullptr) {
+        continue;  // a newer kind: skipped
+      }
+      // Another port of a session of several ports (reserved): skipped.
+      if (get_u16le(head + 6) != 0) continue;
       record.kind = static_cast<RecordKind>(kind_byte);
       record.t_ns = get_u64le(head + 8);
       if (const auto problem =
@@ -143,10 +147,6 @@ class WtapeSource final : public RecordSource {
       ++records_;
       return true;
     }
-  }
-
-  static bool known_kind(std::uint8_t kind) {
-    return kind == 0x01 || kind == 0x02 || (kind >= 0x10 && kind <= 0x1a);
   }
 
   bool stop(std::uint64_t offset, const std::string& what) {
@@ -212,7 +212,6 @@ class WtapeSource final : public RecordSource {
                   hex32(get_u32le(stored_bytes)));
     }
     parse_header_json(json, file_.path(), file_header_fixed_size, header);
-    header.source_format = "wiretape";
   }
 
   BufferedFile file_;

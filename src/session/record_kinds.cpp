@@ -57,6 +57,16 @@ constexpr EventFieldSpec device_lost_fields[] = {
     {f::error_number, integer, optional, "the errno, when there was one (library recording)"},
 };
 
+constexpr EventFieldSpec fault_fields[] = {
+    {f::fault_kind, string, required, "the fault, as in faults=: drop:3, corrupt, disconnect, ..."},
+    {f::where, string, required, "where it was asked for: exchange:N, rx:N, t:SECONDS, every:K, p:P"},
+    {f::detail, string, optional, "what it did, e.g. flipped bit 3 of rx byte 120"},
+};
+constexpr EventFieldSpec redaction_fields[] = {
+    {f::offset, integer, required, "the first scrubbed byte, from the start of the next rx or tx record"},
+    {f::length, integer, required, "how many bytes were scrubbed; replay matches them as wildcards"},
+};
+
 template <std::size_t n>
 constexpr RecordKindSpec event(RecordKind kind, std::string_view name, std::string_view meaning,
                                const EventFieldSpec (&fields)[n]) {
@@ -93,6 +103,12 @@ constexpr RecordKindSpec kinds[] = {
     event(RecordKind::device_lost, "device_lost",
           "the device went away (EOF, ENXIO, ECONNRESET); replays as PortClosed here",
           device_lost_fields),
+    event(RecordKind::fault, "fault",
+          "replay injected a fault here (a recorded faulty replay); replay ignores it",
+          fault_fields),
+    event(RecordKind::redaction, "redaction",
+          "bytes of the next rx or tx record were scrubbed by wiretape edit --redact",
+          redaction_fields),
 };
 
 bool is_integer(const json::Value& value) {

@@ -34,6 +34,11 @@ inline constexpr char role[] = "role";
 inline constexpr char reason[] = "reason";
 inline constexpr char error[] = "error";
 inline constexpr char error_number[] = "errno";
+inline constexpr char fault_kind[] = "kind";
+inline constexpr char where[] = "where";
+inline constexpr char detail[] = "detail";
+inline constexpr char offset[] = "offset";
+inline constexpr char length[] = "length";
 }  // namespace event_field
 
 // The JSON type of an event payload member. Integers are JSON numbers

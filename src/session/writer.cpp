@@ -267,7 +267,8 @@ SessionWriter::~SessionWriter() {
   }
 }
 
-void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view data) {
+void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view data,
+                          std::uint16_t channel) {
   // Nothing is written that the reader would stop at.
   if (const auto problem = detail::record_content_problem(kind, t_ns, data)) {
     throw std::invalid_argument(impl_->path + ": refusing to write a record: " + *problem);
@@ -279,6 +280,7 @@ void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view 
   char head[detail::record_header_size] = {};
   detail::put_u32le(head, static_cast<std::uint32_t>(data.size()));
   head[4] = static_cast<char>(kind);
+  detail::put_u16le(head + 6, channel);
   detail::put_u64le(head + 8, t_ns);
   const char tail[detail::crc_size] = {};  // the flusher fills it in (seal)
 

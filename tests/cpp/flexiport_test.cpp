@@ -125,9 +125,16 @@ TEST_P(RealRecording, EveryByteAndTimestampIsImported) {
   ASSERT_GE(writes.size(), 10u);
   for (const std::string& name : {prefix, prefix + "r", prefix + "w"}) {
     SessionReader reader(name);
-    EXPECT_EQ(reader.header().source_format, "flexiport");
-    EXPECT_NE(reader.header().metadata_json.find("\"flexiport_read_format\":\"new\""),
-              std::string::npos);
+    const SessionHeader& header = reader.header();
+    EXPECT_EQ(header.source_format, "flexiport");
+    EXPECT_EQ(header.source_details.at("read_format"), "new");
+    EXPECT_EQ(header.source_details.at("write_format"), "new");
+    const std::string base = prefix.substr(prefix.rfind('/') + 1);
+    EXPECT_EQ(header.source_files, (std::vector<std::string>{base + "r", base + "w"}));
+    // The logs hold no start time, host or port: none is invented.
+    EXPECT_EQ(header.start_utc, "");
+    EXPECT_EQ(header.host, "");
+    EXPECT_EQ(header.version_major, 0);
     const auto records = read_all(reader);
     EXPECT_FALSE(reader.damage());
     expect_faithful_import(records, reads, writes);
@@ -161,8 +168,8 @@ TEST_P(RealRecording, OldFormatIsDetectedAndReadTheSame) {
   write_file(dir.file("old.logr"), encode_old(reads));
   write_file(dir.file("old.logw"), encode_old(writes));
   SessionReader reader(dir.file("old.log"));
-  EXPECT_NE(reader.header().metadata_json.find("\"flexiport_read_format\":\"old\""),
-            std::string::npos);
+  EXPECT_EQ(reader.header().source_details.at("read_format"), "old");
+  EXPECT_EQ(reader.header().source_details.at("write_format"), "old");
   const auto records = read_all(reader);
   EXPECT_FALSE(reader.damage());
   expect_faithful_import(records, reads, writes);

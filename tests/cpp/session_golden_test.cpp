@@ -43,6 +43,7 @@ struct Line {
   std::string data;
   bool skipped = false;
   bool readable = true;
+  std::uint16_t channel = 0;
 };
 
 struct Golden {
@@ -71,6 +72,17 @@ Golden load(const std::string& name) {
       for (const auto& [key, value] : header->find("metadata")->members) {
         o.metadata[key] = value.text;
       }
+      o.source_format = header->string_member("source_format").value_or("");
+      if (const json::Value* files = header->find("source_files")) {
+        for (const auto& item : files->items) o.source_files.push_back(item.text);
+      }
+      if (const json::Value* details = header->find("source_details")) {
+        for (const auto& [key, value] : details->members) o.source_details[key] = value.text;
+      }
+      o.device_address = header->string_member("device_address").value_or("");
+      if (const json::Value* edits = header->find("edits")) {
+        for (const auto& item : edits->items) o.edits.push_back(item.text);
+      }
       continue;
     }
     if (const json::Value* corrupt = line.find("corrupt")) {
@@ -91,6 +103,9 @@ Golden load(const std::string& name) {
     record.data = from_hex(line.string_member("data_hex").value_or(""));
     if (const json::Value* skipped = line.find("skipped")) record.skipped = skipped->boolean;
     if (const json::Value* readable = line.find("readable")) record.readable = readable->boolean;
+    if (const json::Value* channel = line.find("channel")) {
+      record.channel = static_cast<std::uint16_t>(channel->number);
+    }
     golden.lines.push_back(record);
   }
   return golden;
@@ -108,7 +123,7 @@ TEST_P(GoldenFile, WriterRecreatesItByteForByte) {
   {
     SessionWriter writer(path, golden.options);
     for (const Line& line : golden.lines) {
-      writer.write(static_cast<RecordKind>(line.kind_code), line.t_ns, line.data);
+      writer.write(static_cast<RecordKind>(line.kind_code), line.t_ns, line.data, line.channel);
     }
   }
   std::string bytes = read_file(path);
@@ -125,11 +140,16 @@ TEST_P(GoldenFile, WriterRecreatesItByteForByte) {
       << " (a format change needs a new format version, see docs/session-format.md)";
 }
 
-TEST_P(GoldenFile, ReaderReturnsTheExpectedRecords) {
-  const Golden golden = load(GetParam());
-  SessionReader reader(golden_dir + GetParam() + ".wtape");
+namespace {
+
+class ReadOnlyGoldenFile : public GoldenFile {};
+
+void expect_reads_as_golden(const std::string& name, std::uint16_t version_minor) {
+  const Golden golden = load(name);
+  SessionReader reader(golden_dir + name + ".wtape");
   const SessionHeader& header = reader.header();
   EXPECT_EQ(header.version_major, 1);
+  EXPECT_EQ(header.version_minor, version_minor);
   EXPECT_EQ(header.port_options, golden.options.port_options);
   EXPECT_EQ(header.port_type, golden.options.port_type);
   EXPECT_EQ(header.start_utc, golden.options.start_utc);
@@ -137,6 +157,12 @@ TEST_P(GoldenFile, ReaderReturnsTheExpectedRecords) {
   EXPECT_EQ(header.host, golden.options.host);
   EXPECT_EQ(header.capture, golden.options.capture);
   EXPECT_EQ(header.user_metadata, golden.options.metadata);
+  EXPECT_EQ(header.source_format,
+            golden.options.source_format.empty() ? "wiretape" : golden.options.source_format);
+  EXPECT_EQ(header.source_files, golden.options.source_files);
+  EXPECT_EQ(header.source_details, golden.options.source_details);
+  EXPECT_EQ(header.device_address, golden.options.device_address);
+  EXPECT_EQ(header.edits, golden.options.edits);
   std::vector<Line> expected;
   for (const Line& line : golden.lines) {
     if (!line.skipped && line.readable) expected.push_back(line);
@@ -155,5 +181,16 @@ TEST_P(GoldenFile, ReaderReturnsTheExpectedRecords) {
   if (golden.damage_offset) EXPECT_EQ(reader.damage()->offset(), *golden.damage_offset);
 }
 
+}  // namespace
+
+TEST_P(GoldenFile, ReaderReturnsTheExpectedRecords) { expect_reads_as_golden(GetParam(), 1); }
+
+// Files an older version of the format wrote: still read, no longer written.
+TEST_P(ReadOnlyGoldenFile, ReaderReturnsTheExpectedRecords) {
+  expect_reads_as_golden(GetParam(), 0);
+}
+
 INSTANTIATE_TEST_SUITE_P(Golden, GoldenFile,
-                         ::testing::Values("all_kinds", "wire", "unknown_kind", "damaged"));
+                         ::testing::Values("all_kinds", "wire", "unknown_kind", "damaged",
+                                           "v1_1_additions"));
+INSTANTIATE_TEST_SUITE_P(Golden, ReadOnlyGoldenFile, ::testing::Values("v1_0"));

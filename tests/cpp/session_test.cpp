@@ -771,7 +771,7 @@ TEST(RecordKindTable, CoversEveryNamedKindOnceInCodeOrder) {
     if (detail::find_record_kind(static_cast<RecordKind>(code)) != nullptr) ++named;
   }
   EXPECT_EQ(named, names.size());
-  EXPECT_EQ(names.size(), 13u);
+  EXPECT_EQ(names.size(), 15u);
 }
 
 TEST(RecordKindTable, PayloadCheckNamesTheProblem) {
@@ -919,7 +919,13 @@ TEST(RecordKindTable, EveryEventTheWritersRecordFollowsTheSchema) {
     const auto problem = detail::event_payload_problem(event.kind, event.data);
     EXPECT_FALSE(problem) << *problem << " in " << event.data;
   }
+  // Written elsewhere: redaction by `wiretape edit` in Python
+  // (tests/python/test_edit.py checks its payloads against this table);
+  // fault by fault injection, which the format reserves it for.
+  const std::set<RecordKind> written_elsewhere = {RecordKind::redaction, RecordKind::fault};
   for (const detail::RecordKindSpec& spec : detail::record_kinds()) {
-    if (spec.is_event) EXPECT_TRUE(seen.count(spec.kind)) << "no " << spec.name << " recorded";
+    if (spec.is_event && written_elsewhere.count(spec.kind) == 0) {
+      EXPECT_TRUE(seen.count(spec.kind)) << "no " << spec.name << " recorded";
+    }
   }
 }

@@ -12,7 +12,10 @@ from wiretape import _core
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 GOLDEN = ROOT / "tests" / "data" / "golden"
 FLEXIPORT = ROOT.parent / "shared" / "data" / "flexiport"
-GOLDEN_NAMES = ["all_kinds", "wire", "unknown_kind", "damaged"]
+GOLDEN_NAMES = ["all_kinds", "wire", "unknown_kind", "damaged", "v1_1_additions"]
+# Written by an older format version: read, no longer written.
+READ_ONLY_GOLDEN = {"v1_0": 0}
+PROVENANCE = ("source_format", "source_files", "source_details", "device_address", "edits")
 
 
 def load_jsonl(name):
@@ -23,14 +26,20 @@ def load_jsonl(name):
     return header, records, corrupt
 
 
-@pytest.mark.parametrize("name", GOLDEN_NAMES)
+@pytest.mark.parametrize("name", GOLDEN_NAMES + list(READ_ONLY_GOLDEN))
 def test_golden_file_reads_as_its_jsonl_says(name):
     header, records, corrupt = load_jsonl(name)
     reader = _core.SessionReader(GOLDEN / f"{name}.wtape")
     got = reader.header.to_dict()
+    assert (got["version_major"], got["version_minor"]) == (1, READ_ONLY_GOLDEN.get(name, 1))
     for key in ("port_options", "port_type", "start_utc", "wiretape_version", "host", "capture"):
         assert got[key] == header[key], key
     assert got["metadata"] == header["metadata"]
+    assert got["source_format"] == (header.get("source_format") or "wiretape")
+    assert got["source_files"] == header.get("source_files", [])
+    assert got["source_details"] == header.get("source_details", {})
+    assert got["device_address"] == header.get("device_address", "")
+    assert got["edits"] == header.get("edits", [])
     expected = [r for r in records if not r.get("skipped") and r.get("readable", True)]
     actual = [(r.t_ns, r.kind, r.data.hex()) for r in reader]
     assert actual == [(r["t_ns"], r["kind"], r["data_hex"]) for r in expected]
@@ -55,10 +64,11 @@ def test_writer_recreates_golden_file_byte_for_byte(tmp_path, name):
         start_utc=header["start_utc"],
         host=header["host"],
         wiretape_version=header["wiretape_version"],
+        **{key: header[key] for key in PROVENANCE if key in header},
     ) as writer:
         for r in records:
             kind = r["kind"] if "kind" in r else r["kind_code"]
-            writer.write(kind, r["t_ns"], bytes.fromhex(r["data_hex"]))
+            writer.write(kind, r["t_ns"], bytes.fromhex(r["data_hex"]), channel=r.get("channel", 0))
     data = bytearray(path.read_bytes())
     if corrupt:
         data[corrupt["corrupt"]["byte"]] ^= corrupt["corrupt"]["xor"]

@@ -51,7 +51,7 @@ def test_show_text_lists_header_events_and_data():
     assert "<- VV\\n00P\\n" in text
     assert '{"baud":115200}' in text
     assert "break" in text and '{"duration_ms":250}' in text
-    assert text.rstrip().endswith("17 records")
+    assert text.rstrip().endswith("20 records")
 
 
 def test_show_hex_dumps_payloads():
@@ -110,7 +110,7 @@ def test_stats_of_real_flexiport_log():
 
 def test_verify_good_damaged_and_unreadable(tmp_path):
     good = verify(GOLDEN / "all_kinds.wtape")
-    assert good == VerifyResult(ok=True, path=str(GOLDEN / "all_kinds.wtape"), records=17,
+    assert good == VerifyResult(ok=True, path=str(GOLDEN / "all_kinds.wtape"), records=20,
                                 offset=None, message=None)
     damaged = verify(GOLDEN / "damaged.wtape")
     assert damaged.ok is False and damaged.records == 2 and damaged.offset == 296
@@ -137,6 +137,44 @@ def test_convert_round_trips_between_wiretape_jsonl_and_flexiport(tmp_path):
     convert_module.convert(jsonl, tmp_path / "back.log")
     assert (tmp_path / "back.logr").read_bytes() == source.with_suffix(".logr").read_bytes()
     assert (tmp_path / "back.logw").read_bytes() == source.with_suffix(".logw").read_bytes()
+
+
+def test_converted_flexiport_log_names_its_source_and_invents_no_time_or_host(tmp_path):
+    source = flexiport_log("urg04lx_2011")
+    converted = tmp_path / "a.wtape"
+    convert_module.convert(source, converted)
+    header = _core.SessionReader(converted).header
+    assert (header.version_major, header.version_minor) == _core.SESSION_VERSION
+    assert header.source_format == "flexiport"
+    assert header.source_files == ["urg04lx_2011.logr", "urg04lx_2011.logw"]
+    assert header.source_details == {"read_format": "new", "write_format": "new"}
+    assert (header.start_utc, header.host) == ("", "")
+    for session in (source, converted):
+        out = io.StringIO()
+        show(session, out=out)
+        text = out.getvalue()
+        assert "imported     from flexiport (urg04lx_2011.logr, urg04lx_2011.logw)" in text
+        assert "started      at a time not recorded\n" in text
+    assert "flexiport log (name.logr + name.logw)" in _show_text(source)
+    assert "format       wiretape 1.1" in _show_text(converted)
+
+
+def _show_text(path) -> str:
+    out = io.StringIO()
+    show(path, out=out)
+    return out.getvalue()
+
+
+def test_format_1_1_header_members_survive_conversion_through_jsonl(tmp_path):
+    jsonl = tmp_path / "g.jsonl"
+    convert_module.convert(GOLDEN / "v1_1_additions.wtape", jsonl)
+    out = tmp_path / "g.wtape"
+    convert_module.convert(jsonl, out)
+    assert _core.SessionReader(out).header == _core.SessionReader(GOLDEN / "v1_1_additions.wtape").header
+    text = _show_text(out)
+    assert "imported     from pcap (plc.pcapng); stream: tcp.stream eq 0" in text
+    assert "device       192.0.2.7:502" in text
+    assert "edited       cut 0.5:2 s" in text
 
 
 def test_convert_keeps_events_and_header_through_jsonl(tmp_path):

@@ -87,7 +87,11 @@ def _check_format(name: str, allowed) -> str:
 # the CLI reports it in one line with exit 1 (a damaged session file, as for
 # .wtape sources) and what came before the bad line is converted.
 
-_HEADER_TEXT_FIELDS = ("port_options", "port_type", "start_utc", "wiretape_version", "host")
+_HEADER_TEXT_FIELDS = ("port_options", "port_type", "start_utc", "wiretape_version", "host",
+                       "source_format", "device_address")
+# Format 1.1's provenance members that are lists or objects of strings.
+_HEADER_TEXT_LISTS = ("source_files", "edits")
+_HEADER_TEXT_OBJECTS = ("source_details",)
 _CAPTURES = ("client", "wire")
 
 
@@ -124,10 +128,31 @@ def _jsonl_header(value) -> dict:
     metadata = value.get("metadata")
     if metadata is not None and not isinstance(metadata, dict):
         raise _BadLine(f"header.metadata: expected a JSON object, got {_json_type(metadata)}")
+    extra_texts = []
+    for name in _HEADER_TEXT_LISTS:
+        items = value.get(name)
+        if items is None:
+            continue
+        if not isinstance(items, list):
+            raise _BadLine(f"header.{name}: expected a list of strings, got {_json_type(items)}")
+        for index, item in enumerate(items):
+            if not isinstance(item, str):
+                raise _BadLine(f"header.{name}[{index}]: expected a string, got {_json_type(item)}")
+            extra_texts.append((f"header.{name}[{index}]", item))
+    for name in _HEADER_TEXT_OBJECTS:
+        members = value.get(name)
+        if members is None:
+            continue
+        if not isinstance(members, dict):
+            raise _BadLine(f"header.{name}: expected a JSON object, got {_json_type(members)}")
+        for key, item in members.items():
+            if not isinstance(item, str):
+                raise _BadLine(f"header.{name}.{key[:40]}: expected a string, got {_json_type(item)}")
+            extra_texts += [(f"header.{name} key {key[:40]!r}", key), (f"header.{name}.{key[:40]}", item)]
     # What a session header must hold to be written and read back (the C++
     # rules of docs/session-format.md#limits), checked here so that the
     # problem is reported at this line rather than by the writer.
-    texts = [(f"header.{name}", value.get(name)) for name in _HEADER_TEXT_FIELDS]
+    texts = [(f"header.{name}", value.get(name)) for name in _HEADER_TEXT_FIELDS] + extra_texts
     for key, item in (metadata or {}).items():
         texts += [(f"header.metadata key {key[:40]!r}", key),
                   (f"header.metadata.{key[:40]}", str(item))]
@@ -279,6 +304,10 @@ def _header_of_reader(reader) -> dict:
         "capture": header.capture,
         "metadata": dict(header.metadata),
         "source_format": header.source_format,
+        "source_files": list(header.source_files),
+        "source_details": dict(header.source_details),
+        "device_address": header.device_address,
+        "edits": list(header.edits),
     }
 
 
@@ -346,6 +375,29 @@ def _records_of(src: str, fmt: str):
     return _header_of_reader(reader), records(), lambda: raise_damage(reader)
 
 
+def _provenance(header: dict) -> dict:
+    """The SessionWriter arguments of a header's provenance (format 1.1):
+    where an imported session came from, and what edit changed. A
+    ``"source": {"format": ..., "files": [...], other strings}`` member, as
+    importers give it, or the flat fields a reader's header has."""
+    source = header.get("source")
+    if isinstance(source, dict):
+        details = {str(k): str(v) for k, v in source.items() if k not in ("format", "files")}
+        source_format, files = str(source.get("format") or ""), source.get("files") or []
+    else:
+        details = dict(header.get("source_details") or {})
+        source_format, files = header.get("source_format") or "", header.get("source_files") or []
+    if source_format == "wiretape":
+        source_format = ""  # recorded by wiretape: no source member
+    return {
+        "source_format": source_format,
+        "source_files": [str(name) for name in files],
+        "source_details": details,
+        "device_address": str(header.get("device_address") or ""),
+        "edits": [str(edit) for edit in header.get("edits") or []],
+    }
+
+
 def _write_wiretape(dst: str, header: dict, records, progress: _Progress) -> int:
     metadata = {str(k): str(v) for k, v in (header.get("metadata") or {}).items()}
     with _core.SessionWriter(
@@ -354,10 +406,13 @@ def _write_wiretape(dst: str, header: dict, records, progress: _Progress) -> int
         port_options=header.get("port_options") or "",
         port_type=header.get("port_type") or "",
         metadata=metadata,
+        # A time or host the source does not know stays unknown: "" (an
+        # import never invents them from the converting machine).
         start_utc=header.get("start_utc") or "",
         host=header.get("host") or "",
         wiretape_version=header.get("wiretape_version") or "",
         flush_ms=1000,
+        **_provenance(header),
     ) as writer:
         for kind, t_ns, data in records:
             writer.write(kind, t_ns, data)

@@ -30,18 +30,28 @@ def _header_lines(reader: _core.SessionReader, path: SessionPath) -> Iterator[st
     header_text() (the file may hold terminal escape sequences)."""
     header = reader.header
     yield f"session {os.fspath(path)}"
-    if header.source_format == "flexiport":
+    if header.version_major == 0:
         yield "  format       flexiport log (name.logr + name.logw)"
-        meta = json.loads(header.metadata_json or "{}")
-        reads = header_text(meta.get("flexiport_read_format", "?"))
-        writes = header_text(meta.get("flexiport_write_format", "?"))
-        yield f"  flexiport    reads: {reads} format, writes: {writes} format"
-        return
-    yield f"  format       wiretape {header.version_major}.{header.version_minor}"
-    yield f"  port         {header_text(header.port_type or '?')}: {header_text(header.port_options)}"
+    else:
+        yield f"  format       wiretape {header.version_major}.{header.version_minor}"
+    if header.source_format != "wiretape":
+        files = ", ".join(header_text(name) for name in header.source_files)
+        details = ", ".join(f"{header_text(key)}: {header_text(value)}"
+                            for key, value in sorted(header.source_details.items()))
+        yield (f"  imported     from {header_text(header.source_format)}"
+               + (f" ({files})" if files else "") + (f"; {details}" if details else ""))
+    if header.port_type or header.port_options:
+        yield f"  port         {header_text(header.port_type or '?')}: {header_text(header.port_options)}"
+    if header.device_address:
+        yield f"  device       {header_text(header.device_address)}"
     yield f"  capture      {header_text(header.capture)}"
-    yield f"  started      {header_text(header.start_utc)} on {header_text(header.host or '?')}"
-    yield f"  written by   wiretape {header_text(header.wiretape_version)}"
+    started = header_text(header.start_utc) if header.start_utc else "at a time not recorded"
+    host = f" on {header_text(header.host)}" if header.host else ""
+    yield f"  started      {started}{host}"
+    if header.wiretape_version:
+        yield f"  written by   wiretape {header_text(header.wiretape_version)}"
+    for edit in header.edits:
+        yield f"  edited       {header_text(edit)}"
     for key, value in sorted(header.metadata.items()):
         yield f"  meta         {header_text(key)}={header_text(value)}"
 

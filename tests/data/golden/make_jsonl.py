@@ -12,9 +12,16 @@ format change). Each .jsonl holds:
     {"t_ns": N, "kind_code": 127, "data_hex": "...", "skipped": true}
         a kind this reader does not know: written, skipped when read
     {..., "readable": false}  a record at or after the damage
+    {..., "channel": 1, "skipped": true}
+        a record of another port (channels are reserved for sessions of
+        several ports): written, skipped when read
   and for a damaged file a last line
     {"corrupt": {"byte": B, "xor": X}, "damage_offset": D}
         byte B of the written file is XORed with X; reading stops at D.
+
+v1_0.wtape/.jsonl is a file written by format version 1.0 (all_kinds as it
+was then): readers must still read it; the writer, now at 1.1, no longer
+writes it, so it is not regenerated (this script leaves it alone).
 """
 import json
 import pathlib
@@ -70,6 +77,10 @@ ALL_KINDS = [
     rec(8_500_000, "client_disconnect", event={}),
     rec(9_000_000, "tx", b""),
     rec(9_500_000, "device_lost", event={"error": "device went away", "errno": 6}),
+    rec(9_600_000, "fault", event={"kind": "corrupt", "where": "exchange:3",
+                                   "detail": "flipped bit 3 of rx byte 120"}),
+    rec(9_700_000, "redaction", event={"offset": 2, "length": 4}),
+    rec(9_700_000, "tx", b"pw********\n"),
     rec(10_000_000, "close", event={}),
 ]
 
@@ -118,3 +129,20 @@ for r in damaged_records[2:]:
 write("damaged", [{"header": damaged_header}] + damaged_records +
       [{"corrupt": {"byte": damage_offset + 16 + 3, "xor": 4},
         "damage_offset": damage_offset}])
+
+# Format 1.1's additions: provenance and address members in the header, and
+# a record of another channel (reserved for sessions of several ports).
+write("v1_1_additions", [{"header": header(
+    port_type="tcp", port_options="type=tcp,host=192.0.2.7,port=502",
+    start_utc="", host="", metadata={},
+    source_format="pcap", source_files=["plc.pcapng"],
+    source_details={"stream": "tcp.stream eq 0"},
+    device_address="192.0.2.7:502",
+    edits=["cut 0.5:2 s", "redacted 1 match in 1 record"])}] + [
+    rec(0, "open", event={"description": "tcp 192.0.2.7:502"}),
+    rec(1_000, "client_connect", event={"peer": "192.0.2.1:40312", "role": "control"}),
+    rec(2_000, "tx", b"\x00\x01\x00\x00\x00\x06\x01\x03\x00\x00\x00\x02"),
+    {**rec(2_500, "rx", b"another port"), "channel": 1, "skipped": True},
+    rec(3_000, "rx", b"\x00\x01\x00\x00\x00\x07\x01\x03\x04\x00\x2a\x00\x07"),
+    rec(4_000, "close", event={}),
+])
