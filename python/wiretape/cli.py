@@ -628,6 +628,21 @@ def cmd_diff(args, out: _Output) -> int:
     return EXIT_OK if result.identical and not result.damaged else EXIT_CHECK_FAILED
 
 
+def cmd_edit(args, out: _Output) -> int:
+    from .tools.edit import edit, parse_cut, parse_redaction
+
+    _require_input(args.input)
+    cut = parse_cut(args.cut) if args.cut is not None else None
+    redactions = [parse_redaction(spec) for spec in args.redact]
+    result = edit(args.input, args.output, cut=cut, redact=redactions, drop_meta=args.drop_meta)
+    if not args.quiet:
+        done = "; ".join(result.edits)
+        matches = (f", {result.matches} matches redacted in {result.redacted_records} records"
+                   if redactions else "")
+        out.note(f"edited {args.input} -> {args.output}: {result.records} records{matches} ({done})")
+    return EXIT_OK
+
+
 # --------------------------------------------------------------------------
 # ports, demo
 
@@ -881,6 +896,28 @@ def build_parser() -> argparse.ArgumentParser:
     stats = command("stats", cmd_stats, "figures of a session (exit 1 if damaged)")
     stats.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
     stats.add_argument("--json", action="store_true", help="print JSON")
+
+    edit = command(
+        "edit", cmd_edit, "cut a session down and scrub it before sharing it",
+        "Writes an edited copy of IN to OUT (never over IN). --cut keeps a part "
+        "(the greeting and the settings in force at the cut stay); --redact "
+        "overwrites every match of a regular expression in the rx and tx bytes and "
+        "marks it, so replay treats those bytes as wildcards and the scrubbed "
+        "recording still replays to the driver that made it (it also clears the "
+        "header's host and /dev/serial/by-id serial numbers); --drop-meta removes "
+        "a metadata key. The header's edits list says what was done.")
+    edit.add_argument("input", metavar="IN", help="the session to edit")
+    edit.add_argument("output", metavar="OUT", help="the edited session to write (.wtape)")
+    edit.add_argument("--cut", metavar="FROM:TO",
+                      help="keep FROM to TO: seconds (1.5:4) or exchanges (3e:7e, numbered "
+                           "from 0 as in mismatch reports); either side may be empty")
+    edit.add_argument("--redact", metavar="PATTERN[=REPLACEMENT]", action="append", default=[],
+                      help="a regular expression over the bytes (\\= for a literal =); "
+                           "matches become REPLACEMENT repeated to their length (default *); "
+                           "may be repeated")
+    edit.add_argument("--drop-meta", metavar="KEY", action="append", default=[],
+                      help="remove this --meta key (may be repeated)")
+    edit.add_argument("-q", "--quiet", action="store_true", help="no summary")
 
     verify = command("verify", cmd_verify, "check every record of a session (exit 1 if damaged)")
     verify.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
