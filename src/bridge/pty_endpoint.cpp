@@ -157,6 +157,11 @@ class PtyEndpoint final : public ClientEndpoint {
   }
 
   void write_pty() {
+    // A flush the client made before these bytes must be seen before they
+    // are written: seen after, it would look as if it had dropped them (the
+    // terminal's count of unread bytes lags behind the writes to it), and
+    // they would be delivered twice.
+    if (retaining() && !to_pty_.empty()) read_pty();
     while (!to_pty_.empty()) {
       const std::size_t n = pty_->write(to_pty_.data(), to_pty_.size());
       if (n == 0) return;
@@ -208,8 +213,12 @@ class PtyEndpoint final : public ClientEndpoint {
     }
     // Opening flushes (pyserial, gpsd) must not eat a greeting. What the
     // terminal still holds was written after the flush (the flush is seen
-    // late): only the retained bytes before it were discarded. (The
-    // client's reads were seen first, in handle_events.)
+    // late): only the retained bytes before it were discarded. The client's
+    // reads so far must be seen first: a flush seen late may have come
+    // before a greeting the client has read since (its read is in the watch
+    // already, put there before its read() returned, though the poll that
+    // brought this packet may not have shown it).
+    if (opens_and_closes_) watch_clients();
     const std::size_t kept = std::min(terminal_unread(*pty_), retained_.size());
     std::string again = retained_.substr(0, retained_.size() - kept);
     retained_.erase(0, retained_.size() - kept);
