@@ -170,8 +170,14 @@ class SessionWriter {
   std::unique_ptr<Impl> impl_;
 };
 
+// flexiport's two chunk layouts: `modern` (flexiport from 2008-07, "new":
+// u32 BE seconds, microseconds, length) and `legacy` (before, "old": i64 LE
+// seconds, microseconds, u64 LE length).
+enum class FlexiportFormat { modern, legacy };
+
 // flexiport's two-file logs. `prefix` is "name.log" for name.logr/name.logw.
-// Import (reading) is done by SessionReader; this writes the new format.
+// Import (reading) is done by SessionReader; this writes `format` (the new
+// one unless asked).
 // Events are not representable there and are dropped; times are truncated to
 // microseconds. Throws SessionError if the source is not a session (or is
 // damaged: what was written up to the damage stays), PortError when a file
@@ -179,7 +185,8 @@ class SessionWriter {
 // as SessionReader reads it); an output that is a FIFO or a device is written
 // through (a symbolic link is followed), a directory is refused. Returns the
 // number of records written (rx and tx).
-std::uint64_t export_flexiport(const std::string& session_path, const std::string& prefix);
+std::uint64_t export_flexiport(const std::string& session_path, const std::string& prefix,
+                               FlexiportFormat format = FlexiportFormat::modern);
 
 // The CRC32C (Castagnoli) of `data`, continuing from `crc` (0 to start): the
 // checksum of every header and record of a .wtape file.

@@ -387,9 +387,9 @@ class SessionWriter:
 
     def __exit__(self, *args) -> None: ...
 
-def export_flexiport(source: object, prefix: object) -> int:
+def export_flexiport(source: object, prefix: object, format: str = 'new') -> int:
     """
-    Writes a session (.wtape or flexiport) as flexiport's new-format logs PREFIX + 'r' (reads) and PREFIX + 'w' (writes); events are dropped. A FIFO or a device there (through a symbolic link too) is written through. Returns the number of records written.
+    Writes a session (.wtape or flexiport) as flexiport's logs PREFIX + 'r' (reads) and PREFIX + 'w' (writes), in its new format (from 2008-07) or the old one; events are dropped. A FIFO or a device there (through a symbolic link too) is written through. Returns the number of records written.
     """
 
 def crc32c(data: bytes, crc: int = 0) -> int:

@@ -605,7 +605,8 @@ def cmd_convert(args, out: _Output) -> int:
     _require_input(args.input)
     progress = sys.stderr.isatty() and not args.quiet
     result = convert(args.input, args.output, from_format=args.from_format,
-                     to_format=args.to_format, progress=progress)
+                     to_format=args.to_format, progress=progress,
+                     flexiport_format=args.flexiport_format)
     if not args.quiet:
         out.note(f"converted {result.records} records: {args.input} "
                  f"({result.from_format}) -> {args.output} ({result.to_format})")
@@ -935,6 +936,9 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("--to", dest="to_format",
                          choices=("wiretape", "flexiport", "jsonl", "pcapng", "mcap"),
                          help="format of OUT (default: from its name)")
+    convert.add_argument("--flexiport-format", choices=("new", "old"), default="new",
+                         help="for a flexiport OUT: flexiport's new log format (from "
+                              "2008-07, the default) or the old one")
     convert.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
 
     diff = command("diff", cmd_diff,

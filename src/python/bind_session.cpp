@@ -397,15 +397,23 @@ void bind_session(nb::module_& m) {
 
   m.def(
       "export_flexiport",
-      [](nb::handle source, nb::handle prefix) {
+      [](nb::handle source, nb::handle prefix, const std::string& format) {
         const std::string s = path_from_python(source);
         const std::string p = path_from_python(prefix);
+        if (format != "new" && format != "old") {
+          throw nb::value_error(("flexiport format '" + format +
+                                 "': expected new (flexiport from 2008-07) or old")
+                                    .c_str());
+        }
+        const FlexiportFormat layout =
+            format == "old" ? FlexiportFormat::legacy : FlexiportFormat::modern;
         nb::gil_scoped_release release;
-        return export_flexiport(s, p);
+        return export_flexiport(s, p, layout);
       },
-      "source"_a, "prefix"_a,
-      "Writes a session (.wtape or flexiport) as flexiport's new-format logs "
-      "PREFIX + 'r' (reads) and PREFIX + 'w' (writes); events are dropped. A FIFO or a "
+      "source"_a, "prefix"_a, "format"_a = "new",
+      "Writes a session (.wtape or flexiport) as flexiport's logs PREFIX + 'r' (reads) "
+      "and PREFIX + 'w' (writes), in its new format (from 2008-07) or the old one; "
+      "events are dropped. A FIFO or a "
       "device there (through a symbolic link too) is written through. Returns the "
       "number of records written.");
 

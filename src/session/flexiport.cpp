@@ -28,8 +28,6 @@ namespace wiretape {
 namespace detail {
 namespace {
 
-enum class FlexiportFormat { modern, legacy };
-
 const char* format_name(FlexiportFormat format) {
   return format == FlexiportFormat::modern ? "new" : "old";
 }
@@ -340,7 +338,8 @@ class OutputFile {
 
 }  // namespace
 
-std::uint64_t export_flexiport(const std::string& session_path, const std::string& prefix) {
+std::uint64_t export_flexiport(const std::string& session_path, const std::string& prefix,
+                               FlexiportFormat format) {
   SessionReader reader(session_path);
   // Both refused or both written: a refused .logw must not cost the .logr.
   for (const char* suffix : {"r", "w"}) {
@@ -358,13 +357,21 @@ std::uint64_t export_flexiport(const std::string& session_path, const std::strin
                              " ns does not fit flexiport's 32-bit fields",
                          0);
     }
-    char header[12];
-    detail::put_u32be(header, static_cast<std::uint32_t>(seconds));
-    detail::put_u32be(header + 4,
-                      static_cast<std::uint32_t>((record.t_ns % 1'000'000'000ull) / 1000));
-    detail::put_u32be(header + 8, static_cast<std::uint32_t>(record.data.size()));
+    const std::uint64_t micros = (record.t_ns % 1'000'000'000ull) / 1000;
     OutputFile& out = record.kind == RecordKind::rx ? reads : writes;
-    out.write(header, sizeof header);
+    if (format == FlexiportFormat::legacy) {
+      char header[24];
+      detail::put_u64le(header, seconds);
+      detail::put_u64le(header + 8, micros);
+      detail::put_u64le(header + 16, record.data.size());
+      out.write(header, sizeof header);
+    } else {
+      char header[12];
+      detail::put_u32be(header, static_cast<std::uint32_t>(seconds));
+      detail::put_u32be(header + 4, static_cast<std::uint32_t>(micros));
+      detail::put_u32be(header + 8, static_cast<std::uint32_t>(record.data.size()));
+      out.write(header, sizeof header);
+    }
     out.write(record.data.data(), record.data.size());
     ++written;
   }

@@ -3,6 +3,8 @@
 import io
 import json
 import pathlib
+import subprocess
+import sys
 
 import pytest
 from shared_test_data import flexiport_log
@@ -222,3 +224,20 @@ def test_convert_to_pcapng_and_mcap_calls_the_exporters(tmp_path):
     mcap = tmp_path / "s.mcap"
     convert_module.convert(GOLDEN / "wire.jsonl", mcap, from_format="jsonl")
     assert mcap.read_bytes()[:5] == b"\x89MCAP"
+
+
+@pytest.mark.parametrize("layout", ["new", "old"])
+def test_flexiport_export_in_either_layout_reads_back_the_same(tmp_path, layout):
+    source = flexiport_log("urg04lx_2011")
+    out = tmp_path / "out.log"
+    done = subprocess.run([sys.executable, "-m", "wiretape.cli", "convert", str(source), str(out),
+                           "--flexiport-format", layout, "-q"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    reader = _core.SessionReader(out)
+    assert reader.header.source_details == {"read_format": layout, "write_format": layout}
+    assert records_of(out) == records_of(source)
+    chunk_header = 24 if layout == "old" else 12
+    rx = [r for r in records_of(source) if r[1] == "rx"]
+    assert (tmp_path / "out.logr").stat().st_size == sum(chunk_header + len(r[2]) for r in rx)
+    with pytest.raises(ValueError, match="expected new .* or old"):
+        _core.export_flexiport(source, tmp_path / "x.log", "ancient")

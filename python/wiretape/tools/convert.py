@@ -440,15 +440,19 @@ class ConvertResult:
 
 
 def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = None,
-            to_format: Optional[str] = None, progress: bool = False) -> ConvertResult:
+            to_format: Optional[str] = None, progress: bool = False,
+            flexiport_format: str = "new") -> ConvertResult:
     """Converts the session `src` into `dst`.
 
     Returns the number of records written and both formats. A damaged
     source is converted up to the damage, then its SessionError is raised
     (``dst`` keeps everything before the damage). Header fields (start time,
     host, capture, metadata...) are carried over where the target format
-    has them.
+    has them. ``flexiport_format``: ``new`` (flexiport from 2008-07) or
+    ``old``, for a flexiport output.
     """
+    if flexiport_format not in ("new", "old"):
+        raise ValueError(f"flexiport format {flexiport_format!r}: expected new or old")
     src = os.fspath(src)
     dst = os.fspath(dst)
     source_format = _check_format(from_format, _READABLE) if from_format else detect_format(src, True)
@@ -480,11 +484,11 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
                 session = os.path.join(scratch, "session.wtape")
                 header, records, _ = _records_of(src, "jsonl")
                 written = _write_wiretape(session, header, records, report)
-                _core.export_flexiport(session, prefix)
+                _core.export_flexiport(session, prefix, flexiport_format)
         else:
             # Its count, not a reading of the output, which may be a FIFO or
             # /dev/null written through.
-            written = _core.export_flexiport(src, prefix)
+            written = _core.export_flexiport(src, prefix, flexiport_format)
         report.finish()
         return ConvertResult(written, source_format, target_format)
 
