@@ -246,7 +246,7 @@ def test_a_modbus_tcp_session_exports_as_ip_frames_wireshark_decodes_as_modbus(t
     session = network_session(tmp_path, "tcp", "type=tcp,host=10.0.0.5,port=502",
                               modbus_records("10.0.0.9:40312"))
     out = tmp_path / "modbus.pcapng"
-    assert exports.write_pcapng(session, out) == {"rx": 2, "tx": 2, "events": 4}
+    assert exports.write_pcapng(session, out) == {"rx": 2, "tx": 2, "events": 3}
     _, interfaces, _ = read_pcapng(out)
     assert [(i["name"], i["link_type"]) for i in interfaces] == \
         [("rx", exports.LINKTYPE_RAW), ("tx", exports.LINKTYPE_RAW),
@@ -268,14 +268,14 @@ def test_a_modbus_tcp_session_exports_as_ip_frames_wireshark_decodes_as_modbus(t
     assert not tshark_fields(out, ["frame.number"], "-Y", "tcp.analysis.flags")
 
 
-def test_a_tcp_session_on_another_port_decodes_with_decode_as_and_splits_big_payloads(tmp_path):
+def test_a_tcp_session_on_another_port_decodes_with_the_port_preference_and_splits_big_payloads(tmp_path):
     big = bytes(range(256)) * 600  # 153600 bytes: more than one IP packet holds
     session = network_session(tmp_path, "tcp", "type=tcp,host=127.0.0.1,port=15020", [
         (0, "tx", MODBUS_REQUEST), (1_000_000, "rx", MODBUS_REPLY), (2_000_000, "rx", big)])
     out = tmp_path / "modbus.pcapng"
     exports.write_pcapng(session, out)
     rows = tshark_fields(out, ["mbtcp.trans_id", "modbus.func_code"],
-                         "-d", "tcp.port==15020,mbtcp", "-Y", "mbtcp")
+                         "-o", "mbtcp.tcp.port:15020", "-Y", "mbtcp")
     assert rows[:2] == [["1", "3"], ["1", "3"]]
     lengths = tshark_fields(out, ["ip.src", "tcp.len", "tcp.srcport"], "-Y", "tcp.len > 0")
     from_device = [int(length) for _, length, port in lengths if port == "15020"]
@@ -286,20 +286,23 @@ def test_a_tcp_session_on_another_port_decodes_with_decode_as_and_splits_big_pay
 
 
 def test_a_udp_session_exports_as_udp_datagrams_with_the_recorded_ports(tmp_path):
-    session = network_session(tmp_path, "udp", "type=udp,host=192.168.1.201,port=2368", [
+    session = network_session(tmp_path, "udp", "type=udp,host=192.168.1.201,port=40000", [
         (0, "client_connect", json.dumps({"peer": "192.168.1.7:5000",
                                           "role": "control"}).encode()),
         (1_000, "tx", b"PING"), (2_000, "rx", b"PONG\x00\xff"), (3_000, "rx", b"")])
     out = tmp_path / "udp.pcapng"
     exports.write_pcapng(session, out)
     rows = tshark_fields(out, ["ip.src", "udp.srcport", "ip.dst", "udp.dstport", "udp.length",
-                               "data.data"], "-Y", "udp")
+                               "udp.payload"], "-Y", "udp")
     assert rows == [
-        ["192.168.1.7", "5000", "192.168.1.201", "2368", "12", b"PING".hex()],
-        ["192.168.1.201", "2368", "192.168.1.7", "5000", "14", b"PONG\x00\xff".hex()],
-        ["192.168.1.201", "2368", "192.168.1.7", "5000", "8", ""],
+        ["192.168.1.7", "5000", "192.168.1.201", "40000", "12", b"PING".hex()],
+        ["192.168.1.201", "40000", "192.168.1.7", "5000", "14", b"PONG\x00\xff".hex()],
+        ["192.168.1.201", "40000", "192.168.1.7", "5000", "8", ""],
     ]
-    assert not tshark_fields(out, ["frame.number"], "-Y", "_ws.expert.severity >= warning")
+    good = tshark_fields(out, ["frame.number"], "-o", "udp.check_checksum:TRUE",
+                         "-o", "ip.check_checksum:TRUE",
+                         "-Y", "udp.checksum.status == 1 and ip.checksum.status == 1")
+    assert len(good) == 3
 
 
 def test_ipv6_addresses_are_kept(tmp_path):

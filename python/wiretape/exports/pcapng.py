@@ -5,7 +5,7 @@ A session of a serial (or any non-IP) port is written with the user link
 type: the payloads as they crossed. A TCP or UDP session (``port_type`` tcp
 or udp) is written as IP packets (``LINKTYPE_RAW``) carrying the recorded
 addresses and ports, so that Wireshark's own dissectors decode the protocol
-(Modbus/TCP on port 502, or any port with "Decode As"): for TCP a handshake,
+(Modbus/TCP on port 502, or on any port set as its port preference): for TCP a handshake,
 consistent sequence and acknowledgement numbers and a closing FIN exchange
 are made up around the recorded bytes (network.py).
 """
