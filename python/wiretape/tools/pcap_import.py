@@ -202,13 +202,11 @@ def _field(row: Dict[str, str], name: str) -> str:
     return row.get(name, "")
 
 
-def _packets(path: str, display_filter: Optional[str] = None) -> Iterator[Tuple[str, int, _Packet]]:
+def _packets(path: str) -> Iterator[Tuple[str, int, _Packet]]:
     """(protocol, stream index, packet) for every TCP or UDP packet."""
     arguments = ["-T", "fields", "-E", "separator=/t", "-E", "occurrence=f"]
     for name in _FIELDS:
         arguments += ["-e", name]
-    if display_filter:
-        arguments += ["-Y", display_filter]
     for line in _run_tshark(path, arguments).splitlines():
         row = dict(zip(_FIELDS, line.split("\t")))
         if _field(row, "tcp.stream"):
@@ -239,16 +237,29 @@ def _packets(path: str, display_filter: Optional[str] = None) -> Iterator[Tuple[
         yield protocol, int(row[f"{protocol}.stream"]), packet
 
 
-def conversations(path: str, display_filter: Optional[str] = None) -> List[Conversation]:
+def conversations(path: str) -> List[Conversation]:
     """The capture's TCP conversations and UDP flows, in order of their
-    first packet; with `display_filter`, those with a packet it matches."""
+    first packet."""
     found: Dict[Tuple[str, int], Conversation] = {}
     for protocol, index, packet in _packets(path):
         found.setdefault((protocol, index), Conversation(protocol, index)).packets.append(packet)
-    if display_filter:
-        matching = {(protocol, index) for protocol, index, _ in _packets(path, display_filter)}
-        found = {key: value for key, value in found.items() if key in matching}
     return sorted(found.values(), key=lambda conversation: conversation.packets[0].number)
+
+
+def _matching(path: str, display_filter: str) -> set:
+    """(protocol, stream index) of the conversations with a packet that
+    `display_filter` matches."""
+    output = _run_tshark(path, ["-Y", display_filter, "-T", "fields", "-E", "separator=/t",
+                                "-E", "occurrence=f",
+                                "-e", "tcp.stream", "-e", "udp.stream"])
+    found = set()
+    for line in output.splitlines():
+        tcp, _, udp = line.partition("\t")
+        if tcp.strip().isdigit():
+            found.add(("tcp", int(tcp)))
+        elif udp.strip().split(",")[0].isdigit():
+            found.add(("udp", int(udp.strip().split(",")[0])))
+    return found
 
 
 def _stream_filter(stream: str) -> Tuple[Optional[Tuple[str, int]], Optional[str]]:
@@ -280,7 +291,10 @@ def choose(path: str, stream: Optional[str] = None,
     if stream is not None:
         index, display_filter = _stream_filter(stream)
     every = conversations(path)
-    candidates = conversations(path, display_filter) if display_filter else list(every)
+    candidates = list(every)
+    if display_filter:
+        matching = _matching(path, display_filter)
+        candidates = [c for c in candidates if (c.protocol, c.index) in matching]
     if index is not None:
         protocol, number = index
         candidates = [c for c in candidates
