@@ -322,3 +322,6 @@ def test_a_serial_session_keeps_the_user_link_type(tmp_path):
     _, interfaces, packets = read_pcapng(out)
     assert {i["link_type"] for i in interfaces} == {exports.LINKTYPE_USER0}
     assert [(p[0], p[3]) for p in packets] == [("tx", b"VV\n"), ("rx", b"VV\n00P\n")]
+    rows = tshark_fields(out, ["frame.interface_name", "frame.protocols", "data.data"])
+    assert rows == [["tx", "user_dlt:data", b"VV\n".hex()],
+                    ["rx", "user_dlt:data", b"VV\n00P\n".hex()]]
