@@ -381,3 +381,48 @@ def test_a_captured_udp_exchange_replays_to_the_same_client(tmp_path):
     finally:
         _, err = stop_cli(child)
     assert child.returncode == 0, err
+
+
+def test_an_ipv6_conversation_imports_and_exports_with_its_addresses_and_ports(tmp_path):
+    if not socket.has_ipv6:
+        pytest.skip("SKIPPED LOUDLY: no IPv6 on this machine")
+    server = socket.socket(socket.AF_INET6)
+    try:
+        server.bind(("::1", 0))
+    except OSError as error:
+        pytest.skip(f"SKIPPED LOUDLY: cannot bind ::1: {error}")
+    server.listen(1)
+    port = server.getsockname()[1]
+    live = Capture(tmp_path / "v6.pcapng", f"tcp port {port}")
+    try:
+        client = socket.create_connection(("::1", port), timeout=DEADLINE_S)
+        accepted, _ = server.accept()
+        client.sendall(b"ping\n")
+        assert accepted.recv(100) == b"ping\n"
+        accepted.sendall(b"pong\n")
+        assert client.recv(100) == b"pong\n"
+        client_port = client.getsockname()[1]
+        client.close()
+        accepted.close()
+        live.wait_for("tcp.flags.fin == 1", 2)
+    finally:
+        live.stop()
+        server.close()
+
+    session = tmp_path / "v6.wtape"
+    convert(tmp_path / "v6.pcapng", session)
+    header = wiretape.SessionReader(str(session)).header
+    assert header.port_options == f"type=tcp,host=::1,port={port}"
+    assert [(k, d) for k, _, d in records_of(session) if k in ("tx", "rx")] == \
+        [("tx", b"ping\n"), ("rx", b"pong\n")]
+
+    exported = tmp_path / "v6-export.pcapng"
+    convert(session, exported)
+    result = subprocess.run(["tshark", "-r", str(exported), "-Y", "tcp.len > 0", "-T", "fields",
+                             "-e", "ipv6.src", "-e", "tcp.srcport", "-e", "ipv6.dst",
+                             "-e", "tcp.dstport", "-e", "tcp.payload"],
+                            capture_output=True, text=True, timeout=60)
+    assert [line.split("\t") for line in result.stdout.splitlines()] == [
+        ["::1", str(client_port), "::1", str(port), b"ping\n".hex()],
+        ["::1", str(port), "::1", str(client_port), b"pong\n".hex()],
+    ], result.stderr
