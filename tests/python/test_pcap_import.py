@@ -426,3 +426,9 @@ def test_an_ipv6_conversation_imports_and_exports_with_its_addresses_and_ports(t
         ["::1", str(client_port), "::1", str(port), b"ping\n".hex()],
         ["::1", str(port), "::1", str(client_port), b"pong\n".hex()],
     ], result.stderr
+
+
+def test_without_tshark_the_error_says_what_to_install(capsys, tmp_path, monkeypatch):
+    monkeypatch.setenv("PATH", str(tmp_path))  # no tshark there
+    code, err = run(capsys, "convert", capture("tcp.pcap"), str(tmp_path / "o.wtape"))
+    assert code == 3 and "needs tshark" in err and "apt-get install tshark" in err, err
