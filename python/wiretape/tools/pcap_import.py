@@ -22,6 +22,7 @@ from __future__ import annotations
 import base64
 import dataclasses
 import datetime as _datetime
+import json
 import os
 import shutil
 import subprocess
@@ -377,8 +378,6 @@ def read_capture(path: str, stream: Optional[str] = None,
     """The session of one conversation of the capture `path`: a header dict
     (as convert's other sources give it) and records (kind, t_ns, data) in
     time order."""
-    import json
-
     with open(path, "rb"):  # missing, unreadable: an OSError naming the file (exit 3)
         pass
     conversation, device = choose(path, stream, device_addr)
