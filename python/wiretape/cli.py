@@ -542,7 +542,7 @@ def cmd_show(args, out: _Output) -> int:
     from .tools.show import show_reporting_damage
 
     _require_input(args.file)
-    if args.textconv or args.no_start:
+    if args.textconv or args.no_start or args.no_times:
         return _show_textconv(args)
     profile = args.profile or args.decode
     if args.profile and args.decode and args.profile != args.decode:
@@ -564,10 +564,10 @@ def _show_textconv(args) -> int:
     from .tools.textconv import textconv
 
     if args.format == "jsonl" or args.profile or args.decode:
-        raise UsageError("--textconv and --no-start work with --format text or hex, "
-                         "without --profile")
+        raise UsageError("--textconv, --no-start and --no-times work with --format text or "
+                         "hex, without --profile")
     try:
-        textconv(args.file, fmt=args.format, start=not args.no_start)
+        textconv(args.file, fmt=args.format, start=not args.no_start, times=not args.no_times)
     except BrokenPipeError:
         _silence_stdout()
     # A damaged file is a line of the text: git shows the diff all the same.
@@ -899,6 +899,8 @@ def build_parser() -> argparse.ArgumentParser:
                       help="for git's diff.textconv: no file name, exit 0 when damaged")
     show.add_argument("--no-start", dest="no_start", action="store_true",
                       help="with --textconv (implies it): leave out the start time and host")
+    show.add_argument("--no-times", dest="no_times", action="store_true",
+                      help="with --textconv (implies it): leave out each record's time")
 
     stats = command("stats", cmd_stats, "figures of a session (exit 1 if damaged)")
     stats.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")

@@ -107,3 +107,19 @@ def test_textconv_names_no_file_and_shows_damage_as_a_line(tmp_path, capsys):
     code = cli.main(["show", "--textconv", str(path)])
     printed = capsys.readouterr().out
     assert code == 0 and "DAMAGED" in printed and str(path) not in printed
+
+
+def test_no_times_hides_the_small_time_differences_of_a_run_recorded_again(repository):
+    repo, git = repository
+    configure(git, "--textconv", "--no-start", "--no-times")
+    record(repo / "scan.wtape", RECORDS, "2026-11-23T10:00:00Z", "bench-a")
+    git("add", ".")
+    git("commit", "-q", "-m", "first")
+    again = [(t_ns + 137_000 * index, kind, data) for index, (t_ns, kind, data) in enumerate(RECORDS)]
+    again[2] = (again[2][0], "rx", b"VV\n00P\nVEND:Hokuy0\n\n")
+    record(repo / "scan.wtape", again, "2026-11-23T10:05:00Z", "bench-a")
+    lines = changed_lines(git("diff"))
+    assert len(lines) == 2 and "Hokuyo" in lines[0] and "Hokuy0" in lines[1], lines
+
+    configure(git, "--textconv", "--no-start")  # times kept: every record with a new time shows
+    assert len(changed_lines(git("diff"))) == 2 * (len(RECORDS) - 1)

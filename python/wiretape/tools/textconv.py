@@ -5,7 +5,9 @@ same run shows only what really changed.
 It is ``show``'s timeline without what differs between any two files: the
 file's name (git hands over a temporary copy, whose name changes on every
 run) is left out, and with ``start=False`` so are the start time and the
-host, which differ between two recordings of one run. A damaged file is
+host, which differ between two recordings of one run, and with
+``times=False`` each record's time (a run recorded again differs in every
+time stamp, by a little). A damaged file is
 shown up to the damage, which is a line of the text: git still shows the
 diff.
 """
@@ -13,6 +15,7 @@ diff.
 from __future__ import annotations
 
 import os
+import re
 import sys
 from typing import IO, Optional, Tuple
 
@@ -25,15 +28,19 @@ __all__ = ["textconv"]
 #: What stands for the file's name where show would print it.
 FILE_PLACEHOLDER = "FILE"
 
+# A record line of show's timeline starts with its time: "+0.000123s  ".
+_RECORD_TIME = re.compile(r"^[+-]\d+\.\d+s  ")
+
 
 class _StableLines:
     """A text stream that passes show's lines on, less the file's name and,
     if asked, the start time and host."""
 
-    def __init__(self, out: IO[str], path: str, start: bool):
+    def __init__(self, out: IO[str], path: str, start: bool, times: bool):
         self._out = out
         self._path = path
         self._start = start
+        self._times = times
         self._pending = ""
         self._in_header = True
 
@@ -52,6 +59,8 @@ class _StableLines:
                 return
             elif not self._start and line.lstrip().startswith("started "):
                 return
+        elif not self._times:
+            line = _RECORD_TIME.sub("", line)
         if self._path:
             line = line.replace(self._path, FILE_PLACEHOLDER)
         self._out.write(line + "\n")
@@ -63,15 +72,17 @@ class _StableLines:
         self._out.flush()
 
 
-def textconv(path: SessionPath, fmt: str = "text", start: bool = True,
+def textconv(path: SessionPath, fmt: str = "text", start: bool = True, times: bool = True,
              out: Optional[IO[str]] = None) -> Tuple[int, Optional[_core.SessionError]]:
     """Writes the session's timeline for a diff to `out` (default stdout):
-    ``show`` in `fmt` (text or hex) less the file's name, and less the start
-    time and host when `start` is false. Returns the number of records and
+    ``show`` in `fmt` (text or hex) less the file's name, less the start
+    time and host when `start` is false, and less each record's time when
+    `times` is false. Returns the number of records and
     the damage (None for an intact file), which the text also names."""
     if fmt not in ("text", "hex"):
         raise ValueError(f"textconv shows text or hex, not {fmt!r}")
-    stable = _StableLines(out if out is not None else sys.stdout, os.fspath(path), start)
+    stable = _StableLines(out if out is not None else sys.stdout, os.fspath(path), start,
+                          times)
     try:
         return show_reporting_damage(path, fmt=fmt, out=stable)  # type: ignore[arg-type]
     finally:
