@@ -542,6 +542,8 @@ def cmd_show(args, out: _Output) -> int:
     from .tools.show import show_reporting_damage
 
     _require_input(args.file)
+    if args.textconv or args.no_start or args.no_times:
+        return _show_textconv(args)
     profile = args.profile or args.decode
     if args.profile and args.decode and args.profile != args.decode:
         raise UsageError(f"--profile {args.profile} and --decode {args.decode} disagree: give one")
@@ -555,6 +557,21 @@ def cmd_show(args, out: _Output) -> int:
         return EXIT_OK
     # show reports damage itself and shows everything before it.
     return EXIT_OK if damage is None else EXIT_CHECK_FAILED
+
+
+def _show_textconv(args) -> int:
+    """show --textconv: the text git's diff.textconv runs (tools/textconv)."""
+    from .tools.textconv import textconv
+
+    if args.format == "jsonl" or args.profile or args.decode:
+        raise UsageError("--textconv, --no-start and --no-times work with --format text or "
+                         "hex, without --profile")
+    try:
+        textconv(args.file, fmt=args.format, start=not args.no_start, times=not args.no_times)
+    except BrokenPipeError:
+        _silence_stdout()
+    # A damaged file is a line of the text: git shows the diff all the same.
+    return EXIT_OK
 
 
 def _silence_stdout() -> None:
@@ -606,7 +623,8 @@ def cmd_convert(args, out: _Output) -> int:
     progress = sys.stderr.isatty() and not args.quiet
     result = convert(args.input, args.output, from_format=args.from_format,
                      to_format=args.to_format, progress=progress,
-                     flexiport_format=args.flexiport_format)
+                     flexiport_format=args.flexiport_format,
+                     stream=args.stream, device_addr=args.device_addr)
     if not args.quiet:
         out.note(f"converted {result.records} records: {args.input} "
                  f"({result.from_format}) -> {args.output} ({result.to_format})")
@@ -893,6 +911,12 @@ def build_parser() -> argparse.ArgumentParser:
                            + ", ".join(_core.profile_names()))
     show.add_argument("--decode", choices=("scip",),
                       help="the older name of --profile scip")
+    show.add_argument("--textconv", action="store_true",
+                      help="for git's diff.textconv: no file name, exit 0 when damaged")
+    show.add_argument("--no-start", dest="no_start", action="store_true",
+                      help="with --textconv (implies it): leave out the start time and host")
+    show.add_argument("--no-times", dest="no_times", action="store_true",
+                      help="with --textconv (implies it): leave out each record's time")
 
     stats = command("stats", cmd_stats, "figures of a session (exit 1 if damaged)")
     stats.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
@@ -928,10 +952,12 @@ def build_parser() -> argparse.ArgumentParser:
         "convert", cmd_convert, "convert between session formats",
         "Converts IN to OUT. Formats: wiretape (.wtape), flexiport (name.log = "
         "name.logr + name.logw), jsonl, and the exports pcapng (Wireshark) and "
-        "mcap (Foxglove). A format not given is taken from the file name.")
+        "mcap (Foxglove); a packet capture (pcap, pcapng) is read with --from pcap. "
+        "A format not given is taken from the file name.")
     convert.add_argument("input", metavar="IN", help="the session to read")
     convert.add_argument("output", metavar="OUT", help="the file to write")
-    convert.add_argument("--from", dest="from_format", choices=("wiretape", "flexiport", "jsonl"),
+    convert.add_argument("--from", dest="from_format",
+                         choices=("wiretape", "flexiport", "jsonl", "pcap"),
                          help="format of IN (default: from its name or content)")
     convert.add_argument("--to", dest="to_format",
                          choices=("wiretape", "flexiport", "jsonl", "pcapng", "mcap"),
@@ -939,6 +965,12 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("--flexiport-format", choices=("new", "old"), default="new",
                          help="for a flexiport OUT: flexiport's new log format (from "
                               "2008-07, the default) or the old one")
+    convert.add_argument("--stream", metavar="FILTER",
+                         help="--from pcap: the conversation to import: tcp:N or udp:N (as "
+                              "listed when there are several), or a tshark display filter")
+    convert.add_argument("--device-addr", dest="device_addr", metavar="IP:PORT",
+                         help="--from pcap: the device's side of the conversation (default: "
+                              "the TCP server; for UDP the lower port)")
     convert.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
 
     diff = command("diff", cmd_diff,

@@ -198,7 +198,7 @@ def test_convert_explicit_formats_and_bad_names(tmp_path):
     with pytest.raises(ValueError, match="unknown format 'csv'"):
         convert_module.convert(GOLDEN / "wire.wtape", tmp_path / "x", to_format="csv")
     with pytest.raises(ValueError, match="cannot be read"):
-        convert_module.convert(tmp_path / "x.pcapng", tmp_path / "y.wtape")
+        convert_module.convert(tmp_path / "x.mcap", tmp_path / "y.wtape")
 
 
 def test_convert_damaged_source_writes_the_good_part_then_raises(tmp_path):

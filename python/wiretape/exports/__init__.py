@@ -8,6 +8,10 @@ pcapng (open with Wireshark or ``tshark -r``):
     crossed the wire, with no framing added; Wireshark shows them as data
     (hex + ASCII), or decodes them if you map DLT User 0 to a dissector
     (Preferences > Protocols > DLT_USER);
+  * except for TCP and UDP sessions: their rx and tx interfaces have link
+    type ``LINKTYPE_RAW`` (101), IP packets with the recorded addresses
+    and ports (a made-up handshake and sequence numbers for TCP), which
+    Wireshark's own dissectors decode (exports.network);
   * three interfaces: 0 ``rx`` (device to host), 1 ``tx`` (host to device)
     and 2 ``events`` (open, close, settings changes...: the payload is the
     event's name, a space and its JSON); filter with ``frame.interface_id``
@@ -38,6 +42,7 @@ record; ``wiretape convert`` writes and reads it.
 
 from ..tools._records import escape_bytes
 from .mcap import MCAP_TOPICS, write_mcap
-from .pcapng import LINKTYPE_USER0, write_pcapng
+from .pcapng import LINKTYPE_RAW, LINKTYPE_USER0, write_pcapng
 
-__all__ = ["write_pcapng", "write_mcap", "LINKTYPE_USER0", "MCAP_TOPICS", "escape_bytes"]
+__all__ = ["write_pcapng", "write_mcap", "LINKTYPE_USER0", "LINKTYPE_RAW", "MCAP_TOPICS",
+           "escape_bytes"]

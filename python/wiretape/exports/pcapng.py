@@ -1,5 +1,14 @@
 """The pcapng export (Wireshark, ``tshark -r``); see the package's text for
-the file's layout."""
+the file's layout.
+
+A session of a serial (or any non-IP) port is written with the user link
+type: the payloads as they crossed. A TCP or UDP session (``port_type`` tcp
+or udp) is written as IP packets (``LINKTYPE_RAW``) carrying the recorded
+addresses and ports, so that Wireshark's own dissectors decode the protocol
+(Modbus/TCP on port 502, or on any port set as its port preference): for TCP a handshake,
+consistent sequence and acknowledgement numbers and a closing FIN exchange
+are made up around the recorded bytes (network.py).
+"""
 
 from __future__ import annotations
 
@@ -11,8 +20,9 @@ from .._core import __version__
 from ..tools._files import refuse_same_file, session_files
 from ..tools._records import SessionPath, header_fields, open_session, raise_damage
 from ._common import event_json, replacing, start_epoch_ns
+from .network import LINKTYPE_RAW, NetworkSession
 
-__all__ = ["write_pcapng", "LINKTYPE_USER0"]
+__all__ = ["write_pcapng", "LINKTYPE_USER0", "LINKTYPE_RAW"]
 
 LINKTYPE_USER0 = 147
 
@@ -72,8 +82,8 @@ def _section_header(comment: str) -> bytes:
     return _block(_PCAPNG_SHB, body)
 
 
-def _interface(name: str, description: str) -> bytes:
-    body = struct.pack("<HHI", LINKTYPE_USER0, 0, 0)  # snaplen 0: no limit
+def _interface(name: str, description: str, link_type: int = LINKTYPE_USER0) -> bytes:
+    body = struct.pack("<HHI", link_type, 0, 0)  # snaplen 0: no limit
     body += _options(
         [
             (_IF_NAME, name.encode("utf-8")),
@@ -114,18 +124,30 @@ def write_pcapng(src: SessionPath, dst: SessionPath) -> Dict[str, int]:
     header = header_fields(reader)
     start_ns = start_epoch_ns(header)
     counts = {"rx": 0, "tx": 0, "events": 0}
+    network = NetworkSession.of_header(header)
     with replacing(dst) as out:
         out.write(_section_header(json.dumps(header, sort_keys=True, default=str)))
         for name, description in _INTERFACES:
-            out.write(_interface(name, description))
+            link_type = LINKTYPE_USER0
+            if network is not None and name in ("rx", "tx"):
+                link_type = LINKTYPE_RAW
+                description += f", {network.protocol.upper()} over IP"
+            out.write(_interface(name, description, link_type))
         for record in reader:
             t_ns, kind, data = record.t_ns, record.kind, record.data
             stamp = start_ns + t_ns
+            if network is not None:
+                for to_device, packet in network.packets(kind, data):
+                    interface, flags = ((_TX_INTERFACE, _EPB_OUTBOUND) if to_device
+                                        else (_RX_INTERFACE, _EPB_INBOUND))
+                    out.write(_packet(interface, stamp, packet, flags))
             if kind == "rx":
-                out.write(_packet(_RX_INTERFACE, stamp, data, _EPB_INBOUND))
+                if network is None:
+                    out.write(_packet(_RX_INTERFACE, stamp, data, _EPB_INBOUND))
                 counts["rx"] += 1
             elif kind == "tx":
-                out.write(_packet(_TX_INTERFACE, stamp, data, _EPB_OUTBOUND))
+                if network is None:
+                    out.write(_packet(_TX_INTERFACE, stamp, data, _EPB_OUTBOUND))
                 counts["tx"] += 1
             else:
                 event = json.dumps(event_json(data), sort_keys=True)

@@ -8,13 +8,16 @@ Formats:
   ``jsonl``     one JSON object per line: first ``{"header": {...}}``, then
                 one record per line as ``wiretape show --format jsonl``
                 prints it (``t_ns``, ``kind``, ``data_hex``, ``event``...);
-  ``pcapng``, ``mcap``  exports for Wireshark and Foxglove (written only).
+  ``pcapng``, ``mcap``  exports for Wireshark and Foxglove (written only);
+  ``pcap``      a packet capture (pcap or pcapng; read only): one TCP
+                conversation or UDP flow becomes a session (pcap_import).
 
 A format not given is taken from the file name: ``.wtape``; ``.log``,
 ``.logr``, ``.logw``; ``.jsonl``; ``.pcapng``; ``.mcap``. A source with
 another name is sniffed (a ``.wtape`` file starts with its magic number),
 unless it is a pipe or FIFO: that is read as a ``.wtape`` stream (its bytes
-cannot be looked at twice), or as ``--from jsonl``.
+cannot be looked at twice), or as ``--from jsonl``. A source named ``.pcap``,
+``.pcapng`` or ``.cap``, or starting as a capture does, is a ``pcap``.
 """
 
 from __future__ import annotations
@@ -31,11 +34,13 @@ from .. import _core, exports
 from ..exports import jsonl
 from ._files import FileRefused, is_stream, open_input, refuse_same_file, session_files
 from ._records import SessionPath, open_session, raise_damage
+from . import pcap_import
 
 __all__ = ["convert", "detect_format", "ConvertResult", "FORMATS"]
 
 FORMATS = ("wiretape", "flexiport", "jsonl", "pcapng", "mcap")
-_READABLE = ("wiretape", "flexiport", "jsonl")
+_READABLE = ("wiretape", "flexiport", "jsonl", "pcap")
+_CAPTURE_SUFFIXES = (".pcap", ".pcapng", ".cap")
 _SUFFIXES = {
     ".wtape": "wiretape",
     ".log": "flexiport",
@@ -51,6 +56,8 @@ def detect_format(path, reading: bool) -> str:
     """The format `path` names by its suffix (or, for a source, its magic)."""
     path = os.fspath(path)
     suffix = os.path.splitext(path)[1].lower()
+    if reading and suffix in _CAPTURE_SUFFIXES:
+        return "pcap"
     if suffix in _SUFFIXES:
         return _SUFFIXES[suffix]
     if reading:
@@ -66,6 +73,8 @@ def detect_format(path, reading: bool) -> str:
             pass
         if _core.flexiport_prefix(path) is not None:
             return "flexiport"
+        if pcap_import.is_capture(path):
+            return "pcap"
     known = ", ".join(sorted(_SUFFIXES))
     raise ValueError(
         f"{path}: cannot tell the format from the name (known suffixes: {known}); "
@@ -354,9 +363,12 @@ def _output_files(dst: str, fmt: str):
     return [dst]
 
 
-def _records_of(src: str, fmt: str):
+def _records_of(src: str, fmt: str, capture_choice: Optional[dict] = None):
     """(header dict, record iterator of (kind, t_ns, data), a function that
     raises the damage the records stopped at, if any)."""
+    if fmt == "pcap":
+        header, captured = pcap_import.read_capture(src, **(capture_choice or {}))
+        return header, iter(captured), lambda: None
     if fmt == "jsonl":
         items = _jsonl_records(src)
         _, header = next(items)
@@ -441,7 +453,8 @@ class ConvertResult:
 
 def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = None,
             to_format: Optional[str] = None, progress: bool = False,
-            flexiport_format: str = "new") -> ConvertResult:
+            flexiport_format: str = "new", stream: Optional[str] = None,
+            device_addr: Optional[str] = None) -> ConvertResult:
     """Converts the session `src` into `dst`.
 
     Returns the number of records written and both formats. A damaged
@@ -450,6 +463,12 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
     host, capture, metadata...) are carried over where the target format
     has them. ``flexiport_format``: ``new`` (flexiport from 2008-07) or
     ``old``, for a flexiport output.
+
+    A ``pcap`` source (a packet capture) gives one conversation: `stream`
+    chooses it (``tcp:N``, ``udp:N``, ``N`` or a tshark display filter) and
+    `device_addr` (``IP:PORT``) says which side is the device
+    (pcap_import's text has the rules); a capture of several conversations
+    and none chosen raises pcap_import.CaptureError listing them.
     """
     if flexiport_format not in ("new", "old"):
         raise ValueError(f"flexiport format {flexiport_format!r}: expected new or old")
@@ -463,13 +482,19 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
         src = _core.flexiport_prefix(src) or src
     refuse_same_file(session_files(src), _output_files(dst, target_format))
     report = _Progress(progress, _source_size(src, source_format))
+    capture_choice = None
+    if source_format == "pcap":
+        capture_choice = {"stream": stream, "device_addr": device_addr}
+    elif stream is not None or device_addr is not None:
+        raise ValueError("--stream and --device-addr choose a conversation of a packet "
+                         "capture: they need --from pcap")
 
     if target_format in ("pcapng", "mcap"):
         session = src
         with tempfile.TemporaryDirectory(prefix="wiretape-convert-") as scratch:
-            if source_format == "jsonl":
+            if source_format in ("jsonl", "pcap"):
                 session = os.path.join(scratch, "session.wtape")
-                header, records, _ = _records_of(src, "jsonl")
+                header, records, _ = _records_of(src, source_format, capture_choice)
                 _write_wiretape(session, header, records, _Progress(False, 0))
             writer = exports.write_pcapng if target_format == "pcapng" else exports.write_mcap
             # Raises the damage once dst is written. Its counts, not a second
@@ -479,10 +504,10 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
 
     if target_format == "flexiport":
         prefix = _core.flexiport_prefix(dst) or dst
-        if source_format == "jsonl":
+        if source_format in ("jsonl", "pcap"):
             with tempfile.TemporaryDirectory(prefix="wiretape-convert-") as scratch:
                 session = os.path.join(scratch, "session.wtape")
-                header, records, _ = _records_of(src, "jsonl")
+                header, records, _ = _records_of(src, source_format, capture_choice)
                 written = _write_wiretape(session, header, records, report)
                 _core.export_flexiport(session, prefix, flexiport_format)
         else:
@@ -492,7 +517,7 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
         report.finish()
         return ConvertResult(written, source_format, target_format)
 
-    header, records, raise_source_damage = _records_of(src, source_format)
+    header, records, raise_source_damage = _records_of(src, source_format, capture_choice)
     if target_format == "wiretape":
         written = _write_wiretape(dst, header, records, report)
     else:
