@@ -241,3 +241,13 @@ def test_flexiport_export_in_either_layout_reads_back_the_same(tmp_path, layout)
     assert (tmp_path / "out.logr").stat().st_size == sum(chunk_header + len(r[2]) for r in rx)
     with pytest.raises(ValueError, match="expected new .* or old"):
         _core.export_flexiport(source, tmp_path / "x.log", "ancient")
+
+
+def test_stats_reports_format_1_1_provenance():
+    result = session_stats(GOLDEN / "v1_1_additions.wtape")
+    assert (result.source_format, result.source_files) == ("pcap", ["plc.pcapng"])
+    assert result.device_address == "192.0.2.7:502"
+    assert result.edits == ["cut 0.5:2 s", "redacted 1 match in 1 record"]
+    rows = dict(result.text_rows())
+    assert rows["source_files"] == "plc.pcapng" and rows["device_address"] == "192.0.2.7:502"
+    assert result.rx_records == 1  # the record of channel 1 is not this port's

@@ -35,6 +35,9 @@ class SessionStats:
     host: str
     wiretape_version: str
     source_format: str
+    source_files: List[str]
+    device_address: str
+    edits: List[str]
     version_major: int
     version_minor: int
     metadata: Dict[str, str]
@@ -52,10 +55,14 @@ class SessionStats:
         header_text() (a file may hold terminal escape sequences)."""
         rows: List[Tuple[str, str]] = [("path", self.path)]
         for name in ("port_type", "port_options", "capture", "start_utc", "host",
-                     "wiretape_version", "source_format"):
+                     "wiretape_version", "source_format", "device_address"):
             value = getattr(self, name)
             if value:
                 rows.append((name, header_text(value)))
+        if self.source_files:
+            rows.append(("source_files", ", ".join(header_text(f) for f in self.source_files)))
+        for edit in self.edits:
+            rows.append(("edit", header_text(edit)))
         for name in ("records", "rx_records", "rx_bytes", "tx_records", "tx_bytes",
                      "event_records"):
             rows.append((name, str(getattr(self, name))))
@@ -112,6 +119,9 @@ def stats(path: SessionPath) -> SessionStats:
         host=header.host,
         wiretape_version=header.wiretape_version,
         source_format=header.source_format,
+        source_files=list(header.source_files),
+        device_address=header.device_address,
+        edits=list(header.edits),
         version_major=header.version_major,
         version_minor=header.version_minor,
         metadata=dict(header.metadata),
