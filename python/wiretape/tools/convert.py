@@ -8,7 +8,9 @@ Formats:
   ``jsonl``     one JSON object per line: first ``{"header": {...}}``, then
                 one record per line as ``wiretape show --format jsonl``
                 prints it (``t_ns``, ``kind``, ``data_hex``, ``event``...);
-  ``pcapng``, ``mcap``  exports for Wireshark and Foxglove (written only).
+  ``pcapng``, ``mcap``  exports for Wireshark and Foxglove (written only);
+  ``reserial``, ``umockdev``  pytest-reserial cassettes (one test of one:
+                ``test``) and umockdev tty scripts (read only; importers.py).
 
 A format not given is taken from the file name: ``.wtape``; ``.log``,
 ``.logr``, ``.logw``; ``.jsonl``; ``.pcapng``; ``.mcap``. A source with
@@ -29,13 +31,18 @@ from typing import Iterator, Optional
 
 from .. import _core, exports
 from ..exports import jsonl
+from . import importers
 from ._files import FileRefused, is_stream, open_input, refuse_same_file, session_files
 from ._records import SessionPath, open_session, raise_damage
 
 __all__ = ["convert", "detect_format", "ConvertResult", "FORMATS"]
 
 FORMATS = ("wiretape", "flexiport", "jsonl", "pcapng", "mcap")
-_READABLE = ("wiretape", "flexiport", "jsonl")
+_IMPORTED = ("reserial", "umockdev")
+_READABLE = ("wiretape", "flexiport", "jsonl") + _IMPORTED
+# The readable formats that are not sessions: written to a scratch session
+# first when the target is made from one (pcapng, mcap, flexiport).
+_RECORD_SOURCES = ("jsonl",) + _IMPORTED
 _SUFFIXES = {
     ".wtape": "wiretape",
     ".log": "flexiport",
@@ -325,9 +332,15 @@ def _output_files(dst: str, fmt: str):
     return [dst]
 
 
-def _records_of(src: str, fmt: str):
+def _records_of(src: str, fmt: str, test: Optional[str] = None):
     """(header dict, record iterator of (kind, t_ns, data), a function that
     raises the damage the records stopped at, if any)."""
+    if fmt == "reserial":
+        header, records = importers.reserial_records(src, test)
+        return header, records, lambda: None
+    if fmt == "umockdev":
+        header, records = importers.umockdev_records(src)
+        return header, records, lambda: None
     if fmt == "jsonl":
         items = _jsonl_records(src)
         _, header = next(items)
@@ -385,14 +398,15 @@ class ConvertResult:
 
 
 def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = None,
-            to_format: Optional[str] = None, progress: bool = False) -> ConvertResult:
+            to_format: Optional[str] = None, progress: bool = False,
+            test: Optional[str] = None) -> ConvertResult:
     """Converts the session `src` into `dst`.
 
     Returns the number of records written and both formats. A damaged
     source is converted up to the damage, then its SessionError is raised
     (``dst`` keeps everything before the damage). Header fields (start time,
     host, capture, metadata...) are carried over where the target format
-    has them.
+    has them. `test` chooses the test of a pytest-reserial cassette.
     """
     src = os.fspath(src)
     dst = os.fspath(dst)
@@ -400,6 +414,9 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
     if source_format not in _READABLE:
         raise ValueError(f"{src}: {source_format} files cannot be read, only written")
     target_format = _check_format(to_format, FORMATS) if to_format else detect_format(dst, False)
+    if test is not None and source_format != "reserial":
+        raise ValueError(f"--test chooses a test of a pytest-reserial cassette (--from reserial); "
+                         f"{src} is read as {source_format}")
     if source_format == "flexiport":
         src = _core.flexiport_prefix(src) or src
     refuse_same_file(session_files(src), _output_files(dst, target_format))
@@ -408,9 +425,9 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
     if target_format in ("pcapng", "mcap"):
         session = src
         with tempfile.TemporaryDirectory(prefix="wiretape-convert-") as scratch:
-            if source_format == "jsonl":
+            if source_format in _RECORD_SOURCES:
                 session = os.path.join(scratch, "session.wtape")
-                header, records, _ = _records_of(src, "jsonl")
+                header, records, _ = _records_of(src, source_format, test)
                 _write_wiretape(session, header, records, _Progress(False, 0))
             writer = exports.write_pcapng if target_format == "pcapng" else exports.write_mcap
             # Raises the damage once dst is written. Its counts, not a second
@@ -420,10 +437,10 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
 
     if target_format == "flexiport":
         prefix = _core.flexiport_prefix(dst) or dst
-        if source_format == "jsonl":
+        if source_format in _RECORD_SOURCES:
             with tempfile.TemporaryDirectory(prefix="wiretape-convert-") as scratch:
                 session = os.path.join(scratch, "session.wtape")
-                header, records, _ = _records_of(src, "jsonl")
+                header, records, _ = _records_of(src, source_format, test)
                 written = _write_wiretape(session, header, records, report)
                 _core.export_flexiport(session, prefix)
         else:
@@ -433,7 +450,7 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
         report.finish()
         return ConvertResult(written, source_format, target_format)
 
-    header, records, raise_source_damage = _records_of(src, source_format)
+    header, records, raise_source_damage = _records_of(src, source_format, test)
     if target_format == "wiretape":
         written = _write_wiretape(dst, header, records, report)
     else:
