@@ -138,8 +138,8 @@ class PortSerial(SerialBase):
     # line in one call, where pyserial's own read_until and readline read a
     # byte at a time), errors converted only once one was raised.
     def read(self, size=1):
-        port = self._wiretape_port
-        if port is None or not self.is_open:
+        port = self._wiretape_port  # None whenever the port is not open
+        if port is None:
             raise PortNotOpenError()
         if size <= 0:
             return b""
@@ -150,8 +150,8 @@ class PortSerial(SerialBase):
             raise
 
     def read_until(self, expected=b"\n", size=None):
-        port = self._wiretape_port
-        if port is None or not self.is_open:
+        port = self._wiretape_port  # None whenever the port is not open
+        if port is None:
             raise PortNotOpenError()
         try:
             return port.read_until(expected, size, self._timeout)
@@ -163,8 +163,8 @@ class PortSerial(SerialBase):
         return self.read_until(b"\n", None if size is None or size < 0 else size)
 
     def write(self, data):
-        port = self._wiretape_port
-        if port is None or not self.is_open:
+        port = self._wiretape_port  # None whenever the port is not open
+        if port is None:
             raise PortNotOpenError()
         if not data:
             return 0
