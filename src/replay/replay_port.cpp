@@ -223,6 +223,11 @@ class ReplayPort final : public Port {
   PortCapabilities capabilities() const override { PortCapabilities c; c.serial_settings = c.modem_lines = c.send_break = true; return c; }
   int native_handle() const override {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (!handle_handed_out_ && !closed_) {
+      // From now on someone may poll it: it must tell the truth.
+      handle_handed_out_ = true;
+      const_cast<ReplayPort*>(this)->update_signal(ReplayClock::now());
+    }
     return signal_read_.get();
   }
 
@@ -410,9 +415,13 @@ class ReplayPort final : public Port {
     }
   }
 
-  // Keeps the pipe readable exactly when a read would not block on data.
+  // Keeps the pipe readable exactly when a read would not block on data,
+  // once native_handle() has handed it out: before, nobody can poll it, and
+  // its two system calls per exchange would be most of what a client that
+  // only reads and writes (pyserial through wiretape://) waits for.
   ReplayEngine::Outlook update_signal(ReplayTime now) {
     const ReplayEngine::Outlook outlook = outlook_at(now);
+    if (!handle_handed_out_) return outlook;
     const bool readable =
         outlook.state == ReplayEngine::ReadState::readable ||
         outlook.state == ReplayEngine::ReadState::device_gone ||
@@ -549,6 +558,7 @@ class ReplayPort final : public Port {
   sys::UniqueFd signal_read_;
   sys::UniqueFd signal_write_;
   bool signalled_ = false;
+  mutable bool handle_handed_out_ = false;  // see update_signal()
   int readers_awaiting_due_ = 0;  // threads in wait() for a due time
   ReplayTime scheduler_wake_ = ReplayTime::min();  // see sleep_scheduler()
   std::thread scheduler_;

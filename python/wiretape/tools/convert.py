@@ -11,6 +11,8 @@ Formats:
   ``pcapng``, ``mcap``  exports for Wireshark and Foxglove (written only);
   ``pcap``      a packet capture (pcap or pcapng; read only): one TCP
                 conversation or UDP flow becomes a session (pcap_import).
+  ``reserial``, ``umockdev``  pytest-reserial cassettes (one test of one:
+                ``test``) and umockdev tty scripts (read only; importers.py).
 
 A format not given is taken from the file name: ``.wtape``; ``.log``,
 ``.logr``, ``.logw``; ``.jsonl``; ``.pcapng``; ``.mcap``. A source with
@@ -32,6 +34,7 @@ from typing import Iterator, Optional
 
 from .. import _core, exports
 from ..exports import jsonl
+from . import importers
 from ._files import FileRefused, is_stream, open_input, refuse_same_file, session_files
 from ._records import SessionPath, open_session, raise_damage
 from . import pcap_import
@@ -39,8 +42,12 @@ from . import pcap_import
 __all__ = ["convert", "detect_format", "ConvertResult", "FORMATS"]
 
 FORMATS = ("wiretape", "flexiport", "jsonl", "pcapng", "mcap")
-_READABLE = ("wiretape", "flexiport", "jsonl", "pcap")
+_IMPORTED = ("reserial", "umockdev", "pcap")
+_READABLE = ("wiretape", "flexiport", "jsonl") + _IMPORTED
 _CAPTURE_SUFFIXES = (".pcap", ".pcapng", ".cap")
+# The readable formats that are not sessions: written to a scratch session
+# first when the target is made from one (pcapng, mcap, flexiport).
+_RECORD_SOURCES = ("jsonl",) + _IMPORTED
 _SUFFIXES = {
     ".wtape": "wiretape",
     ".log": "flexiport",
@@ -363,12 +370,22 @@ def _output_files(dst: str, fmt: str):
     return [dst]
 
 
-def _records_of(src: str, fmt: str, capture_choice: Optional[dict] = None):
+def _records_of(src: str, fmt: str, choice: Optional[dict] = None):
     """(header dict, record iterator of (kind, t_ns, data), a function that
-    raises the damage the records stopped at, if any)."""
+    raises the damage the records stopped at, if any). `choice`: what to
+    take of a source holding several sessions (a capture's stream and device
+    address, a cassette's test)."""
+    choice = choice or {}
     if fmt == "pcap":
-        header, captured = pcap_import.read_capture(src, **(capture_choice or {}))
+        header, captured = pcap_import.read_capture(
+            src, stream=choice.get("stream"), device_addr=choice.get("device_addr"))
         return header, iter(captured), lambda: None
+    if fmt == "reserial":
+        header, records = importers.reserial_records(src, choice.get("test"))
+        return header, records, lambda: None
+    if fmt == "umockdev":
+        header, records = importers.umockdev_records(src)
+        return header, records, lambda: None
     if fmt == "jsonl":
         items = _jsonl_records(src)
         _, header = next(items)
@@ -454,7 +471,7 @@ class ConvertResult:
 def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = None,
             to_format: Optional[str] = None, progress: bool = False,
             flexiport_format: str = "new", stream: Optional[str] = None,
-            device_addr: Optional[str] = None) -> ConvertResult:
+            device_addr: Optional[str] = None, test: Optional[str] = None) -> ConvertResult:
     """Converts the session `src` into `dst`.
 
     Returns the number of records written and both formats. A damaged
@@ -469,6 +486,7 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
     `device_addr` (``IP:PORT``) says which side is the device
     (pcap_import's text has the rules); a capture of several conversations
     and none chosen raises pcap_import.CaptureError listing them.
+    `test` chooses the test of a pytest-reserial cassette.
     """
     if flexiport_format not in ("new", "old"):
         raise ValueError(f"flexiport format {flexiport_format!r}: expected new or old")
@@ -478,23 +496,24 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
     if source_format not in _READABLE:
         raise ValueError(f"{src}: {source_format} files cannot be read, only written")
     target_format = _check_format(to_format, FORMATS) if to_format else detect_format(dst, False)
+    if test is not None and source_format != "reserial":
+        raise ValueError(f"--test chooses a test of a pytest-reserial cassette (--from reserial); "
+                         f"{src} is read as {source_format}")
     if source_format == "flexiport":
         src = _core.flexiport_prefix(src) or src
     refuse_same_file(session_files(src), _output_files(dst, target_format))
     report = _Progress(progress, _source_size(src, source_format))
-    capture_choice = None
-    if source_format == "pcap":
-        capture_choice = {"stream": stream, "device_addr": device_addr}
-    elif stream is not None or device_addr is not None:
+    choice = {"stream": stream, "device_addr": device_addr, "test": test}
+    if source_format != "pcap" and (stream is not None or device_addr is not None):
         raise ValueError("--stream and --device-addr choose a conversation of a packet "
                          "capture: they need --from pcap")
 
     if target_format in ("pcapng", "mcap"):
         session = src
         with tempfile.TemporaryDirectory(prefix="wiretape-convert-") as scratch:
-            if source_format in ("jsonl", "pcap"):
+            if source_format in _RECORD_SOURCES:
                 session = os.path.join(scratch, "session.wtape")
-                header, records, _ = _records_of(src, source_format, capture_choice)
+                header, records, _ = _records_of(src, source_format, choice)
                 _write_wiretape(session, header, records, _Progress(False, 0))
             writer = exports.write_pcapng if target_format == "pcapng" else exports.write_mcap
             # Raises the damage once dst is written. Its counts, not a second
@@ -504,10 +523,10 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
 
     if target_format == "flexiport":
         prefix = _core.flexiport_prefix(dst) or dst
-        if source_format in ("jsonl", "pcap"):
+        if source_format in _RECORD_SOURCES:
             with tempfile.TemporaryDirectory(prefix="wiretape-convert-") as scratch:
                 session = os.path.join(scratch, "session.wtape")
-                header, records, _ = _records_of(src, source_format, capture_choice)
+                header, records, _ = _records_of(src, source_format, choice)
                 written = _write_wiretape(session, header, records, report)
                 _core.export_flexiport(session, prefix, flexiport_format)
         else:
@@ -517,7 +536,7 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
         report.finish()
         return ConvertResult(written, source_format, target_format)
 
-    header, records, raise_source_damage = _records_of(src, source_format, capture_choice)
+    header, records, raise_source_damage = _records_of(src, source_format, choice)
     if target_format == "wiretape":
         written = _write_wiretape(dst, header, records, report)
     else:

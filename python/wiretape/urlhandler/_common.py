@@ -61,6 +61,7 @@ class PortSerial(SerialBase):
 
     def __init__(self, *args, **kwargs):
         self._wiretape_port = None
+        self._applied_write_timeout = ...  # none yet: the first write sets it
         super().__init__(*args, **kwargs)
 
     # -- what subclasses provide -------------------------------------------
@@ -74,6 +75,7 @@ class PortSerial(SerialBase):
         if self._port is None:
             raise SerialException("Port must be configured before it can be used.")
         self._wiretape_port = self._convert_errors(self._open_wiretape_port, self._port)
+        self._applied_write_timeout = ...
         self.is_open = True
         try:
             self._reconfigure_port()
@@ -131,27 +133,58 @@ class PortSerial(SerialBase):
         port = self._require_open()
         return self._convert_errors(port.available)
 
+    # The data path (read, read_until, readline, write) is the cost of every
+    # exchange a driver makes: each is one call into the port's C++ (a whole
+    # line in one call, where pyserial's own read_until and readline read a
+    # byte at a time), errors converted only once one was raised.
     def read(self, size=1):
-        port = self._require_open()
+        port = self._wiretape_port  # None whenever the port is not open
+        if port is None:
+            raise PortNotOpenError()
         if size <= 0:
             return b""
-        return bytes(self._convert_errors(port.read_exactly, size, timeout=self._timeout))
+        try:
+            return port.read_exactly(size, self._timeout)
+        except Exception as error:
+            self._raise_converted(error)
+            raise
 
     def read_until(self, expected=b"\n", size=None):
-        port = self._require_open()
-        return bytes(self._convert_errors(port.read_until, bytes(expected), size,
-                                          timeout=self._timeout))
+        port = self._wiretape_port  # None whenever the port is not open
+        if port is None:
+            raise PortNotOpenError()
+        try:
+            return port.read_until(expected, size, self._timeout)
+        except Exception as error:
+            self._raise_converted(error)
+            raise
+
+    def readline(self, size=-1):
+        return self.read_until(b"\n", None if size is None or size < 0 else size)
 
     def write(self, data):
-        port = self._require_open()
-        data = bytes(data)
+        port = self._wiretape_port  # None whenever the port is not open
+        if port is None:
+            raise PortNotOpenError()
         if not data:
             return 0
-        port.timeout = self._write_timeout
-        written = self._convert_errors(port.write_all, data)
+        if self._write_timeout is not self._applied_write_timeout:
+            port.timeout = self._write_timeout
+            self._applied_write_timeout = self._write_timeout
+        try:
+            written = port.write_all(data)
+        except Exception as error:
+            self._raise_converted(error)
+            raise
         if written < len(data):
             raise SerialTimeoutException("Write timeout")
         return written
+
+    def _raise_converted(self, error):
+        """Raises wiretape's port, option and session errors as the
+        SerialException naming the port; returns on anything else."""
+        if isinstance(error, _converted_errors()):
+            raise SerialException(f"{self._port}: {error}") from error
 
     def flush(self):
         port = self._require_open()
