@@ -57,6 +57,12 @@ TARGETS = {
     "udp_proxy_loss_pct": (None, "info", "% of datagrams lost through record --udp"),
     "udp_socat_loss_pct": (None, "info", "% lost through socat's UDP relay"),
     "udp_proxy_vs_socat_delivered_ratio": (1.0, "higher", "record --udp / socat, delivered"),
+    "udp_proxy_datagrams_sent": (None, "info", "datagrams sent through record --udp"),
+    "udp_proxy_datagrams_received": (None, "info", "of them, received by the device"),
+    "udp_proxy_datagrams_lost": (None, "info", "of them, lost"),
+    "udp_socat_datagrams_sent": (None, "info", "datagrams sent through socat"),
+    "udp_socat_datagrams_received": (None, "info", "of them, received by the device"),
+    "udp_socat_datagrams_lost": (None, "info", "of them, lost"),
     "reserial_replay_s": (None, "info", "s, 10,000 exchanges, pytest-reserial"),
     "wiretape_pyserial_replay_s": (None, "info", "s, same, wiretape:// URL"),
     "wiretape_vs_reserial_time_ratio": (None, "lower", "wiretape time / reserial"),
@@ -288,6 +294,10 @@ class Bench:
         totals = {kind: {key: sum(f[key] for f in runs) for key in ("offered", "received", "lost")}
                   for kind, runs in figures.items()}
         loss = {kind: 100.0 * t["lost"] / t["offered"] for kind, t in totals.items()}
+        for kind, prefix in (("wiretape", "udp_proxy"), ("socat", "udp_socat")):
+            self.results[f"{prefix}_datagrams_sent"] = totals[kind]["offered"]
+            self.results[f"{prefix}_datagrams_received"] = totals[kind]["received"]
+            self.results[f"{prefix}_datagrams_lost"] = totals[kind]["lost"]
         self.results["udp_proxy_loss_pct"] = round(loss["wiretape"], 4)
         self.results["udp_socat_loss_pct"] = round(loss["socat"], 4)
         delivered = {kind: t["received"] / t["offered"] for kind, t in totals.items()}
