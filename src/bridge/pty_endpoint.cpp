@@ -157,6 +157,10 @@ class PtyEndpoint final : public ClientEndpoint {
   }
 
   void write_pty() {
+    // Until the client's first write, a flush it made is taken in before
+    // anything more is written: what follows the flush is then never taken
+    // for discarded (bytes just written may not show in FIONREAD yet).
+    if (retaining() && !to_pty_.empty()) read_pty();
     while (!to_pty_.empty()) {
       const std::size_t n = pty_->write(to_pty_.data(), to_pty_.size());
       if (n == 0) return;
@@ -208,8 +212,10 @@ class PtyEndpoint final : public ClientEndpoint {
     }
     // Opening flushes (pyserial, gpsd) must not eat a greeting. What the
     // terminal still holds was written after the flush (the flush is seen
-    // late): only the retained bytes before it were discarded. (The
-    // client's reads were seen first, in handle_events.)
+    // late): only the retained bytes before it were discarded. The
+    // client's reads before it are taken in first (it may have read, then
+    // flushed, before either was seen).
+    if (opens_and_closes_) watch_clients();
     const std::size_t kept = std::min(terminal_unread(*pty_), retained_.size());
     std::string again = retained_.substr(0, retained_.size() - kept);
     retained_.erase(0, retained_.size() - kept);
