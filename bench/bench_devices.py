@@ -1,6 +1,6 @@
-"""Device-level benchmarks run.py drives: relays over a pseudo-terminal device
-(wiretape record --pty and wiretape serve against socat) and the pyserial
-replay comparison with pytest-reserial.
+"""Device-level benchmarks run.py drives: the recording proxies (wiretape
+record --pty, --listen and --udp against socat doing the same relay) and the
+pyserial replay comparison with pytest-reserial.
 
 The relays are measured by wiretape_relay_bench (bench/relay_bench.cpp),
 which holds the pseudo-terminal device, starts the relay, feeds, reads and
@@ -24,7 +24,7 @@ class Skip(Exception):
     """A figure that cannot be measured here; the message says why."""
 
 
-# --- relays: wiretape record --pty / serve against socat ----------------------
+# --- relays: wiretape record --pty / --listen / --udp against socat -----------
 USED_RUNNER: set[str] = set()
 
 
@@ -46,29 +46,40 @@ def wiretape_command(subcommand: str, python: Path) -> list[str]:
 
 
 DEVICE = "type=serial,device={device},baud=115200"
+UDP_DEVICE = "type=udp,host=127.0.0.1,port={device_port}"
 
 
 def relay_command(kind: str, client: str, python: Path, work: Path) -> list[str]:
     """The relay's command line, with wiretape_relay_bench's placeholders
-    ({device}, {port}, {link}). client: "pty" (wiretape record --pty vs socat
-    PTY) or "tcp" (wiretape serve vs socat TCP-LISTEN)."""
+    ({device}, {device_port}, {port}, {link}). client: "pty" (wiretape record
+    --pty vs socat PTY), "tcp" (wiretape record --listen vs socat TCP-LISTEN)
+    or "udp" (wiretape record --udp vs socat UDP-LISTEN, which takes the
+    first sender as its peer and relays without forking)."""
     if kind == "socat":
         if shutil.which("socat") is None:
             raise Skip("socat is not installed (apt-get install socat)")
+        if client == "udp":
+            return ["socat", "-b65536", "UDP-LISTEN:{port},bind=127.0.0.1,reuseaddr",
+                    "UDP:127.0.0.1:{device_port}"]
         side = ("PTY,link={link},raw,echo=0" if client == "pty"
                 else "TCP-LISTEN:{port},bind=127.0.0.1,reuseaddr")
         return ["socat", "-b65536", side, "FILE:{device},raw,echo=0"]
+    output = ["-o", str(work / "relay.wtape")]
+    record = wiretape_command("record", python) + ["record"]
     if client == "pty":
-        return wiretape_command("record", python) + [
-            "record", "--device", DEVICE, "--pty", "{link}", "-o", str(work / "relay.wtape")]
-    return wiretape_command("serve", python) + [
-        "serve", "--device", DEVICE, "--listen", "127.0.0.1:{port}"]
+        return record + ["--device", DEVICE, "--pty", "{link}", *output]
+    if client == "tcp":
+        return record + ["--device", DEVICE, "--listen", "127.0.0.1:{port}", *output]
+    return record + ["--device", UDP_DEVICE, "--udp", "127.0.0.1:{port}", *output]
 
 
-def relay_figures(program: Path, kind: str, client: str, size: int, roundtrips: int,
+def relay_figures(program: Path, kind: str, client: str, first: int, second: int,
                   work: Path, python: Path) -> dict:
-    """One run of one relay: {"bytes_per_s", "rtt_median_us", ...}."""
-    command = [str(program), client, str(size), str(roundtrips), str(work), "--",
+    """One run of one relay. pty/tcp: first = bytes, second = messages;
+    {"bytes_per_s", "cpu_s_per_MB", "one_way_p99_us", ...}. udp: first =
+    datagrams a second, second = milliseconds; {"sent", "received", "lost",
+    ...}."""
+    command = [str(program), client, str(first), str(second), str(work), "--",
                *relay_command(kind, client, python, work)]
     try:
         proc = subprocess.run(command, capture_output=True, text=True, timeout=600)

@@ -1,18 +1,31 @@
-// Measures one relay between a serial device and its clients (wiretape
-// serve, wiretape record --pty, socat ...): throughput from the device to the
-// client and the round-trip time of a 64-byte message through the relay to a
-// device that echoes. The device is a pseudo-terminal held here; the relay is
-// a separate process started from the command line after `--`, in which
-// {device} becomes the device's path, {port} a free TCP port and {link} a
-// path for the relay's own pty. Feeding, reading and echoing run on native
-// threads of this program, so the figures are the relay's and the kernel's,
-// not an interpreter's.
+// Measures one relay between a device and its client (wiretape record
+// --pty/--listen/--udp, socat ...) against which the same relay by socat is
+// compared. The relay is a separate process started from the command line
+// after `--`, in which {device} becomes the device's path, {device_port} the
+// device's UDP port, {port} a free port for the relay's client side and
+// {link} a path for the relay's own pty. Feeding, reading and timing run on
+// native threads of this program, so the figures are the relay's and the
+// kernel's, not an interpreter's.
 //
-//   wiretape_relay_bench tcp|pty BYTES ROUNDTRIPS WORKDIR -- COMMAND...
+//   wiretape_relay_bench tcp|pty BYTES MESSAGES WORKDIR -- COMMAND...
 //
-// prints {"bytes_per_s": ..., "rtt_median_us": ..., "rtt_p90_us": ...}.
+// The device is a pseudo-terminal held here. Prints {"bytes_per_s",
+// "cpu_s_per_MB" (the relay process's CPU time, all threads, from
+// /proc/PID/task/*/schedstat, while the device sent BYTES to the client),
+// "one_way_p50_us", "one_way_p99_us" (MESSAGES 64-byte messages, one at a
+// time, alternately device to client and client to device, each from its
+// write to the read of its last byte), ...}.
+//
+//   wiretape_relay_bench udp DATAGRAMS_PER_S MILLISECONDS WORKDIR -- COMMAND...
+//
+// The device is a UDP socket here (with a deep receive queue); the client
+// sends 1,200-byte datagrams to the relay, paced at DATAGRAMS_PER_S for
+// MILLISECONDS. Prints {"offered", "sent", "received", "lost", "loss_pct",
+// "send_rate", "cpu_s", ...}: lost = offered - received at the device.
+//
 // Errors go to stderr with exit status 1.
 #include <arpa/inet.h>
+#include <dirent.h>
 #include <fcntl.h>
 #include <netinet/in.h>
 #include <netinet/tcp.h>
@@ -21,6 +34,7 @@
 #include <signal.h>
 #include <spawn.h>
 #include <sys/socket.h>
+#include <sys/uio.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <termios.h>
@@ -50,6 +64,7 @@ using wb::Clock;
 
 constexpr std::size_t kChunk = 64 * 1024;
 constexpr std::size_t kMessage = 64;
+constexpr std::size_t kDatagram = 1200;
 constexpr auto kReadyDeadline = std::chrono::seconds(15);
 constexpr auto kTransferDeadline = std::chrono::seconds(120);
 
@@ -133,11 +148,18 @@ void read_exactly(int fd, char* data, std::size_t size, Clock::time_point deadli
   }
 }
 
-int free_tcp_port() {
-  Fd probe(::socket(AF_INET, SOCK_STREAM, 0));
+sockaddr_in loopback(int port) {
   sockaddr_in address{};
   address.sin_family = AF_INET;
   address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  address.sin_port = htons(static_cast<std::uint16_t>(port));
+  return address;
+}
+
+// A port of `type` free on 127.0.0.1 a moment ago, for the relay to bind.
+int free_port(int type) {
+  Fd probe(::socket(AF_INET, type, 0));
+  sockaddr_in address = loopback(0);
   if (::bind(probe.get(), reinterpret_cast<sockaddr*>(&address), sizeof address) != 0) fail("bind");
   socklen_t length = sizeof address;
   ::getsockname(probe.get(), reinterpret_cast<sockaddr*>(&address), &length);
@@ -183,6 +205,8 @@ class Relay {
     }
   }
   ~Relay() { stop(); }
+
+  pid_t pid() const { return pid_; }
 
   bool running() {
     if (pid_ <= 0) return false;
@@ -252,14 +276,70 @@ Fd connect_client(const std::string& kind, int port, const std::string& link, Re
   fail("the relay was not ready after 15 s:\n" + relay.log());
 }
 
-int run(const std::string& kind, std::uint64_t bytes, std::uint64_t roundtrips, const std::string& workdir,
-        std::vector<std::string> command) {
+// CPU time (user + system, all threads) the process `pid` has used so far,
+// from /proc/PID/stat in clock ticks (10 ms); negative when it cannot be read.
+double cpu_seconds_in_ticks(pid_t pid) {
+  std::FILE* file = std::fopen(("/proc/" + std::to_string(pid) + "/stat").c_str(), "r");
+  if (!file) return -1.0;
+  char text[4096] = {};
+  const std::size_t n = std::fread(text, 1, sizeof text - 1, file);
+  std::fclose(file);
+  text[n] = '\0';
+  // Fields after the command name, which is in parentheses and may hold spaces:
+  // 3 state ... 14 utime 15 stime (clock ticks).
+  const char* rest = std::strrchr(text, ')');
+  if (!rest) return -1.0;
+  unsigned long long utime = 0, stime = 0;
+  if (std::sscanf(rest + 1, " %*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %llu %llu", &utime, &stime) != 2) {
+    return -1.0;
+  }
+  return static_cast<double>(utime + stime) / static_cast<double>(::sysconf(_SC_CLK_TCK));
+}
+
+// The same to the nanosecond: the run time of each of its threads, from
+// /proc/PID/task/TID/schedstat (a thread that ended meanwhile is missed: the
+// relays keep theirs while they run). Falls back to the ticks.
+double cpu_seconds(pid_t pid) {
+  const std::string tasks = "/proc/" + std::to_string(pid) + "/task";
+  DIR* folder = ::opendir(tasks.c_str());
+  if (!folder) return cpu_seconds_in_ticks(pid);
+  unsigned long long total_ns = 0;
+  bool any = false;
+  while (const dirent* entry = ::readdir(folder)) {
+    if (entry->d_name[0] == '.') continue;
+    std::FILE* file = std::fopen((tasks + "/" + entry->d_name + "/schedstat").c_str(), "r");
+    if (!file) continue;
+    unsigned long long run_ns = 0;
+    if (std::fscanf(file, "%llu", &run_ns) == 1) {
+      total_ns += run_ns;
+      any = true;
+    }
+    std::fclose(file);
+  }
+  ::closedir(folder);
+  return any ? static_cast<double>(total_ns) / 1e9 : cpu_seconds_in_ticks(pid);
+}
+
+// One message's one-way time: written on `from`, its last byte read on `to`.
+double one_way_us(int from, int to, const std::string& message) {
+  char answer[kMessage];
+  const auto begin = Clock::now();
+  write_all(from, message.data(), message.size());
+  read_exactly(to, answer, message.size(), Clock::now() + std::chrono::seconds(10));
+  return std::chrono::duration<double, std::micro>(Clock::now() - begin).count();
+}
+
+// pty and tcp: throughput from the device to the client (and the relay's CPU
+// time meanwhile), then one-way latency of `messages` 64-byte messages, one
+// at a time, alternating direction.
+int run_stream(const std::string& kind, std::uint64_t bytes, std::uint64_t messages, const std::string& workdir,
+               std::vector<std::string> command) {
   int master_fd = -1, device_fd = -1;
   char device_name[256] = {};
   if (::openpty(&master_fd, &device_fd, device_name, nullptr, nullptr) != 0) fail("openpty");
   Fd master(master_fd), device(device_fd);  // held open so the device never hangs up
   make_raw(device.get());
-  const int port = kind == "tcp" ? free_tcp_port() : 0;
+  const int port = kind == "tcp" ? free_port(SOCK_STREAM) : 0;
   const std::string link = workdir + "/relay-bench-" + std::to_string(::getpid()) + ".pty";
   ::unlink(link.c_str());
   for (auto& word : command) {
@@ -270,8 +350,14 @@ int run(const std::string& kind, std::uint64_t bytes, std::uint64_t roundtrips, 
   Relay relay(command, workdir + "/relay-bench-" + std::to_string(::getpid()) + ".log");
   Fd client = connect_client(kind, port, link, relay);
 
+  // A first message both ways: the relay has its client and its device.
+  const std::string message(kMessage, 'p');
+  one_way_us(master.get(), client.get(), message);
+  one_way_us(client.get(), master.get(), message);
+
   // Throughput: the device sends `bytes`, the client reads them all.
   std::vector<char> received(kChunk);
+  const double cpu_before = cpu_seconds(relay.pid());
   const auto start = Clock::now();
   std::thread feeder([&] {
     std::vector<char> block(kChunk);
@@ -314,67 +400,168 @@ int run(const std::string& kind, std::uint64_t bytes, std::uint64_t roundtrips, 
     throw;
   }
   const double seconds = wb::seconds_since(start);
+  const double cpu = cpu_seconds(relay.pid()) - cpu_before;
   feeder.join();
 
-  // Round trips: the device echoes what it is sent.
-  std::atomic<bool> stopping{false};
-  std::thread echo([&] {
-    std::vector<char> buffer(kChunk);
-    while (!stopping.load()) {
-      if (!wait_ready(master.get(), POLLIN, Clock::now() + std::chrono::milliseconds(100))) continue;
-      const ssize_t n = ::read(master.get(), buffer.data(), buffer.size());
-      if (n <= 0) {
-        if (n < 0 && (errno == EINTR || errno == EAGAIN)) continue;
-        return;
-      }
-      try {
-        write_all(master.get(), buffer.data(), static_cast<std::size_t>(n));
-      } catch (const std::exception&) {
-        return;
-      }
-    }
-  });
-  std::vector<double> rtts_us;
-  rtts_us.reserve(roundtrips);
-  const std::string message(kMessage, 'p');
-  char answer[kMessage];
-  try {
-    for (std::uint64_t i = 0; i < roundtrips; ++i) {
-      const auto begin = Clock::now();
-      write_all(client.get(), message.data(), message.size());
-      read_exactly(client.get(), answer, sizeof answer, Clock::now() + std::chrono::seconds(10));
-      rtts_us.push_back(std::chrono::duration<double, std::micro>(Clock::now() - begin).count());
-    }
-  } catch (...) {
-    stopping = true;
-    echo.join();
-    throw;
+  // One-way latency, each message alone in the relay: device to client, then
+  // client to device, and so on.
+  std::vector<double> latencies_us;
+  latencies_us.reserve(messages);
+  for (std::uint64_t i = 0; i < messages; ++i) {
+    latencies_us.push_back(i % 2 == 0 ? one_way_us(master.get(), client.get(), message)
+                                      : one_way_us(client.get(), master.get(), message));
   }
-  stopping = true;
-  echo.join();
   client.reset();
   relay.stop();
   ::unlink(link.c_str());
-  std::printf("{\"bytes\": %llu, \"seconds\": %.6f, \"bytes_per_s\": %.1f, \"roundtrips\": %llu, "
-              "\"rtt_median_us\": %.2f, \"rtt_p90_us\": %.2f}\n",
-              static_cast<unsigned long long>(bytes), seconds, static_cast<double>(bytes) / seconds,
-              static_cast<unsigned long long>(roundtrips), wb::percentile(rtts_us, 0.5),
-              wb::percentile(rtts_us, 0.9));
+  std::printf("{\"bytes\": %llu, \"seconds\": %.6f, \"bytes_per_s\": %.1f, \"cpu_s\": %.3f, "
+              "\"cpu_s_per_MB\": %.6f, \"messages\": %llu, \"one_way_p50_us\": %.2f, \"one_way_p99_us\": %.2f}\n",
+              static_cast<unsigned long long>(bytes), seconds, static_cast<double>(bytes) / seconds, cpu,
+              cpu / (static_cast<double>(bytes) / 1e6), static_cast<unsigned long long>(messages),
+              wb::percentile(latencies_us, 0.5), wb::percentile(latencies_us, 0.99));
+  return 0;
+}
+
+// udp: the client sends `rate` datagrams of kDatagram bytes a second for
+// `milliseconds` to the relay, which forwards them to a device socket here;
+// what the device received, and so what was lost on the way.
+int run_udp(std::uint64_t rate, std::uint64_t milliseconds, const std::string& workdir,
+            std::vector<std::string> command) {
+  Fd device(::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0));
+  // A deep queue at the device, so that what is lost is lost in the relay.
+  const int deep = 64 << 20;
+  if (::setsockopt(device.get(), SOL_SOCKET, SO_RCVBUFFORCE, &deep, sizeof deep) != 0) {
+    ::setsockopt(device.get(), SOL_SOCKET, SO_RCVBUF, &deep, sizeof deep);
+  }
+  sockaddr_in device_address = loopback(0);
+  if (::bind(device.get(), reinterpret_cast<sockaddr*>(&device_address), sizeof device_address) != 0) fail("bind");
+  socklen_t length = sizeof device_address;
+  ::getsockname(device.get(), reinterpret_cast<sockaddr*>(&device_address), &length);
+  const int port = free_port(SOCK_DGRAM);
+  for (auto& word : command) {
+    word = substitute(word, "{device_port}", std::to_string(ntohs(device_address.sin_port)));
+    word = substitute(word, "{port}", std::to_string(port));
+  }
+
+  std::atomic<bool> stopping{false};
+  std::atomic<bool> warmed{false};
+  std::atomic<std::uint64_t> received{0};
+  std::thread sink([&] {
+    std::vector<char> buffer(65536);
+    while (!stopping.load()) {
+      if (!wait_ready(device.get(), POLLIN, Clock::now() + std::chrono::milliseconds(50))) continue;
+      const ssize_t n = ::recv(device.get(), buffer.data(), buffer.size(), MSG_DONTWAIT);
+      if (n <= 0) continue;
+      if (buffer[0] == 'W') {
+        warmed = true;
+      } else if (n == static_cast<ssize_t>(kDatagram)) {
+        received.fetch_add(1);
+      }
+    }
+  });
+  struct JoinSink {
+    std::atomic<bool>& stopping;
+    std::thread& sink;
+    ~JoinSink() {
+      stopping = true;
+      sink.join();
+    }
+  } join_sink{stopping, sink};
+
+  Relay relay(command, workdir + "/relay-bench-" + std::to_string(::getpid()) + ".log");
+  Fd client(::socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0));
+  sockaddr_in relay_address = loopback(port);
+  if (::connect(client.get(), reinterpret_cast<sockaddr*>(&relay_address), sizeof relay_address) != 0) {
+    fail("connect");
+  }
+  // Warm-up: a datagram every 20 ms until one reaches the device.
+  const auto ready_deadline = Clock::now() + kReadyDeadline;
+  while (!warmed.load()) {
+    if (!relay.running()) {
+      errno = 0;
+      fail("the relay exited before it was ready:\n" + relay.log());
+    }
+    if (Clock::now() > ready_deadline) {
+      errno = 0;
+      fail("no datagram reached the device through the relay in 15 s:\n" + relay.log());
+    }
+    ::send(client.get(), "W", 1, 0);
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));  // polling another process's readiness
+  }
+
+  // The flood, paced by the clock: by time t, rate * t datagrams are sent.
+  const std::uint64_t total = rate * milliseconds / 1000;
+  constexpr std::size_t kBatch = 32;
+  std::vector<std::string> payloads(kBatch, std::string(kDatagram, 'F'));
+  std::vector<iovec> vectors(kBatch);
+  std::vector<mmsghdr> headers(kBatch);
+  for (std::size_t i = 0; i < kBatch; ++i) {
+    vectors[i] = {payloads[i].data(), kDatagram};
+    headers[i] = {};
+    headers[i].msg_hdr.msg_iov = &vectors[i];
+    headers[i].msg_hdr.msg_iovlen = 1;
+  }
+  const double cpu_before = cpu_seconds(relay.pid());
+  std::uint64_t sent = 0, refused = 0;
+  const auto start = Clock::now();
+  while (sent + refused < total) {
+    const double elapsed = wb::seconds_since(start);
+    const auto due = std::min<std::uint64_t>(total, static_cast<std::uint64_t>(elapsed * static_cast<double>(rate)));
+    if (sent + refused >= due) {
+      std::this_thread::sleep_for(std::chrono::microseconds(100));  // pacing the sender
+      continue;
+    }
+    const auto batch = static_cast<unsigned>(std::min<std::uint64_t>(kBatch, due - sent - refused));
+    const int n = ::sendmmsg(client.get(), headers.data(), batch, 0);
+    if (n > 0) {
+      sent += static_cast<std::uint64_t>(n);
+    } else if (errno == ENOBUFS || errno == EAGAIN || errno == ECONNREFUSED) {
+      refused += 1;  // the relay's socket is gone or full: lost all the same
+    } else if (errno != EINTR) {
+      fail("sendmmsg");
+    }
+  }
+  const double seconds = wb::seconds_since(start);
+  // Drained: nothing more arrives for 500 ms.
+  std::uint64_t seen = received.load();
+  for (auto quiet_since = Clock::now(); Clock::now() - quiet_since < std::chrono::milliseconds(500);) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));  // waiting for the relay to drain
+    if (received.load() != seen) {
+      seen = received.load();
+      quiet_since = Clock::now();
+    }
+  }
+  const double cpu = cpu_seconds(relay.pid()) - cpu_before;
+  relay.stop();
+  const std::uint64_t got = received.load();
+  const std::uint64_t offered = sent + refused;
+  std::printf("{\"datagram_bytes\": %zu, \"offered\": %llu, \"sent\": %llu, \"received\": %llu, \"lost\": %llu, "
+              "\"loss_pct\": %.4f, \"seconds\": %.6f, \"send_rate\": %.1f, \"cpu_s\": %.3f}\n",
+              kDatagram, static_cast<unsigned long long>(offered), static_cast<unsigned long long>(sent),
+              static_cast<unsigned long long>(got), static_cast<unsigned long long>(offered - got),
+              100.0 * static_cast<double>(offered - got) / static_cast<double>(offered), seconds,
+              static_cast<double>(offered) / seconds, cpu);
   return 0;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 7 || std::string(argv[5]) != "--" ||
-      (std::string(argv[1]) != "tcp" && std::string(argv[1]) != "pty")) {
-    std::cerr << "usage: wiretape_relay_bench tcp|pty BYTES ROUNDTRIPS WORKDIR -- COMMAND...\n";
+  const std::string kind = argc > 1 ? argv[1] : "";
+  if (argc < 7 || std::string(argv[5]) != "--" || (kind != "tcp" && kind != "pty" && kind != "udp")) {
+    std::cerr << "usage: wiretape_relay_bench tcp|pty BYTES MESSAGES WORKDIR -- COMMAND...\n"
+                 "       wiretape_relay_bench udp DATAGRAMS_PER_S MILLISECONDS WORKDIR -- COMMAND...\n";
     return 2;
   }
   ::signal(SIGPIPE, SIG_IGN);
   try {
-    return run(argv[1], wb::parse_count(argv[2], "BYTES"), wb::parse_count(argv[3], "ROUNDTRIPS"), argv[4],
-               std::vector<std::string>(argv + 6, argv + argc));
+    std::vector<std::string> command(argv + 6, argv + argc);
+    if (kind == "udp") {
+      return run_udp(wb::parse_count(argv[2], "DATAGRAMS_PER_S"), wb::parse_count(argv[3], "MILLISECONDS"), argv[4],
+                     std::move(command));
+    }
+    return run_stream(kind, wb::parse_count(argv[2], "BYTES"), wb::parse_count(argv[3], "MESSAGES"), argv[4],
+                      std::move(command));
   } catch (const std::exception& error) {
     std::cerr << "wiretape_relay_bench: " << error.what() << "\n";
     return 1;

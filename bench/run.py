@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Runs wiretape's benchmarks and writes BUILD/bench/results.json.
 
-Usage: bench/run.py --build DIR [--only NAME[,NAME...]] [--quick]
+Usage: bench/run.py --build DIR [--only NAME[,NAME...]] [--quick] [--udp-seconds S]
 
 Each figure is measured side by side with its anchor (cat, an unrecorded
 port, socat, pytest-reserial) in the same run and reported as a ratio; see
@@ -32,6 +32,9 @@ from bench_devices import Skip  # noqa: E402
 
 MiB = 1 << 20
 GiB = 1 << 30
+# The UDP proxy's load: datagrams a second, and their size (relay_bench.cpp).
+UDP_RATE = 100_000
+UDP_DATAGRAM = 1200
 
 # key -> (target, "higher"/"lower" is better, unit/explanation)
 TARGETS = {
@@ -47,9 +50,19 @@ TARGETS = {
     "record_throughput_ratio": (0.9, "higher", "recorded / unrecorded TCP"),
     "record_latency_ratio": (1.1, "lower", "recorded / unrecorded RTT"),
     "record_rss_MB_1GiB": (None, "lower", "MiB peak RSS recording 1 GiB"),
-    "pty_proxy_vs_socat_throughput_ratio": (None, "higher", "record --pty / socat"),
-    "serve_vs_socat_throughput_ratio": (1.0, "higher", "serve / socat"),
-    "serve_vs_socat_latency_ratio": (1.0, "lower", "serve RTT / socat RTT"),
+    "pty_proxy_vs_socat_cpu_ratio": (1.0, "lower", "record --pty CPU s/MB / socat's"),
+    "pty_proxy_vs_socat_latency_p99_ratio": (1.0, "lower", "record --pty one-way p99 / socat's"),
+    "tcp_proxy_vs_socat_cpu_ratio": (1.0, "lower", "record --listen CPU s/MB / socat's"),
+    "tcp_proxy_vs_socat_latency_p99_ratio": (1.0, "lower", "record --listen one-way p99 / socat's"),
+    "udp_proxy_loss_pct": (None, "info", "% of datagrams lost through record --udp"),
+    "udp_socat_loss_pct": (None, "info", "% lost through socat's UDP relay"),
+    "udp_proxy_vs_socat_delivered_ratio": (1.0, "higher", "record --udp / socat, delivered"),
+    "udp_proxy_datagrams_sent": (None, "info", "datagrams sent through record --udp"),
+    "udp_proxy_datagrams_received": (None, "info", "of them, received by the device"),
+    "udp_proxy_datagrams_lost": (None, "info", "of them, lost"),
+    "udp_socat_datagrams_sent": (None, "info", "datagrams sent through socat"),
+    "udp_socat_datagrams_received": (None, "info", "of them, received by the device"),
+    "udp_socat_datagrams_lost": (None, "info", "of them, lost"),
     "reserial_replay_s": (None, "info", "s, 10,000 exchanges, pytest-reserial"),
     "wiretape_pyserial_replay_s": (None, "info", "s, same, wiretape:// URL"),
     "wiretape_vs_reserial_time_ratio": (None, "lower", "wiretape time / reserial"),
@@ -69,9 +82,10 @@ def need_disk(path: Path, needed: int, what: str) -> None:
 
 
 class Bench:
-    def __init__(self, build: Path, quick: bool):
+    def __init__(self, build: Path, quick: bool, udp_seconds: float | None = None):
         self.build = build
         self.quick = quick
+        self.udp_seconds = udp_seconds
         self.work = build / "bench"
         self.work.mkdir(parents=True, exist_ok=True)
         self.tool = build / "bin" / "wiretape_bench_tool"
@@ -218,17 +232,16 @@ class Bench:
         finally:
             path.unlink(missing_ok=True)
 
-    def relay_rounds(self, client: str, size: int, roundtrips: int) -> dict[str, list]:
+    def relay_rounds(self, client: str, first: int, second: int, rounds: int) -> dict[str, list]:
         """wiretape and socat as the same relay on the same kind of device,
         interleaved in alternating order; per-pair ratios, so that the
         machine's drift from round to round cancels out."""
-        rounds = 3 if self.quick else 11
         figures: dict[str, list] = {"wiretape": [], "socat": []}
         for index in range(rounds):
             order = ("wiretape", "socat") if index % 2 == 0 else ("socat", "wiretape")
             for kind in order:
                 figures[kind].append(bench_devices.relay_figures(
-                    self.relay_program, kind, client, size, roundtrips, self.work, self.python))
+                    self.relay_program, kind, client, first, second, self.work, self.python))
         return figures
 
     @staticmethod
@@ -240,31 +253,67 @@ class Bench:
     def spread(values: list[float]) -> str:
         return f"range {min(values):.2f}–{max(values):.2f} over {len(values)} pairs"
 
-    def pty_proxy(self) -> None:
-        """wiretape record --pty vs socat's pty relay on the same device."""
-        figures = self.relay_rounds("pty", (16 if self.quick else 64) * MiB, 1)
-        throughput = self.pair_ratios(figures, "bytes_per_s")
-        self.results["pty_proxy_vs_socat_throughput_ratio"] = round(statistics.median(throughput), 3)
-        mbps = {kind: statistics.median(f["bytes_per_s"] for f in runs) / 1e6
-                for kind, runs in figures.items()}
-        self.notes["pty_proxy"] = (f"wiretape {mbps['wiretape']:.0f} MB/s, socat "
-                                   f"{mbps['socat']:.0f} MB/s; {self.spread(throughput)}")
-
-    def serve(self) -> None:
-        """wiretape serve (raw) vs socat TCP-LISTEN … FILE:pty."""
-        figures = self.relay_rounds("tcp", (16 if self.quick else 64) * MiB, 2000)
-        throughput = self.pair_ratios(figures, "bytes_per_s")
-        latency = self.pair_ratios(figures, "rtt_median_us")
-        self.results["serve_vs_socat_throughput_ratio"] = round(statistics.median(throughput), 3)
-        self.results["serve_vs_socat_latency_ratio"] = round(statistics.median(latency), 3)
+    def stream_proxy(self, client: str, prefix: str) -> None:
+        """wiretape record (--pty or --listen) vs socat relaying the same pty
+        device: the relay's CPU seconds per MB while the device streams to
+        the client, and the one-way latency p99 of single messages."""
+        size = (16 if self.quick else 64) * MiB
+        figures = self.relay_rounds(client, size, 500 if self.quick else 2000,
+                                    3 if self.quick else 7)
+        cpu = self.pair_ratios(figures, "cpu_s_per_MB")
+        latency = self.pair_ratios(figures, "one_way_p99_us")
+        self.results[f"{prefix}_vs_socat_cpu_ratio"] = round(statistics.median(cpu), 3)
+        self.results[f"{prefix}_vs_socat_latency_p99_ratio"] = round(statistics.median(latency), 3)
         median = {kind: {key: statistics.median(f[key] for f in runs)
-                         for key in ("bytes_per_s", "rtt_median_us")}
+                         for key in ("bytes_per_s", "cpu_s_per_MB", "one_way_p50_us",
+                                     "one_way_p99_us")}
                   for kind, runs in figures.items()}
-        self.notes["serve"] = (
-            f"throughput wiretape {median['wiretape']['bytes_per_s'] / 1e6:.0f} MB/s, socat "
-            f"{median['socat']['bytes_per_s'] / 1e6:.0f} MB/s ({self.spread(throughput)}); "
-            f"median RTT wiretape {median['wiretape']['rtt_median_us']:.0f} µs, socat "
-            f"{median['socat']['rtt_median_us']:.0f} µs ({self.spread(latency)})")
+        self.notes[prefix] = "; ".join(
+            f"{kind} {m['cpu_s_per_MB'] * 1e3:.2f} ms CPU/MB at {m['bytes_per_s'] / 1e6:.0f} MB/s, "
+            f"one-way p50 {m['one_way_p50_us']:.0f} µs p99 {m['one_way_p99_us']:.0f} µs"
+            for kind, m in median.items()) + (
+            f" (medians of {len(cpu)} pairs; CPU ratio {self.spread(cpu)}, "
+            f"p99 ratio {self.spread(latency)})")
+
+    def pty_proxy(self) -> None:
+        """wiretape record --pty vs socat PTY ... FILE:device."""
+        self.stream_proxy("pty", "pty_proxy")
+
+    def tcp_proxy(self) -> None:
+        """wiretape record --listen vs socat TCP-LISTEN ... FILE:device."""
+        self.stream_proxy("tcp", "tcp_proxy")
+
+    def udp_proxy(self) -> None:
+        """wiretape record --udp vs socat UDP-LISTEN ... UDP:device: 100,000
+        datagrams/s of 1,200 bytes for udp_seconds, what reaches the device."""
+        seconds = self.udp_seconds if self.udp_seconds else (2.0 if self.quick else 10.0)
+        need_disk(self.work, int(2 * UDP_RATE * UDP_DATAGRAM * seconds),
+                  "udp_proxy (the recording of the flood)")
+        # Two rounds: each relay once first and once second.
+        figures = self.relay_rounds("udp", UDP_RATE, int(seconds * 1000), 2)
+        totals = {kind: {key: sum(f[key] for f in runs) for key in ("offered", "received", "lost")}
+                  for kind, runs in figures.items()}
+        loss = {kind: 100.0 * t["lost"] / t["offered"] for kind, t in totals.items()}
+        for kind, prefix in (("wiretape", "udp_proxy"), ("socat", "udp_socat")):
+            self.results[f"{prefix}_datagrams_sent"] = totals[kind]["offered"]
+            self.results[f"{prefix}_datagrams_received"] = totals[kind]["received"]
+            self.results[f"{prefix}_datagrams_lost"] = totals[kind]["lost"]
+        self.results["udp_proxy_loss_pct"] = round(loss["wiretape"], 4)
+        self.results["udp_socat_loss_pct"] = round(loss["socat"], 4)
+        delivered = {kind: t["received"] / t["offered"] for kind, t in totals.items()}
+        self.results["udp_proxy_vs_socat_delivered_ratio"] = round(
+            delivered["wiretape"] / delivered["socat"], 5)
+        rates = {kind: statistics.median(f["send_rate"] for f in runs)
+                 for kind, runs in figures.items()}
+        cpu = {kind: statistics.median(f["cpu_s"] / f["seconds"] for f in runs)
+               for kind, runs in figures.items()}
+        self.notes["udp_proxy"] = "; ".join(
+            f"{kind} sent {t['offered']}, received {t['received']}, lost {t['lost']} "
+            f"({loss[kind]:.3f} %) at {rates[kind]:.0f} datagrams/s, "
+            f"relay CPU {cpu[kind]:.2f} s/s"
+            for kind, t in totals.items()) + (
+            f" ({len(figures['socat'])} rounds of {seconds:g} s each, "
+            f"{UDP_DATAGRAM}-byte datagrams)")
 
     def reserial(self) -> None:
         """10,000 request/response exchanges through pyserial: wiretape:// vs
@@ -303,7 +352,7 @@ class Bench:
 
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
-           "serve", "reserial", "gbench"]
+           "tcp_proxy", "udp_proxy", "reserial", "gbench"]
 
 
 def machine_note() -> dict:
@@ -378,6 +427,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--only", help="comma-separated figure groups: " + ",".join(FIGURES))
     parser.add_argument("--quick", action="store_true", help="smaller sizes, fewer rounds")
     parser.add_argument("--no-build", action="store_true", help="use the programs as built")
+    parser.add_argument("--udp-seconds", type=float, metavar="S",
+                        help="how long each UDP proxy round floods (default 10, --quick 2)")
     args = parser.parse_args(argv)
     build = args.build.resolve()
     groups = FIGURES if not args.only else args.only.split(",")
@@ -386,7 +437,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"unknown figure group(s) {', '.join(unknown)}; valid: {', '.join(FIGURES)}")
     if not args.no_build:
         build_programs(build)
-    bench = Bench(build, args.quick)
+    if args.udp_seconds is not None and args.udp_seconds <= 0:
+        parser.error("--udp-seconds must be positive")
+    bench = Bench(build, args.quick, args.udp_seconds)
     results_path = bench.work / "results.json"
     # --only updates the figures it measures and keeps the others.
     notes_path = bench.work / "notes.json"

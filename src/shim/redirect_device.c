@@ -12,7 +12,8 @@
  *                           the end when CMD never opened it
  *
  * A path is redirected when it is FROM as written, or when FROM exists and
- * the path resolves to the same file (a /dev/serial/by-id/ link to it).
+ * the path resolves to the same file (a /dev/serial/by-id/ link to it, or a
+ * symbolic link to it elsewhere).
  * Only absolute paths are compared: a relative one, or one given relative to
  * a directory descriptor, never names a device under /dev in practice.
  *
@@ -98,6 +99,13 @@ static void note_hit(void) {
   errno = saved_errno;
 }
 
+/* readlink, which this shim does not redirect, tells a symbolic link in one
+ * system call (lstat would come back through our own wrapper). */
+static int is_symbolic_link(const char *path) {
+  char target[1];
+  return readlink(path, target, sizeof target) >= 0;
+}
+
 /* The path to use instead of `path`: the pty when `path` names the device,
  * else `path` itself. */
 static const char *redirected(const char *path) {
@@ -107,11 +115,13 @@ static const char *redirected(const char *path) {
     return redirect_to;
   }
   /* By-id links and other names of the real device: resolving costs system
-   * calls, so only paths under /dev are resolved. */
-  if (redirect_from_resolved[0] != '\0' && strncmp(path, "/dev/", 5) == 0) {
+   * calls, so only paths under /dev and symbolic links (a by-id style link
+   * made elsewhere) are resolved. */
+  if (redirect_from_resolved[0] != '\0') {
     int saved_errno = errno;
     char resolved[PATH_MAX];
-    int same = real_realpath(path, resolved) != NULL &&
+    int same = (strncmp(path, "/dev/", 5) == 0 || is_symbolic_link(path)) &&
+               real_realpath(path, resolved) != NULL &&
                strcmp(resolved, redirect_from_resolved) == 0;
     errno = saved_errno;
     if (same) {

@@ -7,16 +7,19 @@ SessionWriter as older files are: no flush events, no client_connect."""
 
 import os
 import select
+import subprocess
 import sys
 import termios
+from pathlib import Path
 
 import pytest
 import serial
 
-from wiretape import bridge
+from wiretape import _core, bridge
 
 from test_replay_verdict import Replay
 from devices import wait_until
+from shared_test_data import FLEXIPORT_DIR, flexiport_log
 
 DEADLINE = 10.0
 GREETING = b"HELLO from the device\r\n"
@@ -115,3 +118,67 @@ def test_the_cli_exits_0_for_a_pyserial_client_served_the_greeting(greeting, tmp
         code, said = replay.stop()
     assert code == 0, said
     assert "no client was served" not in said
+
+
+# --- recordings made before flush events existed ----------------------------------------------
+
+REPOSITORY = Path(__file__).resolve().parents[2]
+# The Hokuyo example's recordings (library recordings, before flush events
+# and client sessions) and the hardware's flexiport logs.
+OLD_WTAPE = sorted((REPOSITORY / "examples" / "hokuyo" / "recordings").glob("*.wtape"))
+OLD_FLEXIPORT = ["urg04lx_2011", "utm30lx_2011"]
+
+
+def first_exchange(session):
+    """(what the client writes before the device's first rx, that rx up to
+    the client's next write) of a .wtape session, from its first client
+    session on (its start when it has no client_connect)."""
+    with _core.SessionReader(str(session)) as reader:
+        records = list(reader)
+    kinds = [r.kind for r in records]
+    if "client_connect" in kinds:
+        records = records[kinds.index("client_connect"):]
+    request, response = bytearray(), bytearray()
+    for record in records:
+        if record.kind == "tx":
+            if response:
+                break
+            request += record.data
+        elif record.kind == "rx":
+            response += record.data
+    assert response, f"{session}: no rx to greet a client with"
+    return bytes(request), bytes(response)
+
+
+def old_recordings():
+    cases = [pytest.param(path, path, id=path.name) for path in OLD_WTAPE]
+    cases += [pytest.param(name, None, id=f"flexiport-{name}") for name in OLD_FLEXIPORT]
+    return cases
+
+
+@pytest.mark.parametrize("recording, wtape", old_recordings())
+def test_pyserial_gets_the_first_rx_of_a_recording_made_before_flush_events(
+        recording, wtape, tmp_path):
+    if wtape is None:  # a flexiport pair from the hardware, read through a converted copy
+        flexiport_log(recording)
+        recording = FLEXIPORT_DIR / f"{recording}.log"
+        wtape = tmp_path / "converted.wtape"
+        converted = subprocess.run([sys.executable, "-m", "wiretape.cli", "convert", "-q",
+                                    str(recording), str(wtape)],
+                                   capture_output=True, text=True, timeout=60)
+        assert converted.returncode == 0, converted.stderr
+    with _core.SessionReader(str(wtape)) as reader:
+        kinds = {r.kind for r in reader}
+    assert not kinds & {"flush_input", "flush_output"}, "not an old recording any more"
+    request, response = first_exchange(wtape)
+    replay = Replay(recording, tmp_path / "tty")
+    try:
+        # pyserial flushes input right after open, before it writes.
+        with serial.Serial(replay.link, 115200, timeout=DEADLINE) as client:
+            client.write(request)
+            assert client.read(len(response)) == response
+    finally:
+        code, said = replay.stop()
+    assert code == 0, said
+    assert "no client was served" not in said, said
+    assert "mismatch" not in said.lower(), said

@@ -8,6 +8,7 @@ have: the shim makes them open the pty instead."""
 
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import textwrap
@@ -16,7 +17,7 @@ import pytest
 
 from wiretape import _core, redirect
 
-from devices import TcpDevice
+from devices import TcpDevice, wait_until
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
                                 reason="the preload shim is Linux only")
@@ -271,3 +272,165 @@ def test_a_replay_that_ends_first_ends_the_command_and_gives_its_verdict(c_clien
     assert replayed.returncode == 1, replayed.stderr
     assert "mismatch" in replayed.stderr
     assert "ending it" in replayed.stderr
+
+
+# --- by-id links: another name of the device ----------------------------------------------------
+
+BY_ID = "serial/by-id/usb-FTDI_FT232R_USB_UART_A50285BI-if00-port0"
+
+BY_PATH_CLIENT = PYTHON_CLIENT.replace('"/dev/ttyUSB0"', "sys.argv[1]").replace(
+    "int(sys.argv[1]) if len(sys.argv) > 1 else 0", "0")
+
+
+@pytest.fixture
+def device_and_link(tmp_path):
+    """(a device node that exists, under /dev: a pty this test holds; a
+    by-id style link to it under tmp_path)."""
+    controller, device = os.openpty()
+    link = tmp_path / BY_ID
+    link.parent.mkdir(parents=True)
+    link.symlink_to(os.ttyname(device))
+    yield os.ttyname(device), str(link)
+    os.close(device)
+    os.close(controller)
+
+
+def _cat_through_the_shim(redirect_from, opened, tmp_path):
+    stand_in = tmp_path / "stand-in"
+    stand_in.write_text("redirected\n")
+    environment = dict(os.environ, LD_PRELOAD=redirect.shim_path(),
+                       WIRETAPE_REDIRECT_FROM=redirect_from,
+                       WIRETAPE_REDIRECT_TO=str(stand_in))
+    return subprocess.run([shutil.which("cat"), opened], env=environment, capture_output=True,
+                          text=True, timeout=COMMAND_DEADLINE_S)
+
+
+def test_the_shim_redirects_a_by_id_link_to_the_device(device_and_link, tmp_path):
+    """CMD opens the link (outside /dev here), the path given is the device."""
+    device, link = device_and_link
+    done = _cat_through_the_shim(device, link, tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == "redirected\n"
+
+
+def test_the_shim_redirects_the_device_a_given_by_id_link_names(device_and_link, tmp_path):
+    """The reverse: the path given is the link, CMD opens the device."""
+    device, link = device_and_link
+    done = _cat_through_the_shim(link, device, tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == "redirected\n"
+
+
+@pytest.mark.parametrize("given, opened", [("device", "link"), ("link", "device")])
+def test_replay_as_one_name_of_the_device_reaches_a_program_opening_the_other(
+        python_client, device_and_link, tmp_path, given, opened):
+    names = dict(zip(("device", "link"), device_and_link))
+    _, session, received = record_with(python_client, tmp_path)
+    script = tmp_path / "by_path_client.py"
+    script.write_text(BY_PATH_CLIENT)
+    replayed = wiretape("replay", str(session), "--as", names[given], "-q", "--",
+                        sys.executable, str(script), names[opened])
+    assert replayed.returncode == 0, replayed.stderr
+    assert replayed.stdout == "read: " + received.upper().decode()
+    assert "never opened" not in replayed.stderr
+
+
+# --- Ctrl-C while CMD runs ----------------------------------------------------------------------
+
+HANGING_CLIENT = textwrap.dedent("""
+    import os
+    import signal
+    import sys
+
+    import serial
+
+    # Talks to the device once, says so (its pid in a file), then waits for
+    # a signal, as a driver that runs until it is stopped.
+    with serial.Serial("/dev/ttyUSB0", 115200, timeout=30) as port:
+        port.write(b"hello\\n")
+        print("read: " + port.readline().decode(), end="", flush=True)
+        with open(sys.argv[1] + ".tmp", "w") as pid_file:
+            pid_file.write(str(os.getpid()))
+        os.rename(sys.argv[1] + ".tmp", sys.argv[1])
+        while True:
+            signal.pause()
+""")
+
+
+def _alive(pid):
+    """False once `pid` is gone (or a zombie nobody reaped yet)."""
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            return stat.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def _interrupted(arguments, tmp_path, whom):
+    """Runs wiretape with the hanging client as CMD, Ctrl-C once the client
+    has talked to the device: to wiretape alone, or to its whole process
+    group as a terminal does. (exit status, stdout, stderr, CMD's pid)."""
+    script = tmp_path / "hanging.py"
+    script.write_text(HANGING_CLIENT)
+    pid_file = tmp_path / "cmd.pid"
+    child = subprocess.Popen([sys.executable, "-m", "wiretape.cli", *arguments, "--",
+                              sys.executable, str(script), str(pid_file)],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             start_new_session=True)
+    try:
+        wait_until(lambda: pid_file.exists() or child.poll() is not None, COMMAND_DEADLINE_S,
+                   "CMD to talk to the device")
+        assert pid_file.exists(), child.communicate(timeout=COMMAND_DEADLINE_S)
+        cmd_pid = int(pid_file.read_text())
+        if whom == "group":
+            os.killpg(child.pid, signal.SIGINT)
+        else:
+            child.send_signal(signal.SIGINT)
+        out, err = child.communicate(timeout=COMMAND_DEADLINE_S)
+    finally:
+        if child.poll() is None:
+            os.killpg(child.pid, signal.SIGKILL)
+            child.communicate()
+    wait_until(lambda: not _alive(cmd_pid), COMMAND_DEADLINE_S, "CMD to be gone")
+    # wiretape ended cleanly (CMD, Python too, may show its own KeyboardInterrupt).
+    assert "wiretape/" not in err, err
+    return child.returncode, out, err, cmd_pid
+
+
+def _assert_complete(session, tx, rx):
+    verified = wiretape("verify", str(session))
+    assert verified.returncode == 0, verified.stdout + verified.stderr
+    with _core.SessionReader(str(session)) as reader:
+        records = list(reader)
+        assert reader.damage is None, reader.damage
+    assert records[-1].kind == "close"
+    assert b"".join(r.data for r in records if r.kind == "tx") == tx
+    assert b"".join(r.data for r in records if r.kind == "rx") == rx
+
+
+@pytest.mark.parametrize("whom", ["wiretape", "group"])
+def test_ctrl_c_ends_record_and_its_command_and_the_recording_verifies(tmp_path, whom):
+    session = tmp_path / "run.wtape"
+    with TcpDevice() as device:
+        code, out, err, _ = _interrupted(["record", "--device", device.options, "--as",
+                                          HARD_CODED, "-o", str(session)], tmp_path, whom)
+    assert out == "read: HELLO\n", err
+    # Ended by Ctrl-C, CMD's status does not count: the recording's verdict.
+    assert code == 0, err
+    _assert_complete(session, b"hello\n", b"HELLO\n")
+
+
+@pytest.mark.parametrize("whom", ["wiretape", "group"])
+def test_ctrl_c_ends_replay_and_its_command(tmp_path, whom):
+    session = tmp_path / "run.wtape"
+    with TcpDevice() as device:
+        _interrupted(["record", "--device", device.options, "--as", HARD_CODED,
+                      "-o", str(session)], tmp_path, "wiretape")
+    (tmp_path / "cmd.pid").unlink()
+    copy = tmp_path / "replayed.wtape"
+    code, out, err, _ = _interrupted(["replay", str(session), "--as", HARD_CODED,
+                                      "-o", str(copy)], tmp_path, whom)
+    assert out == "read: HELLO\n", err
+    assert code == 0, err
+    assert "mismatch" not in err.lower(), err
+    _assert_complete(copy, b"hello\n", b"HELLO\n")

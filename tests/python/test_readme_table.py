@@ -24,8 +24,12 @@ SAMPLE_RESULTS = {
     "naive_player_drift_pct": 8.641,
     "record_throughput_ratio": 0.557,
     "record_latency_ratio": 1.014,
-    "serve_vs_socat_throughput_ratio": 1.224,
-    "serve_vs_socat_latency_ratio": 0.929,
+    "pty_proxy_vs_socat_cpu_ratio": 0.815,
+    "pty_proxy_vs_socat_latency_p99_ratio": 1.214,
+    "tcp_proxy_vs_socat_cpu_ratio": 0.932,
+    "udp_proxy_loss_pct": 0.0213,
+    "udp_socat_loss_pct": 0.0107,
+    "udp_proxy_vs_socat_delivered_ratio": 0.99989,
     "reserial_replay_s": 0.052,
     "wiretape_vs_reserial_time_ratio": 1.418,
 }
@@ -86,6 +90,15 @@ def test_the_table_is_made_from_the_results(run_dir):
     assert rows["recording 1 GiB, peak RSS"] == ["not measured", "bounded", ""]
     assert rows["10,000 exchanges through pyserial, wiretape / pytest-reserial"] == [
         "1.42", "", "reserial 0.052 s"]
+    # The recording proxies against socat: ratios whose target is ≤ 1, and the
+    # UDP proxy's losses against socat's.
+    assert rows["`wiretape record --pty` / socat, CPU per MB relayed"] == ["0.81", "≤ 1.0", ""]
+    assert rows["`wiretape record --pty` / socat, one-way latency p99"] == [
+        "1.21", "≤ 1.0 — **missed**", ""]
+    assert rows["`wiretape record --listen` / socat, one-way latency p99"] == [
+        "not measured", "≤ 1.0", ""]
+    assert rows["`wiretape record --udp` / socat, datagrams lost at 100,000/s of 1,200 B"] == [
+        "0.0213 / 0.0107 %", "≤ socat's — **missed**", "delivered ratio 0.9999"]
 
 
 def test_rewriting_is_idempotent_and_checkable(run_dir):
