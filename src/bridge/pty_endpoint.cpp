@@ -46,11 +46,12 @@ class PtyEndpoint final : public ClientEndpoint {
     pty_->set_timeout(std::chrono::nanoseconds(0));
     // The client's flushes show only in packet mode.
     set_packet_mode(*pty_);
-    const std::string path = pty_terminal_path(*pty_);
+    terminal_path_ = pty_terminal_path(*pty_);
     grant_access();
     // Best effort: without it, a pty client's coming and going goes unseen.
-    opens_and_closes_ = sys::UniqueFd(platform::watch_opens_and_closes(path));
-    status_.set(&Status::pty_path, path);
+    opens_and_closes_ = sys::UniqueFd(platform::watch_opens_and_closes(terminal_path_));
+    watching_reads_ = static_cast<bool>(opens_and_closes_);
+    status_.set(&Status::pty_path, terminal_path_);
     try {
       last_settings_ = pty_->serial_settings();
     } catch (const PortError&) {
@@ -144,7 +145,10 @@ class PtyEndpoint final : public ClientEndpoint {
     const std::size_t n = got - 1;
     if (n == 0) return;
     std::memmove(buffer.data(), buffer.data() + 1, n);
-    client_wrote_ = true;
+    if (!client_wrote_) {
+      client_wrote_ = true;
+      watch_reads_while_needed();
+    }
     retained_.clear();
     if (!device_.is_open()) {
       if (!dropped_input_logged_) {
@@ -190,6 +194,20 @@ class PtyEndpoint final : public ClientEndpoint {
     client_read_ = true;
     const std::size_t unread = terminal_unread(*pty_);
     if (unread < retained_.size()) retained_.erase(0, retained_.size() - unread);
+    watch_reads_while_needed();
+  }
+
+  // The client's reads matter until it has read once (the replay's verdict,
+  // served_device_data) and, on a virtual device, until it has written
+  // (retaining). After that, each of its reads would only wake the bridge
+  // for nothing, costing it a third of its CPU time on a busy terminal.
+  void watch_reads_while_needed() {
+    if (!opens_and_closes_) return;
+    const bool needed = !client_read_ || retaining();
+    if (needed == watching_reads_) return;
+    if (platform::watch_reads(opens_and_closes_.get(), terminal_path_, needed)) {
+      watching_reads_ = needed;
+    }
   }
 
   // The client flushed its input or output (seen in packet mode). Recorded
@@ -287,6 +305,7 @@ class PtyEndpoint final : public ClientEndpoint {
         had_client_ = true;
         client_wrote_ = false;
         retained_.clear();
+        watch_reads_while_needed();
         if (device_.client_connected("pty", "control")) {
           // A replay's new client session: what waits in the terminal was
           // meant for nobody, or for the previous client.
@@ -331,6 +350,8 @@ class PtyEndpoint final : public ClientEndpoint {
   // Opens and closes of the terminal by any process (invalid where the
   // system cannot tell).
   sys::UniqueFd opens_and_closes_;
+  std::string terminal_path_;
+  bool watching_reads_ = false;  // the watch reports the client's reads
   int openers_ = 0;
   bool had_client_ = false;
   bool dropped_input_logged_ = false;

@@ -3,6 +3,7 @@
 #include "posix/platform.hpp"
 
 #include <cerrno>
+#include <cstdint>
 #include <cstdlib>
 #include <mutex>
 
@@ -79,6 +80,12 @@ int watch_opens_and_closes(const std::string& path) {
   return fd;
 }
 
+bool watch_reads(int watch_fd, const std::string& path, bool reads) {
+  // The same inode's watch, given a new mask.
+  const std::uint32_t mask = IN_OPEN | IN_CLOSE | (reads ? IN_ACCESS : 0u);
+  return ::inotify_add_watch(watch_fd, path.c_str(), mask) >= 0;
+}
+
 std::vector<TerminalEvent> read_opens_and_closes(int watch_fd) {
   std::vector<TerminalEvent> events;
   alignas(inotify_event) char buffer[4096];
@@ -126,6 +133,8 @@ int watch_opens_and_closes(const std::string&) {
   errno = ENOTSUP;
   return -1;
 }
+
+bool watch_reads(int, const std::string&, bool) { return false; }
 
 std::vector<TerminalEvent> read_opens_and_closes(int) { return {}; }
 

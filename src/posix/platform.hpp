@@ -40,6 +40,10 @@ void precise_timers_for_this_thread();
 // polls readable when something happened, or -1 with errno set where the
 // system cannot do it.
 int watch_opens_and_closes(const std::string& path);
+// Whether the watch reports reads too: they cost a wake-up per read of the
+// client, so a caller that has learnt what it needed from them stops them.
+// Best effort: false where the system cannot change the watch.
+bool watch_reads(int watch_fd, const std::string& path, bool reads);
 enum class TerminalEvent { opened, read, closed };
 // What happened since the last call, in order. Empty when nothing did.
 std::vector<TerminalEvent> read_opens_and_closes(int watch_fd);
