@@ -96,6 +96,8 @@ ReplayConfig take_replay_config(Options& options) {
       {{"none", ReplayRepeat::none},
        {"last", ReplayRepeat::last},
        {"cycle", ReplayRepeat::cycle}});
+  const double gap_ms = options.take_double("gap", 50.0, 0.0, 1e9);
+  config.gap = std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(gap_ms * 1e6)));
   config.unused = pick<ReplayUnused>(
       options.take_choice("unused", "warn", {"ignore", "warn", "error"}),
       {{"warn", ReplayUnused::warn},

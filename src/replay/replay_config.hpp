@@ -25,6 +25,10 @@ struct ReplayConfig {
   ReplayMatch match = ReplayMatch::sequence;
   ReplayUnmatched unmatched = ReplayUnmatched::error;
   ReplayRepeat repeat = ReplayRepeat::none;
+  // match=request: how long the matcher waits, with no new byte, for a longer
+  // request recorded earlier before it takes a shorter one that is complete
+  // (DESIGN.md section 13).
+  std::chrono::nanoseconds gap = std::chrono::milliseconds(50);
   ReplayUnused unused = ReplayUnused::warn;
   ReplayAtEnd at_end = ReplayAtEnd::silent;
   // Datagram sessions (recorded from udp) keep record boundaries.

@@ -20,49 +20,94 @@ RequestStrategy::RequestStrategy(const ReplayConfig& config,
                                  const ReplayTimeline& timeline,
                                  ReleasedRx& released, MismatchReport& report,
                                  const RecordSourceFactory& sources)
-    : config_(config), timeline_(timeline), released_(released), report_(report) {
-  const std::unique_ptr<RecordSource> source = sources();
+    : config_(config),
+      timeline_(timeline),
+      released_(released),
+      report_(report),
+      sources_(sources) {
+  const std::unique_ptr<RecordSource> source = sources_();
   load_exchanges(*source);
+  index_requests();
 }
 
 void RequestStrategy::load_exchanges(RecordSource& source) {
   Record record;
+  PayloadView view;
   bool in_request = false;
+  std::string request;  // of the exchange being gathered
+  std::unordered_map<std::string_view, std::size_t> groups_seen;
+  const auto close_request = [&] {
+    const auto found = groups_seen.find(request);
+    std::size_t group = 0;
+    if (found != groups_seen.end()) {
+      group = found->second;
+    } else {
+      group = groups_.size();
+      groups_.emplace_back();
+      groups_.back().request = std::move(request);
+      groups_seen.emplace(groups_.back().request, group);
+    }
+    groups_[group].members.push_back(exchanges_.size() - 1);
+    exchanges_.back().group = group;
+    request.clear();
+    in_request = false;
+  };
   std::uint64_t tx_offset = 0;
+  std::uint64_t records_read = 0;
+  std::size_t kept_bytes = 0;
   bool device_gone = false;
-  while (!device_gone && source.next(record)) {
+  while (!device_gone && source.next(record, view)) {
+    const std::uint64_t ordinal = records_read++;
+    const std::string_view payload = view ? view.bytes : std::string_view(record.data);
     switch (record.kind) {
       case RecordKind::tx: {
-        if (record.data.empty()) break;
-        if (!in_request || config_.datagrams) {
+        if (payload.empty()) break;
+        if (in_request && config_.datagrams) close_request();
+        if (!in_request) {
           exchanges_.emplace_back();
           exchanges_.back().first_tx_t_ns = record.t_ns;
           exchanges_.back().tx_offset = tx_offset;
           in_request = true;
         }
-        Exchange& exchange = exchanges_.back();
-        exchange.request += record.data;
-        exchange.last_tx_t_ns = record.t_ns;
-        tx_offset += record.data.size();
+        request.append(payload);
+        exchanges_.back().last_tx_t_ns = record.t_ns;
+        tx_offset += payload.size();
         break;
       }
       case RecordKind::rx:
       case RecordKind::close:
       case RecordKind::device_lost: {
-        if (record.kind == RecordKind::rx && record.data.empty()) break;
+        if (record.kind == RecordKind::rx && payload.empty()) break;
         device_gone = record.kind != RecordKind::rx;
         if (record.kind == RecordKind::close && !session_goes_on(source)) break;
+        if (in_request) close_request();
         RxItem item;
         item.kind = record.kind;
         item.t_ns = record.t_ns;
-        item.data = std::move(record.data);
-        in_request = false;
         if (exchanges_.empty()) {
           // A greeting: released at open.
+          item.data.assign(payload);
           item.due = timeline_.due(item.t_ns, std::nullopt);
           released_.push(std::move(item));
-        } else {
-          exchanges_.back().responses.push_back(std::move(item));
+          break;
+        }
+        Exchange& exchange = exchanges_.back();
+        if (!exchange.has_response) exchange.first_record = ordinal;
+        exchange.has_response = true;
+        if (device_gone) {
+          exchange.end = std::move(item);
+          break;
+        }
+        exchange.end_record = ordinal + 1;
+        if (!exchange.in_session && kept_bytes + payload.size() > kKeptResponseBytes) {
+          exchange.in_session = true;
+          for (const RxItem& kept : exchange.kept) kept_bytes -= kept.data.size();
+          std::vector<RxItem>().swap(exchange.kept);
+        }
+        if (!exchange.in_session) {
+          item.data.assign(payload);
+          kept_bytes += payload.size();
+          exchange.kept.push_back(std::move(item));
         }
         break;
       }
@@ -70,74 +115,186 @@ void RequestStrategy::load_exchanges(RecordSource& source) {
         break;
     }
   }
-  for (std::size_t i = 0; i < exchanges_.size(); ++i) {
-    groups_[exchanges_[i].request].push_back(i);
+  if (in_request) close_request();
+}
+
+void RequestStrategy::index_requests() {
+  groups_by_request_.resize(groups_.size());
+  for (std::size_t i = 0; i < groups_.size(); ++i) {
+    groups_by_request_[i] = i;
+    group_of_.emplace(groups_[i].request, i);
+    request_lengths_.insert(groups_[i].request.size());
   }
+  std::sort(groups_by_request_.begin(), groups_by_request_.end(),
+            [&](std::size_t a, std::size_t b) {
+              return groups_[a].request < groups_[b].request;
+            });
+  for (const Exchange& exchange : exchanges_) {
+    if (exchange.has_response) ++with_response_;
+  }
+  unused_with_response_ = with_response_;
 }
 
 bool RequestStrategy::more_to_release() const {
-  for (const Exchange& exchange : exchanges_) {
-    if (exchange.responses.empty()) continue;
-    if (!exchange.used || config_.repeat != ReplayRepeat::none) return true;
+  if (waiting_for_longer_) return true;
+  return config_.repeat != ReplayRepeat::none ? with_response_ > 0
+                                              : unused_with_response_ > 0;
+}
+
+std::optional<ReplayTime> RequestStrategy::wake() const {
+  if (!waiting_for_longer_) return std::nullopt;
+  return last_write_ + config_.gap;
+}
+
+void RequestStrategy::release(ReplayTime now) {
+  if (waiting_for_longer_ && now >= last_write_ + config_.gap) {
+    match_pending(/*quiet=*/true, /*may_raise=*/false);
+  }
+}
+
+std::optional<RequestStrategy::Rank> RequestStrategy::rank(const Group& group) const {
+  if (group.next_unused < group.members.size()) {
+    return Rank{0, group.members[group.next_unused]};
+  }
+  if (config_.repeat != ReplayRepeat::none) return Rank{1, group.members.front()};
+  return std::nullopt;
+}
+
+std::optional<std::pair<std::size_t, RequestStrategy::Rank>>
+RequestStrategy::best_match() const {
+  std::optional<std::pair<std::size_t, Rank>> best;
+  const auto consider = [&](std::string_view request) {
+    const auto found = group_of_.find(request);
+    if (found == group_of_.end()) return;
+    const std::optional<Rank> ranked = rank(groups_[found->second]);
+    if (ranked && (!best || *ranked < best->second)) best.emplace(found->second, *ranked);
+  };
+  if (config_.datagrams) {
+    consider(pending_);
+    return best;
+  }
+  for (const std::size_t length : request_lengths_) {
+    if (length > pending_.size()) break;
+    consider(std::string_view(pending_).substr(0, length));
+  }
+  return best;
+}
+
+bool RequestStrategy::longer_request_pending(std::optional<Rank> before) const {
+  auto it = std::lower_bound(groups_by_request_.begin(), groups_by_request_.end(),
+                             pending_, [&](std::size_t group, const std::string& bytes) {
+                               return groups_[group].request < bytes;
+                             });
+  for (; it != groups_by_request_.end(); ++it) {
+    const Group& group = groups_[*it];
+    if (!starts_with(group.request, pending_)) break;
+    if (group.request.size() == pending_.size()) continue;
+    const std::optional<Rank> ranked = rank(group);
+    if (ranked && (!before || *ranked < *before)) return true;
   }
   return false;
 }
 
-void RequestStrategy::serve(std::size_t index, std::string_view request,
-                            ReplayTime now) {
+void RequestStrategy::push_response(const RxItem& response,
+                                    const ReplayTimeline::Anchor& matched) {
+  RxItem item = response;
+  item.due = timeline_.due(item.t_ns, matched);
+  released_.push(std::move(item));
+}
+
+void RequestStrategy::read_from_session(const Exchange& exchange,
+                                        const ReplayTimeline::Anchor& matched) {
+  if (!response_source_) response_source_ = sources_();
+  if (exchange.first_record < response_position_) {
+    response_source_->rewind();
+    response_position_ = 0;
+  }
+  Record record;
+  PayloadView view;
+  while (response_position_ < exchange.end_record &&
+         response_source_->next(record, view)) {
+    if (response_position_++ < exchange.first_record) continue;
+    if (record.kind != RecordKind::rx) continue;
+    RxItem item;
+    item.t_ns = record.t_ns;
+    if (view) {
+      item.view = std::move(view);
+    } else {
+      item.data = std::move(record.data);
+    }
+    if (item.payload().empty()) continue;
+    item.due = timeline_.due(item.t_ns, matched);
+    released_.push(std::move(item));
+  }
+}
+
+void RequestStrategy::serve(std::size_t group_index, std::string_view request) {
+  Group& group = groups_[group_index];
+  std::size_t index = 0;
+  if (group.next_unused < group.members.size()) {
+    index = group.members[group.next_unused++];
+  } else if (config_.repeat == ReplayRepeat::last) {
+    index = group.members.back();
+  } else {
+    index = group.members[group.next_cycle++ % group.members.size()];
+  }
   Exchange& exchange = exchanges_[index];
+  const ReplayTime now = last_write_;  // the client finished the request then
   if (config_.check == ReplayCheck::timing) {
     if (const auto miss = timeline_.check_write(exchange.last_tx_t_ns, last_match_time_,
                                                 last_match_t_ns_, now)) {
       report_.raise(miss->title, tx_written_,
-                    std::string_view(exchange.request).substr(0, kReplayContext),
+                    std::string_view(group.request).substr(0, kReplayContext),
                     request.substr(0, kReplayContext), last_match_t_ns_,
                     static_cast<std::int64_t>(exchanges_served_), miss->detail);
     }
   }
+  if (!exchange.used && exchange.has_response) --unused_with_response_;
   exchange.used = true;
   ++exchanges_served_;
   last_match_time_ = now;
   last_match_t_ns_ = exchange.last_tx_t_ns;
   // Causal timing counts each response from this match.
   const ReplayTimeline::Anchor matched{now, exchange.last_tx_t_ns};
-  for (const RxItem& response : exchange.responses) {
-    RxItem item = response;
-    item.due = timeline_.due(item.t_ns, matched);
-    released_.push(std::move(item));
+  if (exchange.in_session) {
+    read_from_session(exchange, matched);
+  } else {
+    for (const RxItem& response : exchange.kept) push_response(response, matched);
   }
+  if (exchange.end) push_response(*exchange.end, matched);
 }
 
-bool RequestStrategy::match_pending(ReplayTime now) {
-  const auto matches = [&](const std::string& request) {
-    return config_.datagrams ? pending_ == request : starts_with(pending_, request);
-  };
-  std::optional<std::size_t> chosen;
-  for (std::size_t i = 0; i < exchanges_.size() && !chosen; ++i) {
-    if (!exchanges_[i].used && matches(exchanges_[i].request)) chosen = i;
-  }
-  if (!chosen && config_.repeat != ReplayRepeat::none) {
-    // Every exchange with this request is used up: serve one again.
-    for (std::size_t i = 0; i < exchanges_.size() && !chosen; ++i) {
-      const std::string& request = exchanges_[i].request;
-      if (!matches(request)) continue;
-      const std::vector<std::size_t>& uses = groups_[request];
-      if (config_.repeat == ReplayRepeat::last) {
-        chosen = uses.back();
-      } else {
-        std::size_t& cursor = group_cursor_[request];
-        chosen = uses[cursor % uses.size()];
-        ++cursor;
+void RequestStrategy::match_pending(bool quiet, bool may_raise) {
+  waiting_for_longer_ = false;
+  // check=off replays as a device that ignores what it does not understand.
+  const bool silent = config_.unmatched == ReplayUnmatched::silent ||
+                      config_.check == ReplayCheck::off;
+  while (!pending_.empty()) {
+    if (const auto match = best_match()) {
+      // A longer request recorded earlier may be on its way in another
+      // write: wait for it, up to gap of quiet (DESIGN.md section 13).
+      if (!quiet && !config_.datagrams && longer_request_pending(match->second)) {
+        waiting_for_longer_ = true;
+        return;
       }
+      const std::size_t length = groups_[match->first].request.size();
+      const std::string_view matched = std::string_view(pending_).substr(0, length);
+      serve(match->first, matched);
+      report_.accepted(matched);
+      pending_.erase(0, length);
+      pending_offset_ += length;
+      continue;
     }
+    if (!config_.datagrams && longer_request_pending(std::nullopt)) return;
+    if (!silent) {
+      if (!may_raise) return;
+      raise_unmatched();
+    }
+    // A device that ignores the byte (a datagram: the whole datagram).
+    const std::size_t dropped = config_.datagrams ? pending_.size() : 1;
+    pending_.erase(0, dropped);
+    pending_offset_ += dropped;
   }
-  if (!chosen) return false;
-  const std::size_t length = exchanges_[*chosen].request.size();
-  serve(*chosen, std::string_view(pending_).substr(0, length), now);
-  report_.accepted(std::string_view(pending_).substr(0, length));
-  pending_.erase(0, length);
-  pending_offset_ += length;
-  return true;
 }
 
 void RequestStrategy::raise_unmatched() {
@@ -145,27 +302,32 @@ void RequestStrategy::raise_unmatched() {
   std::vector<std::pair<std::size_t, std::size_t>> ranked;  // (prefix, index)
   for (std::size_t i = 0; i < exchanges_.size(); ++i) {
     if (exchanges_[i].used && config_.repeat == ReplayRepeat::none) continue;
-    ranked.emplace_back(common_prefix(pending_, exchanges_[i].request), i);
+    ranked.emplace_back(common_prefix(pending_, groups_[exchanges_[i].group].request), i);
   }
-  std::stable_sort(ranked.begin(), ranked.end(),
-                   [](const auto& a, const auto& b) { return a.first > b.first; });
+  const std::size_t shown = std::min<std::size_t>(ranked.size(), 3);
+  std::partial_sort(ranked.begin(), ranked.begin() + static_cast<std::ptrdiff_t>(shown),
+                    ranked.end(), [](const auto& a, const auto& b) {
+                      return a.first != b.first ? a.first > b.first : a.second < b.second;
+                    });
+  const auto request_of = [&](std::size_t exchange) -> std::string_view {
+    return groups_[exchanges_[exchange].group].request;
+  };
   std::ostringstream extra;
   if (ranked.empty()) {
     extra << "  no unused request is left in the recording\n";
   } else {
     extra << "  closest unused requests:\n";
-    for (std::size_t k = 0; k < ranked.size() && k < 3; ++k) {
+    for (std::size_t k = 0; k < shown; ++k) {
       const Exchange& exchange = exchanges_[ranked[k].second];
       extra << "    exchange " << ranked[k].second << " (session time "
             << session_seconds(exchange.first_tx_t_ns) << " s): "
-            << hex_ascii(std::string_view(exchange.request).substr(0, kReplayContext))
+            << hex_ascii(request_of(ranked[k].second).substr(0, kReplayContext))
             << "\n";
     }
   }
   const std::size_t same = ranked.empty() ? 0 : ranked.front().first;
   const std::string_view expected =
-      ranked.empty() ? std::string_view()
-                     : std::string_view(exchanges_[ranked.front().second].request);
+      ranked.empty() ? std::string_view() : request_of(ranked.front().second);
   const std::string actual = pending_;
   const std::uint64_t offset = pending_offset_ + same;
   const std::uint64_t t_ns =
@@ -183,38 +345,17 @@ void RequestStrategy::raise_unmatched() {
 }
 
 void RequestStrategy::write(const char* data, std::size_t size, ReplayTime now) {
-  // check=off replays as a device that ignores what it does not understand.
-  const bool silent = config_.unmatched == ReplayUnmatched::silent ||
-                      config_.check == ReplayCheck::off;
+  release(now);  // a wait that ended before this write ended without it
   if (config_.datagrams) {
-    pending_.assign(data, size);
+    // A datagram is one request; what was left of the last one is gone.
     pending_offset_ = tx_written_;
-    tx_written_ += size;
-    if (match_pending(now)) return;
-    if (silent) {
-      pending_.clear();
-      return;
-    }
-    raise_unmatched();
+    pending_.assign(data, size);
+  } else {
+    pending_.append(data, size);
   }
-  pending_.append(data, size);
   tx_written_ += size;
-  while (!pending_.empty()) {
-    if (match_pending(now)) continue;
-    bool could_complete = false;
-    for (const Exchange& exchange : exchanges_) {
-      if (exchange.used && config_.repeat == ReplayRepeat::none) continue;
-      if (exchange.request.size() > pending_.size() &&
-          starts_with(exchange.request, pending_)) {
-        could_complete = true;
-        break;
-      }
-    }
-    if (could_complete) break;
-    if (!silent) raise_unmatched();
-    pending_.erase(0, 1);  // a device that ignores the byte
-    ++pending_offset_;
-  }
+  last_write_ = now;
+  match_pending(/*quiet=*/config_.gap.count() <= 0, /*may_raise=*/true);
 }
 
 std::string RequestStrategy::unused_report(std::uint64_t queued_rx_bytes,
@@ -225,7 +366,8 @@ std::string RequestStrategy::unused_report(std::uint64_t queued_rx_bytes,
     if (exchanges_[i].used) continue;
     if (unused < 3) {
       first << "\n  exchange " << i << ": "
-            << hex_ascii(std::string_view(exchanges_[i].request).substr(0, kReplayContext));
+            << hex_ascii(std::string_view(groups_[exchanges_[i].group].request)
+                             .substr(0, kReplayContext));
     }
     ++unused;
   }

@@ -23,7 +23,7 @@ SequenceStrategy::SequenceStrategy(const ReplayConfig& config,
 
 // --- the read cursor -----------------------------------------------------------
 
-void SequenceStrategy::release() {
+void SequenceStrategy::release(ReplayTime) {
   const bool nothing_ahead = released_.empty() && ahead_.empty();
   if (nothing_ahead || released_.bytes() + ahead_bytes_ < kLookaheadBytes / 2) {
     fill();

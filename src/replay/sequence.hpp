@@ -23,7 +23,7 @@ class SequenceStrategy final : public ReplayStrategy {
                    ReleasedRx& released, MismatchReport& report,
                    const RecordSourceFactory& sources);
 
-  void release() override;
+  void release(ReplayTime now) override;
   bool more_to_release() const override;
   void client_flushed() override;
   void write(const char* data, std::size_t size, ReplayTime now) override;
