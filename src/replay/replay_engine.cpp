@@ -35,8 +35,7 @@ ReplayEngine::ReplayEngine(ReplayConfig config, RecordSourceFactory sources,
                            ReplayTime open_time, std::uint64_t origin_ns)
     : config_(std::move(config)),
       timeline_(config_, open_time, origin_ns),
-      // Only the sequence strategy reads records into reused buffers.
-      released_(config_.match == ReplayMatch::sequence),
+      released_(/*recycle_payloads=*/true),
       report_(config_.file, config_.match),
       strategy_(make_strategy(config_, timeline_, released_, report_, sources)) {}
 

@@ -30,31 +30,71 @@ RequestStrategy::RequestStrategy(const ReplayConfig& config,
   index_requests();
 }
 
+std::uint32_t RequestStrategy::find_group(std::string_view request,
+                                          std::size_t hash) const {
+  if (slots_.empty()) return kNone;
+  const std::size_t mask = slots_.size() - 1;
+  for (std::size_t slot = hash & mask;; slot = (slot + 1) & mask) {
+    const std::uint32_t entry = slots_[slot];
+    if (entry == 0) return kNone;
+    const Group& group = groups_[entry - 1];
+    if (group.hash == hash && request_of(group) == request) return entry - 1;
+  }
+}
+
+std::uint32_t RequestStrategy::group_for(std::string_view request) {
+  const std::size_t hash = std::hash<std::string_view>()(request);
+  const std::uint32_t found = find_group(request, hash);
+  if (found != kNone) return found;
+  if (slots_.empty()) slots_.assign(1024, 0);
+  const std::size_t mask = slots_.size() - 1;
+  Group group;
+  group.offset = request_bytes_.size();
+  group.size = static_cast<std::uint32_t>(request.size());
+  group.hash = hash;
+  request_bytes_.append(request);
+  groups_.push_back(group);
+  if (groups_.size() * 2 > slots_.size()) {
+    grow_slots();
+  } else {
+    std::size_t slot = hash & mask;
+    while (slots_[slot] != 0) slot = (slot + 1) & mask;
+    slots_[slot] = static_cast<std::uint32_t>(groups_.size());
+  }
+  return static_cast<std::uint32_t>(groups_.size() - 1);
+}
+
+void RequestStrategy::grow_slots() {
+  slots_.assign(slots_.size() * 2, 0);
+  const std::size_t mask = slots_.size() - 1;
+  for (std::size_t i = 0; i < groups_.size(); ++i) {
+    std::size_t slot = groups_[i].hash & mask;
+    while (slots_[slot] != 0) slot = (slot + 1) & mask;
+    slots_[slot] = static_cast<std::uint32_t>(i + 1);
+  }
+}
+
 void RequestStrategy::load_exchanges(RecordSource& source) {
   Record record;
   PayloadView view;
   bool in_request = false;
   std::string request;  // of the exchange being gathered
-  std::unordered_map<std::string_view, std::size_t> groups_seen;
   const auto close_request = [&] {
-    const auto found = groups_seen.find(request);
-    std::size_t group = 0;
-    if (found != groups_seen.end()) {
-      group = found->second;
+    const std::uint32_t index = group_for(request);
+    Group& group = groups_[index];
+    const auto exchange = static_cast<std::uint32_t>(exchanges_.size() - 1);
+    if (group.first == kNone) {
+      group.first = group.next_unused = group.next_cycle = exchange;
     } else {
-      group = groups_.size();
-      groups_.emplace_back();
-      groups_.back().request = std::move(request);
-      groups_seen.emplace(groups_.back().request, group);
+      exchanges_[group.last].next_in_group = exchange;
     }
-    groups_[group].members.push_back(exchanges_.size() - 1);
-    exchanges_.back().group = group;
+    group.last = exchange;
+    exchanges_.back().group = index;
     request.clear();
     in_request = false;
   };
   std::uint64_t tx_offset = 0;
   std::uint64_t records_read = 0;
-  std::size_t kept_bytes = 0;
   bool device_gone = false;
   while (!device_gone && source.next(record, view)) {
     const std::uint64_t ordinal = records_read++;
@@ -92,22 +132,32 @@ void RequestStrategy::load_exchanges(RecordSource& source) {
           break;
         }
         Exchange& exchange = exchanges_.back();
-        if (!exchange.has_response) exchange.first_record = ordinal;
+        if (!exchange.has_response) {
+          exchange.first_record = ordinal;
+          exchange.kept_first = exchange.kept_end = static_cast<std::uint32_t>(kept_.size());
+        }
         exchange.has_response = true;
         if (device_gone) {
-          exchange.end = std::move(item);
+          end_ = std::move(item);
+          end_exchange_ = exchanges_.size() - 1;
           break;
         }
         exchange.end_record = ordinal + 1;
-        if (!exchange.in_session && kept_bytes + payload.size() > kKeptResponseBytes) {
+        if (!exchange.in_session && kept_bytes_.size() + payload.size() > kKeptResponseBytes) {
+          // From here on read from the session: its kept records are the
+          // last ones.
           exchange.in_session = true;
-          for (const RxItem& kept : exchange.kept) kept_bytes -= kept.data.size();
-          std::vector<RxItem>().swap(exchange.kept);
+          if (exchange.kept_first < kept_.size()) {
+            kept_bytes_.resize(kept_[exchange.kept_first].offset);
+            kept_.resize(exchange.kept_first);
+          }
+          exchange.kept_end = exchange.kept_first;
         }
         if (!exchange.in_session) {
-          item.data.assign(payload);
-          kept_bytes += payload.size();
-          exchange.kept.push_back(std::move(item));
+          kept_.push_back({kept_bytes_.size(), static_cast<std::uint32_t>(payload.size()),
+                           record.t_ns});
+          kept_bytes_.append(payload);
+          exchange.kept_end = static_cast<std::uint32_t>(kept_.size());
         }
         break;
       }
@@ -121,14 +171,23 @@ void RequestStrategy::load_exchanges(RecordSource& source) {
 void RequestStrategy::index_requests() {
   groups_by_request_.resize(groups_.size());
   for (std::size_t i = 0; i < groups_.size(); ++i) {
-    groups_by_request_[i] = i;
-    group_of_.emplace(groups_[i].request, i);
-    request_lengths_.insert(groups_[i].request.size());
+    groups_by_request_[i] = static_cast<std::uint32_t>(i);
+    request_lengths_.push_back(groups_[i].size);
   }
+  std::sort(request_lengths_.begin(), request_lengths_.end());
+  request_lengths_.erase(std::unique(request_lengths_.begin(), request_lengths_.end()),
+                         request_lengths_.end());
   std::sort(groups_by_request_.begin(), groups_by_request_.end(),
-            [&](std::size_t a, std::size_t b) {
-              return groups_[a].request < groups_[b].request;
+            [&](std::uint32_t a, std::uint32_t b) {
+              return request_of(groups_[a]) < request_of(groups_[b]);
             });
+  // Every request that begins with another comes right after it in this
+  // order (or after requests that begin with it too).
+  for (std::size_t i = 0; i + 1 < groups_by_request_.size(); ++i) {
+    Group& group = groups_[groups_by_request_[i]];
+    group.extended = starts_with(request_of(groups_[groups_by_request_[i + 1]]),
+                                 request_of(group));
+  }
   for (const Exchange& exchange : exchanges_) {
     if (exchange.has_response) ++with_response_;
   }
@@ -153,21 +212,20 @@ void RequestStrategy::release(ReplayTime now) {
 }
 
 std::optional<RequestStrategy::Rank> RequestStrategy::rank(const Group& group) const {
-  if (group.next_unused < group.members.size()) {
-    return Rank{0, group.members[group.next_unused]};
-  }
-  if (config_.repeat != ReplayRepeat::none) return Rank{1, group.members.front()};
+  if (group.next_unused != kNone) return Rank{0, group.next_unused};
+  if (config_.repeat != ReplayRepeat::none) return Rank{1, group.first};
   return std::nullopt;
 }
 
-std::optional<std::pair<std::size_t, RequestStrategy::Rank>>
+std::optional<std::pair<std::uint32_t, RequestStrategy::Rank>>
 RequestStrategy::best_match() const {
-  std::optional<std::pair<std::size_t, Rank>> best;
+  std::optional<std::pair<std::uint32_t, Rank>> best;
   const auto consider = [&](std::string_view request) {
-    const auto found = group_of_.find(request);
-    if (found == group_of_.end()) return;
-    const std::optional<Rank> ranked = rank(groups_[found->second]);
-    if (ranked && (!best || *ranked < best->second)) best.emplace(found->second, *ranked);
+    const std::uint32_t index =
+        find_group(request, std::hash<std::string_view>()(request));
+    if (index == kNone) return;
+    const std::optional<Rank> ranked = rank(groups_[index]);
+    if (ranked && (!best || *ranked < best->second)) best.emplace(index, *ranked);
   };
   if (config_.datagrams) {
     consider(pending_);
@@ -182,13 +240,13 @@ RequestStrategy::best_match() const {
 
 bool RequestStrategy::longer_request_pending(std::optional<Rank> before) const {
   auto it = std::lower_bound(groups_by_request_.begin(), groups_by_request_.end(),
-                             pending_, [&](std::size_t group, const std::string& bytes) {
-                               return groups_[group].request < bytes;
+                             pending_, [&](std::uint32_t group, const std::string& bytes) {
+                               return request_of(groups_[group]) < bytes;
                              });
   for (; it != groups_by_request_.end(); ++it) {
     const Group& group = groups_[*it];
-    if (!starts_with(group.request, pending_)) break;
-    if (group.request.size() == pending_.size()) continue;
+    if (!starts_with(request_of(group), pending_)) break;
+    if (group.size == pending_.size()) continue;
     const std::optional<Rank> ranked = rank(group);
     if (ranked && (!before || *ranked < *before)) return true;
   }
@@ -228,23 +286,26 @@ void RequestStrategy::read_from_session(const Exchange& exchange,
   }
 }
 
-void RequestStrategy::serve(std::size_t group_index, std::string_view request) {
+void RequestStrategy::serve(std::uint32_t group_index, std::string_view request) {
   Group& group = groups_[group_index];
-  std::size_t index = 0;
-  if (group.next_unused < group.members.size()) {
-    index = group.members[group.next_unused++];
+  std::uint32_t index = 0;
+  if (group.next_unused != kNone) {
+    index = group.next_unused;
+    group.next_unused = exchanges_[index].next_in_group;
   } else if (config_.repeat == ReplayRepeat::last) {
-    index = group.members.back();
+    index = group.last;
   } else {
-    index = group.members[group.next_cycle++ % group.members.size()];
+    index = group.next_cycle;
+    group.next_cycle = exchanges_[index].next_in_group != kNone
+                           ? exchanges_[index].next_in_group
+                           : group.first;
   }
   Exchange& exchange = exchanges_[index];
   const ReplayTime now = last_write_;  // the client finished the request then
   if (config_.check == ReplayCheck::timing) {
     if (const auto miss = timeline_.check_write(exchange.last_tx_t_ns, last_match_time_,
                                                 last_match_t_ns_, now)) {
-      report_.raise(miss->title, tx_written_,
-                    std::string_view(group.request).substr(0, kReplayContext),
+      report_.raise(miss->title, tx_written_, request_of(group).substr(0, kReplayContext),
                     request.substr(0, kReplayContext), last_match_t_ns_,
                     static_cast<std::int64_t>(exchanges_served_), miss->detail);
     }
@@ -259,9 +320,17 @@ void RequestStrategy::serve(std::size_t group_index, std::string_view request) {
   if (exchange.in_session) {
     read_from_session(exchange, matched);
   } else {
-    for (const RxItem& response : exchange.kept) push_response(response, matched);
+    for (std::uint32_t k = exchange.kept_first; k < exchange.kept_end; ++k) {
+      const KeptRx& kept = kept_[k];
+      RxItem item;
+      item.t_ns = kept.t_ns;
+      item.data = released_.spare_payload();
+      item.data.assign(kept_bytes_, kept.offset, kept.size);
+      item.due = timeline_.due(item.t_ns, matched);
+      released_.push(std::move(item));
+    }
   }
-  if (exchange.end) push_response(*exchange.end, matched);
+  if (end_ && end_exchange_ == index) push_response(*end_, matched);
 }
 
 void RequestStrategy::match_pending(bool quiet, bool may_raise) {
@@ -273,11 +342,12 @@ void RequestStrategy::match_pending(bool quiet, bool may_raise) {
     if (const auto match = best_match()) {
       // A longer request recorded earlier may be on its way in another
       // write: wait for it, up to gap of quiet (DESIGN.md section 13).
-      if (!quiet && !config_.datagrams && longer_request_pending(match->second)) {
+      if (!quiet && !config_.datagrams && groups_[match->first].extended &&
+          longer_request_pending(match->second)) {
         waiting_for_longer_ = true;
         return;
       }
-      const std::size_t length = groups_[match->first].request.size();
+      const std::size_t length = groups_[match->first].size;
       const std::string_view matched = std::string_view(pending_).substr(0, length);
       serve(match->first, matched);
       report_.accepted(matched);
@@ -302,16 +372,13 @@ void RequestStrategy::raise_unmatched() {
   std::vector<std::pair<std::size_t, std::size_t>> ranked;  // (prefix, index)
   for (std::size_t i = 0; i < exchanges_.size(); ++i) {
     if (exchanges_[i].used && config_.repeat == ReplayRepeat::none) continue;
-    ranked.emplace_back(common_prefix(pending_, groups_[exchanges_[i].group].request), i);
+    ranked.emplace_back(common_prefix(pending_, request_of_exchange(i)), i);
   }
   const std::size_t shown = std::min<std::size_t>(ranked.size(), 3);
   std::partial_sort(ranked.begin(), ranked.begin() + static_cast<std::ptrdiff_t>(shown),
                     ranked.end(), [](const auto& a, const auto& b) {
                       return a.first != b.first ? a.first > b.first : a.second < b.second;
                     });
-  const auto request_of = [&](std::size_t exchange) -> std::string_view {
-    return groups_[exchanges_[exchange].group].request;
-  };
   std::ostringstream extra;
   if (ranked.empty()) {
     extra << "  no unused request is left in the recording\n";
@@ -321,13 +388,13 @@ void RequestStrategy::raise_unmatched() {
       const Exchange& exchange = exchanges_[ranked[k].second];
       extra << "    exchange " << ranked[k].second << " (session time "
             << session_seconds(exchange.first_tx_t_ns) << " s): "
-            << hex_ascii(request_of(ranked[k].second).substr(0, kReplayContext))
+            << hex_ascii(request_of_exchange(ranked[k].second).substr(0, kReplayContext))
             << "\n";
     }
   }
   const std::size_t same = ranked.empty() ? 0 : ranked.front().first;
   const std::string_view expected =
-      ranked.empty() ? std::string_view() : request_of(ranked.front().second);
+      ranked.empty() ? std::string_view() : request_of_exchange(ranked.front().second);
   const std::string actual = pending_;
   const std::uint64_t offset = pending_offset_ + same;
   const std::uint64_t t_ns =
@@ -366,8 +433,7 @@ std::string RequestStrategy::unused_report(std::uint64_t queued_rx_bytes,
     if (exchanges_[i].used) continue;
     if (unused < 3) {
       first << "\n  exchange " << i << ": "
-            << hex_ascii(std::string_view(groups_[exchanges_[i].group].request)
-                             .substr(0, kReplayContext));
+            << hex_ascii(request_of_exchange(i).substr(0, kReplayContext));
     }
     ++unused;
   }

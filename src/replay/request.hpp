@@ -13,14 +13,11 @@
 #pragma once
 
 #include <cstdint>
-#include <deque>
 #include <map>
 #include <memory>
 #include <optional>
-#include <set>
 #include <string>
 #include <string_view>
-#include <unordered_map>
 #include <vector>
 
 #include "replay/strategy.hpp"
@@ -48,30 +45,42 @@ class RequestStrategy final : public ReplayStrategy {
                             std::uint64_t queued_rx_records) override;
 
  private:
+  static constexpr std::uint32_t kNone = UINT32_MAX;
   struct Exchange {
-    std::size_t group = 0;  // its request
+    std::uint32_t group = 0;               // its request
+    std::uint32_t next_in_group = kNone;   // the group's next exchange
     std::uint64_t first_tx_t_ns = 0;
     std::uint64_t last_tx_t_ns = 0;
     std::uint64_t tx_offset = 0;
-    // Its rx records are either kept here or, once the kept bytes reached
-    // kKeptResponseBytes, read from the session: records [first_record,
-    // end_record) of the source (counted from its first record).
-    std::vector<RxItem> kept;
-    bool in_session = false;
+    // Its rx records are either kept (kept_[kept_first, kept_end)) or, once
+    // the kept bytes reached kKeptResponseBytes, read from the session:
+    // records [first_record, end_record) of the source (counted from its
+    // first record).
     std::uint64_t first_record = 0;
     std::uint64_t end_record = 0;
-    // A recorded close or device loss that ends the session after it.
-    std::optional<RxItem> end;
+    std::uint32_t kept_first = 0;
+    std::uint32_t kept_end = 0;
+    bool in_session = false;
     bool has_response = false;
     bool used = false;
   };
-  // The exchanges with one request, in recorded order; they are used in
-  // that order, so the unused ones are those from next_unused on.
+  // The exchanges with one request, linked in recorded order; they are used
+  // in that order, so the unused ones are those from next_unused on.
   struct Group {
-    std::string request;
-    std::vector<std::size_t> members;
-    std::size_t next_unused = 0;
-    std::size_t next_cycle = 0;  // repeat=cycle
+    std::uint64_t offset = 0;  // of its request in request_bytes_
+    std::uint32_t size = 0;
+    std::uint32_t first = kNone;
+    std::uint32_t last = kNone;
+    std::uint32_t next_unused = kNone;
+    std::uint32_t next_cycle = kNone;  // repeat=cycle
+    // Some longer request begins with this one (a wait may be needed).
+    bool extended = false;
+    std::size_t hash = 0;
+  };
+  struct KeptRx {
+    std::uint64_t offset = 0;  // in kept_bytes_
+    std::uint32_t size = 0;
+    std::uint64_t t_ns = 0;
   };
   // Which exchange a group would serve now, and how early it comes in the
   // matching order: unused exchanges in recorded order first, then (with
@@ -84,12 +93,23 @@ class RequestStrategy final : public ReplayStrategy {
     }
   };
 
+  std::string_view request_of(const Group& group) const {
+    return std::string_view(request_bytes_).substr(group.offset, group.size);
+  }
+  std::string_view request_of_exchange(std::size_t exchange) const {
+    return request_of(groups_[exchanges_[exchange].group]);
+  }
+  // The group whose request is `request` (of that hash), or kNone.
+  std::uint32_t find_group(std::string_view request, std::size_t hash) const;
+  // find_group(), creating the group if there is none.
+  std::uint32_t group_for(std::string_view request);
+  void grow_slots();
   void load_exchanges(RecordSource& source);
   void index_requests();
   std::optional<Rank> rank(const Group& group) const;
   // The best group whose request the pending bytes begin with (datagrams:
   // equal).
-  std::optional<std::pair<std::size_t, Rank>> best_match() const;
+  std::optional<std::pair<std::uint32_t, Rank>> best_match() const;
   // Whether an available request ranked before `before` (any, if nullopt)
   // begins with all the pending bytes and is longer.
   bool longer_request_pending(std::optional<Rank> before) const;
@@ -100,7 +120,7 @@ class RequestStrategy final : public ReplayStrategy {
   void match_pending(bool quiet, bool may_raise);
   // Releases the exchange's response for `request`, the client's bytes that
   // matched it.
-  void serve(std::size_t group, std::string_view request);
+  void serve(std::uint32_t group, std::string_view request);
   void push_response(const RxItem& item, const ReplayTimeline::Anchor& matched);
   void read_from_session(const Exchange& exchange,
                          const ReplayTimeline::Anchor& matched);
@@ -113,10 +133,18 @@ class RequestStrategy final : public ReplayStrategy {
   const RecordSourceFactory sources_;  // a copy: the engine's is gone after construction
 
   std::vector<Exchange> exchanges_;
-  std::deque<Group> groups_;  // a deque: group_of_ views their requests
-  std::unordered_map<std::string_view, std::size_t> group_of_;
-  std::vector<std::size_t> groups_by_request_;  // sorted by request bytes
-  std::set<std::size_t> request_lengths_;
+  std::vector<Group> groups_;
+  std::string request_bytes_;  // every distinct request, end to end
+  // An open-addressing hash table of the groups: index + 1, 0 when free.
+  std::vector<std::uint32_t> slots_;
+  std::vector<std::uint32_t> groups_by_request_;  // sorted by request bytes
+  std::vector<std::size_t> request_lengths_;      // distinct, ascending
+  std::string kept_bytes_;
+  std::vector<KeptRx> kept_;
+  // A recorded close or device loss, which ends the session after this
+  // exchange.
+  std::optional<RxItem> end_;
+  std::size_t end_exchange_ = 0;
   std::size_t unused_with_response_ = 0;
   std::size_t with_response_ = 0;
 
