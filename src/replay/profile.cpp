@@ -1,5 +1,7 @@
 #include "replay/profile.hpp"
 
+#include <mutex>
+#include <stdexcept>
 #include <utility>
 
 #include "replay/profiles/builtin.hpp"
@@ -20,34 +22,94 @@ constexpr RegistryEntry registry[] = {
     {"lines", &make_default_lines_profile},
 };
 
-std::string known_names() {
-  std::string out;
-  for (const RegistryEntry& entry : registry) {
-    if (!out.empty()) out += ", ";
-    out += entry.name;
-  }
-  return out;
-}
-
 }  // namespace
 
 std::string_view to_string(StreamDirection direction) {
   return direction == StreamDirection::tx ? "tx" : "rx";
 }
 
+}  // namespace wiretape::detail
+
+namespace wiretape {
+
+namespace {
+
+struct Registered {
+  std::string name;
+  ProfileFactory make;
+};
+
+std::mutex& registered_mutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+
+std::vector<Registered>& registered() {
+  static std::vector<Registered> profiles;
+  return profiles;
+}
+
+bool is_builtin(std::string_view name) {
+  for (const detail::RegistryEntry& entry : detail::registry) {
+    if (entry.name == name) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+void register_profile(const std::string& name, ProfileFactory make) {
+  if (name.empty()) throw std::invalid_argument("register_profile: the name is empty");
+  if (is_builtin(name)) {
+    throw std::invalid_argument("register_profile: '" + name +
+                                "' is a built-in profile; choose another name");
+  }
+  if (!make) throw std::invalid_argument("register_profile: no factory for '" + name + "'");
+  std::lock_guard<std::mutex> lock(registered_mutex());
+  for (Registered& entry : registered()) {
+    if (entry.name == name) {
+      entry.make = std::move(make);
+      return;
+    }
+  }
+  registered().push_back({name, std::move(make)});
+}
+
 std::vector<std::string> profile_names() {
   std::vector<std::string> names;
-  for (const RegistryEntry& entry : registry) names.emplace_back(entry.name);
+  for (const detail::RegistryEntry& entry : detail::registry) names.emplace_back(entry.name);
+  std::lock_guard<std::mutex> lock(registered_mutex());
+  for (const Registered& entry : registered()) names.push_back(entry.name);
   return names;
 }
 
 std::shared_ptr<const Profile> find_profile(std::string_view name) {
-  for (const RegistryEntry& entry : registry) {
+  for (const detail::RegistryEntry& entry : detail::registry) {
     if (entry.name == name) return entry.make();
   }
-  throw OptionError("profile", "unknown profile '" + std::string(name) +
-                                   "': the profiles are " + known_names());
+  ProfileFactory make;
+  {
+    std::lock_guard<std::mutex> lock(registered_mutex());
+    for (const Registered& entry : registered()) {
+      if (entry.name == name) make = entry.make;
+    }
+  }
+  if (make) {
+    std::shared_ptr<const Profile> profile = make();
+    if (profile) return profile;
+  }
+  std::string known;
+  for (const std::string& each : profile_names()) {
+    if (!known.empty()) known += ", ";
+    known += each;
+  }
+  throw OptionError("profile", "option 'profile': unknown profile '" + std::string(name) +
+                                   "': the profiles are " + known);
 }
+
+}  // namespace wiretape
+
+namespace wiretape::detail {
 
 // --- SessionDecoder -----------------------------------------------------------
 

@@ -98,6 +98,10 @@ ReplayConfig take_replay_config(Options& options) {
        {"cycle", ReplayRepeat::cycle}});
   const double gap_ms = options.take_double("gap", 50.0, 0.0, 1e9);
   config.gap = std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(gap_ms * 1e6)));
+  if (const auto name = options.peek("profile")) {
+    config.profile = find_profile(std::string(*name));
+  }
+  options.take_string("profile", "");
   config.unused = pick<ReplayUnused>(
       options.take_choice("unused", "warn", {"ignore", "warn", "error"}),
       {{"warn", ReplayUnused::warn},

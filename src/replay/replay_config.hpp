@@ -2,9 +2,11 @@
 #pragma once
 
 #include <chrono>
+#include <memory>
 #include <string>
 
 #include "wiretape/options.hpp"
+#include "wiretape/profile.hpp"
 
 namespace wiretape::detail {
 
@@ -31,6 +33,9 @@ struct ReplayConfig {
   std::chrono::nanoseconds gap = std::chrono::milliseconds(50);
   ReplayUnused unused = ReplayUnused::warn;
   ReplayAtEnd at_end = ReplayAtEnd::silent;
+  // profile=NAME: exchanges are request frames matched by their keys, and
+  // served responses are fixed (DESIGN.md section 13); none: raw bytes.
+  std::shared_ptr<const Profile> profile;
   // Datagram sessions (recorded from udp) keep record boundaries.
   bool datagrams = false;
 };

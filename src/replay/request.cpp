@@ -26,7 +26,12 @@ RequestStrategy::RequestStrategy(const ReplayConfig& config,
       report_(report),
       sources_(sources) {
   const std::unique_ptr<RecordSource> source = sources_();
-  load_exchanges(*source);
+  if (config_.profile) {
+    client_framer_ = config_.profile->make_framer(StreamDirection::tx);
+    load_frames(*source);
+  } else {
+    load_exchanges(*source);
+  }
   index_requests();
 }
 
@@ -121,44 +126,7 @@ void RequestStrategy::load_exchanges(RecordSource& source) {
         device_gone = record.kind != RecordKind::rx;
         if (record.kind == RecordKind::close && !session_goes_on(source)) break;
         if (in_request) close_request();
-        RxItem item;
-        item.kind = record.kind;
-        item.t_ns = record.t_ns;
-        if (exchanges_.empty()) {
-          // A greeting: released at open.
-          item.data.assign(payload);
-          item.due = timeline_.due(item.t_ns, std::nullopt);
-          released_.push(std::move(item));
-          break;
-        }
-        Exchange& exchange = exchanges_.back();
-        if (!exchange.has_response) {
-          exchange.first_record = ordinal;
-          exchange.kept_first = exchange.kept_end = static_cast<std::uint32_t>(kept_.size());
-        }
-        exchange.has_response = true;
-        if (device_gone) {
-          end_ = std::move(item);
-          end_exchange_ = exchanges_.size() - 1;
-          break;
-        }
-        exchange.end_record = ordinal + 1;
-        if (!exchange.in_session && kept_bytes_.size() + payload.size() > kKeptResponseBytes) {
-          // From here on read from the session: its kept records are the
-          // last ones.
-          exchange.in_session = true;
-          if (exchange.kept_first < kept_.size()) {
-            kept_bytes_.resize(kept_[exchange.kept_first].offset);
-            kept_.resize(exchange.kept_first);
-          }
-          exchange.kept_end = exchange.kept_first;
-        }
-        if (!exchange.in_session) {
-          kept_.push_back({kept_bytes_.size(), static_cast<std::uint32_t>(payload.size()),
-                           record.t_ns});
-          kept_bytes_.append(payload);
-          exchange.kept_end = static_cast<std::uint32_t>(kept_.size());
-        }
+        add_response(record.kind, record.t_ns, payload, ordinal);
         break;
       }
       default:
@@ -166,6 +134,99 @@ void RequestStrategy::load_exchanges(RecordSource& source) {
     }
   }
   if (in_request) close_request();
+}
+
+void RequestStrategy::add_response(RecordKind kind, std::uint64_t t_ns,
+                                   std::string_view payload, std::uint64_t ordinal) {
+  RxItem item;
+  item.kind = kind;
+  item.t_ns = t_ns;
+  if (exchanges_.empty()) {
+    // A greeting: released at open.
+    item.data.assign(payload);
+    item.due = timeline_.due(item.t_ns, std::nullopt);
+    released_.push(std::move(item));
+    return;
+  }
+  Exchange& exchange = exchanges_.back();
+  if (!exchange.has_response) {
+    exchange.first_record = ordinal;
+    exchange.kept_first = exchange.kept_end = static_cast<std::uint32_t>(kept_.size());
+  }
+  exchange.has_response = true;
+  if (kind != RecordKind::rx) {
+    end_ = std::move(item);
+    end_exchange_ = exchanges_.size() - 1;
+    return;
+  }
+  exchange.end_record = ordinal + 1;
+  if (!exchange.in_session && kept_bytes_.size() + payload.size() > kKeptResponseBytes) {
+    // From here on read from the session: its kept records are the last ones.
+    exchange.in_session = true;
+    if (exchange.kept_first < kept_.size()) {
+      kept_bytes_.resize(kept_[exchange.kept_first].offset);
+      kept_.resize(exchange.kept_first);
+    }
+    exchange.kept_end = exchange.kept_first;
+  }
+  if (!exchange.in_session) {
+    kept_.push_back({kept_bytes_.size(), static_cast<std::uint32_t>(payload.size()), t_ns});
+    kept_bytes_.append(payload);
+    exchange.kept_end = static_cast<std::uint32_t>(kept_.size());
+  }
+}
+
+void RequestStrategy::load_frames(RecordSource& source) {
+  const Profile& profile = *config_.profile;
+  const std::unique_ptr<Framer> framer = profile.make_framer(StreamDirection::tx);
+  std::vector<Frame> frames;
+  Record record;
+  PayloadView view;
+  std::uint64_t tx_offset = 0;  // of the frame being gathered
+  std::uint64_t first_t_ns = 0;
+  std::uint64_t records_read = 0;
+  bool device_gone = false;
+  while (!device_gone && source.next(record, view)) {
+    const std::uint64_t ordinal = records_read++;
+    const std::string_view payload = view ? view.bytes : std::string_view(record.data);
+    if (record.kind == RecordKind::tx) {
+      if (payload.empty()) continue;
+      if (framer->pending() == 0) first_t_ns = record.t_ns;
+      frames.clear();
+      framer->feed(payload, frames);
+      for (const Frame& frame : frames) {
+        exchanges_.emplace_back();
+        Exchange& exchange = exchanges_.back();
+        exchange.first_tx_t_ns = first_t_ns;
+        exchange.last_tx_t_ns = record.t_ns;
+        exchange.tx_offset = tx_offset;
+        exchange.raw_offset = raw_requests_.size();
+        exchange.raw_size = static_cast<std::uint32_t>(frame.bytes.size());
+        raw_requests_.append(frame.bytes);
+        tx_offset += frame.bytes.size();
+        first_t_ns = record.t_ns;
+        const std::uint32_t index = group_for(profile.match_key(frame.bytes));
+        Group& group = groups_[index];
+        const auto number = static_cast<std::uint32_t>(exchanges_.size() - 1);
+        if (group.first == kNone) {
+          group.first = group.next_unused = group.next_cycle = number;
+        } else {
+          exchanges_[group.last].next_in_group = number;
+        }
+        group.last = number;
+        exchange.group = index;
+      }
+      continue;
+    }
+    if (record.kind != RecordKind::rx && record.kind != RecordKind::close &&
+        record.kind != RecordKind::device_lost) {
+      continue;
+    }
+    if (record.kind == RecordKind::rx && payload.empty()) continue;
+    device_gone = record.kind != RecordKind::rx;
+    if (record.kind == RecordKind::close && !session_goes_on(source)) break;
+    add_response(record.kind, record.t_ns, payload, ordinal);
+  }
 }
 
 void RequestStrategy::index_requests() {
@@ -286,7 +347,18 @@ void RequestStrategy::read_from_session(const Exchange& exchange,
   }
 }
 
-void RequestStrategy::serve(std::uint32_t group_index, std::string_view request) {
+void RequestStrategy::push_fixed(RxItem&& item, const Exchange& exchange) {
+  if (config_.profile && config_.profile->fixes_responses() && item.kind == RecordKind::rx) {
+    item.data = config_.profile->fix_response(raw_request(exchange), actual_frame_,
+                                              item.payload());
+    item.view = PayloadView{};
+  }
+  released_.push(std::move(item));
+}
+
+void RequestStrategy::serve(std::uint32_t group_index, std::string_view request,
+                            std::string_view actual_frame) {
+  actual_frame_.assign(actual_frame);
   Group& group = groups_[group_index];
   std::uint32_t index = 0;
   if (group.next_unused != kNone) {
@@ -327,7 +399,7 @@ void RequestStrategy::serve(std::uint32_t group_index, std::string_view request)
       item.data = released_.spare_payload();
       item.data.assign(kept_bytes_, kept.offset, kept.size);
       item.due = timeline_.due(item.t_ns, matched);
-      released_.push(std::move(item));
+      push_fixed(std::move(item), exchange);
     }
   }
   if (end_ && end_exchange_ == index) push_response(*end_, matched);
@@ -411,7 +483,101 @@ void RequestStrategy::raise_unmatched() {
                 exchange_number, extra.str());
 }
 
+void RequestStrategy::write_frames(const char* data, std::size_t size) {
+  const Profile& profile = *config_.profile;
+  const bool silent = config_.unmatched == ReplayUnmatched::silent ||
+                      config_.check == ReplayCheck::off;
+  client_frames_.clear();
+  client_framer_->feed(std::string_view(data, size), client_frames_);
+  for (std::size_t i = 0; i < client_frames_.size(); ++i) {
+    const Frame& frame = client_frames_[i];
+    const std::string key = profile.match_key(frame.bytes);
+    const std::uint32_t index = frame.end == FrameEnd::delimited
+                                    ? find_group(key, std::hash<std::string_view>()(key))
+                                    : kNone;
+    if (index != kNone && rank(groups_[index])) {
+      serve(index, frame.bytes, frame.bytes);
+      report_.accepted(frame.bytes);
+      pending_offset_ += frame.bytes.size();
+      continue;
+    }
+    if (silent) {
+      pending_offset_ += frame.bytes.size();
+      continue;
+    }
+    // The frames after this one in the write are dropped with it.
+    const Frame unmatched = frame;
+    for (std::size_t k = i + 1; k < client_frames_.size(); ++k) {
+      pending_offset_ += client_frames_[k].bytes.size();
+    }
+    raise_unmatched_frame(unmatched, key);
+  }
+}
+
+void RequestStrategy::raise_unmatched_frame(const Frame& frame, const std::string& key) {
+  const Profile& profile = *config_.profile;
+  // The closest recorded frames: longest common key prefix first, then order.
+  std::vector<std::pair<std::size_t, std::size_t>> ranked;  // (prefix, exchange)
+  for (std::size_t i = 0; i < exchanges_.size(); ++i) {
+    if (exchanges_[i].used && config_.repeat == ReplayRepeat::none) continue;
+    ranked.emplace_back(common_prefix(key, request_of_exchange(i)), i);
+  }
+  const std::size_t shown = std::min<std::size_t>(ranked.size(), 3);
+  std::partial_sort(ranked.begin(), ranked.begin() + static_cast<std::ptrdiff_t>(shown),
+                    ranked.end(), [](const auto& a, const auto& b) {
+                      return a.first != b.first ? a.first > b.first : a.second < b.second;
+                    });
+  const std::string name = profile.frame_name(StreamDirection::tx, frame.bytes);
+  std::ostringstream title;
+  std::ostringstream extra;
+  std::string_view expected;
+  std::size_t same = 0;
+  if (frame.end != FrameEnd::delimited) {
+    title << "the client's bytes are not a whole " << profile.name() << " frame";
+    if (!frame.problem.empty()) title << " (" << frame.problem << ")";
+  } else {
+    title << "the client's frame " << name << " matches no unused exchange";
+  }
+  if (!ranked.empty()) {
+    const Exchange& closest = exchanges_[ranked.front().second];
+    expected = raw_request(closest);
+    same = common_prefix(expected, frame.bytes);
+    if (frame.end == FrameEnd::delimited && same < frame.bytes.size()) {
+      const std::string field = profile.field_name(StreamDirection::tx, expected, same);
+      if (!field.empty()) title << ": its field '" << field << "' differs";
+    }
+    extra << "  closest recorded frames:\n";
+    for (std::size_t k = 0; k < shown; ++k) {
+      const Exchange& exchange = exchanges_[ranked[k].second];
+      extra << "    exchange " << ranked[k].second << " (session time "
+            << session_seconds(exchange.first_tx_t_ns) << " s): "
+            << profile.frame_name(StreamDirection::tx, raw_request(exchange)) << "  "
+            << hex_ascii(raw_request(exchange).substr(0, kReplayContext * 2)) << "\n";
+    }
+  } else {
+    extra << "  no unused request is left in the recording\n";
+  }
+  const std::uint64_t offset = pending_offset_ + same;
+  pending_offset_ += frame.bytes.size();
+  const std::uint64_t t_ns =
+      ranked.empty() ? last_match_t_ns_ : exchanges_[ranked.front().second].first_tx_t_ns;
+  const std::int64_t exchange_number =
+      ranked.empty() ? -1 : static_cast<std::int64_t>(ranked.front().second);
+  const std::string_view actual(frame.bytes);
+  report_.raise(title.str(), offset,
+                expected.substr(std::min(same, expected.size()), kReplayContext),
+                actual.substr(std::min(same, actual.size()), kReplayContext), t_ns,
+                exchange_number, extra.str());
+}
+
 void RequestStrategy::write(const char* data, std::size_t size, ReplayTime now) {
+  if (config_.profile) {
+    // Frames decide: no wait for a longer request.
+    tx_written_ += size;
+    last_write_ = now;
+    write_frames(data, size);
+    return;
+  }
   release(now);  // a wait that ended before this write ended without it
   if (config_.datagrams) {
     // A datagram is one request; what was left of the last one is gone.

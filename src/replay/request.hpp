@@ -60,6 +60,9 @@ class RequestStrategy final : public ReplayStrategy {
     std::uint64_t end_record = 0;
     std::uint32_t kept_first = 0;
     std::uint32_t kept_end = 0;
+    // With a profile: the recorded request frame, in raw_requests_.
+    std::uint64_t raw_offset = 0;
+    std::uint32_t raw_size = 0;
     bool in_session = false;
     bool has_response = false;
     bool used = false;
@@ -105,6 +108,18 @@ class RequestStrategy final : public ReplayStrategy {
   std::uint32_t group_for(std::string_view request);
   void grow_slots();
   void load_exchanges(RecordSource& source);
+  // With a profile: each request frame is an exchange, keyed by its match key.
+  void load_frames(RecordSource& source);
+  // Adds an rx record (or the close that ends the session) to the last
+  // exchange, or releases it as a greeting.
+  void add_response(RecordKind kind, std::uint64_t t_ns, std::string_view payload,
+                    std::uint64_t ordinal);
+  void write_frames(const char* data, std::size_t size);
+  [[noreturn]] void raise_unmatched_frame(const Frame& frame, const std::string& key);
+  std::string_view raw_request(const Exchange& exchange) const {
+    return std::string_view(raw_requests_).substr(exchange.raw_offset, exchange.raw_size);
+  }
+  void push_fixed(RxItem&& item, const Exchange& exchange);
   void index_requests();
   std::optional<Rank> rank(const Group& group) const;
   // The best group whose request the pending bytes begin with (datagrams:
@@ -120,7 +135,9 @@ class RequestStrategy final : public ReplayStrategy {
   void match_pending(bool quiet, bool may_raise);
   // Releases the exchange's response for `request`, the client's bytes that
   // matched it.
-  void serve(std::uint32_t group, std::string_view request);
+  // `actual_frame`: with a profile, the client's frame (for response fixes).
+  void serve(std::uint32_t group, std::string_view request,
+             std::string_view actual_frame = {});
   void push_response(const RxItem& item, const ReplayTimeline::Anchor& matched);
   void read_from_session(const Exchange& exchange,
                          const ReplayTimeline::Anchor& matched);
@@ -139,6 +156,10 @@ class RequestStrategy final : public ReplayStrategy {
   std::vector<std::uint32_t> slots_;
   std::vector<std::uint32_t> groups_by_request_;  // sorted by request bytes
   std::vector<std::size_t> request_lengths_;      // distinct, ascending
+  std::string raw_requests_;  // with a profile
+  std::unique_ptr<Framer> client_framer_;
+  std::vector<Frame> client_frames_;
+  std::string actual_frame_;  // being served, for fixes
   std::string kept_bytes_;
   std::vector<KeptRx> kept_;
   // A recorded close or device loss, which ends the session after this
