@@ -20,6 +20,11 @@ struct RegistryEntry {
 constexpr RegistryEntry registry[] = {
     {"scip", &make_scip_profile},
     {"lines", &make_default_lines_profile},
+    {"nmea", &make_nmea_profile},
+    {"slcan", &make_slcan_profile},
+    {"modbus-rtu", &make_modbus_rtu_profile},
+    {"modbus-tcp", &make_modbus_tcp_profile},
+    {"mavlink", &make_mavlink_profile},
 };
 
 }  // namespace

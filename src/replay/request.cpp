@@ -542,9 +542,23 @@ void RequestStrategy::raise_unmatched_frame(const Frame& frame, const std::strin
     const Exchange& closest = exchanges_[ranked.front().second];
     expected = raw_request(closest);
     same = common_prefix(expected, frame.bytes);
-    if (frame.end == FrameEnd::delimited && same < frame.bytes.size()) {
-      const std::string field = profile.field_name(StreamDirection::tx, expected, same);
-      if (!field.empty()) title << ": its field '" << field << "' differs";
+    if (frame.end == FrameEnd::delimited) {
+      // The first differing byte that is part of the key: one the profile
+      // leaves out (a transaction id) is no reason for the mismatch.
+      const std::size_t limit = std::min(expected.size(), frame.bytes.size());
+      std::optional<std::size_t> differs;
+      for (std::size_t i = same; i < limit && !differs; ++i) {
+        if (expected[i] == frame.bytes[i]) continue;
+        std::string probe = frame.bytes;
+        probe[i] = expected[i];
+        if (profile.match_key(probe) != key) differs = i;
+      }
+      if (!differs && expected.size() != frame.bytes.size()) differs = limit;
+      if (differs) {
+        same = *differs;
+        const std::string field = profile.field_name(StreamDirection::tx, expected, same);
+        if (!field.empty()) title << ": its field '" << field << "' differs";
+      }
     }
     extra << "  closest recorded frames:\n";
     for (std::size_t k = 0; k < shown; ++k) {
