@@ -11,6 +11,7 @@ import json
 import os
 import pathlib
 import sys
+import time
 
 import pytest
 
@@ -142,3 +143,82 @@ if __name__ == "__main__":
     lines = show_lines(_core.find_profile("scip").decode_session(GOLDEN_RECORDING))
     GOLDEN_TEXT.write_text("\n".join(lines) + "\n")
     print(f"wrote {GOLDEN_TEXT} ({len(lines)} lines)", file=sys.stderr)
+
+
+# --- replay with a profile, and the gap rule, with a line-based client -------
+
+LINE_EXCHANGES = [(b"MEAS:VOLT?\n", b"+1.25\n"),
+                  (b"MEAS:VOLT?\nMEAS:CURR?\n", b"+1.25\n+0.03\n"),  # sent as one burst
+                  (b"*IDN?\n", b"ACME,PSU-1,42\n"),
+                  (b"MEAS:VOLT?\n", b"+1.26\n"),
+                  (b"OUTP ON\n", b"")]
+
+
+def line_session(session_file):
+    records = []
+    t = 1_000
+    for request, response in LINE_EXCHANGES:
+        records.append(("tx", t, request))
+        if response:
+            records.append(("rx", t + 100, response))
+        t += 10_000
+    return session_file(records)
+
+
+def send_split_and_paused(port, stream, rng, max_pause_s):
+    """The client: its bytes cut at random places, random pauses between."""
+    at = 0
+    while at < len(stream):
+        size = rng.randint(1, 6)
+        port.write(stream[at:at + size])
+        at += size
+        # The client's own pace (a stimulus, not a synchronisation).
+        time.sleep(rng.uniform(0, max_pause_s))
+
+
+def test_a_line_client_splitting_and_pausing_at_random_replays_with_the_gap_rule(session_file):
+    """No profile: `MEAS:VOLT?\\n` is also the start of the burst recorded
+    earlier, so the matcher waits (gap) before taking it alone."""
+    import random
+    path = line_session(session_file)
+    stream = b"".join(request for request, _ in LINE_EXCHANGES)
+    expected = b"".join(response for _, response in LINE_EXCHANGES)
+    for seed in range(3):
+        rng = random.Random(seed)
+        port = _core.open_port(f"type=replay,file={path},timing=none,match=request,"
+                               "gap=1000,timeout=10")
+        try:
+            send_split_and_paused(port, stream, rng, 0.02)
+            assert port.read_exactly(len(expected)) == expected, seed
+        finally:
+            port.close()
+
+
+def test_a_line_client_through_the_url_handler_with_profile_lines(session_file):
+    """profile=lines: each line is a request frame; frames decide, any pause."""
+    import random
+    import serial
+    path = line_session(session_file)
+    rng = random.Random(7)
+    link = serial.serial_for_url(
+        f"wiretape://{path}?timing=none&match=request&profile=lines&unused=ignore", timeout=10)
+    try:
+        for request, response in [(b"*IDN?\n", b"ACME,PSU-1,42\n"),
+                                  (b"OUTP ON\n", b""),
+                                  (b"MEAS:VOLT?\n", b"+1.25\n"),
+                                  # The burst's first frame: the device answered
+                                  # only after its second.
+                                  (b"MEAS:VOLT?\n", b""),
+                                  (b"MEAS:CURR?\n", b"+1.25\n+0.03\n")]:
+            send_split_and_paused(link, request, rng, 0.01)
+            if response:
+                assert link.read(len(response)) == response, request
+    finally:
+        link.close()
+
+
+def test_bad_profile_names_in_replay_options_are_option_errors(session_file):
+    path = line_session(session_file)
+    with pytest.raises(_core.OptionError, match="unknown profile 'modbus-xyz'") as error:
+        _core.open_port(f"type=replay,file={path},match=request,profile=modbus-xyz")
+    assert error.value.key == "profile"
