@@ -116,6 +116,29 @@ std::shared_ptr<const Profile> find_profile(std::string_view name) {
 
 namespace wiretape::detail {
 
+std::optional<std::size_t> first_key_difference(const Profile& profile,
+                                                std::string_view expected,
+                                                std::string_view actual) {
+  const std::string key = profile.match_key(actual);
+  if (key == profile.match_key(expected)) return std::nullopt;
+  const std::size_t limit = std::min(expected.size(), actual.size());
+  for (std::size_t i = 0; i < limit; ++i) {
+    if (expected[i] == actual[i]) continue;
+    std::string probe(actual);
+    probe[i] = expected[i];
+    if (profile.match_key(probe) != key) return i;
+  }
+  return limit;
+}
+
+std::string differing_field_text(const Profile& profile, std::string_view expected,
+                                 std::string_view actual) {
+  const std::optional<std::size_t> at = first_key_difference(profile, expected, actual);
+  if (!at) return {};
+  const std::string field = profile.field_name(StreamDirection::tx, expected, *at);
+  return field.empty() ? std::string() : ": its field '" + field + "' differs";
+}
+
 // --- SessionDecoder -----------------------------------------------------------
 
 SessionDecoder::SessionDecoder(std::shared_ptr<const Profile> profile)

@@ -34,6 +34,17 @@ using wiretape::profile_names;
 
 std::string_view to_string(StreamDirection direction);
 
+// Where `actual`, a request frame, first differs from `expected` in a byte
+// that its match key holds (a byte the key leaves out, such as a
+// transaction id, is no difference); nullopt when the keys are equal.
+std::optional<std::size_t> first_key_difference(const Profile& profile,
+                                                std::string_view expected,
+                                                std::string_view actual);
+
+// " (field 'address' differs)" for a mismatch report, or "".
+std::string differing_field_text(const Profile& profile, std::string_view expected,
+                                 std::string_view actual);
+
 // One item of a decoded session: a frame of one direction, or an event
 // record passed through where it came.
 struct DecodedItem {

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 
+#include "replay/profiles/declared.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail {
@@ -99,9 +100,15 @@ ReplayConfig take_replay_config(Options& options) {
   const double gap_ms = options.take_double("gap", 50.0, 0.0, 1e9);
   config.gap = std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(gap_ms * 1e6)));
   if (const auto name = options.peek("profile")) {
+    if (options.has("framing")) {
+      throw OptionError("framing",
+                        "options 'profile' and 'framing' both say how to frame the "
+                        "session: give a built-in profile or a declared one, not both");
+    }
     config.profile = find_profile(std::string(*name));
   }
   options.take_string("profile", "");
+  if (auto declared = take_declared_profile(options)) config.profile = std::move(declared);
   config.unused = pick<ReplayUnused>(
       options.take_choice("unused", "warn", {"ignore", "warn", "error"}),
       {{"warn", ReplayUnused::warn},

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <sstream>
 
+#include "replay/profile.hpp"
 #include "util/hex.hpp"
 
 namespace wiretape::detail {
@@ -543,22 +544,8 @@ void RequestStrategy::raise_unmatched_frame(const Frame& frame, const std::strin
     expected = raw_request(closest);
     same = common_prefix(expected, frame.bytes);
     if (frame.end == FrameEnd::delimited) {
-      // The first differing byte that is part of the key: one the profile
-      // leaves out (a transaction id) is no reason for the mismatch.
-      const std::size_t limit = std::min(expected.size(), frame.bytes.size());
-      std::optional<std::size_t> differs;
-      for (std::size_t i = same; i < limit && !differs; ++i) {
-        if (expected[i] == frame.bytes[i]) continue;
-        std::string probe = frame.bytes;
-        probe[i] = expected[i];
-        if (profile.match_key(probe) != key) differs = i;
-      }
-      if (!differs && expected.size() != frame.bytes.size()) differs = limit;
-      if (differs) {
-        same = *differs;
-        const std::string field = profile.field_name(StreamDirection::tx, expected, same);
-        if (!field.empty()) title << ": its field '" << field << "' differs";
-      }
+      title << differing_field_text(profile, expected, frame.bytes);
+      same = first_key_difference(profile, expected, frame.bytes).value_or(same);
     }
     extra << "  closest recorded frames:\n";
     for (std::size_t k = 0; k < shown; ++k) {

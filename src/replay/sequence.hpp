@@ -13,6 +13,7 @@
 #include <optional>
 #include <string>
 
+#include "replay/profile.hpp"
 #include "replay/strategy.hpp"
 
 namespace wiretape::detail {
@@ -48,6 +49,10 @@ class SequenceStrategy final : public ReplayStrategy {
     ReplayTime finished;
   };
 
+  // With a profile (check=data or timing): the client's frames, compared by
+  // key with the recorded ones, stand for the recorded frames' bytes.
+  void write_frames(const char* data, std::size_t size, ReplayTime now);
+  std::optional<Frame> next_recorded_frame();
   void fill();
   void entitle();
   std::optional<ReplayTime> finish_of(std::uint64_t tx_offset) const;
@@ -88,6 +93,15 @@ class SequenceStrategy final : public ReplayStrategy {
   std::uint64_t previous_tx_t_ns_ = 0;
   std::uint64_t tx_written_ = 0;  // bytes the client wrote
   std::uint64_t tx_recorded_done_ = 0;  // of the tx records written in full
+
+  // With a profile: the recorded tx stream framed (its own cursor), and the
+  // client's.
+  std::unique_ptr<RecordSource> frame_source_;
+  std::unique_ptr<Framer> recorded_framer_;
+  std::unique_ptr<Framer> client_framer_;
+  std::deque<Frame> recorded_frames_;
+  std::vector<Frame> scratch_frames_;
+  bool frame_source_done_ = false;
 };
 
 }  // namespace wiretape::detail

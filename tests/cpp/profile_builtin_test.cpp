@@ -335,3 +335,79 @@ TEST(ProfileInterface, ARegisteredProfileIsFoundByName) {
   port->write_all("xyz9abc8");
   EXPECT_EQ(port->read_exactly(4), "X9A8");
 }
+
+// --- profiles declared in options ----------------------------------------------
+
+namespace {
+
+void expect_spec_error(const std::string& keys, const std::string& key, const std::string& text) {
+  try {
+    replay({}, "match=request," + keys);
+    FAIL() << keys << " was accepted";
+  } catch (const OptionError& error) {
+    EXPECT_EQ(error.key(), key) << keys;
+    const std::string message = error.what();
+    EXPECT_NE(message.find(text), std::string::npos) << message;
+    EXPECT_NE(message.find("the grammar is"), std::string::npos) << message;
+  }
+}
+
+}  // namespace
+
+TEST(DeclaredProfile, BadSpecsNameTheKeyAndShowTheGrammar) {
+  expect_spec_error("framing=delimiter:0g", "framing", "not 1 to 32 bytes in hex");
+  expect_spec_error("framing=length:0:3:0", "framing", "SIZE '3'");
+  expect_spec_error("framing=length:0:2:0:xx", "framing", "neither be nor le");
+  expect_spec_error("framing=fixed:0", "framing", "not a size");
+  expect_spec_error("framing=lines", "framing", "'lines' is not a framing");
+  expect_spec_error("framing=gap:20", "framing", "silence");
+  expect_spec_error("framing=fixed:4,ignore=1", "ignore", "'1' is not OFFSET:LEN");
+  expect_spec_error("framing=fixed:4,echo=0:0", "echo", "LEN '0'");
+  expect_spec_error("framing=fixed:4,checksum=md5@-1", "checksum", "'md5' is not a checksum");
+  expect_spec_error("framing=fixed:4,checksum=sum8", "checksum", "no '@OFFSET'");
+  expect_spec_error("ignore=0:1", "ignore", "needs framing=");
+}
+
+TEST(DeclaredProfile, LengthFramingIgnoreEchoAndChecksumReplay) {
+  // [id][len][cmd...][sum8]: the frame is len + 3 bytes; id is echoed.
+  const auto frame = [](char id, const std::string& body) {
+    std::string bytes = std::string(1, id) + static_cast<char>(body.size()) + body;
+    return bytes + static_cast<char>(detail::sum8(bytes));
+  };
+  auto port = replay({tx(1, frame('a', "GET")), rx(2, frame('a', "42")),
+                      tx(3, frame('b', "PUT")), rx(4, frame('b', "OK"))},
+                     "timing=none,match=request,framing=length:1:1:3,echo=0:1,"
+                     "checksum=sum8@-1");
+  const std::string put = frame('z', "PUT");
+  port->write_all(put.substr(0, 2));
+  port->write_all(put.substr(2));
+  EXPECT_EQ(port->read_exactly(5), frame('z', "OK"));
+  port->write_all(frame('y', "GET"));
+  EXPECT_EQ(port->read_exactly(5), frame('y', "42"));
+  std::string bad = frame('x', "GET");
+  bad.back() ^= 1;
+  try {
+    port->write_all(bad);
+    FAIL() << "a bad checksum was accepted";
+  } catch (const ReplayMismatch& error) {
+    EXPECT_NE(std::string(error.what()).find("bad checksum"), std::string::npos) << error.what();
+  }
+}
+
+TEST(ProfileSequence, CheckDataComparesKeysFrameByFrame) {
+  const std::string reply = std::string("\x03\x02\x00\x0a", 4);
+  const std::vector<Record> records = {tx(1, mbap(1, 1, read_holding(0, 1))), rx(2, mbap(1, 1, reply)),
+                                       tx(3, mbap(2, 1, read_holding(5, 1))), rx(4, mbap(2, 1, reply))};
+  auto port = replay(records, "timing=none,profile=modbus-tcp");
+  const std::string first = mbap(70, 1, read_holding(0, 1));
+  port->write_all(first.substr(0, 5));
+  port->write_all(first.substr(5));
+  EXPECT_EQ(port->read_exactly(11), mbap(1, 1, reply));
+  try {
+    port->write_all(mbap(71, 1, read_holding(6, 1)));
+    FAIL() << "a different address was accepted";
+  } catch (const ReplayMismatch& error) {
+    const std::string message = error.what();
+    EXPECT_NE(message.find("field 'address' differs"), std::string::npos) << message;
+  }
+}
