@@ -11,6 +11,7 @@ import json
 import os
 import pathlib
 import sys
+import textwrap
 import time
 
 import pytest
@@ -222,3 +223,30 @@ def test_bad_profile_names_in_replay_options_are_option_errors(session_file):
     with pytest.raises(_core.OptionError, match="unknown profile 'modbus-xyz'") as error:
         _core.open_port(f"type=replay,file={path},match=request,profile=modbus-xyz")
     assert error.value.key == "profile"
+
+
+pytest_plugins = ["pytester"]
+
+MARKED_TEST = textwrap.dedent("""
+    import pytest
+
+    @pytest.mark.wiretape(match="request", profile="lines")
+    def test_lines(wiretape_port):
+        for line in ORDER:
+            wiretape_port.write_all(line)
+            assert wiretape_port.read_exactly(len(line), timeout=5) == line
+""")
+
+
+def test_the_pytest_marker_passes_profile_to_the_replay(pytester):
+    """Recorded in one order from wiretape's loopback (an echo), replayed
+    with profile=lines from the marker in another."""
+    pytester.makepyfile(test_marked="ORDER = [b'A1\\n', b'B2\\n']\n" + MARKED_TEST)
+    pytester.runpytest("--wiretape-record=once",
+                       "--wiretape-device=type=loopback").assert_outcomes(passed=1)
+    pytester.makepyfile(test_marked="ORDER = [b'B2\\n', b'A1\\n']\n" + MARKED_TEST)
+    pytester.runpytest().assert_outcomes(passed=1)
+    pytester.makepyfile(test_marked="ORDER = [b'B2\\n', b'C3\\n']\n" + MARKED_TEST)
+    result = pytester.runpytest()
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*the client's frame C3 matches no unused exchange*"])
