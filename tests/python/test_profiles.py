@@ -250,3 +250,44 @@ def test_the_pytest_marker_passes_profile_to_the_replay(pytester):
     result = pytester.runpytest()
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines(["*the client's frame C3 matches no unused exchange*"])
+
+
+def modbus_tcp(tid, pdu):
+    return tid.to_bytes(2, "big") + b"\0\0" + (len(pdu) + 1).to_bytes(2, "big") + b"\x01" + pdu
+
+
+def test_diff_with_a_profile_ignores_what_the_key_leaves_out(session_file, tmp_path):
+    from wiretape.tools.diff import diff
+    poll, reply = b"\x03\x00\x00\x00\x01", b"\x03\x02\x00\x2a"
+    a = session_file([("tx", 1, modbus_tcp(1, poll)), ("rx", 2, modbus_tcp(1, reply))], name="a.wtape")
+    b = session_file([("tx", 1, modbus_tcp(9, poll)), ("rx", 2, modbus_tcp(9, reply))], name="b.wtape")
+    c = session_file([("tx", 1, modbus_tcp(9, b"\x03\x00\x07\x00\x01")),
+                      ("rx", 2, modbus_tcp(9, reply))], name="c.wtape")
+    assert not diff(a, b).identical
+    assert diff(a, b, profile="modbus-tcp").identical
+    different = diff(a, c, profile="modbus-tcp")
+    assert not different.identical
+    report = different.report()
+    assert "tx: first difference at frame 0" in report
+    assert "address 7" in report and "address 0" in report
+    assert "rx: identical by key" in report
+
+
+def test_cli_replay_and_diff_take_profile(session_file, tmp_path):
+    import subprocess
+    poll, reply = b"\x03\x00\x00\x00\x01", b"\x03\x02\x00\x2a"
+    a = session_file([("tx", 1, modbus_tcp(1, poll)), ("rx", 2, modbus_tcp(1, reply))], name="a.wtape")
+    b = session_file([("tx", 1, modbus_tcp(9, poll)), ("rx", 2, modbus_tcp(9, reply))], name="b.wtape")
+    wiretape_cli = [sys.executable, "-m", "wiretape.cli"]
+    done = subprocess.run(wiretape_cli + ["diff", "--profile", "modbus-tcp", str(a), str(b)],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "identical by key" in done.stdout
+    done = subprocess.run(wiretape_cli + ["diff", "--profile", "nope", str(a), str(b)],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode != 0 and "nope" in done.stderr
+    from wiretape.cli import build_parser, replay_options_of
+    args = build_parser().parse_args(["replay", str(a), "--match", "request", "--profile",
+                                      "modbus-tcp", "--gap", "20", "--listen", "127.0.0.1:0"])
+    assert "profile=modbus-tcp" in replay_options_of(args)
+    assert "gap=20" in replay_options_of(args)
