@@ -291,3 +291,58 @@ def test_cli_replay_and_diff_take_profile(session_file, tmp_path):
                                       "modbus-tcp", "--gap", "20", "--listen", "127.0.0.1:0"])
     assert "profile=modbus-tcp" in replay_options_of(args)
     assert "gap=20" in replay_options_of(args)
+
+
+def test_python_callables_as_match_key_and_response_fix(session_file):
+    from wiretape.profiles import callable_profile
+    path = session_file([("tx", 1, b"get 1 temp\n"), ("rx", 2, b"temp 20\n"),
+                         ("tx", 3, b"get 2 volt\n"), ("rx", 4, b"volt 5\n")])
+    calls = []
+
+    def key(request):  # the request number varies from run to run
+        calls.append(request)
+        return request.split(b" ", 2)[2]
+
+    def fix(recorded, actual, response):
+        return actual.split(b" ")[1] + b": " + response
+
+    name = callable_profile("lines", match_key=key, fix_response=fix)
+    port = _core.open_port(f"type=replay,file={path},timing=none,match=request,"
+                           f"profile={name},timeout=10")
+    try:
+        port.write(b"get 7 volt\n")
+        assert port.read_exactly(len(b"7: volt 5\n")) == b"7: volt 5\n"
+        port.write(b"get 8 temp\n")
+        assert port.read_exactly(len(b"8: temp 20\n")) == b"8: temp 20\n"
+    finally:
+        port.close()
+    assert b"get 7 volt\n" in calls
+    with pytest.raises(_core.OptionError, match="unknown profile"):
+        callable_profile("nope", match_key=key)
+    with pytest.raises(TypeError):
+        callable_profile("lines", match_key="not callable")
+
+
+CALLABLE_MARKED_TEST = textwrap.dedent("""
+    import pytest
+
+    def last_word(request):
+        return request.split()[-1]
+
+    @pytest.mark.wiretape(match="request", profile="lines", match_key=last_word)
+    def test_lines(wiretape_port):
+        for line, answer in ORDER:
+            wiretape_port.write_all(line)
+            assert wiretape_port.read_exactly(len(answer), timeout=5) == answer
+""")
+
+
+def test_the_pytest_marker_takes_python_callables(pytester):
+    pytester.makepyfile(test_marked="ORDER = [(b'1 A\\n', b'1 A\\n'), (b'2 B\\n', b'2 B\\n')]\n"
+                        + CALLABLE_MARKED_TEST)
+    pytester.runpytest("--wiretape-record=once",
+                       "--wiretape-device=type=loopback").assert_outcomes(passed=1)
+    # Other numbers, another order: the key is the last word.
+    pytester.makepyfile(test_marked="ORDER = [(b'9 B\\n', b'2 B\\n'), (b'8 A\\n', b'1 A\\n')]\n"
+                        + CALLABLE_MARKED_TEST)
+    pytester.runpytest().assert_outcomes(passed=1)
