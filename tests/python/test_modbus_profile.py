@@ -156,3 +156,26 @@ def test_without_the_profile_the_reordered_polls_do_not_match(recording):
         handle.stop()
         handle.wait(DEADLINE)
     assert not handle.result().ok
+
+
+def test_modbus_rtu_frames_what_pymodbus_rtu_framer_builds():
+    """A simulator-made RTU stream (pymodbus's own framer): requests and
+    replies frame one by one, named and keyed without their CRC."""
+    from pymodbus.framer import FramerRTU
+    from pymodbus.pdu import DecodePDU
+    from pymodbus.pdu.register_message import (ReadHoldingRegistersRequest,
+                                               ReadHoldingRegistersResponse,
+                                               WriteMultipleRegistersRequest,
+                                               WriteMultipleRegistersResponse)
+    host_side, device_side = FramerRTU(DecodePDU(False)), FramerRTU(DecodePDU(True))
+    requests = [host_side.buildFrame(ReadHoldingRegistersRequest(address=5, count=2, dev_id=1)),
+                host_side.buildFrame(WriteMultipleRegistersRequest(address=1, registers=[7, 8, 9],
+                                                                   dev_id=3))]
+    replies = [device_side.buildFrame(ReadHoldingRegistersResponse(registers=[1, 2], dev_id=1)),
+               device_side.buildFrame(WriteMultipleRegistersResponse(address=1, count=3, dev_id=3))]
+    profile = _core.find_profile("modbus-rtu")
+    assert profile.frames("tx", b"".join(requests)) == requests
+    assert profile.frames("rx", b"".join(replies)) == replies
+    assert profile.frame_name("tx", requests[1]) == "write multiple registers"
+    assert "address 5 count 2" in profile.describe("tx", requests[0])
+    assert profile.match_key(requests[0]) == requests[0][:-2]
