@@ -193,6 +193,9 @@ void SessionDecoder::emit(StreamDirection direction, std::uint64_t t_ns, Frame f
   item.t_ns = t_ns;
   item.kind = direction == StreamDirection::tx ? RecordKind::tx : RecordKind::rx;
   item.description = profile_->describe(direction, frame.bytes);
+  if (frame.end == FrameEnd::broken) {
+    item.description = "BROKEN (" + frame.problem + "): " + item.description;
+  }
   item.bytes = std::move(frame.bytes);
   item.is_frame = true;
   out.push_back(std::move(item));

@@ -5,6 +5,7 @@
 
 #include "replay/profile.hpp"
 #include "util/hex.hpp"
+#include "wiretape/errors.hpp"
 
 namespace wiretape::detail {
 
@@ -196,6 +197,15 @@ void RequestStrategy::load_frames(RecordSource& source) {
       frames.clear();
       framer->feed(payload, frames);
       for (const Frame& frame : frames) {
+        if (frame.end == FrameEnd::broken || frame.end == FrameEnd::size_limit) {
+          throw OptionError(
+              "profile", "profile '" + std::string(profile.name()) + "' cannot frame " +
+                             config_.file + ": the request frame at tx byte offset " +
+                             std::to_string(tx_offset) + " (session time " +
+                             session_seconds(record.t_ns) + " s) is broken" +
+                             (frame.problem.empty() ? std::string() : ": " + frame.problem) +
+                             "; is this the protocol's recording?");
+        }
         exchanges_.emplace_back();
         Exchange& exchange = exchanges_.back();
         exchange.first_tx_t_ns = first_t_ns;

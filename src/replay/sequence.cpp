@@ -208,6 +208,15 @@ void SequenceStrategy::write_frames(const char* data, std::size_t size, ReplayTi
       write_records(frame.bytes.data(), frame.bytes.size(), now);  // raises: past the end
       continue;
     }
+    if (recorded->end == FrameEnd::broken || recorded->end == FrameEnd::size_limit) {
+      report_.raise("the recording's " + std::string(profile.name()) +
+                        " frame at this point is broken" +
+                        (recorded->problem.empty() ? std::string() : " (" + recorded->problem + ")") +
+                        ": the profile cannot frame this recording",
+                    tx_written_, std::string_view(recorded->bytes).substr(0, kReplayContext),
+                    std::string_view(frame.bytes).substr(0, kReplayContext),
+                    previous_tx_t_ns_, tx_exchange_);
+    }
     if (frame.end != FrameEnd::delimited ||
         profile.match_key(frame.bytes) != profile.match_key(recorded->bytes)) {
       std::string title = "the client's frame " +

@@ -411,3 +411,28 @@ TEST(ProfileSequence, CheckDataComparesKeysFrameByFrame) {
     EXPECT_NE(message.find("field 'address' differs"), std::string::npos) << message;
   }
 }
+
+TEST(ProfileReplay, ARecordingTheProfileCannotFrameIsAnErrorAtOpenNamingTheOffset) {
+  const std::string good = mbap(1, 1, read_holding(0, 1));
+  const std::string bad_length = be16(2) + be16(0) + be16(0x0400);
+  try {
+    replay({tx(1, good), rx(2, mbap(1, 1, "\x03\x02\x00\x0a")), tx(3'000'000'000, bad_length)},
+           "timing=none,match=request,profile=modbus-tcp");
+    FAIL() << "opened";
+  } catch (const OptionError& error) {
+    const std::string message = error.what();
+    EXPECT_EQ(error.key(), "profile");
+    EXPECT_NE(message.find("tx byte offset 12"), std::string::npos) << message;
+    EXPECT_NE(message.find("session time 3.000000 s"), std::string::npos) << message;
+    EXPECT_NE(message.find("bad length 1024"), std::string::npos) << message;
+  }
+}
+
+TEST(ProfileDecode, ShowMarksBrokenFramesWithTheirProblem) {
+  detail::SessionDecoder decoder(find_profile("modbus-tcp"));
+  std::deque<detail::DecodedItem> items;
+  decoder.feed(Record{1, RecordKind::tx, be16(2) + be16(0) + be16(0x0400)}, items);
+  ASSERT_EQ(items.size(), 1u);
+  EXPECT_NE(items[0].description.find("BROKEN (bad length 1024"), std::string::npos)
+      << items[0].description;
+}
