@@ -120,6 +120,7 @@ void SequenceStrategy::entitle() {
     }
     ahead.item.due = timeline_.due(ahead.item.t_ns, anchor);
     ahead_bytes_ -= ahead.item.payload().size();
+    fix_response(ahead.item, ahead.tx_before);
     released_.push(std::move(ahead.item));
     ahead_.pop_front();
   }
@@ -129,6 +130,18 @@ void SequenceStrategy::entitle() {
   while (tx_ends_.size() > 1 && tx_ends_.front().end_offset < still_needed) {
     tx_ends_.pop_front();
   }
+}
+
+void SequenceStrategy::fix_response(RxItem& item, std::uint64_t tx_before) {
+  if (written_frames_.empty() || item.kind != RecordKind::rx) return;
+  // The response follows the last frame the client finished before it.
+  while (written_frames_.size() > 1 && written_frames_[1].end_offset <= tx_before) {
+    written_frames_.pop_front();
+  }
+  const WrittenFrame& frame = written_frames_.front();
+  if (frame.end_offset > tx_before) return;
+  item.data = config_.profile->fix_response(frame.recorded, frame.actual, item.payload());
+  item.view = PayloadView{};
 }
 
 // --- the write cursor ------------------------------------------------------------
@@ -239,6 +252,9 @@ void SequenceStrategy::write_frames(const char* data, std::size_t size, ReplayTi
     // The recorded frame's bytes stand for the client's: its counters may
     // differ, and the recording's byte counts decide what is released.
     write_records(recorded->bytes.data(), recorded->bytes.size(), now);
+    if (profile.fixes_responses()) {
+      written_frames_.push_back({tx_written_, recorded->bytes, frame.bytes});
+    }
   }
 }
 

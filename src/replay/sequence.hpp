@@ -102,6 +102,15 @@ class SequenceStrategy final : public ReplayStrategy {
   std::deque<Frame> recorded_frames_;
   std::vector<Frame> scratch_frames_;
   bool frame_source_done_ = false;
+  // Frames the client wrote, while responses after them may still be
+  // released: for the profile's response fixes.
+  struct WrittenFrame {
+    std::uint64_t end_offset;  // recorded tx bytes up to its end
+    std::string recorded;
+    std::string actual;
+  };
+  std::deque<WrittenFrame> written_frames_;
+  void fix_response(RxItem& item, std::uint64_t tx_before);
 };
 
 }  // namespace wiretape::detail

@@ -402,7 +402,8 @@ TEST(ProfileSequence, CheckDataComparesKeysFrameByFrame) {
   const std::string first = mbap(70, 1, read_holding(0, 1));
   port->write_all(first.substr(0, 5));
   port->write_all(first.substr(5));
-  EXPECT_EQ(port->read_exactly(11), mbap(1, 1, reply));
+  // The response carries the client's transaction id in sequence mode too.
+  EXPECT_EQ(port->read_exactly(11), mbap(70, 1, reply));
   try {
     port->write_all(mbap(71, 1, read_holding(6, 1)));
     FAIL() << "a different address was accepted";
