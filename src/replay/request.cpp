@@ -81,22 +81,41 @@ void RequestStrategy::grow_slots() {
   }
 }
 
+void RequestStrategy::join_group(std::uint32_t index) {
+  Group& group = groups_[index];
+  const auto exchange = static_cast<std::uint32_t>(exchanges_.size() - 1);
+  if (group.first == kNone) {
+    group.first = group.next_unused = group.next_cycle = exchange;
+  } else {
+    exchanges_[group.last].next_in_group = exchange;
+  }
+  group.last = exchange;
+  exchanges_.back().group = index;
+}
+
+std::vector<std::pair<std::size_t, std::size_t>> RequestStrategy::closest_exchanges(
+    std::string_view request, std::size_t count) const {
+  std::vector<std::pair<std::size_t, std::size_t>> ranked;  // (common prefix, exchange)
+  for (std::size_t i = 0; i < exchanges_.size(); ++i) {
+    if (exchanges_[i].used && config_.repeat == ReplayRepeat::none) continue;
+    ranked.emplace_back(common_prefix(request, request_of_exchange(i)), i);
+  }
+  const std::size_t shown = std::min(ranked.size(), count);
+  std::partial_sort(ranked.begin(), ranked.begin() + static_cast<std::ptrdiff_t>(shown),
+                    ranked.end(), [](const auto& a, const auto& b) {
+                      return a.first != b.first ? a.first > b.first : a.second < b.second;
+                    });
+  ranked.resize(shown);
+  return ranked;
+}
+
 void RequestStrategy::load_exchanges(RecordSource& source) {
   Record record;
   PayloadView view;
   bool in_request = false;
   std::string request;  // of the exchange being gathered
   const auto close_request = [&] {
-    const std::uint32_t index = group_for(request);
-    Group& group = groups_[index];
-    const auto exchange = static_cast<std::uint32_t>(exchanges_.size() - 1);
-    if (group.first == kNone) {
-      group.first = group.next_unused = group.next_cycle = exchange;
-    } else {
-      exchanges_[group.last].next_in_group = exchange;
-    }
-    group.last = exchange;
-    exchanges_.back().group = index;
+    join_group(group_for(request));
     request.clear();
     in_request = false;
   };
@@ -216,16 +235,7 @@ void RequestStrategy::load_frames(RecordSource& source) {
         raw_requests_.append(frame.bytes);
         tx_offset += frame.bytes.size();
         first_t_ns = record.t_ns;
-        const std::uint32_t index = group_for(profile.match_key(frame.bytes));
-        Group& group = groups_[index];
-        const auto number = static_cast<std::uint32_t>(exchanges_.size() - 1);
-        if (group.first == kNone) {
-          group.first = group.next_unused = group.next_cycle = number;
-        } else {
-          exchanges_[group.last].next_in_group = number;
-        }
-        group.last = number;
-        exchange.group = index;
+        join_group(group_for(profile.match_key(frame.bytes)));
       }
       continue;
     }
@@ -452,16 +462,8 @@ void RequestStrategy::match_pending(bool quiet, bool may_raise) {
 
 void RequestStrategy::raise_unmatched() {
   // The closest unused requests: longest common prefix first, then order.
-  std::vector<std::pair<std::size_t, std::size_t>> ranked;  // (prefix, index)
-  for (std::size_t i = 0; i < exchanges_.size(); ++i) {
-    if (exchanges_[i].used && config_.repeat == ReplayRepeat::none) continue;
-    ranked.emplace_back(common_prefix(pending_, request_of_exchange(i)), i);
-  }
-  const std::size_t shown = std::min<std::size_t>(ranked.size(), 3);
-  std::partial_sort(ranked.begin(), ranked.begin() + static_cast<std::ptrdiff_t>(shown),
-                    ranked.end(), [](const auto& a, const auto& b) {
-                      return a.first != b.first ? a.first > b.first : a.second < b.second;
-                    });
+  const auto ranked = closest_exchanges(pending_, 3);
+  const std::size_t shown = ranked.size();
   std::ostringstream extra;
   if (ranked.empty()) {
     extra << "  no unused request is left in the recording\n";
@@ -528,16 +530,8 @@ void RequestStrategy::write_frames(const char* data, std::size_t size) {
 void RequestStrategy::raise_unmatched_frame(const Frame& frame, const std::string& key) {
   const Profile& profile = *config_.profile;
   // The closest recorded frames: longest common key prefix first, then order.
-  std::vector<std::pair<std::size_t, std::size_t>> ranked;  // (prefix, exchange)
-  for (std::size_t i = 0; i < exchanges_.size(); ++i) {
-    if (exchanges_[i].used && config_.repeat == ReplayRepeat::none) continue;
-    ranked.emplace_back(common_prefix(key, request_of_exchange(i)), i);
-  }
-  const std::size_t shown = std::min<std::size_t>(ranked.size(), 3);
-  std::partial_sort(ranked.begin(), ranked.begin() + static_cast<std::ptrdiff_t>(shown),
-                    ranked.end(), [](const auto& a, const auto& b) {
-                      return a.first != b.first ? a.first > b.first : a.second < b.second;
-                    });
+  const auto ranked = closest_exchanges(key, 3);
+  const std::size_t shown = ranked.size();
   const std::string name = profile.frame_name(StreamDirection::tx, frame.bytes);
   std::ostringstream title;
   std::ostringstream extra;

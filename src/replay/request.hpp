@@ -107,6 +107,12 @@ class RequestStrategy final : public ReplayStrategy {
   // find_group(), creating the group if there is none.
   std::uint32_t group_for(std::string_view request);
   void grow_slots();
+  // Adds the last exchange to the group `index`.
+  void join_group(std::uint32_t index);
+  // The `count` usable exchanges whose requests (keys) share the longest
+  // prefix with `request`, as (prefix length, exchange), closest first.
+  std::vector<std::pair<std::size_t, std::size_t>> closest_exchanges(std::string_view request,
+                                                                     std::size_t count) const;
   void load_exchanges(RecordSource& source);
   // With a profile: each request frame is an exchange, keyed by its match key.
   void load_frames(RecordSource& source);
