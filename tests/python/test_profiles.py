@@ -346,3 +346,72 @@ def test_the_pytest_marker_takes_python_callables(pytester):
     pytester.makepyfile(test_marked="ORDER = [(b'9 B\\n', b'2 B\\n'), (b'8 A\\n', b'1 A\\n')]\n"
                         + CALLABLE_MARKED_TEST)
     pytester.runpytest().assert_outcomes(passed=1)
+
+
+@pytest.mark.parametrize("name", ["nmea", "slcan", "modbus-rtu", "modbus-tcp", "mavlink"])
+def test_every_profile_frames_random_bytes_completely(name):
+    """Hostile input: every byte lands in exactly one frame, in order, in any
+    split; nothing hangs or crashes."""
+    import random
+    profile = _core.find_profile(name)
+    rng = random.Random(name)
+    for _ in range(50):
+        data = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 2000)))
+        frames = profile.frames("tx", data)
+        assert b"".join(frames) == data
+        assert all(frames)
+        for frame in frames:
+            profile.match_key(frame)
+            profile.frame_name("tx", frame)
+            profile.describe("rx", frame)
+
+
+def crc16_modbus(data):
+    crc = 0xFFFF
+    for byte in data:
+        crc ^= byte
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
+    return crc.to_bytes(2, "little")
+
+
+def nmea_sentence(body):
+    checksum = 0
+    for byte in body:
+        checksum ^= byte
+    return b"$" + body + b"*%02X\r\n" % checksum
+
+
+ONE_REQUEST = {
+    "nmea": nmea_sentence(b"PXXX,1"),
+    "slcan": b"O\r",
+    "modbus-rtu": b"\x01\x03\x00\x00\x00\x01" + crc16_modbus(b"\x01\x03\x00\x00\x00\x01"),
+    "modbus-tcp": modbus_tcp(1, b"\x03\x00\x00\x00\x01"),
+    # A v1 packet of a message whose CRC_EXTRA the profile does not check.
+    "mavlink": b"\xfe\x00\x00\x01\x01\xc8\x00\x00",
+}
+
+
+@pytest.mark.parametrize("name", ["nmea", "slcan", "modbus-rtu", "modbus-tcp", "mavlink"])
+def test_random_client_bytes_against_a_profile_are_mismatches_or_ignored(name, session_file):
+    import random
+    path = session_file([("tx", 1, ONE_REQUEST[name]), ("rx", 2, b"ok\r\n")])
+    rng = random.Random(name)
+    data = bytes(rng.randrange(256) for _ in range(3000))
+    silent = _core.open_port(f"type=replay,file={path},timing=none,match=request,"
+                             f"profile={name},unmatched=silent,unused=ignore,timeout=0.05")
+    try:
+        silent.write(data)
+        assert silent.read(100) in (b"", b"ok\r\n")
+    finally:
+        silent.close()
+    strict = _core.open_port(f"type=replay,file={path},timing=none,match=request,"
+                             f"profile={name},unused=ignore,timeout=0.05")
+    try:
+        for at in range(0, len(data), 97):
+            try:
+                strict.write(data[at:at + 97])
+            except _core.ReplayMismatch as mismatch:
+                assert "replay mismatch" in str(mismatch)
+    finally:
+        strict.close()
