@@ -14,7 +14,9 @@
 //   auto port = wiretape::open_port("type=replay,file=s.wtape,match=request,profile=mine");
 #pragma once
 
+#include <chrono>
 #include <cstddef>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <optional>
@@ -61,6 +63,17 @@ class Framer {
   virtual std::optional<Frame> finish() = 0;
   // How many bytes are kept for the next frame.
   virtual std::size_t pending() const = 0;
+  // For a framer that cuts frames by silence: how long without a byte ends
+  // the frame being gathered. nullopt (the default): frames end by content.
+  virtual std::optional<std::chrono::nanoseconds> quiet_gap() const { return std::nullopt; }
+  // feed() of bytes that arrived at `t_ns` (a recording's record time, or
+  // the time of a client's write). A framer that cuts by silence first ends
+  // the frame being gathered if they came quiet_gap() or more after the
+  // bytes before them; others ignore the time.
+  virtual void feed_at(std::uint64_t t_ns, std::string_view bytes, std::vector<Frame>& frames) {
+    (void)t_ns;
+    feed(bytes, frames);
+  }
 };
 
 // A frame never grows past this many bytes: hostile input (a stream with no

@@ -166,9 +166,18 @@ void SessionDecoder::feed(std::uint64_t t_ns, RecordKind kind, std::string_view 
   // Frames are consecutive: only the first frame this record completes can
   // have begun in an earlier record (as the kept tail); every later one
   // began in this record.
+  // A framer that cuts by silence: the other direction speaking ends its
+  // frame (a device answers a whole request).
+  Stream& other = direction == StreamDirection::tx ? rx_ : tx_;
+  if (other.framer->quiet_gap() && other.framer->pending() > 0) {
+    if (std::optional<Frame> tail = other.framer->finish()) {
+      emit(direction == StreamDirection::tx ? StreamDirection::rx : StreamDirection::tx,
+           other.tail_t_ns, std::move(*tail), out);
+    }
+  }
   const bool tail_began_earlier = stream.framer->pending() > 0;
   frames_.clear();
-  stream.framer->feed(data, frames_);
+  stream.framer->feed_at(t_ns, data, frames_);
   for (std::size_t i = 0; i < frames_.size(); ++i) {
     const bool began_earlier = i == 0 && tail_began_earlier;
     emit(direction, began_earlier ? stream.tail_t_ns : t_ns, std::move(frames_[i]), out);

@@ -109,6 +109,12 @@ ReplayConfig take_replay_config(Options& options) {
   }
   options.take_string("profile", "");
   if (auto declared = take_declared_profile(options)) config.profile = std::move(declared);
+  if (config.profile && config.match == ReplayMatch::sequence &&
+      config.profile->make_framer(StreamDirection::tx)->quiet_gap()) {
+    throw OptionError("framing",
+                      "framing by silence (gap:MS) works with match=request only: in "
+                      "match=sequence the client's last frame would never end");
+  }
   config.unused = pick<ReplayUnused>(
       options.take_choice("unused", "warn", {"ignore", "warn", "error"}),
       {{"warn", ReplayUnused::warn},

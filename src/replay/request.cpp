@@ -206,6 +206,29 @@ void RequestStrategy::load_frames(RecordSource& source) {
   std::uint64_t tx_offset = 0;  // of the frame being gathered
   std::uint64_t first_t_ns = 0;
   std::uint64_t records_read = 0;
+  const auto add_frame = [&](const Frame& frame, std::uint64_t t_ns) {
+    if (frame.end == FrameEnd::broken || frame.end == FrameEnd::size_limit) {
+      throw OptionError(
+          "profile", "profile '" + std::string(profile.name()) + "' cannot frame " +
+                         config_.file + ": the request frame at tx byte offset " +
+                         std::to_string(tx_offset) + " (session time " +
+                         session_seconds(t_ns) + " s) is broken" +
+                         (frame.problem.empty() ? std::string() : ": " + frame.problem) +
+                         "; is this the protocol's recording?");
+    }
+    exchanges_.emplace_back();
+    Exchange& exchange = exchanges_.back();
+    exchange.first_tx_t_ns = first_t_ns;
+    exchange.last_tx_t_ns = t_ns;
+    exchange.tx_offset = tx_offset;
+    exchange.raw_offset = raw_requests_.size();
+    exchange.raw_size = static_cast<std::uint32_t>(frame.bytes.size());
+    raw_requests_.append(frame.bytes);
+    tx_offset += frame.bytes.size();
+    first_t_ns = t_ns;
+    join_group(group_for(profile.match_key(frame.bytes)));
+  };
+  std::uint64_t last_tx_t_ns = 0;
   bool device_gone = false;
   while (!device_gone && source.next(record, view)) {
     const std::uint64_t ordinal = records_read++;
@@ -214,29 +237,9 @@ void RequestStrategy::load_frames(RecordSource& source) {
       if (payload.empty()) continue;
       if (framer->pending() == 0) first_t_ns = record.t_ns;
       frames.clear();
-      framer->feed(payload, frames);
-      for (const Frame& frame : frames) {
-        if (frame.end == FrameEnd::broken || frame.end == FrameEnd::size_limit) {
-          throw OptionError(
-              "profile", "profile '" + std::string(profile.name()) + "' cannot frame " +
-                             config_.file + ": the request frame at tx byte offset " +
-                             std::to_string(tx_offset) + " (session time " +
-                             session_seconds(record.t_ns) + " s) is broken" +
-                             (frame.problem.empty() ? std::string() : ": " + frame.problem) +
-                             "; is this the protocol's recording?");
-        }
-        exchanges_.emplace_back();
-        Exchange& exchange = exchanges_.back();
-        exchange.first_tx_t_ns = first_t_ns;
-        exchange.last_tx_t_ns = record.t_ns;
-        exchange.tx_offset = tx_offset;
-        exchange.raw_offset = raw_requests_.size();
-        exchange.raw_size = static_cast<std::uint32_t>(frame.bytes.size());
-        raw_requests_.append(frame.bytes);
-        tx_offset += frame.bytes.size();
-        first_t_ns = record.t_ns;
-        join_group(group_for(profile.match_key(frame.bytes)));
-      }
+      framer->feed_at(record.t_ns, payload, frames);
+      for (const Frame& frame : frames) add_frame(frame, record.t_ns);
+      last_tx_t_ns = record.t_ns;
       continue;
     }
     if (record.kind != RecordKind::rx && record.kind != RecordKind::close &&
@@ -244,6 +247,10 @@ void RequestStrategy::load_frames(RecordSource& source) {
       continue;
     }
     if (record.kind == RecordKind::rx && payload.empty()) continue;
+    // Framed by silence: the device speaking ends the request.
+    if (framer->quiet_gap() && framer->pending() > 0) {
+      if (std::optional<Frame> tail = framer->finish()) add_frame(*tail, last_tx_t_ns);
+    }
     device_gone = record.kind != RecordKind::rx;
     if (record.kind == RecordKind::close && !session_goes_on(source)) break;
     add_response(record.kind, record.t_ns, payload, ordinal);
@@ -284,13 +291,26 @@ bool RequestStrategy::more_to_release() const {
 
 std::optional<ReplayTime> RequestStrategy::wake() const {
   if (!waiting_for_longer_) return std::nullopt;
+  if (config_.profile) {
+    return last_write_ + std::chrono::duration_cast<ReplayClock::duration>(
+                             client_framer_->quiet_gap().value_or(std::chrono::nanoseconds(0)));
+  }
   return last_write_ + config_.gap;
 }
 
 void RequestStrategy::release(ReplayTime now) {
-  if (waiting_for_longer_ && now >= last_write_ + config_.gap) {
-    match_pending(/*quiet=*/true, /*may_raise=*/false);
+  if (!waiting_for_longer_ || now < *wake()) return;
+  if (config_.profile) {
+    // A frame cut by the client's silence.
+    waiting_for_longer_ = false;
+    client_frames_.clear();
+    if (std::optional<Frame> tail = client_framer_->finish()) {
+      client_frames_.push_back(std::move(*tail));
+    }
+    take_frames(/*may_raise=*/false);
+    return;
   }
+  match_pending(/*quiet=*/true, /*may_raise=*/false);
 }
 
 std::optional<RequestStrategy::Rank> RequestStrategy::rank(const Group& group) const {
@@ -497,11 +517,20 @@ void RequestStrategy::raise_unmatched() {
 }
 
 void RequestStrategy::write_frames(const char* data, std::size_t size) {
+  client_frames_.clear();
+  client_framer_->feed_at(static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                              last_write_.time_since_epoch())
+                              .count()),
+                          std::string_view(data, size), client_frames_);
+  take_frames(/*may_raise=*/true);
+  // Framed by silence: the frame ends when the client is quiet (release()).
+  waiting_for_longer_ = client_framer_->quiet_gap() && client_framer_->pending() > 0;
+}
+
+void RequestStrategy::take_frames(bool may_raise) {
   const Profile& profile = *config_.profile;
   const bool silent = config_.unmatched == ReplayUnmatched::silent ||
                       config_.check == ReplayCheck::off;
-  client_frames_.clear();
-  client_framer_->feed(std::string_view(data, size), client_frames_);
   for (std::size_t i = 0; i < client_frames_.size(); ++i) {
     const Frame& frame = client_frames_[i];
     const std::string key = profile.match_key(frame.bytes);
@@ -516,6 +545,11 @@ void RequestStrategy::write_frames(const char* data, std::size_t size) {
     }
     if (silent) {
       pending_offset_ += frame.bytes.size();
+      continue;
+    }
+    if (!may_raise) {
+      // Found when no write is under way: the client's next write raises.
+      deferred_unmatched_ = frame;
       continue;
     }
     // The frames after this one in the write are dropped with it.
@@ -578,6 +612,12 @@ void RequestStrategy::raise_unmatched_frame(const Frame& frame, const std::strin
 void RequestStrategy::write(const char* data, std::size_t size, ReplayTime now) {
   if (config_.profile) {
     // Frames decide: no wait for a longer request.
+    release(now);
+    if (deferred_unmatched_) {
+      const Frame unmatched = std::move(*deferred_unmatched_);
+      deferred_unmatched_.reset();
+      raise_unmatched_frame(unmatched, config_.profile->match_key(unmatched.bytes));
+    }
     tx_written_ += size;
     last_write_ = now;
     write_frames(data, size);

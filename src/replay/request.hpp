@@ -34,7 +34,8 @@ class RequestStrategy final : public ReplayStrategy {
                   ReleasedRx& released, MismatchReport& report,
                   const RecordSourceFactory& sources);
 
-  // Ends a wait for a longer request once `gap` passed with no write.
+  // Ends a wait for a longer request once `gap` passed with no write (with
+  // a profile that frames by silence: the frame the client's silence ends).
   void release(ReplayTime now) override;
   bool more_to_release() const override;
   std::optional<ReplayTime> wake() const override;
@@ -121,6 +122,8 @@ class RequestStrategy final : public ReplayStrategy {
   void add_response(RecordKind kind, std::uint64_t t_ns, std::string_view payload,
                     std::uint64_t ordinal);
   void write_frames(const char* data, std::size_t size);
+  // Serves (or reports) the frames in client_frames_.
+  void take_frames(bool may_raise);
   [[noreturn]] void raise_unmatched_frame(const Frame& frame, const std::string& key);
   std::string_view raw_request(const Exchange& exchange) const {
     return std::string_view(raw_requests_).substr(exchange.raw_offset, exchange.raw_size);
@@ -166,6 +169,7 @@ class RequestStrategy final : public ReplayStrategy {
   std::unique_ptr<Framer> client_framer_;
   std::vector<Frame> client_frames_;
   std::string actual_frame_;  // being served, for fixes
+  std::optional<Frame> deferred_unmatched_;  // see take_frames()
   std::string kept_bytes_;
   std::vector<KeptRx> kept_;
   // A recorded close or device loss, which ends the session after this

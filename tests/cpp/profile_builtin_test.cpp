@@ -360,7 +360,7 @@ TEST(DeclaredProfile, BadSpecsNameTheKeyAndShowTheGrammar) {
   expect_spec_error("framing=length:0:2:0:xx", "framing", "neither be nor le");
   expect_spec_error("framing=fixed:0", "framing", "not a size");
   expect_spec_error("framing=lines", "framing", "'lines' is not a framing");
-  expect_spec_error("framing=gap:20", "framing", "silence");
+  expect_spec_error("framing=gap:0", "framing", "not from 1 to 60000 ms");
   expect_spec_error("framing=fixed:4,ignore=1", "ignore", "'1' is not OFFSET:LEN");
   expect_spec_error("framing=fixed:4,echo=0:0", "echo", "LEN '0'");
   expect_spec_error("framing=fixed:4,checksum=md5@-1", "checksum", "'md5' is not a checksum");
@@ -436,4 +436,42 @@ TEST(ProfileDecode, ShowMarksBrokenFramesWithTheirProblem) {
   ASSERT_EQ(items.size(), 1u);
   EXPECT_NE(items[0].description.find("BROKEN (bad length 1024"), std::string::npos)
       << items[0].description;
+}
+
+TEST(DeclaredProfile, GapFramingCutsRequestsBySilenceInTheRecordingAndTheClient) {
+  // Two requests recorded 100 ms apart in two records each, 1 ms apart.
+  const std::uint64_t ms = 1'000'000;
+  auto port = replay({tx(0, "RE"), tx(1 * ms, "AD"), rx(5 * ms, "[read]"),
+                      tx(100 * ms, "ST"), tx(101 * ms, "OP"), rx(105 * ms, "[stop]")},
+                     "timing=none,match=request,framing=gap:20");
+  port->write_all("STOP");
+  // The frame ends after 20 ms of the client's silence: a blocked read waits.
+  EXPECT_EQ(port->read_exactly(6), "[stop]");
+  port->write_all("READ");
+  EXPECT_EQ(port->read_exactly(6), "[read]");
+  port->write_all("NOPE");
+  // Found in the silence after it; the next write reports it.
+  const auto deadline = std::chrono::steady_clock::now() + test::kEventDeadline;
+  bool raised = false;
+  while (!raised && std::chrono::steady_clock::now() < deadline) {
+    std::string none(1, '\0');
+    port->read(none.data(), 1, std::chrono::milliseconds(30));
+    try {
+      port->write_all("X");
+    } catch (const ReplayMismatch& error) {
+      raised = true;
+      EXPECT_NE(std::string(error.what()).find("NOPE"), std::string::npos) << error.what();
+    }
+  }
+  EXPECT_TRUE(raised);
+}
+
+TEST(DeclaredProfile, GapFramingInSequenceModeIsAnOptionError) {
+  try {
+    replay({}, "framing=gap:20");
+    FAIL() << "accepted";
+  } catch (const OptionError& error) {
+    EXPECT_EQ(error.key(), "framing");
+    EXPECT_NE(std::string(error.what()).find("match=request"), std::string::npos);
+  }
 }

@@ -20,8 +20,9 @@ namespace wiretape::detail {
 namespace {
 
 constexpr const char* framing_grammar =
-    "framing=delimiter:HEX | length:OFFSET:SIZE:ADJUST[:be|le] | fixed:N "
-    "(HEX: the delimiter's bytes in hex, such as 0d0a; length: the frame is "
+    "framing=delimiter:HEX | length:OFFSET:SIZE:ADJUST[:be|le] | fixed:N | gap:MS "
+    "(MS: a frame ends after that many milliseconds without a byte, or where the other "
+    "direction speaks; HEX: the delimiter's bytes in hex, such as 0d0a; length: the frame is "
     "ADJUST + the SIZE-byte (1, 2 or 4) unsigned field at OFFSET bytes long)";
 constexpr const char* fields_grammar =
     "OFFSET:LEN[;OFFSET:LEN...] (a negative OFFSET counts from the frame's end)";
@@ -131,12 +132,14 @@ DeclaredFraming parse_framing(const std::string& value) {
     return framing;
   }
   if (parts[0] == "gap") {
-    bad_spec(key, value,
-             "framing by silence (gap:MS) needs the bytes' times, which frames do not "
-             "carry yet; use delimiter, length or fixed",
-             framing_grammar);
+    if (parts.size() != 2) bad_spec(key, value, "gap takes one time MS", framing_grammar);
+    const auto ms = integer(parts[1], 1, 60'000);
+    if (!ms) bad_spec(key, value, "'" + parts[1] + "' is not from 1 to 60000 ms", framing_grammar);
+    framing.kind = DeclaredFraming::Kind::gap;
+    framing.gap_ns = static_cast<std::uint64_t>(*ms) * 1'000'000;
+    return framing;
   }
-  bad_spec(key, value, "'" + parts[0] + "' is not a framing (delimiter, length or fixed)",
+  bad_spec(key, value, "'" + parts[0] + "' is not a framing (delimiter, length, fixed or gap)",
            framing_grammar);
 }
 
@@ -213,10 +216,26 @@ class DeclaredFramer final : public BufferingFramer {
   DeclaredFramer(const DeclaredFraming& framing, std::optional<DeclaredChecksum> checksum)
       : framing_(framing), checksum_(checksum) {}
 
+  std::optional<std::chrono::nanoseconds> quiet_gap() const override {
+    if (framing_.kind != DeclaredFraming::Kind::gap) return std::nullopt;
+    return std::chrono::nanoseconds(framing_.gap_ns);
+  }
+
+  void feed_at(std::uint64_t t_ns, std::string_view bytes, std::vector<Frame>& frames) override {
+    if (framing_.kind == DeclaredFraming::Kind::gap && !buffer_.empty() &&
+        t_ns >= last_t_ns_ + framing_.gap_ns) {
+      complete(frames);
+    }
+    last_t_ns_ = t_ns;
+    feed(bytes, frames);
+  }
+
   void feed(std::string_view bytes, std::vector<Frame>& frames) override {
     for (char byte : bytes) {
       buffer_ += byte;
       switch (framing_.kind) {
+        case DeclaredFraming::Kind::gap:
+          break;  // silence ends the frame (feed_at, finish)
         case DeclaredFraming::Kind::delimiter:
           if (buffer_.size() >= framing_.delimiter.size() &&
               buffer_.compare(buffer_.size() - framing_.delimiter.size(),
@@ -274,8 +293,14 @@ class DeclaredFramer final : public BufferingFramer {
     cut(FrameEnd::delimited, frames);
   }
   void forget_frame() override { expected_ = 0; }
+  // Silence ends a frame: what is kept is whole when the stream ends.
+  FrameEnd tail_end() const override {
+    return framing_.kind == DeclaredFraming::Kind::gap ? FrameEnd::delimited
+                                                       : FrameEnd::stream_end;
+  }
 
   DeclaredFraming framing_;
+  std::uint64_t last_t_ns_ = 0;
   std::optional<DeclaredChecksum> checksum_;
   std::size_t expected_ = 0;
 };

@@ -4,6 +4,7 @@
 // them; each throws OptionError naming its key and showing its grammar.
 #pragma once
 
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
@@ -15,7 +16,8 @@
 namespace wiretape::detail {
 
 struct DeclaredFraming {
-  enum class Kind { delimiter, length, fixed } kind = Kind::delimiter;
+  enum class Kind { delimiter, length, fixed, gap } kind = Kind::delimiter;
+  std::uint64_t gap_ns = 0;
   std::string delimiter;
   std::size_t fixed = 0;
   std::size_t length_offset = 0;
