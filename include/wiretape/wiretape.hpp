@@ -6,6 +6,7 @@
 #include "wiretape/errors.hpp"
 #include "wiretape/options.hpp"
 #include "wiretape/port.hpp"
+#include "wiretape/profile.hpp"
 #include "wiretape/session.hpp"
 #include "wiretape/timeout.hpp"
 #include "wiretape/version.hpp"

@@ -547,7 +547,14 @@ class DecodedSession:
         """
 
 def profile_names() -> list[str]:
-    """The built-in protocol profiles' names, `scip` first."""
+    """
+    The built-in protocol profiles' names, `scip` first, then registered ones.
+    """
+
+def register_callable_profile(name: str, base: str, match_key: object | None = None, fix_response: object | None = None) -> None:
+    """
+    Registers `name` for profile=: the framing and names of the profile `base`, the match key match_key(request: bytes) -> bytes and the response fix fix_response(recorded_request, actual_request, response) -> bytes, where given (None: the base profile's). The callables are called with the GIL from the thread that serves the client.
+    """
 
 def find_profile(name: str) -> Profile:
     """The built-in profile called `name`; OptionError for an unknown name."""

@@ -321,7 +321,7 @@ def cmd_record(args, out: _Output) -> int:
 
 
 _REPLAY_KEYS = ("timing", "speed", "check", "match", "tolerance", "unmatched",
-                "repeat", "unused", "at_end")
+                "repeat", "unused", "at_end", "profile", "gap")
 
 
 def replay_options_of(args) -> str:
@@ -636,7 +636,7 @@ def cmd_diff(args, out: _Output) -> int:
 
     _require_input(args.a)
     _require_input(args.b)
-    result = diff(args.a, args.b)
+    result = diff(args.a, args.b, profile=args.profile)
     for line in result.report().splitlines():
         style = None
         if line == "sessions are identical":
@@ -866,6 +866,12 @@ def build_parser() -> argparse.ArgumentParser:
                         help="recorded data never consumed at close (default warn)")
     replay.add_argument("--at-end", dest="at_end", choices=("silent", "closed"),
                         help="after the last record (default silent)")
+    replay.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
+                        help="a protocol profile: requests are frames matched by key, "
+                             "responses fixed: " + ", ".join(_core.profile_names()))
+    replay.add_argument("--gap", type=_non_negative_float, metavar="MS",
+                        help="--match request: ms of quiet a complete request waits for a "
+                             "longer one recorded earlier (default 50)")
     replay.add_argument("--options", metavar="KEYS",
                         help="further replay keys as an option string (k=v,k=v)")
     replay.add_argument("--peer", metavar="HOST:PORT", type=_udp_address("peer", 1),
@@ -981,6 +987,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "first divergence of two sessions, per direction (exit 1 if they differ)")
     diff.add_argument("a", metavar="A", help="a session")
     diff.add_argument("b", metavar="B", help="another session")
+    diff.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
+                      help="compare frame by frame by the profile's match key (fields it "
+                           "leaves out do not differ): " + ", ".join(_core.profile_names()))
 
     command("demo", cmd_demo,
             "record a simulated Hokuyo scanner, replay it without it, compare (make demo)")

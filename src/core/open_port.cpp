@@ -83,6 +83,7 @@ constexpr KeyDependency key_dependencies[] = {
     {"meta_", true, "", "log=FILE (metadata goes into the recording's header)", recorded},
     {"unmatched", false, "replay", "match=request", request_matching},
     {"repeat", false, "replay", "match=request", request_matching},
+    {"gap", false, "replay", "match=request", request_matching},
     {"tolerance", false, "replay", "check=timing", timing_checked},
     {"jitter", false, "replay", "check=timing (or strictness=2)", timing_checked},
     {"speed", false, "replay", "a clock: timing=session or timing=causal", clocked},

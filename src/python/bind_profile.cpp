@@ -177,6 +177,93 @@ class DecodedSession {
 
 }  // namespace
 
+namespace {
+
+// A Python callable held by a profile that may outlive the interpreter's
+// threads: released under the GIL, and not at all once Python is gone.
+class HeldCallable {
+ public:
+  explicit HeldCallable(nb::handle callable) : callable_(callable.ptr()) {
+    Py_XINCREF(callable_);
+  }
+  ~HeldCallable() {
+    if (callable_ == nullptr || !Py_IsInitialized()) return;
+    nb::gil_scoped_acquire gil;
+    Py_DECREF(callable_);
+  }
+  HeldCallable(const HeldCallable&) = delete;
+  HeldCallable& operator=(const HeldCallable&) = delete;
+  explicit operator bool() const { return callable_ != nullptr; }
+  nb::handle get() const { return callable_; }
+
+ private:
+  PyObject* callable_;
+};
+
+std::string bytes_result(nb::handle result, const char* what) {
+  if (!nb::isinstance<nb::bytes>(result)) {
+    throw std::invalid_argument(std::string(what) + " must return bytes, not " +
+                                nb::cast<std::string>(nb::str(result.type().attr("__name__"))));
+  }
+  const nb::bytes bytes = nb::borrow<nb::bytes>(result);
+  return std::string(bytes.c_str(), bytes.size());
+}
+
+// A profile whose match key and response fix are Python callables, framing
+// and names those of a base profile (DESIGN.md section 13). The replay calls
+// it from whatever thread serves the client, so each call takes the GIL.
+class CallableProfile final : public Profile {
+ public:
+  CallableProfile(std::string name, std::shared_ptr<const Profile> base, nb::handle match_key,
+                  nb::handle fix_response)
+      : name_(std::move(name)),
+        base_(std::move(base)),
+        match_key_(match_key.is_none() ? nb::handle() : match_key),
+        fix_response_(fix_response.is_none() ? nb::handle() : fix_response) {}
+
+  std::string_view name() const override { return name_; }
+  std::string_view summary() const override { return base_->summary(); }
+  std::unique_ptr<detail::Framer> make_framer(StreamDirection direction) const override {
+    return base_->make_framer(direction);
+  }
+  std::string match_key(std::string_view request) const override {
+    if (!match_key_) return base_->match_key(request);
+    nb::gil_scoped_acquire gil;
+    return bytes_result(match_key_.get()(nb::bytes(request.data(), request.size())),
+                        "match_key");
+  }
+  bool fixes_responses() const override {
+    return static_cast<bool>(fix_response_) || base_->fixes_responses();
+  }
+  std::string fix_response(std::string_view recorded, std::string_view actual,
+                           std::string_view response) const override {
+    if (!fix_response_) return base_->fix_response(recorded, actual, response);
+    nb::gil_scoped_acquire gil;
+    return bytes_result(fix_response_.get()(nb::bytes(recorded.data(), recorded.size()),
+                                            nb::bytes(actual.data(), actual.size()),
+                                            nb::bytes(response.data(), response.size())),
+                        "fix_response");
+  }
+  std::string frame_name(StreamDirection direction, std::string_view frame) const override {
+    return base_->frame_name(direction, frame);
+  }
+  std::string describe(StreamDirection direction, std::string_view frame) const override {
+    return base_->describe(direction, frame);
+  }
+  std::string field_name(StreamDirection direction, std::string_view frame,
+                         std::size_t offset) const override {
+    return base_->field_name(direction, frame, offset);
+  }
+
+ private:
+  std::string name_;
+  std::shared_ptr<const Profile> base_;
+  HeldCallable match_key_;
+  HeldCallable fix_response_;
+};
+
+}  // namespace
+
 void bind_profile(nb::module_& m) {
   nb::class_<PyProfile>(m, "Profile",
                         "What wiretape knows of a protocol: how each direction is cut into "
@@ -248,7 +335,27 @@ void bind_profile(nb::module_& m) {
           "stopped");
 
   m.def("profile_names", &detail::profile_names,
-        "The built-in protocol profiles' names, `scip` first.");
+        "The built-in protocol profiles' names, `scip` first, then registered ones.");
+  m.def(
+      "register_callable_profile",
+      [](const std::string& name, const std::string& base, nb::object match_key,
+         nb::object fix_response) {
+        for (nb::handle callable : {match_key, fix_response}) {
+          if (!callable.is_none() && !PyCallable_Check(callable.ptr())) {
+            throw nb::type_error("match_key and fix_response must be callables or None");
+          }
+        }
+        std::shared_ptr<const Profile> framing = detail::find_profile(base);
+        auto profile = std::make_shared<const CallableProfile>(name, framing, match_key,
+                                                               fix_response);
+        register_profile(name, [profile] { return profile; });
+      },
+      "name"_a, "base"_a, "match_key"_a = nb::none(), "fix_response"_a = nb::none(),
+      "Registers `name` for profile=: the framing and names of the profile `base`, "
+      "the match key match_key(request: bytes) -> bytes and the response fix "
+      "fix_response(recorded_request, actual_request, response) -> bytes, where given "
+      "(None: the base profile's). The callables are called with the GIL from the "
+      "thread that serves the client.");
   m.def(
       "find_profile",
       [](const std::string& name) { return PyProfile{detail::find_profile(name)}; },

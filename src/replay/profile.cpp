@@ -1,5 +1,7 @@
 #include "replay/profile.hpp"
 
+#include <mutex>
+#include <stdexcept>
 #include <utility>
 
 #include "replay/profiles/builtin.hpp"
@@ -18,16 +20,12 @@ struct RegistryEntry {
 constexpr RegistryEntry registry[] = {
     {"scip", &make_scip_profile},
     {"lines", &make_default_lines_profile},
+    {"nmea", &make_nmea_profile},
+    {"slcan", &make_slcan_profile},
+    {"modbus-rtu", &make_modbus_rtu_profile},
+    {"modbus-tcp", &make_modbus_tcp_profile},
+    {"mavlink", &make_mavlink_profile},
 };
-
-std::string known_names() {
-  std::string out;
-  for (const RegistryEntry& entry : registry) {
-    if (!out.empty()) out += ", ";
-    out += entry.name;
-  }
-  return out;
-}
 
 }  // namespace
 
@@ -35,18 +33,110 @@ std::string_view to_string(StreamDirection direction) {
   return direction == StreamDirection::tx ? "tx" : "rx";
 }
 
+}  // namespace wiretape::detail
+
+namespace wiretape {
+
+namespace {
+
+struct Registered {
+  std::string name;
+  ProfileFactory make;
+};
+
+std::mutex& registered_mutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+
+std::vector<Registered>& registered() {
+  static std::vector<Registered> profiles;
+  return profiles;
+}
+
+bool is_builtin(std::string_view name) {
+  for (const detail::RegistryEntry& entry : detail::registry) {
+    if (entry.name == name) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+void register_profile(const std::string& name, ProfileFactory make) {
+  if (name.empty()) throw std::invalid_argument("register_profile: the name is empty");
+  if (is_builtin(name)) {
+    throw std::invalid_argument("register_profile: '" + name +
+                                "' is a built-in profile; choose another name");
+  }
+  if (!make) throw std::invalid_argument("register_profile: no factory for '" + name + "'");
+  std::lock_guard<std::mutex> lock(registered_mutex());
+  for (Registered& entry : registered()) {
+    if (entry.name == name) {
+      entry.make = std::move(make);
+      return;
+    }
+  }
+  registered().push_back({name, std::move(make)});
+}
+
 std::vector<std::string> profile_names() {
   std::vector<std::string> names;
-  for (const RegistryEntry& entry : registry) names.emplace_back(entry.name);
+  for (const detail::RegistryEntry& entry : detail::registry) names.emplace_back(entry.name);
+  std::lock_guard<std::mutex> lock(registered_mutex());
+  for (const Registered& entry : registered()) names.push_back(entry.name);
   return names;
 }
 
 std::shared_ptr<const Profile> find_profile(std::string_view name) {
-  for (const RegistryEntry& entry : registry) {
+  for (const detail::RegistryEntry& entry : detail::registry) {
     if (entry.name == name) return entry.make();
   }
-  throw OptionError("profile", "unknown profile '" + std::string(name) +
-                                   "': the profiles are " + known_names());
+  ProfileFactory make;
+  {
+    std::lock_guard<std::mutex> lock(registered_mutex());
+    for (const Registered& entry : registered()) {
+      if (entry.name == name) make = entry.make;
+    }
+  }
+  if (make) {
+    std::shared_ptr<const Profile> profile = make();
+    if (profile) return profile;
+  }
+  std::string known;
+  for (const std::string& each : profile_names()) {
+    if (!known.empty()) known += ", ";
+    known += each;
+  }
+  throw OptionError("profile", "option 'profile': unknown profile '" + std::string(name) +
+                                   "': the profiles are " + known);
+}
+
+}  // namespace wiretape
+
+namespace wiretape::detail {
+
+std::optional<std::size_t> first_key_difference(const Profile& profile,
+                                                std::string_view expected,
+                                                std::string_view actual) {
+  const std::string key = profile.match_key(actual);
+  if (key == profile.match_key(expected)) return std::nullopt;
+  const std::size_t limit = std::min(expected.size(), actual.size());
+  for (std::size_t i = 0; i < limit; ++i) {
+    if (expected[i] == actual[i]) continue;
+    std::string probe(actual);
+    probe[i] = expected[i];
+    if (profile.match_key(probe) != key) return i;
+  }
+  return limit;
+}
+
+std::string differing_field_text(const Profile& profile, std::string_view expected,
+                                 std::string_view actual) {
+  const std::optional<std::size_t> at = first_key_difference(profile, expected, actual);
+  if (!at) return {};
+  const std::string field = profile.field_name(StreamDirection::tx, expected, *at);
+  return field.empty() ? std::string() : ": its field '" + field + "' differs";
 }
 
 // --- SessionDecoder -----------------------------------------------------------
@@ -76,9 +166,18 @@ void SessionDecoder::feed(std::uint64_t t_ns, RecordKind kind, std::string_view 
   // Frames are consecutive: only the first frame this record completes can
   // have begun in an earlier record (as the kept tail); every later one
   // began in this record.
+  // A framer that cuts by silence: the other direction speaking ends its
+  // frame (a device answers a whole request).
+  Stream& other = direction == StreamDirection::tx ? rx_ : tx_;
+  if (other.framer->quiet_gap() && other.framer->pending() > 0) {
+    if (std::optional<Frame> tail = other.framer->finish()) {
+      emit(direction == StreamDirection::tx ? StreamDirection::rx : StreamDirection::tx,
+           other.tail_t_ns, std::move(*tail), out);
+    }
+  }
   const bool tail_began_earlier = stream.framer->pending() > 0;
   frames_.clear();
-  stream.framer->feed(data, frames_);
+  stream.framer->feed_at(t_ns, data, frames_);
   for (std::size_t i = 0; i < frames_.size(); ++i) {
     const bool began_earlier = i == 0 && tail_began_earlier;
     emit(direction, began_earlier ? stream.tail_t_ns : t_ns, std::move(frames_[i]), out);
@@ -103,6 +202,9 @@ void SessionDecoder::emit(StreamDirection direction, std::uint64_t t_ns, Frame f
   item.t_ns = t_ns;
   item.kind = direction == StreamDirection::tx ? RecordKind::tx : RecordKind::rx;
   item.description = profile_->describe(direction, frame.bytes);
+  if (frame.end == FrameEnd::broken) {
+    item.description = "BROKEN (" + frame.problem + "): " + item.description;
+  }
   item.bytes = std::move(frame.bytes);
   item.is_frame = true;
   out.push_back(std::move(item));

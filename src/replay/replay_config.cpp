@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 
+#include "replay/profiles/declared.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail {
@@ -96,6 +97,24 @@ ReplayConfig take_replay_config(Options& options) {
       {{"none", ReplayRepeat::none},
        {"last", ReplayRepeat::last},
        {"cycle", ReplayRepeat::cycle}});
+  const double gap_ms = options.take_double("gap", 50.0, 0.0, 1e9);
+  config.gap = std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(gap_ms * 1e6)));
+  if (const auto name = options.peek("profile")) {
+    if (options.has("framing")) {
+      throw OptionError("framing",
+                        "options 'profile' and 'framing' both say how to frame the "
+                        "session: give a built-in profile or a declared one, not both");
+    }
+    config.profile = find_profile(std::string(*name));
+  }
+  options.take_string("profile", "");
+  if (auto declared = take_declared_profile(options)) config.profile = std::move(declared);
+  if (config.profile && config.match == ReplayMatch::sequence &&
+      config.profile->make_framer(StreamDirection::tx)->quiet_gap()) {
+    throw OptionError("framing",
+                      "framing by silence (gap:MS) works with match=request only: in "
+                      "match=sequence the client's last frame would never end");
+  }
   config.unused = pick<ReplayUnused>(
       options.take_choice("unused", "warn", {"ignore", "warn", "error"}),
       {{"warn", ReplayUnused::warn},

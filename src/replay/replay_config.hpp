@@ -2,9 +2,11 @@
 #pragma once
 
 #include <chrono>
+#include <memory>
 #include <string>
 
 #include "wiretape/options.hpp"
+#include "wiretape/profile.hpp"
 
 namespace wiretape::detail {
 
@@ -25,8 +27,15 @@ struct ReplayConfig {
   ReplayMatch match = ReplayMatch::sequence;
   ReplayUnmatched unmatched = ReplayUnmatched::error;
   ReplayRepeat repeat = ReplayRepeat::none;
+  // match=request: how long the matcher waits, with no new byte, for a longer
+  // request recorded earlier before it takes a shorter one that is complete
+  // (DESIGN.md section 13).
+  std::chrono::nanoseconds gap = std::chrono::milliseconds(50);
   ReplayUnused unused = ReplayUnused::warn;
   ReplayAtEnd at_end = ReplayAtEnd::silent;
+  // profile=NAME: exchanges are request frames matched by their keys, and
+  // served responses are fixed (DESIGN.md section 13); none: raw bytes.
+  std::shared_ptr<const Profile> profile;
   // Datagram sessions (recorded from udp) keep record boundaries.
   bool datagrams = false;
 };

@@ -35,21 +35,20 @@ ReplayEngine::ReplayEngine(ReplayConfig config, RecordSourceFactory sources,
                            ReplayTime open_time, std::uint64_t origin_ns)
     : config_(std::move(config)),
       timeline_(config_, open_time, origin_ns),
-      // Only the sequence strategy reads records into reused buffers.
-      released_(config_.match == ReplayMatch::sequence),
+      released_(/*recycle_payloads=*/true),
       report_(config_.file, config_.match),
       strategy_(make_strategy(config_, timeline_, released_, report_, sources)) {}
 
 ReplayEngine::~ReplayEngine() = default;
 
-void ReplayEngine::prepare() { strategy_->release(); }
+void ReplayEngine::prepare(ReplayTime now) { strategy_->release(now); }
 
 std::size_t ReplayEngine::read(char* buffer, std::size_t size, ReplayTime now) {
-  prepare();
+  prepare(now);
   std::size_t copied = 0;
   while (copied < size) {
     if (released_.empty()) {
-      prepare();
+      prepare(now);
       if (released_.empty()) break;
     }
     RxItem& item = released_.front();
@@ -80,7 +79,7 @@ std::size_t ReplayEngine::read(char* buffer, std::size_t size, ReplayTime now) {
 }
 
 std::size_t ReplayEngine::available(ReplayTime now) {
-  prepare();
+  prepare(now);
   std::size_t total = 0;
   for (const RxItem& item : released_.items()) {
     if (item.kind != RecordKind::rx || !is_due(item, now)) break;
@@ -91,7 +90,8 @@ std::size_t ReplayEngine::available(ReplayTime now) {
 }
 
 ReplayEngine::Outlook ReplayEngine::outlook(ReplayTime now) {
-  prepare();
+  prepare(now);
+  const std::optional<ReplayTime> strategy_wake = strategy_->wake();
   if (!released_.empty()) {
     const RxItem& front = released_.front();
     if (is_due(front, now)) {
@@ -99,18 +99,20 @@ ReplayEngine::Outlook ReplayEngine::outlook(ReplayTime now) {
                                            : ReadState::device_gone,
               std::nullopt};
     }
-    return {ReadState::waiting, front.due};
+    return {ReadState::waiting,
+            strategy_wake ? std::min(front.due, *strategy_wake) : front.due};
   }
+  if (strategy_wake) return {ReadState::waiting, strategy_wake};
   return {strategy_->more_to_release() ? ReadState::waiting : ReadState::ended,
           std::nullopt};
 }
 
 void ReplayEngine::flush_input(ReplayTime now) {
-  prepare();
+  prepare(now);
   while (!released_.empty() && released_.front().kind == RecordKind::rx &&
          is_due(released_.front(), now)) {
     released_.pop_front();
-    if (released_.empty()) prepare();
+    if (released_.empty()) prepare(now);
   }
   // What the flush entitles is released after it, not dropped by it.
   client_flushed();

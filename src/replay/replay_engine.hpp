@@ -78,7 +78,7 @@ class ReplayEngine {
 
  private:
   // Lets the strategy release what the client is now entitled to.
-  void prepare();
+  void prepare(ReplayTime now);
 
   ReplayConfig config_;
   ReplayTimeline timeline_;

@@ -16,14 +16,15 @@ SequenceStrategy::SequenceStrategy(const ReplayConfig& config,
       released_(released),
       report_(report),
       rx_source_(sources()),
-      tx_source_(sources()) {
+      tx_source_(sources()),
+      frame_source_(config.profile ? sources() : nullptr) {
   fill();
   entitle();
 }
 
 // --- the read cursor -----------------------------------------------------------
 
-void SequenceStrategy::release() {
+void SequenceStrategy::release(ReplayTime) {
   const bool nothing_ahead = released_.empty() && ahead_.empty();
   if (nothing_ahead || released_.bytes() + ahead_bytes_ < kLookaheadBytes / 2) {
     fill();
@@ -119,6 +120,7 @@ void SequenceStrategy::entitle() {
     }
     ahead.item.due = timeline_.due(ahead.item.t_ns, anchor);
     ahead_bytes_ -= ahead.item.payload().size();
+    fix_response(ahead.item, ahead.tx_before);
     released_.push(std::move(ahead.item));
     ahead_.pop_front();
   }
@@ -128,6 +130,18 @@ void SequenceStrategy::entitle() {
   while (tx_ends_.size() > 1 && tx_ends_.front().end_offset < still_needed) {
     tx_ends_.pop_front();
   }
+}
+
+void SequenceStrategy::fix_response(RxItem& item, std::uint64_t tx_before) {
+  if (written_frames_.empty() || item.kind != RecordKind::rx) return;
+  // The response follows the last frame the client finished before it.
+  while (written_frames_.size() > 1 && written_frames_[1].end_offset <= tx_before) {
+    written_frames_.pop_front();
+  }
+  const WrittenFrame& frame = written_frames_.front();
+  if (frame.end_offset > tx_before) return;
+  item.data = config_.profile->fix_response(frame.recorded, frame.actual, item.payload());
+  item.view = PayloadView{};
 }
 
 // --- the write cursor ------------------------------------------------------------
@@ -172,9 +186,85 @@ bool SequenceStrategy::next_tx_record() {
   return have_tx_record_;
 }
 
+std::optional<Frame> SequenceStrategy::next_recorded_frame() {
+  Record record;
+  while (recorded_frames_.empty() && !frame_source_done_) {
+    if (!frame_source_->next(record)) {
+      frame_source_done_ = true;
+      if (std::optional<Frame> tail = recorded_framer_->finish()) {
+        recorded_frames_.push_back(std::move(*tail));
+      }
+      break;
+    }
+    if (record.kind != RecordKind::tx || record.data.empty()) continue;
+    scratch_frames_.clear();
+    recorded_framer_->feed(record.data, scratch_frames_);
+    for (Frame& frame : scratch_frames_) recorded_frames_.push_back(std::move(frame));
+  }
+  if (recorded_frames_.empty()) return std::nullopt;
+  Frame frame = std::move(recorded_frames_.front());
+  recorded_frames_.pop_front();
+  return frame;
+}
+
+void SequenceStrategy::write_frames(const char* data, std::size_t size, ReplayTime now) {
+  const Profile& profile = *config_.profile;
+  if (!client_framer_) {
+    client_framer_ = profile.make_framer(StreamDirection::tx);
+    recorded_framer_ = profile.make_framer(StreamDirection::tx);
+  }
+  std::vector<Frame> frames;
+  client_framer_->feed(std::string_view(data, size), frames);
+  for (const Frame& frame : frames) {
+    const std::optional<Frame> recorded = next_recorded_frame();
+    if (!recorded) {
+      write_records(frame.bytes.data(), frame.bytes.size(), now);  // raises: past the end
+      continue;
+    }
+    if (recorded->end == FrameEnd::broken || recorded->end == FrameEnd::size_limit) {
+      report_.raise("the recording's " + std::string(profile.name()) +
+                        " frame at this point is broken" +
+                        (recorded->problem.empty() ? std::string() : " (" + recorded->problem + ")") +
+                        ": the profile cannot frame this recording",
+                    tx_written_, std::string_view(recorded->bytes).substr(0, kReplayContext),
+                    std::string_view(frame.bytes).substr(0, kReplayContext),
+                    previous_tx_t_ns_, tx_exchange_);
+    }
+    if (frame.end != FrameEnd::delimited ||
+        profile.match_key(frame.bytes) != profile.match_key(recorded->bytes)) {
+      std::string title = "the client's frame " +
+                          profile.frame_name(StreamDirection::tx, frame.bytes) +
+                          " differs from the recorded " +
+                          profile.frame_name(StreamDirection::tx, recorded->bytes);
+      if (frame.end != FrameEnd::delimited) {
+        title = "the client's bytes are not a whole " + std::string(profile.name()) + " frame";
+        if (!frame.problem.empty()) title += " (" + frame.problem + ")";
+      } else {
+        title += differing_field_text(profile, recorded->bytes, frame.bytes);
+      }
+      const std::size_t at =
+          first_key_difference(profile, recorded->bytes, frame.bytes).value_or(0);
+      report_.raise(title, tx_written_ + at,
+                    std::string_view(recorded->bytes).substr(std::min(at, recorded->bytes.size()), kReplayContext),
+                    std::string_view(frame.bytes).substr(std::min(at, frame.bytes.size()), kReplayContext),
+                    previous_tx_t_ns_, tx_exchange_);
+    }
+    // The recorded frame's bytes stand for the client's: its counters may
+    // differ, and the recording's byte counts decide what is released.
+    write_records(recorded->bytes.data(), recorded->bytes.size(), now);
+    if (profile.fixes_responses()) {
+      written_frames_.push_back({tx_written_, recorded->bytes, frame.bytes});
+    }
+  }
+}
+
 void SequenceStrategy::write(const char* data, std::size_t size, ReplayTime now) {
   try {
-    write_records(data, size, now);
+    if (config_.profile && config_.check != ReplayCheck::off) {
+      write_frames(data, size, now);
+    } else {
+      write_records(data, size, now);
+    }
   } catch (...) {
     entitle();  // what was accepted before the mismatch still counts
     throw;

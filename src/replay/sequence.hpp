@@ -13,6 +13,7 @@
 #include <optional>
 #include <string>
 
+#include "replay/profile.hpp"
 #include "replay/strategy.hpp"
 
 namespace wiretape::detail {
@@ -23,7 +24,7 @@ class SequenceStrategy final : public ReplayStrategy {
                    ReleasedRx& released, MismatchReport& report,
                    const RecordSourceFactory& sources);
 
-  void release() override;
+  void release(ReplayTime now) override;
   bool more_to_release() const override;
   void client_flushed() override;
   void write(const char* data, std::size_t size, ReplayTime now) override;
@@ -48,6 +49,10 @@ class SequenceStrategy final : public ReplayStrategy {
     ReplayTime finished;
   };
 
+  // With a profile (check=data or timing): the client's frames, compared by
+  // key with the recorded ones, stand for the recorded frames' bytes.
+  void write_frames(const char* data, std::size_t size, ReplayTime now);
+  std::optional<Frame> next_recorded_frame();
   void fill();
   void entitle();
   std::optional<ReplayTime> finish_of(std::uint64_t tx_offset) const;
@@ -88,6 +93,24 @@ class SequenceStrategy final : public ReplayStrategy {
   std::uint64_t previous_tx_t_ns_ = 0;
   std::uint64_t tx_written_ = 0;  // bytes the client wrote
   std::uint64_t tx_recorded_done_ = 0;  // of the tx records written in full
+
+  // With a profile: the recorded tx stream framed (its own cursor), and the
+  // client's.
+  std::unique_ptr<RecordSource> frame_source_;
+  std::unique_ptr<Framer> recorded_framer_;
+  std::unique_ptr<Framer> client_framer_;
+  std::deque<Frame> recorded_frames_;
+  std::vector<Frame> scratch_frames_;
+  bool frame_source_done_ = false;
+  // Frames the client wrote, while responses after them may still be
+  // released: for the profile's response fixes.
+  struct WrittenFrame {
+    std::uint64_t end_offset;  // recorded tx bytes up to its end
+    std::string recorded;
+    std::string actual;
+  };
+  std::deque<WrittenFrame> written_frames_;
+  void fix_response(RxItem& item, std::uint64_t tx_before);
 };
 
 }  // namespace wiretape::detail

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <deque>
 #include <map>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -102,9 +103,12 @@ class ReplayStrategy {
  public:
   virtual ~ReplayStrategy() = default;
   // Moves whatever the client is now entitled to into the released queue.
-  virtual void release() = 0;
+  virtual void release(ReplayTime now) = 0;
   // Whether rx may still be released (by time, or by a write).
   virtual bool more_to_release() const = 0;
+  // When release() may release more with no write by the client (the end of
+  // match=request's wait for a longer request); nullopt: only a write can.
+  virtual std::optional<ReplayTime> wake() const { return std::nullopt; }
   // Accepts the whole write or raises ReplayMismatch (or PortClosed past a
   // recorded close).
   virtual void write(const char* data, std::size_t size, ReplayTime now) = 0;

@@ -11,6 +11,8 @@ import json
 import os
 import pathlib
 import sys
+import textwrap
+import time
 
 import pytest
 
@@ -142,3 +144,274 @@ if __name__ == "__main__":
     lines = show_lines(_core.find_profile("scip").decode_session(GOLDEN_RECORDING))
     GOLDEN_TEXT.write_text("\n".join(lines) + "\n")
     print(f"wrote {GOLDEN_TEXT} ({len(lines)} lines)", file=sys.stderr)
+
+
+# --- replay with a profile, and the gap rule, with a line-based client -------
+
+LINE_EXCHANGES = [(b"MEAS:VOLT?\n", b"+1.25\n"),
+                  (b"MEAS:VOLT?\nMEAS:CURR?\n", b"+1.25\n+0.03\n"),  # sent as one burst
+                  (b"*IDN?\n", b"ACME,PSU-1,42\n"),
+                  (b"MEAS:VOLT?\n", b"+1.26\n"),
+                  (b"OUTP ON\n", b"")]
+
+
+def line_session(session_file):
+    records = []
+    t = 1_000
+    for request, response in LINE_EXCHANGES:
+        records.append(("tx", t, request))
+        if response:
+            records.append(("rx", t + 100, response))
+        t += 10_000
+    return session_file(records)
+
+
+def send_split_and_paused(port, stream, rng, max_pause_s):
+    """The client: its bytes cut at random places, random pauses between."""
+    at = 0
+    while at < len(stream):
+        size = rng.randint(1, 6)
+        port.write(stream[at:at + size])
+        at += size
+        # The client's own pace (a stimulus, not a synchronisation).
+        time.sleep(rng.uniform(0, max_pause_s))
+
+
+def test_a_line_client_splitting_and_pausing_at_random_replays_with_the_gap_rule(session_file):
+    """No profile: `MEAS:VOLT?\\n` is also the start of the burst recorded
+    earlier, so the matcher waits (gap) before taking it alone."""
+    import random
+    path = line_session(session_file)
+    stream = b"".join(request for request, _ in LINE_EXCHANGES)
+    expected = b"".join(response for _, response in LINE_EXCHANGES)
+    for seed in range(3):
+        rng = random.Random(seed)
+        port = _core.open_port(f"type=replay,file={path},timing=none,match=request,"
+                               "gap=1000,timeout=10")
+        try:
+            send_split_and_paused(port, stream, rng, 0.02)
+            assert port.read_exactly(len(expected)) == expected, seed
+        finally:
+            port.close()
+
+
+def test_a_line_client_through_the_url_handler_with_profile_lines(session_file):
+    """profile=lines: each line is a request frame; frames decide, any pause."""
+    import random
+    import serial
+    path = line_session(session_file)
+    rng = random.Random(7)
+    link = serial.serial_for_url(
+        f"wiretape://{path}?timing=none&match=request&profile=lines&unused=ignore", timeout=10)
+    try:
+        for request, response in [(b"*IDN?\n", b"ACME,PSU-1,42\n"),
+                                  (b"OUTP ON\n", b""),
+                                  (b"MEAS:VOLT?\n", b"+1.25\n"),
+                                  # The burst's first frame: the device answered
+                                  # only after its second.
+                                  (b"MEAS:VOLT?\n", b""),
+                                  (b"MEAS:CURR?\n", b"+1.25\n+0.03\n")]:
+            send_split_and_paused(link, request, rng, 0.01)
+            if response:
+                assert link.read(len(response)) == response, request
+    finally:
+        link.close()
+
+
+def test_bad_profile_names_in_replay_options_are_option_errors(session_file):
+    path = line_session(session_file)
+    with pytest.raises(_core.OptionError, match="unknown profile 'modbus-xyz'") as error:
+        _core.open_port(f"type=replay,file={path},match=request,profile=modbus-xyz")
+    assert error.value.key == "profile"
+
+
+pytest_plugins = ["pytester"]
+
+MARKED_TEST = textwrap.dedent("""
+    import pytest
+
+    @pytest.mark.wiretape(match="request", profile="lines")
+    def test_lines(wiretape_port):
+        for line in ORDER:
+            wiretape_port.write_all(line)
+            assert wiretape_port.read_exactly(len(line), timeout=5) == line
+""")
+
+
+def test_the_pytest_marker_passes_profile_to_the_replay(pytester):
+    """Recorded in one order from wiretape's loopback (an echo), replayed
+    with profile=lines from the marker in another."""
+    pytester.makepyfile(test_marked="ORDER = [b'A1\\n', b'B2\\n']\n" + MARKED_TEST)
+    pytester.runpytest("--wiretape-record=once",
+                       "--wiretape-device=type=loopback").assert_outcomes(passed=1)
+    pytester.makepyfile(test_marked="ORDER = [b'B2\\n', b'A1\\n']\n" + MARKED_TEST)
+    pytester.runpytest().assert_outcomes(passed=1)
+    pytester.makepyfile(test_marked="ORDER = [b'B2\\n', b'C3\\n']\n" + MARKED_TEST)
+    result = pytester.runpytest()
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*the client's frame C3 matches no unused exchange*"])
+
+
+def modbus_tcp(tid, pdu):
+    return tid.to_bytes(2, "big") + b"\0\0" + (len(pdu) + 1).to_bytes(2, "big") + b"\x01" + pdu
+
+
+def test_diff_with_a_profile_ignores_what_the_key_leaves_out(session_file, tmp_path):
+    from wiretape.tools.diff import diff
+    poll, reply = b"\x03\x00\x00\x00\x01", b"\x03\x02\x00\x2a"
+    a = session_file([("tx", 1, modbus_tcp(1, poll)), ("rx", 2, modbus_tcp(1, reply))], name="a.wtape")
+    b = session_file([("tx", 1, modbus_tcp(9, poll)), ("rx", 2, modbus_tcp(9, reply))], name="b.wtape")
+    c = session_file([("tx", 1, modbus_tcp(9, b"\x03\x00\x07\x00\x01")),
+                      ("rx", 2, modbus_tcp(9, reply))], name="c.wtape")
+    assert not diff(a, b).identical
+    assert diff(a, b, profile="modbus-tcp").identical
+    different = diff(a, c, profile="modbus-tcp")
+    assert not different.identical
+    report = different.report()
+    assert "tx: first difference at frame 0" in report
+    assert "address 7" in report and "address 0" in report
+    assert "rx: identical by key" in report
+
+
+def test_cli_replay_and_diff_take_profile(session_file, tmp_path):
+    import subprocess
+    poll, reply = b"\x03\x00\x00\x00\x01", b"\x03\x02\x00\x2a"
+    a = session_file([("tx", 1, modbus_tcp(1, poll)), ("rx", 2, modbus_tcp(1, reply))], name="a.wtape")
+    b = session_file([("tx", 1, modbus_tcp(9, poll)), ("rx", 2, modbus_tcp(9, reply))], name="b.wtape")
+    wiretape_cli = [sys.executable, "-m", "wiretape.cli"]
+    done = subprocess.run(wiretape_cli + ["diff", "--profile", "modbus-tcp", str(a), str(b)],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "identical by key" in done.stdout
+    done = subprocess.run(wiretape_cli + ["diff", "--profile", "nope", str(a), str(b)],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode != 0 and "nope" in done.stderr
+    from wiretape.cli import build_parser, replay_options_of
+    args = build_parser().parse_args(["replay", str(a), "--match", "request", "--profile",
+                                      "modbus-tcp", "--gap", "20", "--listen", "127.0.0.1:0"])
+    assert "profile=modbus-tcp" in replay_options_of(args)
+    assert "gap=20" in replay_options_of(args)
+
+
+def test_python_callables_as_match_key_and_response_fix(session_file):
+    from wiretape.profiles import callable_profile
+    path = session_file([("tx", 1, b"get 1 temp\n"), ("rx", 2, b"temp 20\n"),
+                         ("tx", 3, b"get 2 volt\n"), ("rx", 4, b"volt 5\n")])
+    calls = []
+
+    def key(request):  # the request number varies from run to run
+        calls.append(request)
+        return request.split(b" ", 2)[2]
+
+    def fix(recorded, actual, response):
+        return actual.split(b" ")[1] + b": " + response
+
+    name = callable_profile("lines", match_key=key, fix_response=fix)
+    port = _core.open_port(f"type=replay,file={path},timing=none,match=request,"
+                           f"profile={name},timeout=10")
+    try:
+        port.write(b"get 7 volt\n")
+        assert port.read_exactly(len(b"7: volt 5\n")) == b"7: volt 5\n"
+        port.write(b"get 8 temp\n")
+        assert port.read_exactly(len(b"8: temp 20\n")) == b"8: temp 20\n"
+    finally:
+        port.close()
+    assert b"get 7 volt\n" in calls
+    with pytest.raises(_core.OptionError, match="unknown profile"):
+        callable_profile("nope", match_key=key)
+    with pytest.raises(TypeError):
+        callable_profile("lines", match_key="not callable")
+
+
+CALLABLE_MARKED_TEST = textwrap.dedent("""
+    import pytest
+
+    def last_word(request):
+        return request.split()[-1]
+
+    @pytest.mark.wiretape(match="request", profile="lines", match_key=last_word)
+    def test_lines(wiretape_port):
+        for line, answer in ORDER:
+            wiretape_port.write_all(line)
+            assert wiretape_port.read_exactly(len(answer), timeout=5) == answer
+""")
+
+
+def test_the_pytest_marker_takes_python_callables(pytester):
+    pytester.makepyfile(test_marked="ORDER = [(b'1 A\\n', b'1 A\\n'), (b'2 B\\n', b'2 B\\n')]\n"
+                        + CALLABLE_MARKED_TEST)
+    pytester.runpytest("--wiretape-record=once",
+                       "--wiretape-device=type=loopback").assert_outcomes(passed=1)
+    # Other numbers, another order: the key is the last word.
+    pytester.makepyfile(test_marked="ORDER = [(b'9 B\\n', b'2 B\\n'), (b'8 A\\n', b'1 A\\n')]\n"
+                        + CALLABLE_MARKED_TEST)
+    pytester.runpytest().assert_outcomes(passed=1)
+
+
+@pytest.mark.parametrize("name", ["nmea", "slcan", "modbus-rtu", "modbus-tcp", "mavlink"])
+def test_every_profile_frames_random_bytes_completely(name):
+    """Hostile input: every byte lands in exactly one frame, in order, in any
+    split; nothing hangs or crashes."""
+    import random
+    profile = _core.find_profile(name)
+    rng = random.Random(name)
+    for _ in range(50):
+        data = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 2000)))
+        frames = profile.frames("tx", data)
+        assert b"".join(frames) == data
+        assert all(frames)
+        for frame in frames:
+            profile.match_key(frame)
+            profile.frame_name("tx", frame)
+            profile.describe("rx", frame)
+
+
+def crc16_modbus(data):
+    crc = 0xFFFF
+    for byte in data:
+        crc ^= byte
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
+    return crc.to_bytes(2, "little")
+
+
+def nmea_sentence(body):
+    checksum = 0
+    for byte in body:
+        checksum ^= byte
+    return b"$" + body + b"*%02X\r\n" % checksum
+
+
+ONE_REQUEST = {
+    "nmea": nmea_sentence(b"PXXX,1"),
+    "slcan": b"O\r",
+    "modbus-rtu": b"\x01\x03\x00\x00\x00\x01" + crc16_modbus(b"\x01\x03\x00\x00\x00\x01"),
+    "modbus-tcp": modbus_tcp(1, b"\x03\x00\x00\x00\x01"),
+    # A v1 packet of a message whose CRC_EXTRA the profile does not check.
+    "mavlink": b"\xfe\x00\x00\x01\x01\xc8\x00\x00",
+}
+
+
+@pytest.mark.parametrize("name", ["nmea", "slcan", "modbus-rtu", "modbus-tcp", "mavlink"])
+def test_random_client_bytes_against_a_profile_are_mismatches_or_ignored(name, session_file):
+    import random
+    path = session_file([("tx", 1, ONE_REQUEST[name]), ("rx", 2, b"ok\r\n")])
+    rng = random.Random(name)
+    data = bytes(rng.randrange(256) for _ in range(3000))
+    silent = _core.open_port(f"type=replay,file={path},timing=none,match=request,"
+                             f"profile={name},unmatched=silent,unused=ignore,timeout=0.05")
+    try:
+        silent.write(data)
+        assert silent.read(100) in (b"", b"ok\r\n")
+    finally:
+        silent.close()
+    strict = _core.open_port(f"type=replay,file={path},timing=none,match=request,"
+                             f"profile={name},unused=ignore,timeout=0.05")
+    try:
+        for at in range(0, len(data), 97):
+            try:
+                strict.write(data[at:at + 97])
+            except _core.ReplayMismatch as mismatch:
+                assert "replay mismatch" in str(mismatch)
+    finally:
+        strict.close()

@@ -85,8 +85,8 @@ def test_show_scip_reassembles_commands_and_replies():
 def test_show_rejects_unknown_format_and_decoder():
     with pytest.raises(ValueError, match="unknown format 'xml'"):
         show(GOLDEN / "wire.wtape", fmt="xml")
-    with pytest.raises(ValueError, match="unknown profile 'nmea'"):
-        show(GOLDEN / "wire.wtape", decode="nmea")
+    with pytest.raises(ValueError, match="unknown profile 'nmea-xyz'"):
+        show(GOLDEN / "wire.wtape", decode="nmea-xyz")
 
 
 def test_stats_counts_bytes_records_and_header():

@@ -187,6 +187,16 @@ class WiretapeCassette:
                 self.path = source_file_of(item).parent / self.path
         # What is left of both are replay keys; the marker's win.
         self.replay_keys = {**DEFAULT_REPLAY_KEYS, **defaults, **marker}
+        # Python callables of a profile become a registered profile's name.
+        callables = {key: self.replay_keys.pop(key) for key in ("match_key", "fix_response")
+                     if key in self.replay_keys}
+        if callables:
+            from ..profiles import callable_profile
+            base = self.replay_keys.get("profile")
+            if base is None:
+                pytest.fail(f"{item.nodeid}: wiretape {' and '.join(callables)} need "
+                            "profile= (the profile whose framing they go with)", pytrace=False)
+            self.replay_keys["profile"] = callable_profile(str(base), **callables)
 
         self.recording = record == "rewrite" or (record == "once" and not self.path.exists())
         self.partial_path = self.path.with_name(f"{self.path.name}.recording-{os.getpid()}")

@@ -9,6 +9,11 @@ does not depend on their size. A pipe or FIFO, which can be read only once
 while each direction is compared in a reading of its own, is first copied
 to a temporary file (on disk, not in memory).
 
+With ``profile=NAME`` each direction is compared frame by frame, by the
+profile's match key: fields the profile leaves out of the key (a Modbus TCP
+transaction id, a MAVLink sequence number and CRC) do not make a
+difference, and the first differing frame is named.
+
 ``a`` and ``b`` are paths of session files (``.wtape`` or a flexiport
 ``name.log``) or iterables of records (objects with ``t_ns``, ``kind`` and
 ``data``, such as ``wiretape.Record``).
@@ -170,7 +175,7 @@ class DiffResult:
 
     a: str
     b: str
-    directions: List[DirectionDiff] = field(default_factory=list)
+    directions: List[Union[DirectionDiff, "FrameDiff"]] = field(default_factory=list)
     damage_a: Optional[str] = None
     damage_b: Optional[str] = None
 
@@ -187,7 +192,7 @@ class DiffResult:
     def __bool__(self) -> bool:  # truthy when the sessions differ, like a diff
         return not self.identical
 
-    def __getitem__(self, direction: str) -> DirectionDiff:
+    def __getitem__(self, direction: str) -> Union[DirectionDiff, "FrameDiff"]:
         for d in self.directions:
             if d.direction == direction:
                 return d
@@ -241,7 +246,72 @@ def _compare(a: _Records, b: _Records, direction: str) -> DirectionDiff:
     return result
 
 
-def diff(a: SessionLike, b: SessionLike) -> DiffResult:
+@dataclass
+class FrameDiff:
+    """One direction compared frame by frame with a profile."""
+
+    direction: str
+    identical: bool = True
+    frames_a: int = 0
+    frames_b: int = 0
+    index: int = -1  # of the first differing frame
+    frame_a: Optional[bytes] = None
+    frame_b: Optional[bytes] = None
+    describe_a: str = ""
+    describe_b: str = ""
+    time_a_ns: Optional[int] = None
+    time_b_ns: Optional[int] = None
+
+    def report(self) -> str:
+        counts = f"A: {self.frames_a} frames, B: {self.frames_b} frames"
+        if self.identical:
+            return f"{self.direction}: identical by key ({counts})"
+        lines = [f"{self.direction}: first difference at frame {self.index} "
+                 f"(A at {_seconds(self.time_a_ns)}, B at {_seconds(self.time_b_ns)})"]
+        for name, frame, description in (("A", self.frame_a, self.describe_a),
+                                         ("B", self.frame_b, self.describe_b)):
+            if frame is None:
+                lines.append(f"  {name}:      (no more frames)")
+            else:
+                lines.append(f"  {name}:      {description}")
+                lines.append(f"          {_core.hex_ascii(frame[:2 * _CONTEXT])}")
+        lines.append(f"  {counts}")
+        return "\n".join(lines)
+
+
+def _frames(profile, source, direction: str):
+    for t_ns, kind, data, description in profile.decode_session(source):
+        if description is not None and kind == direction:
+            yield t_ns, bytes(data), description
+
+
+def _compare_frames(profile, a, b, direction: str) -> FrameDiff:
+    result = FrameDiff(direction)
+    frames_a, frames_b = _frames(profile, a, direction), _frames(profile, b, direction)
+    while True:
+        next_a, next_b = next(frames_a, None), next(frames_b, None)
+        if next_a is None and next_b is None:
+            break
+        if next_a is not None:
+            result.frames_a += 1
+        if next_b is not None:
+            result.frames_b += 1
+        if not result.identical:
+            continue
+        same = (next_a is not None and next_b is not None
+                and profile.match_key(next_a[1]) == profile.match_key(next_b[1]))
+        if same:
+            continue
+        result.identical = False
+        result.index = max(result.frames_a, result.frames_b) - 1
+        if next_a is not None:
+            result.time_a_ns, result.frame_a, result.describe_a = next_a
+        if next_b is not None:
+            result.time_b_ns, result.frame_b, result.describe_b = next_b
+    return result
+
+
+def diff(a: SessionLike, b: SessionLike, profile: Optional[str] = None) -> DiffResult:
     """Compares sessions ``a`` and ``b``: the first divergence per direction.
 
     Raises wiretape.PortError if a file cannot be opened, SessionError if
@@ -252,6 +322,14 @@ def diff(a: SessionLike, b: SessionLike) -> DiffResult:
         a = list(a)
     if not isinstance(b, (str, os.PathLike)):
         b = list(b)
+    if profile is not None:
+        framing = _core.find_profile(profile)
+        result = DiffResult(str(a) if isinstance(a, (str, os.PathLike)) else "(records)",
+                            str(b) if isinstance(b, (str, os.PathLike)) else "(records)")
+        for direction in DIRECTIONS:
+            sources = [os.fspath(x) if isinstance(x, (str, os.PathLike)) else x for x in (a, b)]
+            result.directions.append(_compare_frames(framing, sources[0], sources[1], direction))
+        return result
     records_a, records_b = _Records(a), _Records(b)
     result = DiffResult(records_a.name, records_b.name)
     try:
@@ -264,4 +342,4 @@ def diff(a: SessionLike, b: SessionLike) -> DiffResult:
     return result
 
 
-__all__ = ["diff", "DiffResult", "DirectionDiff"]
+__all__ = ["diff", "DiffResult", "DirectionDiff", "FrameDiff"]

@@ -1,0 +1,477 @@
+// The built-in protocol profiles beyond scip and lines (nmea, slcan,
+// modbus-rtu, modbus-tcp, mavlink): framing under every split, broken frames
+// reported as such, match keys and response fixes; replay with a profile
+// (request frames matched by key, responses fixed, mismatches naming the
+// field); and a profile registered through the public C++ interface.
+#include <gtest/gtest.h>
+
+#include <random>
+#include <string>
+#include <vector>
+
+#include "replay/profile.hpp"
+#include "replay/profiles/checksums.hpp"
+#include "replay/replay_config.hpp"
+#include "replay/replay_port.hpp"
+#include "session/record_source.hpp"
+#include "support/port_test_support.hpp"
+#include "wiretape/errors.hpp"
+#include "wiretape/options.hpp"
+#include "wiretape/port.hpp"
+#include "wiretape/profile.hpp"
+
+using namespace wiretape;
+
+namespace {
+
+std::vector<Frame> frames_of(const Profile& profile, StreamDirection direction,
+                             const std::string& stream, std::size_t chunk) {
+  auto framer = profile.make_framer(direction);
+  std::vector<Frame> frames;
+  for (std::size_t at = 0; at < stream.size(); at += chunk) {
+    framer->feed(std::string_view(stream).substr(at, chunk), frames);
+  }
+  if (auto tail = framer->finish()) frames.push_back(std::move(*tail));
+  return frames;
+}
+
+// Frames and their ends, the same for every chunk size.
+std::vector<Frame> frames_any_split(const Profile& profile, StreamDirection direction,
+                                    const std::string& stream) {
+  const std::vector<Frame> whole = frames_of(profile, direction, stream, stream.size() + 1);
+  for (std::size_t chunk = 1; chunk <= 9; ++chunk) {
+    const std::vector<Frame> split = frames_of(profile, direction, stream, chunk);
+    EXPECT_EQ(split.size(), whole.size()) << "chunk " << chunk;
+    for (std::size_t i = 0; i < std::min(split.size(), whole.size()); ++i) {
+      EXPECT_EQ(split[i].bytes, whole[i].bytes) << "chunk " << chunk << " frame " << i;
+      EXPECT_EQ(split[i].end, whole[i].end) << "chunk " << chunk << " frame " << i;
+    }
+  }
+  return whole;
+}
+
+std::string be16(unsigned value) {
+  return {static_cast<char>(value >> 8), static_cast<char>(value & 0xFF)};
+}
+
+// A Modbus TCP frame: MBAP header and PDU.
+std::string mbap(unsigned tid, unsigned unit, const std::string& pdu) {
+  return be16(tid) + be16(0) + be16(static_cast<unsigned>(pdu.size() + 1)) +
+         static_cast<char>(unit) + pdu;
+}
+
+std::string read_holding(unsigned address, unsigned count) {
+  return std::string("\x03", 1) + be16(address) + be16(count);
+}
+
+std::string rtu(const std::string& body) {
+  const std::uint16_t crc = detail::crc16_modbus(body);
+  return body + static_cast<char>(crc & 0xFF) + static_cast<char>(crc >> 8);
+}
+
+std::string nmea(const std::string& body) {
+  char sum[4];
+  std::snprintf(sum, sizeof sum, "%02X", detail::xor8(body));
+  return "$" + body + "*" + sum + "\r\n";
+}
+
+// A MAVLink v1 HEARTBEAT (CRC_EXTRA 50) with sequence `seq`.
+std::string heartbeat_v1(unsigned seq) {
+  std::string packet = {static_cast<char>(0xFE), 9, static_cast<char>(seq), 1, 1, 0};
+  packet += std::string("\x00\x00\x00\x00\x02\x03\x51\x04\x03", 9);
+  std::uint16_t crc = detail::crc16_x25(std::string_view(packet).substr(1));
+  const char extra = 50;
+  crc = detail::crc16_x25(std::string_view(&extra, 1), crc);
+  packet += static_cast<char>(crc & 0xFF);
+  packet += static_cast<char>(crc >> 8);
+  return packet;
+}
+
+// A MAVLink v2 PARAM_REQUEST_LIST (21, CRC_EXTRA 159) with sequence `seq`.
+std::string param_request_list_v2(unsigned seq) {
+  std::string packet = {static_cast<char>(0xFD), 2, 0, 0, static_cast<char>(seq), (char)255, 0,
+                        21, 0, 0};
+  packet += std::string("\x01\x01", 2);
+  std::uint16_t crc = detail::crc16_x25(std::string_view(packet).substr(1));
+  const char extra = static_cast<char>(159);
+  crc = detail::crc16_x25(std::string_view(&extra, 1), crc);
+  packet += static_cast<char>(crc & 0xFF);
+  packet += static_cast<char>(crc >> 8);
+  return packet;
+}
+
+std::unique_ptr<Port> replay(std::vector<Record> records, const std::string& keys) {
+  Options options = Options::parse("file=synthetic.wtape," + keys);
+  detail::ReplayConfig config = detail::take_replay_config(options);
+  auto port = detail::open_replay_session(config, detail::vector_source_factory(std::move(records)));
+  port->set_timeout(test::kEventDeadline);
+  return port;
+}
+
+Record tx(std::uint64_t t, std::string data) { return {t, RecordKind::tx, std::move(data)}; }
+Record rx(std::uint64_t t, std::string data) { return {t, RecordKind::rx, std::move(data)}; }
+
+}  // namespace
+
+TEST(Checksums, KnownValues) {
+  EXPECT_EQ(detail::crc16_modbus("123456789"), 0x4B37);
+  EXPECT_EQ(detail::crc16_ccitt("123456789"), 0x29B1);
+  EXPECT_EQ(detail::crc16_x25("123456789"), 0x6F91);
+  EXPECT_EQ(detail::crc32_zlib("123456789"), 0xCBF43926u);
+}
+
+TEST(BuiltinProfiles, EachIsRegisteredAfterScip) {
+  const std::vector<std::string> names = profile_names();
+  for (const char* name : {"scip", "lines", "nmea", "slcan", "modbus-rtu", "modbus-tcp", "mavlink"}) {
+    EXPECT_NE(std::find(names.begin(), names.end(), name), names.end()) << name;
+    EXPECT_EQ(find_profile(name)->name(), name);
+  }
+  EXPECT_EQ(names.front(), "scip");
+}
+
+TEST(ModbusTcp, FramesByLengthKeysWithoutTransactionIdAndFixesIt) {
+  const auto profile = find_profile("modbus-tcp");
+  const std::string a = mbap(1, 1, read_holding(0, 10));
+  const std::string b = mbap(2, 1, read_holding(100, 2));
+  const auto frames = frames_any_split(*profile, StreamDirection::tx, a + b);
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_EQ(frames[0].bytes, a);
+  EXPECT_EQ(frames[1].bytes, b);
+  EXPECT_EQ(profile->match_key(mbap(7, 1, read_holding(0, 10))), profile->match_key(a));
+  EXPECT_NE(profile->match_key(b), profile->match_key(a));
+  const std::string response = mbap(1, 1, std::string("\x03\x02\x00\x2a", 4));
+  EXPECT_EQ(profile->fix_response(a, mbap(0x1234, 1, read_holding(0, 10)), response),
+            mbap(0x1234, 1, std::string("\x03\x02\x00\x2a", 4)));
+  EXPECT_EQ(profile->frame_name(StreamDirection::tx, a), "read holding registers");
+  EXPECT_NE(profile->describe(StreamDirection::tx, a).find("address 0 count 10"),
+            std::string::npos);
+  EXPECT_EQ(profile->field_name(StreamDirection::tx, a, 9), "address");
+}
+
+TEST(ModbusTcp, BadLengthAndProtocolIdAreBrokenFrames) {
+  const auto profile = find_profile("modbus-tcp");
+  const std::string bad_length = be16(1) + be16(0) + be16(0x0400);
+  const std::string good = mbap(2, 1, read_holding(0, 1));
+  auto frames = frames_any_split(*profile, StreamDirection::tx, bad_length + good);
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_EQ(frames[0].end, FrameEnd::broken);
+  EXPECT_NE(frames[0].problem.find("bad length 1024"), std::string::npos);
+  EXPECT_EQ(frames[1].bytes, good);
+  frames = frames_any_split(*profile, StreamDirection::tx, be16(1) + be16(9) + be16(6));
+  ASSERT_EQ(frames.size(), 1u);
+  EXPECT_NE(frames[0].problem.find("protocol id 9"), std::string::npos);
+}
+
+TEST(ModbusRtu, FramesByFunctionCodeAndChecksTheCrc) {
+  const auto profile = find_profile("modbus-rtu");
+  const std::string request = rtu(std::string("\x01", 1) + read_holding(0, 2));
+  std::string bad = rtu(std::string("\x01\x06\x00\x01\x00\x03", 6));
+  bad.back() ^= 0x55;
+  const std::string garbage = "\x01\x63";
+  // With no silence to go by, garbage is seen where no function code fits.
+  const auto frames =
+      frames_any_split(*profile, StreamDirection::tx, request + bad + request + garbage);
+  ASSERT_EQ(frames.size(), 5u);
+  EXPECT_EQ(frames[0].bytes, request);
+  EXPECT_EQ(frames[0].end, FrameEnd::delimited);
+  EXPECT_EQ(frames[1].end, FrameEnd::broken);
+  EXPECT_NE(frames[1].problem.find("bad CRC"), std::string::npos);
+  EXPECT_EQ(frames[2].bytes, request);
+  EXPECT_EQ(frames[3].end, FrameEnd::broken);  // 0x01 before 0x63: garbage
+  EXPECT_NE(frames[3].problem.find("garbage"), std::string::npos);
+  EXPECT_EQ(frames[4].end, FrameEnd::stream_end);
+  EXPECT_EQ(profile->match_key(request), request.substr(0, request.size() - 2));
+  const std::string reply = rtu(std::string("\x01\x03\x04\x00\x01\x00\x02", 7));
+  const auto replies = frames_any_split(*profile, StreamDirection::rx, reply + reply);
+  ASSERT_EQ(replies.size(), 2u);
+  EXPECT_EQ(replies[1].bytes, reply);
+}
+
+TEST(Nmea, SentencesWithChecksumsGarbageAndBadSums) {
+  const auto profile = find_profile("nmea");
+  const std::string gga = nmea("GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,");
+  std::string bad = nmea("GPRMC,1,2,3");
+  bad[bad.size() - 3] = bad[bad.size() - 3] == '0' ? '1' : '0';
+  const auto frames =
+      frames_any_split(*profile, StreamDirection::rx, gga + "junk\r\n" + bad + gga);
+  ASSERT_EQ(frames.size(), 4u);
+  EXPECT_EQ(frames[0].end, FrameEnd::delimited);
+  EXPECT_EQ(frames[1].end, FrameEnd::broken);
+  EXPECT_NE(frames[1].problem.find("not an NMEA sentence"), std::string::npos);
+  EXPECT_EQ(frames[2].end, FrameEnd::broken);
+  EXPECT_NE(frames[2].problem.find("bad checksum"), std::string::npos);
+  EXPECT_EQ(profile->frame_name(StreamDirection::rx, gga), "$GPGGA");
+  EXPECT_EQ(profile->match_key(gga).find('*'), std::string::npos);
+}
+
+TEST(Slcan, CommandsEndWithCrAndBelIsAnErrorReply) {
+  const auto profile = find_profile("slcan");
+  const auto frames = frames_any_split(*profile, StreamDirection::tx, "C\rS6\rO\rt1232AABB\r");
+  ASSERT_EQ(frames.size(), 4u);
+  EXPECT_EQ(frames[3].bytes, "t1232AABB\r");
+  EXPECT_EQ(profile->frame_name(StreamDirection::tx, "O\r"), "open channel");
+  const auto replies = frames_any_split(*profile, StreamDirection::rx, "\r\a\rz\r");
+  EXPECT_EQ(replies.size(), 4u);
+  EXPECT_EQ(profile->field_name(StreamDirection::tx, "t1232AABB\r", 5), "data");
+}
+
+TEST(Mavlink, V1AndV2PacketsKeysWithoutSequenceAndCrc) {
+  const auto profile = find_profile("mavlink");
+  const std::string stream = heartbeat_v1(0) + "\x11\x22" + param_request_list_v2(5) + heartbeat_v1(1);
+  const auto frames = frames_any_split(*profile, StreamDirection::tx, stream);
+  ASSERT_EQ(frames.size(), 4u);
+  EXPECT_EQ(frames[0].end, FrameEnd::delimited) << frames[0].problem;
+  EXPECT_EQ(frames[1].end, FrameEnd::broken);
+  EXPECT_NE(frames[1].problem.find("garbage"), std::string::npos);
+  EXPECT_EQ(frames[2].end, FrameEnd::delimited) << frames[2].problem;
+  EXPECT_EQ(profile->frame_name(StreamDirection::tx, frames[2].bytes), "PARAM_REQUEST_LIST");
+  EXPECT_EQ(profile->match_key(heartbeat_v1(0)), profile->match_key(heartbeat_v1(9)));
+  EXPECT_EQ(profile->match_key(param_request_list_v2(0)),
+            profile->match_key(param_request_list_v2(77)));
+  std::string corrupt = heartbeat_v1(3);
+  corrupt[8] ^= 1;
+  const auto broken = frames_any_split(*profile, StreamDirection::tx, corrupt);
+  ASSERT_EQ(broken.size(), 1u);
+  EXPECT_EQ(broken[0].end, FrameEnd::broken);
+  EXPECT_NE(broken[0].problem.find("bad CRC"), std::string::npos);
+}
+
+TEST(ProfileReplay, ModbusTcpServesReorderedPollsWithTheClientsTransactionIds) {
+  const std::string reply_a = std::string("\x03\x02\x00\x0a", 4);
+  const std::string reply_b = std::string("\x03\x02\x00\x0b", 4);
+  auto port = replay({tx(1, mbap(1, 1, read_holding(0, 1))), rx(2, mbap(1, 1, reply_a)),
+                      tx(3, mbap(2, 1, read_holding(5, 1))), rx(4, mbap(2, 1, reply_b))},
+                     "timing=none,match=request,profile=modbus-tcp,repeat=last");
+  // Another order, other ids, split anyhow, and one poll more than recorded.
+  const std::string second = mbap(0x100, 1, read_holding(5, 1));
+  port->write_all(second.substr(0, 3));
+  port->write_all(second.substr(3));
+  EXPECT_EQ(port->read_exactly(11), mbap(0x100, 1, reply_b));
+  port->write_all(mbap(0x101, 1, read_holding(0, 1)));
+  EXPECT_EQ(port->read_exactly(11), mbap(0x101, 1, reply_a));
+  port->write_all(mbap(0x102, 1, read_holding(0, 1)));
+  EXPECT_EQ(port->read_exactly(11), mbap(0x102, 1, reply_a));
+}
+
+TEST(ProfileReplay, AMismatchNamesTheFrameAndTheFieldAndShowsTheClosestFrames) {
+  auto port = replay({tx(1, mbap(1, 1, read_holding(0, 1))), rx(2, mbap(1, 1, "\x03\x02\x00\x0a"))},
+                     "timing=none,match=request,profile=modbus-tcp,unused=ignore");
+  try {
+    port->write_all(mbap(9, 1, read_holding(7, 1)));
+    FAIL() << "no mismatch";
+  } catch (const ReplayMismatch& error) {
+    const std::string message = error.what();
+    EXPECT_NE(message.find("read holding registers"), std::string::npos) << message;
+    EXPECT_NE(message.find("field 'address'"), std::string::npos) << message;
+    EXPECT_NE(message.find("closest recorded frames"), std::string::npos) << message;
+  }
+}
+
+TEST(ProfileReplay, MavlinkStepsInAnotherOrderWithAnExtraHeartbeat) {
+  auto port = replay({tx(1, param_request_list_v2(0)), rx(2, "[params]"),
+                      tx(3, heartbeat_v1(1)), rx(4, "[hb]")},
+                     "timing=none,match=request,profile=mavlink,repeat=last");
+  port->write_all(heartbeat_v1(40));
+  EXPECT_EQ(port->read_exactly(4), "[hb]");
+  port->write_all(heartbeat_v1(41));
+  EXPECT_EQ(port->read_exactly(4), "[hb]");
+  port->write_all(param_request_list_v2(42));
+  EXPECT_EQ(port->read_exactly(8), "[params]");
+}
+
+TEST(ProfileReplay, UnknownProfileIsAnOptionErrorNamingTheKey) {
+  try {
+    replay({}, "match=request,profile=modbus-xyz");
+    FAIL() << "accepted";
+  } catch (const OptionError& error) {
+    EXPECT_EQ(error.key(), "profile");
+    EXPECT_NE(std::string(error.what()).find("modbus-tcp"), std::string::npos);
+  }
+}
+
+namespace {
+
+// A protocol of the test's own: frames of 4 bytes, the last one a counter.
+class CounterProfile final : public Profile {
+ public:
+  std::string_view name() const override { return "counter4"; }
+  std::string_view summary() const override { return "4-byte frames, a counter last"; }
+  std::unique_ptr<Framer> make_framer(StreamDirection) const override {
+    class Fixed final : public BufferingFramer {
+     public:
+      void feed(std::string_view bytes, std::vector<Frame>& frames) override {
+        for (char byte : bytes) {
+          buffer_ += byte;
+          if (buffer_.size() == 4) cut(FrameEnd::delimited, frames);
+        }
+      }
+    };
+    return std::make_unique<Fixed>();
+  }
+  std::string match_key(std::string_view request) const override {
+    return std::string(request.substr(0, 3));
+  }
+  bool fixes_responses() const override { return true; }
+  std::string fix_response(std::string_view, std::string_view actual,
+                           std::string_view response) const override {
+    return std::string(response) + std::string(actual.substr(3, 1));
+  }
+  std::string frame_name(StreamDirection, std::string_view frame) const override {
+    return std::string(frame.substr(0, 3));
+  }
+  std::string describe(StreamDirection, std::string_view frame) const override {
+    return std::string(frame);
+  }
+};
+
+}  // namespace
+
+TEST(ProfileInterface, ARegisteredProfileIsFoundByName) {
+  register_profile("counter4", [] { return std::make_shared<CounterProfile>(); });
+  EXPECT_THROW(register_profile("scip", [] { return std::make_shared<CounterProfile>(); }),
+               std::invalid_argument);
+  auto port = replay({tx(1, "abc1"), rx(2, "A"), tx(3, "xyz2"), rx(4, "X")},
+                     "timing=none,match=request,profile=counter4");
+  port->write_all("xyz9abc8");
+  EXPECT_EQ(port->read_exactly(4), "X9A8");
+}
+
+// --- profiles declared in options ----------------------------------------------
+
+namespace {
+
+void expect_spec_error(const std::string& keys, const std::string& key, const std::string& text) {
+  try {
+    replay({}, "match=request," + keys);
+    FAIL() << keys << " was accepted";
+  } catch (const OptionError& error) {
+    EXPECT_EQ(error.key(), key) << keys;
+    const std::string message = error.what();
+    EXPECT_NE(message.find(text), std::string::npos) << message;
+    EXPECT_NE(message.find("the grammar is"), std::string::npos) << message;
+  }
+}
+
+}  // namespace
+
+TEST(DeclaredProfile, BadSpecsNameTheKeyAndShowTheGrammar) {
+  expect_spec_error("framing=delimiter:0g", "framing", "not 1 to 32 bytes in hex");
+  expect_spec_error("framing=length:0:3:0", "framing", "SIZE '3'");
+  expect_spec_error("framing=length:0:2:0:xx", "framing", "neither be nor le");
+  expect_spec_error("framing=fixed:0", "framing", "not a size");
+  expect_spec_error("framing=lines", "framing", "'lines' is not a framing");
+  expect_spec_error("framing=gap:0", "framing", "not from 1 to 60000 ms");
+  expect_spec_error("framing=fixed:4,ignore=1", "ignore", "'1' is not OFFSET:LEN");
+  expect_spec_error("framing=fixed:4,echo=0:0", "echo", "LEN '0'");
+  expect_spec_error("framing=fixed:4,checksum=md5@-1", "checksum", "'md5' is not a checksum");
+  expect_spec_error("framing=fixed:4,checksum=sum8", "checksum", "no '@OFFSET'");
+  expect_spec_error("ignore=0:1", "ignore", "needs framing=");
+}
+
+TEST(DeclaredProfile, LengthFramingIgnoreEchoAndChecksumReplay) {
+  // [id][len][cmd...][sum8]: the frame is len + 3 bytes; id is echoed.
+  const auto frame = [](char id, const std::string& body) {
+    std::string bytes = std::string(1, id) + static_cast<char>(body.size()) + body;
+    return bytes + static_cast<char>(detail::sum8(bytes));
+  };
+  auto port = replay({tx(1, frame('a', "GET")), rx(2, frame('a', "42")),
+                      tx(3, frame('b', "PUT")), rx(4, frame('b', "OK"))},
+                     "timing=none,match=request,framing=length:1:1:3,echo=0:1,"
+                     "checksum=sum8@-1");
+  const std::string put = frame('z', "PUT");
+  port->write_all(put.substr(0, 2));
+  port->write_all(put.substr(2));
+  EXPECT_EQ(port->read_exactly(5), frame('z', "OK"));
+  port->write_all(frame('y', "GET"));
+  EXPECT_EQ(port->read_exactly(5), frame('y', "42"));
+  std::string bad = frame('x', "GET");
+  bad.back() ^= 1;
+  try {
+    port->write_all(bad);
+    FAIL() << "a bad checksum was accepted";
+  } catch (const ReplayMismatch& error) {
+    EXPECT_NE(std::string(error.what()).find("bad checksum"), std::string::npos) << error.what();
+  }
+}
+
+TEST(ProfileSequence, CheckDataComparesKeysFrameByFrame) {
+  const std::string reply = std::string("\x03\x02\x00\x0a", 4);
+  const std::vector<Record> records = {tx(1, mbap(1, 1, read_holding(0, 1))), rx(2, mbap(1, 1, reply)),
+                                       tx(3, mbap(2, 1, read_holding(5, 1))), rx(4, mbap(2, 1, reply))};
+  auto port = replay(records, "timing=none,profile=modbus-tcp");
+  const std::string first = mbap(70, 1, read_holding(0, 1));
+  port->write_all(first.substr(0, 5));
+  port->write_all(first.substr(5));
+  // The response carries the client's transaction id in sequence mode too.
+  EXPECT_EQ(port->read_exactly(11), mbap(70, 1, reply));
+  try {
+    port->write_all(mbap(71, 1, read_holding(6, 1)));
+    FAIL() << "a different address was accepted";
+  } catch (const ReplayMismatch& error) {
+    const std::string message = error.what();
+    EXPECT_NE(message.find("field 'address' differs"), std::string::npos) << message;
+  }
+}
+
+TEST(ProfileReplay, ARecordingTheProfileCannotFrameIsAnErrorAtOpenNamingTheOffset) {
+  const std::string good = mbap(1, 1, read_holding(0, 1));
+  const std::string bad_length = be16(2) + be16(0) + be16(0x0400);
+  try {
+    replay({tx(1, good), rx(2, mbap(1, 1, "\x03\x02\x00\x0a")), tx(3'000'000'000, bad_length)},
+           "timing=none,match=request,profile=modbus-tcp");
+    FAIL() << "opened";
+  } catch (const OptionError& error) {
+    const std::string message = error.what();
+    EXPECT_EQ(error.key(), "profile");
+    EXPECT_NE(message.find("tx byte offset 12"), std::string::npos) << message;
+    EXPECT_NE(message.find("session time 3.000000 s"), std::string::npos) << message;
+    EXPECT_NE(message.find("bad length 1024"), std::string::npos) << message;
+  }
+}
+
+TEST(ProfileDecode, ShowMarksBrokenFramesWithTheirProblem) {
+  detail::SessionDecoder decoder(find_profile("modbus-tcp"));
+  std::deque<detail::DecodedItem> items;
+  decoder.feed(Record{1, RecordKind::tx, be16(2) + be16(0) + be16(0x0400)}, items);
+  ASSERT_EQ(items.size(), 1u);
+  EXPECT_NE(items[0].description.find("BROKEN (bad length 1024"), std::string::npos)
+      << items[0].description;
+}
+
+TEST(DeclaredProfile, GapFramingCutsRequestsBySilenceInTheRecordingAndTheClient) {
+  // Two requests recorded 100 ms apart in two records each, 1 ms apart.
+  const std::uint64_t ms = 1'000'000;
+  auto port = replay({tx(0, "RE"), tx(1 * ms, "AD"), rx(5 * ms, "[read]"),
+                      tx(100 * ms, "ST"), tx(101 * ms, "OP"), rx(105 * ms, "[stop]")},
+                     "timing=none,match=request,framing=gap:20");
+  port->write_all("STOP");
+  // The frame ends after 20 ms of the client's silence: a blocked read waits.
+  EXPECT_EQ(port->read_exactly(6), "[stop]");
+  port->write_all("READ");
+  EXPECT_EQ(port->read_exactly(6), "[read]");
+  port->write_all("NOPE");
+  // Found in the silence after it; the next write reports it.
+  const auto deadline = std::chrono::steady_clock::now() + test::kEventDeadline;
+  bool raised = false;
+  while (!raised && std::chrono::steady_clock::now() < deadline) {
+    std::string none(1, '\0');
+    port->read(none.data(), 1, std::chrono::milliseconds(30));
+    try {
+      port->write_all("X");
+    } catch (const ReplayMismatch& error) {
+      raised = true;
+      EXPECT_NE(std::string(error.what()).find("NOPE"), std::string::npos) << error.what();
+    }
+  }
+  EXPECT_TRUE(raised);
+}
+
+TEST(DeclaredProfile, GapFramingInSequenceModeIsAnOptionError) {
+  try {
+    replay({}, "framing=gap:20");
+    FAIL() << "accepted";
+  } catch (const OptionError& error) {
+    EXPECT_EQ(error.key(), "framing");
+    EXPECT_NE(std::string(error.what()).find("match=request"), std::string::npos);
+  }
+}
