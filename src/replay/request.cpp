@@ -114,9 +114,14 @@ void RequestStrategy::load_exchanges(RecordSource& source) {
   PayloadView view;
   bool in_request = false;
   std::string request;  // of the exchange being gathered
+  Wildcards request_wildcards;  // its scrubbed bytes
+  Wildcards next_record_wildcards;  // redaction events before the next record
   const auto close_request = [&] {
-    join_group(group_for(request));
+    const std::uint32_t group = group_for(request);
+    join_group(group);
+    if (!request_wildcards.empty()) add_wildcards(group, request_wildcards);
     request.clear();
+    request_wildcards.clear();
     in_request = false;
   };
   std::uint64_t tx_offset = 0;
@@ -135,6 +140,8 @@ void RequestStrategy::load_exchanges(RecordSource& source) {
           exchanges_.back().tx_offset = tx_offset;
           in_request = true;
         }
+        request_wildcards.append_shifted(next_record_wildcards, request.size());
+        next_record_wildcards.clear();
         request.append(payload);
         exchanges_.back().last_tx_t_ns = record.t_ns;
         tx_offset += payload.size();
@@ -144,17 +151,31 @@ void RequestStrategy::load_exchanges(RecordSource& source) {
       case RecordKind::close:
       case RecordKind::device_lost: {
         if (record.kind == RecordKind::rx && payload.empty()) break;
+        next_record_wildcards.clear();  // the redaction was of this rx record
         device_gone = record.kind != RecordKind::rx;
         if (record.kind == RecordKind::close && !session_goes_on(source)) break;
         if (in_request) close_request();
         add_response(record.kind, record.t_ns, payload, ordinal);
         break;
       }
+      case RecordKind::redaction:
+        next_record_wildcards.add_event(payload);
+        break;
       default:
         break;
     }
   }
   if (in_request) close_request();
+}
+
+void RequestStrategy::add_wildcards(std::uint32_t group, const Wildcards& wildcards) {
+  auto found = std::find_if(wildcard_groups_.begin(), wildcard_groups_.end(),
+                            [&](const auto& entry) { return entry.first == group; });
+  if (found == wildcard_groups_.end()) {
+    wildcard_groups_.emplace_back(group, Wildcards());
+    found = wildcard_groups_.end() - 1;
+  }
+  found->second.append_shifted(wildcards, 0);
 }
 
 void RequestStrategy::add_response(RecordKind kind, std::uint64_t t_ns,
@@ -329,14 +350,30 @@ RequestStrategy::best_match() const {
     const std::optional<Rank> ranked = rank(groups_[index]);
     if (ranked && (!best || *ranked < best->second)) best.emplace(index, *ranked);
   };
+  // Scrubbed requests match with their scrubbed bytes as wildcards; they are
+  // few (what edit --redact marked), so they are tried one by one.
+  const auto consider_scrubbed = [&] {
+    for (const auto& [index, wildcards] : wildcard_groups_) {
+      const std::string_view recorded = request_of(groups_[index]);
+      if (config_.datagrams ? pending_.size() != recorded.size()
+                            : pending_.size() < recorded.size()) {
+        continue;
+      }
+      if (common_prefix(recorded, pending_, wildcards, 0) < recorded.size()) continue;
+      const std::optional<Rank> ranked = rank(groups_[index]);
+      if (ranked && (!best || *ranked < best->second)) best.emplace(index, *ranked);
+    }
+  };
   if (config_.datagrams) {
     consider(pending_);
+    consider_scrubbed();
     return best;
   }
   for (const std::size_t length : request_lengths_) {
     if (length > pending_.size()) break;
     consider(std::string_view(pending_).substr(0, length));
   }
+  consider_scrubbed();
   return best;
 }
 

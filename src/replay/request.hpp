@@ -81,6 +81,10 @@ class RequestStrategy final : public ReplayStrategy {
     bool extended = false;
     std::size_t hash = 0;
   };
+  // Scrubbed requests (redaction events) and their wildcard bytes.
+  void add_wildcards(std::uint32_t group, const Wildcards& wildcards);
+  std::vector<std::pair<std::uint32_t, Wildcards>> wildcard_groups_;
+
   struct KeptRx {
     std::uint64_t offset = 0;  // in kept_bytes_
     std::uint32_t size = 0;

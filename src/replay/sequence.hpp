@@ -81,6 +81,8 @@ class SequenceStrategy final : public ReplayStrategy {
   // The write cursor.
   std::unique_ptr<RecordSource> tx_source_;
   Record tx_record_;
+  Wildcards tx_wildcards_;       // of tx_record_
+  Wildcards pending_wildcards_;  // redaction events read before the next record
   bool have_tx_record_ = false;
   bool tx_exhausted_ = false;
   bool tx_hit_close_ = false;

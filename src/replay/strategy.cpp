@@ -4,7 +4,9 @@
 #include <cstdio>
 #include <sstream>
 
+#include "session/record_kinds.hpp"
 #include "util/hex.hpp"
+#include "util/json.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail {
@@ -86,6 +88,46 @@ std::size_t common_prefix(std::string_view a, std::string_view b) {
   const std::size_t limit = std::min(a.size(), b.size());
   std::size_t i = 0;
   while (i < limit && a[i] == b[i]) ++i;
+  return i;
+}
+
+void Wildcards::add(std::size_t offset, std::size_t length) {
+  if (length > 0) ranges_.emplace_back(offset, length);
+}
+
+void Wildcards::add_event(std::string_view payload, std::size_t shift) {
+  json::Value event;
+  try {
+    event = json::parse(payload.empty() ? std::string_view("{}") : payload);
+  } catch (const json::ParseError&) {
+    return;
+  }
+  const json::Value* offset = event.find(event_field::offset);
+  const json::Value* length = event.find(event_field::length);
+  if (offset == nullptr || length == nullptr || offset->number < 0 || length->number < 0) {
+    return;
+  }
+  add(shift + static_cast<std::size_t>(offset->number),
+      static_cast<std::size_t>(length->number));
+}
+
+bool Wildcards::covers(std::size_t position) const {
+  for (const auto& [offset, length] : ranges_) {
+    if (position >= offset && position - offset < length) return true;
+  }
+  return false;
+}
+
+void Wildcards::append_shifted(const Wildcards& other, std::size_t shift) {
+  for (const auto& [offset, length] : other.ranges_) add(offset + shift, length);
+}
+
+std::size_t common_prefix(std::string_view recorded, std::string_view written,
+                          const Wildcards& wildcards, std::size_t at) {
+  if (wildcards.empty()) return common_prefix(recorded, written);
+  const std::size_t limit = std::min(recorded.size(), written.size());
+  std::size_t i = 0;
+  while (i < limit && (recorded[i] == written[i] || wildcards.covers(at + i))) ++i;
   return i;
 }
 

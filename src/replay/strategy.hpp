@@ -131,6 +131,32 @@ class ReplayStrategy {
 std::string session_seconds(std::uint64_t ns);
 std::size_t common_prefix(std::string_view a, std::string_view b);
 
+// Bytes of a recorded tx record that `wiretape edit --redact` scrubbed
+// (the redaction events before it): wildcards when the client's bytes are
+// compared with it, so that a scrubbed recording replays to the driver that
+// made it (DESIGN.md section 15).
+class Wildcards {
+ public:
+  // Adds the range a redaction event's payload names; ignores a payload
+  // that names none (the reader has checked its schema).
+  void add_event(std::string_view payload, std::size_t shift = 0);
+  void add(std::size_t offset, std::size_t length);
+  bool empty() const { return ranges_.empty(); }
+  void clear() { ranges_.clear(); }
+  bool covers(std::size_t position) const;
+  // The same ranges, `shift` bytes later (a record's ranges within the
+  // request it is part of).
+  void append_shifted(const Wildcards& other, std::size_t shift);
+
+ private:
+  std::vector<std::pair<std::size_t, std::size_t>> ranges_;  // offset, length
+};
+
+// common_prefix of `recorded` (from byte `at` of its record, whose wildcards
+// are `wildcards`) and the client's `written`: a wildcard byte matches any.
+std::size_t common_prefix(std::string_view recorded, std::string_view written,
+                          const Wildcards& wildcards, std::size_t at);
+
 // A recorded close is the device going away only when the session goes on
 // after it; the close that ends a recording (the client closing its port) is
 // just the end, where at_end applies. Consumes the source.
