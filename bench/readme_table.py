@@ -97,8 +97,17 @@ ROWS: List[Tuple[str, Callable[[Figures], Optional[str]], str, Tuple[str, ...],
      ("udp_proxy_vs_socat_delivered_ratio",),
      lambda r, n: f"delivered ratio {r['udp_proxy_vs_socat_delivered_ratio']:.4f}"
      if "udp_proxy_vs_socat_delivered_ratio" in r else ""),
+    ("match=request / match=sequence, 100,000 exchanges",
+     _ratio("request_vs_sequence_time_ratio"), "≤ 1.5", ("request_vs_sequence_time_ratio",),
+     lambda r, n: ""),
+    ("`profile=modbus-tcp`, a client reordering its polls / match=sequence",
+     _ratio("modbus_reordering_vs_sequence_time_ratio"), "≤ 2",
+     ("modbus_reordering_vs_sequence_time_ratio",), lambda r, n: ""),
+    ("match=request, 1 GiB session, peak RSS",
+     lambda r: f"{r['request_rss_MB_1GiB']:.1f} MiB" if "request_rss_MB_1GiB" in r else None,
+     "≤ 64 MiB", ("request_rss_MB_1GiB",), lambda r, n: ""),
     ("10,000 exchanges through pyserial, wiretape / pytest-reserial",
-     _ratio("wiretape_vs_reserial_time_ratio"), "", (),
+     _ratio("wiretape_vs_reserial_time_ratio"), "≤ 0.5", ("wiretape_vs_reserial_time_ratio",),
      lambda r, n: f"reserial {r['reserial_replay_s']:.3f} s" if "reserial_replay_s" in r else ""),
 ]
 

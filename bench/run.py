@@ -65,7 +65,22 @@ TARGETS = {
     "udp_socat_datagrams_lost": (None, "info", "of them, lost"),
     "reserial_replay_s": (None, "info", "s, 10,000 exchanges, pytest-reserial"),
     "wiretape_pyserial_replay_s": (None, "info", "s, same, wiretape:// URL"),
-    "wiretape_vs_reserial_time_ratio": (None, "lower", "wiretape time / reserial"),
+    "wiretape_vs_reserial_time_ratio": (0.5, "lower", "wiretape time / reserial"),
+    "request_vs_sequence_time_ratio": (1.5, "lower",
+                                       "match=request / match=sequence, 100,000 exchanges"),
+    "modbus_reordering_vs_sequence_time_ratio": (2.0, "lower",
+                                                 "profile=modbus-tcp reordering / sequence"),
+    "request_rss_MB_1GiB": (64, "lower", "MiB peak RSS, match=request, 1 GiB session"),
+}
+
+# Google Benchmark counters that are figures of the table: benchmark name ->
+# ((counter, results key), ...). The benchmarks run both sides in one process,
+# interleaved (bench/wiretape_bench.cpp).
+GBENCH_FIGURES = {
+    "BM_RequestVsSequence": (("request_over_sequence", "request_vs_sequence_time_ratio"),),
+    "BM_ModbusTcpReordering": (("modbus_over_sequence",
+                                "modbus_reordering_vs_sequence_time_ratio"),),
+    "BM_RequestModePeakRss": (("peak_rss_mib", "request_rss_MB_1GiB"),),
 }
 
 
@@ -329,7 +344,8 @@ class Bench:
             f"(wiretape) and {result['reserial_wall']:.2f} s (reserial)")
 
     def gbench(self) -> None:
-        """The Google Benchmark program, for the per-call view (not in the table)."""
+        """The Google Benchmark program: the per-call view, and the request
+        mode figures (GBENCH_FIGURES)."""
         if not self.gbench_path_ok():
             raise Skip("wiretape_bench not built (Google Benchmark missing: "
                        "apt-get install libbenchmark-dev)")
@@ -341,6 +357,9 @@ class Bench:
             raise Skip("wiretape_bench: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
         figures = []
         for entry in json.loads(out.read_text()).get("benchmarks", []):
+            for counter, key in GBENCH_FIGURES.get(entry["name"].split("/")[0], ()):
+                if counter in entry:
+                    self.results[key] = round(entry[counter], 3)
             rate = entry.get("bytes_per_second")
             figures.append(f"{entry['name'].replace('/real_time', '')} "
                            + (f"{rate / 1e6:.0f} MB/s" if rate else

@@ -32,6 +32,9 @@ SAMPLE_RESULTS = {
     "udp_proxy_vs_socat_delivered_ratio": 0.99989,
     "reserial_replay_s": 0.052,
     "wiretape_vs_reserial_time_ratio": 1.418,
+    "request_vs_sequence_time_ratio": 1.22,
+    "modbus_reordering_vs_sequence_time_ratio": 2.4,
+    "request_rss_MB_1GiB": 28.4,
 }
 SAMPLE_NOTES = {
     "notes": {"cat_100MiB_MBps": "4142 MB/s", "serve": "ignored"},
@@ -89,7 +92,12 @@ def test_the_table_is_made_from_the_results(run_dir):
     # A figure the run did not take is shown as such, not left stale.
     assert rows["recording 1 GiB, peak RSS"] == ["not measured", "bounded", ""]
     assert rows["10,000 exchanges through pyserial, wiretape / pytest-reserial"] == [
-        "1.42", "", "reserial 0.052 s"]
+        "1.42", "≤ 0.5 — **missed**", "reserial 0.052 s"]
+    # Request mode against sequence mode (Google Benchmark's counters).
+    assert rows["match=request / match=sequence, 100,000 exchanges"] == ["1.22", "≤ 1.5", ""]
+    assert rows["`profile=modbus-tcp`, a client reordering its polls / match=sequence"] == [
+        "2.40", "≤ 2 — **missed**", ""]
+    assert rows["match=request, 1 GiB session, peak RSS"] == ["28.4 MiB", "≤ 64 MiB", ""]
     # The recording proxies against socat: ratios whose target is ≤ 1, and the
     # UDP proxy's losses against socat's.
     assert rows["`wiretape record --pty` / socat, CPU per MB relayed"] == ["0.81", "≤ 1.0", ""]
