@@ -167,11 +167,15 @@ class PtyEndpoint final : public ClientEndpoint {
     // they would be delivered twice.
     if (retaining() && !to_pty_.empty()) read_pty();
     while (!to_pty_.empty()) {
-      const std::size_t n = pty_->write(to_pty_.data(), to_pty_.size());
+      const std::size_t offered = to_pty_.size();
+      const std::size_t n = pty_->write(to_pty_.data(), offered);
       if (n == 0) return;
       if (retaining()) retain(to_pty_.data(), n);
       to_pty_.consume(n);
       wrote_device_data_ = true;
+      // The terminal is full: the poll says when it takes more, sparing a
+      // write that would fail and a poll of its own each time.
+      if (n < offered) return;
     }
   }
 
