@@ -273,6 +273,28 @@ def test_wiretape_pty_serves_the_replay_on_a_terminal(pytester):
     pytester.runpytest().assert_outcomes(passed=1)
 
 
+def test_wiretape_udp_serves_the_replay_as_datagrams(pytester):
+    pytester.makepyfile(test_udp="""
+        import socket
+
+        def test_through_udp(wiretape_udp):
+            host, port = wiretape_udp.rsplit(":", 1)
+            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as client:
+                client.settimeout(10)
+                for ping in (b"PING 1", b"PING 2"):
+                    client.sendto(ping, (host, int(port)))
+                    assert client.recv(100) == ping
+    """)
+    pytester.runpytest("--wiretape-record=once", LOOPBACK).assert_outcomes(passed=1)
+    cassette = cassette_of(pytester, "test_udp", "test_through_udp")
+    assert streams(cassette) == (b"PING 1PING 2", b"PING 1PING 2")
+    pytester.runpytest().assert_outcomes(passed=1)
+    # The replay checks what the driver sends.
+    pytester.makepyfile(test_udp=pytester.path.joinpath("test_udp.py").read_text()
+                        .replace('b"PING 2"', 'b"PONG 2"'))
+    pytester.runpytest().assert_outcomes(failed=1)
+
+
 def test_request_mode_mismatch_shows_the_closest_recorded_requests(pytester):
     pytester.makepyfile(test_cmds="""
         import pytest

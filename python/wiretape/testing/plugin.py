@@ -42,6 +42,9 @@ Fixtures tests use:
 ``wiretape_pty``      the path of a pseudo-terminal serving the replay (or
                       proxying the device while recording), for drivers that
                       open a device path themselves.
+``wiretape_udp``      ``HOST:PORT`` of a UDP virtual device serving the replay
+                      (or proxying the device while recording): a driver
+                      sends its datagrams there and gets the answers back.
 ``wiretape_cassette`` what the plugin decided: ``path``, ``recording``,
                       ``options``...
 
@@ -189,19 +192,35 @@ def wiretape_pty(wiretape_cassette: WiretapeCassette, tmp_path_factory) -> str:
     """The path of a pseudo-terminal serving the replay, or, while recording,
     proxying the device; for drivers that open a device path themselves."""
     link = tmp_path_factory.mktemp("wiretape-pty") / "tty"
-    if wiretape_cassette.recording:
-        handle = bridge.record(device_options(wiretape_cassette.device),
-                               str(wiretape_cassette.partial_path), pty=str(link))
+    handle = _virtual_device(wiretape_cassette, "wiretape_pty", pty=str(link))
+    return str(handle.pty_path or link)
+
+
+@pytest.fixture
+def wiretape_udp(wiretape_cassette: WiretapeCassette) -> str:
+    """``HOST:PORT`` of a UDP virtual device on the loopback interface serving
+    the replay, or, while recording, proxying the device (one datagram one
+    record); the driver sends there and gets the answers back."""
+    handle = _virtual_device(wiretape_cassette, "wiretape_udp", udp="127.0.0.1:0")
+    return str(handle.address)
+
+
+def _virtual_device(cassette: WiretapeCassette, fixture: str, **client_side):
+    """A bridge serving the cassette's replay, or recording its device, on
+    `client_side`; stopped, and its verdict checked, when the test ends."""
+    if cassette.recording:
+        handle = bridge.record(device_options(cassette.device), str(cassette.partial_path),
+                               **client_side)
     else:
-        handle = bridge.serve_replay(str(wiretape_cassette.path), pty=str(link),
-                                     replay_options=wiretape_cassette.replay_options)
+        handle = bridge.serve_replay(str(cassette.path), replay_options=cassette.replay_options,
+                                     **client_side)
 
     def stop():
         handle.stop()
         handle.wait(10)
         result = handle.result()
         if not result.ok:
-            raise AssertionError(f"wiretape_pty ({result.outcome}): {result.message or result}")
+            raise AssertionError(f"{fixture} ({result.outcome}): {result.message or result}")
 
-    wiretape_cassette.add_cleanup(stop)
-    return str(handle.pty_path or link)
+    cassette.add_cleanup(stop)
+    return handle
