@@ -427,9 +427,11 @@ def _provenance(header: dict) -> dict:
     }
 
 
-def _write_wiretape(dst: str, header: dict, records, progress: _Progress) -> int:
+def session_writer(dst: str, header: dict) -> _core.SessionWriter:
+    """A SessionWriter for `dst` with the header dict's fields (as
+    _header_of_reader and the importers give them) and provenance."""
     metadata = {str(k): str(v) for k, v in (header.get("metadata") or {}).items()}
-    with _core.SessionWriter(
+    return _core.SessionWriter(
         dst,
         capture=header.get("capture") or "client",
         port_options=header.get("port_options") or "",
@@ -442,7 +444,11 @@ def _write_wiretape(dst: str, header: dict, records, progress: _Progress) -> int
         wiretape_version=header.get("wiretape_version") or "",
         flush_ms=1000,
         **_provenance(header),
-    ) as writer:
+    )
+
+
+def _write_wiretape(dst: str, header: dict, records, progress: _Progress) -> int:
+    with session_writer(dst, header) as writer:
         for kind, t_ns, data in records:
             writer.write(kind, t_ns, data)
             progress.step(len(data))

@@ -32,7 +32,7 @@ from typing import Deque, Dict, Iterable, List, Optional, Sequence, Tuple
 from .. import _core
 from ._files import is_stream, refuse_same_file, session_files
 from ._records import DIRECTIONS, SessionPath, event_payload, open_session, raise_damage
-from .convert import _header_of_reader, _provenance
+from .convert import _header_of_reader, session_writer
 
 __all__ = ["edit", "EditResult", "Cut", "Redaction", "parse_cut", "parse_redaction", "MAX_SPAN"]
 
@@ -401,13 +401,8 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
         count = len(redactions)
         edits.append(f"redacted {count} pattern{'s' if count != 1 else ''}"
                      " (host and by-id serial numbers cleared)")
-    writer = _core.SessionWriter(
-        dst, capture=header.get("capture") or "client",
-        port_options=header.get("port_options") or "", port_type=header.get("port_type") or "",
-        metadata={str(k): str(v) for k, v in header["metadata"].items()},
-        start_utc=header.get("start_utc") or "", host=header.get("host") or "",
-        wiretape_version=header.get("wiretape_version") or "", flush_ms=1000,
-        **{**_provenance(header), "edits": earlier_edits + edits})
+    header["edits"] = earlier_edits + edits
+    writer = session_writer(dst, header)
     with writer:
         def write(kind: str, t_ns: int, data: bytes) -> None:
             writer.write(kind, t_ns, data)
