@@ -72,6 +72,7 @@ bool request_matching(const Options& options) {
 bool timing_checked(const Options& options) {
   return value_is(options, "check", "timing") || value_is(options, "strictness", "2");
 }
+bool faulty(const Options& options) { return options.has("faults"); }
 bool clocked(const Options& options) {
   return !value_is(options, "timing", "none") && !is_true(options, "ignoretimes");
 }
@@ -86,6 +87,7 @@ constexpr KeyDependency key_dependencies[] = {
     {"tolerance", false, "replay", "check=timing", timing_checked},
     {"jitter", false, "replay", "check=timing (or strictness=2)", timing_checked},
     {"speed", false, "replay", "a clock: timing=session or timing=causal", clocked},
+    {"seed", false, "replay", "faults=KIND@WHERE (it seeds their random choices)", faulty},
 };
 
 // Throws OptionError for the first key given without what it needs.
