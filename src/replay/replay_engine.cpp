@@ -64,18 +64,21 @@ ReplayEngine::ReplayEngine(ReplayConfig config, RecordSourceFactory sources,
 
 ReplayEngine::~ReplayEngine() = default;
 
-void ReplayEngine::prepare() {
+void ReplayEngine::prepare(ReplayTime now) {
   strategy_->release();
-  if (faults_) inject_faults();
+  if (faults_) inject_faults(now);
 }
 
 // --- fault injection ---------------------------------------------------------
 
-void ReplayEngine::inject_faults() {
+void ReplayEngine::inject_faults(ReplayTime now) {
   while (!released_.empty() && faulted_.size() < kLookaheadRecords &&
          faulted_bytes_ < kLookaheadBytes) {
     RxItem item = released_.front();  // a copy: pop_front counts its bytes
     released_.pop_front();
+    // A fault's wait counts from now at the earliest: under timing=none
+    // everything is due at the open time, long past.
+    item.due = std::max(item.due, now);
     std::uint64_t exchange = 0;
     if (exchanges_) {
       exchange = item.kind == RecordKind::rx ? exchanges_->next_rx() : exchanges_->current();
@@ -117,12 +120,12 @@ const RxItem* ReplayEngine::fault_loss(ReplayTime now) {
 }
 
 std::size_t ReplayEngine::read(char* buffer, std::size_t size, ReplayTime now) {
-  prepare();
+  prepare(now);
   std::size_t copied = 0;
   while (copied < size) {
     if (faults_) fault_loss(now);
     if (queue_empty()) {
-      prepare();
+      prepare(now);
       if (queue_empty()) break;
     }
     RxItem& item = queue_front();
@@ -156,7 +159,7 @@ std::size_t ReplayEngine::read(char* buffer, std::size_t size, ReplayTime now) {
 }
 
 std::size_t ReplayEngine::available(ReplayTime now) {
-  prepare();
+  prepare(now);
   std::size_t total = 0;
   const auto count = [&](const RxItem& item) {
     if (item.kind != RecordKind::rx || !is_due(item, now)) return false;
@@ -177,7 +180,7 @@ std::size_t ReplayEngine::available(ReplayTime now) {
 }
 
 ReplayEngine::Outlook ReplayEngine::outlook(ReplayTime now) {
-  prepare();
+  prepare(now);
   if (faults_) fault_loss(now);
   if (!queue_empty()) {
     const RxItem& front = queue_front();
@@ -194,11 +197,11 @@ ReplayEngine::Outlook ReplayEngine::outlook(ReplayTime now) {
 }
 
 void ReplayEngine::flush_input(ReplayTime now) {
-  prepare();
+  prepare(now);
   while (!queue_empty() && queue_front().kind == RecordKind::rx &&
          is_due(queue_front(), now)) {
     queue_pop();
-    if (queue_empty()) prepare();
+    if (queue_empty()) prepare(now);
   }
   // What the flush entitles is released after it, not dropped by it.
   client_flushed();

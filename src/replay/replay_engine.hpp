@@ -80,10 +80,12 @@ class ReplayEngine {
   // Where injected faults are reported (faults=); by default a line on
   // stderr.
   void on_fault(FaultInjector::Reporter reporter) { fault_reporter_ = std::move(reporter); }
+  // Reads fail now because of an injected loss of the device.
+  bool lost_by_fault(ReplayTime now) { return fault_loss(now) != nullptr; }
 
  private:
   // Lets the strategy release what the client is now entitled to.
-  void prepare();
+  void prepare(ReplayTime now);
 
   // --- fault injection (faults.hpp); nothing of it runs without faults= ---
   // The client reads the released rx after the faults, from faulted_.
@@ -91,7 +93,7 @@ class ReplayEngine {
   RxItem& queue_front() { return faults_ ? faulted_.front().item : released_.front(); }
   void queue_pop();
   // Passes released rx through the faults, as far as the look-ahead bounds.
-  void inject_faults();
+  void inject_faults(ReplayTime now);
   // A fault's loss of the device that is due now; a reconnect that is over is
   // dropped first.
   const RxItem* fault_loss(ReplayTime now);
