@@ -8,7 +8,12 @@ at --timeout 0.5, replays at timing=none:
 - campaign_s: wiretape.faults.campaign over the cases, --jobs 1;
 - loop_s: the same faulty replays, one by one from a plain loop;
 - clean_s: RUNS clean replays, the same way as the loop;
-- campaign_jobs2_s: the campaign again with --jobs 2.
+- campaign_jobs2_s: the campaign again with --jobs 2;
+- inert_s: RUNS replays the same way with the fault machinery on but no
+  fault firing (faults=drop@p:0): what injecting costs by itself.
+Faulty runs take longer than clean ones by what the driver does about the
+fault (its 0.5 s timeouts, a delay's wait): campaign_s / clean_s includes
+that; campaign_s / loop_s and inert_s / clean_s do not.
 """
 
 import json
@@ -50,11 +55,13 @@ def main() -> int:
                                     replay_options=options, timeout=30)
         return work
 
-    def loop(clean):
+    def loop(clean, inert=False):
         def work():
             with faults._quiet_stderr(True):
                 for session, argv, chosen in plan:
                     for case in chosen:
+                        if inert:
+                            case = faults.FaultCase("drop", "p:0")
                         faults.run_case(session, None if clean else case, argv, 30, options)
         return work
 
@@ -68,6 +75,8 @@ def main() -> int:
     figures["clean_s"] = timed(loop(True)) + timed(lambda: [faults.run_case(
         s, None, a, 30, options) for s, a, _ in plan])
     figures["campaign_jobs2_s"] = timed(campaign(2))
+    figures["inert_s"] = timed(loop(False, inert=True)) + timed(lambda: [faults.run_case(
+        s, None, a, 30, options) for s, a, _ in plan])
     print(json.dumps(figures))
     return 0
 

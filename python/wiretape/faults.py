@@ -276,8 +276,16 @@ def _classify(returncode: Optional[int], output: str, timed_out: bool) -> str:
 
 
 def _kill_group(process: subprocess.Popen) -> None:
+    """Kills CMD and what it started (its own session), or CMD alone when it
+    shares ours (--as)."""
     try:
-        os.killpg(process.pid, signal.SIGKILL)
+        if os.getpgid(process.pid) == process.pid:
+            os.killpg(process.pid, signal.SIGKILL)
+            return
+    except OSError:
+        pass
+    try:
+        process.kill()
     except OSError:
         pass
 
@@ -332,11 +340,12 @@ def reproduction(session: str, case: FaultCase, argv: Sequence[str], replay_opti
 
 
 @contextlib.contextmanager
-def _quiet_stderr(enabled: bool) -> Iterator[None]:
+def _quiet_stderr(enabled: bool) -> Iterator[Optional[int]]:
     """The replays' own fault reports (one line each on stderr) would bury
-    the table: they go to /dev/null while the runs go on."""
+    the table: they go to /dev/null while the runs go on. Yields a
+    descriptor of the real stderr (None when not quieted)."""
     if not enabled:
-        yield
+        yield None
         return
     sys.stderr.flush()
     saved = os.dup(2)
@@ -344,7 +353,7 @@ def _quiet_stderr(enabled: bool) -> Iterator[None]:
     os.dup2(null, 2)
     os.close(null)
     try:
-        yield
+        yield saved
     finally:
         os.dup2(saved, 2)
         os.close(saved)
@@ -364,7 +373,16 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
     if replay_options:
         _core.check_replay_options("type=replay,file=x," + replay_options)
     selected = cases(session, kinds, budget, seed)
-    with _quiet_stderr(quiet_replays):
+    with _quiet_stderr(quiet_replays) as real_stderr:
+        def note(text: str) -> None:
+            if progress is None:
+                return
+            if real_stderr is not None and progress is sys.stderr:
+                os.write(real_stderr, text.encode())
+            else:
+                progress.write(text)
+                progress.flush()
+
         clean = run_case(session, None, argv, timeout, replay_options, listen, as_path)
         if clean.outcome != "ok":
             raise CleanRunFailed(clean)
@@ -378,17 +396,15 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
             if run.outcome in ("crash", "hang"):
                 run.repro = reproduction(session, case, argv, replay_options, as_path)
             runs[index] = run
-            if progress is not None:
-                with lock:
-                    done[0] += 1
-                    progress.write(f"\r{done[0]}/{len(selected)} runs")
-                    progress.flush()
+            with lock:
+                done[0] += 1
+                note(f"\r{done[0]}/{len(selected)} runs")
 
         with ThreadPoolExecutor(max_workers=jobs) as pool:
             for future in [pool.submit(one, i) for i in range(len(selected))]:
                 future.result()
-        if progress is not None and selected:
-            progress.write("\n")
+        if selected:
+            note("\n")
     return Campaign(session, seed, [run for run in runs if run is not None])
 
 

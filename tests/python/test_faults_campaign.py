@@ -17,6 +17,8 @@ import pytest
 import wiretape
 from wiretape import faults
 
+pytest_plugins = ["pytester"]
+
 REPO = Path(__file__).resolve().parents[2]
 WIRETAPE = [sys.executable, "-m", "wiretape.cli"]
 
@@ -333,3 +335,22 @@ def test_a_disconnect_resets_a_tcp_client(session):
             with pytest.raises(ConnectionResetError):
                 while client.recv(64):
                     pass
+
+
+def test_the_pytest_marker_takes_faults(pytester):
+    pytester.makepyfile(test_echo="""
+        def test_echo(wiretape_port):
+            wiretape_port.write_all(b"hello\\n")
+            assert wiretape_port.read_exactly(6, timeout=5) == b"hello\\n"
+    """)
+    pytester.runpytest("--wiretape-record=once", "--wiretape-device=type=loopback"
+                       ).assert_outcomes(passed=1)
+    pytester.makepyfile(test_echo="""
+        import pytest
+
+        @pytest.mark.wiretape(faults="truncate:2@exchange:0;drop@p:0", seed=3)
+        def test_echo(wiretape_port):
+            wiretape_port.write_all(b"hello\\n")
+            assert wiretape_port.read(64, timeout=0.5) == b"he"
+    """)
+    pytester.runpytest().assert_outcomes(passed=1)
