@@ -20,6 +20,9 @@ namespace {
 // Bounds that keep a plan cheap to parse and to apply.
 constexpr std::size_t kMaxFaults = 256;
 constexpr std::uint64_t kMaxAmount = 1'000'000'000;  // bytes, flips or ms
+// Bit flips and inserted bytes are made one by one: bounded so that a typo
+// cannot make a replay allocate or loop for minutes.
+constexpr std::uint64_t kMaxBytesMade = 1 << 20;
 constexpr std::uint64_t kDefaultGarbage = 8;
 constexpr std::uint64_t kDefaultTrickleMs = 1;
 
@@ -112,6 +115,11 @@ FaultSpec parse_item(std::string_view item) {
     if (*amount == 0 && (spec.kind == FaultKind::corrupt || spec.kind == FaultKind::garbage ||
                          spec.kind == FaultKind::drop)) {
       bad_item(item, std::string("'") + known->name + ":0' would do nothing; give 1 or more");
+    }
+    if (*amount > kMaxBytesMade &&
+        (spec.kind == FaultKind::corrupt || spec.kind == FaultKind::garbage)) {
+      bad_item(item, std::string("'") + known->name + ":' takes at most " +
+                         std::to_string(kMaxBytesMade));
     }
     spec.amount = *amount;
   } else if (known->amount == KindName::required) {

@@ -102,7 +102,7 @@ TEST(FaultParser, BadInputNamesTheKeyTheItemAndTheGrammar) {
        {"bogus@exchange:1", "drop", "drop@", "drop@exchange", "drop@exchange:x",
         "drop@when:1", "delay@exchange:1", "duplicate:2@exchange:1", "corrupt:0@exchange:1",
         "drop@every:0", "drop@p:1.5", "drop@t:-1", "stall:abc@exchange:1",
-        "drop@exchange:1;silence"}) {
+        "drop@exchange:1;silence", "garbage:2000000@exchange:0"}) {
     try {
       parse_faults(bad, 0);
       ADD_FAILURE() << bad << " was accepted";
