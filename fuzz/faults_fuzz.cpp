@@ -25,7 +25,7 @@ std::string run(const wiretape::detail::FaultPlan& plan, bool datagrams) {
     item.data = std::string(1 + i * 7 % 23, static_cast<char>('a' + i));
     item.t_ns = i * 250'000'000;
     item.due = start + std::chrono::milliseconds(i);
-    injector.apply(std::move(item), i / 2, out);
+    injector.apply(std::move(item), i / 2, out, start + std::chrono::milliseconds(i / 2));
   }
   std::string bytes;
   for (const FaultedRx& faulted : out) {

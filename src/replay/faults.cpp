@@ -260,7 +260,8 @@ void FaultInjector::report(const FaultSpec& spec, std::uint64_t exchange, std::s
   if (reporter_) reporter_(FaultEvent{spec.kind_text, spec.where_text, std::move(detail), exchange});
 }
 
-void FaultInjector::apply(RxItem&& item, std::uint64_t exchange, std::deque<FaultedRx>& out) {
+void FaultInjector::apply(RxItem&& item, std::uint64_t exchange, std::deque<FaultedRx>& out,
+                          ReplayTime now) {
   if (silenced_ || disconnected_) return;  // nothing more reaches the client
   const std::uint64_t offset = rx_offset_;
   const bool starts_exchange = !current_exchange_ || *current_exchange_ != exchange;
@@ -283,7 +284,12 @@ void FaultInjector::apply(RxItem&& item, std::uint64_t exchange, std::deque<Faul
     drop_rest_ = false;
     trickle_ms_.reset();
     shift_ = std::chrono::nanoseconds(0);
+    released_at_ = now;
   }
+  // Not earlier than the exchange's release, so that the waits below are
+  // real in every timing mode; later records of the exchange keep their
+  // own times (they may be released late, while a trickle still plays).
+  item.due = std::max(item.due, released_at_);
   if (item.kind == RecordKind::rx) rx_offset_ += item.payload().size() - item.consumed;
   if (drop_rest_ && item.kind == RecordKind::rx) return;
   pieces.push_back(std::move(item));

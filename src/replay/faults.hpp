@@ -106,8 +106,11 @@ class FaultInjector {
 
   // Passes one released record (rx, or a recorded close or loss) of
   // exchange `exchange` through the plan, appending what the client gets
-  // to `out`.
-  void apply(RxItem&& item, std::uint64_t exchange, std::deque<FaultedRx>& out);
+  // to `out`. `now`: when it is released; a fault's waits count from the
+  // exchange's release at the earliest (under timing=none everything is due
+  // at the open time, long past).
+  void apply(RxItem&& item, std::uint64_t exchange, std::deque<FaultedRx>& out,
+             ReplayTime now);
 
   // The device stopped answering (silence): writes are swallowed.
   bool silenced() const { return silenced_; }
@@ -134,6 +137,7 @@ class FaultInjector {
   bool drop_rest_ = false;
   std::optional<std::uint64_t> trickle_ms_;
   std::chrono::nanoseconds shift_{0};  // delays and stalls so far in it
+  ReplayTime released_at_;             // when its first record was released
   std::uint64_t rx_offset_ = 0;        // served rx bytes before this record
   bool silenced_ = false;
   bool disconnected_ = false;

@@ -76,9 +76,6 @@ void ReplayEngine::inject_faults(ReplayTime now) {
          faulted_bytes_ < kLookaheadBytes) {
     RxItem item = released_.front();  // a copy: pop_front counts its bytes
     released_.pop_front();
-    // A fault's wait counts from now at the earliest: under timing=none
-    // everything is due at the open time, long past.
-    item.due = std::max(item.due, now);
     std::uint64_t exchange = 0;
     if (exchanges_) {
       exchange = item.kind == RecordKind::rx ? exchanges_->next_rx() : exchanges_->current();
@@ -90,7 +87,7 @@ void ReplayEngine::inject_faults(ReplayTime now) {
       exchange = *request_exchange_;
     }
     const std::size_t before = faulted_.size();
-    faults_->apply(std::move(item), exchange, faulted_);
+    faults_->apply(std::move(item), exchange, faulted_, now);
     for (std::size_t i = before; i < faulted_.size(); ++i) {
       faulted_bytes_ += faulted_[i].item.payload().size();
     }
