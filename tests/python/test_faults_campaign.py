@@ -354,3 +354,20 @@ def test_the_pytest_marker_takes_faults(pytester):
             assert wiretape_port.read(64, timeout=0.5) == b"he"
     """)
     pytester.runpytest().assert_outcomes(passed=1)
+
+
+def test_as_redirects_a_fixed_device_path(session, driver, tmp_path):
+    from wiretape.redirect import shim_path
+
+    try:
+        shim_path()
+    except RuntimeError as missing:
+        pytest.skip(f"device-redirecting shim not built: {missing}")
+    fixed = "/dev/ttyWIRETAPEFAULTS0"
+    report = tmp_path / "as.json"
+    result = run_cli("faults", str(session), "--kinds", "disconnect", "--budget", "2",
+                     "--timeout", "10", "--json", str(report), "--options", "timing=none",
+                     "--as", fixed, "--", driver[0], driver[1], fixed, "robust")
+    assert result.returncode == 0, result.stdout + result.stderr
+    runs = json.loads(report.read_text())["runs"]
+    assert [run["outcome"] for run in runs] == ["error", "error"]
