@@ -66,6 +66,12 @@ TARGETS = {
     "reserial_replay_s": (None, "info", "s, 10,000 exchanges, pytest-reserial"),
     "wiretape_pyserial_replay_s": (None, "info", "s, same, wiretape:// URL"),
     "wiretape_vs_reserial_time_ratio": (0.5, "lower", "wiretape time / reserial"),
+    # --- fault campaigns (docs/faults.md) ---
+    "faults_campaign_vs_loop_ratio": (1.3, "lower", "campaign / same faulty replays in a loop"),
+    # Info: faulty runs also wait for what the driver does about each fault.
+    "faults_campaign_vs_clean_ratio": (None, "info", "campaign / as many clean replays"),
+    "faults_jobs2_speedup": (1.6, "higher", "campaign --jobs 1 time / --jobs 2 time"),
+    "faults_inert_vs_clean_ratio": (1.3, "lower", "replays with faults= firing none / clean"),
     "request_vs_sequence_time_ratio": (1.5, "lower",
                                        "match=request / match=sequence, 100,000 exchanges"),
     "modbus_reordering_vs_sequence_time_ratio": (2.0, "lower",
@@ -343,6 +349,36 @@ class Bench:
             f"exchange loops only; whole pytest runs took {result['wiretape_wall']:.2f} s "
             f"(wiretape) and {result['reserial_wall']:.2f} s (reserial)")
 
+    # --- fault campaigns ---------------------------------------------------
+    def faults(self) -> None:
+        """200 runs of hokuyo-scan against faulty replays: the campaign vs the
+        same replays from a plain loop, vs clean replays, and --jobs 2."""
+        program = self.build / "bin" / "hokuyo-scan"
+        if not program.exists():
+            raise Skip(f"{program} not built")
+        runs = 50 if self.quick else 200
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "faults_bench.py"),
+                               str(program), str(runs)], capture_output=True, text=True,
+                              timeout=3600, env=self.env)
+        if proc.returncode != 0:
+            raise Skip("faults_bench.py: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        self.results["faults_campaign_vs_loop_ratio"] = round(
+            figures["campaign_s"] / figures["loop_s"], 3)
+        self.results["faults_campaign_vs_clean_ratio"] = round(
+            figures["campaign_s"] / figures["clean_s"], 3)
+        self.results["faults_jobs2_speedup"] = round(
+            figures["campaign_s"] / figures["campaign_jobs2_s"], 3)
+        self.results["faults_inert_vs_clean_ratio"] = round(
+            figures["inert_s"] / figures["clean_s"], 3)
+        self.notes["faults"] = (
+            f"{figures['runs']} runs over {figures['sessions']} recordings: campaign "
+            f"{figures['campaign_s']:.1f} s (--jobs 2: {figures['campaign_jobs2_s']:.1f} s), "
+            f"same faulty replays in a loop {figures['loop_s']:.1f} s, clean replays "
+            f"{figures['clean_s']:.1f} s, with faults= firing none {figures['inert_s']:.1f} s; "
+            f"faulty runs wait for the driver's timeouts, clean ones do not; "
+            f"{os.cpu_count()} CPUs, shared")
+
     def gbench(self) -> None:
         """The Google Benchmark program: the per-call view, and the request
         mode figures (GBENCH_FIGURES)."""
@@ -371,7 +407,7 @@ class Bench:
 
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
-           "tcp_proxy", "udp_proxy", "reserial", "gbench"]
+           "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults"]
 
 
 def machine_note() -> dict:

@@ -188,6 +188,17 @@ _positive_float = _number_checker("a number", 0, inclusive=False)
 _non_negative_float = _number_checker("a number", 0, inclusive=True)
 
 
+def _non_negative_int(text: str) -> int:
+    """An argparse type: a whole number, 0 or more (a seed)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 0 or value > 2**63 - 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: must be from 0 to 2**63-1")
+    return value
+
+
 def _session_output(text: str) -> str:
     """An argparse type: the session file a bridge records into (-o). An
     empty name would silently record nothing."""
@@ -334,6 +345,16 @@ def replay_options_of(args) -> str:
         if isinstance(value, float):
             value = _format_number(value)
         pairs.append(f"{key}={value}")
+    faults = [item.strip() for spec in (getattr(args, "fault", None) or [])
+              for item in spec.split(";") if item.strip()]
+    if faults:
+        from ._core import quote_option_value
+
+        pairs.append("faults=" + quote_option_value(";".join(faults)))
+    elif getattr(args, "seed", None) is not None:
+        raise UsageError("--seed seeds the random choices of --fault: give --fault too")
+    if faults and getattr(args, "seed", None) is not None:
+        pairs.append(f"seed={args.seed}")
     if args.options:
         pairs.append(args.options.strip().strip(","))
     return ",".join(pairs)
@@ -348,6 +369,7 @@ def cmd_replay(args, out: _Output) -> int:
     _refuse_as_without_command(args)
     pty, listen = _client_side(args)
     _require_input(args.file)
+    _check_fault_places(args)
     if args.output:
         refuse_same_file(session_files(args.file), [args.output])
     handle = bridge.serve_replay(args.file, pty=pty, listen=listen, udp=args.udp,
@@ -359,6 +381,53 @@ def cmd_replay(args, out: _Output) -> int:
                        lambda: _announce(handle, out, f"replaying {args.file}", pty,
                                          udp=args.udp is not None),
                        must_serve=True)
+
+
+def _positive_int(text: str) -> int:
+    value = _non_negative_int(text)
+    if value == 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: must be 1 or more")
+    return value
+
+
+def _check_fault_places(args) -> None:
+    """--fault KIND@WHERE past the session's end is a usage error."""
+    from .faults import FaultInputError, check_where
+
+    specs = ";".join(getattr(args, "fault", None) or [])
+    if not specs:
+        return
+    try:
+        check_where(args.file, specs)
+    except FaultInputError as error:
+        raise UsageError(str(error)) from None
+
+
+def cmd_faults(args, out: _Output) -> int:
+    from . import faults
+
+    if args.command_argv is None:
+        raise UsageError("no command after --: give the program to run, with {port} where "
+                         "the device's path goes")
+    _require_input(args.file)
+    kinds = [kind for kind in (args.kinds or "").split(",") if kind.strip()] or None
+    try:
+        result = faults.campaign(args.file, args.command_argv, kinds=kinds, budget=args.budget,
+                                 seed=args.seed, timeout=args.timeout, jobs=args.jobs,
+                                 replay_options=args.options, listen=args.listen,
+                                 as_path=args.redirect_path,
+                                 progress=sys.stderr if sys.stderr.isatty() else None)
+    except faults.FaultInputError as error:
+        raise UsageError(str(error)) from None
+    except faults.CleanRunFailed as failure:
+        raise CheckFailed(str(failure)) from None
+    out.print(faults.table(result))
+    for run in result.runs:
+        if run.repro:
+            out.print(f"{run.outcome} {run.kind}@{run.where}: {run.repro}")
+    if args.json:
+        faults.write_json(result, args.json)
+    return EXIT_CHECK_FAILED if result.failed else EXIT_OK
 
 
 # --------------------------------------------------------------------------
@@ -787,7 +856,7 @@ def _add_redirect(parser, default: str) -> None:
                              f"pty ({default})")
 
 
-_COMMANDS_WITH_CMD = ("record", "replay")
+_COMMANDS_WITH_CMD = ("record", "replay", "faults")
 
 
 def split_command(argv: Sequence[str]) -> Tuple[List[str], Optional[List[str]]]:
@@ -882,7 +951,44 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument("-o", "--output", metavar="FILE", type=_session_output,
                         help="also record what the client does to FILE")
     replay.add_argument("-q", "--quiet", action="store_true", help="no client messages")
+    replay.add_argument("--fault", action="append", metavar="KIND@WHERE",
+                        help="inject a fault (repeatable, or ';'-joined): drop, corrupt, "
+                             "garbage, truncate, duplicate, delay:MS, stall:MS, trickle, "
+                             "silence, disconnect, reconnect:MS at exchange:N, rx:N, "
+                             "t:SECONDS, every:K or p:P (docs/faults.md)")
+    replay.add_argument("--seed", type=_non_negative_int, metavar="S",
+                        help="seed of the faults' random choices (default 0)")
     _add_redirect(replay, "default: the recorded device's path")
+
+    faults = command(
+        "faults", cmd_faults, "a fault campaign: run a driver against faulty replays",
+        "Runs CMD once against a clean replay of SESSION (it must pass), then once "
+        "per fault (kind x exchange, sampled by --seed within --budget), each against "
+        "a fresh virtual device whose path replaces {port} in CMD (or, with --as PATH, "
+        "is what PATH opens). Each run is ok (exit 0), error (failed cleanly, in "
+        "time), crash (a signal or a sanitizer report) or hang (past --timeout). "
+        "Prints a table per kind and exchange and a one-line reproduction of every "
+        "crash and hang; exit 1 if there was any (docs/faults.md).")
+    faults.add_argument("file", metavar="SESSION", help="the session to replay")
+    faults.add_argument("--kinds", metavar="KINDS",
+                        help="comma-separated fault kinds (default all: drop, corrupt, "
+                             "garbage, truncate, duplicate, delay, stall, trickle, silence, "
+                             "disconnect, reconnect); KIND@WHERE runs one place only")
+    faults.add_argument("--budget", type=_positive_int, metavar="N",
+                        help="at most N fault runs, sampled by --seed (default: all)")
+    faults.add_argument("--seed", type=_non_negative_int, default=0, metavar="S",
+                        help="seed of the sampling and of the faults (default 0)")
+    faults.add_argument("--timeout", type=_positive_seconds, default=10.0, metavar="S",
+                        help="a run taking longer is a hang (default 10)")
+    faults.add_argument("--jobs", type=_positive_int, default=1, metavar="N",
+                        help="runs at once (default 1)")
+    faults.add_argument("--json", metavar="FILE", help="write the runs as JSON to FILE")
+    faults.add_argument("--listen", action="store_true",
+                        help="serve TCP: {port} becomes HOST:PORT")
+    faults.add_argument("--as", dest="redirect_path", metavar="PATH",
+                        help="CMD opens PATH itself: redirect it to the virtual device")
+    faults.add_argument("--options", metavar="KEYS", default="",
+                        help="replay keys for every run (e.g. timing=none,match=request)")
 
     serve = command(
         "serve", cmd_serve, "share a local device with remote programs over TCP",

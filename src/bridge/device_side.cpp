@@ -75,6 +75,7 @@ PortCapabilities DeviceSide::capabilities() const {
 
 void DeviceSide::lost(const std::string& reason) {
   if (!device_) return;
+  lost_by_fault_ = replay_lost_by_fault(*device_);
   record(RecordKind::device_lost, json::ObjectWriter().add(event_field::error, reason).str());
   status_.update_stats([](BridgeStats& s) { ++s.device_losses; });
   status_.message("the device (" + description_ + ") went away: " + reason);

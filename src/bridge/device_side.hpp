@@ -63,6 +63,9 @@ class DeviceSide {
   void on_lost(LostHandler handler) { on_lost_ = std::move(handler); }
   // The device went away: recorded, counted, closed; then the lost handler.
   void lost(const std::string& reason);
+  // The last device lost was a replay's injected fault (faults=): TCP
+  // clients see it as a reset (docs/faults.md).
+  bool lost_by_fault() const { return lost_by_fault_; }
   // Closes the device and opens it again (a replay starts over).
   void restart();
   // Closes the device and the session file when the bridge ends, turning a
@@ -124,6 +127,7 @@ class DeviceSide {
   const BridgeOptions& options_;
   Status& status_;
   std::unique_ptr<Port> device_;
+  bool lost_by_fault_ = false;
   std::string description_;
   std::unique_ptr<SessionWriter> writer_;
   bool recording_failed_ = false;

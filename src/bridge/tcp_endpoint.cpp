@@ -9,6 +9,8 @@
 // answers to its requests. Answers come only from reading the client, so a
 // client whose queue is full is not read until it drains: a client that
 // never reads holds at most its queue, whatever it sends.
+#include <sys/socket.h>
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -169,7 +171,15 @@ class TcpEndpoint final : public ClientEndpoint {
 
   // Clients learn it by their connection closing.
   void device_lost() override {
-    for (auto& client : clients_) drop_client(*client, "closed: the device went away");
+    for (auto& client : clients_) {
+      if (device_.lost_by_fault() && !client->gone) {
+        // A device lost by an injected fault: the connection is reset, as
+        // when a networked device reboots.
+        const struct linger reset{1, 0};
+        sys::setsockopt(client->connection.fd(), SOL_SOCKET, SO_LINGER, &reset, sizeof reset);
+      }
+      drop_client(*client, "closed: the device went away");
+    }
   }
 
   bool has_clients() const override { return !clients_.empty(); }

@@ -7,6 +7,8 @@
 
 #include "core/open_port.hpp"
 #include "replay/replay_config.hpp"
+#include "replay/replay_port.hpp"
+#include "session/record_kinds.hpp"
 #include "util/json.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/options.hpp"
@@ -72,6 +74,7 @@ bool request_matching(const Options& options) {
 bool timing_checked(const Options& options) {
   return value_is(options, "check", "timing") || value_is(options, "strictness", "2");
 }
+bool faulty(const Options& options) { return options.has("faults"); }
 bool clocked(const Options& options) {
   return !value_is(options, "timing", "none") && !is_true(options, "ignoretimes");
 }
@@ -87,6 +90,7 @@ constexpr KeyDependency key_dependencies[] = {
     {"tolerance", false, "replay", "check=timing", timing_checked},
     {"jitter", false, "replay", "check=timing (or strictness=2)", timing_checked},
     {"speed", false, "replay", "a clock: timing=session or timing=causal", clocked},
+    {"seed", false, "replay", "faults=KIND@WHERE (it seeds their random choices)", faulty},
 };
 
 // Throws OptionError for the first key given without what it needs.
@@ -209,7 +213,21 @@ std::unique_ptr<Port> open_port(Options options) {
     common.recording.path = *common.log;
     common.recording.options_text = given;
     common.recording.port_type = type;
+    Port* inner = port.get();
     port = detail::record_port(std::move(port), std::move(common.recording));
+    // A recorded faulty replay: each fault is also a `fault` event.
+    Port* recorder = port.get();
+    detail::replay_on_fault(*inner, [recorder](const detail::FaultEvent& event) {
+      std::fprintf(stderr, "wiretape: fault %s@%s: %s\n", event.kind.c_str(),
+                   event.where.c_str(), event.detail.c_str());
+      detail::record_port_event(
+          *recorder, RecordKind::fault,
+          detail::json::ObjectWriter()
+              .add(detail::event_field::fault_kind, event.kind)
+              .add(detail::event_field::where, event.where)
+              .add(detail::event_field::detail, event.detail)
+              .str());
+    });
   }
   return port;
 }

@@ -9,6 +9,7 @@
 
 #include "wiretape/options.hpp"
 #include "wiretape/port.hpp"
+#include "wiretape/session.hpp"
 
 namespace wiretape::detail {
 
@@ -40,5 +41,8 @@ struct RecordingConfig {
 // Wraps `inner` so that everything crossing it is recorded (capture=client).
 std::unique_ptr<Port> record_port(std::unique_ptr<Port> inner,
                                   RecordingConfig config);
+// Records an event (JSON payload) into `port` if it is a recorder made by
+// record_port(); a replay's injected faults reach its log= this way.
+void record_port_event(Port& port, RecordKind kind, std::string_view payload);
 
 }  // namespace wiretape::detail

@@ -43,6 +43,11 @@ class RecordingPort final : public Port {
     }
   }
 
+  // An event the port under this one reports (a replay's injected fault).
+  void record_event(RecordKind kind, std::string_view payload) {
+    record(kind, now_ns(), payload);
+  }
+
   std::size_t available() override {
     report_failure();
     return inner_->available();
@@ -320,6 +325,10 @@ class RecordingPort final : public Port {
 
 std::unique_ptr<Port> record_port(std::unique_ptr<Port> inner, RecordingConfig config) {
   return std::make_unique<RecordingPort>(std::move(inner), std::move(config));
+}
+
+void record_port_event(Port& port, RecordKind kind, std::string_view payload) {
+  if (auto* recorder = dynamic_cast<RecordingPort*>(&port)) recorder->record_event(kind, payload);
 }
 
 }  // namespace wiretape::detail

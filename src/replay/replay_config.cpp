@@ -4,6 +4,7 @@
 #include <limits>
 
 #include "replay/profiles/declared.hpp"
+#include "replay/faults.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail {
@@ -123,6 +124,12 @@ ReplayConfig take_replay_config(Options& options) {
   config.at_end = pick<ReplayAtEnd>(
       options.take_choice("at_end", "silent", {"silent", "closed"}),
       {{"silent", ReplayAtEnd::silent}, {"closed", ReplayAtEnd::closed}});
+
+  // Fault injection: parsed here so that a bad plan fails at open.
+  config.faults = options.take_string("faults", "");
+  config.seed = static_cast<std::uint64_t>(
+      options.take_int("seed", 0, 0, std::numeric_limits<std::int64_t>::max()));
+  parse_faults(config.faults, config.seed);
 
   if (config.check == ReplayCheck::timing &&
       config.timing == ReplayTiming::none) {

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <chrono>
+#include <cstdint>
 #include <memory>
 #include <string>
 
@@ -38,6 +39,10 @@ struct ReplayConfig {
   std::shared_ptr<const Profile> profile;
   // Datagram sessions (recorded from udp) keep record boundaries.
   bool datagrams = false;
+  // Fault injection (faults.hpp): the faults= text, checked by
+  // take_replay_config, and seed= for its random choices.
+  std::string faults;
+  std::uint64_t seed = 0;
 };
 
 // Consumes the replay keys of `options` (and flexiport's spellings:

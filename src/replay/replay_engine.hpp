@@ -17,6 +17,7 @@
 #include <optional>
 #include <string>
 
+#include "replay/faults.hpp"
 #include "replay/replay_config.hpp"
 #include "replay/strategy.hpp"
 #include "replay/timing.hpp"
@@ -76,9 +77,33 @@ class ReplayEngine {
 
   const ReplayConfig& config() const { return config_; }
 
+  // Where injected faults are reported (faults=); by default a line on
+  // stderr.
+  void on_fault(FaultInjector::Reporter reporter) { fault_reporter_ = std::move(reporter); }
+  // Reads fail now because of an injected loss of the device.
+  bool lost_by_fault(ReplayTime now) { return fault_loss(now) != nullptr; }
+
  private:
   // Lets the strategy release what the client is now entitled to.
   void prepare(ReplayTime now);
+
+  // --- fault injection (faults.hpp); nothing of it runs without faults= ---
+  // The client reads the released rx after the faults, from faulted_.
+  bool queue_empty() const { return faults_ ? faulted_.empty() : released_.empty(); }
+  RxItem& queue_front() { return faults_ ? faulted_.front().item : released_.front(); }
+  void queue_pop();
+  // Passes released rx through the faults, as far as the look-ahead bounds.
+  void inject_faults(ReplayTime now);
+  // A fault's loss of the device that is due now; a reconnect that is over is
+  // dropped first.
+  const RxItem* fault_loss(ReplayTime now);
+  std::unique_ptr<FaultInjector> faults_;
+  std::deque<FaultedRx> faulted_;
+  std::size_t faulted_bytes_ = 0;
+  std::unique_ptr<ExchangeCounter> exchanges_;          // match=sequence
+  std::optional<std::uint64_t> request_exchange_;      // match=request
+  bool request_batch_ = false;  // a write released a new exchange
+  FaultInjector::Reporter fault_reporter_;
 
   ReplayConfig config_;
   ReplayTimeline timeline_;

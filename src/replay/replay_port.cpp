@@ -96,7 +96,9 @@ class ReplayPort final : public Port {
       std::lock_guard<std::mutex> lock(mutex_);
       update_signal(ReplayClock::now());
     }
-    if (engine_->config().timing != ReplayTiming::none) {
+    // Faults (delay, stall, trickle, reconnect) make data due later even
+    // under timing=none: someone must raise the pipe then.
+    if (engine_->config().timing != ReplayTiming::none || !engine_->config().faults.empty()) {
       scheduler_ = std::thread([this] { schedule(); });
     }
   }
@@ -148,10 +150,23 @@ class ReplayPort final : public Port {
           connect_t_ns ? client_session_sources(sources_, k) : sources_;
       engine_ = std::make_unique<ReplayEngine>(config_, std::move(sources), now,
                                                connect_t_ns.value_or(0));
+      if (fault_reporter_) engine_->on_fault(fault_reporter_);  // faults hook
     }
     update_signal(now);
     changed_.notify_all();
     return afresh;
+  }
+
+  // --- faults hook: injected faults go to `reporter` (see replay_on_fault) ---
+  void on_fault(std::function<void(const FaultEvent&)> reporter) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    fault_reporter_ = std::move(reporter);
+    engine_->on_fault(fault_reporter_);
+  }
+
+  bool lost_by_fault() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return !closed_ && engine_->lost_by_fault(ReplayClock::now());
   }
 
   void flush_input() override {
@@ -554,6 +569,7 @@ class ReplayPort final : public Port {
   bool awaiting_client_ = false;
   int client_sessions_ = 0;
   SerialSettings settings_;
+  std::function<void(const FaultEvent&)> fault_reporter_;  // faults hook
   bool closed_ = false;
   sys::UniqueFd signal_read_;
   sys::UniqueFd signal_write_;
@@ -602,6 +618,18 @@ void replay_client_flushed(Port& port) {
 bool replay_recording_greets(const Port& port) {
   const auto* replay = dynamic_cast<const ReplayPort*>(&port);
   return replay != nullptr && replay->recording_greets();
+}
+
+bool replay_on_fault(Port& port, std::function<void(const FaultEvent&)> reporter) {
+  auto* replay = dynamic_cast<ReplayPort*>(&port);
+  if (replay == nullptr) return false;
+  replay->on_fault(std::move(reporter));
+  return true;
+}
+
+bool replay_lost_by_fault(Port& port) {
+  auto* replay = dynamic_cast<ReplayPort*>(&port);
+  return replay != nullptr && replay->lost_by_fault();
 }
 
 bool replay_recording_has_rx(const Port& port) {

@@ -1,10 +1,14 @@
 // The replaying port over any record source (tests feed synthetic sessions).
 #pragma once
 
+#include <functional>
+
 #include <memory>
 #include <string>
 
+#include "replay/faults.hpp"
 #include "session/record_source.hpp"
+#include "replay/faults.hpp"
 #include "replay/replay_config.hpp"
 #include "wiretape/port.hpp"
 
@@ -47,5 +51,12 @@ bool replay_await_client(Port& port);
 // its start for the first): whatever was queued for an earlier client is
 // not this client's. False for every other port.
 bool replay_begin_client_session(Port& port);
+
+// Where a replay's injected faults (faults=) are reported, instead of a line
+// on stderr; false if `port` is not a replay.
+bool replay_on_fault(Port& port, std::function<void(const FaultEvent&)> reporter);
+// Whether a replay's reads fail because of an injected disconnect or
+// reconnect (not a recorded loss).
+bool replay_lost_by_fault(Port& port);
 
 }  // namespace wiretape::detail

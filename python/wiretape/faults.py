@@ -1,0 +1,449 @@
+"""Fault campaigns (DESIGN.md section 14, docs/faults.md).
+
+``wiretape faults SESSION -- CMD ... {port} ...`` runs CMD once against a
+clean replay of SESSION (it must pass), then once per fault case (a fault
+kind at an exchange), each against a fresh virtual device, and sorts each run
+into ``ok``, ``error``, ``crash`` or ``hang``.
+
+The same cases are there for pytest::
+
+    from wiretape import faults
+
+    @pytest.mark.parametrize("case", faults.cases("scan.wtape", budget=20),
+                             ids=lambda case: case.id)
+    def test_driver_survives(case):
+        with faults.faulty_device("scan.wtape", case) as path:
+            ...  # run the driver against path; assert it fails cleanly
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import os
+import random
+import shlex
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from typing import Dict, Iterator, List, Optional, Sequence, TextIO
+
+from . import _core, bridge
+from .tools._records import open_session
+
+#: Every fault kind, as a campaign injects it (docs/faults.md says why these
+#: amounts).
+KINDS = ("drop", "corrupt", "garbage", "truncate", "duplicate", "delay:500", "stall:500",
+         "trickle", "silence", "disconnect", "reconnect:500")
+KIND_NAMES = tuple(kind.split(":")[0] for kind in KINDS)
+OUTCOMES = ("ok", "error", "crash", "hang")
+PORT_PLACEHOLDER = "{port}"
+# What sanitizers print when they find something: a crash even if the
+# program then exits with a plain error code.
+_SANITIZER_MARKERS = ("ERROR: AddressSanitizer", "ERROR: LeakSanitizer",
+                      "ERROR: MemorySanitizer", "WARNING: ThreadSanitizer",
+                      "runtime error:", "ERROR: UndefinedBehaviorSanitizer")
+
+
+class FaultInputError(ValueError):
+    """Bad input to a campaign (exit 2): names the problem."""
+
+
+@dataclasses.dataclass(frozen=True)
+class FaultCase:
+    """One fault at one place: ``options`` is the replay keys that inject it
+    (``faults=...,seed=S``), ``id`` a name for pytest."""
+
+    kind: str
+    where: str
+    seed: int = 0
+
+    @property
+    def spec(self) -> str:
+        return f"{self.kind}@{self.where}"
+
+    @property
+    def options(self) -> str:
+        return f"faults={_core.quote_option_value(self.spec)},seed={self.seed}"
+
+    @property
+    def id(self) -> str:
+        return self.spec
+
+
+@dataclasses.dataclass
+class SessionShape:
+    """What a campaign needs to know of a session: its exchanges (numbered
+    as replay numbers them), its served rx bytes and its length."""
+
+    exchanges: int
+    rx_bytes: int
+    seconds: float
+
+
+def session_shape(session: str) -> SessionShape:
+    """Counts the exchanges that hold rx as replay numbers them: an exchange
+    is the client's bytes and the device's answer up to the client's next
+    write, from 0; rx before the first write belongs to exchange 0. A proxy
+    recording counts from its first client's connection, as its replay does."""
+    reader = open_session(session)
+    records = list(reader)
+    connects = [i for i, record in enumerate(records) if record.kind == "client_connect"]
+    if connects:
+        end = connects[1] if len(connects) > 1 else len(records)
+        records = records[connects[0] + 1:end]
+    exchange = 0
+    tx_seen = rx_since_tx = False
+    last_rx_exchange: Optional[int] = None
+    rx_bytes = 0
+    first_t = last_t = None
+    for record in records:
+        first_t = record.t_ns if first_t is None else first_t
+        last_t = record.t_ns
+        if not record.data:
+            continue
+        if record.kind == "tx":
+            if rx_since_tx and tx_seen:
+                exchange += 1
+            rx_since_tx = False
+            tx_seen = True
+        elif record.kind == "rx":
+            rx_since_tx = True
+            last_rx_exchange = exchange
+            rx_bytes += len(record.data)
+    seconds = ((last_t or 0) - (first_t or 0)) / 1e9
+    return SessionShape(0 if last_rx_exchange is None else last_rx_exchange + 1, rx_bytes,
+                        seconds)
+
+
+def _kind_spec(text: str) -> str:
+    """A --kinds item as a campaign injects it: a bare name takes the
+    campaign's amount (delay -> delay:500)."""
+    name = text.split(":")[0]
+    if name not in KIND_NAMES:
+        raise FaultInputError(f"unknown fault kind {text!r}; known: {', '.join(KIND_NAMES)}")
+    if ":" in text:
+        return text
+    return KINDS[KIND_NAMES.index(name)]
+
+
+def check_where(session: str, spec: str, shape: Optional[SessionShape] = None) -> None:
+    """Raises FaultInputError for a KIND@WHERE whose WHERE lies past the
+    session's end (exchange:N, rx:N, t:SECONDS); the syntax itself is checked
+    by the replay (OptionError)."""
+    shape = shape or session_shape(session)
+    for item in spec.split(";"):
+        if "@" not in item:
+            continue
+        where = item.split("@", 1)[1].strip()
+        name, _, value = where.partition(":")
+        try:
+            number = float(value)
+        except ValueError:
+            continue
+        if name == "exchange" and number >= shape.exchanges:
+            raise FaultInputError(
+                f"{item.strip()}: the session has {shape.exchanges} exchanges with rx "
+                f"(0..{shape.exchanges - 1}); exchange {value} is past its end")
+        if name == "rx" and number >= shape.rx_bytes:
+            raise FaultInputError(f"{item.strip()}: the session has {shape.rx_bytes} rx bytes; "
+                                  f"rx byte {value} is past its end")
+        if name == "t" and number > shape.seconds:
+            raise FaultInputError(f"{item.strip()}: the session lasts {shape.seconds:.3f} s; "
+                                  f"t:{value} is past its end")
+
+
+def cases(session: str, kinds: Optional[Sequence[str]] = None, budget: Optional[int] = None,
+          seed: int = 0) -> List[FaultCase]:
+    """The campaign's cases: every kind (``kinds``, default all) at every
+    exchange of ``session``; with ``budget``, that many of them sampled by
+    ``seed``, in the same order. Items of ``kinds`` may name a place
+    themselves (``drop@rx:100``)."""
+    shape = session_shape(session)
+    fixed: List[FaultCase] = []
+    spread: List[str] = []
+    for text in (kinds or KINDS):
+        text = text.strip()
+        if "@" in text:
+            kind, where = text.split("@", 1)
+            _kind_spec(kind)
+            check_where(session, text, shape)
+            fixed.append(FaultCase(kind, where, seed))
+        else:
+            spread.append(_kind_spec(text))
+    everything = fixed + [FaultCase(kind, f"exchange:{n}", seed)
+                          for kind in spread for n in range(shape.exchanges)]
+    if budget is not None and budget < len(everything):
+        chosen = sorted(random.Random(seed).sample(range(len(everything)), budget))
+        everything = [everything[i] for i in chosen]
+    return everything
+
+
+@contextlib.contextmanager
+def faulty_device(session: str, case: Optional[FaultCase] = None, replay_options: str = "",
+                  listen: bool = False) -> Iterator[str]:
+    """A virtual device replaying ``session`` with ``case``'s fault: yields
+    the path of a pty (a symbolic link in a private directory), or with
+    ``listen`` a ``HOST:PORT``. Stopped on leaving."""
+    keys = ",".join(part for part in (replay_options.strip(), case.options if case else "")
+                    if part)
+    with tempfile.TemporaryDirectory(prefix="wiretape-faults-") as directory:
+        link = os.path.join(directory, "port")
+        handle = bridge.serve_replay(session, pty=None if listen else link,
+                                     listen="127.0.0.1:0" if listen else None,
+                                     replay_options=keys, quiet=True)
+        try:
+            yield handle.address if listen else link
+        finally:
+            handle.stop()
+            handle.wait()
+
+
+# --------------------------------------------------------------------------
+# the campaign
+
+
+@dataclasses.dataclass
+class Run:
+    kind: str
+    where: str
+    outcome: str
+    exit: Optional[int]
+    seconds: float
+    repro: str = ""
+    output: str = ""
+
+    def as_json(self) -> Dict[str, object]:
+        return {"kind": self.kind, "where": self.where, "outcome": self.outcome,
+                "exit": self.exit, "seconds": round(self.seconds, 3), "repro": self.repro}
+
+
+@dataclasses.dataclass
+class Campaign:
+    session: str
+    seed: int
+    runs: List[Run]
+
+    @property
+    def summary(self) -> Dict[str, int]:
+        counts = {outcome: 0 for outcome in OUTCOMES}
+        for run in self.runs:
+            counts[run.outcome] += 1
+        return counts
+
+    @property
+    def failed(self) -> bool:
+        summary = self.summary
+        return summary["crash"] > 0 or summary["hang"] > 0
+
+    def as_json(self) -> Dict[str, object]:
+        return {"session": self.session, "seed": self.seed,
+                "runs": [run.as_json() for run in self.runs], "summary": self.summary}
+
+
+class CleanRunFailed(Exception):
+    """The command fails without any fault (exit 1)."""
+
+    def __init__(self, run: Run):
+        super().__init__(f"the command fails on the clean replay, without any fault "
+                         f"({run.outcome}, exit {run.exit}):\n{run.output}")
+        self.run = run
+
+
+def check_command(argv: Sequence[str], as_path: Optional[str]) -> None:
+    if not argv:
+        raise FaultInputError("no command after --: give the program to run, with {port} "
+                              "where the device's path goes")
+    if as_path is None and not any(PORT_PLACEHOLDER in arg for arg in argv):
+        raise FaultInputError("the command has no {port}: put {port} where the device's path "
+                              "goes (e.g. -- ./driver --device {port}), or give --as PATH for "
+                              "a program with a fixed device path")
+
+
+def _classify(returncode: Optional[int], output: str, timed_out: bool) -> str:
+    if timed_out:
+        return "hang"
+    if returncode is not None and returncode < 0:
+        return "crash"
+    if any(marker in output for marker in _SANITIZER_MARKERS):
+        return "crash"
+    return "ok" if returncode == 0 else "error"
+
+
+def _kill_group(process: subprocess.Popen) -> None:
+    """Kills CMD and what it started (its own session), or CMD alone when it
+    shares ours (--as)."""
+    try:
+        if os.getpgid(process.pid) == process.pid:
+            os.killpg(process.pid, signal.SIGKILL)
+            return
+    except OSError:
+        pass
+    try:
+        process.kill()
+    except OSError:
+        pass
+
+
+def run_case(session: str, case: Optional[FaultCase], argv: Sequence[str], timeout: float,
+             replay_options: str = "", listen: bool = False,
+             as_path: Optional[str] = None) -> Run:
+    """Runs CMD once against a fresh virtual device with ``case``'s fault
+    (None: clean)."""
+    started = time.monotonic()
+    with faulty_device(session, case, replay_options, listen) as port:
+        command = [arg.replace(PORT_PLACEHOLDER, port) for arg in argv]
+        redirected = None
+        if as_path is not None:
+            from .redirect import RedirectedCommand
+
+            redirected = RedirectedCommand(command, as_path, os.path.realpath(port))
+            process = redirected.process
+        else:
+            process = subprocess.Popen(command, stdout=subprocess.PIPE,
+                                       stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                       start_new_session=True)
+        timed_out = False
+        try:
+            output, _ = process.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            timed_out = True
+            _kill_group(process)
+            output, _ = process.communicate()
+        finally:
+            if redirected is not None:
+                redirected.close()
+    text = (output or b"").decode("utf-8", "replace")
+    outcome = _classify(process.returncode, text, timed_out)
+    return Run(case.kind if case else "", case.where if case else "", outcome,
+               None if timed_out else process.returncode, time.monotonic() - started,
+               output=text)
+
+
+def reproduction(session: str, case: FaultCase, argv: Sequence[str], replay_options: str,
+                 as_path: Optional[str]) -> str:
+    """One line that replays the fault and runs the command against it."""
+    port = "/tmp/wiretape-fault-port"
+    replay = ["wiretape", "replay", session, "--pty", port, "--fault", case.spec,
+              "--seed", str(case.seed)]
+    if replay_options:
+        replay += ["--options", replay_options]
+    if as_path is not None:
+        return shlex.join(replay + ["--as", as_path, "--"] + list(argv))
+    command = [arg.replace(PORT_PLACEHOLDER, port) for arg in argv]
+    return (shlex.join(replay) + " & sleep 0.5; " + shlex.join(command) + "; kill %1")
+
+
+@contextlib.contextmanager
+def _quiet_stderr(enabled: bool) -> Iterator[Optional[int]]:
+    """The replays' own fault reports (one line each on stderr) would bury
+    the table: they go to /dev/null while the runs go on. Yields a
+    descriptor of the real stderr (None when not quieted)."""
+    if not enabled:
+        yield None
+        return
+    sys.stderr.flush()
+    saved = os.dup(2)
+    null = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(null, 2)
+    os.close(null)
+    try:
+        yield saved
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] = None,
+             budget: Optional[int] = None, seed: int = 0, timeout: float = 10.0, jobs: int = 1,
+             replay_options: str = "", listen: bool = False, as_path: Optional[str] = None,
+             progress: Optional[TextIO] = None, quiet_replays: bool = True) -> Campaign:
+    """Runs the campaign; raises FaultInputError (bad input) or
+    CleanRunFailed."""
+    check_command(argv, as_path)
+    if jobs < 1:
+        raise FaultInputError(f"--jobs {jobs}: give 1 or more")
+    if timeout <= 0:
+        raise FaultInputError(f"--timeout {timeout}: give a number of seconds above 0")
+    if replay_options:
+        _core.check_replay_options("type=replay,file=x," + replay_options)
+    selected = cases(session, kinds, budget, seed)
+    with _quiet_stderr(quiet_replays) as real_stderr:
+        def note(text: str) -> None:
+            if progress is None:
+                return
+            if real_stderr is not None and progress is sys.stderr:
+                os.write(real_stderr, text.encode())
+            else:
+                progress.write(text)
+                progress.flush()
+
+        clean = run_case(session, None, argv, timeout, replay_options, listen, as_path)
+        if clean.outcome != "ok":
+            raise CleanRunFailed(clean)
+        runs: List[Optional[Run]] = [None] * len(selected)
+        done = [0]
+        lock = threading.Lock()
+
+        def one(index: int) -> None:
+            case = selected[index]
+            run = run_case(session, case, argv, timeout, replay_options, listen, as_path)
+            if run.outcome in ("crash", "hang"):
+                run.repro = reproduction(session, case, argv, replay_options, as_path)
+            runs[index] = run
+            with lock:
+                done[0] += 1
+                note(f"\r{done[0]}/{len(selected)} runs")
+
+        with ThreadPoolExecutor(max_workers=jobs) as pool:
+            for future in [pool.submit(one, i) for i in range(len(selected))]:
+                future.result()
+        if selected:
+            note("\n")
+    return Campaign(session, seed, [run for run in runs if run is not None])
+
+
+_LETTERS = {"ok": ".", "error": "E", "crash": "C", "hang": "H"}
+
+
+def table(result: Campaign) -> str:
+    """A line per kind, a column per exchange: . ok, E error, C crash,
+    H hang (blank: not run); then other places and the totals."""
+    by_kind: Dict[str, Dict[int, str]] = {}
+    others: List[Run] = []
+    width = 0
+    for run in result.runs:
+        if run.where.startswith("exchange:"):
+            exchange = int(run.where.split(":")[1])
+            by_kind.setdefault(run.kind, {})[exchange] = run.outcome
+            width = max(width, exchange + 1)
+        else:
+            others.append(run)
+    lines = []
+    if by_kind:
+        corner = "kind \\ exchange"
+        name_width = max(len(corner), *(len(kind) for kind in by_kind))
+        header = "".join(str(n % 10) for n in range(width))
+        lines.append(f"{corner:<{name_width}}  {header}")
+        for kind, outcomes in by_kind.items():
+            cells = "".join(_LETTERS[outcomes[n]] if n in outcomes else " " for n in range(width))
+            counts = {outcome: list(outcomes.values()).count(outcome) for outcome in OUTCOMES}
+            figures = " ".join(f"{outcome} {count}" for outcome, count in counts.items() if count)
+            lines.append(f"{kind:<{name_width}}  {cells}  {figures}")
+    for run in others:
+        lines.append(f"{run.kind}@{run.where}: {run.outcome}")
+    summary = result.summary
+    lines.append(f"{len(result.runs)} runs: " + ", ".join(f"{summary[o]} {o}" for o in OUTCOMES)
+                 + "  (. ok  E error  C crash  H hang)")
+    return "\n".join(lines)
+
+
+def write_json(result: Campaign, path: str) -> None:
+    with open(path, "w", encoding="utf-8") as output:
+        json.dump(result.as_json(), output, indent=1)
+        output.write("\n")
