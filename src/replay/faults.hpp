@@ -19,6 +19,7 @@
 
 #include "replay/strategy.hpp"
 #include "replay/timing.hpp"
+#include "wiretape/profile.hpp"
 
 namespace wiretape::detail {
 
@@ -85,14 +86,20 @@ struct FaultedRx {
 // first write (a greeting) is exchange 0.
 class ExchangeCounter {
  public:
-  explicit ExchangeCounter(std::unique_ptr<RecordSource> source)
-      : source_(std::move(source)) {}
+  // With a profile's request framer, exchanges are request frames (DESIGN.md
+  // section 13): the rx after the k-th complete request frame is exchange k-1.
+  explicit ExchangeCounter(std::unique_ptr<RecordSource> source,
+                           std::unique_ptr<Framer> request_framer = nullptr)
+      : source_(std::move(source)), request_framer_(std::move(request_framer)) {}
   // The exchange of the next non-empty rx record.
   std::uint64_t next_rx();
   std::uint64_t current() const { return exchange_; }
 
  private:
   std::unique_ptr<RecordSource> source_;
+  std::unique_ptr<Framer> request_framer_;
+  std::vector<Frame> frames_;  // reused
+  std::uint64_t request_frames_ = 0;
   std::uint64_t exchange_ = 0;
   bool rx_since_tx_ = false;
   bool tx_seen_ = false;

@@ -53,7 +53,9 @@ ReplayEngine::ReplayEngine(ReplayConfig config, RecordSourceFactory sources,
                          event.where.c_str(), event.detail.c_str());
           });
       if (config_.match == ReplayMatch::sequence) {
-        exchanges_ = std::make_unique<ExchangeCounter>(sources());
+        exchanges_ = std::make_unique<ExchangeCounter>(
+            sources(), config_.profile ? config_.profile->make_framer(StreamDirection::tx)
+                                       : nullptr);
       } else if (!released_.empty()) {
         request_exchange_ = 0;  // a greeting
       }

@@ -328,6 +328,27 @@ TEST(FaultDatagrams, DropLosesADatagramAndDuplicateRepeatsIt) {
   EXPECT_EQ(buffer[0], 'C');
 }
 
+// With a profile, exchanges are request frames: a request written in two
+// parts is one exchange, however the recording split it.
+TEST(FaultProfiles, ExchangesCountRequestFrames) {
+  const std::vector<Record> records = {
+      {ms(0), RecordKind::tx, "A\n"}, {ms(1), RecordKind::rx, "a\n"},
+      {ms(2), RecordKind::tx, "B"},   {ms(3), RecordKind::rx, "?"},
+      {ms(4), RecordKind::tx, "\n"},  {ms(5), RecordKind::rx, "b\n"}};
+  // Without a profile, "B" and "\n" start exchanges 1 and 2.
+  auto bytes = replay("timing=none,unused=ignore,faults=drop@exchange:1", records);
+  EXPECT_EQ(answer(*bytes, "A\n"), "a\n");
+  EXPECT_EQ(answer(*bytes, "B"), "");
+  EXPECT_EQ(answer(*bytes, "\n"), "b\n");
+  // With profile=lines, "B\n" is exchange 1: its answer is dropped. The "?"
+  // sent before it was complete still belongs to exchange 0 (it is released
+  // once the client's frame is whole, as the profile compares frames).
+  auto frames = replay("timing=none,unused=ignore,profile=lines,faults=drop@exchange:1", records);
+  EXPECT_EQ(answer(*frames, "A\n"), "a\n");
+  EXPECT_EQ(answer(*frames, "B"), "");
+  EXPECT_EQ(answer(*frames, "\n"), "?");
+}
+
 TEST(FaultRequestMatching, ExchangesAreNumberedInServedOrder) {
   // The client asks Q2 first: with match=request it is exchange 0.
   auto port = replay("timing=none,match=request,faults=truncate:2@exchange:0");
