@@ -5,9 +5,13 @@ between a device and its driver (record, serve): a small server on
 device."""
 
 import os
+import re
 import select
+import signal
 import socket
 import struct
+import subprocess
+import sys
 import threading
 import time
 
@@ -176,3 +180,41 @@ def skip_unless_serial_opens_on_a_pty():
     finally:
         os.close(master)
         os.close(terminal)
+
+
+# --- the command line as a child process ----------------------------------------------
+
+def start_cli(*argv) -> subprocess.Popen:
+    """`wiretape ARGV...` as a child process, its output piped."""
+    return subprocess.Popen([sys.executable, "-m", "wiretape.cli", *argv],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def announced_address(child: subprocess.Popen, transport: str):
+    """(host, port) that a bridge command announces on stderr for its
+    clients ("clients use tcp HOST:PORT"); the child is killed if it never
+    says."""
+    lines = []
+    for _ in range(20):
+        line = child.stderr.readline()
+        if not line:
+            break
+        lines.append(line)
+        match = re.search(rf"clients use {transport} (\S+):(\d+)", line)
+        if match:
+            return match.group(1), int(match.group(2))
+    child.kill()
+    raise AssertionError("no address announced: " + "".join(lines) + child.stderr.read())
+
+
+def interrupt(child: subprocess.Popen, deadline: float = 15.0):
+    """Ctrl-C, then (exit status, stdout, stderr); a child still running
+    after `deadline` is killed (its status is then -SIGKILL)."""
+    if child.poll() is None:
+        child.send_signal(signal.SIGINT)
+    try:
+        out, err = child.communicate(timeout=deadline)
+    except subprocess.TimeoutExpired:
+        child.kill()
+        out, err = child.communicate()
+    return child.returncode, out, err

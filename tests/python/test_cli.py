@@ -14,6 +14,8 @@ import pytest
 import wiretape
 from wiretape import cli
 
+from devices import announced_address, interrupt, start_cli
+
 SUBCOMMANDS = ["record", "replay", "serve", "ports", "show", "stats", "verify",
                "convert", "diff", "demo"]
 
@@ -263,44 +265,20 @@ def test_convert_of_a_damaged_file_exits_1(capsys, session_file, tmp_path):
 # --- bridges ------------------------------------------------------------------------------
 
 
-def _start(argv):
-    return subprocess.Popen([sys.executable, "-m", "wiretape.cli", *argv],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def _address(child):
-    """HOST:PORT from the bridge's announcement on stderr."""
-    lines = []
-    for _ in range(20):
-        line = child.stderr.readline()
-        if not line:
-            break
-        lines.append(line)
-        match = re.search(r"clients use tcp (\S+):(\d+)", line)
-        if match:
-            return match.group(1), int(match.group(2))
-    raise AssertionError("no address announced: " + "".join(lines))
 
 
-def _stop(child):
-    if child.poll() is None:
-        child.send_signal(signal.SIGINT)
-    try:
-        out, err = child.communicate(timeout=15)
-    except subprocess.TimeoutExpired:
-        child.kill()
-        out, err = child.communicate()
-    return child.returncode, out, err
 
 
 def test_record_through_tcp_then_ctrl_c_exits_0_with_a_complete_file(tmp_path):
     import socket
 
     output = tmp_path / "rec.wtape"
-    child = _start(["record", "--device", "type=loopback", "--listen", "127.0.0.1:0",
-                    "-o", str(output), "--meta", "who=test"])
+    child = start_cli("record", "--device", "type=loopback", "--listen", "127.0.0.1:0",
+                    "-o", str(output), "--meta", "who=test")
     try:
-        host, number = _address(child)
+        host, number = announced_address(child, "tcp")
         with socket.create_connection((host, number), timeout=5) as client:
             client.sendall(b"echo me\n")
             received = b""
@@ -312,7 +290,7 @@ def test_record_through_tcp_then_ctrl_c_exits_0_with_a_complete_file(tmp_path):
                 received += chunk
         assert received == b"echo me\n"
     finally:
-        code, _, err = _stop(child)
+        code, _, err = interrupt(child)
     assert code == 0, err
     reader = wiretape.SessionReader(str(output))
     records = list(reader)
@@ -325,9 +303,9 @@ def test_replay_serves_a_recording_over_tcp(tmp_path, session_file):
     import socket
 
     path = session_file(SESSION)
-    child = _start(["replay", str(path), "--listen", "127.0.0.1:0", "--timing", "none"])
+    child = start_cli("replay", str(path), "--listen", "127.0.0.1:0", "--timing", "none")
     try:
-        host, number = _address(child)
+        host, number = announced_address(child, "tcp")
         with socket.create_connection((host, number), timeout=5) as client:
             client.sendall(b"PING\n")
             client.settimeout(5)
@@ -339,7 +317,7 @@ def test_replay_serves_a_recording_over_tcp(tmp_path, session_file):
                 received += chunk
         assert received == b"PONG\n"
     finally:
-        code, _, err = _stop(child)
+        code, _, err = interrupt(child)
     assert code == 0, err
 
 
@@ -357,9 +335,9 @@ def test_replay_mismatch_exits_1_with_the_report(tmp_path, session_file):
     import socket
 
     path = session_file(SESSION)
-    child = _start(["replay", str(path), "--listen", "127.0.0.1:0", "--timing", "none"])
+    child = start_cli("replay", str(path), "--listen", "127.0.0.1:0", "--timing", "none")
     try:
-        host, number = _address(child)
+        host, number = announced_address(child, "tcp")
         with socket.create_connection((host, number), timeout=5) as client:
             client.sendall(b"PANG\n")
             client.settimeout(5)
@@ -370,7 +348,7 @@ def test_replay_mismatch_exits_1_with_the_report(tmp_path, session_file):
                 pass
         child.wait(15)  # a mismatch ends the replay by itself
     finally:
-        code, _, err = _stop(child)
+        code, _, err = interrupt(child)
     assert code == 1, err
     assert "replay mismatch" in err and "Traceback" not in err
     assert err.count("replay mismatch: replay mismatch") == 0
@@ -414,8 +392,8 @@ def test_record_through_a_pty_and_sigterm_ends_it_cleanly(tmp_path):
 
     link = tmp_path / "ttyV0"
     output = tmp_path / "pty.wtape"
-    child = _start(["record", "--device", "type=loopback", "--pty", str(link),
-                    "-o", str(output)])
+    child = start_cli("record", "--device", "type=loopback", "--pty", str(link),
+                    "-o", str(output))
     try:
         announced = ""
         while "clients use" not in announced:
@@ -441,10 +419,10 @@ def test_record_through_a_pty_and_sigterm_ends_it_cleanly(tmp_path):
         finally:
             os.close(client)
         child.send_signal(signal.SIGTERM)
-        code, _, err = _stop(child)
+        code, _, err = interrupt(child)
     finally:
         if child.poll() is None:
-            _stop(child)
+            interrupt(child)
     assert code == 0, err
     records = list(wiretape.SessionReader(str(output)))
     assert b"".join(r.data for r in records if r.kind == "tx") == b"hi there"
@@ -454,10 +432,10 @@ def test_serve_shares_a_device_over_tcp_and_records_it(tmp_path):
     import socket
 
     output = tmp_path / "served.wtape"
-    child = _start(["serve", "--device", "type=loopback", "--listen", "127.0.0.1:0",
-                    "-o", str(output)])
+    child = start_cli("serve", "--device", "type=loopback", "--listen", "127.0.0.1:0",
+                    "-o", str(output))
     try:
-        host, number = _address(child)
+        host, number = announced_address(child, "tcp")
         with socket.create_connection((host, number), timeout=5) as client:
             client.sendall(b"over tcp\n")
             client.settimeout(5)
@@ -469,7 +447,7 @@ def test_serve_shares_a_device_over_tcp_and_records_it(tmp_path):
                 received += chunk
         assert received == b"over tcp\n"
     finally:
-        code, _, err = _stop(child)
+        code, _, err = interrupt(child)
     assert code == 0, err
     tx = b"".join(r.data for r in wiretape.SessionReader(str(output)) if r.kind == "tx")
     assert tx == b"over tcp\n"

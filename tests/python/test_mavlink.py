@@ -11,7 +11,6 @@ or ``causal`` (docs/replay.md). The peers are in mavlink_peers.py. Skipped,
 loudly, without pymavlink (the Makefile installs it)."""
 
 import json
-import re
 import signal
 import subprocess
 import sys
@@ -24,43 +23,23 @@ from wiretape import _core
 pytest.importorskip("pymavlink", reason="SKIPPED LOUDLY: pymavlink is not installed "
                     "(pip install pymavlink; make installs it): MAVLink is not tested")
 
+from devices import announced_address, interrupt, start_cli  # noqa: E402
 from mavlink_peers import PARAMETERS, VEHICLE_SYSTEM, Vehicle  # noqa: E402
 
 DEADLINE = 20.0
 PEERS = str(Path(__file__).with_name("mavlink_peers.py"))
 
 
-def _start_cli(*argv):
-    return subprocess.Popen([sys.executable, "-m", "wiretape.cli", *argv],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def _client_address(child, transport):
-    """The HOST:PORT the command announces for its clients."""
-    lines = []
-    for _ in range(20):
-        line = child.stderr.readline()
-        if not line:
-            break
-        lines.append(line)
-        match = re.search(rf"clients use {transport} (\S+):(\d+)", line)
-        if match:
-            return match.group(1), int(match.group(2))
-    child.kill()
-    raise AssertionError("no address announced: " + "".join(lines) + child.stderr.read())
 
 
 def _interrupt(child):
     """Ctrl-C, then the command's exit status and its stderr."""
-    if child.poll() is None:
-        child.send_signal(signal.SIGINT)
-    try:
-        _, err = child.communicate(timeout=DEADLINE)
-    except subprocess.TimeoutExpired:
-        child.kill()
-        _, err = child.communicate()
+    code, _, err = interrupt(child, DEADLINE)
+    if code == -signal.SIGKILL:
         raise AssertionError("the command did not end at Ctrl-C: " + err)
-    return child.returncode, err
+    return code, err
 
 
 def _ground_station(transport, host, port):
@@ -79,10 +58,10 @@ def _client_flag(transport):
 def _record(tmp_path, transport):
     out = tmp_path / f"mavlink-{transport}.wtape"
     with Vehicle(transport) as vehicle:
-        child = _start_cli("record", "--device", vehicle.options,
+        child = start_cli("record", "--device", vehicle.options,
                            _client_flag(transport), "127.0.0.1:0", "-o", str(out))
         try:
-            host, port = _client_address(child, transport)
+            host, port = announced_address(child, transport)
             got = _ground_station(transport, host, port)
         finally:
             code, err = _interrupt(child)
@@ -134,10 +113,10 @@ def test_the_ground_station_gets_the_vehicle_through_the_record_proxy(recorded):
 @pytest.mark.parametrize("timing", ["none", "causal"])
 def test_the_replay_answers_the_same_ground_station_with_the_vehicle_gone(recorded, timing):
     transport, out, got = recorded
-    child = _start_cli("replay", str(out), _client_flag(transport), "127.0.0.1:0",
+    child = start_cli("replay", str(out), _client_flag(transport), "127.0.0.1:0",
                        "--timing", timing)
     try:
-        host, port = _client_address(child, transport)
+        host, port = announced_address(child, transport)
         replayed = _ground_station(transport, host, port)
     finally:
         code, err = _interrupt(child)

@@ -22,7 +22,7 @@ from wiretape import cli
 from wiretape.tools import pcap_import
 from wiretape.tools.convert import convert
 
-from devices import wait_until
+from devices import announced_address, interrupt, start_cli, wait_until
 
 DATA = os.path.join(os.path.dirname(__file__), "..", "data", "pcap")
 DEADLINE_S = 30.0
@@ -271,32 +271,10 @@ def accepting(port, server):
     return check
 
 
-def start_cli(*argv):
-    return subprocess.Popen([sys.executable, "-m", "wiretape.cli", *argv],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def announced_address(child, protocol):
-    lines = []
-    for _ in range(20):
-        line = child.stderr.readline()
-        if not line:
-            break
-        lines.append(line)
-        match = re.search(rf"clients use {protocol} (\S+):(\d+)", line)
-        if match:
-            return match.group(1), int(match.group(2))
-    raise AssertionError("no address announced: " + "".join(lines))
 
 
-def stop_cli(child):
-    if child.poll() is None:
-        child.send_signal(signal.SIGINT)
-    try:
-        return child.communicate(timeout=15)
-    except subprocess.TimeoutExpired:
-        child.kill()
-        return child.communicate()
 
 
 def test_a_captured_pymodbus_exchange_replays_to_the_same_client(tmp_path):
@@ -342,7 +320,7 @@ def test_a_captured_pymodbus_exchange_replays_to_the_same_client(tmp_path):
         _, replay_port = announced_address(child, "tcp")
         assert modbus_reads(replay_port) == values
     finally:
-        _, err = stop_cli(child)
+        _, _, err = interrupt(child)
     assert child.returncode == 0, err
 
 
@@ -384,7 +362,7 @@ def test_a_captured_udp_exchange_replays_to_the_same_client(tmp_path):
                 replies.append(again.recvfrom(1000)[0])
         assert replies == answers
     finally:
-        _, err = stop_cli(child)
+        _, _, err = interrupt(child)
     assert child.returncode == 0, err
 
 

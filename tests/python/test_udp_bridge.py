@@ -3,20 +3,17 @@ proxy) and ``wiretape replay --udp [--peer]`` (a virtual datagram device).
 One record is one datagram, both ways, and replay keeps the boundaries."""
 
 import json
-import re
 import select
 import shutil
-import signal
 import socket
 import subprocess
-import sys
 import threading
 
 import pytest
 
 from wiretape import _core, bridge, cli
 
-from devices import wait_until
+from devices import announced_address, interrupt, start_cli, wait_until
 
 DEADLINE = 10.0
 
@@ -345,32 +342,10 @@ def test_the_api_refuses_a_peer_without_udp_and_two_client_sides(tmp_path):
                       listen="127.0.0.1:0")
 
 
-def _start_cli(*argv):
-    return subprocess.Popen([sys.executable, "-m", "wiretape.cli", *argv],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
-def _udp_address(child):
-    lines = []
-    for _ in range(20):
-        line = child.stderr.readline()
-        if not line:
-            break
-        lines.append(line)
-        match = re.search(r"clients use udp (\S+):(\d+)", line)
-        if match:
-            return match.group(1), int(match.group(2))
-    raise AssertionError("no address announced: " + "".join(lines))
 
 
-def _interrupt(child):
-    if child.poll() is None:
-        child.send_signal(signal.SIGINT)
-    try:
-        return child.communicate(timeout=15)
-    except subprocess.TimeoutExpired:
-        child.kill()
-        return child.communicate()
 
 
 def test_socat_as_a_udp_client_gets_the_replayed_reply(session_file):
@@ -381,9 +356,9 @@ def test_socat_as_a_udp_client_gets_the_replayed_reply(session_file):
     records = [("open", 0, b"{}"), ("tx", 1_000_000, b"PING\n"), ("rx", 2_000_000, b"PONG\n"),
                ("rx", 3_000_000, b"DONE\n"), ("close", 4_000_000, b"")]
     path = session_file(records, port_type="udp")
-    child = _start_cli("replay", str(path), "--udp", "127.0.0.1:0", "--timing", "none")
+    child = start_cli("replay", str(path), "--udp", "127.0.0.1:0", "--timing", "none")
     try:
-        host, port = _udp_address(child)
+        host, port = announced_address(child, "udp")
         client = subprocess.Popen([socat, "-t", "10", "-", f"UDP:{host}:{port}"],
                                   stdin=subprocess.PIPE, stdout=subprocess.PIPE)
         try:
@@ -402,7 +377,7 @@ def test_socat_as_a_udp_client_gets_the_replayed_reply(session_file):
             client.kill()
             client.wait()
     finally:
-        out, err = _interrupt(child)
+        _, out, err = interrupt(child)
     assert bytes(got) == b"PONG\nDONE\n"
     assert child.returncode == 0, err
 
@@ -437,13 +412,13 @@ def test_socat_through_the_record_proxy_then_through_the_replay(tmp_path):
                     "the UDP proxy is not tested against a real UDP client")
     out = tmp_path / "socat.wtape"
     with UdpDevice() as device:
-        child = _start_cli("record", "--device", device.options, "--udp", "127.0.0.1:0",
+        child = start_cli("record", "--device", device.options, "--udp", "127.0.0.1:0",
                            "-o", str(out))
         try:
-            host, port = _udp_address(child)
+            host, port = announced_address(child, "udp")
             recorded = _socat_exchange(socat, host, port, b"ping\n", 1)
         finally:
-            _, err = _interrupt(child)
+            _, _, err = interrupt(child)
         assert child.returncode == 0, err
     # The device's answers are two datagrams, "PING\n" and "#5": the file
     # keeps them apart.
@@ -452,11 +427,11 @@ def test_socat_through_the_record_proxy_then_through_the_replay(tmp_path):
     assert [r.data for r in records if r.kind == "tx"] == [b"ping\n"]
     assert [r.data for r in records if r.kind == "rx"] == [b"PING\n", b"#5"]
 
-    child = _start_cli("replay", str(out), "--udp", "127.0.0.1:0", "--timing", "none")
+    child = start_cli("replay", str(out), "--udp", "127.0.0.1:0", "--timing", "none")
     try:
-        host, port = _udp_address(child)
+        host, port = announced_address(child, "udp")
         replayed = _socat_exchange(socat, host, port, b"ping\n", 1)
     finally:
-        _, err = _interrupt(child)
+        _, _, err = interrupt(child)
     assert child.returncode == 0, err
     assert replayed.startswith(b"PING\n")
