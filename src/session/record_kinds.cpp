@@ -1,5 +1,6 @@
 #include "session/record_kinds.hpp"
 
+#include <array>
 #include <iterator>
 
 #include "util/json.hpp"
@@ -139,10 +140,13 @@ std::string_view to_string(JsonType type) {
 RecordKindTable record_kinds() { return {kinds, std::size(kinds)}; }
 
 const RecordKindSpec* find_record_kind(RecordKind kind) {
-  for (const RecordKindSpec& spec : kinds) {
-    if (spec.kind == kind) return &spec;
-  }
-  return nullptr;
+  // Asked for every record a reader reads: a lookup by code, not a search.
+  static const auto by_code = [] {
+    std::array<const RecordKindSpec*, 256> table{};
+    for (const RecordKindSpec& spec : kinds) table[spec.code()] = &spec;
+    return table;
+  }();
+  return by_code[static_cast<std::uint8_t>(kind)];
 }
 
 const RecordKindSpec* find_record_kind(std::string_view name) {
