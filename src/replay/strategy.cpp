@@ -95,7 +95,7 @@ void Wildcards::add(std::size_t offset, std::size_t length) {
   if (length > 0) ranges_.emplace_back(offset, length);
 }
 
-void Wildcards::add_event(std::string_view payload, std::size_t shift) {
+void Wildcards::add_event(std::string_view payload) {
   json::Value event;
   try {
     event = json::parse(payload.empty() ? std::string_view("{}") : payload);
@@ -107,7 +107,7 @@ void Wildcards::add_event(std::string_view payload, std::size_t shift) {
   if (offset == nullptr || length == nullptr || offset->number < 0 || length->number < 0) {
     return;
   }
-  add(shift + static_cast<std::size_t>(offset->number),
+  add(static_cast<std::size_t>(offset->number),
       static_cast<std::size_t>(length->number));
 }
 

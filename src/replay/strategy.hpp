@@ -139,7 +139,7 @@ class Wildcards {
  public:
   // Adds the range a redaction event's payload names; ignores a payload
   // that names none (the reader has checked its schema).
-  void add_event(std::string_view payload, std::size_t shift = 0);
+  void add_event(std::string_view payload);
   void add(std::size_t offset, std::size_t length);
   bool empty() const { return ranges_.empty(); }
   void clear() { ranges_.clear(); }

@@ -29,7 +29,6 @@ import os
 import re
 from typing import Deque, Dict, Iterable, List, Optional, Sequence, Tuple
 
-from .. import _core
 from ._files import is_stream, refuse_same_file, session_files
 from ._records import DIRECTIONS, SessionPath, event_payload, open_session, raise_damage
 from .convert import _header_of_reader, session_writer
@@ -346,7 +345,7 @@ def _scrub_header_text(text: str, redactions: Sequence[Redaction]) -> str:
     return data.decode("utf-8", "replace")
 
 
-def _scrubbed_event(kind: str, data: bytes) -> bytes:
+def _scrubbed_event(data: bytes) -> bytes:
     """Event payloads name devices too (open's description): by-id serial
     numbers are cleared there, the JSON staying valid."""
     payload = event_payload(data)
@@ -411,7 +410,7 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
 
         def keep(kind: str, t_ns: int, data: bytes) -> None:
             if redactions and kind not in DIRECTIONS:
-                data = _scrubbed_event(kind, data)
+                data = _scrubbed_event(data)
             redactor.add(_Entry(kind, t_ns, data))
 
         cutter = _Cutter(window[0], window[1], keep) if cut is not None else None

@@ -10,7 +10,7 @@ from __future__ import annotations
 import json
 import os
 import sys
-from typing import IO, Iterable, Iterator, Optional, Tuple
+from typing import IO, Iterator, Optional, Tuple
 
 from .. import _core
 from ..exports.jsonl import json_line, record_to_json
