@@ -20,7 +20,7 @@ using namespace wiretape;
 
 namespace {
 
-const std::string shared = std::string(WIRETAPE_SHARED_DATA_DIR) + "/flexiport/";
+const std::string shared = std::string(WIRETAPE_TEST_DATA_DIR) + "/flexiport/";
 
 using wiretape::test::TempDir;
 

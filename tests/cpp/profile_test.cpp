@@ -22,7 +22,7 @@ using namespace wiretape::detail;
 namespace {
 
 const std::string kRecordingsDir = std::string(WIRETAPE_TEST_DATA_DIR) + "/../../examples/hokuyo/recordings/";
-const std::string kFlexiportDir = std::string(WIRETAPE_SHARED_DATA_DIR) + "/flexiport/";
+const std::string kFlexiportDir = std::string(WIRETAPE_TEST_DATA_DIR) + "/flexiport/";
 
 // One direction's bytes, concatenated.
 std::string stream_of(const std::vector<Record>& records, RecordKind kind) {

@@ -24,7 +24,7 @@ using namespace std::chrono_literals;
 
 namespace {
 
-const std::string kFlexiportDir = std::string(WIRETAPE_SHARED_DATA_DIR) + "/flexiport/";
+const std::string kFlexiportDir = std::string(WIRETAPE_TEST_DATA_DIR) + "/flexiport/";
 
 std::unique_ptr<Port> replay(std::vector<Record> records, const std::string& keys) {
   Options options = Options::parse("file=synthetic.wtape," + keys);

@@ -1,7 +1,7 @@
 """Fixtures shared by the Python tests: ports with a "device side" the test
 controls, and helpers that wait on events with generous deadlines. The
-shared recordings (WIRETAPE_SHARED_DATA_DIR) are found by
-shared_test_data.py, which the Hokuyo example's tests use too."""
+real recordings under tests/data/flexiport are found by real_recordings.py,
+which the Hokuyo example's tests use too."""
 
 import os
 import select

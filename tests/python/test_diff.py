@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from shared_test_data import flexiport_log
+from real_recordings import flexiport_log
 
 from wiretape import _core as core
 from wiretape.tools.diff import diff

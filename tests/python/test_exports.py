@@ -8,7 +8,7 @@ import struct
 import subprocess
 
 import pytest
-from shared_test_data import flexiport_log
+from real_recordings import flexiport_log
 
 import wiretape
 from wiretape import exports

@@ -19,7 +19,7 @@ from wiretape import _core, bridge
 
 from test_replay_verdict import Replay
 from devices import wait_until
-from shared_test_data import FLEXIPORT_DIR, flexiport_log
+from real_recordings import FLEXIPORT_DIR, flexiport_log
 
 DEADLINE = 10.0
 GREETING = b"HELLO from the device\r\n"

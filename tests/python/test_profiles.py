@@ -8,7 +8,6 @@ texts. The C++ tests (tests/cpp/profile_test.cpp) check that every split of
 the repository's recordings frames the same."""
 
 import json
-import os
 import pathlib
 import sys
 import textwrap
@@ -18,10 +17,11 @@ import pytest
 
 from wiretape import _core
 
+from real_recordings import FLEXIPORT_DIR
+
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 GOLDEN = ROOT / "tests" / "data" / "golden"
 RECORDINGS = ROOT / "examples" / "hokuyo" / "recordings"
-SHARED_DATA = pathlib.Path(os.environ.get("WIRETAPE_SHARED_DATA_DIR", ROOT.parent / "shared" / "data"))
 GOLDEN_RECORDING = RECORDINGS / "urg04lx_gd.wtape"
 GOLDEN_TEXT = GOLDEN / "urg04lx_gd.scip.txt"
 
@@ -29,15 +29,12 @@ def scip_sessions():
     """Every SCIP recording the repository has: the Hokuyo example's and the
     real devices' flexiport logs (``name.log`` for name.logr + name.logw)."""
     sessions = sorted(RECORDINGS.glob("*.wtape"))
-    sessions += sorted(path.with_suffix(".log") for path in (SHARED_DATA / "flexiport").glob("*.logr"))
+    sessions += sorted(path.with_suffix(".log") for path in FLEXIPORT_DIR.glob("*.logr"))
     return sessions
 
 
 def test_the_real_devices_logs_are_among_the_sessions():
     logs = [path for path in scip_sessions() if path.suffix == ".log"]
-    if not logs:
-        pytest.skip(f"no flexiport logs under {SHARED_DATA / 'flexiport'} "
-                    "(set WIRETAPE_SHARED_DATA_DIR): the real devices' sessions were not decoded")
     assert {path.name for path in logs} >= {"urg04lx_2011.log", "utm30lx_2011.log"}
 
 

@@ -11,7 +11,7 @@ import time
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from shared_test_data import flexiport_log
+from real_recordings import flexiport_log
 
 from wiretape import _core as core
 import wiretape

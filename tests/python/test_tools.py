@@ -7,7 +7,7 @@ import subprocess
 import sys
 
 import pytest
-from shared_test_data import flexiport_log
+from real_recordings import flexiport_log
 
 from wiretape import _core
 from wiretape.tools import convert as convert_module

@@ -14,7 +14,7 @@ sys.path.insert(0, str(EXAMPLE / "sim"))
 # The shared test data is located in one place, the Python tests' helper.
 sys.path.insert(0, str(REPO / "tests" / "python"))
 
-from shared_test_data import flexiport_log  # noqa: E402,F401 (for conftest.py)
+from real_recordings import flexiport_log  # noqa: E402,F401 (for conftest.py)
 
 
 def bin_dir():

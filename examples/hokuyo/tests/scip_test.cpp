@@ -426,8 +426,8 @@ void answer_from(ScriptedDevice& device, std::deque<std::string>& replies) {
 }
 
 TEST(ScipRealDevice, Urg04lxGdScan) {
-  auto replies = real_replies(WIRETAPE_SHARED_DATA_DIR "/flexiport/urg04lx_2011.logr");
-  if (replies.empty()) GTEST_SKIP() << "shared data missing: " WIRETAPE_SHARED_DATA_DIR;
+  auto replies = real_replies(WIRETAPE_TEST_DATA_DIR "/flexiport/urg04lx_2011.logr");
+  ASSERT_FALSE(replies.empty()) << "test data missing: " WIRETAPE_TEST_DATA_DIR;
   ScriptedDevice device;
   answer_from(device, replies);
   hokuyo::Driver driver(device, fast_options());
@@ -447,8 +447,8 @@ TEST(ScipRealDevice, Urg04lxGdScan) {
 }
 
 TEST(ScipRealDevice, Utm30lxMeScan) {
-  auto replies = real_replies(WIRETAPE_SHARED_DATA_DIR "/flexiport/utm30lx_2011.logr");
-  if (replies.empty()) GTEST_SKIP() << "shared data missing: " WIRETAPE_SHARED_DATA_DIR;
+  auto replies = real_replies(WIRETAPE_TEST_DATA_DIR "/flexiport/utm30lx_2011.logr");
+  ASSERT_FALSE(replies.empty()) << "test data missing: " WIRETAPE_TEST_DATA_DIR;
   ScriptedDevice device;
   answer_from(device, replies);
   hokuyo::Driver driver(device, fast_options());
@@ -481,10 +481,10 @@ std::unique_ptr<wiretape::Port> open_or_skip(const std::string& options, const s
 }
 
 TEST(ScipReplay, RealUrg04lxInRequestMode) {
-  const std::string log = WIRETAPE_SHARED_DATA_DIR "/flexiport/urg04lx_2011.log";
+  const std::string log = WIRETAPE_TEST_DATA_DIR "/flexiport/urg04lx_2011.log";
   auto port = open_or_skip("type=replay,file=" + log + ",match=request,timing=none,unused=ignore",
-                           WIRETAPE_SHARED_DATA_DIR "/flexiport/urg04lx_2011.logr");
-  if (!port) GTEST_SKIP() << "shared data missing: " << log;
+                           WIRETAPE_TEST_DATA_DIR "/flexiport/urg04lx_2011.logr");
+  ASSERT_TRUE(port) << "test data missing: " << log;
   hokuyo::Driver driver(*port, fast_options());
   driver.open();
   driver.parameters();
@@ -497,10 +497,10 @@ TEST(ScipReplay, RealUrg04lxInRequestMode) {
 }
 
 TEST(ScipReplay, BrokenDriverIsAMismatchAtTheScanRequest) {
-  const std::string log = WIRETAPE_SHARED_DATA_DIR "/flexiport/urg04lx_2011.log";
+  const std::string log = WIRETAPE_TEST_DATA_DIR "/flexiport/urg04lx_2011.log";
   auto port = open_or_skip("type=replay,file=" + log + ",match=request,timing=none,unused=ignore",
-                           WIRETAPE_SHARED_DATA_DIR "/flexiport/urg04lx_2011.logr");
-  if (!port) GTEST_SKIP() << "shared data missing: " << log;
+                           WIRETAPE_TEST_DATA_DIR "/flexiport/urg04lx_2011.logr");
+  ASSERT_TRUE(port) << "test data missing: " << log;
   auto options = fast_options();
   options.inject_bug = true;
   hokuyo::Driver driver(*port, options);
