@@ -39,7 +39,7 @@ $(VENV)/.installed: $(VENV)/.deps pyproject.toml
 python: cpp $(VENV)/.installed
 
 # The extension's typing stubs, generated from the bindings by nanobind's
-# stubgen; tests/python/test_stubs.py fails when the checked-in file is stale.
+# stubgen; tests/python/bindings/test_stubs.py fails when the checked-in file is stale.
 stubs: python
 	$(PYTHON) -m nanobind.stubgen -m wiretape._core -o python/wiretape/_core.pyi
 

@@ -9,7 +9,7 @@ Usage: jsonl_import_fuzz.py [libFuzzer flags] [CORPUS_DIR...]
 With atheris (installed into .venv by `make fuzz`) this is a coverage-guided
 libFuzzer run, taking libFuzzer's flags (-max_total_time=N, -runs=0, ...).
 Without it, it mutates the corpus at random for -max_total_time seconds.
-tests/python/test_jsonl_import.py runs every corpus file through
+tests/python/tools/test_jsonl_import.py runs every corpus file through
 check_input().
 """
 

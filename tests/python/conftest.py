@@ -4,13 +4,18 @@ real recordings under tests/data/flexiport are found by real_recordings.py,
 which the Hokuyo example's tests use too."""
 
 import os
+import pathlib
 import select
 import socket
+import sys
 import time
 
 import pytest
 
 import wiretape
+
+# The tests' helpers (support/) are importable from every folder of tests.
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent / "support"))
 
 from devices import DEADLINE_S, wait_until
 

@@ -21,7 +21,7 @@ def hokuyo_scan():
 
 @pytest.fixture(scope="session")
 def shared_data():
-    """The folder of the real flexiport recordings (tests/python/real_recordings.py)."""
+    """The folder of the real flexiport recordings (tests/python/support/real_recordings.py)."""
     return flexiport_log("urg04lx_2011").parent
 
 

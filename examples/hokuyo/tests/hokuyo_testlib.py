@@ -12,7 +12,7 @@ EXAMPLE = HERE.parent
 REPO = EXAMPLE.parent.parent
 sys.path.insert(0, str(EXAMPLE / "sim"))
 # The shared test data is located in one place, the Python tests' helper.
-sys.path.insert(0, str(REPO / "tests" / "python"))
+sys.path.insert(0, str(REPO / "tests" / "python" / "support"))
 
 from real_recordings import flexiport_log  # noqa: E402,F401 (for conftest.py)
 

@@ -1,6 +1,6 @@
 """Writes the .jsonl descriptions of the golden session files.
 
-The .jsonl files are the source of truth: tests/cpp/session_golden_test.cpp
+The .jsonl files are the source of truth: tests/cpp/session/session_golden_test.cpp
 writes each .wtape from its .jsonl with SessionWriter and requires the result
 to equal the committed file byte for byte (run it with
 WIRETAPE_REGENERATE_GOLDEN=1 to rewrite the .wtape files after a deliberate

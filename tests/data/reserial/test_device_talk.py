@@ -1,5 +1,5 @@
 """pyserial client code recorded by pytest-reserial into test_device_talk.jsonl
-(its cassette: the file's stem + .jsonl), for tests/python/test_reserial_import.py.
+(its cassette: the file's stem + .jsonl), for tests/python/tools/test_reserial_import.py.
 
 Regenerate with pytest-reserial installed (it records real serial traffic,
 here with a pseudo-terminal for the device):

@@ -1,5 +1,5 @@
 """Session files as a driver's tests use them, checked by ``mypy --strict``
-(tests/python/test_typing.py): what the typing stubs promise."""
+(tests/python/bindings/test_typing.py): what the typing stubs promise."""
 
 from __future__ import annotations
 

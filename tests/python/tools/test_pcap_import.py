@@ -24,7 +24,7 @@ from wiretape.tools.convert import convert
 
 from devices import announced_address, interrupt, start_cli, wait_until
 
-DATA = os.path.join(os.path.dirname(__file__), "..", "data", "pcap")
+DATA = os.path.join(os.path.dirname(__file__), "..", "..", "data", "pcap")
 DEADLINE_S = 30.0
 
 

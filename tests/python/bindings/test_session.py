@@ -9,7 +9,7 @@ import pytest
 
 from wiretape import _core
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
+ROOT = pathlib.Path(__file__).resolve().parents[3]
 GOLDEN = ROOT / "tests" / "data" / "golden"
 FLEXIPORT = ROOT.parent / "shared" / "data" / "flexiport"
 GOLDEN_NAMES = ["all_kinds", "wire", "unknown_kind", "damaged", "v1_1_additions"]

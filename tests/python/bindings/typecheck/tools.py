@@ -1,5 +1,5 @@
 """The session tools' typed results and a port with float timeouts, checked
-by ``mypy --strict`` (tests/python/test_typing.py)."""
+by ``mypy --strict`` (tests/python/bindings/test_typing.py)."""
 
 from __future__ import annotations
 

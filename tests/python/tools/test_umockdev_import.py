@@ -16,7 +16,7 @@ import wiretape
 from wiretape import cli
 from wiretape.tools import importers
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "umockdev"
+DATA = Path(__file__).resolve().parents[2] / "data" / "umockdev"
 SCRIPT = DATA / "talk.script"
 TALK = DATA / "talk.py"
 sys.path.insert(0, str(DATA))

@@ -1,5 +1,5 @@
 """The two ends of a MAVLink link, both made with pymavlink, for
-tests/python/test_mavlink.py.
+tests/python/clients/test_mavlink.py.
 
 ``Vehicle`` is the device: a small MAVLink 2 autopilot (dialect ``common``)
 on TCP or UDP that sends a HEARTBEAT every second to whoever it talks to,

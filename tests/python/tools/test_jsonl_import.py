@@ -13,7 +13,7 @@ import wiretape
 from wiretape import cli
 from wiretape.tools import convert as convert_module
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 CORPUS = ROOT / "fuzz" / "corpus" / "jsonl_import_fuzz"
 
 HEADER = json.dumps({"header": {"port_type": "serial", "capture": "client"}})

@@ -19,7 +19,7 @@ import wiretape.urlhandler
 from wiretape import cli
 from wiretape.tools import importers
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "reserial"
+DATA = Path(__file__).resolve().parents[2] / "data" / "reserial"
 CASSETTE = DATA / "test_device_talk.jsonl"
 
 

@@ -9,7 +9,7 @@ import pathlib
 
 import pytest
 
-REPOSITORY = pathlib.Path(__file__).resolve().parents[2]
+REPOSITORY = pathlib.Path(__file__).resolve().parents[3]
 TEST_DATA_DIR = REPOSITORY / "tests" / "data"
 FLEXIPORT_DIR = TEST_DATA_DIR / "flexiport"
 

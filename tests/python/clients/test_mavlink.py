@@ -27,7 +27,7 @@ from devices import announced_address, interrupt, start_cli  # noqa: E402
 from mavlink_peers import PARAMETERS, VEHICLE_SYSTEM, Vehicle  # noqa: E402
 
 DEADLINE = 20.0
-PEERS = str(Path(__file__).with_name("mavlink_peers.py"))
+PEERS = str(Path(__file__).resolve().parents[1] / "support" / "mavlink_peers.py")
 
 
 

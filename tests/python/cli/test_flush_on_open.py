@@ -122,7 +122,7 @@ def test_the_cli_exits_0_for_a_pyserial_client_served_the_greeting(greeting, tmp
 
 # --- recordings made before flush events existed ----------------------------------------------
 
-REPOSITORY = Path(__file__).resolve().parents[2]
+REPOSITORY = Path(__file__).resolve().parents[3]
 # The Hokuyo example's recordings (library recordings, before flush events
 # and client sessions) and the hardware's flexiport logs.
 OLD_WTAPE = sorted((REPOSITORY / "examples" / "hokuyo" / "recordings").glob("*.wtape"))

@@ -244,7 +244,7 @@ TEST(CassettePath, IsNextToTheSourceWithSafeNames) {
 }
 
 // The fixture itself, on a cassette recorded from type=loopback and kept in
-// tests/cpp/recordings/testing_helper_test/ (record it again with
+// tests/cpp/core/recordings/testing_helper_test/ (record it again with
 // WIRETAPE_RECORD=1 WIRETAPE_DEVICE=type=loopback).
 class CassetteFixture : public wiretape::testing::CassetteTest {};
 

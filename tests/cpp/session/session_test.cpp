@@ -920,7 +920,7 @@ TEST(RecordKindTable, EveryEventTheWritersRecordFollowsTheSchema) {
     EXPECT_FALSE(problem) << *problem << " in " << event.data;
   }
   // Written elsewhere: redaction by `wiretape edit` in Python
-  // (tests/python/test_edit.py checks its payloads against this table);
+  // (tests/python/tools/test_edit.py checks its payloads against this table);
   // fault by fault injection, which the format reserves it for.
   const std::set<RecordKind> written_elsewhere = {RecordKind::redaction, RecordKind::fault};
   for (const detail::RecordKindSpec& spec : detail::record_kinds()) {

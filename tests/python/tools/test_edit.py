@@ -12,7 +12,7 @@ import pytest
 from wiretape import _core
 from wiretape.tools.edit import MAX_SPAN, edit, parse_cut, parse_redaction
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
+ROOT = pathlib.Path(__file__).resolve().parents[3]
 GD = ROOT / "examples" / "hokuyo" / "recordings" / "urg04lx_gd.wtape"
 
 

@@ -16,7 +16,7 @@ from wiretape import bridge
 from devices import TcpDevice, wait_until
 
 DEADLINE_S = 10.0
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 
 
 def test_a_device_that_closed_its_connection_is_not_reported_as_success(tmp_path):

@@ -3,8 +3,8 @@ decoding of whole sessions for ``wiretape show --decode scip``.
 
 The golden file ``tests/data/golden/urg04lx_gd.scip.txt`` holds the decoded
 timeline of one small recording, as show prints it; regenerate it with
-``python tests/python/test_profiles.py`` after a deliberate change to the
-texts. The C++ tests (tests/cpp/profile_test.cpp) check that every split of
+``python tests/python/bindings/test_profiles.py`` after a deliberate change to the
+texts. The C++ tests (tests/cpp/replay/profile_test.cpp) check that every split of
 the repository's recordings frames the same."""
 
 import json
@@ -19,7 +19,7 @@ from wiretape import _core
 
 from real_recordings import FLEXIPORT_DIR
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
+ROOT = pathlib.Path(__file__).resolve().parents[3]
 GOLDEN = ROOT / "tests" / "data" / "golden"
 RECORDINGS = ROOT / "examples" / "hokuyo" / "recordings"
 GOLDEN_RECORDING = RECORDINGS / "urg04lx_gd.wtape"

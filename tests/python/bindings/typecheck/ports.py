@@ -1,5 +1,5 @@
 """A port as a driver uses it, with ``datetime.timedelta`` timeouts, checked
-by ``mypy --strict`` (tests/python/test_typing.py)."""
+by ``mypy --strict`` (tests/python/bindings/test_typing.py)."""
 
 from __future__ import annotations
 

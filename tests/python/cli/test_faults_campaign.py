@@ -19,7 +19,7 @@ from wiretape import faults
 
 pytest_plugins = ["pytester"]
 
-REPO = Path(__file__).resolve().parents[2]
+REPO = Path(__file__).resolve().parents[3]
 WIRETAPE = [sys.executable, "-m", "wiretape.cli"]
 
 

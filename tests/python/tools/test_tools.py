@@ -16,7 +16,7 @@ from wiretape.tools.show import show
 from wiretape.tools.stats import stats as session_stats
 from wiretape.tools.verify import VerifyResult, verify
 
-ROOT = pathlib.Path(__file__).resolve().parents[2]
+ROOT = pathlib.Path(__file__).resolve().parents[3]
 GOLDEN = ROOT / "tests" / "data" / "golden"
 
 
