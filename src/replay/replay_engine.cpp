@@ -52,13 +52,6 @@ ReplayEngine::ReplayEngine(ReplayConfig config, RecordSourceFactory sources,
             std::fprintf(stderr, "wiretape: fault %s@%s: %s\n", event.kind.c_str(),
                          event.where.c_str(), event.detail.c_str());
           });
-      if (config_.match == ReplayMatch::sequence) {
-        exchanges_ = std::make_unique<ExchangeCounter>(
-            sources(), config_.profile ? config_.profile->make_framer(StreamDirection::tx)
-                                       : nullptr);
-      } else if (!released_.empty()) {
-        request_exchange_ = 0;  // a greeting
-      }
     }
   }
 }
@@ -77,16 +70,7 @@ void ReplayEngine::inject_faults(ReplayTime now) {
          faulted_bytes_ < kLookaheadBytes) {
     RxItem item = released_.front();  // a copy: pop_front counts its bytes
     released_.pop_front();
-    std::uint64_t exchange = 0;
-    if (exchanges_) {
-      exchange = item.kind == RecordKind::rx ? exchanges_->next_rx() : exchanges_->current();
-    } else {
-      if (request_batch_ || !request_exchange_) {
-        request_exchange_ = request_exchange_ ? *request_exchange_ + 1 : 0;
-        request_batch_ = false;
-      }
-      exchange = *request_exchange_;
-    }
+    const std::uint64_t exchange = item.exchange;  // numbered by the strategy
     const std::size_t before = faulted_.size();
     faults_->apply(std::move(item), exchange, faulted_, now);
     for (std::size_t i = before; i < faulted_.size(); ++i) {
@@ -217,9 +201,7 @@ void ReplayEngine::write(const char* data, std::size_t size, ReplayTime now) {
       throw PortClosed("replay of " + config_.file + ": " + loss->data);
     }
     if (faults_->silenced()) return;  // a device that stopped answering
-    const std::size_t released_before = released_.size();
     strategy_->write(data, size, now);
-    if (released_.size() > released_before) request_batch_ = true;
     return;
   }
   strategy_->write(data, size, now);

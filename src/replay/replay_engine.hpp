@@ -100,9 +100,6 @@ class ReplayEngine {
   std::unique_ptr<FaultInjector> faults_;
   std::deque<FaultedRx> faulted_;
   std::size_t faulted_bytes_ = 0;
-  std::unique_ptr<ExchangeCounter> exchanges_;          // match=sequence
-  std::optional<std::uint64_t> request_exchange_;      // match=request
-  bool request_batch_ = false;  // a write released a new exchange
   FaultInjector::Reporter fault_reporter_;
 
   ReplayConfig config_;

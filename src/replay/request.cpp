@@ -30,6 +30,9 @@ RequestStrategy::RequestStrategy(const ReplayConfig& config,
   const std::unique_ptr<RecordSource> source = sources_();
   if (config_.profile) {
     client_framer_ = config_.profile->make_framer(StreamDirection::tx);
+    if (config_.profile->fixes_responses()) {
+      fixer_ = std::make_unique<ResponseFixer>(config_.profile);
+    }
     load_frames(*source);
   } else {
     load_exchanges(*source);
@@ -184,7 +187,8 @@ void RequestStrategy::add_response(RecordKind kind, std::uint64_t t_ns,
   item.kind = kind;
   item.t_ns = t_ns;
   if (exchanges_.empty()) {
-    // A greeting: released at open.
+    // A greeting: released at open, exchange 0.
+    greeting_ = true;
     item.data.assign(payload);
     item.due = timeline_.due(item.t_ns, std::nullopt);
     released_.push(std::move(item));
@@ -396,7 +400,7 @@ void RequestStrategy::push_response(const RxItem& response,
                                     const ReplayTimeline::Anchor& matched) {
   RxItem item = response;
   item.due = timeline_.due(item.t_ns, matched);
-  released_.push(std::move(item));
+  push_served(std::move(item));
 }
 
 void RequestStrategy::read_from_session(const Exchange& exchange,
@@ -421,22 +425,22 @@ void RequestStrategy::read_from_session(const Exchange& exchange,
     }
     if (item.payload().empty()) continue;
     item.due = timeline_.due(item.t_ns, matched);
-    released_.push(std::move(item));
+    push_served(std::move(item));
   }
 }
 
-void RequestStrategy::push_fixed(RxItem&& item, const Exchange& exchange) {
-  if (config_.profile && config_.profile->fixes_responses() && item.kind == RecordKind::rx) {
-    item.data = config_.profile->fix_response(raw_request(exchange), actual_frame_,
-                                              item.payload());
-    item.view = PayloadView{};
+void RequestStrategy::push_served(RxItem&& item) {
+  item.exchange = serving_exchange_;
+  if (!fixer_) {
+    released_.push(std::move(item));
+    return;
   }
-  released_.push(std::move(item));
+  fixer_->push(std::move(item), matches_);
+  while (fixer_->ready()) released_.push(fixer_->take());
 }
 
 void RequestStrategy::serve(std::uint32_t group_index, std::string_view request,
                             std::string_view actual_frame) {
-  actual_frame_.assign(actual_frame);
   Group& group = groups_[group_index];
   std::uint32_t index = 0;
   if (group.next_unused != kNone) {
@@ -462,11 +466,12 @@ void RequestStrategy::serve(std::uint32_t group_index, std::string_view request,
   }
   if (!exchange.used && exchange.has_response) --unused_with_response_;
   exchange.used = true;
-  ++exchanges_served_;
+  serving_exchange_ = exchanges_served_++ + (greeting_ ? 1 : 0);
   last_match_time_ = now;
   last_match_t_ns_ = exchange.last_tx_t_ns;
   // Causal timing counts each response from this match.
   const ReplayTimeline::Anchor matched{now, exchange.last_tx_t_ns};
+  if (fixer_) fixer_->request(++matches_, raw_request(exchange), actual_frame);
   if (exchange.in_session) {
     read_from_session(exchange, matched);
   } else {
@@ -477,10 +482,15 @@ void RequestStrategy::serve(std::uint32_t group_index, std::string_view request,
       item.data = released_.spare_payload();
       item.data.assign(kept_bytes_, kept.offset, kept.size);
       item.due = timeline_.due(item.t_ns, matched);
-      push_fixed(std::move(item), exchange);
+      push_served(std::move(item));
     }
   }
   if (end_ && end_exchange_ == index) push_response(*end_, matched);
+  if (fixer_) {
+    // The whole response is known: its incomplete frame is served now.
+    fixer_->end_response();
+    while (fixer_->ready()) released_.push(fixer_->take());
+  }
 }
 
 void RequestStrategy::match_pending(bool quiet, bool may_raise) {
@@ -542,7 +552,7 @@ void RequestStrategy::raise_unmatched() {
   const std::uint64_t t_ns =
       ranked.empty() ? last_match_t_ns_
                      : exchanges_[ranked.front().second].first_tx_t_ns;
-  const std::int64_t exchange_number =
+  const std::int64_t reported_exchange =
       ranked.empty() ? -1 : static_cast<std::int64_t>(ranked.front().second);
   // The unmatched bytes are dropped, so that the client can go on.
   pending_offset_ += pending_.size();
@@ -550,7 +560,7 @@ void RequestStrategy::raise_unmatched() {
   report_.raise("the client wrote a request that matches no unused exchange",
                 offset, expected.substr(same, kReplayContext),
                 std::string_view(actual).substr(same, kReplayContext), t_ns,
-                exchange_number, extra.str());
+                reported_exchange, extra.str());
 }
 
 void RequestStrategy::write_frames(const char* data, std::size_t size) {
@@ -637,13 +647,13 @@ void RequestStrategy::raise_unmatched_frame(const Frame& frame, const std::strin
   pending_offset_ += frame.bytes.size();
   const std::uint64_t t_ns =
       ranked.empty() ? last_match_t_ns_ : exchanges_[ranked.front().second].first_tx_t_ns;
-  const std::int64_t exchange_number =
+  const std::int64_t reported_exchange =
       ranked.empty() ? -1 : static_cast<std::int64_t>(ranked.front().second);
   const std::string_view actual(frame.bytes);
   report_.raise(title.str(), offset,
                 expected.substr(std::min(same, expected.size()), kReplayContext),
                 actual.substr(std::min(same, actual.size()), kReplayContext), t_ns,
-                exchange_number, extra.str());
+                reported_exchange, extra.str());
 }
 
 void RequestStrategy::write(const char* data, std::size_t size, ReplayTime now) {

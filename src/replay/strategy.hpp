@@ -38,6 +38,9 @@ struct RxItem {
   }
   std::uint64_t t_ns = 0;
   ReplayTime due;  // readable from then on
+  // The exchange it belongs to (exchanges.hpp), set by the strategy that
+  // releases it: what `faults=exchange:N` and reports count.
+  std::uint64_t exchange = 0;
 };
 
 // The rx the client is entitled to, in recorded order, each with its due
