@@ -21,6 +21,8 @@ import json
 import struct
 from typing import Any, Dict, Iterator, List, Optional, Tuple
 
+from .. import _core
+
 __all__ = ["LINKTYPE_RAW", "NetworkSession", "PLACEHOLDER_DEVICE", "PLACEHOLDER_CLIENT"]
 
 #: Raw IP (v4 or v6, told by the packet's first nibble).
@@ -172,6 +174,9 @@ class NetworkSession:
         self.device = device
         self.client = parse_endpoint(None, PLACEHOLDER_CLIENT)
         self._connection: Optional[_TcpConnection] = None
+        # Client sessions by the bridge's rule, kept in C++: a monitor's
+        # connect or disconnect is no connection of the client's.
+        self._sessions = _core.ClientSessionTracker()
 
     @classmethod
     def of_header(cls, header: Dict[str, Any]) -> Optional["NetworkSession"]:
@@ -193,7 +198,8 @@ class NetworkSession:
     def packets(self, kind: str, data: bytes) -> Iterator[Tuple[bool, bytes]]:
         """(to the device?, IP packet) for one record; nothing for events
         that are not about the connection."""
-        if kind == "client_connect":
+        change = self._sessions.feed(kind, data) if kind.startswith("client_") else ""
+        if change == "began":
             peer = _peer(data)
             if peer is not None:
                 self.client = parse_endpoint(peer, PLACEHOLDER_CLIENT)
@@ -202,7 +208,7 @@ class NetworkSession:
                     yield from self._connection.close()
                 self._connection = _TcpConnection(self.client, self.device)
                 yield from self._connection.open()
-        elif kind == "client_disconnect" and self._connection is not None:
+        elif change == "ended" and self._connection is not None:
             yield from self._connection.close()
             self._connection = None
         elif kind in ("rx", "tx"):

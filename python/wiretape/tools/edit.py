@@ -29,6 +29,7 @@ import os
 import re
 from typing import Deque, Dict, Iterable, List, Optional, Sequence, Tuple
 
+from .. import _core
 from ._files import is_stream, refuse_same_file, session_files
 from ._records import DIRECTIONS, SessionPath, event_payload, open_session, raise_damage
 from .convert import _header_of_reader, session_writer
@@ -235,19 +236,13 @@ def _merged(marks: List[Tuple[int, int]]) -> List[Tuple[int, int]]:
 
 
 def _exchange_starts(path: str) -> List[int]:
-    """The time of each exchange's first tx byte: an exchange is the
-    client's bytes and the device's answer up to the next write after it."""
+    """The time each exchange begins (its first tx byte; for one with no
+    request, its first rx), exchanges as replay numbers them
+    (``_core.session_exchanges``)."""
     starts: List[int] = []
-    answered = True
-    reader = open_session(path)
-    for record in reader:
-        if record.kind == "tx" and record.data:
-            if answered:
-                starts.append(record.t_ns)
-            answered = False
-        elif record.kind == "rx" and record.data:
-            answered = True
-    raise_damage(reader)
+    for exchange in _core.session_exchanges(path):
+        first = exchange.request_first_t_ns
+        starts.append(first if first is not None else exchange.response_first_t_ns)
     return starts
 
 
