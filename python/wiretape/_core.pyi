@@ -644,9 +644,9 @@ class ClientSession:
     @property
     def disconnect_t_ns(self) -> int | None: ...
 
-def session_exchanges(path: str, profile: str | None = None, match: str = 'sequence', options: str = '') -> list[Exchange]:
+def session_exchanges(path: str, profile: str | None = None, match: str | None = None, options: str = '') -> list[Exchange]:
     """
-    The exchanges of the session file at `path`, as a replay with profile= and match= numbers them (under match=request a greeting is exchange 0 of its own). `options`: further replay keys, e.g. a declared profile's 'framing=...,echo=...'. OptionError for bad keys.
+    The exchanges of the session file at `path`, as a replay with profile= and match= (default sequence) numbers them (under match=request a greeting is exchange 0 of its own). `options`: the replay's keys, e.g. a declared profile's 'framing=...,echo=...' (profile and match, when given, override them). OptionError for a bad or non-replay key.
     """
 
 class ClientSessionTracker:

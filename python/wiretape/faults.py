@@ -86,7 +86,7 @@ class SessionShape:
     seconds: float
 
 
-def session_shape(session: str, profile: Optional[str] = None, match: str = "sequence",
+def session_shape(session: str, profile: Optional[str] = None, match: Optional[str] = None,
                   options: str = "") -> SessionShape:
     """The exchanges that hold rx as a replay with ``profile`` and ``match``
     (and further replay keys ``options``) numbers them: counted by the one
@@ -122,11 +122,14 @@ def _kind_spec(text: str) -> str:
     return KINDS[KIND_NAMES.index(name)]
 
 
-def check_where(session: str, spec: str, shape: Optional[SessionShape] = None) -> None:
+def check_where(session: str, spec: str, shape: Optional[SessionShape] = None,
+                profile: Optional[str] = None, match: Optional[str] = None,
+                options: str = "") -> None:
     """Raises FaultInputError for a KIND@WHERE whose WHERE lies past the
-    session's end (exchange:N, rx:N, t:SECONDS); the syntax itself is checked
-    by the replay (OptionError)."""
-    shape = shape or session_shape(session)
+    session's end (exchange:N, rx:N, t:SECONDS), exchanges counted as a
+    replay with ``profile``, ``match`` and ``options`` counts them; the
+    syntax itself is checked by the replay (OptionError)."""
+    shape = shape or session_shape(session, profile=profile, match=match, options=options)
     for item in spec.split(";"):
         if "@" not in item:
             continue
@@ -149,7 +152,7 @@ def check_where(session: str, spec: str, shape: Optional[SessionShape] = None) -
 
 
 def cases(session: str, kinds: Optional[Sequence[str]] = None, budget: Optional[int] = None,
-          seed: int = 0, profile: Optional[str] = None, match: str = "sequence",
+          seed: int = 0, profile: Optional[str] = None, match: Optional[str] = None,
           options: str = "") -> List[FaultCase]:
     """The campaign's cases: every kind (``kinds``, default all) at every
     exchange of ``session`` (numbered as a replay with ``profile``, ``match``
@@ -364,7 +367,7 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
         raise FaultInputError(f"--timeout {timeout}: give a number of seconds above 0")
     if replay_options:
         _core.check_replay_options("type=replay,file=x," + replay_options)
-    selected = cases(session, kinds, budget, seed)
+    selected = cases(session, kinds, budget, seed, options=replay_options)
     with _quiet_stderr(quiet_replays) as real_stderr:
         def note(text: str) -> None:
             if progress is None:

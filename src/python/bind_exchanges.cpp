@@ -77,21 +77,20 @@ void bind_exchanges(nb::module_& m) {
   m.def(
       "session_exchanges",
       [](const std::string& path, const std::optional<std::string>& profile,
-         const std::string& match, const std::string& options) {
-        std::string keys = options;
-        const auto add = [&](const std::string& key, const std::string& value) {
-          keys += (keys.empty() ? "" : ",") + key + "=" + quote_option_value(value);
-        };
-        if (profile) add("profile", *profile);
-        add("match", match);
+         const std::optional<std::string>& match, const std::string& options) {
+        Options keys = Options::parse(options);
+        if (profile) keys.set("profile", *profile);
+        if (match) keys.set("match", *match);
+        const std::string text = keys.to_string();
         nb::gil_scoped_release release;
-        return detail::segment_session_file(path, keys).exchanges;
+        return detail::segment_session_file(path, text).exchanges;
       },
-      "path"_a, "profile"_a = nb::none(), "match"_a = "sequence", "options"_a = "",
+      "path"_a, "profile"_a = nb::none(), "match"_a = nb::none(), "options"_a = "",
       "The exchanges of the session file at `path`, as a replay with profile= and "
-      "match= numbers them (under match=request a greeting is exchange 0 of its own). "
-      "`options`: further replay keys, e.g. a declared profile's 'framing=...,echo=...'. "
-      "OptionError for bad keys.");
+      "match= (default sequence) numbers them (under match=request a greeting is "
+      "exchange 0 of its own). `options`: the replay's keys, e.g. a declared "
+      "profile's 'framing=...,echo=...' (profile and match, when given, override "
+      "them). OptionError for a bad or non-replay key.");
   nb::class_<detail::ClientSessionTracker>(
       m, "ClientSessionTracker",
       "Follows client sessions through a session's records in order, by the bridge's "

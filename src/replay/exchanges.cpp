@@ -190,7 +190,6 @@ SessionSegments segment_session_file(const std::string& path, const std::string&
   Options parsed = Options::parse(options);
   parsed.set("file", path);
   const ReplayConfig config = take_replay_config(parsed);
-  parsed.finish("replay");
   SessionHeader header;
   const std::unique_ptr<RecordSource> source = open_session_source(config.file, header);
   SessionSegments segments = segment_session(

@@ -129,8 +129,9 @@ SessionSegments segment_session(RecordSource& source, const Segmentation& segmen
 
 // The session file at `path` cut as a replay with the replay keys `options`
 // (profile=, match=, a declared profile's framing= ...; file= is `path`)
-// would cut it; a udp session is datagrams. OptionError for bad keys,
-// SessionError for a file that cannot be read.
+// would cut it; a udp session is datagrams.
+// OptionError for a bad replay key, SessionError or PortError for a file
+// that cannot be read.
 SessionSegments segment_session_file(const std::string& path, const std::string& options);
 
 }  // namespace wiretape::detail

@@ -45,6 +45,9 @@ def test_raw_exchanges_with_a_greeting(tmp_path):
     assert first.request_frames == [] and first.response_frames == []
     # Under match=request the greeting is an exchange of its own.
     assert [e.request_bytes for e in _core.session_exchanges(path, match="request")] == [0, 2, 1]
+    # The replay's own keys count the same; match= given overrides the options'.
+    assert len(_core.session_exchanges(path, options="timing=none,match=request")) == 3
+    assert len(_core.session_exchanges(path, match="sequence", options="match=request")) == 2
 
 
 def test_with_a_profile_request_frames_decide(tmp_path):
