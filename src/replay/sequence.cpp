@@ -210,29 +210,21 @@ bool SequenceStrategy::next_tx_record() {
 
 std::optional<SequenceStrategy::RecordedFrame> SequenceStrategy::next_recorded_frame() {
   Record record;
-  const auto add = [&](Frame&& frame, std::uint64_t t_ns) {
-    recorded_frames_.push_back({std::move(frame), t_ns, recorded_frames_seen_++});
+  const auto add = [&](TimedFramer::TimedFrame&& timed) {
+    recorded_frames_.push_back({std::move(timed.frame), timed.t_ns, recorded_frames_seen_++});
   };
   while (recorded_frames_.empty() && !frame_source_done_) {
     if (!frame_source_->next(record)) {
       frame_source_done_ = true;
-      if (std::optional<Frame> tail = recorded_framer_->finish()) {
-        add(std::move(*tail), recorded_tail_t_ns_);
+      if (std::optional<TimedFramer::TimedFrame> tail = recorded_framer_->finish()) {
+        add(std::move(*tail));
       }
       break;
     }
     if (record.kind != RecordKind::tx || record.data.empty()) continue;
-    // Only the first frame a record completes can have begun earlier.
-    const bool tail_began_earlier = recorded_framer_->pending() > 0;
     scratch_frames_.clear();
-    recorded_framer_->feed(record.data, scratch_frames_);
-    for (std::size_t i = 0; i < scratch_frames_.size(); ++i) {
-      add(std::move(scratch_frames_[i]),
-          i == 0 && tail_began_earlier ? recorded_tail_t_ns_ : record.t_ns);
-    }
-    if (recorded_framer_->pending() > 0 && !(scratch_frames_.empty() && tail_began_earlier)) {
-      recorded_tail_t_ns_ = record.t_ns;
-    }
+    recorded_framer_->feed(record.t_ns, record.data, scratch_frames_);
+    for (TimedFramer::TimedFrame& timed : scratch_frames_) add(std::move(timed));
   }
   if (recorded_frames_.empty()) return std::nullopt;
   RecordedFrame frame = std::move(recorded_frames_.front());
@@ -244,7 +236,7 @@ void SequenceStrategy::write_frames(const char* data, std::size_t size, ReplayTi
   const Profile& profile = *config_.profile;
   if (!client_framer_) {
     client_framer_ = profile.make_framer(StreamDirection::tx);
-    recorded_framer_ = profile.make_framer(StreamDirection::tx);
+    recorded_framer_ = std::make_unique<TimedFramer>(profile.make_framer(StreamDirection::tx));
   }
   std::vector<Frame> frames;
   client_framer_->feed(std::string_view(data, size), frames);

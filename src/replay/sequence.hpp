@@ -110,12 +110,11 @@ class SequenceStrategy final : public ReplayStrategy {
   // With a profile: the recorded tx stream framed (its own cursor), and the
   // client's.
   std::unique_ptr<RecordSource> frame_source_;
-  std::unique_ptr<Framer> recorded_framer_;
+  std::unique_ptr<TimedFramer> recorded_framer_;
   std::unique_ptr<Framer> client_framer_;
   std::deque<RecordedFrame> recorded_frames_;
-  std::uint64_t recorded_tail_t_ns_ = 0;  // when the framer's kept tail began
   std::int64_t recorded_frames_seen_ = 0;
-  std::vector<Frame> scratch_frames_;
+  std::vector<TimedFramer::TimedFrame> scratch_frames_;
   bool frame_source_done_ = false;
   // With a profile that fixes responses: entitled rx passes through it.
   std::unique_ptr<ResponseFixer> fixer_;
