@@ -9,7 +9,7 @@ from typing import Dict, List, Optional, Tuple
 
 from . import _core
 
-__all__ = ["option_keys", "option_values", "parse_options", "replay_keys"]
+__all__ = ["default_of", "option_keys", "option_values", "parse_options", "replay_keys"]
 
 parse_options = _core.parse_options
 
@@ -18,6 +18,15 @@ def option_keys(port_type: Optional[str] = None) -> List[_core.OptionKey]:
     """The rows of the key table, or those that apply to ``port_type``."""
     return [key for key in _core.option_keys()
             if port_type is None or key.applies_to(port_type)]
+
+
+def default_of(name: str, port_type: str) -> Optional[str]:
+    """The default of key ``name`` of ``port_type``, as written in an option
+    string; None when it has none."""
+    for key in option_keys(port_type):
+        if key.name == name and not key.prefix:
+            return key.default
+    raise KeyError(f"the key table has no key {name!r} for type={port_type}")
 
 
 def option_values(options: str, port_type: Optional[str] = None) -> Dict[str, str]:

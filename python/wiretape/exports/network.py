@@ -22,7 +22,7 @@ import struct
 from typing import Any, Dict, Iterator, List, Optional, Tuple
 
 from .._core import OptionError
-from ..options import option_values
+from ..options import default_of, option_values
 
 __all__ = ["LINKTYPE_RAW", "NetworkSession", "PLACEHOLDER_DEVICE", "PLACEHOLDER_CLIENT"]
 
@@ -153,16 +153,19 @@ class NetworkSession:
         protocol = header.get("port_type")
         if protocol not in ("tcp", "udp"):
             return None
+        device = parse_endpoint(None, PLACEHOLDER_DEVICE)
         try:
-            options = option_values(header.get("port_options") or "", protocol)
-        except OptionError:
-            options = {}  # not an option string (an import's header): placeholders
-        port = options.get("port")
-        if protocol == "udp" and _port(port, 0) == 0:
-            port = options.get("bind_port")
-        device = (_address(options.get("host") or "127.0.0.1",
-                           PLACEHOLDER_DEVICE[0]),
-                  _port(port, PLACEHOLDER_DEVICE[1]))
+            options: Optional[Dict[str, str]] = option_values(
+                header.get("port_options") or "", protocol)
+        except OptionError:  # not an option string (an import's header): unknown
+            options = None
+        if options is not None:
+            port = options.get("port")
+            if protocol == "udp" and _port(port, 0) == 0:
+                port = options.get("bind_port")
+            device = (_address(options.get("host") or default_of("host", protocol),
+                               PLACEHOLDER_DEVICE[0]),
+                      _port(port, PLACEHOLDER_DEVICE[1]))
         if header.get("device_address"):
             device = parse_endpoint(header["device_address"], PLACEHOLDER_DEVICE)
         return cls(protocol, device)
