@@ -261,7 +261,10 @@ std::optional<std::string> value_or_default(std::optional<std::string> given,
     throw OptionError(key, "missing option '" + key + "'" +
                                (port_type.empty() ? std::string()
                                                   : " for type=" + std::string(port_type)) +
-                               " (" + key + "=...: " + std::string(row.help) + ")");
+                               " (" + key + "=...: " + std::string(row.help) +
+                               (row.type == OptionType::integer ? ", " + integer_range(row)
+                                                                : std::string()) +
+                               ")");
   }
   if (given) return given;
   if (!row.default_value.empty()) return std::string(row.default_value);
