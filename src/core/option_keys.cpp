@@ -65,13 +65,6 @@ class Row {
   OptionKey key_;
 };
 
-const Types every_type = {"serial", "tcp", "udp", "pty", "loopback", "replay"};
-const Types serial = {"serial"};
-const Types tcp = {"tcp"};
-const Types udp = {"udp"};
-const Types replay = {"replay"};
-const Types logging_types = {"seriallog", "tcplog", "udplog"};
-
 constexpr auto boolean = OptionType::boolean;
 constexpr auto integer = OptionType::integer;
 constexpr auto number = OptionType::number;
@@ -82,6 +75,12 @@ constexpr auto path = OptionType::path;
 constexpr std::int64_t int64_max = std::numeric_limits<std::int64_t>::max();
 
 std::vector<OptionKey> build_table() {
+  const Types& every_type = port_types();
+  const Types serial = {"serial"};
+  const Types tcp = {"tcp"};
+  const Types udp = {"udp"};
+  const Types replay = {"replay"};
+  const Types logging_types = {"seriallog", "tcplog", "udplog"};
   return {
       // Common keys.
       Row("type", every_type, choice, "the port type").required().choices(
@@ -268,7 +267,11 @@ const std::vector<OptionKey>& option_keys() {
   return table;
 }
 
-const std::vector<std::string_view>& port_types() { return every_type; }
+const std::vector<std::string_view>& port_types() {
+  static const std::vector<std::string_view> types = {"serial", "tcp",      "udp",
+                                                      "pty",    "loopback", "replay"};
+  return types;
+}
 
 const OptionKey* find_option_key(std::string_view name, std::string_view port_type) {
   for (const OptionKey& key : option_keys()) {
