@@ -53,7 +53,7 @@ struct OptionKey {
   bool prefix = false;             // every key starting with `name` (meta_KEY)
   std::int64_t min_integer = 0;    // OptionType::integer
   std::int64_t max_integer = 0;
-  double min_number = 0;           // OptionType::number
+  double min_number = 0;           // OptionType::number and seconds
   double max_number = 0;
   std::string_view alias_of;       // flexiport's name of this other key
   std::string_view flag;           // the wiretape CLI's flag that mirrors it

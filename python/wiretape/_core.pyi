@@ -230,11 +230,11 @@ class OptionKey:
 
     @property
     def minimum(self) -> object:
-        """the smallest valid integer or number; None for other types"""
+        """the smallest valid integer, number or seconds; None for other types"""
 
     @property
     def maximum(self) -> object:
-        """the largest valid integer or number; None for other types"""
+        """the largest valid integer, number or seconds; None for other types"""
 
     @property
     def alias_of(self) -> str:

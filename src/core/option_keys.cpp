@@ -88,7 +88,8 @@ std::vector<OptionKey> build_table() {
            "tcplog", "udplog"}),
       Row("timeout", every_type, OptionType::seconds,
           "how long a call waits when given no timeout of its own")
-          .fallback("-1"),
+          .fallback("-1")
+          .numbers(0, 1e9),
       Row("access", every_type, choice, "reading, writing or both")
           .fallback("readwrite")
           .choices({"readwrite", "readonly", "writeonly"}),

@@ -355,8 +355,8 @@ Timeout Options::take_timeout(std::string_view key) {
   if (v == "none" || v == "-1" || v == "forever") return forever;
   char* end = nullptr;
   const double seconds = std::strtod(v.c_str(), &end);
-  if (v.empty() || *end != '\0' || !std::isfinite(seconds) || seconds < 0 ||
-      seconds > 1e9) {
+  if (v.empty() || *end != '\0' || !std::isfinite(seconds) ||
+      seconds < key_row.min_number || seconds > key_row.max_number) {
     throw OptionError(std::string(key),
                       "option '" + std::string(key) + "': " + shown(*value) +
                           " is not a timeout; give seconds (e.g. 0.5), 0 to "

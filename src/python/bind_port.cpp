@@ -402,13 +402,13 @@ the port's own `timeout`. Ctrl-C interrupts a blocked read. One reader and
 one writer may run at once on different threads; close() from another thread
 wakes a blocked read, which then raises PortClosed.)";
 
-// An integer or number key's smallest or largest valid value, as a Python
-// int or float; None for the other value types.
+// An integer, number or seconds key's smallest or largest valid value, as a
+// Python int or float; None for the other value types.
 nb::object range_end(const OptionKey& key, bool largest) {
   if (key.type == OptionType::integer) {
     return nb::int_(largest ? key.max_integer : key.min_integer);
   }
-  if (key.type == OptionType::number) {
+  if (key.type == OptionType::number || key.type == OptionType::seconds) {
     return nb::float_(largest ? key.max_number : key.min_number);
   }
   return nb::none();
@@ -596,9 +596,9 @@ void bind_port(nb::module_& m) {
       .def_prop_ro("prefix", [](const OptionKey& key) { return key.prefix; },
                    "the key stands for every key starting with name (meta_KEY)")
       .def_prop_ro("minimum", [](const OptionKey& key) { return range_end(key, false); },
-                   "the smallest valid integer or number; None for other types")
+                   "the smallest valid integer, number or seconds; None for other types")
       .def_prop_ro("maximum", [](const OptionKey& key) { return range_end(key, true); },
-                   "the largest valid integer or number; None for other types")
+                   "the largest valid integer, number or seconds; None for other types")
       .def_prop_ro("alias_of", [](const OptionKey& key) { return key.alias_of; },
                    "the key this is flexiport's name of; '' when none")
       .def_prop_ro("flag", [](const OptionKey& key) { return key.flag; },

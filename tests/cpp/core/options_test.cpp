@@ -329,6 +329,9 @@ TEST(OptionKeys, RowsAreWellFormed) {
     EXPECT_FALSE(key.port_types.empty());
     EXPECT_EQ(key.type == wiretape::OptionType::choice, !key.choices.empty());
     if (key.type == wiretape::OptionType::integer) EXPECT_LE(key.min_integer, key.max_integer);
+    if (key.type == wiretape::OptionType::number || key.type == wiretape::OptionType::seconds) {
+      EXPECT_LT(key.min_number, key.max_number);
+    }
     if (!key.alias_of.empty()) {
       // seriallog's file is log of serial, the type it opens.
       for (auto type : key.port_types) {
