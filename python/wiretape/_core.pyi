@@ -194,6 +194,79 @@ def quote_option_value(value: str) -> str:
     A value as it is written in an option string: as is, or in double quotes with \\" and \\\\ escaped when it is empty or holds a separator, '=', '"' or '\\\\'.
     """
 
+class OptionKey:
+    """
+    One row of the key table: a key of one or more port types (docs/options.md).
+    """
+
+    @property
+    def name(self) -> str:
+        """the key; with prefix, the prefix ('meta_' for meta_KEY)"""
+
+    @property
+    def port_types(self) -> list[str]:
+        """the port types the key applies to"""
+
+    @property
+    def type(self) -> str:
+        """boolean, integer, number, seconds, choice, text or path"""
+
+    @property
+    def choices(self) -> list[str]:
+        """the valid values of a choice"""
+
+    @property
+    def default(self) -> str | None:
+        """
+        the value when the key is not given, as written in an option string; None when it has none
+        """
+
+    @property
+    def required(self) -> bool: ...
+
+    @property
+    def prefix(self) -> bool:
+        """the key stands for every key starting with name (meta_KEY)"""
+
+    @property
+    def minimum(self) -> object:
+        """the smallest valid integer, number or seconds; None for other types"""
+
+    @property
+    def maximum(self) -> object:
+        """the largest valid integer, number or seconds; None for other types"""
+
+    @property
+    def alias_of(self) -> str:
+        """the key this is flexiport's name of; '' when none"""
+
+    @property
+    def flag(self) -> str:
+        """the wiretape CLI flag that mirrors the key; '' when none"""
+
+    @property
+    def help(self) -> str: ...
+
+    def applies_to(self, port_type: str) -> bool: ...
+
+    def __repr__(self) -> str: ...
+
+def option_keys() -> list[OptionKey]:
+    """Every key of every port type (the key table), common keys first."""
+
+def port_types() -> list[str]:
+    """
+    The port types an option string can open (type= after flexiport's spellings).
+    """
+
+def parse_options(text: str) -> list[tuple[str, str]]:
+    """
+    An option string's (key, value) pairs in order, values unquoted, a bare key as '1'. Raises OptionError as open_port() would for bad syntax (a key given twice included).
+    """
+
+def suggest_key(name: str, port_type: str) -> str | None:
+    """The key of port_type nearest to the unknown name (a typo), or None."""
+
 def device_options(device: str) -> str:
     """
     The option string a device setting stands for: a bare path (no '=') means type=serial,device=PATH; an option string is returned as given. Raises OptionError when the setting is empty.

@@ -17,7 +17,7 @@ import os
 import signal
 import subprocess
 import tempfile
-from typing import List, Optional, Sequence
+from typing import Optional, Sequence
 
 from . import _core
 
@@ -51,52 +51,11 @@ def shim_path() -> str:
     return path
 
 
-def _split_options(options: str) -> List[str]:
-    """An option string's ``key=value`` items, separators (commas and white
-    space) outside double quotes; quotes and escapes kept."""
-    items, current, quoted, escaped = [], [], False, False
-    for char in options:
-        if escaped:
-            current.append(char)
-            escaped = False
-        elif quoted and char == "\\":
-            current.append(char)
-            escaped = True
-        elif char == '"':
-            current.append(char)
-            quoted = not quoted
-        elif not quoted and (char == "," or char.isspace()):
-            if current:
-                items.append("".join(current))
-            current = []
-        else:
-            current.append(char)
-    if current:
-        items.append("".join(current))
-    return items
-
-
-def _unquote(value: str) -> str:
-    if len(value) >= 2 and value[0] == '"' and value[-1] == '"':
-        inner, text, index = value[1:-1], [], 0
-        while index < len(inner):
-            if inner[index] == "\\" and index + 1 < len(inner):
-                index += 1
-            text.append(inner[index])
-            index += 1
-        return "".join(text)
-    return value
-
-
 def device_path_of(options: str) -> Optional[str]:
     """The device path an option string opens (``device=``, as of
-    ``type=serial``), or None when it names none (TCP, UDP, ...)."""
-    for item in _split_options(options):
-        key, sep, value = item.partition("=")
-        if sep and key.strip() == "device":
-            path = _unquote(value)
-            return path or None
-    return None
+    ``type=serial``), or None when it names none (TCP, UDP, ...). Raises
+    OptionError for a string that is not an option string."""
+    return dict(_core.parse_options(options)).get("device") or None
 
 
 def recorded_device_path(session_file: str) -> Optional[str]:

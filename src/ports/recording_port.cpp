@@ -12,7 +12,7 @@
 #include <string>
 
 #include "util/json.hpp"
-#include "core/open_port.hpp"
+#include "ports/ports.hpp"
 #include "session/record_kinds.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"

@@ -10,7 +10,6 @@
 #include <mutex>
 #include <thread>
 
-#include "core/open_port.hpp"
 #include "posix/platform.hpp"
 #include "posix/syscalls.hpp"
 #include "replay/client_session.hpp"
@@ -262,8 +261,8 @@ class ReplayPort final : public Port {
                          {{event_field::baud, std::to_string(settings.baud)},
                           {event_field::databits, std::to_string(settings.data_bits)},
                           {event_field::stopbits, std::to_string(settings.stop_bits)},
-                          {event_field::parity, parity_name(settings.parity)},
-                          {event_field::flow, flow_name(settings.flow)}},
+                          {event_field::parity, to_string(settings.parity)},
+                          {event_field::flow, to_string(settings.flow)}},
                          ReplayClock::now());
     settings_ = settings;
   }
@@ -379,25 +378,6 @@ class ReplayPort final : public Port {
                          ReplayClock::now());
   }
 
-  static const char* parity_name(Parity parity) {
-    switch (parity) {
-      case Parity::none: return "none";
-      case Parity::even: return "even";
-      case Parity::odd: return "odd";
-      case Parity::mark: return "mark";
-      case Parity::space: return "space";
-    }
-    return "none";
-  }
-
-  static const char* flow_name(FlowControl flow) {
-    switch (flow) {
-      case FlowControl::none: return "none";
-      case FlowControl::rtscts: return "rtscts";
-      case FlowControl::xonxoff: return "xonxoff";
-    }
-    return "none";
-  }
 
   // Blocks a reader until something may have changed: the deadline, the
   // next due time, or a notification. With a scheduler thread, a reader waits

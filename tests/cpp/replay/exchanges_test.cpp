@@ -13,7 +13,7 @@
 #include <string>
 #include <vector>
 
-#include "core/open_port.hpp"
+#include "open_port.hpp"
 #include "replay/faults.hpp"
 #include "replay/profile.hpp"
 #include "replay/replay_config.hpp"
