@@ -54,6 +54,12 @@ RxItem ResponseFixer::take() {
   return item;
 }
 
+std::uint64_t ResponseFixer::held_rx_bytes() const {
+  std::uint64_t bytes = 0;
+  for (std::size_t i = ready_; i < held_.size(); ++i) bytes += held_[i].item.data.size();
+  return bytes;
+}
+
 void ResponseFixer::mark_ready() {
   while (ready_ < held_.size() &&
          held_[ready_].offset + held_[ready_].item.data.size() <= frame_start_) {

@@ -46,6 +46,9 @@ class ResponseFixer {
   // Items held back (waiting for the rest of a frame).
   bool holding() const { return held_.size() > ready_; }
   std::uint64_t held_after() const { return held_.back().after; }
+  // rx bytes and records held back, for the unused-data report.
+  std::uint64_t held_rx_bytes() const;
+  std::uint64_t held_rx_records() const { return held_.size() - ready_; }
 
  private:
   struct Held {

@@ -477,6 +477,10 @@ std::string SequenceStrategy::unused_report(std::uint64_t queued_rx_bytes,
                                             std::uint64_t queued_rx_records) {
   std::uint64_t rx_bytes = queued_rx_bytes;
   std::uint64_t rx_records = queued_rx_records;
+  if (fixer_) {  // held back for the rest of a response frame
+    rx_bytes += fixer_->held_rx_bytes();
+    rx_records += fixer_->held_rx_records();
+  }
   for (const Ahead& ahead : ahead_) {
     if (ahead.item.kind != RecordKind::rx) continue;
     rx_bytes += ahead.item.payload().size();
