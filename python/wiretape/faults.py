@@ -81,9 +81,10 @@ class SessionShape:
     """What a campaign needs to know of a session: its exchanges (numbered
     as replay numbers them), its served rx bytes and its length."""
 
-    exchanges: int
+    exchanges: int  # one past the last exchange with rx
     rx_bytes: int
     seconds: float
+    first_exchange: int = 0  # of the client session a replay serves (numbered per file)
 
 
 def session_shape(session: str, profile: Optional[str] = None, match: Optional[str] = None,
@@ -91,7 +92,8 @@ def session_shape(session: str, profile: Optional[str] = None, match: Optional[s
     """The exchanges that hold rx as a replay with ``profile`` and ``match``
     (and further replay keys ``options``) numbers them: counted by the one
     segmentation in C++ (``_core.session_exchanges``). A proxy recording
-    counts its first client session, as its replay serves a client."""
+    counts its first client session, as its replay serves a client (the
+    exchanges numbered per file, from ``first_exchange``)."""
     exchanges = _core.session_exchanges(session, profile=profile, match=match, options=options)
     sessions = _core.session_client_sessions(session)
     first_record, end_record = 0, None
@@ -100,7 +102,8 @@ def session_shape(session: str, profile: Optional[str] = None, match: Optional[s
         first_record, end_record = sessions[0].first_record + 1, sessions[0].end_record
         exchanges = [exchange for exchange in exchanges if exchange.client_session == 0]
     with_rx = [exchange for exchange in exchanges if exchange.response_bytes]
-    count = with_rx[-1].index - exchanges[0].index + 1 if with_rx else 0
+    first = exchanges[0].index if exchanges else 0
+    end = with_rx[-1].index + 1 if with_rx else 0
     rx_bytes = sum(exchange.response_bytes for exchange in exchanges)
     first_t = last_t = None
     for index, record in enumerate(open_session(session)):
@@ -108,7 +111,7 @@ def session_shape(session: str, profile: Optional[str] = None, match: Optional[s
             continue
         first_t = record.t_ns if first_t is None else first_t
         last_t = record.t_ns
-    return SessionShape(count, rx_bytes, ((last_t or 0) - (first_t or 0)) / 1e9)
+    return SessionShape(end, rx_bytes, ((last_t or 0) - (first_t or 0)) / 1e9, first)
 
 
 def _kind_spec(text: str) -> str:
@@ -172,7 +175,8 @@ def cases(session: str, kinds: Optional[Sequence[str]] = None, budget: Optional[
         else:
             spread.append(_kind_spec(text))
     everything = fixed + [FaultCase(kind, f"exchange:{n}", seed)
-                          for kind in spread for n in range(shape.exchanges)]
+                          for kind in spread
+                          for n in range(shape.first_exchange, shape.exchanges)]
     if budget is not None and budget < len(everything):
         chosen = sorted(random.Random(seed).sample(range(len(everything)), budget))
         everything = [everything[i] for i in chosen]

@@ -13,7 +13,8 @@ ExchangeCursor::ExchangeCursor(const Segmentation& segmentation)
                           ? segmentation.profile->make_framer(StreamDirection::tx)
                           : nullptr),
       datagrams_(segmentation.datagrams),
-      greeting_alone_(segmentation.match == ReplayMatch::request) {}
+      greeting_alone_(segmentation.match == ReplayMatch::request),
+      index_(segmentation.first_index) {}
 
 void ExchangeCursor::begin_request() {
   began_ = true;
@@ -184,6 +185,17 @@ SessionSegments segment_session(RecordSource& source, const Segmentation& segmen
     if (Exchange* exchange = exchange_at(index)) exchange->response_frames.push_back(std::move(bytes));
   }
   return segments;
+}
+
+std::uint64_t first_exchange_of_client_session(RecordSource& source,
+                                               const Segmentation& segmentation, int k) {
+  const SessionSegments segments = segment_session(source, segmentation);
+  for (const Exchange& exchange : segments.exchanges) {
+    if (exchange.client_session && *exchange.client_session + 1 >= static_cast<std::uint64_t>(k)) {
+      return exchange.index;
+    }
+  }
+  return segments.exchanges.empty() ? 0 : segments.exchanges.back().index + 1;
 }
 
 SessionSegments segment_session_file(const std::string& path, const std::string& options) {

@@ -44,6 +44,7 @@ struct Segmentation {
   std::shared_ptr<const Profile> profile;
   bool datagrams = false;
   ReplayMatch match = ReplayMatch::sequence;
+  std::uint64_t first_index = 0;  // the number of the first exchange
 };
 
 // The streaming form: fed every record in recorded order, it says which
@@ -126,6 +127,11 @@ struct SessionSegments {
 
 // Reads `source` from where it is to its end.
 SessionSegments segment_session(RecordSource& source, const Segmentation& segmentation);
+
+// The number of the first exchange of client session `k` (1-based, as
+// client_session_sources counts them): the exchanges before it in the file.
+std::uint64_t first_exchange_of_client_session(RecordSource& source,
+                                               const Segmentation& segmentation, int k);
 
 // The session file at `path` cut as a replay with the replay keys `options`
 // (profile=, match=, a declared profile's framing= ...; file= is `path`)

@@ -187,8 +187,9 @@ void RequestStrategy::add_response(RecordKind kind, std::uint64_t t_ns,
   item.kind = kind;
   item.t_ns = t_ns;
   if (exchanges_.empty()) {
-    // A greeting: released at open, exchange 0.
+    // A greeting: released at open, the first exchange.
     greeting_ = true;
+    item.exchange = config_.first_exchange;
     item.data.assign(payload);
     item.due = timeline_.due(item.t_ns, std::nullopt);
     released_.push(std::move(item));
@@ -466,7 +467,7 @@ void RequestStrategy::serve(std::uint32_t group_index, std::string_view request,
   }
   if (!exchange.used && exchange.has_response) --unused_with_response_;
   exchange.used = true;
-  serving_exchange_ = exchanges_served_++ + (greeting_ ? 1 : 0);
+  serving_exchange_ = config_.first_exchange + exchanges_served_++ + (greeting_ ? 1 : 0);
   last_match_time_ = now;
   last_match_t_ns_ = exchange.last_tx_t_ns;
   // Causal timing counts each response from this match.

@@ -16,9 +16,11 @@ SequenceStrategy::SequenceStrategy(const ReplayConfig& config,
       released_(released),
       report_(report),
       rx_source_(sources()),
-      rx_exchanges_(Segmentation{config.profile, config.datagrams, ReplayMatch::sequence}),
+      rx_exchanges_(Segmentation{config.profile, config.datagrams, ReplayMatch::sequence,
+                                 config.first_exchange}),
       tx_source_(sources()),
-      tx_exchanges_(Segmentation{config.profile, config.datagrams, ReplayMatch::sequence}),
+      tx_exchanges_(Segmentation{config.profile, config.datagrams, ReplayMatch::sequence,
+                                 config.first_exchange}),
       frame_source_(config.profile ? sources() : nullptr) {
   if (config.profile && config.profile->fixes_responses()) {
     fixer_ = std::make_unique<ResponseFixer>(config.profile);
@@ -211,7 +213,9 @@ bool SequenceStrategy::next_tx_record() {
 std::optional<SequenceStrategy::RecordedFrame> SequenceStrategy::next_recorded_frame() {
   Record record;
   const auto add = [&](TimedFramer::TimedFrame&& timed) {
-    recorded_frames_.push_back({std::move(timed.frame), timed.t_ns, recorded_frames_seen_++});
+    recorded_frames_.push_back({std::move(timed.frame), timed.t_ns,
+                                static_cast<std::int64_t>(config_.first_exchange) +
+                                    recorded_frames_seen_++});
   };
   while (recorded_frames_.empty() && !frame_source_done_) {
     if (!frame_source_->next(record)) {

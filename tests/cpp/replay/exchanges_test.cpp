@@ -19,6 +19,7 @@
 #include "replay/replay_config.hpp"
 #include "replay/replay_port.hpp"
 #include "session/reader.hpp"
+#include "support/port_test_support.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/options.hpp"
 #include "wiretape/port.hpp"
@@ -291,6 +292,31 @@ TEST(ExchangesAgree, TheReplaysNumberingIsTheWholeSessionFormsOnEveryRecording) 
     }
   }
   EXPECT_GE(compared, 20u);  // the flexiport pair and the Hokuyo recordings, at least
+}
+
+TEST(ExchangesAgree, AVirtualDevicesLaterClientSessionNumbersOnFromTheFile) {
+  const std::vector<Record> records = {
+      connect(1, "a", "control"), tx(2, "Q0\n"), rx(3, "R0\n"), tx(4, "Q1\n"), rx(5, "R1\n"),
+      disconnect(6, "a"),         connect(7, "b", "control"), tx(8, "Q2\n"), rx(9, "R2\n")};
+  EXPECT_EQ(first_exchange_of_client_session(*vector_source_factory(records)(), {}, 2), 2u);
+  for (const char* match : {"sequence", "request"}) {
+    Options options = Options::parse(std::string("file=synthetic.wtape,timing=none,match=") +
+                                     match + ",faults=drop@exchange:2");
+    auto port = open_replay_session(take_replay_config(options), vector_source_factory(records));
+    port->set_timeout(test::kEventDeadline);
+    std::vector<std::uint64_t> fired;
+    replay_on_fault(*port, [&](const FaultEvent& event) { fired.push_back(event.exchange); });
+    ASSERT_TRUE(replay_begin_client_session(*port));
+    port->write_all("Q0\n");
+    EXPECT_EQ(port->read_exactly(3), "R0\n");
+    port->write_all("Q1\n");
+    EXPECT_EQ(port->read_exactly(3), "R1\n");
+    replay_await_client(*port);
+    ASSERT_TRUE(replay_begin_client_session(*port));
+    port->write_all("Q2\n");
+    EXPECT_EQ(port->available(), 0u) << match;  // exchange 2 of the file: dropped
+    EXPECT_EQ(fired, (std::vector<std::uint64_t>{2})) << match;
+  }
 }
 
 }  // namespace
