@@ -10,7 +10,8 @@ namespace wiretape::detail {
 
 ExchangeCursor::ExchangeCursor(const Segmentation& segmentation)
     : request_framer_(segmentation.profile
-                          ? segmentation.profile->make_framer(StreamDirection::tx)
+                          ? std::make_unique<TimedFramer>(
+                                segmentation.profile->make_framer(StreamDirection::tx))
                           : nullptr),
       datagrams_(segmentation.datagrams),
       greeting_alone_(segmentation.match == ReplayMatch::request),
@@ -33,8 +34,10 @@ void ExchangeCursor::end_exchange() {
   if (request_framer_) request_framer_->finish();  // a frame cut short
 }
 
-std::uint64_t ExchangeCursor::feed(RecordKind kind, std::string_view payload) {
+std::uint64_t ExchangeCursor::feed(RecordKind kind, std::uint64_t t_ns,
+                                   std::string_view payload) {
   began_ = false;
+  frames_.clear();
   switch (kind) {
     case RecordKind::tx: {
       if (payload.empty()) break;
@@ -42,8 +45,7 @@ std::uint64_t ExchangeCursor::feed(RecordKind kind, std::string_view payload) {
         // An exchange begins where its request frame is complete: rx the
         // device sent while the frame was incomplete belongs to the one
         // before (the replay releases it before the client's frame is whole).
-        frames_.clear();
-        request_framer_->feed(payload, frames_);
+        request_framer_->feed(t_ns, payload, frames_);
         for (std::size_t i = 0; i < frames_.size(); ++i) begin_request();
       } else if (datagrams_ || !request_open_) {
         begin_request();
@@ -52,15 +54,19 @@ std::uint64_t ExchangeCursor::feed(RecordKind kind, std::string_view payload) {
       break;
     }
     case RecordKind::rx:
-      if (payload.empty()) break;
-      // A framer that cuts by silence: the device speaking ends the request.
-      if (request_framer_ && request_framer_->quiet_gap() && request_framer_->pending() > 0) {
-        frames_.clear();
-        if (std::optional<Frame> tail = request_framer_->finish()) {
+    case RecordKind::close:
+    case RecordKind::device_lost:
+      if (kind == RecordKind::rx && payload.empty()) break;
+      // A framer that cuts by silence: the device speaking (or going away)
+      // ends the request.
+      if (request_framer_ && request_framer_->framer().quiet_gap() &&
+          request_framer_->framer().pending() > 0) {
+        if (std::optional<TimedFramer::TimedFrame> tail = request_framer_->finish()) {
           frames_.push_back(std::move(*tail));
           begin_request();
         }
       }
+      if (kind != RecordKind::rx) break;
       has_rx_ = true;
       request_open_ = false;
       break;
@@ -151,10 +157,10 @@ SessionSegments segment_session(RecordSource& source, const Segmentation& segmen
     if (cursor.began()) {
       // With a profile a record may complete several request frames: each
       // began an exchange, the last one this.
-      const std::vector<Frame>& completed = cursor.frames_completed();
+      const auto& completed = cursor.frames_completed();
       std::uint64_t owner = index + 1 >= completed.size() ? index + 1 - completed.size() : 0;
-      for (const Frame& frame : completed) {
-        if (Exchange* own = exchange_at(owner)) own->request_frames.push_back(frame.bytes);
+      for (const TimedFramer::TimedFrame& timed : completed) {
+        if (Exchange* own = exchange_at(owner)) own->request_frames.push_back(timed.frame.bytes);
         ++owner;
       }
     }

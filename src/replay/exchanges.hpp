@@ -55,9 +55,10 @@ class ExchangeCursor {
   explicit ExchangeCursor(const Segmentation& segmentation);
 
   // Feeds one record (any kind; `payload` its data, an event's JSON for
-  // events); returns the exchange it belongs to.
-  std::uint64_t feed(RecordKind kind, std::string_view payload);
-  std::uint64_t feed(const Record& record) { return feed(record.kind, record.data); }
+  // events; `t_ns` its time, for a framer that cuts by silence); returns
+  // the exchange it belongs to.
+  std::uint64_t feed(RecordKind kind, std::uint64_t t_ns, std::string_view payload);
+  std::uint64_t feed(const Record& record) { return feed(record.kind, record.t_ns, record.data); }
   // The exchange the next rx record would belong to.
   std::uint64_t current() const { return index_; }
   // Whether the record just fed began an exchange.
@@ -67,17 +68,19 @@ class ExchangeCursor {
     return tracker_.open() ? std::optional<std::uint64_t>(client_sessions_ - 1) : std::nullopt;
   }
   std::uint64_t client_sessions() const { return client_sessions_; }
-  // With a profile: the request frames the last record completed.
-  const std::vector<Frame>& frames_completed() const { return frames_; }
+  // With a profile: the request frames the last record fed completed, each
+  // with the time of the record holding its first byte (a framer that cuts
+  // by silence completes one when the device speaks).
+  const std::vector<TimedFramer::TimedFrame>& frames_completed() const { return frames_; }
 
  private:
   void begin_request();
   void end_exchange();
 
-  std::unique_ptr<Framer> request_framer_;
+  std::unique_ptr<TimedFramer> request_framer_;
   bool datagrams_;
   bool greeting_alone_;  // match=request
-  std::vector<Frame> frames_;  // of the last tx record fed (reused)
+  std::vector<TimedFramer::TimedFrame> frames_;  // of the last record fed (reused)
   std::uint64_t index_ = 0;
   bool fresh_ = true;       // the current exchange has no request yet
   bool has_rx_ = false;     // the current exchange has rx

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <sstream>
 
+#include "replay/exchanges.hpp"
 #include "replay/profile.hpp"
 #include "util/hex.hpp"
 #include "wiretape/errors.hpp"
@@ -130,14 +131,17 @@ void RequestStrategy::load_exchanges(RecordSource& source) {
   std::uint64_t tx_offset = 0;
   std::uint64_t records_read = 0;
   bool device_gone = false;
+  // Where requests begin: the one segmentation (exchanges.hpp).
+  ExchangeCursor cursor(Segmentation{nullptr, config_.datagrams, ReplayMatch::request});
   while (!device_gone && source.next(record, view)) {
     const std::uint64_t ordinal = records_read++;
     const std::string_view payload = view ? view.bytes : std::string_view(record.data);
+    cursor.feed(record.kind, record.t_ns, payload);
     switch (record.kind) {
       case RecordKind::tx: {
         if (payload.empty()) break;
-        if (in_request && config_.datagrams) close_request();
-        if (!in_request) {
+        if (cursor.began()) {
+          if (in_request) close_request();
           exchanges_.emplace_back();
           exchanges_.back().first_tx_t_ns = record.t_ns;
           exchanges_.back().tx_offset = tx_offset;
@@ -225,58 +229,53 @@ void RequestStrategy::add_response(RecordKind kind, std::uint64_t t_ns,
 
 void RequestStrategy::load_frames(RecordSource& source) {
   const Profile& profile = *config_.profile;
-  const std::unique_ptr<Framer> framer = profile.make_framer(StreamDirection::tx);
-  std::vector<Frame> frames;
   Record record;
   PayloadView view;
   std::uint64_t tx_offset = 0;  // of the frame being gathered
-  std::uint64_t first_t_ns = 0;
   std::uint64_t records_read = 0;
-  const auto add_frame = [&](const Frame& frame, std::uint64_t t_ns) {
+  // first_t_ns: of the record holding the frame's first byte; last_t_ns: of
+  // the one completing it.
+  const auto add_frame = [&](const Frame& frame, std::uint64_t first_t_ns,
+                             std::uint64_t last_t_ns) {
     if (frame.end == FrameEnd::broken || frame.end == FrameEnd::size_limit) {
       throw OptionError(
           "profile", "profile '" + std::string(profile.name()) + "' cannot frame " +
                          config_.file + ": the request frame at tx byte offset " +
                          std::to_string(tx_offset) + " (session time " +
-                         session_seconds(t_ns) + " s) is broken" +
+                         session_seconds(last_t_ns) + " s) is broken" +
                          (frame.problem.empty() ? std::string() : ": " + frame.problem) +
                          "; is this the protocol's recording?");
     }
     exchanges_.emplace_back();
     Exchange& exchange = exchanges_.back();
     exchange.first_tx_t_ns = first_t_ns;
-    exchange.last_tx_t_ns = t_ns;
+    exchange.last_tx_t_ns = last_t_ns;
     exchange.tx_offset = tx_offset;
     exchange.raw_offset = raw_requests_.size();
     exchange.raw_size = static_cast<std::uint32_t>(frame.bytes.size());
     raw_requests_.append(frame.bytes);
     tx_offset += frame.bytes.size();
-    first_t_ns = t_ns;
     join_group(group_for(profile.match_key(frame.bytes)));
   };
+  // Request frames: the one segmentation (exchanges.hpp) frames them.
+  ExchangeCursor cursor(Segmentation{config_.profile, config_.datagrams, ReplayMatch::request});
   std::uint64_t last_tx_t_ns = 0;
   bool device_gone = false;
   while (!device_gone && source.next(record, view)) {
     const std::uint64_t ordinal = records_read++;
     const std::string_view payload = view ? view.bytes : std::string_view(record.data);
-    if (record.kind == RecordKind::tx) {
-      if (payload.empty()) continue;
-      if (framer->pending() == 0) first_t_ns = record.t_ns;
-      frames.clear();
-      framer->feed_at(record.t_ns, payload, frames);
-      for (const Frame& frame : frames) add_frame(frame, record.t_ns);
-      last_tx_t_ns = record.t_ns;
-      continue;
+    cursor.feed(record.kind, record.t_ns, payload);
+    // A frame a tx record completes ends there; one the device's speaking
+    // ended (framed by silence), at the last tx.
+    if (record.kind == RecordKind::tx && !payload.empty()) last_tx_t_ns = record.t_ns;
+    for (const TimedFramer::TimedFrame& timed : cursor.frames_completed()) {
+      add_frame(timed.frame, timed.t_ns, last_tx_t_ns);
     }
     if (record.kind != RecordKind::rx && record.kind != RecordKind::close &&
         record.kind != RecordKind::device_lost) {
       continue;
     }
     if (record.kind == RecordKind::rx && payload.empty()) continue;
-    // Framed by silence: the device speaking ends the request.
-    if (framer->quiet_gap() && framer->pending() > 0) {
-      if (std::optional<Frame> tail = framer->finish()) add_frame(*tail, last_tx_t_ns);
-    }
     device_gone = record.kind != RecordKind::rx;
     if (record.kind == RecordKind::close && !session_goes_on(source)) break;
     add_response(record.kind, record.t_ns, payload, ordinal);

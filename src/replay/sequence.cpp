@@ -60,7 +60,8 @@ void SequenceStrategy::fill() {
     }
     const std::size_t size = view ? view.bytes.size() : record.data.size();
     const std::uint64_t exchange =
-        rx_exchanges_.feed(record.kind, view ? view.bytes : std::string_view(record.data));
+        rx_exchanges_.feed(record.kind, record.t_ns,
+                           view ? view.bytes : std::string_view(record.data));
     switch (record.kind) {
       case RecordKind::tx:
         if (size == 0) break;
