@@ -14,7 +14,12 @@
 //   that session's first exchange, as mismatch reports number it; under
 //   match=request a greeting is an exchange of its own (exchange 0, the
 //   first match exchange 1), as the replay serves it;
-// - exchanges are numbered from 0 per file, across client sessions. A
+// - the request strategy's exchanges (what match=request matches) are cut
+//   by it too; under match=request RxItem::exchange counts matches in
+//   served order (the recorded order for a client that replays faithfully);
+// - exchanges are numbered from 0 per file, across client sessions (a
+//   virtual device's later client session starts at ReplayConfig::
+//   first_exchange). A
 //   client session begins at a controlling client's `client_connect` (a
 //   read-only monitor's connect is none) and ends at its
 //   `client_disconnect`; a connect ends the exchange before it. What the
@@ -48,8 +53,8 @@ struct Segmentation {
 };
 
 // The streaming form: fed every record in recorded order, it says which
-// exchange each belongs to. No allocation per record once warm (the
-// profile's framer keeps at most one frame).
+// exchange each belongs to. Without a profile no allocation per record;
+// with one, what the profile's framer allocates for the frames it cuts.
 class ExchangeCursor {
  public:
   explicit ExchangeCursor(const Segmentation& segmentation);
