@@ -113,3 +113,63 @@ def test_the_hokuyo_recordings_cut_alike_with_and_without_scip(name):
     assert plain and len(plain) == len(framed)
     assert sum(e.response_bytes for e in plain) == sum(e.response_bytes for e in framed)
     assert all(len(e.request_frames) == 1 for e in framed)
+
+
+def _recordings():
+    paths = sorted(str(p) for p in HOKUYO.glob("*.wtape"))
+    paths += sorted(str(p) for p in (REPO / "tests" / "data" / "golden").glob("*.wtape")
+                    if p.name != "damaged.wtape")
+    paths += sorted(str(p.with_suffix(".log")) for p in
+                    (REPO / "tests" / "data" / "flexiport").glob("*.logr"))
+    return [path for path in paths if _served_whole(path)]
+
+
+def _served_whole(path):
+    """Whether a replay serves the whole file: no recorded close or loss
+    before its last record."""
+    kinds = [record.kind for record in _core.SessionReader(path)]
+    ends = [i for i, kind in enumerate(kinds) if kind in ("close", "device_lost")]
+    return not ends or ends[0] == len(kinds) - 1
+
+
+def _replayed_exchanges(path, keys, tmp_path):
+    """The exchanges with rx as the C++ replay numbers them: a faithful
+    client writes each recorded tx record; duplicate@every:1 fires once at
+    the first rx of each exchange served, and the fault events the replay
+    logs (docs/faults.md) name it."""
+    log = tmp_path / "faulty.wtape"
+    options = (f"type=replay,file={_core.quote_option_value(path)},timing=none,check=off,"
+               f"unused=ignore,faults=duplicate@every:1,{keys},"
+               f"log={_core.quote_option_value(str(log))}")
+    port = _core.open_port(options)
+    try:
+        for record in _core.SessionReader(path):
+            if record.kind == "tx" and record.data:
+                port.write_all(record.data)
+            while port.available():
+                port.read(port.available(), timeout=0)
+    except wiretape.PortClosed:
+        pass  # a recorded close or loss: nothing after it is served
+    finally:
+        port.close()
+    fired = set()
+    for record in _core.SessionReader(str(log)):
+        if record.kind == "fault":
+            detail = json.loads(record.data)["detail"]
+            fired.add(int(detail.split(" in exchange ")[1].split()[0]))
+    return fired
+
+
+@pytest.mark.parametrize("path", _recordings(), ids=lambda p: Path(p).name)
+def test_the_replays_numbering_agrees_with_the_binding_on_every_recording(path, tmp_path):
+    profiles = [None, "scip"] if "urg" in path or "utm" in path else [None]
+    checked = False
+    for profile in profiles:
+        for match in ("sequence", "request"):
+            keys = f"match={match}" + (",gap=0" if match == "request" else "")
+            keys += f",profile={profile}" if profile else ""
+            expected = {e.index for e in _core.session_exchanges(path, profile=profile, match=match)
+                        if e.response_bytes}
+            assert _replayed_exchanges(path, keys, tmp_path) == expected, keys
+            checked = True
+    assert checked
