@@ -5,10 +5,13 @@
 // reports under a profile name the recorded frame's own time and exchange.
 #include <gtest/gtest.h>
 
+#include <random>
 #include <string>
 #include <vector>
 
+#include "replay/profile.hpp"
 #include "replay/replay_config.hpp"
+#include "replay/response_fixer.hpp"
 #include "replay/replay_port.hpp"
 #include "session/record_source.hpp"
 #include "support/port_test_support.hpp"
@@ -167,6 +170,55 @@ TEST(MismatchLocation, AFrameSplitOverRecordsNamesTheTimeOfItsFirstByte) {
   } catch (const ReplayMismatch& error) {
     EXPECT_EQ(error.session_time_ns(), 3'000'000'000u) << error.what();
     EXPECT_EQ(error.exchange(), 1) << error.what();
+  }
+}
+
+// --- the fixer alone: any split of the records gives the same bytes ------------
+
+TEST(ResponseFixer, AnySplitOfTheResponsesGivesTheSameFixedBytesAndKeepsEachRecord) {
+  const auto profile = find_profile("modbus-tcp");
+  std::mt19937 random(22);
+  for (int round = 0; round < 200; ++round) {
+    // Requests 1..n (pipelined), their responses end to end, split anyhow.
+    const unsigned n = 1 + random() % 4;
+    std::string stream;
+    std::string expected;
+    detail::ResponseFixer fixer(profile);
+    for (unsigned i = 1; i <= n; ++i) {
+      fixer.request(i * 12, mbap(i, read_holding(i)), mbap(0x100 + i, read_holding(i)));
+      stream += mbap(i, registers(i));
+      expected += mbap(0x100 + i, registers(i));
+    }
+    std::vector<std::size_t> sizes;
+    std::string served;
+    std::vector<std::size_t> served_sizes;
+    std::vector<std::uint64_t> served_times;
+    for (std::size_t at = 0; at < stream.size();) {
+      const std::size_t size = std::min<std::size_t>(1 + random() % 15, stream.size() - at);
+      detail::RxItem item;
+      item.t_ns = sizes.size();
+      item.data = stream.substr(at, size);
+      fixer.push(std::move(item), n * 12);
+      sizes.push_back(size);
+      at += size;
+      while (fixer.ready()) {
+        detail::RxItem out = fixer.take();
+        served += out.data;
+        served_sizes.push_back(out.data.size());
+        served_times.push_back(out.t_ns);
+      }
+    }
+    fixer.end_response();
+    EXPECT_FALSE(fixer.holding());
+    while (fixer.ready()) {
+      detail::RxItem out = fixer.take();
+      served += out.data;
+      served_sizes.push_back(out.data.size());
+      served_times.push_back(out.t_ns);
+    }
+    ASSERT_EQ(served, expected) << "round " << round;
+    EXPECT_EQ(served_sizes, sizes) << "round " << round;  // the records' boundaries
+    for (std::size_t i = 0; i < served_times.size(); ++i) EXPECT_EQ(served_times[i], i);
   }
 }
 
