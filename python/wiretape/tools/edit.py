@@ -282,6 +282,9 @@ class _Cutter:
         self.first_write = 0  # when the client first wrote: where the cut part resumes
         self.state: Dict[str, Tuple[str, int, bytes]] = {}
         self.client: Optional[Tuple[str, int, bytes]] = None
+        # Client sessions by the bridge's rule (C++): a monitor's connect or
+        # disconnect does not change the client in force.
+        self.sessions = _core.ClientSessionTracker()
         self.shift = 0
         self.started = start is None or start == 0
         self.closing: Optional[Tuple[str, int, bytes]] = None
@@ -310,10 +313,12 @@ class _Cutter:
             if kind == "modem_lines":
                 key += ":" + ",".join(sorted((event_payload(data) or {}).keys()))
             self.state[key] = (kind, t_ns, data)
-        elif kind == "client_connect":
-            self.client = (kind, t_ns, data)
-        elif kind == "client_disconnect":
-            self.client = None
+        elif kind in ("client_connect", "client_disconnect"):
+            change = self.sessions.feed(kind, data)
+            if change == "began":
+                self.client = (kind, t_ns, data)
+            elif change == "ended":
+                self.client = None
 
     def _begin(self, t_ns: int) -> None:
         self.started = True

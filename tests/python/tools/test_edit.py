@@ -138,6 +138,26 @@ def test_cut_by_exchanges_counts_as_replay_does_across_client_sessions(tmp_path)
     assert [d for _, k, d in records(out) if k == "tx"] == [b"B"]
 
 
+def test_cut_keeps_the_client_in_force_whatever_monitors_did(tmp_path):
+    connect = lambda peer, role: json.dumps({"peer": peer, "role": role}).encode()
+    src = write_session(tmp_path / "in.wtape", [
+        (1, "tx", b"X"),
+        (2, "rx", b"x"),
+        (3, "client_connect", connect("a", "control")),
+        (4, "tx", b"A"),
+        (5, "rx", b"a"),
+        (6, "client_connect", connect("m", "monitor")),
+        (7, "client_disconnect", json.dumps({"peer": "m", "reason": "closed"}).encode()),
+        (8, "tx", b"B"),
+        (9, "rx", b"b")])
+    out = tmp_path / "cut.wtape"
+    edit(src, out, cut=parse_cut("2e:"))
+    kept = records(out)
+    connects = [json.loads(d)["peer"] for _, k, d in kept if k == "client_connect"]
+    assert connects == ["a"]  # the client's connect, not the monitor's
+    assert [d for _, k, d in kept if k == "tx"] == [b"B"]
+
+
 def test_cut_keeps_the_settings_and_client_in_force(tmp_path):
     src = write_session(tmp_path / "in.wtape", [
         (0, "open", b"{}"),
