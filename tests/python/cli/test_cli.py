@@ -369,8 +369,10 @@ def test_ports_show_by_id_paths_and_usb_ids(capsys, monkeypatch, tmp_path):
     info.description = "URG-Series USB Driver"
     info.serial_number = "H1234"
     monkeypatch.setattr(list_ports, "comports", lambda *a, **k: [info])
-    real_links = cli._by_id_links
-    monkeypatch.setattr(cli, "_by_id_links", lambda directory=str(by_id): real_links(directory))
+    from wiretape.cli import ports
+
+    real_links = ports._by_id_links
+    monkeypatch.setattr(ports, "_by_id_links", lambda directory=str(by_id): real_links(directory))
 
     code, out, _ = run(capsys, "ports", "--json")
     assert code == 0
