@@ -67,6 +67,13 @@ class Outcome:
         return 128 - self.returncode if self.returncode < 0 else self.returncode
 
     @property
+    def text(self) -> str:
+        """stdout as text (UTF-8, undecodable bytes replaced)."""
+        if isinstance(self.stdout, str):
+            return self.stdout
+        return self.stdout.decode("utf-8", "replace")
+
+    @property
     def signal(self) -> Optional[int]:
         """The signal that ended the child, or None when it exited."""
         return -self.returncode if self.returncode < 0 else None
@@ -168,8 +175,6 @@ class Child:
         self.argv: List[str] = [os.fspath(arg) for arg in argv]
         self.grace = grace
         self._text = text
-        self._capture = capture
-        self._separate_stderr = separate_stderr
         self._ended = False
         self._timed_out = False
         try:
@@ -191,12 +196,16 @@ class Child:
         self.pid = self.process.pid
         self._exit_event = _ExitEvent(self.process)
         self._reader: Optional[_Reader] = None
+        self._stdout_fd: Optional[int] = None
+        self._stderr_fd: Optional[int] = None
         if capture:
+            assert self.process.stdout is not None
             pipes = {self.process.stdout.fileno(): self.process.stdout}
-            if separate_stderr:
-                pipes[self.process.stderr.fileno()] = self.process.stderr
             self._stdout_fd = self.process.stdout.fileno()
-            self._stderr_fd = self.process.stderr.fileno() if separate_stderr else None
+            if separate_stderr:
+                assert self.process.stderr is not None
+                pipes[self.process.stderr.fileno()] = self.process.stderr
+                self._stderr_fd = self.process.stderr.fileno()
             self._reader = _Reader(pipes, relay)
 
     @property
@@ -247,12 +256,12 @@ class Child:
     @property
     def stdout(self) -> Output:
         """The output captured so far (stderr included unless apart)."""
-        return self._buffer(self._stdout_fd if self._capture else None)
+        return self._buffer(self._stdout_fd)
 
     @property
     def stderr(self) -> Output:
         """stderr captured so far, when captured apart."""
-        return self._buffer(self._stderr_fd if self._capture else None)
+        return self._buffer(self._stderr_fd)
 
     def wait_for_output(self, found: Callable[[Output], bool], timeout: float) -> bool:
         """Waits until ``found(stdout so far)`` holds (True), or the output

@@ -294,7 +294,7 @@ def run_case(session: str, case: Optional[FaultCase], argv: Sequence[str], timeo
                 redirected.close()
         else:
             outcome = Child(command).run(timeout)
-    text = outcome.stdout.decode("utf-8", "replace")
+    text = outcome.text
     returncode = None if outcome.timed_out else outcome.returncode
     return Run(case.kind if case else "", case.where if case else "",
                _classify(returncode, text, outcome.timed_out), returncode,

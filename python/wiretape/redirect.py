@@ -168,7 +168,9 @@ class RedirectedCommand:
     def exit_status(self) -> int:
         """CMD's exit status as a shell reports it (128+N for signal N)."""
         self.child.wait()
-        return self.child.exit_status
+        status = self.child.exit_status
+        assert status is not None  # it has exited
+        return status
 
     def used_device_path(self) -> bool:
         """True once any process of CMD opened (or looked at) the path."""
