@@ -217,11 +217,14 @@ class Child:
 
     def poll(self) -> Optional[int]:
         """The direct child's return code once it has exited, else None."""
-        return self.process.poll()
+        code = self.process.poll()
+        if code is not None:
+            self._exit_event.close()
+        return code
 
     @property
     def running(self) -> bool:
-        return self.process.poll() is None
+        return self.poll() is None
 
     @property
     def returncode(self) -> Optional[int]:
@@ -231,7 +234,7 @@ class Child:
     def exit_status(self) -> Optional[int]:
         """The exit status as a shell reports it (128+N for signal N), or
         None while the child runs."""
-        code = self.process.poll()
+        code = self.poll()
         if code is None:
             return None
         return 128 - code if code < 0 else code
@@ -241,8 +244,8 @@ class Child:
         child to exit; its return code, or None if it still runs. Its
         group is left alone (see :meth:`end`)."""
         if self._exit_event.wait(timeout):
-            return self.process.wait()
-        return self.process.poll()
+            self.process.wait()
+        return self.poll()
 
     # -- output ------------------------------------------------------------
 
