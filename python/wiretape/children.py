@@ -34,6 +34,9 @@ EXIT_COMMAND_NOT_FOUND = 127
 # still be ending (there is no event for a process group becoming empty).
 _GROUP_POLL_S = 0.01
 _CHUNK = 65536
+# A pipe holds at most 1 MiB (Linux's default pipe-max-size): so many reads
+# take all it held when the reading stops.
+_PIPE_CHUNKS = (1 << 20) // _CHUNK
 
 
 class CommandNotStarted(Exception):
@@ -97,9 +100,10 @@ class _Reader:
                                         daemon=True)
         self._thread.start()
 
-    def _take(self, fd: int) -> bool:
-        """Reads what `fd` holds now; False at its end."""
-        while True:
+    def _take(self, fd: int, chunks: int = 1) -> bool:
+        """Reads what `fd` holds now, at most `chunks` reads; False at its
+        end."""
+        for _ in range(chunks):
             try:
                 chunk = os.read(fd, _CHUNK)
             except BlockingIOError:
@@ -117,6 +121,7 @@ class _Reader:
                     self._relay.flush()
                 except (OSError, ValueError):
                     self._relay = None  # whoever reads our relay went away
+        return True
 
     def _run(self) -> None:
         poller = select.poll()
@@ -131,7 +136,9 @@ class _Reader:
                 ready = sorted(open_fds) if stopping else \
                     [fd for fd, _ in events if fd in open_fds]
                 for fd in ready:
-                    if not self._take(fd):
+                    # At the stop, what the pipe held; a writer that goes on
+                    # (a grandchild of another session) cannot keep us here.
+                    if not self._take(fd, _PIPE_CHUNKS if stopping else 1):
                         open_fds.discard(fd)
                         poller.unregister(fd)
                 if stopping:

@@ -131,6 +131,25 @@ def test_a_grandchild_of_another_session_holding_stdout_does_not_stall_it():
         os.kill(grandchild, signal.SIGKILL)
 
 
+def test_a_grandchild_of_another_session_writing_on_does_not_stall_it():
+    child = Child(_python("""
+        import subprocess
+        writer = subprocess.Popen(["yes"], start_new_session=True)
+        print("writer", writer.pid, flush=True)
+    """))
+    outcome = child.run(DEADLINE_S)
+    # yes may have written before the line with its pid.
+    writer = int(next(line for line in outcome.stdout.split(b"\n")
+                      if line.startswith(b"writer ")).split()[1])
+    try:
+        assert (outcome.returncode, outcome.timed_out) == (0, False)
+        # Our end of the pipe is closed: the writer gets SIGPIPE.
+        wait_until(lambda: not _alive(writer), DEADLINE_S, "the writer to be gone")
+    finally:
+        if _alive(writer):
+            os.kill(writer, signal.SIGKILL)
+
+
 def test_waiting_for_output_that_never_comes_ends_with_the_output():
     child = Child(["sh", "-c", "echo nothing"])
     assert not child.wait_for_output(lambda out: b"ready" in out, DEADLINE_S)
