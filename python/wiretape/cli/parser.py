@@ -35,10 +35,9 @@ def _number_checker(what: str, minimum: float, inclusive: bool, unit: str = ""):
 
     return check
 
+
 _positive_seconds = _number_checker("a number of seconds", 0, inclusive=False, unit="seconds")
-
 _positive_float = _number_checker("a number", 0, inclusive=False)
-
 _non_negative_float = _number_checker("a number", 0, inclusive=True)
 
 
@@ -120,7 +119,6 @@ def _udp_address(what: str, minimum_port: int):
 
 _DESCRIPTION = "Record and replay the wire-level session between a driver and its device."
 
-
 _EPILOG = """exit codes: 0 ok (Ctrl-C included); 1 the checked thing failed (replay
 mismatch, damaged file, diff found a difference, unused data under
 unused=error); 2 usage error; 3 runtime error (device or file I/O).
@@ -176,6 +174,7 @@ def _add_redirect(parser, default: str) -> None:
     parser.add_argument("--as", dest="redirect_path", metavar="PATH",
                         help="with -- CMD: the device path CMD opens, redirected to the "
                              f"pty ({default})")
+
 
 _COMMANDS_WITH_CMD = ("record", "replay", "faults")
 
