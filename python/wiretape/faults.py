@@ -24,8 +24,6 @@ import json
 import os
 import random
 import shlex
-import signal
-import subprocess
 import sys
 import tempfile
 import threading
@@ -34,7 +32,8 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Dict, Iterator, List, Optional, Sequence, TextIO
 
 from . import _core, bridge
-from .tools._records import open_session
+from .children import Child
+from .session import open_session
 
 #: Every fault kind, as a campaign injects it (docs/faults.md says why these
 #: amounts).
@@ -275,54 +274,31 @@ def _classify(returncode: Optional[int], output: str, timed_out: bool) -> str:
     return "ok" if returncode == 0 else "error"
 
 
-def _kill_group(process: subprocess.Popen) -> None:
-    """Kills CMD and what it started (its own session), or CMD alone when it
-    shares ours (--as)."""
-    try:
-        if os.getpgid(process.pid) == process.pid:
-            os.killpg(process.pid, signal.SIGKILL)
-            return
-    except OSError:
-        pass
-    try:
-        process.kill()
-    except OSError:
-        pass
-
-
 def run_case(session: str, case: Optional[FaultCase], argv: Sequence[str], timeout: float,
              replay_options: str = "", listen: bool = False,
              as_path: Optional[str] = None) -> Run:
     """Runs CMD once against a fresh virtual device with ``case``'s fault
-    (None: clean)."""
+    (None: clean); a CMD past `timeout` is ended with everything it
+    started (its process group)."""
     started = time.monotonic()
     with faulty_device(session, case, replay_options, listen) as port:
         command = [arg.replace(PORT_PLACEHOLDER, port) for arg in argv]
-        redirected = None
         if as_path is not None:
             from .redirect import RedirectedCommand
 
-            redirected = RedirectedCommand(command, as_path, os.path.realpath(port))
-            process = redirected.process
-        else:
-            process = subprocess.Popen(command, stdout=subprocess.PIPE,
-                                       stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                       start_new_session=True)
-        timed_out = False
-        try:
-            output, _ = process.communicate(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            timed_out = True
-            _kill_group(process)
-            output, _ = process.communicate()
-        finally:
-            if redirected is not None:
+            redirected = RedirectedCommand(command, as_path, os.path.realpath(port),
+                                           capture=True)
+            try:
+                outcome = redirected.child.run(timeout)
+            finally:
                 redirected.close()
-    text = (output or b"").decode("utf-8", "replace")
-    outcome = _classify(process.returncode, text, timed_out)
-    return Run(case.kind if case else "", case.where if case else "", outcome,
-               None if timed_out else process.returncode, time.monotonic() - started,
-               output=text)
+        else:
+            outcome = Child(command).run(timeout)
+    text = outcome.text
+    returncode = None if outcome.timed_out else outcome.returncode
+    return Run(case.kind if case else "", case.where if case else "",
+               _classify(returncode, text, outcome.timed_out), returncode,
+               time.monotonic() - started, output=text)
 
 
 def reproduction(session: str, case: FaultCase, argv: Sequence[str], replay_options: str,

@@ -7,7 +7,7 @@ import dataclasses
 import os
 from typing import Any, Dict, List, Optional, Tuple
 
-from ._records import DIRECTIONS, SessionPath, header_text, open_session
+from ..session import DIRECTIONS, SessionPath, header_text, open_session
 
 __all__ = ["stats", "SessionStats"]
 
