@@ -125,11 +125,11 @@ ReplayConfig take_replay_config(Options& options) {
       options.take_choice("at_end", "silent", {"silent", "closed"}),
       {{"silent", ReplayAtEnd::silent}, {"closed", ReplayAtEnd::closed}});
 
-  // Fault injection: parsed here so that a bad plan fails at open.
-  config.faults = options.take_string("faults", "");
-  config.seed = static_cast<std::uint64_t>(
+  // Fault injection: parsed once, here, so that a bad plan fails at open.
+  const std::string faults = options.take_string("faults", "");
+  const auto seed = static_cast<std::uint64_t>(
       options.take_int("seed", 0, 0, std::numeric_limits<std::int64_t>::max()));
-  parse_faults(config.faults, config.seed);
+  config.faults = parse_faults(faults, seed);
 
   if (config.check == ReplayCheck::timing &&
       config.timing == ReplayTiming::none) {

@@ -38,6 +38,7 @@ struct RxItem {
   }
   std::uint64_t t_ns = 0;
   ReplayTime due;  // readable from then on
+  std::uint64_t exchange = 0;  // the exchange it answers (exchanges.hpp), set by the strategy
 };
 
 // The rx the client is entitled to, in recorded order, each with its due
@@ -53,6 +54,7 @@ class ReleasedRx {
   // Payload bytes of the queued records (read or not).
   std::size_t bytes() const { return bytes_; }
   RxItem& front() { return items_.front(); }
+  RxItem& at(std::size_t index) { return items_[index]; }
   const std::deque<RxItem>& items() const { return items_; }
 
   void push(RxItem&& item);
