@@ -142,16 +142,17 @@ def check_where(session: str, spec: str, shape: Optional[SessionShape] = None) -
         raise FaultInputError(str(error)) from None
     shape = shape or session_shape(session)
     for fault in plan:
-        if fault.where == "exchange" and fault.number >= shape.exchanges:
+        number, value = fault.number, fault.value
+        if fault.where == "exchange" and number is not None and number >= shape.exchanges:
             raise FaultInputError(
                 f"{fault.text}: the session has {shape.exchanges} exchanges with rx "
-                f"(0..{shape.exchanges - 1}); exchange {fault.number} is past its end")
-        if fault.where == "rx" and fault.number >= shape.rx_bytes:
+                f"(0..{shape.exchanges - 1}); exchange {number} is past its end")
+        if fault.where == "rx" and number is not None and number >= shape.rx_bytes:
             raise FaultInputError(f"{fault.text}: the session has {shape.rx_bytes} rx bytes; "
-                                  f"rx byte {fault.number} is past its end")
-        if fault.where == "t" and fault.value > shape.seconds:
+                                  f"rx byte {number} is past its end")
+        if fault.where == "t" and value is not None and value > shape.seconds:
             raise FaultInputError(f"{fault.text}: the session lasts {shape.seconds:.3f} s; "
-                                  f"t:{fault.value:g} is past its end")
+                                  f"t:{value:g} is past its end")
 
 
 def cases(session: str, kinds: Optional[Sequence[str]] = None, budget: Optional[int] = None,
