@@ -167,10 +167,9 @@ def cases(session: str, kinds: Optional[Sequence[str]] = None, budget: Optional[
     for text in (kinds or KINDS):
         text = text.strip()
         if "@" in text:
-            kind, where = text.split("@", 1)
-            _kind_spec(kind)
             check_where(session, text, shape)
-            fixed.append(FaultCase(kind, where, seed))
+            fixed.extend(FaultCase(fault.kind_text, fault.where_text, seed)
+                         for fault in _core.parse_faults(text))
         else:
             spread.append(_kind_spec(text))
     everything = fixed + [FaultCase(kind, f"exchange:{n}", seed)
@@ -214,6 +213,10 @@ class Run:
     seconds: float
     repro: str = ""
     output: str = ""
+
+    @property
+    def spec(self) -> str:
+        return f"{self.kind}@{self.where}"
 
     def as_json(self) -> Dict[str, object]:
         return {"kind": self.kind, "where": self.where, "outcome": self.outcome,
@@ -415,8 +418,9 @@ def table(result: Campaign) -> str:
     others: List[Run] = []
     width = 0
     for run in result.runs:
-        if run.where.startswith("exchange:"):
-            exchange = int(run.where.split(":")[1])
+        place = _core.parse_faults(run.spec)[0]
+        if place.where == "exchange" and place.number is not None:
+            exchange = place.number
             by_kind.setdefault(run.kind, {})[exchange] = run.outcome
             width = max(width, exchange + 1)
         else:

@@ -89,3 +89,12 @@ def test_a_single_kind_in_its_normal_spelling():
     for bad in ("delay:abc", "drop@exchange:1", "nope"):
         with pytest.raises(faults.FaultInputError, match=bad.split(":")[0]):
             faults._kind_spec(bad)
+
+
+def test_campaign_places_are_checked_by_the_replays_parser():
+    # A plan the replay would refuse is bad campaign input, named as the
+    # replay names it, before the session is read.
+    with pytest.raises(faults.FaultInputError, match="'drop@exchange:x'.*whole number"):
+        faults.check_where("never-read.wtape", "drop@exchange:x")
+    with pytest.raises(faults.FaultInputError, match="unknown fault kind 'boom'"):
+        faults.check_where("never-read.wtape", "silence@t:1;boom@exchange:0")
