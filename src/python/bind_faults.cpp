@@ -25,7 +25,6 @@ using detail::FaultAmount;
 using detail::FaultKindInfo;
 using detail::FaultPlan;
 using detail::FaultSpec;
-using detail::FaultWhereKind;
 
 const char* amount_name(FaultAmount amount) {
   switch (amount) {
@@ -37,11 +36,6 @@ const char* amount_name(FaultAmount amount) {
       return "required";
   }
   return "none";
-}
-
-bool counts(FaultWhereKind where) {
-  return where == FaultWhereKind::exchange || where == FaultWhereKind::rx ||
-         where == FaultWhereKind::every;
 }
 
 std::string spec_repr(const FaultSpec& spec) {
@@ -69,19 +63,19 @@ void bind_faults(nb::module_& m) {
           "The kind's name (drop, corrupt, ...).")
       .def_ro("amount", &FaultSpec::amount, "The :N or :MS given, or None.")
       .def_prop_ro(
-          "where", [](const FaultSpec& spec) { return std::string(detail::fault_where_name(spec.where)); },
+          "where", [](const FaultSpec& spec) { return std::string(detail::fault_place_info(spec.where).name); },
           "The place's name: exchange, rx, t, every or p.")
       .def_prop_ro(
           "number",
           [](const FaultSpec& spec) -> std::optional<std::uint64_t> {
-            if (!counts(spec.where)) return std::nullopt;
+            if (!detail::fault_place_info(spec.where).counted) return std::nullopt;
             return spec.where_number;
           },
           "N of exchange:N, rx:N and every:N; None for t: and p:.")
       .def_prop_ro(
           "value",
           [](const FaultSpec& spec) -> std::optional<double> {
-            if (counts(spec.where)) return std::nullopt;
+            if (detail::fault_place_info(spec.where).counted) return std::nullopt;
             return spec.where_value;
           },
           "The seconds of t: or the probability of p:; None for the others.")

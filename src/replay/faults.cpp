@@ -108,30 +108,32 @@ void parse_where(std::string_view where_text, std::string_view item, FaultSpec& 
   if (where_colon == std::string_view::npos) bad_item(item, "WHERE needs NAME:VALUE");
   const std::string_view where_name = where_text.substr(0, where_colon);
   const std::string_view value = where_text.substr(where_colon + 1);
-  if (where_name == "exchange" || where_name == "rx" || where_name == "every") {
+  const FaultPlaceInfo* place = nullptr;
+  for (const FaultPlaceInfo& candidate : kFaultPlaces) {
+    if (where_name == candidate.name) place = &candidate;
+  }
+  if (place == nullptr) bad_item(item, "unknown WHERE '" + std::string(where_name) + "'");
+  spec.where = place->where;
+  if (place->counted) {
     const auto number = parse_unsigned(value);
     if (!number || *number > std::numeric_limits<std::int64_t>::max()) {
       bad_item(item, "'" + std::string(where_name) + ":' needs a whole number");
     }
-    if (where_name == "every" && *number == 0) bad_item(item, "'every:0' never fires; give 1 or more");
-    spec.where = where_name == "exchange" ? FaultWhereKind::exchange
-                 : where_name == "rx"     ? FaultWhereKind::rx
-                                          : FaultWhereKind::every;
+    if (spec.where == FaultWhereKind::every && *number == 0) {
+      bad_item(item, "'every:0' never fires; give 1 or more");
+    }
     spec.where_number = *number;
     spec.where_text = std::string(where_name) + ":" + std::to_string(*number);
-  } else if (where_name == "t" || where_name == "p") {
-    const auto number = parse_number(value);
-    if (!number || !std::isfinite(*number) || *number > 1e9 ||
-        (where_name == "p" && *number > 1.0)) {
-      bad_item(item, where_name == "t" ? "'t:' needs session seconds (a number, 0 or more)"
-                                       : "'p:' needs a probability from 0 to 1");
-    }
-    spec.where = where_name == "t" ? FaultWhereKind::time : FaultWhereKind::probability;
-    spec.where_value = *number;
-    spec.where_text = std::string(where_name) + ":" + format_number(*number);
-  } else {
-    bad_item(item, "unknown WHERE '" + std::string(where_name) + "'");
+    return;
   }
+  const bool time = spec.where == FaultWhereKind::time;
+  const auto number = parse_number(value);
+  if (!number || !std::isfinite(*number) || *number > 1e9 || (!time && *number > 1.0)) {
+    bad_item(item, time ? "'t:' needs session seconds (a number, 0 or more)"
+                        : "'p:' needs a probability from 0 to 1");
+  }
+  spec.where_value = *number;
+  spec.where_text = std::string(where_name) + ":" + format_number(*number);
 }
 
 FaultSpec parse_item(std::string_view item) {
@@ -158,20 +160,11 @@ std::string campaign_kind_text(const FaultKindInfo& info) {
   return std::string(info.name) + ":" + std::to_string(info.campaign_amount);
 }
 
-const char* fault_where_name(FaultWhereKind where) {
-  switch (where) {
-    case FaultWhereKind::exchange:
-      return "exchange";
-    case FaultWhereKind::rx:
-      return "rx";
-    case FaultWhereKind::time:
-      return "t";
-    case FaultWhereKind::every:
-      return "every";
-    case FaultWhereKind::probability:
-      return "p";
+const FaultPlaceInfo& fault_place_info(FaultWhereKind where) {
+  for (const FaultPlaceInfo& info : kFaultPlaces) {
+    if (info.where == where) return info;
   }
-  return "exchange";
+  return kFaultPlaces[0];  // every enumerator has a row
 }
 
 std::string normal_fault_kind(std::string_view kind) {

@@ -67,8 +67,22 @@ std::string campaign_kind_text(const FaultKindInfo& info);
 
 enum class FaultWhereKind { exchange, rx, time, every, probability };
 
-// The name WHERE spells a place with (exchange, rx, t, every, p).
-const char* fault_where_name(FaultWhereKind where);
+struct FaultPlaceInfo {
+  const char* name;  // as WHERE spells it: NAME:VALUE
+  FaultWhereKind where;
+  bool counted;  // VALUE is a whole number (where_number), else a number (where_value)
+};
+
+// Every WHERE: the one table the parser and the bindings go by.
+inline constexpr FaultPlaceInfo kFaultPlaces[] = {
+    {"exchange", FaultWhereKind::exchange, true},
+    {"rx", FaultWhereKind::rx, true},
+    {"t", FaultWhereKind::time, false},
+    {"every", FaultWhereKind::every, true},
+    {"p", FaultWhereKind::probability, false},
+};
+
+const FaultPlaceInfo& fault_place_info(FaultWhereKind where);
 
 struct FaultSpec {
   FaultKind kind = FaultKind::drop;
