@@ -15,6 +15,17 @@ constexpr std::uint64_t kDefaultTrickleMs = 1;
 
 std::string bytes_of(const RxItem& item) { return std::string(item.payload()); }
 
+// A record a fault makes: at the time of `model`, in its exchange.
+RxItem made_like(const RxItem& model, RecordKind kind, std::string data) {
+  RxItem made;
+  made.kind = kind;
+  made.data = std::move(data);
+  made.t_ns = model.t_ns;
+  made.due = model.due;
+  made.exchange = model.exchange;
+  return made;
+}
+
 void set_bytes(RxItem& item, std::string bytes) {
   item.view = PayloadView{};
   item.data = std::move(bytes);
@@ -85,6 +96,14 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
     return " in exchange " + std::to_string(exchange) + " (rx byte " +
            std::to_string(offset) + ", " + std::to_string(piece.payload().size()) + " bytes)";
   };
+  // The first piece's bytes become `bytes`; with none left, it is gone.
+  const auto replace_first = [&pieces](std::string bytes) {
+    if (bytes.empty()) {
+      pieces.erase(pieces.begin());
+    } else {
+      set_bytes(pieces.front(), std::move(bytes));
+    }
+  };
   // Firing is decided before this record counts as the exchange's.
   std::vector<std::size_t> firing;
   for (std::size_t i = 0; i < plan_.faults.size(); ++i) {
@@ -127,11 +146,7 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
           bytes.erase(at, n);
           report(spec, exchange, "dropped " + std::to_string(n) + " bytes at rx byte " +
                                      std::to_string(offset + at) + where_in(first));
-          if (bytes.empty()) {
-            pieces.erase(pieces.begin());
-          } else {
-            set_bytes(first, std::move(bytes));
-          }
+          replace_first(std::move(bytes));
         }
         break;
       }
@@ -162,12 +177,7 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
           noise[b] = static_cast<char>(draw(index, exchange, 1000 + b) & 0xff);
         }
         if (datagrams_) {
-          RxItem extra;
-          extra.exchange = exchange;
-        extra.kind = RecordKind::rx;
-          extra.data = std::move(noise);
-          extra.t_ns = first.t_ns;
-          extra.due = first.due;
+          RxItem extra = made_like(first, RecordKind::rx, std::move(noise));
           report(spec, exchange, "sent a datagram of " + std::to_string(n) +
                                      " random bytes before the response" + where_in(first));
           pieces.insert(pieces.begin(), std::move(extra));
@@ -190,21 +200,13 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
                                    " bytes" + where_in(first));
         bytes.resize(keep);
         if (!datagrams_) drop_rest_ = true;
-        if (bytes.empty()) {
-          pieces.erase(pieces.begin());
-        } else {
-          set_bytes(first, std::move(bytes));
-        }
+        replace_first(std::move(bytes));
         break;
       }
       case FaultKind::duplicate: {
         if (!is_rx) break;
-        RxItem copy;
-        copy.exchange = exchange;
-        copy.kind = RecordKind::rx;
-        copy.data = std::string(first.payload().substr(first.consumed));
-        copy.t_ns = first.t_ns;
-        copy.due = first.due;
+        RxItem copy =
+            made_like(first, RecordKind::rx, std::string(first.payload().substr(first.consumed)));
         report(spec, exchange, "sent the record twice" + where_in(first));
         pieces.insert(pieces.begin() + 1, std::move(copy));
         break;
@@ -247,11 +249,7 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
         break;
       case FaultKind::disconnect:
       case FaultKind::reconnect: {
-        RxItem loss;
-        loss.exchange = exchange;
-        loss.kind = RecordKind::device_lost;
-        loss.t_ns = first.t_ns;
-        loss.due = first.due;
+        RxItem loss = made_like(first, RecordKind::device_lost, {});
         std::string text = "the device went away (fault " + spec.kind_text + "@" +
                            spec.where_text + ")";
         if (spec.kind == FaultKind::disconnect) {
@@ -278,12 +276,7 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
     if (trickle_ms_ && piece.kind == RecordKind::rx && !datagrams_) {
       const std::string_view bytes = piece.payload().substr(piece.consumed);
       for (std::size_t b = 0; b < bytes.size(); ++b) {
-        RxItem one;
-        one.exchange = exchange;
-        one.kind = RecordKind::rx;
-        one.data = std::string(1, bytes[b]);
-        one.t_ns = piece.t_ns;
-        one.due = piece.due;
+        RxItem one = made_like(piece, RecordKind::rx, std::string(1, bytes[b]));
         if (b > 0) {
           shift_ += std::chrono::milliseconds(*trickle_ms_);
           one.due += std::chrono::milliseconds(*trickle_ms_) * static_cast<std::int64_t>(b);
