@@ -77,14 +77,15 @@ std::size_t ReplayEngine::read(char* buffer, std::size_t size, ReplayTime now) {
   prepare(now);
   std::size_t copied = 0;
   while (copied < size) {
-    if (const RxItem* loss = stage_.loss(now)) {
-      if (copied > 0) break;
-      throw PortClosed("replay of " + config_.file + ": " + loss->data);
-    }
     if (stage_.empty()) {
       prepare(now);
       if (stage_.empty()) break;
     }
+    if (const RxItem* loss = stage_.loss(now)) {
+      if (copied > 0) break;
+      throw PortClosed("replay of " + config_.file + ": " + loss->data);
+    }
+    if (stage_.empty()) continue;  // a reconnect that is over was dropped
     RxItem& item = stage_.front();
     if (!is_due(item, now)) break;
     if (item.kind != RecordKind::rx) {
