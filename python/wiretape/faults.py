@@ -129,7 +129,7 @@ def _kind_spec(text: str) -> str:
     try:
         return _core.normal_fault_kind(text)
     except _core.OptionError as error:
-        raise FaultInputError(f"{error} (known kinds: {', '.join(KIND_NAMES)})") from None
+        raise FaultInputError(str(error)) from None
 
 
 def check_where(session: str, spec: str, shape: Optional[SessionShape] = None) -> None:
