@@ -103,30 +103,26 @@ def cmd_record(args, out: Output) -> int:
                                          udp=args.udp is not None))
 
 
-_REPLAY_KEYS = ("timing", "speed", "check", "match", "tolerance", "unmatched",
-                "repeat", "unused", "at_end", "profile", "gap")
-
-
 def replay_options_of(args) -> str:
     """The replay keys given as --timing, --speed... plus --options."""
+    from .._core import parse_faults, quote_option_value
+    from ..options import replay_keys
+
     pairs = []
-    for key in _REPLAY_KEYS:
+    for key in replay_keys():
         value = getattr(args, key, None)
         if value is None:
             continue
         if isinstance(value, float):
             value = _format_number(value)
         pairs.append(f"{key}={value}")
-    faults = [item.strip() for spec in (getattr(args, "fault", None) or [])
-              for item in spec.split(";") if item.strip()]
+    # --fault is repeatable and each may hold several items: one plan,
+    # checked by the replay's own parser (a bad item is an OptionError, exit 2).
+    faults = [spec.text for spec in parse_faults(";".join(getattr(args, "fault", None) or []))]
     if faults:
-        from .._core import quote_option_value
-
         pairs.append("faults=" + quote_option_value(";".join(faults)))
     elif getattr(args, "seed", None) is not None:
         raise UsageError("--seed seeds the random choices of --fault: give --fault too")
-    if faults and getattr(args, "seed", None) is not None:
-        pairs.append(f"seed={args.seed}")
     if args.options:
         pairs.append(args.options.strip().strip(","))
     return ",".join(pairs)

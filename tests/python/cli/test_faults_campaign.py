@@ -109,6 +109,15 @@ def test_cases_refuse_unknown_kinds_and_places_past_the_end(session):
         faults.cases(str(session), kinds=["drop@exchange:3"])
 
 
+def test_placed_kinds_are_the_replays_reading_of_them(session):
+    # One case per fault of the item, spelled as the replay reports it.
+    placed = faults.cases(str(session), kinds=["corrupt:04@exchange:1;delay:5@rx:2", "drop"])
+    assert [case.id for case in placed[:2]] == ["corrupt:4@exchange:1", "delay:5@rx:2"]
+    assert [case.id for case in placed[2:]] == [f"drop@exchange:{n}" for n in range(3)]
+    with pytest.raises(faults.FaultInputError, match="'delay:abc'"):
+        faults.cases(str(session), kinds=["delay:abc"])
+
+
 # --- faults= through the Python API and the URL handler ---------------------------------
 
 
