@@ -1,6 +1,6 @@
 """wiretape's C++ core"""
 
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 import datetime
 
 from wiretape import (
@@ -708,8 +708,6 @@ class FaultPlan:
         """seed=, for the faults' random choices."""
 
     def __len__(self) -> int: ...
-
-    def __iter__(self) -> Iterator[FaultSpec]: ...
 
     def __getitem__(self, arg: int, /) -> FaultSpec: ...
 

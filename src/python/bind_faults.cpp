@@ -5,7 +5,6 @@
 #include <string>
 #include <vector>
 
-#include <nanobind/make_iterator.h>
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/string_view.h>
@@ -88,13 +87,8 @@ void bind_faults(nb::module_& m) {
       .def_ro("faults", &FaultPlan::faults, "The items (FaultSpec), in order.")
       .def_ro("seed", &FaultPlan::seed, "seed=, for the faults' random choices.")
       .def("__len__", [](const FaultPlan& plan) { return plan.faults.size(); })
-      .def(
-          "__iter__",
-          [](const FaultPlan& plan) {
-            return nb::make_iterator(nb::type<FaultPlan>(), "FaultPlanIterator",
-                                     plan.faults.begin(), plan.faults.end());
-          },
-          nb::keep_alive<0, 1>())
+      // Iterable by the sequence protocol (__getitem__ to IndexError): an
+      // __iter__ of make_iterator would add a class to FaultPlan on first use.
       .def("__getitem__",
            [](const FaultPlan& plan, std::size_t index) -> const FaultSpec& {
              if (index >= plan.faults.size()) throw nb::index_error("fault plan index out of range");
