@@ -58,13 +58,13 @@ void DeviceSide::open(bool first, const char* why) {
 
 void DeviceSide::open_session_file() {
   if (options_.output.empty()) return;
-  SessionWriterOptions writer_options;
-  writer_options.capture = Capture::wire;
-  writer_options.port_options = options_.device;
-  writer_options.port_type = device_->type();
-  writer_options.metadata = options_.metadata;
-  writer_options.flush_ms = options_.flush_ms;
-  writer_ = std::make_unique<SessionWriter>(options_.output, std::move(writer_options));
+  SessionHeader header = SessionHeader::starting_now();
+  header.capture = Capture::wire;
+  header.port_options = options_.device;
+  header.port_type = device_->type();
+  header.user_metadata = options_.metadata;
+  writer_ = std::make_unique<SessionWriter>(
+      options_.output, header, FlushPolicy{std::chrono::milliseconds(options_.flush_ms)});
   // Time zero is the device's open, which came just before the file.
   record_at(RecordKind::open, 0, json::ObjectWriter().add(event_field::description, description_).str());
 }

@@ -27,7 +27,7 @@ class RecordingPort final : public Port {
   RecordingPort(std::unique_ptr<Port> inner, RecordingConfig config)
       : inner_(std::move(inner)),
         config_(std::move(config)),
-        writer_(config_.path, writer_options(config_, *inner_)),
+        writer_(config_.path, session_header(config_, *inner_), flush_policy(config_)),
         opened_(std::chrono::steady_clock::now()) {
     set_timeout(inner_->timeout());
     set_access(inner_->access());
@@ -201,16 +201,17 @@ class RecordingPort final : public Port {
   }
 
  private:
-  static SessionWriterOptions writer_options(const RecordingConfig& config,
-                                             const Port& inner) {
-    SessionWriterOptions options;
-    options.capture = Capture::client;
-    options.port_options = config.options_text;
-    options.port_type = config.port_type.empty() ? inner.type() : config.port_type;
-    options.metadata = config.metadata;
-    options.flush_ms = config.flush_ms;
-    options.fsync = config.fsync;
-    return options;
+  static SessionHeader session_header(const RecordingConfig& config, const Port& inner) {
+    SessionHeader header = SessionHeader::starting_now();
+    header.capture = Capture::client;
+    header.port_options = config.options_text;
+    header.port_type = config.port_type.empty() ? inner.type() : config.port_type;
+    header.user_metadata = config.metadata;
+    return header;
+  }
+
+  static FlushPolicy flush_policy(const RecordingConfig& config) {
+    return {std::chrono::milliseconds(config.flush_ms), config.fsync};
   }
 
   std::uint64_t now_ns() const {
