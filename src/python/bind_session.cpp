@@ -139,6 +139,26 @@ std::string python_type_name(nb::handle value) {
                                    .attr("__name__"));
 }
 
+// Whether every str in `value` (a str, or a list or dict of them) has a
+// UTF-8 form, which a header's JSON needs.
+bool utf8_encodable(nb::handle value) {
+  if (nb::isinstance<nb::str>(value)) {
+    if (PyUnicode_AsUTF8AndSize(value.ptr(), nullptr) != nullptr) return true;
+    PyErr_Clear();
+    return false;
+  }
+  if (nb::isinstance<nb::dict>(value)) {
+    nb::dict members = nb::borrow<nb::dict>(value);
+    return utf8_encodable(nb::list(members.keys())) && utf8_encodable(nb::list(members.values()));
+  }
+  if (nb::isinstance<nb::list>(value) || nb::isinstance<nb::tuple>(value)) {
+    for (nb::handle item : value) {
+      if (!utf8_encodable(item)) return false;
+    }
+  }
+  return true;
+}
+
 // Whether `value` has the shape of the default member `model`: a str, an int,
 // a list of str or a dict of str to str.
 bool has_member_shape(nb::handle value, nb::handle model) {
@@ -148,6 +168,8 @@ bool has_member_shape(nb::handle value, nb::handle model) {
     }
     return true;
   };
+  // nanobind cannot convert a str holding a lone surrogate either; refused
+  // here with the other shapes, by name.
   if (nb::isinstance<nb::str>(model)) return nb::isinstance<nb::str>(value);
   if (nb::isinstance<nb::list>(model)) {
     return (nb::isinstance<nb::list>(value) || nb::isinstance<nb::tuple>(value)) &&
@@ -185,8 +207,13 @@ void set_header_members(nb::handle header, nb::handle fields) {
                             (expected == "list"   ? "list of str"
                              : expected == "dict" ? "dict of str to str"
                                                   : expected) +
-                            ", not a " + python_type_name(value))
+                            ", not " + python_type_name(value))
                                .c_str());
+    }
+    if (!utf8_encodable(value)) {
+      throw nb::value_error(("SessionHeader member '" + name +
+                             "' is not valid UTF-8 (a lone surrogate)")
+                                .c_str());
     }
     nb::setattr(header, key, value);
   }

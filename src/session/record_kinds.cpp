@@ -202,6 +202,10 @@ std::optional<std::string> event_payload_problem(RecordKind kind, std::string_vi
 
 namespace {
 
+std::string with_article(JsonType type) {
+  return (type == JsonType::integer ? "an " : "a ") + std::string(to_string(type));
+}
+
 JsonType type_of(const EventValue& value) {
   if (std::holds_alternative<bool>(value)) return JsonType::boolean;
   if (std::holds_alternative<std::int64_t>(value)) return JsonType::integer;
@@ -239,9 +243,9 @@ std::string event_payload(RecordKind kind, const EventMembers& members) {
                                   "\" (its members: " + member_list() + ")");
     }
     if (type_of(value) != field->type) {
-      throw std::invalid_argument(name + " event: member \"" + key + "\" must be a " +
-                                  std::string(to_string(field->type)) + ", not a " +
-                                  std::string(to_string(type_of(value))));
+      throw std::invalid_argument(name + " event: member \"" + key + "\" must be " +
+                                  with_article(field->type) + ", not " +
+                                  with_article(type_of(value)));
     }
     for (std::size_t j = 0; j < i; ++j) {
       if (members[j].first == key) {
