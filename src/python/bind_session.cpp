@@ -12,6 +12,7 @@
 #include <nanobind/stl/vector.h>
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
+#include <nanobind/stl/string_view.h>
 
 #include "posix/file_checks.hpp"
 #include "python/bindings.hpp"
@@ -20,6 +21,7 @@
 #include "session/header.hpp"
 #include "session/reader.hpp"
 #include "session/record_kinds.hpp"
+#include "wiretape/cassette_names.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 
@@ -565,6 +567,25 @@ void bind_session(nb::module_& m) {
       "events are dropped. A FIFO or a "
       "device there (through a symbolic link too) is written through. Returns the "
       "number of records written.");
+
+  // Cassette rules (wiretape/cassette_names.hpp), for the pytest plugin.
+  m.attr("MAX_CASSETTE_NAME_LENGTH") = testing::max_cassette_name_length;
+  m.def("safe_file_name", &testing::safe_file_name, "name"_a,
+        "NAME as a cassette's file name: runs of characters but ASCII letters, digits and "
+        "._-=+ become one _, _ and . are trimmed; a name that changed or is longer than "
+        "MAX_CASSETTE_NAME_LENGTH is cut to fit and ends with - and 12 hex digits of its "
+        "SHA-1, so that distinct tests never share a cassette.");
+  m.def("cassette_file_name", &testing::cassette_file_name, "test_name_parts"_a,
+        "A test's cassette file name from its name's parts, outermost first (suite or "
+        "class, then the test with its parameters): joined by '.', made safe, + '.wtape'.");
+  m.def(
+      "cassette_directory",
+      [](nb::handle source_file, const std::string& directory) {
+        return testing::cassette_directory(path_from_python(source_file), directory);
+      },
+      "source_file"_a, "directory"_a = "",
+      "The folder of SOURCE_FILE's cassettes: <its dir>/recordings/<its stem>, or "
+      "<DIRECTORY>/<its stem> when a directory is given.");
 
   m.def(
       "crc32c",
