@@ -96,7 +96,6 @@ struct SessionHeader {
   std::string to_json() const;
 };
 
-
 // Streams records with memory independent of the file's size.
 class SessionReader {
  public:
