@@ -222,7 +222,7 @@ def _jsonl_line(text: str):
 
 
 def _jsonl_records(path: str) -> Iterator[tuple]:
-    """(header dict or None) first, then (kind, t_ns, data) per record.
+    """(SessionHeader or None) first, then (kind, t_ns, data) per record.
 
     Raises SessionError ("PATH:LINE: FIELD: problem", offset = the line's
     first byte) at the first bad line, after yielding every record before it.
