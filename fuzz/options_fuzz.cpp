@@ -1,6 +1,8 @@
 // Fuzzes the option-string parser: any text either parses or raises an
-// OptionError; what parses survives a round trip through to_string(); the
-// typed accessors reject bad values with OptionError only.
+// OptionError; what parses survives a round trip through to_string(); every
+// row of the key table, read by its typed accessor for each of its port
+// types, rejects bad values with OptionError only; finish() and the "did
+// you mean" suggestion accept any key.
 #include <cstdint>
 #include <cstdlib>
 #include <string>
@@ -11,17 +13,17 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);
-  wiretape::Options options;
+  wiretape::Options parsed;
   try {
-    options = wiretape::Options::parse(text);
+    parsed = wiretape::Options::parse(text);
   } catch (const wiretape::OptionError&) {
     return 0;
   }
-  const wiretape::Options again = wiretape::Options::parse(options.to_string());
-  if (again.entries().size() != options.entries().size()) std::abort();
-  for (std::size_t i = 0; i < options.entries().size(); ++i) {
-    if (again.entries()[i].key != options.entries()[i].key ||
-        again.entries()[i].value != options.entries()[i].value) {
+  const wiretape::Options again = wiretape::Options::parse(parsed.to_string());
+  if (again.entries().size() != parsed.entries().size()) std::abort();
+  for (std::size_t i = 0; i < parsed.entries().size(); ++i) {
+    if (again.entries()[i].key != parsed.entries()[i].key ||
+        again.entries()[i].value != parsed.entries()[i].value) {
       std::abort();
     }
   }
@@ -31,12 +33,30 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     } catch (const wiretape::OptionError&) {
     }
   };
-  attempt([&] { options.take_timeout("timeout", wiretape::forever); });
-  attempt([&] { options.take_int("baud", 9600, 1, 4'000'000); });
-  attempt([&] { options.take_bool("fsync", false); });
-  attempt([&] { options.take_double("speed", 1.0, 0.001, 1000.0); });
-  attempt([&] { options.take_choice("parity", "none", {"none", "even", "odd"}); });
-  attempt([&] { options.take_prefixed("meta_"); });
-  attempt([&] { options.finish("serial"); });
+  for (auto type : wiretape::port_types()) {
+    wiretape::Options options = parsed;
+    options.set_port_type(type);
+    attempt([&] { options.resolve_aliases(); });
+    for (const wiretape::OptionKey& key : wiretape::option_keys()) {
+      if (!key.applies_to(type) || !key.alias_of.empty()) continue;
+      const bool has_value = key.required || !key.default_value.empty() || options.has(key.name);
+      if (key.prefix) {
+        attempt([&] { options.take_prefixed(key.name); });
+        continue;
+      }
+      if (!has_value) continue;
+      switch (key.type) {
+        case wiretape::OptionType::boolean: attempt([&] { options.take_bool(key.name); }); break;
+        case wiretape::OptionType::integer: attempt([&] { options.take_int(key.name); }); break;
+        case wiretape::OptionType::number: attempt([&] { options.take_double(key.name); }); break;
+        case wiretape::OptionType::seconds: attempt([&] { options.take_timeout(key.name); }); break;
+        case wiretape::OptionType::choice: attempt([&] { options.take_choice(key.name); }); break;
+        case wiretape::OptionType::text:
+        case wiretape::OptionType::path: attempt([&] { options.take_string(key.name); }); break;
+      }
+    }
+    for (const auto& entry : options.entries()) wiretape::suggest_key(entry.key, type);
+    attempt([&] { options.finish(type); });
+  }
   return 0;
 }

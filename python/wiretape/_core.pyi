@@ -1,6 +1,6 @@
 """wiretape's C++ core"""
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 import datetime
 import os
 
@@ -194,6 +194,79 @@ def quote_option_value(value: str) -> str:
     """
     A value as it is written in an option string: as is, or in double quotes with \\" and \\\\ escaped when it is empty or holds a separator, '=', '"' or '\\\\'.
     """
+
+class OptionKey:
+    """
+    One row of the key table: a key of one or more port types (docs/options.md).
+    """
+
+    @property
+    def name(self) -> str:
+        """the key; with prefix, the prefix ('meta_' for meta_KEY)"""
+
+    @property
+    def port_types(self) -> list[str]:
+        """the port types the key applies to"""
+
+    @property
+    def type(self) -> str:
+        """boolean, integer, number, seconds, choice, text or path"""
+
+    @property
+    def choices(self) -> list[str]:
+        """the valid values of a choice"""
+
+    @property
+    def default(self) -> str | None:
+        """
+        the value when the key is not given, as written in an option string; None when it has none
+        """
+
+    @property
+    def required(self) -> bool: ...
+
+    @property
+    def prefix(self) -> bool:
+        """the key stands for every key starting with name (meta_KEY)"""
+
+    @property
+    def minimum(self) -> object:
+        """the smallest valid integer, number or seconds; None for other types"""
+
+    @property
+    def maximum(self) -> object:
+        """the largest valid integer, number or seconds; None for other types"""
+
+    @property
+    def alias_of(self) -> str:
+        """the key this is flexiport's name of; '' when none"""
+
+    @property
+    def flag(self) -> str:
+        """the wiretape CLI flag that mirrors the key; '' when none"""
+
+    @property
+    def help(self) -> str: ...
+
+    def applies_to(self, port_type: str) -> bool: ...
+
+    def __repr__(self) -> str: ...
+
+def option_keys() -> list[OptionKey]:
+    """Every key of every port type (the key table), common keys first."""
+
+def port_types() -> list[str]:
+    """
+    The port types an option string can open (type= after flexiport's spellings).
+    """
+
+def parse_options(text: str) -> list[tuple[str, str]]:
+    """
+    An option string's (key, value) pairs in order, values unquoted, a bare key as '1'. Raises OptionError as open_port() would for bad syntax (a key given twice included).
+    """
+
+def suggest_key(name: str, port_type: str) -> str | None:
+    """The key of port_type nearest to the unknown name (a typo), or None."""
 
 def device_options(device: str) -> str:
     """
@@ -665,4 +738,90 @@ def hex_ascii(data: bytes) -> str:
 def escape_bytes(data: bytes, limit: int = 64) -> str:
     """
     The bytes as one line of terminal-safe text: printable ASCII kept, a backslash doubled, \\n \\r \\t and \\xNN for every other byte (ESC included); beyond `limit` bytes, '... (+N bytes)'.
+    """
+
+class FaultKind:
+    """A kind of fault (docs/faults.md)."""
+
+    @property
+    def name(self) -> str:
+        """Its name in KIND (drop, delay, ...)."""
+
+    @property
+    def amount(self) -> str:
+        """Whether it takes ':N': 'none', 'optional' or 'required'."""
+
+    @property
+    def campaign(self) -> str:
+        """The KIND a campaign injects (delay:500 for delay, drop for drop)."""
+
+    def __repr__(self) -> str: ...
+
+class FaultSpec:
+    """One KIND@WHERE of a fault plan."""
+
+    @property
+    def kind(self) -> str:
+        """The kind's name (drop, corrupt, ...)."""
+
+    @property
+    def amount(self) -> int | None:
+        """The :N or :MS given, or None."""
+
+    @property
+    def where(self) -> str:
+        """The place's name: exchange, rx, t, every or p."""
+
+    @property
+    def number(self) -> int | None:
+        """N of exchange:N, rx:N and every:N; None for t: and p:."""
+
+    @property
+    def value(self) -> float | None:
+        """The seconds of t: or the probability of p:; None for the others."""
+
+    @property
+    def kind_text(self) -> str:
+        """KIND in its normal spelling (corrupt:4)."""
+
+    @property
+    def where_text(self) -> str:
+        """WHERE in its normal spelling (exchange:3)."""
+
+    @property
+    def text(self) -> str:
+        """The item as written (without surrounding spaces)."""
+
+    def __repr__(self) -> str: ...
+
+class FaultPlan:
+    """faults= parsed: its items in order, and the seed."""
+
+    @property
+    def faults(self) -> list[FaultSpec]:
+        """The items (FaultSpec), in order."""
+
+    @property
+    def seed(self) -> int:
+        """seed=, for the faults' random choices."""
+
+    def __len__(self) -> int: ...
+
+    def __iter__(self) -> Iterator[FaultSpec]: ...
+
+    def __getitem__(self, arg: int, /) -> FaultSpec: ...
+
+    def __repr__(self) -> str: ...
+
+def fault_kinds() -> list[FaultKind]:
+    """Every fault kind, in the order a campaign injects them."""
+
+def parse_faults(text: str, seed: int = 0) -> FaultPlan:
+    """
+    Parses faults= (KIND@WHERE[;KIND@WHERE...]) as a replay does. Raises OptionError naming the key 'faults', the item and the grammar.
+    """
+
+def normal_fault_kind(kind: str) -> str:
+    """
+    One KIND (drop, corrupt:4, delay:500) in its normal spelling. Raises OptionError naming the kind and the grammar.
     """

@@ -4,6 +4,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstdlib>
+#include <stdexcept>
 
 #include "util/hex.hpp"
 #include "wiretape/errors.hpp"
@@ -45,18 +46,25 @@ std::string shown(std::string_view text) {
   return out + "'";
 }
 
-// Every key some port type understands, to tell "does not apply to this type"
-// apart from "unknown".
-const std::vector<std::string_view>& all_known_keys() {
-  static const std::vector<std::string_view> keys = {
-      "type", "timeout", "access", "readonly", "writeonly", "readwrite", "log",
-      "flush_ms", "fsync", "log_errors", "debug", "device", "baud", "databits",
-      "stopbits", "parity", "flow", "hwflowctrl", "exclusive", "host", "ip",
-      "port", "listen", "nodelay", "bind_host", "bind_port", "dest_ip",
-      "dest_port", "recv_ip", "recv_port", "link", "file", "timing", "speed",
-      "check", "strictness", "tolerance", "jitter", "ignoretimes", "match",
-      "unmatched", "repeat", "unused", "at_end"};
-  return keys;
+// What a key's row says is valid, for the messages of bad values.
+std::string integer_range(const OptionKey& row) {
+  return "a whole number from " + std::to_string(row.min_integer) + " to " +
+         std::to_string(row.max_integer);
+}
+
+std::string number_range(const OptionKey& row) {
+  auto shown_number = [](double value) {
+    std::string text = std::to_string(value);
+    text.erase(text.find_last_not_of('0') + 1);
+    if (!text.empty() && text.back() == '.') text.pop_back();
+    return text;
+  };
+  return "a number from " + shown_number(row.min_number) + " to " +
+         shown_number(row.max_number);
+}
+
+std::vector<std::string> names_of(const std::vector<std::string_view>& views) {
+  return {views.begin(), views.end()};
 }
 
 // A NUL byte cuts a value short where it reaches the OS as a C string (a
@@ -190,7 +198,6 @@ void Options::erase(std::string_view key) {
 }
 
 void Options::alias(std::string_view alias, std::string_view canonical) {
-  declared_.emplace_back(alias);
   const Entry* old_name = find(alias);
   if (!old_name) return;
   if (has(canonical)) {
@@ -204,97 +211,152 @@ void Options::alias(std::string_view alias, std::string_view canonical) {
   set(canonical, std::move(value));
 }
 
+void Options::set_port_type(std::string_view port_type) { port_type_ = std::string(port_type); }
+
+void Options::resolve_aliases() {
+  for (const OptionKey& key : option_keys()) {
+    if (!key.alias_of.empty() && key.applies_to(port_type_)) alias(key.name, key.alias_of);
+  }
+}
+
+const OptionKey& Options::row(std::string_view key, OptionType type) const {
+  const OptionKey* found = nullptr;
+  for (const OptionKey& candidate : option_keys()) {
+    if (candidate.name != key) continue;
+    if (candidate.applies_to(port_type_)) {
+      found = &candidate;
+      break;
+    }
+    if (port_type_.empty() && !found) found = &candidate;
+  }
+  // Paths are text to whoever reads them as text.
+  const bool fits = found && (found->type == type || (type == OptionType::text &&
+                                                       found->type == OptionType::path));
+  if (!fits) {
+    throw std::logic_error("option key '" + std::string(key) + "' is read as " +
+                           wiretape::to_string(type) + " but the key table " +
+                           (found ? std::string("says ") + wiretape::to_string(found->type)
+                                  : std::string("has no such key")) +
+                           " for type=" + port_type_);
+  }
+  return *found;
+}
+
 std::optional<std::string> Options::take(std::string_view key) {
-  declared_.emplace_back(key);
   const Entry* entry = find(key);
   if (!entry) return std::nullopt;
   consumed_.emplace(key);
   return entry->value;
 }
 
-std::string Options::take_string(std::string_view key, std::string fallback) {
-  auto value = take(key);
-  return value ? *value : std::move(fallback);
+namespace {
+
+// The value of `row`: given, or the row's default. Nothing when neither; a
+// required key missing is an OptionError.
+std::optional<std::string> value_or_default(std::optional<std::string> given,
+                                            const OptionKey& row,
+                                            std::string_view port_type) {
+  if (row.required && (!given || given->empty())) {
+    const std::string key(row.name);
+    throw OptionError(key, "missing option '" + key + "'" +
+                               (port_type.empty() ? std::string()
+                                                  : " for type=" + std::string(port_type)) +
+                               " (" + key + "=...: " + std::string(row.help) +
+                               (row.type == OptionType::integer ? ", " + integer_range(row)
+                                                                : std::string()) +
+                               ")");
+  }
+  if (given) return given;
+  if (!row.default_value.empty()) return std::string(row.default_value);
+  return std::nullopt;
+}
+
+std::string no_default(const OptionKey& row) {
+  return "option key '" + std::string(row.name) +
+         "' has no default in the key table: check that it is given first";
+}
+
+}  // namespace
+
+std::string Options::take_string(std::string_view key) {
+  const OptionKey& key_row = row(key, OptionType::text);
+  return value_or_default(take(key), key_row, port_type_).value_or("");
 }
 
 std::string Options::take_required(std::string_view key) {
-  auto value = take(key);
-  if (!value || value->empty()) {
-    throw OptionError(std::string(key),
-                      "missing option '" + std::string(key) + "' (" +
-                          std::string(key) + "=...)");
+  const OptionKey& key_row = row(key, OptionType::text);
+  if (!key_row.required) {
+    throw std::logic_error("option key '" + std::string(key) +
+                           "' is not required in the key table");
   }
-  return *value;
+  return *value_or_default(take(key), key_row, port_type_);
 }
 
-bool Options::take_bool(std::string_view key, bool fallback) {
-  auto value = take(key);
-  if (!value) return fallback;
-  const std::string v = lower(*value);
-  if (v == "1" || v == "true" || v == "yes" || v == "on") return true;
-  if (v == "0" || v == "false" || v == "no" || v == "off") return false;
+bool Options::take_bool(std::string_view key) {
+  const OptionKey& key_row = row(key, OptionType::boolean);
+  const auto value = value_or_default(take(key), key_row, port_type_);
+  if (!value) throw std::logic_error(no_default(key_row));
+  if (const auto parsed = parse_bool(*value)) return *parsed;
   throw OptionError(std::string(key),
                     "option '" + std::string(key) + "': " + shown(*value) +
                         " is not a boolean; use true/false, yes/no, on/off or "
                         "1/0");
 }
 
-std::int64_t Options::take_int(std::string_view key, std::int64_t fallback,
-                               std::int64_t min, std::int64_t max) {
-  auto value = take(key);
-  if (!value) return fallback;
+std::int64_t Options::take_int(std::string_view key) {
+  const OptionKey& key_row = row(key, OptionType::integer);
+  const auto value = value_or_default(take(key), key_row, port_type_);
+  if (!value) throw std::logic_error(no_default(key_row));
   errno = 0;
   char* end = nullptr;
   const long long parsed = std::strtoll(value->c_str(), &end, 10);
-  if (value->empty() || *end != '\0' || errno == ERANGE || parsed < min ||
-      parsed > max) {
-    throw OptionError(std::string(key),
-                      "option '" + std::string(key) + "': " + shown(*value) +
-                          " is not a whole number from " + std::to_string(min) +
-                          " to " + std::to_string(max));
+  if (value->empty() || *end != '\0' || errno == ERANGE || parsed < key_row.min_integer ||
+      parsed > key_row.max_integer) {
+    throw OptionError(std::string(key), "option '" + std::string(key) + "': " +
+                                            shown(*value) + " is not " +
+                                            integer_range(key_row));
   }
   return parsed;
 }
 
-double Options::take_double(std::string_view key, double fallback, double min,
-                            double max) {
-  auto value = take(key);
-  if (!value) return fallback;
+double Options::take_double(std::string_view key) {
+  const OptionKey& key_row = row(key, OptionType::number);
+  const auto value = value_or_default(take(key), key_row, port_type_);
+  if (!value) throw std::logic_error(no_default(key_row));
   char* end = nullptr;
   const double parsed = std::strtod(value->c_str(), &end);
   if (value->empty() || *end != '\0' || !std::isfinite(parsed) ||
-      parsed < min || parsed > max) {
-    throw OptionError(std::string(key),
-                      "option '" + std::string(key) + "': " + shown(*value) +
-                          " is not a number from " + std::to_string(min) +
-                          " to " + std::to_string(max));
+      parsed < key_row.min_number || parsed > key_row.max_number) {
+    throw OptionError(std::string(key), "option '" + std::string(key) + "': " +
+                                            shown(*value) + " is not " +
+                                            number_range(key_row));
   }
   return parsed;
 }
 
-std::string Options::take_choice(std::string_view key, std::string fallback,
-                                 std::initializer_list<std::string_view> choices) {
-  auto value = take(key);
-  if (!value) return fallback;
+std::string Options::take_choice(std::string_view key) {
+  const OptionKey& key_row = row(key, OptionType::choice);
+  const auto value = value_or_default(take(key), key_row, port_type_);
+  if (!value) throw std::logic_error(no_default(key_row));
   const std::string v = lower(*value);
-  for (auto choice : choices) {
+  for (auto choice : key_row.choices) {
     if (v == choice) return v;
   }
-  std::vector<std::string> valid(choices.begin(), choices.end());
   throw OptionError(std::string(key), "option '" + std::string(key) + "': " +
                                           shown(*value) + " is not one of " +
-                                          join(valid));
+                                          join(names_of(key_row.choices)));
 }
 
-Timeout Options::take_timeout(std::string_view key, Timeout fallback) {
-  auto value = take(key);
-  if (!value) return fallback;
+Timeout Options::take_timeout(std::string_view key) {
+  const OptionKey& key_row = row(key, OptionType::seconds);
+  const auto value = value_or_default(take(key), key_row, port_type_);
+  if (!value) throw std::logic_error(no_default(key_row));
   const std::string v = lower(*value);
   if (v == "none" || v == "-1" || v == "forever") return forever;
   char* end = nullptr;
   const double seconds = std::strtod(v.c_str(), &end);
-  if (v.empty() || *end != '\0' || !std::isfinite(seconds) || seconds < 0 ||
-      seconds > 1e9) {
+  if (v.empty() || *end != '\0' || !std::isfinite(seconds) ||
+      seconds < key_row.min_number || seconds > key_row.max_number) {
     throw OptionError(std::string(key),
                       "option '" + std::string(key) + "': " + shown(*value) +
                           " is not a timeout; give seconds (e.g. 0.5), 0 to "
@@ -305,7 +367,6 @@ Timeout Options::take_timeout(std::string_view key, Timeout fallback) {
 
 std::map<std::string, std::string> Options::take_prefixed(
     std::string_view prefix) {
-  declared_.push_back(std::string(prefix) + "KEY");
   std::map<std::string, std::string> out;
   for (const auto& entry : entries_) {
     if (entry.key.size() > prefix.size() &&
@@ -321,22 +382,57 @@ void Options::finish(std::string_view type) const {
   for (const auto& entry : entries_) {
     if (consumed_.count(entry.key)) continue;
     std::vector<std::string> valid;
-    for (const auto& key : declared_) {
-      if (std::find(valid.begin(), valid.end(), key) == valid.end()) {
-        valid.push_back(key);
+    for (const OptionKey& key : option_keys()) {
+      if (!key.applies_to(type)) continue;
+      std::string name = std::string(key.name) + (key.prefix ? "KEY" : "");
+      if (std::find(valid.begin(), valid.end(), name) == valid.end()) valid.push_back(name);
+    }
+    const bool elsewhere =
+        std::any_of(option_keys().begin(), option_keys().end(), [&](const OptionKey& key) {
+          return key.prefix ? entry.key.size() > key.name.size() &&
+                                  std::string_view(entry.key).substr(0, key.name.size()) ==
+                                      key.name
+                            : entry.key == key.name;
+        });
+    std::string message;
+    if (elsewhere) {
+      message = "option '" + entry.key + "' does not apply to type=" + std::string(type);
+    } else {
+      message = "unknown option " + shown(entry.key);
+      if (const auto near = suggest_key(entry.key, type)) {
+        message += "; did you mean '" + *near + "'?";
       }
     }
-    const auto& known = all_known_keys();
-    const bool elsewhere =
-        std::find(known.begin(), known.end(), entry.key) != known.end();
-    throw OptionError(entry.key,
-                      (elsewhere ? "option '" + entry.key +
-                                       "' does not apply to type=" +
-                                       std::string(type)
-                                 : "unknown option " + shown(entry.key)) +
-                          "; valid keys for type=" + std::string(type) +
-                          ": " + join(valid));
+    throw OptionError(entry.key, message + "; valid keys for type=" + std::string(type) +
+                                     ": " + join(valid));
   }
+}
+
+std::vector<Options::Entry> parse_options(std::string_view text) {
+  return Options::parse(text).entries();
+}
+
+std::optional<bool> parse_bool(std::string_view text) {
+  const std::string v = lower(text);
+  if (v == "1" || v == "true" || v == "yes" || v == "on") return true;
+  if (v == "0" || v == "false" || v == "no" || v == "off") return false;
+  return std::nullopt;
+}
+
+std::optional<Parity> parse_parity(std::string_view text) {
+  const std::string v = lower(text);
+  for (Parity parity : {Parity::none, Parity::even, Parity::odd, Parity::mark, Parity::space}) {
+    if (v == to_string(parity)) return parity;
+  }
+  return std::nullopt;
+}
+
+std::optional<FlowControl> parse_flow_control(std::string_view text) {
+  const std::string v = lower(text);
+  for (FlowControl flow : {FlowControl::none, FlowControl::rtscts, FlowControl::xonxoff}) {
+    if (v == to_string(flow)) return flow;
+  }
+  return std::nullopt;
 }
 
 std::string quote_option_value(std::string_view value) {

@@ -7,7 +7,7 @@
 #include <deque>
 #include <mutex>
 
-#include "core/open_port.hpp"
+#include "ports/ports.hpp"
 #include "posix/fd_port.hpp"
 #include "posix/syscalls.hpp"
 #include "wiretape/errors.hpp"

@@ -11,7 +11,7 @@
 #include <mutex>
 #include <string>
 
-#include "core/open_port.hpp"
+#include "ports/ports.hpp"
 #include "session/record_kinds.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"

@@ -10,7 +10,7 @@
 #include <cstdlib>
 #include <vector>
 
-#include "core/open_port.hpp"
+#include "posix/transports.hpp"
 #include "posix/fd_port.hpp"
 #include "posix/platform.hpp"
 #include "posix/pty_terminal.hpp"
@@ -166,7 +166,7 @@ std::size_t terminal_unread(const Port& port) {
 }
 
 std::unique_ptr<Port> open_pty(Options& options) {
-  const std::string link = options.take_string("link", "");
+  const std::string link = options.take_string("link");
   options.finish("pty");
 
   sys::UniqueFd master(sys::posix_openpt(O_RDWR | O_NOCTTY));

@@ -7,7 +7,7 @@
 #include <mutex>
 #include <thread>
 
-#include "core/open_port.hpp"
+#include "posix/transports.hpp"
 #include "posix/fd_port.hpp"
 #include "posix/termios_settings.hpp"
 #include "wiretape/errors.hpp"
@@ -120,42 +120,27 @@ class SerialPort final : public FdPort {
   const bool exclusive_;
 };
 
-Parity parse_parity(const std::string& text) {
-  if (text == "even") return Parity::even;
-  if (text == "odd") return Parity::odd;
-  if (text == "mark") return Parity::mark;
-  if (text == "space") return Parity::space;
-  return Parity::none;
-}
-
 }  // namespace
 
 std::unique_ptr<Port> open_serial(Options& options) {
   const std::string device = options.take_required("device");
   SerialSettings settings;
-  settings.baud = static_cast<unsigned>(
-      options.take_int("baud", 9600, 1, 100'000'000));
-  settings.data_bits = static_cast<int>(options.take_int("databits", 8, 5, 8));
-  settings.stop_bits = static_cast<int>(options.take_int("stopbits", 1, 1, 2));
-  settings.parity = parse_parity(options.take_choice(
-      "parity", "none", {"none", "even", "odd", "mark", "space"}));
+  settings.baud = static_cast<unsigned>(options.take_int("baud"));
+  settings.data_bits = static_cast<int>(options.take_int("databits"));
+  settings.stop_bits = static_cast<int>(options.take_int("stopbits"));
+  // take_choice checked the name against the table, whose choices are these.
+  settings.parity = parse_parity(options.take_choice("parity")).value_or(Parity::none);
   // flexiport's spelling of RTS/CTS flow control.
   if (options.has("hwflowctrl")) {
     if (options.has("flow")) {
       throw OptionError("hwflowctrl", "options 'hwflowctrl' and 'flow' mean "
                                       "the same thing; give only one");
     }
-    const bool hardware = options.take_bool("hwflowctrl", false);
-    options.set("flow", hardware ? "rtscts" : "none");
-  } else {
-    options.take("hwflowctrl");  // declares it valid for the error messages
+    const bool hardware = options.take_bool("hwflowctrl");
+    options.set("flow", to_string(hardware ? FlowControl::rtscts : FlowControl::none));
   }
-  const std::string flow =
-      options.take_choice("flow", "none", {"none", "rtscts", "xonxoff"});
-  settings.flow = flow == "rtscts"    ? FlowControl::rtscts
-                  : flow == "xonxoff" ? FlowControl::xonxoff
-                                      : FlowControl::none;
-  const bool exclusive = options.take_bool("exclusive", true);
+  settings.flow = parse_flow_control(options.take_choice("flow")).value_or(FlowControl::none);
+  const bool exclusive = options.take_bool("exclusive");
   options.finish("serial");  // reject bad keys before touching the device
 
   const std::string where = "serial " + device;

@@ -7,7 +7,7 @@
 #include <chrono>
 #include <cstdio>
 
-#include "core/open_port.hpp"
+#include "posix/transports.hpp"
 #include "posix/socket_port.hpp"
 #include "wiretape/errors.hpp"
 
@@ -124,16 +124,11 @@ sys::UniqueFd accept_one(const std::string& host, int port, Timeout timeout,
 }  // namespace
 
 std::unique_ptr<Port> open_tcp(Options& options) {
-  options.alias("ip", "host");
-  const std::string host = options.take_string("host", "127.0.0.1");
-  const int port = static_cast<int>(options.take_int("port", 0, 1, 65535));
-  if (!options.has("port")) {
-    throw OptionError("port", "missing option 'port' for type=tcp (port=N, "
-                              "1 to 65535)");
-  }
-  const bool listen = options.take_bool("listen", false);
-  const bool nodelay = options.take_bool("nodelay", true);
-  const Timeout timeout = options.take_timeout("timeout", forever);
+  const std::string host = options.take_string("host");
+  const int port = static_cast<int>(options.take_int("port"));
+  const bool listen = options.take_bool("listen");
+  const bool nodelay = options.take_bool("nodelay");
+  const Timeout timeout = options.take_timeout("timeout");
   options.finish("tcp");  // reject bad keys before connecting or listening
 
   const std::string endpoint = host + ":" + std::to_string(port);

@@ -7,7 +7,7 @@
 #include <cstring>
 #include <mutex>
 
-#include "core/open_port.hpp"
+#include "posix/transports.hpp"
 #include "posix/platform.hpp"
 #include "posix/socket_port.hpp"
 #include "wiretape/errors.hpp"
@@ -71,15 +71,10 @@ class UdpPort final : public SocketPort {
 }  // namespace
 
 std::unique_ptr<Port> open_udp(Options& options) {
-  options.alias("dest_ip", "host");
-  options.alias("dest_port", "port");
-  options.alias("recv_ip", "bind_host");
-  options.alias("recv_port", "bind_port");
-  const std::string host = options.take_string("host", "127.0.0.1");
-  const int port = static_cast<int>(options.take_int("port", 0, 0, 65535));
-  const std::string bind_host = options.take_string("bind_host", "0.0.0.0");
-  const int bind_port =
-      static_cast<int>(options.take_int("bind_port", 0, 0, 65535));
+  const std::string host = options.take_string("host");
+  const int port = static_cast<int>(options.take_int("port"));
+  const std::string bind_host = options.take_string("bind_host");
+  const int bind_port = static_cast<int>(options.take_int("bind_port"));
   if (port == 0 && options.has("host")) {
     throw OptionError("port", "option 'host' for type=udp needs 'port' (the "
                               "destination port, 1 to 65535)");

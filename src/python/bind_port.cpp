@@ -14,16 +14,19 @@
 #include <string>
 #include <string_view>
 
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/pair.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/string_view.h>
 #include <nanobind/stl/unique_ptr.h>
+#include <nanobind/stl/vector.h>
 
 #include "replay/replay_port.hpp"
 
 #include "python/bindings.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/options.hpp"
-#include "core/open_port.hpp"
+#include "open_port.hpp"
 #include "wiretape/port.hpp"
 
 namespace nb = nanobind;
@@ -399,6 +402,18 @@ the port's own `timeout`. Ctrl-C interrupts a blocked read. One reader and
 one writer may run at once on different threads; close() from another thread
 wakes a blocked read, which then raises PortClosed.)";
 
+// An integer, number or seconds key's smallest or largest valid value, as a
+// Python int or float; None for the other value types.
+nb::object range_end(const OptionKey& key, bool largest) {
+  if (key.type == OptionType::integer) {
+    return nb::int_(largest ? key.max_integer : key.min_integer);
+  }
+  if (key.type == OptionType::number || key.type == OptionType::seconds) {
+    return nb::float_(largest ? key.max_number : key.min_number);
+  }
+  return nb::none();
+}
+
 }  // namespace
 
 void bind_port(nb::module_& m) {
@@ -552,6 +567,71 @@ void bind_port(nb::module_& m) {
         "A value as it is written in an option string: as is, or in double "
         "quotes with \\\" and \\\\ escaped when it is empty or holds a "
         "separator, '=', '\"' or '\\\\'.");
+  nb::class_<OptionKey>(m, "OptionKey",
+                        "One row of the key table: a key of one or more port types "
+                        "(docs/options.md).")
+      .def_prop_ro("name", [](const OptionKey& key) { return key.name; },
+                   "the key; with prefix, the prefix ('meta_' for meta_KEY)")
+      .def_prop_ro("port_types",
+                   [](const OptionKey& key) {
+                     return std::vector<std::string>(key.port_types.begin(),
+                                                     key.port_types.end());
+                   },
+                   "the port types the key applies to")
+      .def_prop_ro("type", [](const OptionKey& key) { return std::string(to_string(key.type)); },
+                   "boolean, integer, number, seconds, choice, text or path")
+      .def_prop_ro("choices",
+                   [](const OptionKey& key) {
+                     return std::vector<std::string>(key.choices.begin(), key.choices.end());
+                   },
+                   "the valid values of a choice")
+      .def_prop_ro("default",
+                   [](const OptionKey& key) -> std::optional<std::string> {
+                     if (key.default_value.empty()) return std::nullopt;
+                     return std::string(key.default_value);
+                   },
+                   "the value when the key is not given, as written in an option "
+                   "string; None when it has none")
+      .def_prop_ro("required", [](const OptionKey& key) { return key.required; })
+      .def_prop_ro("prefix", [](const OptionKey& key) { return key.prefix; },
+                   "the key stands for every key starting with name (meta_KEY)")
+      .def_prop_ro("minimum", [](const OptionKey& key) { return range_end(key, false); },
+                   "the smallest valid integer, number or seconds; None for other types")
+      .def_prop_ro("maximum", [](const OptionKey& key) { return range_end(key, true); },
+                   "the largest valid integer, number or seconds; None for other types")
+      .def_prop_ro("alias_of", [](const OptionKey& key) { return key.alias_of; },
+                   "the key this is flexiport's name of; '' when none")
+      .def_prop_ro("flag", [](const OptionKey& key) { return key.flag; },
+                   "the wiretape CLI flag that mirrors the key; '' when none")
+      .def_prop_ro("help", [](const OptionKey& key) { return key.help; })
+      .def("applies_to", &OptionKey::applies_to, "port_type"_a)
+      .def("__repr__", [](const OptionKey& key) {
+        return "<OptionKey " + std::string(key.name) + " of " +
+               std::string(key.port_types.front()) + (key.port_types.size() > 1 ? ", ...>" : ">");
+      });
+  m.def("option_keys", [] { return option_keys(); },
+        "Every key of every port type (the key table), common keys first.");
+  m.def("port_types",
+        [] { return std::vector<std::string>(port_types().begin(), port_types().end()); },
+        "The port types an option string can open (type= after flexiport's spellings).");
+  m.def("parse_options",
+        [](std::string_view text) {
+          std::vector<std::pair<std::string, std::string>> pairs;
+          for (auto& entry : parse_options(text)) {
+            pairs.emplace_back(std::move(entry.key), std::move(entry.value));
+          }
+          return pairs;
+        },
+        "text"_a,
+        "An option string's (key, value) pairs in order, values unquoted, a bare "
+        "key as '1'. Raises OptionError as open_port() would for bad syntax (a "
+        "key given twice included).");
+  m.def("suggest_key",
+        [](std::string_view name, std::string_view port_type) {
+          return suggest_key(name, port_type);
+        },
+        "name"_a, "port_type"_a,
+        "The key of port_type nearest to the unknown name (a typo), or None.");
   m.def("device_options",
         [](std::string_view device) { return device_options(device); }, "device"_a,
         "The option string a device setting stands for: a bare path (no '=') "

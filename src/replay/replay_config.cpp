@@ -1,7 +1,6 @@
 #include "replay/replay_config.hpp"
 
 #include <cmath>
-#include <limits>
 
 #include "replay/profiles/declared.hpp"
 #include "replay/faults.hpp"
@@ -24,6 +23,7 @@ Enum pick(const std::string& value,
 
 ReplayConfig take_replay_config(Options& options) {
   ReplayConfig config;
+  options.set_port_type("replay");
   config.file = options.take_required("file");
   if (config.file.empty()) {
     throw OptionError("file",
@@ -33,9 +33,8 @@ ReplayConfig take_replay_config(Options& options) {
 
   // timing, and flexiport's ignoretimes (= timing=none).
   const bool timing_given = options.has("timing");
-  const std::string timing =
-      options.take_choice("timing", "causal", {"none", "session", "causal"});
-  const bool ignore_times = options.take_bool("ignoretimes", false);
+  const std::string timing = options.take_choice("timing");
+  const bool ignore_times = options.take_bool("ignoretimes");
   if (ignore_times && timing_given && timing != "none") {
     throw OptionError("ignoretimes",
                       "options 'ignoretimes' and 'timing=" + timing +
@@ -46,7 +45,7 @@ ReplayConfig take_replay_config(Options& options) {
                                : pick<ReplayTiming>(timing, {{"causal", ReplayTiming::causal},
                                                              {"none", ReplayTiming::none},
                                                              {"session", ReplayTiming::session}});
-  config.speed = options.take_double("speed", 1.0, 1e-6, 1e6);
+  config.speed = options.take_double("speed");
 
   // check, and flexiport's strictness=0|1|2.
   const bool check_given = options.has("check");
@@ -56,18 +55,15 @@ ReplayConfig take_replay_config(Options& options) {
                       "options 'check' and 'strictness' say the same thing "
                       "(strictness=0|1|2 is check=off|data|timing); give one");
   }
-  const std::string check =
-      options.take_choice("check", "data", {"off", "data", "timing"});
+  const std::string check = options.take_choice("check");
   config.check = pick<ReplayCheck>(check, {{"data", ReplayCheck::data},
                                            {"off", ReplayCheck::off},
                                            {"timing", ReplayCheck::timing}});
   if (strictness_given) {
-    const auto strictness = options.take_int("strictness", 1, 0, 2);
+    const auto strictness = options.take_int("strictness");
     config.check = strictness == 0   ? ReplayCheck::off
                    : strictness == 1 ? ReplayCheck::data
                                      : ReplayCheck::timing;
-  } else {
-    options.take_int("strictness", 1, 0, 2);  // declares the key as valid
   }
 
   // tolerance in milliseconds, and flexiport's jitter in microseconds (what
@@ -79,26 +75,24 @@ ReplayConfig take_replay_config(Options& options) {
                       "options 'tolerance' (milliseconds) and 'jitter' "
                       "(flexiport's, microseconds) say the same thing; give one");
   }
-  const double tolerance_ms = options.take_double("tolerance", 100.0, 0.0, 1e9);
-  const auto jitter_us = options.take_int(
-      "jitter", 0, 0, std::numeric_limits<std::int64_t>::max() / 1000);
+  const double tolerance_ms = options.take_double("tolerance");
   config.tolerance =
-      jitter_given ? std::chrono::nanoseconds(jitter_us * 1000)
+      jitter_given ? std::chrono::nanoseconds(options.take_int("jitter") * 1000)
                    : std::chrono::nanoseconds(
                          static_cast<std::int64_t>(std::llround(tolerance_ms * 1e6)));
 
   config.match = pick<ReplayMatch>(
-      options.take_choice("match", "sequence", {"sequence", "request"}),
+      options.take_choice("match"),
       {{"sequence", ReplayMatch::sequence}, {"request", ReplayMatch::request}});
   config.unmatched = pick<ReplayUnmatched>(
-      options.take_choice("unmatched", "error", {"error", "silent"}),
+      options.take_choice("unmatched"),
       {{"error", ReplayUnmatched::error}, {"silent", ReplayUnmatched::silent}});
   config.repeat = pick<ReplayRepeat>(
-      options.take_choice("repeat", "none", {"none", "last", "cycle"}),
+      options.take_choice("repeat"),
       {{"none", ReplayRepeat::none},
        {"last", ReplayRepeat::last},
        {"cycle", ReplayRepeat::cycle}});
-  const double gap_ms = options.take_double("gap", 50.0, 0.0, 1e9);
+  const double gap_ms = options.take_double("gap");
   config.gap = std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(gap_ms * 1e6)));
   if (const auto name = options.peek("profile")) {
     if (options.has("framing")) {
@@ -108,7 +102,7 @@ ReplayConfig take_replay_config(Options& options) {
     }
     config.profile = find_profile(std::string(*name));
   }
-  options.take_string("profile", "");
+  options.take_string("profile");
   if (auto declared = take_declared_profile(options)) config.profile = std::move(declared);
   if (config.profile && config.match == ReplayMatch::sequence &&
       config.profile->make_framer(StreamDirection::tx)->quiet_gap()) {
@@ -117,19 +111,18 @@ ReplayConfig take_replay_config(Options& options) {
                       "match=sequence the client's last frame would never end");
   }
   config.unused = pick<ReplayUnused>(
-      options.take_choice("unused", "warn", {"ignore", "warn", "error"}),
+      options.take_choice("unused"),
       {{"warn", ReplayUnused::warn},
        {"ignore", ReplayUnused::ignore},
        {"error", ReplayUnused::error}});
   config.at_end = pick<ReplayAtEnd>(
-      options.take_choice("at_end", "silent", {"silent", "closed"}),
+      options.take_choice("at_end"),
       {{"silent", ReplayAtEnd::silent}, {"closed", ReplayAtEnd::closed}});
 
-  // Fault injection: parsed here so that a bad plan fails at open.
-  config.faults = options.take_string("faults", "");
-  config.seed = static_cast<std::uint64_t>(
-      options.take_int("seed", 0, 0, std::numeric_limits<std::int64_t>::max()));
-  parse_faults(config.faults, config.seed);
+  // Fault injection: parsed once, here, so that a bad plan fails at open.
+  const std::string faults = options.take_string("faults");
+  const auto seed = static_cast<std::uint64_t>(options.take_int("seed"));
+  config.faults = parse_faults(faults, seed);
 
   if (config.check == ReplayCheck::timing &&
       config.timing == ReplayTiming::none) {

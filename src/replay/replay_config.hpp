@@ -6,6 +6,7 @@
 #include <memory>
 #include <string>
 
+#include "replay/faults.hpp"
 #include "wiretape/options.hpp"
 #include "wiretape/profile.hpp"
 
@@ -39,10 +40,9 @@ struct ReplayConfig {
   std::shared_ptr<const Profile> profile;
   // Datagram sessions (recorded from udp) keep record boundaries.
   bool datagrams = false;
-  // Fault injection (faults.hpp): the faults= text, checked by
-  // take_replay_config, and seed= for its random choices.
-  std::string faults;
-  std::uint64_t seed = 0;
+  // Fault injection (faults.hpp): faults= parsed, with seed= for its random
+  // choices; empty without faults=.
+  FaultPlan faults;
 };
 
 // Consumes the replay keys of `options` (and flexiport's spellings:

@@ -10,7 +10,6 @@
 #include <mutex>
 #include <thread>
 
-#include "core/open_port.hpp"
 #include "posix/platform.hpp"
 #include "posix/syscalls.hpp"
 #include "replay/client_session.hpp"
@@ -150,14 +149,15 @@ class ReplayPort final : public Port {
           connect_t_ns ? client_session_sources(sources_, k) : sources_;
       engine_ = std::make_unique<ReplayEngine>(config_, std::move(sources), now,
                                                connect_t_ns.value_or(0));
-      if (fault_reporter_) engine_->on_fault(fault_reporter_);  // faults hook
+      engine_->on_fault(fault_reporter_);  // each session's fault stage reports here
     }
     update_signal(now);
     changed_.notify_all();
     return afresh;
   }
 
-  // --- faults hook: injected faults go to `reporter` (see replay_on_fault) ---
+  // Injected faults go to `reporter` (see replay_on_fault); the engine's
+  // fault stage (fault_stage.hpp) does the rest.
   void on_fault(std::function<void(const FaultEvent&)> reporter) {
     std::lock_guard<std::mutex> lock(mutex_);
     fault_reporter_ = std::move(reporter);
@@ -262,8 +262,8 @@ class ReplayPort final : public Port {
                          {{event_field::baud, std::to_string(settings.baud)},
                           {event_field::databits, std::to_string(settings.data_bits)},
                           {event_field::stopbits, std::to_string(settings.stop_bits)},
-                          {event_field::parity, parity_name(settings.parity)},
-                          {event_field::flow, flow_name(settings.flow)}},
+                          {event_field::parity, to_string(settings.parity)},
+                          {event_field::flow, to_string(settings.flow)}},
                          ReplayClock::now());
     settings_ = settings;
   }
@@ -379,25 +379,6 @@ class ReplayPort final : public Port {
                          ReplayClock::now());
   }
 
-  static const char* parity_name(Parity parity) {
-    switch (parity) {
-      case Parity::none: return "none";
-      case Parity::even: return "even";
-      case Parity::odd: return "odd";
-      case Parity::mark: return "mark";
-      case Parity::space: return "space";
-    }
-    return "none";
-  }
-
-  static const char* flow_name(FlowControl flow) {
-    switch (flow) {
-      case FlowControl::none: return "none";
-      case FlowControl::rtscts: return "rtscts";
-      case FlowControl::xonxoff: return "xonxoff";
-    }
-    return "none";
-  }
 
   // Blocks a reader until something may have changed: the deadline, the
   // next due time, or a notification. With a scheduler thread, a reader waits
@@ -569,7 +550,7 @@ class ReplayPort final : public Port {
   bool awaiting_client_ = false;
   int client_sessions_ = 0;
   SerialSettings settings_;
-  std::function<void(const FaultEvent&)> fault_reporter_;  // faults hook
+  std::function<void(const FaultEvent&)> fault_reporter_;  // empty: stderr
   bool closed_ = false;
   sys::UniqueFd signal_read_;
   sys::UniqueFd signal_write_;

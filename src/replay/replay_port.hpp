@@ -19,6 +19,9 @@ RecordSourceFactory session_source_factory(const std::string& path);
 
 std::unique_ptr<Port> open_replay_session(ReplayConfig config,
                                           RecordSourceFactory sources);
+// type=replay for open_port() (src/open_port.cpp): the replay keys of
+// `options`, then the session file they name.
+std::unique_ptr<Port> open_replay(Options& options);
 
 // True when `port` is a replay whose recording has nothing more for the
 // client to read (at_end=silent): a read without a timeout would raise

@@ -38,6 +38,9 @@ struct RxItem {
   }
   std::uint64_t t_ns = 0;
   ReplayTime due;  // readable from then on
+  // The exchange it belongs to (exchanges.hpp), set by the strategy that
+  // releases it: what `faults=exchange:N` and reports count.
+  std::uint64_t exchange = 0;
 };
 
 // The rx the client is entitled to, in recorded order, each with its due
@@ -53,6 +56,8 @@ class ReleasedRx {
   // Payload bytes of the queued records (read or not).
   std::size_t bytes() const { return bytes_; }
   RxItem& front() { return items_.front(); }
+  // TEMPORARY: for ReplayEngine::number_exchanges, deleted with it.
+  RxItem& at(std::size_t index) { return items_[index]; }
   const std::deque<RxItem>& items() const { return items_; }
 
   void push(RxItem&& item);

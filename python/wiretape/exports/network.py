@@ -21,6 +21,9 @@ import json
 import struct
 from typing import Any, Dict, Iterator, List, Optional, Tuple
 
+from .._core import OptionError
+from ..options import default_of, option_values
+
 __all__ = ["LINKTYPE_RAW", "NetworkSession", "PLACEHOLDER_DEVICE", "PLACEHOLDER_CLIENT"]
 
 #: Raw IP (v4 or v6, told by the packet's first nibble).
@@ -36,35 +39,6 @@ _SYN, _ACK, _FIN, _PSH = 0x02, 0x10, 0x01, 0x08
 _TCP, _UDP = 6, 17
 
 Endpoint = Tuple[Any, int]  # (ipaddress.IPv4Address | IPv6Address, port)
-
-
-def _option_values(options: str) -> Dict[str, str]:
-    """key=value pairs of an option string (values in double quotes with
-    backslash escapes, as quote_option_value writes them)."""
-    values: Dict[str, str] = {}
-    position = 0
-    while position < len(options):
-        end_key = options.find("=", position)
-        if end_key < 0:
-            break
-        key = options[position:end_key].strip()
-        position = end_key + 1
-        value = ""
-        if position < len(options) and options[position] == '"':
-            position += 1
-            while position < len(options) and options[position] != '"':
-                if options[position] == "\\" and position + 1 < len(options):
-                    position += 1
-                value += options[position]
-                position += 1
-            position += 1
-            comma = options.find(",", position)
-        else:
-            comma = options.find(",", position)
-            value = options[position:comma if comma >= 0 else len(options)]
-        values[key] = value.strip()
-        position = comma + 1 if comma >= 0 else len(options)
-    return values
 
 
 def _address(host: Optional[str], fallback: str):
@@ -179,13 +153,19 @@ class NetworkSession:
         protocol = header.get("port_type")
         if protocol not in ("tcp", "udp"):
             return None
-        options = _option_values(header.get("port_options") or "")
-        port = options.get("port")
-        if protocol == "udp" and _port(port, 0) == 0:
-            port = options.get("bind_port")
-        device = (_address(options.get("host") or options.get("ip") or "127.0.0.1",
-                           PLACEHOLDER_DEVICE[0]),
-                  _port(port, PLACEHOLDER_DEVICE[1]))
+        device = parse_endpoint(None, PLACEHOLDER_DEVICE)
+        try:
+            options: Optional[Dict[str, str]] = option_values(
+                header.get("port_options") or "", protocol)
+        except OptionError:  # not an option string (an import's header): unknown
+            options = None
+        if options is not None:
+            port = options.get("port")
+            if protocol == "udp" and _port(port, 0) == 0:
+                port = options.get("bind_port")
+            device = (_address(options.get("host") or default_of("host", protocol),
+                               PLACEHOLDER_DEVICE[0]),
+                      _port(port, PLACEHOLDER_DEVICE[1]))
         if header.get("device_address"):
             device = parse_endpoint(header["device_address"], PLACEHOLDER_DEVICE)
         return cls(protocol, device)

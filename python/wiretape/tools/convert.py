@@ -35,8 +35,8 @@ from typing import Iterator, Optional
 from .. import _core, exports
 from ..exports import jsonl
 from . import importers
-from ._files import FileRefused, is_stream, open_input, refuse_same_file, session_files
-from ._records import SessionPath, open_session, raise_damage
+from ..session import (FileRefused, SessionPath, is_stream, open_input, open_session,
+                       raise_damage, refuse_same_file, session_files)
 from . import pcap_import
 
 __all__ = ["convert", "detect_format", "ConvertResult", "FORMATS"]

@@ -29,8 +29,8 @@ import re
 from typing import Deque, Dict, Iterable, List, Optional, Sequence, Tuple
 
 from .. import _core
-from ._files import is_stream, refuse_same_file, session_files
-from ._records import DIRECTIONS, SessionPath, event_payload, open_session, raise_damage
+from ..session import (DIRECTIONS, SessionPath, event_payload, is_stream, open_session,
+                       raise_damage, refuse_same_file, session_files)
 from .convert import session_writer
 
 __all__ = ["edit", "EditResult", "Cut", "Redaction", "parse_cut", "parse_redaction", "MAX_SPAN"]

@@ -26,7 +26,7 @@ import os
 from typing import Iterator, List, Optional, Tuple
 
 from .. import _core
-from ._files import open_input
+from ..session import open_input
 
 __all__ = ["reserial_records", "reserial_tests", "umockdev_records"]
 

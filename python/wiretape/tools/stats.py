@@ -8,7 +8,7 @@ import os
 from typing import Any, Dict, List, Optional, Tuple
 
 from .. import _core
-from ._records import DIRECTIONS, SessionPath, header_text, open_session
+from ..session import DIRECTIONS, SessionPath, header_text, open_session
 
 __all__ = ["stats", "SessionStats"]
 

@@ -397,10 +397,10 @@ std::shared_ptr<const Profile> take_declared_profile(Options& options) {
   }
   if (!framing) return nullptr;
   DeclaredSpec spec;
-  spec.framing = parse_framing(options.take_string("framing", ""));
-  if (options.has("ignore")) spec.ignore = parse_fields("ignore", options.take_string("ignore", ""));
-  if (options.has("echo")) spec.echo = parse_fields("echo", options.take_string("echo", ""));
-  if (options.has("checksum")) spec.checksum = parse_checksum(options.take_string("checksum", ""));
+  spec.framing = parse_framing(options.take_string("framing"));
+  if (options.has("ignore")) spec.ignore = parse_fields("ignore", options.take_string("ignore"));
+  if (options.has("echo")) spec.echo = parse_fields("echo", options.take_string("echo"));
+  if (options.has("checksum")) spec.checksum = parse_checksum(options.take_string("checksum"));
   return std::make_shared<DeclaredProfile>(std::move(spec));
 }
 

@@ -50,25 +50,35 @@ TEST(OptionsParse, SyntaxErrorsNamePosition) {
   }
 }
 
+// Options of one port type, as open_port() hands them to the type's
+// constructor.
+Options of_type(const std::string& type, const std::string& text) {
+  auto options = Options::parse(text);
+  options.set_port_type(type);
+  return options;
+}
+
 TEST(OptionsTake, TypedValuesAndErrors) {
-  auto options = Options::parse("a=yes,b=off,n=42,f=2.5,t=none,c=even");
-  EXPECT_TRUE(options.take_bool("a", false));
-  EXPECT_FALSE(options.take_bool("b", true));
-  EXPECT_EQ(options.take_int("n", 0, 0, 100), 42);
-  EXPECT_DOUBLE_EQ(options.take_double("f", 0, 0, 10), 2.5);
-  EXPECT_EQ(options.take_timeout("t", std::chrono::seconds(1)), wiretape::forever);
-  EXPECT_EQ(options.take_choice("c", "none", {"none", "even", "odd"}), "even");
+  auto options = of_type("serial", "exclusive=yes,fsync=off,baud=42,timeout=none,parity=even");
+  EXPECT_TRUE(options.take_bool("exclusive"));
+  EXPECT_FALSE(options.take_bool("fsync"));
+  EXPECT_EQ(options.take_int("baud"), 42);
+  EXPECT_EQ(options.take_timeout("timeout"), wiretape::forever);
+  EXPECT_EQ(options.take_choice("parity"), "even");
   EXPECT_NO_THROW(options.finish("serial"));
+  auto replay = of_type("replay", "speed=2.5");
+  EXPECT_DOUBLE_EQ(replay.take_double("speed"), 2.5);
 }
 
 TEST(OptionsTake, BadValueNamesKeyAndValid) {
-  auto options = Options::parse("parity=sometimes");
+  auto options = of_type("serial", "parity=sometimes");
   try {
-    options.take_choice("parity", "none", {"none", "even", "odd"});
+    options.take_choice("parity");
     FAIL();
   } catch (const OptionError& e) {
     EXPECT_EQ(e.key(), "parity");
-    EXPECT_NE(std::string(e.what()).find("none, even, odd"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("none, even, odd, mark, space"), std::string::npos)
+        << e.what();
   }
 }
 
@@ -94,28 +104,27 @@ TEST(OptionsFinish, UnknownAndInapplicableKeysAreErrors) {
 }
 
 TEST(OptionsAlias, OldNameMapsAndBothIsError) {
-  auto options = Options::parse("ip=10.0.0.1");
+  auto options = of_type("tcp", "ip=10.0.0.1");
   options.alias("ip", "host");
-  EXPECT_EQ(options.take_string("host", ""), "10.0.0.1");
+  EXPECT_EQ(options.take_string("host"), "10.0.0.1");
   auto both = Options::parse("ip=1,host=2");
   EXPECT_THROW(both.alias("ip", "host"), OptionError);
 }
 
 TEST(OptionsTake, TimeoutSpellings) {
-  auto options = Options::parse("a=-1,b=none,c=forever,d=0,e=1.5,f=NONE");
-  EXPECT_EQ(options.take_timeout("a", std::chrono::seconds(1)), wiretape::forever);
-  EXPECT_EQ(options.take_timeout("b", std::chrono::seconds(1)), wiretape::forever);
-  EXPECT_EQ(options.take_timeout("c", std::chrono::seconds(1)), wiretape::forever);
-  EXPECT_EQ(options.take_timeout("d", wiretape::forever), std::chrono::nanoseconds(0));
-  EXPECT_EQ(options.take_timeout("e", wiretape::forever),
+  for (const char* spelling : {"-1", "none", "forever", "NONE"}) {
+    auto options = of_type("tcp", std::string("timeout=") + spelling);
+    EXPECT_EQ(options.take_timeout("timeout"), wiretape::forever) << spelling;
+  }
+  EXPECT_EQ(of_type("tcp", "timeout=0").take_timeout("timeout"), std::chrono::nanoseconds(0));
+  EXPECT_EQ(of_type("tcp", "timeout=1.5").take_timeout("timeout"),
             std::chrono::nanoseconds(1'500'000'000));
-  EXPECT_EQ(options.take_timeout("f", std::chrono::seconds(1)), wiretape::forever);
-  EXPECT_EQ(options.take_timeout("absent", std::chrono::seconds(2)),
-            std::chrono::nanoseconds(std::chrono::seconds(2)));
+  EXPECT_EQ(of_type("tcp", "").take_timeout("timeout"), wiretape::forever)
+      << "the table's default, -1";
   for (const char* bad : {"-0.5", "soon", "", "1s", "inf", "nan"}) {
-    auto one = Options::parse(std::string("timeout=\"") + bad + "\"");
+    auto one = of_type("tcp", std::string("timeout=\"") + bad + "\"");
     try {
-      one.take_timeout("timeout", wiretape::forever);
+      one.take_timeout("timeout");
       ADD_FAILURE() << "accepted timeout=" << bad;
     } catch (const OptionError& e) {
       EXPECT_EQ(e.key(), "timeout");
@@ -124,33 +133,45 @@ TEST(OptionsTake, TimeoutSpellings) {
 }
 
 TEST(OptionsTake, BooleansAcceptEverySpellingInAnyCase) {
-  auto options = Options::parse("a=TRUE,b=No,c=ON,d=0,e=Yes,f=off,g");
-  EXPECT_TRUE(options.take_bool("a", false));
-  EXPECT_FALSE(options.take_bool("b", true));
-  EXPECT_TRUE(options.take_bool("c", false));
-  EXPECT_FALSE(options.take_bool("d", true));
-  EXPECT_TRUE(options.take_bool("e", false));
-  EXPECT_FALSE(options.take_bool("f", true));
-  EXPECT_TRUE(options.take_bool("g", false)) << "a bare key means 1";
-  auto bad = Options::parse("listen=2");
-  EXPECT_THROW(bad.take_bool("listen", false), OptionError);
+  for (const char* spelling : {"TRUE", "Yes", "ON", "1", "true", "on"}) {
+    EXPECT_EQ(wiretape::parse_bool(spelling), true) << spelling;
+    EXPECT_TRUE(of_type("tcp", std::string("listen=") + spelling).take_bool("listen"));
+  }
+  for (const char* spelling : {"No", "0", "off", "FALSE", "false", "no"}) {
+    EXPECT_EQ(wiretape::parse_bool(spelling), false) << spelling;
+    EXPECT_FALSE(of_type("tcp", std::string("nodelay=") + spelling).take_bool("nodelay"));
+  }
+  EXPECT_TRUE(of_type("tcp", "listen").take_bool("listen")) << "a bare key means 1";
+  EXPECT_FALSE(of_type("tcp", "").take_bool("listen")) << "the table's default";
+  EXPECT_TRUE(of_type("tcp", "").take_bool("nodelay")) << "the table's default";
+  for (const char* bad : {"2", "", "maybe", "y"}) {
+    EXPECT_EQ(wiretape::parse_bool(bad), std::nullopt) << bad;
+  }
+  auto bad = of_type("tcp", "listen=2");
+  try {
+    bad.take_bool("listen");
+    FAIL();
+  } catch (const OptionError& e) {
+    EXPECT_EQ(e.key(), "listen");
+    EXPECT_NE(std::string(e.what()).find("not a boolean"), std::string::npos) << e.what();
+  }
 }
 
 TEST(OptionsTake, IntegersRejectTrailingTextAndRange) {
-  for (const char* bad : {"12abc", "", "1.5", "99999999999999999999", "-1"}) {
-    auto options = Options::parse(std::string("n=\"") + bad + "\"");
+  for (const char* bad : {"12abc", "", "1.5", "99999999999999999999", "-1", "9"}) {
+    auto options = of_type("serial", std::string("databits=\"") + bad + "\"");
     try {
-      options.take_int("n", 0, 0, 100);
-      ADD_FAILURE() << "accepted n=" << bad;
+      options.take_int("databits");
+      ADD_FAILURE() << "accepted databits=" << bad;
     } catch (const OptionError& e) {
-      EXPECT_EQ(e.key(), "n");
-      EXPECT_NE(std::string(e.what()).find("0 to 100"), std::string::npos);
+      EXPECT_EQ(e.key(), "databits");
+      EXPECT_NE(std::string(e.what()).find("5 to 8"), std::string::npos) << e.what();
     }
   }
 }
 
 TEST(OptionsTake, PrefixedKeysAreCollected) {
-  auto options = Options::parse("meta_robot=r2,meta_site=\"lab 3\",other=1");
+  auto options = of_type("loopback", "meta_robot=r2,meta_site=\"lab 3\",other=1");
   const auto meta = options.take_prefixed("meta_");
   ASSERT_EQ(meta.size(), 2u);
   EXPECT_EQ(meta.at("robot"), "r2");
@@ -255,4 +276,145 @@ TEST(OptionsParse, NulByteIsRejectedNamingTheKey) {
   EXPECT_THROW(Options::parse("type=loopback,lo\0g=x"s), OptionError);
   Options options;
   EXPECT_THROW(options.set("log", "a\0b"s), OptionError);
+}
+
+// The key table (DESIGN.md section 17, "Options"): every key of every port
+// type once, with what its value may be.
+TEST(OptionKeys, EveryPortTypeHasItsKeysAndCommonKeysApplyToAll) {
+  for (auto type : wiretape::port_types()) {
+    for (const char* common : {"type", "timeout", "access", "log", "flush_ms", "debug"}) {
+      const auto* key = wiretape::find_option_key(common, type);
+      ASSERT_NE(key, nullptr) << common << " for " << type;
+    }
+  }
+  EXPECT_EQ(wiretape::find_option_key("baud", "serial")->default_value, "9600");
+  EXPECT_EQ(wiretape::find_option_key("baud", "tcp"), nullptr);
+  EXPECT_TRUE(wiretape::find_option_key("port", "tcp")->required);
+  EXPECT_FALSE(wiretape::find_option_key("port", "udp")->required);
+  EXPECT_EQ(wiretape::find_option_key("ip", "tcp")->alias_of, "host");
+  EXPECT_EQ(wiretape::find_option_key("meta_robot", "pty")->name, "meta_");
+  EXPECT_EQ(wiretape::find_option_key("meta_", "pty"), nullptr) << "a prefix needs a KEY";
+  EXPECT_EQ(wiretape::find_option_key("at_end", "replay")->flag, "--at-end");
+}
+
+TEST(OptionKeys, EveryDefaultIsAValidValueOfItsRow) {
+  for (const auto& key : wiretape::option_keys()) {
+    if (key.default_value.empty() || key.alias_of.size()) continue;
+    for (auto type : key.port_types) {
+      auto options = Options::parse("");
+      options.set_port_type(type);
+      using wiretape::OptionType;
+      SCOPED_TRACE(std::string(key.name) + " of " + std::string(type));
+      switch (key.type) {
+        case OptionType::boolean: EXPECT_NO_THROW(options.take_bool(key.name)); break;
+        case OptionType::integer: EXPECT_NO_THROW(options.take_int(key.name)); break;
+        case OptionType::number: EXPECT_NO_THROW(options.take_double(key.name)); break;
+        case OptionType::seconds: EXPECT_NO_THROW(options.take_timeout(key.name)); break;
+        case OptionType::choice:
+          EXPECT_EQ(options.take_choice(key.name), key.default_value);
+          break;
+        case OptionType::text:
+        case OptionType::path:
+          EXPECT_EQ(options.take_string(key.name), key.default_value);
+          break;
+      }
+    }
+  }
+}
+
+TEST(OptionKeys, RowsAreWellFormed) {
+  for (const auto& key : wiretape::option_keys()) {
+    SCOPED_TRACE(std::string(key.name));
+    EXPECT_FALSE(key.help.empty());
+    EXPECT_FALSE(key.port_types.empty());
+    EXPECT_EQ(key.type == wiretape::OptionType::choice, !key.choices.empty());
+    if (key.type == wiretape::OptionType::integer) EXPECT_LE(key.min_integer, key.max_integer);
+    if (key.type == wiretape::OptionType::number || key.type == wiretape::OptionType::seconds) {
+      EXPECT_LT(key.min_number, key.max_number);
+    }
+    if (!key.alias_of.empty()) {
+      // seriallog's file is log of serial, the type it opens.
+      for (auto type : key.port_types) {
+        const std::string opened(type.substr(0, type.size() - (type.size() > 3 &&
+                                                                type.substr(type.size() - 3) == "log"
+                                                                ? 3 : 0)));
+        EXPECT_NE(wiretape::find_option_key(key.alias_of, opened), nullptr) << type;
+      }
+    }
+    for (auto type : key.port_types) {
+      EXPECT_EQ(wiretape::find_option_key(key.name, type) == &key ||
+                    key.prefix,
+                true)
+          << "a key is listed once per port type: " << type;
+    }
+  }
+}
+
+TEST(OptionKeys, ParityAndFlowSpellingsAreThePortNames) {
+  using wiretape::Parity;
+  for (Parity parity : {Parity::none, Parity::even, Parity::odd, Parity::mark, Parity::space}) {
+    EXPECT_EQ(wiretape::parse_parity(wiretape::to_string(parity)), parity);
+  }
+  EXPECT_EQ(wiretape::parse_parity("EVEN"), Parity::even);
+  EXPECT_EQ(wiretape::parse_parity("e"), std::nullopt);
+  EXPECT_EQ(wiretape::parse_flow_control("RtsCts"), wiretape::FlowControl::rtscts);
+  EXPECT_EQ(wiretape::parse_flow_control("hardware"), std::nullopt);
+  const auto& parity_choices = wiretape::find_option_key("parity", "serial")->choices;
+  ASSERT_EQ(parity_choices.size(), 5u);
+  for (auto choice : parity_choices) EXPECT_TRUE(wiretape::parse_parity(choice)) << choice;
+}
+
+TEST(OptionKeys, RequiredKeysMissingNameTheKeyAndType) {
+  auto options = of_type("tcp", "host=h");
+  try {
+    options.take_int("port");
+    FAIL();
+  } catch (const OptionError& e) {
+    EXPECT_EQ(e.key(), "port");
+    EXPECT_NE(std::string(e.what()).find("missing option 'port' for type=tcp"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(of_type("udp", "").take_int("port"), 0) << "udp's port is not required";
+}
+
+TEST(OptionKeys, ReadingAKeyOutsideTheTableIsAProgrammingError) {
+  auto options = of_type("serial", "colour=blue");
+  EXPECT_THROW(options.take_bool("colour"), std::logic_error);
+  EXPECT_THROW(options.take_int("parity"), std::logic_error) << "parity is a choice";
+  EXPECT_THROW(options.take_bool("listen"), std::logic_error) << "listen is tcp's";
+}
+
+TEST(OptionKeys, SuggestionsComeFromTheKeysOfTheType) {
+  EXPECT_EQ(wiretape::suggest_key("bod", "serial"), "baud");
+  EXPECT_EQ(wiretape::suggest_key("buad", "serial"), "baud") << "a swap is one edit";
+  EXPECT_EQ(wiretape::suggest_key("BAUD", "serial"), "baud");
+  EXPECT_EQ(wiretape::suggest_key("timign", "replay"), "timing");
+  EXPECT_EQ(wiretape::suggest_key("at-end", "replay"), "at_end");
+  EXPECT_EQ(wiretape::suggest_key("colour", "serial"), std::nullopt);
+  EXPECT_NE(wiretape::suggest_key("bod", "tcp"), "baud") << "baud is serial's";
+  EXPECT_EQ(wiretape::suggest_key("lisen", "tcp"), "listen");
+  EXPECT_EQ(wiretape::suggest_key("xy", "tcp"), std::nullopt);
+}
+
+TEST(OptionsFinish, AnUnknownKeyNearAValidOneSaysDidYouMean) {
+  auto options = of_type("serial", "device=/dev/ttyS0,bud=9600");
+  options.take_required("device");
+  try {
+    options.finish("serial");
+    FAIL();
+  } catch (const OptionError& e) {
+    EXPECT_EQ(e.key(), "bud");
+    EXPECT_NE(std::string(e.what()).find("did you mean 'baud'?"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("valid keys for type=serial"), std::string::npos);
+  }
+}
+
+TEST(ParseOptions, PairsInOrderWithTheParsersErrors) {
+  const auto pairs = wiretape::parse_options(R"(type=tcp, host="a b",listen)");
+  ASSERT_EQ(pairs.size(), 3u);
+  EXPECT_EQ(pairs[1].key, "host");
+  EXPECT_EQ(pairs[1].value, "a b");
+  EXPECT_EQ(pairs[2].value, "1");
+  EXPECT_THROW(wiretape::parse_options("a=1,a=2"), OptionError);
 }

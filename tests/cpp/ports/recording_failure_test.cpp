@@ -19,7 +19,7 @@
 #include <thread>
 #include <vector>
 
-#include "core/open_port.hpp"
+#include "ports/ports.hpp"
 #include "posix/fd_port.hpp"
 #include "posix/syscalls.hpp"
 #include "support/port_test_support.hpp"

@@ -25,7 +25,7 @@
 #include <vector>
 
 #include "util/json.hpp"
-#include "core/open_port.hpp"
+#include "ports/ports.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/port.hpp"
 #include "wiretape/session.hpp"

@@ -31,7 +31,7 @@
 #include <netinet/in.h>
 #include <sys/socket.h>
 
-#include "core/open_port.hpp"
+#include "ports/ports.hpp"
 #include "posix/syscalls.hpp"
 #include "session/format.hpp"
 #include "session/record_kinds.hpp"

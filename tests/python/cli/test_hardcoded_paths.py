@@ -194,6 +194,16 @@ def test_the_device_path_comes_from_the_option_string():
     assert redirect.device_path_of("type=serial,device=/dev/ttyUSB0,baud=9600") == HARD_CODED
     assert redirect.device_path_of('type=serial,device="/dev/My Port"') == "/dev/My Port"
     assert redirect.device_path_of("type=tcp,host=10.0.0.5,port=10940") is None
+    assert redirect.device_path_of("type=serial\tdevice=/dev/ttyUSB0") == HARD_CODED
+
+
+def test_a_device_setting_that_is_no_option_string_is_refused_by_the_parser():
+    """The option string is read by the C++ parser, as open_port() reads it:
+    what it refuses is refused here too, naming the problem."""
+    with pytest.raises(_core.OptionError, match="inside the value of 'device'"):
+        redirect.device_path_of('type=serial,device=/dev/a"b')
+    with pytest.raises(_core.OptionError, match="given twice"):
+        redirect.device_path_of("type=serial,device=/dev/a,device=/dev/b")
 
 
 def test_the_shim_matches_what_the_path_resolves_to(tmp_path):

@@ -5,7 +5,7 @@
 #include <string>
 #include <string_view>
 
-#include "core/open_port.hpp"
+#include "open_port.hpp"
 #include "replay/replay_config.hpp"
 #include "replay/replay_port.hpp"
 #include "session/record_kinds.hpp"
@@ -22,7 +22,7 @@ namespace {
 Access take_access(Options& options) {
   std::string bare_choice;
   for (const char* bare : {"readonly", "writeonly", "readwrite"}) {
-    if (!options.take_bool(bare, false)) continue;
+    if (!options.take_bool(bare)) continue;
     if (!bare_choice.empty() || options.has("access")) {
       throw OptionError(bare, std::string("option '") + bare +
                                   "' conflicts with another access mode; "
@@ -32,8 +32,7 @@ Access take_access(Options& options) {
     bare_choice = bare;
   }
   if (!bare_choice.empty()) options.set("access", bare_choice);
-  const std::string access = options.take_choice(
-      "access", "readwrite", {"readwrite", "readonly", "writeonly"});
+  const std::string access = options.take_choice("access");
   if (access == "readonly") return Access::read_only;
   if (access == "writeonly") return Access::write_only;
   return Access::read_write;
@@ -49,10 +48,8 @@ bool value_is(const Options& options, std::string_view key, std::string_view exp
 }
 
 bool is_true(const Options& options, std::string_view key) {
-  for (const char* spelling : {"1", "true", "yes", "on"}) {
-    if (value_is(options, key, spelling)) return true;
-  }
-  return false;
+  const auto value = options.peek(key);
+  return value && parse_bool(*value).value_or(false);
 }
 
 // Keys that only do something next to another key (or another key's value).
@@ -139,16 +136,13 @@ struct CommonKeys {
 
 CommonKeys take_common_keys(Options& options) {
   CommonKeys common;
-  std::string type = options.take_choice(
-      "type", "",
-      {"serial", "tcp", "udp", "pty", "loopback", "replay", "logreader",
-       "seriallog", "tcplog", "udplog"});
-  if (type.empty()) {
+  if (!options.has("type")) {
     throw OptionError("type",
                       "missing option 'type': say which port to open, one of "
                       "serial, tcp, udp, pty, loopback, replay (e.g. "
                       "\"type=serial,device=/dev/ttyUSB0\")");
   }
+  std::string type = options.take_choice("type");
   if (type == "logreader") type = "replay";
   // flexiport's logging port types: the named port, recorded to `file`.
   if (type == "seriallog" || type == "tcplog" || type == "udplog") {
@@ -158,22 +152,23 @@ CommonKeys take_common_keys(Options& options) {
                                     " port into 'file', which is missing: give "
                                     "file=FILE (or use type=" + base + ")");
     }
+    options.set_port_type(type);
+    options.resolve_aliases();
     type = base;
-    options.alias("file", "log");
   }
+  options.set_port_type(type);
+  options.resolve_aliases();
   if (options.has("log")) check_recordable(options);
   common.type = type;
 
-  common.timeout = options.take_timeout("timeout", forever);
+  common.timeout = options.take_timeout("timeout");
   common.access = take_access(options);
-  common.debug = static_cast<int>(options.take_int("debug", 0, 0, 3));
+  common.debug = static_cast<int>(options.take_int("debug"));
 
   common.log = options.take("log");
-  common.recording.flush_ms =
-      static_cast<int>(options.take_int("flush_ms", 100, 1, 3'600'000));
-  common.recording.fsync = options.take_bool("fsync", false);
-  common.recording.raise_errors =
-      options.take_choice("log_errors", "raise", {"raise", "warn"}) == "raise";
+  common.recording.flush_ms = static_cast<int>(options.take_int("flush_ms"));
+  common.recording.fsync = options.take_bool("fsync");
+  common.recording.raise_errors = options.take_choice("log_errors") == "raise";
   common.recording.metadata = options.take_prefixed("meta_");
 
   if (common.log && common.log->empty()) {

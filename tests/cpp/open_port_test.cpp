@@ -87,6 +87,23 @@ TEST(OpenPort, UnknownAndInapplicableKeysAreRefusedListingTheValidOnes) {
   expect_option_error("type=tcp,port=1,bogus=1", "bogus", "host");
 }
 
+// Every key of every type is in the key table: a replay key given to another
+// type is "does not apply", never "unknown" (profile, faults, gap and meta_
+// were missing from the old list of known keys), and a typo is answered with
+// the nearest key of the type.
+TEST(OpenPort, KeysOfEveryTypeAreKnownAndTyposGetTheNearestKey) {
+  for (const char* replay_key : {"profile=scip", "faults=drop@exchange:0", "gap=10",
+                                 "framing=fixed:4", "seed=1"}) {
+    const std::string key = std::string(replay_key).substr(0, std::string(replay_key).find('='));
+    expect_option_error(std::string("type=loopback,") + replay_key, key,
+                        "does not apply to type=loopback");
+  }
+  expect_option_error("type=serial,device=/dev/null,bod=9600", "bod", "did you mean 'baud'?");
+  expect_option_error("type=tcp,port=1,lisen", "lisen", "did you mean 'listen'?");
+  expect_option_error("type=replay,file=x.wtape,at-end=closed", "at-end",
+                      "did you mean 'at_end'?");
+}
+
 TEST(OpenPort, SerialKeys) {
   wiretape::test::PtyPair pty;
   const std::string device = "type=serial,device=" + pty.path;
@@ -211,7 +228,7 @@ TEST(OpenPort, ConflictingAccessModesAreRefused) {
 }
 
 // Keys that would do nothing alone are refused, naming what they need
-// (the table in src/core/open_port.cpp), before anything is opened.
+// (the table in src/open_port.cpp), before anything is opened.
 TEST(OpenPort, KeysThatNeedAnotherKeyNameIt) {
   for (const char* key : {"flush_ms=50", "fsync", "log_errors=warn", "meta_robot=r2"}) {
     const std::string name = std::string(key).substr(0, std::string(key).find('='));

@@ -1,5 +1,5 @@
-// The port types' constructors, called by open_port() once the common keys
-// have been taken. Each consumes the keys of its type from `options`.
+// Ports that wrap or fake others: the loopback port and the recorder behind
+// `log=FILE`. open_port() (src/open_port.cpp) makes them.
 #pragma once
 
 #include <map>
@@ -13,19 +13,7 @@
 
 namespace wiretape::detail {
 
-std::unique_ptr<Port> open_serial(Options& options);
-std::unique_ptr<Port> open_tcp(Options& options);
-std::unique_ptr<Port> open_udp(Options& options);
-std::unique_ptr<Port> open_pty(Options& options);
 std::unique_ptr<Port> open_loopback(Options& options);
-std::unique_ptr<Port> open_replay(Options& options);
-
-// Checks the option string of a replay as open_port() would, and opens
-// nothing (not even the session file): the syntax, the common keys, every
-// replay key and the keys' dependencies. Throws OptionError naming the key.
-// For callers that must refuse bad keys before any side effect of their own
-// (the CLI's replay, before it listens or makes a pty).
-void check_replay_options(std::string_view options);
 
 // What `log=FILE` asks for: a recording of the port into a session file.
 struct RecordingConfig {

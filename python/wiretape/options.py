@@ -1,0 +1,49 @@
+"""Option strings from Python: thin views of the C++ key table and parser
+(``include/wiretape/options.hpp``). Nothing here splits an option string or
+knows a key of its own; docs/options.md lists the keys.
+"""
+
+from __future__ import annotations
+
+from typing import Dict, List, Optional, Tuple
+
+from . import _core
+
+__all__ = ["default_of", "option_keys", "option_values", "parse_options", "replay_keys"]
+
+parse_options = _core.parse_options
+
+
+def option_keys(port_type: Optional[str] = None) -> List[_core.OptionKey]:
+    """The rows of the key table, or those that apply to ``port_type``."""
+    return [key for key in _core.option_keys()
+            if port_type is None or key.applies_to(port_type)]
+
+
+def default_of(name: str, port_type: str) -> Optional[str]:
+    """The default of key ``name`` of ``port_type``, as written in an option
+    string; None when it has none."""
+    for key in option_keys(port_type):
+        if key.name == name and not key.prefix:
+            return key.default
+    raise KeyError(f"the key table has no key {name!r} for type={port_type}")
+
+
+def option_values(options: str, port_type: Optional[str] = None) -> Dict[str, str]:
+    """An option string's values by key. With ``port_type``, flexiport's
+    names of that type's keys are given under the key they stand for
+    (``ip`` as ``host``); the key's own name wins when both are there."""
+    values = dict(_core.parse_options(options))
+    if port_type is not None:
+        for key in option_keys(port_type):
+            if key.alias_of and key.name in values:
+                values.setdefault(key.alias_of, values[key.name])
+    return values
+
+
+def replay_keys() -> Tuple[str, ...]:
+    """The replay keys that the CLI's ``replay`` mirrors as a flag of the
+    same name (``--at-end`` for ``at_end``), its value given as the key's;
+    ``faults`` has a flag of its own (``--fault``, repeatable)."""
+    return tuple(key.name for key in option_keys("replay")
+                 if key.flag == "--" + key.name.replace("_", "-"))

@@ -1,0 +1,22 @@
+// The factory that knows every port type (open_port() in port.hpp). It
+// stands above the folders of the port types, so that src/core/ depends on
+// nothing above it (DESIGN.md section 18); this header gathers the port
+// types' constructors for the callers that make ports by hand (tests).
+#pragma once
+
+#include <string_view>
+
+#include "ports/ports.hpp"
+#include "posix/transports.hpp"
+#include "replay/replay_port.hpp"
+
+namespace wiretape::detail {
+
+// Checks the option string of a replay as open_port() would, and opens
+// nothing (not even the session file): the syntax, the common keys, every
+// replay key and the keys' dependencies. Throws OptionError naming the key.
+// For callers that must refuse bad keys before any side effect of their own
+// (the CLI's replay, before it listens or makes a pty).
+void check_replay_options(std::string_view options);
+
+}  // namespace wiretape::detail
