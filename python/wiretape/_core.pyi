@@ -463,7 +463,9 @@ class SessionHeader:
         """
 
     def to_dict(self) -> dict:
-        """the members above as a dict"""
+        """
+        the members above as a dict, but metadata_json (the stored text, derived)
+        """
 
     def __copy__(self) -> SessionHeader: ...
 

@@ -131,7 +131,6 @@ nb::dict header_dict(const SessionHeader& header) {
   nb::dict metadata;
   for (const auto& [key, value] : header.user_metadata) metadata[key.c_str()] = value;
   out["metadata"] = metadata;
-  out["metadata_json"] = header.metadata_json;
   return out;
 }
 
@@ -410,7 +409,8 @@ void bind_session(nb::module_& m) {
       .def("to_json", &SessionHeader::to_json,
            "The header's JSON object as a writer writes it. Raises OptionError naming the "
            "member a reader would refuse (not UTF-8, a start_utc out of range).")
-      .def("to_dict", &header_dict, "the members above as a dict")
+      .def("to_dict", &header_dict,
+           "the members above as a dict, but metadata_json (the stored text, derived)")
       .def("__copy__", [](const SessionHeader& h) { return h; })
       .def("__deepcopy__", [](const SessionHeader& h, nb::handle) { return h; }, "memo"_a)
       .def("__eq__", [](const SessionHeader& a, const SessionHeader& b) {

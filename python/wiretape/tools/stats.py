@@ -42,12 +42,10 @@ class SessionStats:
 
     def to_json(self) -> Dict[str, Any]:
         """The counts and the header's members (as SessionHeader.to_dict
-        names them, but for the stored JSON text) in one object."""
+        names them) in one object."""
         out = {field.name: getattr(self, field.name) for field in dataclasses.fields(self)
                if field.name != "header"}
-        header = self.header.to_dict()
-        del header["metadata_json"]
-        return {**out, **header}
+        return {**out, **self.header.to_dict()}
 
     def text_rows(self) -> List[Tuple[str, str]]:
         """(name, value) rows for people, as ``wiretape stats`` prints them:
