@@ -60,6 +60,9 @@ EXAMPLES_FROM_ENV = os.environ.get("WIRETAPE_COMBINATION_EXAMPLES")
 EXAMPLES = int(EXAMPLES_FROM_ENV or "60")
 
 KNOWN_PER_RECORD_FIXES = "issue 22: response fixes per record"
+PER_SESSION_NUMBERING = ("finding: a virtual device numbers exchanges per client session (each "
+                         "client's engine starts at 0, and silence ends with the session), not per "
+                         "file across client sessions as DESIGN §17 says")
 KNOWN_MISMATCH_LOCATION = ("issue 22: in match=sequence with a profile a mismatch report "
                            "names the previous frame's time and exchange")
 
@@ -132,8 +135,11 @@ def combinations(draw):
 # --- the client -----------------------------------------------------------------------------
 
 
-def replay_keys(protocol: Protocol, match: str, timing: str, fault, seed: int) -> str:
-    keys = [f"match={match}", f"timing={timing}", "unused=error", "at_end=closed"]
+def replay_keys(protocol: Protocol, match: str, timing: str, fault, seed: int, at_end: str) -> str:
+    # at_end=closed lets a port's client see the recording's end at once; a
+    # virtual device would end with it (no second client session), so there
+    # the client waits for QUIET instead.
+    keys = [f"match={match}", f"timing={timing}", "unused=error", f"at_end={at_end}"]
     if protocol.keys:
         keys.append(protocol.keys)
     if fault is not None:
@@ -282,7 +288,8 @@ def run_combination(tmp_path, protocol, parts, split, cuts, match, orders, timin
     session = build_session(parts, split, cuts)
     path = write_session(tmp_path / "combination.wtape", session,
                          port_type="tcp" if len(parts) > 1 else "serial")
-    keys = replay_keys(protocol, match, timing, fault, seed)
+    keys = replay_keys(protocol, match, timing, fault, seed,
+                       at_end="closed" if len(parts) == 1 else "silent")
     requests = client_requests(protocol, parts, orders)
 
     def describe():
@@ -336,6 +343,23 @@ def known_defect(protocol, parts, split, cuts):
                    for e, r in zip(session.exchanges, session.response_records))
 
 
+def numbered_per_session_differs(parts, fault):
+    """True when a fault would hit other exchanges if exchanges were counted
+    per client session instead of per file (what main does today, see
+    PER_SESSION_NUMBERING), or when silence would end with its session."""
+    if fault is None or len(parts) == 1:
+        return False
+    per_file, per_session, first = set(), set(), 0
+    for number, part in enumerate(parts):
+        if 0 <= fault.exchange - first < len(part):
+            per_file.add((number, fault.exchange - first))
+        if fault.exchange < len(part):
+            per_session.add((number, fault.exchange))
+        first += len(part)
+    lasting = fault.name == "silence" and any(n < len(parts) - 1 for n, _ in per_file)
+    return per_file != per_session or lasting
+
+
 @settings(max_examples=EXAMPLES, deadline=None, derandomize=EXAMPLES_FROM_ENV is None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(combination=combinations())
@@ -344,6 +368,8 @@ def test_every_combination_serves_what_the_recording_says(tmp_path_factory, comb
     assume(not known_defect(combination["protocol"], combination["parts"],
                             combination["split"], combination["cuts"]))
     fault = combination["fault"]
+    # finding: exchanges numbered per client session (explicit xfail tests below).
+    assume(not numbered_per_session_differs(combination["parts"], fault))
     if len(combination["parts"]) > 1 and fault is not None:
         # A virtual device ends with a lost device (docs/faults.md): there
         # is no second client session to serve.
@@ -437,3 +463,35 @@ def mismatch_location(session, path, keys, wrong):
         port.write_all(b"X\n")
     assert (caught.value.session_time_ns, caught.value.exchange) == (
         recorded_tx_times(session)[wrong], wrong), str(caught.value)
+
+
+# --- findings of the property test (xfail until fixed; see the report of branch `combinations`) ---
+
+
+def two_client_sessions():
+    return [[Exchange(line_frame(b"A"), (line_frame(b"a"),)), Exchange(line_frame(b"B"), (line_frame(b"b"),))],
+            [Exchange(line_frame(b"C"), (line_frame(b"c"),)), Exchange(line_frame(b"D"), (line_frame(b"d"),))]]
+
+
+@pytest.mark.xfail(strict=True, reason=PER_SESSION_NUMBERING)
+# Kinds whose miss serves more bytes, or other bytes, than the oracle
+# says: the xfail fails at once, not after a read's deadline.
+@pytest.mark.parametrize("kind", ["drop", "truncate:1", "corrupt"])
+def test_a_fault_at_an_exchange_of_the_second_client_session_fires_there(tmp_path, kind):
+    # exchange:2 is the second client's first exchange (C); counted per
+    # session it would be none of the second client's two.
+    run_combination(tmp_path, PROTOCOLS["none"], two_client_sessions(), FRAME_PER_RECORD, [1],
+                    "sequence", [[0, 1], [0, 1]], "none", Fault(kind, 2), 0)
+
+
+@pytest.mark.xfail(strict=True, reason=PER_SESSION_NUMBERING)
+@pytest.mark.parametrize("match", ["sequence", "request"])
+def test_a_fault_in_the_first_client_session_does_not_fire_again_in_the_second(tmp_path, match):
+    run_combination(tmp_path, PROTOCOLS["lines"], two_client_sessions(), FRAME_PER_RECORD, [1],
+                    match, [[0, 1], [0, 1]], "none", Fault("duplicate", 1), 0)
+
+
+@pytest.mark.xfail(strict=True, reason=PER_SESSION_NUMBERING)
+def test_silence_in_the_first_client_session_lasts_into_the_second(tmp_path):
+    run_combination(tmp_path, PROTOCOLS["none"], two_client_sessions(), FRAME_PER_RECORD, [1],
+                    "sequence", [[0, 1], [0, 1]], "none", Fault("silence", 1), 0)
