@@ -25,7 +25,7 @@ import socket
 import time
 
 import pytest
-from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import HealthCheck, assume, event, given, settings
 from hypothesis import strategies as st
 
 import wiretape
@@ -374,6 +374,11 @@ def test_every_combination_serves_what_the_recording_says(tmp_path_factory, comb
         # A virtual device ends with a lost device (docs/faults.md): there
         # is no second client session to serve.
         assume(fault.name not in DEVICE_ENDING_FAULTS)
+    # What was covered (`--hypothesis-show-statistics`).
+    event(f"match={combination['match']} profile={combination['protocol'].name} "
+          f"timing={combination['timing']}")
+    event(f"split={combination['split']} client sessions={len(combination['parts'])}")
+    event(f"fault={fault.name if fault else 'none'}")
     run_combination(tmp_path_factory.mktemp("combination"), **combination)
 
 
