@@ -146,13 +146,26 @@ def records_align_with_frames(exchange: Exchange, records: Sequence[bytes]) -> b
     return list(records) == list(exchange.responses)
 
 
+def request_records(exchange: Exchange, split: str, cuts: Sequence[int] = ()) -> List[bytes]:
+    """The tx records of one exchange's request: under SPLIT_FRAMES the
+    request frame is cut in two at `cuts[0]` (modulo its length), as a
+    driver that writes a command in two calls is recorded; else whole."""
+    request = exchange.request
+    if split != SPLIT_FRAMES or len(request) < 2 or not cuts:
+        return [request]
+    at = cuts[0] % (len(request) - 1) + 1
+    return [request[:at], request[at:]]
+
+
 @dataclasses.dataclass
 class Session:
-    """A session as written: for each client session, its exchanges and the
-    rx records of each exchange's response."""
+    """A session as written: for each client session, its exchanges, the
+    rx records of each exchange's response and the tx records of its
+    request."""
 
     client_sessions: List[List[Exchange]]
     records: List[List[List[bytes]]]  # [client session][exchange] -> rx records
+    tx_records: List[List[List[bytes]]]  # [client session][exchange] -> tx records
 
     @property
     def exchanges(self) -> List[Exchange]:
@@ -166,7 +179,8 @@ class Session:
 def build_session(client_sessions: Sequence[Sequence[Exchange]], split: str,
                   cuts: Sequence[int] = ()) -> Session:
     records = [[response_records(e, split, cuts) for e in part] for part in client_sessions]
-    return Session([list(part) for part in client_sessions], records)
+    tx_records = [[request_records(e, split, cuts) for e in part] for part in client_sessions]
+    return Session([list(part) for part in client_sessions], records, tx_records)
 
 
 CONNECT = json.dumps({"peer": "tcp", "role": "control"}).encode()
@@ -176,8 +190,8 @@ TO_NOBODY = b"said to nobody\n"
 
 
 def write_session(path, session: Session, port_type: str = "serial") -> str:
-    """Writes `session` with the bound SessionWriter: one tx record per
-    request, the planned rx records after it (1 ms apart, so that causal
+    """Writes `session` with the bound SessionWriter: the planned tx records
+    of each request, the planned rx records after them (1 ms apart, so that causal
     timing stays fast). Several client sessions are delimited as the proxy
     records them: client_connect ... client_disconnect, with rx said to
     nobody between them."""
@@ -192,13 +206,14 @@ def write_session(path, session: Session, port_type: str = "serial") -> str:
     with wiretape.SessionWriter(str(path), capture="wire", port_type=port_type,
                                 port_options=f"type={port_type}") as writer:
         writer.write("open", 0, b"{}")
-        for number, (part, records) in enumerate(zip(session.client_sessions, session.records)):
+        for number, (records, tx_records) in enumerate(zip(session.records, session.tx_records)):
             if several:
                 if number:
                     writer.write("rx", tick(), TO_NOBODY)
                 writer.write("client_connect", tick(), CONNECT)
-            for exchange, rx_records in zip(part, records):
-                writer.write("tx", tick(), exchange.request)
+            for rx_records, requests in zip(records, tx_records):
+                for data in requests:
+                    writer.write("tx", tick(), data)
                 for data in rx_records:
                     writer.write("rx", tick(), data)
             if several:
@@ -208,17 +223,16 @@ def write_session(path, session: Session, port_type: str = "serial") -> str:
 
 
 def recorded_tx_times(session: Session) -> List[int]:
-    """The recorded time (ns) of each exchange's tx record, as write_session
-    writes them."""
+    """The recorded time (ns) of each exchange's first tx record, as
+    write_session writes them."""
     several = len(session.client_sessions) > 1
     times, t = [], 0
-    for number, (part, records) in enumerate(zip(session.client_sessions, session.records)):
+    for number, (records, tx_records) in enumerate(zip(session.records, session.tx_records)):
         if several:
             t += MS * (2 if number else 1)
-        for rx_records in records:
-            t += MS
-            times.append(t)
-            t += MS * len(rx_records)
+        for rx_records, requests in zip(records, tx_records):
+            times.append(t + MS)
+            t += MS * (len(requests) + len(rx_records))
         if several:
             t += MS
     return times
@@ -254,6 +268,8 @@ class Expectation:
     `closed`: the read raises PortClosed (the device went away) after `exact`
     (b"" for the fault's exchange). `silent_from_here`: nothing more, ever.
     `back_after_loss`: reconnect: PortClosed first, then later exchanges answer.
+    `at_least_s`: the real wait a fault adds (delay, stall, trickle): the
+    whole response cannot have come sooner after the request.
     """
 
     exact: Optional[bytes] = None
@@ -262,6 +278,7 @@ class Expectation:
     closed: bool = False
     silent: bool = False
     back_after_loss: bool = False
+    at_least_s: float = 0.0
 
     @property
     def count(self) -> int:
@@ -331,8 +348,12 @@ def faulty(fault: Fault, response: bytes, first: int) -> Expectation:
     first `first` bytes (docs/faults.md's table)."""
     head, rest = response[:first], response[first:]
     name, amount = fault.name, fault.amount
-    if name in ("delay", "stall", "trickle"):
-        return Expectation(exact=response)  # late, in pieces, the same bytes
+    if name in ("delay", "stall"):
+        # Late, or with a gap inside, the same bytes.
+        return Expectation(exact=response, at_least_s=amount / 1000)
+    if name == "trickle":
+        # One byte at a time, `amount` ms (default 1) apart.
+        return Expectation(exact=response, at_least_s=(len(response) - 1) * (amount or 1) / 1000)
     if name == "drop" and amount is None:
         return Expectation(exact=b"")
     if name == "truncate":
