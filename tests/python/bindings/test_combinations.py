@@ -421,6 +421,41 @@ def test_every_combination_serves_what_the_recording_says(tmp_path_factory, comb
     run_combination(tmp_path_factory.mktemp("combination"), **combination)
 
 
+@st.composite
+def mismatches(draw):
+    """A lines session, a profile (none or lines) and the exchange at which
+    the client writes a request the recording does not hold."""
+    parts = [[draw(line_exchange(i)) for i in range(draw(st.integers(1, 4)))]]
+    return dict(protocol=PROTOCOLS[draw(st.sampled_from(["none", "lines"]))], parts=parts,
+                split=draw(st.sampled_from(SPLITS)),
+                cuts=draw(st.lists(st.integers(1, 200), min_size=1, max_size=4)),
+                timing=draw(st.sampled_from(["none", "causal"])),
+                chunk=draw(st.sampled_from([0, 1, 3])),
+                wrong=draw(st.integers(0, len(parts[0]) - 1)))
+
+
+@settings(max_examples=max(10, EXAMPLES // 3), deadline=None, derandomize=EXAMPLES_FROM_ENV is None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(case=mismatches())
+def test_a_mismatch_names_the_recorded_frames_time_and_exchange(tmp_path_factory, case):
+    # issue 22: in match=sequence with a profile a mismatch report names the
+    # previous frame's time and exchange (explicit xfail tests below).
+    assume(case["protocol"].name == "none")
+    session = build_session(case["parts"], case["split"], case["cuts"])
+    path = write_session(tmp_path_factory.mktemp("mismatch") / "mismatch.wtape", session)
+    keys = f"{case['protocol'].keys},timing={case['timing']},unused=ignore".lstrip(",")
+    port = wiretape.open_port(f'type=replay,file="{path}",timeout={DEADLINE},{keys}')
+    client = PortClient(port, case["chunk"])
+    for exchange in session.exchanges[:case["wrong"]]:
+        client.write(exchange.request)
+        assert client.read_exactly(len(exchange.response)) == exchange.response
+    # Its first byte differs from every recorded request's ("Q...").
+    with pytest.raises(wiretape.ReplayMismatch) as caught:
+        client.write(b"X\n")
+    assert (caught.value.session_time_ns, caught.value.exchange) == (
+        recorded_tx_times(session)[case["wrong"]], case["wrong"]), f"{caught.value}\n{case}"
+
+
 # Every fault kind in both match modes, with and without a profile, on a
 # session whose responses span two records: each kind is covered in every
 # bounded run, whatever the property test drew.
