@@ -183,18 +183,29 @@ def build_session(client_sessions: Sequence[Sequence[Exchange]], split: str,
     return Session([list(part) for part in client_sessions], records, tx_records)
 
 
-CONNECT = json.dumps({"peer": "tcp", "role": "control"}).encode()
-DISCONNECT = json.dumps({"peer": "tcp", "reason": "closed"}).encode()
+def connect(peer: str, role: str = "control") -> bytes:
+    return json.dumps({"peer": peer, "role": role}).encode()
+
+
+def disconnect(peer: str) -> bytes:
+    return json.dumps({"peer": peer, "reason": "disconnected"}).encode()
+
+
+MONITOR_PEER = "127.0.0.1:40000"
+# A monitor (`serve --shared`) in the first client session: none; one that
+# joins before its first exchange and stays past its end; or one that
+# leaves after that first exchange. Monitors make no client session.
+MONITORS = ("", "stays", "leaves")
 # What the device says while no client is connected: never served.
 TO_NOBODY = b"said to nobody\n"
 
 
-def write_session(path, session: Session, port_type: str = "serial") -> str:
+def write_session(path, session: Session, port_type: str = "serial", monitor: str = "") -> str:
     """Writes `session` with the bound SessionWriter: the planned tx records
     of each request, the planned rx records after them (1 ms apart, so that causal
     timing stays fast). Several client sessions are delimited as the proxy
     records them: client_connect ... client_disconnect, with rx said to
-    nobody between them."""
+    nobody between them, and a `monitor` (MONITORS) in the first."""
     several = len(session.client_sessions) > 1
     t = 0
 
@@ -210,21 +221,27 @@ def write_session(path, session: Session, port_type: str = "serial") -> str:
             if several:
                 if number:
                     writer.write("rx", tick(), TO_NOBODY)
-                writer.write("client_connect", tick(), CONNECT)
-            for rx_records, requests in zip(records, tx_records):
+                writer.write("client_connect", tick(), connect(f"127.0.0.1:{40001 + number}"))
+            for position, (rx_records, requests) in enumerate(zip(records, tx_records)):
+                if several and monitor and number == 0 and position == 0:
+                    writer.write("client_connect", tick(), connect(MONITOR_PEER, "monitor"))
                 for data in requests:
                     writer.write("tx", tick(), data)
                 for data in rx_records:
                     writer.write("rx", tick(), data)
+                if several and monitor == "leaves" and number == 0 and position == 0:
+                    writer.write("client_disconnect", tick(), disconnect(MONITOR_PEER))
             if several:
-                writer.write("client_disconnect", tick(), DISCONNECT)
+                writer.write("client_disconnect", tick(), disconnect(f"127.0.0.1:{40001 + number}"))
+                if monitor == "stays" and number == 0:
+                    writer.write("client_disconnect", tick(), disconnect(MONITOR_PEER))
         writer.write("close", tick(), b"{}")
     return str(path)
 
 
 def recorded_tx_times(session: Session) -> List[int]:
     """The recorded time (ns) of each exchange's first tx record, as
-    write_session writes them."""
+    write_session writes them (with no monitor)."""
     several = len(session.client_sessions) > 1
     times, t = [], 0
     for number, (records, tx_records) in enumerate(zip(session.records, session.tx_records)):
