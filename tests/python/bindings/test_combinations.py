@@ -135,11 +135,14 @@ def combinations(draw):
     if draw(st.integers(0, 3)):  # a fault in three examples of four
         fault = Fault(draw(st.sampled_from(FAULT_KINDS)), draw(st.integers(0, index - 1)))
     monitor = draw(st.sampled_from(MONITORS)) if client_sessions > 1 else ""
+    # A device greeting: rx before the first request (a line: what a binary
+    # protocol's framer would take for a broken frame is no greeting there).
+    greeting = draw(st.sampled_from([b"", b"", line_frame(b"hello")])) if family == "lines" else b""
     # How the client splits each request into writes (0: one write).
     chunk = draw(st.sampled_from([0, 0, 1, 2, 3, 5]))
     return dict(protocol=protocol, parts=parts, split=split, cuts=cuts, match=match,
                 orders=orders, timing=timing, fault=fault, seed=draw(st.integers(0, 2**16)),
-                chunk=chunk, monitor=monitor)
+                chunk=chunk, monitor=monitor, greeting=greeting)
 
 
 # --- the client -----------------------------------------------------------------------------
@@ -254,9 +257,12 @@ class TcpClient:
         self.socket.close()
 
 
-def play(client, requests, expectations, describe):
-    """Writes each request, reads what the oracle says must come, and
-    compares. Returns normally or fails with `describe()` in the message."""
+def play(client, requests, expectations, describe, greeting=b""):
+    """Reads the greeting, writes each request, reads what the oracle says
+    must come, and compares. Returns normally or fails with `describe()` in
+    the message."""
+    got = client.read_exactly(len(greeting))
+    assert got == greeting, f"greeting: served {got.hex()}\n{describe()}"
     back_pending = False
     for number, (request, expectation) in enumerate(zip(requests, expectations)):
         where = f"request {number} ({request!r})"
@@ -311,8 +317,8 @@ def client_requests(protocol, parts, orders):
 
 
 def run_combination(tmp_path, protocol, parts, split, cuts, match, orders, timing, fault, seed,
-                    chunk=0, monitor=""):
-    session = build_session(parts, split, cuts)
+                    chunk=0, monitor="", greeting=b""):
+    session = build_session(parts, split, cuts, greeting)
     path = write_session(tmp_path / "combination.wtape", session,
                          port_type="tcp" if len(parts) > 1 else "serial", monitor=monitor)
     keys = replay_keys(protocol, match, timing, fault, seed,
@@ -321,7 +327,7 @@ def run_combination(tmp_path, protocol, parts, split, cuts, match, orders, timin
 
     def describe():
         return (f"keys: {keys}\nsplit: {split} cuts {cuts}\norders: {orders}\nwrites of {chunk}\n"
-                f"monitor: {monitor or 'none'}\n"
+                f"monitor: {monitor or 'none'}, greeting {greeting!r}\n"
                 f"exchanges: {parts}\nrx records: {session.records}\ntx records: {session.tx_records}")
 
     # The oracle numbers exchanges per file, across client sessions, in
@@ -340,7 +346,7 @@ def run_combination(tmp_path, protocol, parts, split, cuts, match, orders, timin
 
     if len(parts) == 1:
         port = wiretape.open_port(f'type=replay,file="{path}",timeout={DEADLINE},{keys}')
-        play(PortClient(port, chunk), requests[0], expectations[0], describe)
+        play(PortClient(port, chunk), requests[0], expectations[0], describe, greeting)
         port.close()  # unused=error: everything was served (or a fault made it unreachable)
         return
     handle = bridge.serve_replay(path, listen="127.0.0.1:0", replay_options=keys, quiet=True)
@@ -348,7 +354,7 @@ def run_combination(tmp_path, protocol, parts, split, cuts, match, orders, timin
         for number, (asked, expected) in enumerate(zip(requests, expectations), start=1):
             client = TcpClient(handle.address, chunk)
             try:
-                play(client, asked, expected, describe)
+                play(client, asked, expected, describe, greeting if number == 1 else b"")
             finally:
                 client.close()
             wait_until(lambda: sum("disconnected" in m for m in handle.messages()) >= number,
@@ -412,6 +418,11 @@ def test_every_combination_serves_what_the_recording_says(tmp_path_factory, comb
     fault = combination["fault"]
     # finding: exchanges numbered per client session (explicit xfail tests below).
     assume(not numbered_per_session_differs(combination["parts"], fault))
+    # Which exchange a greeting belongs to is not decided yet: docs/faults.md
+    # gives three rules (exchange 0 with the first answer; no exchange with a
+    # profile in match=sequence; exchange 0 of its own in match=request),
+    # which DESIGN §17's one segmentation replaces. Faults skip greetings.
+    assume(fault is None or not combination["greeting"])
     # finding: a monitor leaving ends the session (explicit xfail test below).
     assume(not (combination["monitor"] == "leaves" and len(combination["parts"][0]) > 1))
     # finding: trickle across rx records (explicit xfail test below).

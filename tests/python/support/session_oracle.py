@@ -166,6 +166,7 @@ class Session:
     client_sessions: List[List[Exchange]]
     records: List[List[List[bytes]]]  # [client session][exchange] -> rx records
     tx_records: List[List[List[bytes]]]  # [client session][exchange] -> tx records
+    greeting: bytes = b""  # rx before the first request (released at open, or at connect)
 
     @property
     def exchanges(self) -> List[Exchange]:
@@ -177,10 +178,10 @@ class Session:
 
 
 def build_session(client_sessions: Sequence[Sequence[Exchange]], split: str,
-                  cuts: Sequence[int] = ()) -> Session:
+                  cuts: Sequence[int] = (), greeting: bytes = b"") -> Session:
     records = [[response_records(e, split, cuts) for e in part] for part in client_sessions]
     tx_records = [[request_records(e, split, cuts) for e in part] for part in client_sessions]
-    return Session([list(part) for part in client_sessions], records, tx_records)
+    return Session([list(part) for part in client_sessions], records, tx_records, greeting)
 
 
 def connect(peer: str, role: str = "control") -> bytes:
@@ -222,6 +223,8 @@ def write_session(path, session: Session, port_type: str = "serial", monitor: st
                 if number:
                     writer.write("rx", tick(), TO_NOBODY)
                 writer.write("client_connect", tick(), connect(f"127.0.0.1:{40001 + number}"))
+            if number == 0 and session.greeting:
+                writer.write("rx", tick(), session.greeting)
             for position, (rx_records, requests) in enumerate(zip(records, tx_records)):
                 if several and monitor and number == 0 and position == 0:
                     writer.write("client_connect", tick(), connect(MONITOR_PEER, "monitor"))
@@ -247,6 +250,8 @@ def recorded_tx_times(session: Session) -> List[int]:
     for number, (records, tx_records) in enumerate(zip(session.records, session.tx_records)):
         if several:
             t += MS * (2 if number else 1)
+        if number == 0 and session.greeting:
+            t += MS
         for rx_records, requests in zip(records, tx_records):
             times.append(t + MS)
             t += MS * (len(requests) + len(rx_records))
