@@ -32,7 +32,9 @@ cpp: $(BUILD)/build.ninja
 	cmake --build $(BUILD)
 
 # The editable install reuses the extension built in $(BUILD) (see pyproject).
-$(VENV)/.installed: $(VENV)/.deps pyproject.toml
+# It maps each module to its file, so it is made again when a folder of the
+# package gains or loses a file (the folders' times change).
+$(VENV)/.installed: $(VENV)/.deps pyproject.toml $(shell find python/wiretape -type d)
 	WIRETAPE_PREBUILT=1 $(PYTHON) -m pip install -q --no-build-isolation --no-deps -e .
 	touch $@
 

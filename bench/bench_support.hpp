@@ -56,11 +56,11 @@ inline double peak_rss_mib() {
 // throughput is measured on.
 inline void write_rx_session(const std::string& path, std::uint64_t total_bytes,
                              std::size_t record_bytes = 4096) {
-  SessionWriterOptions options;
-  options.port_type = "serial";
-  options.port_options = "type=serial,device=/dev/bench";
-  options.metadata["purpose"] = "benchmark";
-  SessionWriter writer(path, options);
+  SessionHeader header;
+  header.port_type = "serial";
+  header.port_options = "type=serial,device=/dev/bench";
+  header.user_metadata["purpose"] = "benchmark";
+  SessionWriter writer(path, header);
   std::string payload(record_bytes, '\0');
   for (std::size_t i = 0; i < payload.size(); ++i) {
     payload[i] = static_cast<char>('A' + i % 26);

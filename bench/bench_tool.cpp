@@ -72,10 +72,10 @@ int timing(std::uint64_t records, std::uint64_t period_us) {
   const std::uint64_t period_ns = period_us * 1000;
   constexpr std::size_t record_bytes = 8;
   {
-    wiretape::SessionWriterOptions options;
-    options.port_type = "serial";
-    options.port_options = "type=serial,device=/dev/bench";
-    wiretape::SessionWriter writer(path, options);
+    wiretape::SessionHeader header;
+    header.port_type = "serial";
+    header.port_options = "type=serial,device=/dev/bench";
+    wiretape::SessionWriter writer(path, header);
     writer.write(wiretape::RecordKind::open, 0, "{}");
     for (std::uint64_t i = 0; i < records; ++i) {
       char payload[record_bytes] = {};
@@ -289,10 +289,10 @@ int record_rss(std::uint64_t bytes, const std::string& path) {
 // Request i is "REQ%05d\n", its response "RSP%05d,OK\n" (bench_devices.py
 // writes the same exchanges in pytest-reserial's format).
 int make_exchanges(const std::string& path, std::uint64_t count) {
-  wiretape::SessionWriterOptions options;
-  options.port_type = "serial";
-  options.port_options = "type=serial,device=/dev/bench";
-  wiretape::SessionWriter writer(path, options);
+  wiretape::SessionHeader header;
+  header.port_type = "serial";
+  header.port_options = "type=serial,device=/dev/bench";
+  wiretape::SessionWriter writer(path, header);
   writer.write(wiretape::RecordKind::open, 0, "{}");
   std::uint64_t t_ns = 1000;
   for (std::uint64_t i = 0; i < count; ++i) {

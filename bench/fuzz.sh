@@ -58,6 +58,7 @@ for source in "${sources[@]}"; do
       | sed "s/^/  /" || true
   fi
 done
+[ -z "$python" ] || { echo "fuzz: test_combinations, $((seconds * 2)) examples"; WIRETAPE_COMBINATION_EXAMPLES=$((seconds * 2)) "$python" -m pytest -q -p no:cacheprovider "$root/tests/python/bindings/test_combinations.py" >"$build/test_combinations.log" 2>&1; } || { tail -n 40 "$build/test_combinations.log" >&2; failed+=(test_combinations); }
 if [ ${#failed[@]} -gt 0 ]; then
   echo "fuzz: failed: ${failed[*]}" >&2
   exit 1

@@ -81,7 +81,7 @@ BENCHMARK(BM_SessionReaderScan)->Arg(64)->Unit(benchmark::kMillisecond)->UseReal
 
 void BM_SessionWriter4KiB(benchmark::State& state) {
   const std::string path = scratch("wiretape-gbench-writer");
-  wiretape::SessionWriter writer(path, wiretape::SessionWriterOptions{});
+  wiretape::SessionWriter writer(path, wiretape::SessionHeader{});
   const std::string payload(4096, 'w');
   std::uint64_t t_ns = 0;
   for (auto _ : state) {
@@ -145,10 +145,10 @@ std::string exchange_request(std::size_t i) {
 
 void write_exchange_session(const std::string& path, std::size_t exchanges,
                             std::size_t response_bytes) {
-  wiretape::SessionWriterOptions options;
-  options.port_type = "serial";
-  options.port_options = "type=serial,device=/dev/bench";
-  wiretape::SessionWriter writer(path, options);
+  wiretape::SessionHeader header;
+  header.port_type = "serial";
+  header.port_options = "type=serial,device=/dev/bench";
+  wiretape::SessionWriter writer(path, header);
   std::string response(response_bytes, 'r');
   response.back() = '\n';
   std::uint64_t t_ns = 1000;
@@ -299,10 +299,10 @@ void BM_ModbusTcpReordering(benchmark::State& state) {
   const auto polls = static_cast<std::size_t>(state.range(0));
   const std::string path = scratch("wiretape-gbench-modbus");
   {
-    wiretape::SessionWriterOptions options;
-    options.port_type = "tcp";
-    options.port_options = "type=tcp,host=127.0.0.1,port=502";
-    wiretape::SessionWriter writer(path, options);
+    wiretape::SessionHeader header;
+    header.port_type = "tcp";
+    header.port_options = "type=tcp,host=127.0.0.1,port=502";
+    wiretape::SessionWriter writer(path, header);
     std::uint64_t t_ns = 1000;
     for (std::size_t i = 0; i < polls; ++i) {
       const auto tid = static_cast<std::uint16_t>(i);

@@ -1,7 +1,7 @@
-// Fuzzes the faults= parser and the injector: any text either parses or
-// raises an OptionError naming `faults`; a plan that parses is applied to a
-// short stream of rx records (stream and datagram sessions) without crashing,
-// and twice with the same seed gives the same bytes.
+// Fuzzes the faults= parser and the fault stage: any text either parses or
+// raises an OptionError naming `faults`; a plan that parses is applied by
+// the stage to a short stream of rx records (stream and datagram sessions)
+// without crashing, and twice with the same seed gives the same bytes.
 #include <chrono>
 #include <cstdint>
 #include <cstdlib>
@@ -9,6 +9,7 @@
 #include <string>
 #include <string_view>
 
+#include "replay/fault_stage.hpp"
 #include "replay/faults.hpp"
 #include "wiretape/errors.hpp"
 
@@ -16,20 +17,25 @@ namespace {
 
 std::string run(const wiretape::detail::FaultPlan& plan, bool datagrams) {
   using namespace wiretape::detail;
-  FaultInjector injector(plan, datagrams, nullptr);
-  std::deque<FaultedRx> out;
+  ReleasedRx released(/*recycle_payloads=*/false);
+  FaultStage stage(plan, datagrams, released);
+  stage.on_fault([](const FaultEvent&) {});
   const ReplayTime start{};
+  std::string bytes;
   for (std::uint64_t i = 0; i < 12; ++i) {
     RxItem item;
     item.kind = i == 11 ? wiretape::RecordKind::close : wiretape::RecordKind::rx;
     item.data = std::string(1 + i * 7 % 23, static_cast<char>('a' + i));
     item.t_ns = i * 250'000'000;
     item.due = start + std::chrono::milliseconds(i);
-    injector.apply(std::move(item), i / 2, out, start + std::chrono::milliseconds(i / 2));
+    item.exchange = i / 2;
+    released.push(std::move(item));
+    const ReplayTime now = start + std::chrono::milliseconds(i / 2);
+    stage.pull(now);
+    stage.loss(now);
   }
-  std::string bytes;
-  for (const FaultedRx& faulted : out) {
-    bytes += std::string(faulted.item.payload());
+  for (; !stage.empty(); stage.pop()) {
+    bytes += std::string(stage.front().payload());
     bytes += '|';
   }
   return bytes;

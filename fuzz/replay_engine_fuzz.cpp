@@ -105,15 +105,16 @@ Session write_session(InputBytes& input, const std::string& path) {
   Session session;
   const std::uint8_t type = input.byte();
   static const char* const kTypes[] = {"serial", "tcp", "udp", ""};
-  wiretape::SessionWriterOptions options;
-  options.port_type = kTypes[type & 3];
-  session.datagrams = options.port_type == "udp";
-  options.capture = type & 4 ? wiretape::Capture::wire : wiretape::Capture::client;
-  options.flush_ms = 1000;
-  options.start_utc = "2026-11-23T00:00:00Z";
-  options.host = "fuzz";
-  options.wiretape_version = "fuzz";
-  wiretape::SessionWriter writer(path, options);
+  wiretape::SessionHeader header;
+  wiretape::FlushPolicy flush;
+  header.port_type = kTypes[type & 3];
+  session.datagrams = header.port_type == "udp";
+  header.capture = type & 4 ? wiretape::Capture::wire : wiretape::Capture::client;
+  flush.interval = std::chrono::milliseconds(1000);
+  header.start_utc = "2026-11-23T00:00:00Z";
+  header.host = "fuzz";
+  header.wiretape_version = "fuzz";
+  wiretape::SessionWriter writer(path, header, flush);
   const std::size_t count = input.byte() % 48;
   std::uint64_t t_ns = 0;
   for (std::size_t i = 0; i < count && !input.empty(); ++i) {

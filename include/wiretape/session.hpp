@@ -4,6 +4,7 @@
 // (`name.log` meaning `name.logr` + `name.logw`), detected automatically.
 #pragma once
 
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <map>
@@ -14,6 +15,7 @@
 #include <vector>
 
 #include "wiretape/errors.hpp"
+#include "wiretape/version.hpp"
 
 namespace wiretape {
 
@@ -56,17 +58,23 @@ enum class Capture {
   wire,    // proxy: every byte, stamped on arrival
 };
 
+// A session's header: what was recorded, where, when and how. The one type
+// for reading (SessionReader::header) and writing (SessionWriter): what a
+// writer is given is what the file says, nothing is filled in behind it.
 struct SessionHeader {
-  // The file's format version; 0.0 for a flexiport log, read directly.
+  // The file's format version, as read: 0.0 for a flexiport log. A writer
+  // writes its own format version and ignores these.
   std::uint16_t version_major = 1;
   std::uint16_t version_minor = 0;
-  std::string metadata_json;  // the header's JSON object, as stored
-  // Fields of metadata_json, parsed:
-  std::string port_options;
+  // The header's JSON object as stored (read), or as written (the writer's
+  // header()); a writer makes it from the fields below (to_json) and ignores
+  // what is here.
+  std::string metadata_json;
+  std::string port_options;  // the option string the port was opened with
   std::string port_type;
-  std::string start_utc;  // ISO 8601, e.g. 2026-11-23T10:00:00.123456Z
-  std::string wiretape_version;
-  std::string host;
+  std::string start_utc;  // ISO 8601, e.g. 2026-11-23T10:00:00.123456Z; empty: not known
+  std::string wiretape_version = version;  // of the wiretape that wrote the file
+  std::string host;  // the recording machine's name; empty: not known
   Capture capture = Capture::client;
   // Where the session came from: "wiretape" (recorded by wiretape), or the
   // format it was imported from ("flexiport", "pcap", "reserial", ...),
@@ -76,7 +84,16 @@ struct SessionHeader {
   std::map<std::string, std::string> source_details;
   std::string device_address;  // host:port of a network device, when known
   std::vector<std::string> edits;  // what `wiretape edit` changed, in order
-  std::map<std::string, std::string> user_metadata;
+  std::map<std::string, std::string> user_metadata;  // free user metadata (--meta)
+
+  // A header for a session that starts now on this machine: start_utc is
+  // now and host this machine's name (what recorders write).
+  static SessionHeader starting_now();
+  // The header's JSON object, as a writer writes it (docs/session-format.md,
+  // "Metadata"). Throws OptionError naming the member when the reader would
+  // refuse it: a string that is not valid UTF-8, a start_utc that is not an
+  // ISO 8601 UTC time in range, a source detail named format or files.
+  std::string to_json() const;
 };
 
 // Streams records with memory independent of the file's size.
@@ -107,28 +124,12 @@ class SessionReader {
   std::unique_ptr<Impl> impl_;
 };
 
-struct SessionWriterOptions {
-  Capture capture = Capture::client;
-  std::string port_options;
-  std::string port_type;
-  std::map<std::string, std::string> metadata;  // free user metadata
+// How a SessionWriter hands its records to the OS (not part of the file).
+struct FlushPolicy {
   // Bound on what a crash may lose: buffered records reach the OS at most
   // this long after they were written, even when the recorder goes idle.
-  int flush_ms = 100;
-  bool fsync = false;
-  // Header fields normally taken from the machine; set them to write a
-  // reproducible file (golden files, conversions that keep the original's).
-  // An empty string says "not known" (an imported session).
-  std::optional<std::string> start_utc;  // unset: now
-  std::optional<std::string> host;       // unset: this machine's host name
-  std::string wiretape_version;          // empty: this library's version
-  // Provenance (SessionHeader has the same fields): empty source_format
-  // means recorded by wiretape.
-  std::string source_format;
-  std::vector<std::string> source_files;
-  std::map<std::string, std::string> source_details;
-  std::string device_address;
-  std::vector<std::string> edits;
+  std::chrono::milliseconds interval{100};
+  bool fsync = false;  // fsync after each flush
 };
 
 // Appends records to a new session file. Thread-safe: a reader thread and a
@@ -139,7 +140,10 @@ class SessionWriter {
   // regular file is written: a symbolic link, a FIFO or a device at `path`
   // is refused untouched, and so is a file this process is reading as a
   // session (same device and inode: links to it included).
-  SessionWriter(const std::string& path, SessionWriterOptions options);
+  // Throws OptionError naming the member when `header` cannot be written
+  // (SessionHeader::to_json), before the file is created.
+  SessionWriter(const std::string& path, const SessionHeader& header,
+                FlushPolicy flush = FlushPolicy{});
   ~SessionWriter();  // closes; never throws
   SessionWriter(const SessionWriter&) = delete;
   SessionWriter& operator=(const SessionWriter&) = delete;
@@ -158,6 +162,8 @@ class SessionWriter {
   // written. Further writes throw.
   void close();
   const std::string& path() const;
+  // The header as written: this library's format version and metadata_json.
+  const SessionHeader& header() const;
   // The first write failure (full disk, file-size limit), if any. After a
   // failure the file holds every whole record written before it and nothing
   // after it, and write() throws.

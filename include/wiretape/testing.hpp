@@ -14,6 +14,8 @@
 //
 // Each test has a cassette, a session file next to its source:
 //   <dir of the .cpp>/recordings/<source file stem>/<Suite>.<Test>.wtape
+// (names made safe as wiretape/cassette_names.hpp says, the pytest plugin's
+// rules).
 // By default the test replays it (type=replay,timing=none, plus the keys given
 // to port()); a missing cassette fails the test with the command that records
 // it. With the environment
@@ -43,6 +45,7 @@
 
 #include <unistd.h>
 
+#include "wiretape/cassette_names.hpp"
 #include "wiretape/options.hpp"
 #include "wiretape/port.hpp"
 
@@ -84,39 +87,6 @@ struct CassetteSettings {
     return settings;
   }
 };
-
-// `name` with every character but letters, digits and `._-=+` replaced by
-// `_` (GoogleTest's parameterized names hold `/`).
-inline std::string safe_file_name(std::string_view name) {
-  std::string safe;
-  safe.reserve(name.size());
-  for (char c : name) {
-    const bool keep = std::isalnum(static_cast<unsigned char>(c)) || c == '.' ||
-                      c == '_' || c == '-' || c == '=' || c == '+';
-    if (keep) {
-      safe += c;
-    } else if (safe.empty() || safe.back() != '_') {
-      safe += '_';
-    }
-  }
-  while (!safe.empty() && (safe.back() == '_' || safe.back() == '.')) safe.pop_back();
-  std::size_t first = 0;
-  while (first < safe.size() && (safe[first] == '_' || safe[first] == '.')) ++first;
-  safe.erase(0, first);
-  return safe.empty() ? std::string("test") : safe;
-}
-
-// <dir of source_file>/recordings/<stem of source_file>/<suite>.<test>.wtape,
-// or under `directory` when one is given.
-inline std::string default_cassette_path(std::string_view source_file, std::string_view suite,
-                                         std::string_view test,
-                                         const std::string& directory = {}) {
-  const std::filesystem::path source{std::string(source_file)};
-  const std::filesystem::path base =
-      directory.empty() ? source.parent_path() / "recordings" : std::filesystem::path(directory);
-  const std::string name = safe_file_name(std::string(suite) + "." + std::string(test));
-  return (base / source.stem() / (name + ".wtape")).string();
-}
 
 // One test's cassette: whether it records or replays, the option string, the
 // port, and what happens to the recording when the test ends.

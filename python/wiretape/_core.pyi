@@ -2,6 +2,7 @@
 
 from collections.abc import Mapping, Sequence
 import datetime
+import os
 
 from wiretape import (
     OptionError as OptionError,
@@ -333,39 +334,77 @@ class Record:
 
 class SessionHeader:
     """
-    A session file's header (docs/session-format.md): what was recorded, where, when and how. Read-only.
+    A session file's header (docs/session-format.md): what was recorded, where, when and how; the one type for reading (SessionReader.header) and writing (SessionWriter). SessionHeader(**members) or SessionHeader.from_dict(d): members as to_dict() names them, checked (an unknown member or a wrong type raises); the others keep their defaults (start_utc and host empty: not known).
     """
+
+    def __init__(self, **members: object) -> None: ...
+
+    @staticmethod
+    def from_dict(members: dict) -> SessionHeader:
+        """A header from a dict of members (as to_dict() gives them), checked."""
+
+    @staticmethod
+    def starting_now() -> SessionHeader:
+        """
+        A header for a session that starts now on this machine: start_utc now, host this machine's name (what recorders write).
+        """
 
     @property
     def version_major(self) -> int:
-        """the file's format version"""
+        """
+        the file's format version, as read (0.0 for a flexiport log); writers write their own
+        """
+
+    @version_major.setter
+    def version_major(self, arg: int, /) -> None: ...
 
     @property
     def version_minor(self) -> int: ...
+
+    @version_minor.setter
+    def version_minor(self, arg: int, /) -> None: ...
 
     @property
     def port_options(self) -> str:
         """the option string the port was opened with"""
 
+    @port_options.setter
+    def port_options(self, arg: str, /) -> None: ...
+
     @property
     def port_type(self) -> str:
         """serial, tcp, udp, pty, loopback, ..."""
 
+    @port_type.setter
+    def port_type(self, arg: str, /) -> None: ...
+
     @property
     def start_utc(self) -> str:
-        """when the device was opened, ISO 8601 UTC"""
+        """when the device was opened, ISO 8601 UTC ('' when not known)"""
+
+    @start_utc.setter
+    def start_utc(self, arg: str, /) -> None: ...
 
     @property
     def wiretape_version(self) -> str:
         """the version of wiretape that wrote the file"""
 
+    @wiretape_version.setter
+    def wiretape_version(self, arg: str, /) -> None: ...
+
     @property
     def host(self) -> str:
-        """the recording machine's name"""
+        """the recording machine's name ('' when not known)"""
+
+    @host.setter
+    def host(self, arg: str, /) -> None: ...
 
     @property
     def capture(self) -> str:
         """'client' (library recording) or 'wire' (proxy recording)"""
+
+    @capture.setter
+    def capture(self, arg: str, /) -> None: ...
 
     @property
     def source_format(self) -> str:
@@ -373,36 +412,73 @@ class SessionHeader:
         'wiretape' (recorded by wiretape) or the format it was imported from: 'flexiport', 'pcap', 'reserial', 'umockdev', ...
         """
 
+    @source_format.setter
+    def source_format(self, arg: str, /) -> None: ...
+
     @property
     def source_files(self) -> list[str]:
         """an imported session's original file names"""
+
+    @source_files.setter
+    def source_files(self, arg: Sequence[str], /) -> None: ...
 
     @property
     def source_details(self) -> dict[str, str]:
         """what else the import noted (the stream, the test, the logs' formats)"""
 
+    @source_details.setter
+    def source_details(self, arg: Mapping[str, str], /) -> None: ...
+
     @property
     def device_address(self) -> str:
         """host:port of a network device, when known"""
+
+    @device_address.setter
+    def device_address(self, arg: str, /) -> None: ...
 
     @property
     def edits(self) -> list[str]:
         """what wiretape edit changed, in order"""
 
+    @edits.setter
+    def edits(self, arg: Sequence[str], /) -> None: ...
+
     @property
     def metadata(self) -> dict[str, str]:
         """the free user metadata (--meta)"""
 
+    @metadata.setter
+    def metadata(self, arg: Mapping[str, str], /) -> None: ...
+
     @property
     def metadata_json(self) -> str:
-        """the header's JSON, as stored"""
+        """the header's JSON as stored (read) or written; to_json() makes it anew"""
+
+    @metadata_json.setter
+    def metadata_json(self, arg: str, /) -> None: ...
+
+    def to_json(self) -> str:
+        """
+        The header's JSON object as a writer writes it. Raises OptionError naming the member a reader would refuse (not UTF-8, a start_utc out of range).
+        """
 
     def to_dict(self) -> dict:
-        """the fields above as a dict"""
+        """
+        the members above as a dict, but metadata_json (the stored text, derived)
+        """
+
+    def __copy__(self) -> SessionHeader: ...
+
+    def __deepcopy__(self, memo: object) -> SessionHeader: ...
 
     def __eq__(self, arg: SessionHeader, /) -> bool: ...
 
     def __repr__(self) -> str: ...
+
+def event_payload(kind: object, fields: dict) -> bytes:
+    """
+    The JSON payload of an event of KIND ('settings', 'fault', ...) with the members FIELDS (bool, int or str), as bytes in the record-kind table's order. Raises ValueError naming the kind and the member: not in the table, wrong type, missing when required.
+    """
 
 class SessionReader:
     """
@@ -442,7 +518,14 @@ class SessionWriter:
     Writes a new .wtape file (truncating PATH). Buffered; buffered records reach the OS at most flush_ms after they were written. A full disk or file-size limit raises PortError; what was written before stays readable.
     """
 
-    def __init__(self, path: object, *, capture: str = 'client', port_options: str = '', port_type: str = '', metadata: Mapping[str, str] | None = None, flush_ms: int = 100, fsync: bool = False, start_utc: str | None = None, host: str | None = None, wiretape_version: str = '', source_format: str = '', source_files: Sequence[str] | None = None, source_details: Mapping[str, str] | None = None, device_address: str = '', edits: Sequence[str] | None = None) -> None: ...
+    def __init__(self, path: str | os.PathLike[str] | bytes, header: SessionHeader | None = None, *, flush_ms: int = 100, fsync: bool = False, **members: object) -> None:
+        """
+        HEADER (default: SessionHeader.starting_now()) with MEMBERS (keyword arguments named as SessionHeader's members) set on it is what the file's header says.
+        """
+
+    @property
+    def header(self) -> SessionHeader:
+        """the header as written (this library's format version, metadata_json)"""
 
     def write(self, kind: object, t_ns: int, data: bytes = ..., channel: int = 0) -> None:
         """
@@ -463,6 +546,23 @@ class SessionWriter:
 def export_flexiport(source: object, prefix: object, format: str = 'new') -> int:
     """
     Writes a session (.wtape or flexiport) as flexiport's logs PREFIX + 'r' (reads) and PREFIX + 'w' (writes), in its new format (from 2008-07) or the old one; events are dropped. A FIFO or a device there (through a symbolic link too) is written through. Returns the number of records written.
+    """
+
+MAX_CASSETTE_NAME_LENGTH: int = 100
+
+def safe_file_name(name: str) -> str:
+    """
+    NAME as a cassette's file name: runs of characters but ASCII letters, digits and ._-=+ become one _, _ and . are trimmed; a name that changed or is longer than MAX_CASSETTE_NAME_LENGTH is cut to fit and ends with - and 12 hex digits of its SHA-1, so that distinct tests never share a cassette.
+    """
+
+def cassette_file_name(test_name_parts: Sequence[str]) -> str:
+    """
+    A test's cassette file name from its name's parts, outermost first (suite or class, then the test with its parameters): joined by '.', made safe, + '.wtape'.
+    """
+
+def cassette_directory(source_file: object, directory: str = '') -> str:
+    """
+    The folder of SOURCE_FILE's cassettes: <its dir>/recordings/<its stem>, or <DIRECTORY>/<its stem> when a directory is given.
     """
 
 def crc32c(data: bytes, crc: int = 0) -> int:
@@ -642,101 +742,86 @@ def escape_bytes(data: bytes, limit: int = 64) -> str:
     The bytes as one line of terminal-safe text: printable ASCII kept, a backslash doubled, \\n \\r \\t and \\xNN for every other byte (ESC included); beyond `limit` bytes, '... (+N bytes)'.
     """
 
-class Exchange:
-    """
-    One exchange of a session: a request of the client's (a run of tx records; with a profile one request frame; in a udp session one datagram) and what the device sent until the next request. Numbered from 0 per file, as replay numbers them in mismatch reports and faults=exchange:N.
-    """
+class FaultKind:
+    """A kind of fault (docs/faults.md)."""
 
     @property
-    def index(self) -> int: ...
+    def name(self) -> str:
+        """Its name in KIND (drop, delay, ...)."""
 
     @property
-    def client_session(self) -> int | None:
-        """the client session (0-based) it began in, or None outside any"""
+    def amount(self) -> str:
+        """Whether it takes ':N': 'none', 'optional' or 'required'."""
 
     @property
-    def first_record(self) -> int:
-        """the index of its first record in the file (every kind counted)"""
-
-    @property
-    def end_record(self) -> int:
-        """one past the index of its last record"""
-
-    @property
-    def request_first_t_ns(self) -> int | None: ...
-
-    @property
-    def request_last_t_ns(self) -> int | None: ...
-
-    @property
-    def response_first_t_ns(self) -> int | None: ...
-
-    @property
-    def response_last_t_ns(self) -> int | None: ...
-
-    @property
-    def request_bytes(self) -> int: ...
-
-    @property
-    def response_bytes(self) -> int: ...
-
-    @property
-    def response_records(self) -> int: ...
-
-    @property
-    def request_frames(self) -> list:
-        """with a profile: its request frame (a list of one); else empty"""
-
-    @property
-    def response_frames(self) -> list:
-        """with a profile: the response frames that began in it"""
+    def campaign(self) -> str:
+        """The KIND a campaign injects (delay:500 for delay, drop for drop)."""
 
     def __repr__(self) -> str: ...
 
-class ClientSession:
-    """
-    A controlling client's connection to a virtual device or proxy: from its client_connect to its client_disconnect (a read-only monitor's connect is none).
-    """
+class FaultSpec:
+    """One KIND@WHERE of a fault plan."""
 
     @property
-    def index(self) -> int: ...
+    def kind(self) -> str:
+        """The kind's name (drop, corrupt, ...)."""
 
     @property
-    def first_record(self) -> int:
-        """the index of its client_connect"""
+    def amount(self) -> int | None:
+        """The :N or :MS given, or None."""
 
     @property
-    def end_record(self) -> int:
-        """
-        one past its client_disconnect (or the last record before the next session)
-        """
+    def where(self) -> str:
+        """The place's name: exchange, rx, t, every or p."""
 
     @property
-    def connect_t_ns(self) -> int: ...
+    def number(self) -> int | None:
+        """N of exchange:N, rx:N and every:N; None for t: and p:."""
 
     @property
-    def disconnect_t_ns(self) -> int | None: ...
+    def value(self) -> float | None:
+        """The seconds of t: or the probability of p:; None for the others."""
 
-def session_exchanges(path: str, profile: str | None = None, match: str | None = None, options: str = '') -> list[Exchange]:
+    @property
+    def kind_text(self) -> str:
+        """KIND in its normal spelling (corrupt:4)."""
+
+    @property
+    def where_text(self) -> str:
+        """WHERE in its normal spelling (exchange:3)."""
+
+    @property
+    def text(self) -> str:
+        """The item as written (without surrounding spaces)."""
+
+    def __repr__(self) -> str: ...
+
+class FaultPlan:
+    """faults= parsed: its items in order, and the seed."""
+
+    @property
+    def faults(self) -> list[FaultSpec]:
+        """The items (FaultSpec), in order."""
+
+    @property
+    def seed(self) -> int:
+        """seed=, for the faults' random choices."""
+
+    def __len__(self) -> int: ...
+
+    def __getitem__(self, arg: int, /) -> FaultSpec: ...
+
+    def __repr__(self) -> str: ...
+
+def fault_kinds() -> list[FaultKind]:
+    """Every fault kind, in the order a campaign injects them."""
+
+def parse_faults(text: str, seed: int = 0) -> FaultPlan:
     """
-    The exchanges of the session file at `path`, as a replay with profile= and match= (default sequence) numbers them (under match=request a greeting is exchange 0 of its own). `options`: the replay's keys, e.g. a declared profile's 'framing=...,echo=...' (profile and match, when given, override them). OptionError for a bad or non-replay key.
+    Parses faults= (KIND@WHERE[;KIND@WHERE...]) as a replay does. Raises OptionError naming the key 'faults', the item and the grammar.
     """
 
-class ClientSessionTracker:
+def normal_fault_kind(kind: str) -> str:
     """
-    Follows client sessions through a session's records in order, by the bridge's rule: a controlling client's client_connect while none is open begins one (a read-only monitor's, or a second client's, does not); that client's client_disconnect ends it.
+    One KIND (drop, corrupt:4, delay:500) in its normal spelling. Raises OptionError naming the kind and the grammar.
     """
-
-    def __init__(self) -> None: ...
-
-    def feed(self, kind: str, payload: bytes) -> str:
-        """
-        One record: 'began' if it begins a client session, 'ended' if it ends one, else ''.
-        """
-
-    @property
-    def open(self) -> bool:
-        """whether a client session is open"""
-
-def session_client_sessions(path: str) -> list[ClientSession]:
-    """The client sessions of the session file at `path`, in order."""

@@ -8,12 +8,11 @@ hokuyo-scan) are also used by examples/hokuyo/recordings/make_recordings.py.
 import json
 import os
 import pathlib
-import select
-import signal
-import subprocess
 import sys
 import tempfile
 import time
+
+from .children import Child
 
 SCAN_ARGS = ["--json", "--scans", "3"]
 
@@ -72,22 +71,15 @@ class Simulator:
     def __init__(self, where, *args, deadline_s=15.0):
         where = pathlib.Path(where)
         sim = where if (where / "__main__.py").exists() else where / "examples" / "hokuyo" / "sim"
-        self.process = subprocess.Popen(
-            [sys.executable, str(sim), *args],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        end = time.monotonic() + deadline_s
-        while True:
-            ready, _, _ = select.select([self.process.stdout], [], [],
-                                        max(end - time.monotonic(), 0))
-            if not ready:
+        self.child = Child([sys.executable, str(sim), *args], separate_stderr=True, text=True,
+                           grace=10.0)
+        if not self.child.wait_for_output(_ready_line, deadline_s):
+            if self.child.running:
                 self.stop()
                 raise DemoError(f"the simulator did not start within {deadline_s} s")
-            line = self.process.stdout.readline()
-            if not line:
-                raise DemoError("the simulator exited: " + self.process.stderr.read().strip())
-            if line.startswith("ready "):
-                self.fields = dict(f.split("=", 1) for f in line.split()[1:])
-                break
+            raise DemoError("the simulator exited: " + self.child.run().stderr.strip())
+        line = next(line for line in self.child.stdout.splitlines() if line.startswith("ready "))
+        self.fields = dict(f.split("=", 1) for f in line.split()[1:])
 
     @property
     def port_options(self):
@@ -97,19 +89,18 @@ class Simulator:
         return f"type=serial,device={self.fields['link']}"
 
     def stop(self):
-        if self.process.poll() is None:
-            self.process.send_signal(signal.SIGTERM)
-            try:
-                self.process.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait()
+        self.child.end()
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
         self.stop()
+
+
+def _ready_line(output):
+    return any(line.startswith("ready ") for line in output.splitlines(keepends=True)
+               if line.endswith("\n"))
 
 
 def wiretape_command(*args):
@@ -127,9 +118,17 @@ def wait_for_path(path, still_running, describe, deadline_s=15.0):
         time.sleep(0.02)
 
 
+# hokuyo-scan takes a few seconds; far more is a hang.
+_PROGRAM_DEADLINE_S = 60.0
+
+
 def _run_program(program, port, scan_args):
-    return subprocess.run([str(program), "--port", port, *scan_args],
-                          capture_output=True, text=True, timeout=60)
+    """hokuyo-scan's Outcome (returncode, stdout, stderr)."""
+    outcome = Child([str(program), "--port", port, *scan_args], separate_stderr=True,
+                    text=True).run(_PROGRAM_DEADLINE_S)
+    if outcome.timed_out:
+        raise DemoError(f"{program} did not finish within {_PROGRAM_DEADLINE_S:g} s")
+    return outcome
 
 
 def record_scan(program, sim, output, scan_args, workdir, proxy):
@@ -158,35 +157,22 @@ def record_scan(program, sim, output, scan_args, workdir, proxy):
         if not outcome.ok:
             raise DemoError(f"the record proxy failed: {outcome.message}")
         return result, "proxy (wiretape.bridge.record)"
-    # The recorder's messages go to a file: a pipe nobody reads could fill
-    # and stall it.
-    messages = pathlib.Path(workdir) / "record.log"
-    with open(messages, "w") as log:
-        recorder = subprocess.Popen(
-            wiretape_command("record", "--device", sim.port_options, "--pty", str(link),
-                             "-o", str(output)),
-            stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT)
-        try:
-            wait_for_path(link, lambda: recorder.poll() is None, "wiretape record")
-            result = _run_program(program, client_port, scan_args)
-        finally:
-            if recorder.poll() is None:
-                recorder.send_signal(signal.SIGINT)
-            try:
-                recorder.wait(timeout=15)
-            except subprocess.TimeoutExpired:
-                recorder.kill()
-                recorder.wait()
-    if recorder.returncode != 0:
-        raise DemoError(f"wiretape record failed ({recorder.returncode}): "
-                        + messages.read_text().strip())
+    # Ended by SIGTERM, wiretape record ends as on Ctrl-C: the file complete.
+    recorder = Child(wiretape_command("record", "--device", sim.port_options, "--pty",
+                                      str(link), "-o", str(output)), text=True, grace=15.0)
+    try:
+        wait_for_path(link, lambda: recorder.running, "wiretape record")
+        result = _run_program(program, client_port, scan_args)
+    finally:
+        returncode = recorder.end()
+    if returncode != 0:
+        raise DemoError(f"wiretape record failed ({returncode}): " + recorder.stdout.strip())
     return result, "proxy (wiretape record)"
 
 
 def replay_scan(program, recording, scan_args, *replay_keys):
     port = ",".join([f"type=replay,file={recording}", *replay_keys])
-    return subprocess.run([str(program), "--port", port, *scan_args],
-                          capture_output=True, text=True, timeout=60)
+    return _run_program(program, port, scan_args)
 
 
 def parse_scans(result):

@@ -24,8 +24,6 @@ import json
 import os
 import random
 import shlex
-import signal
-import subprocess
 import sys
 import tempfile
 import threading
@@ -34,13 +32,13 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Dict, Iterator, List, Optional, Sequence, TextIO
 
 from . import _core, bridge
-from .tools._records import open_session
+from .children import Child
+from .session import open_session
 
 #: Every fault kind, as a campaign injects it (docs/faults.md says why these
-#: amounts).
-KINDS = ("drop", "corrupt", "garbage", "truncate", "duplicate", "delay:500", "stall:500",
-         "trickle", "silence", "disconnect", "reconnect:500")
-KIND_NAMES = tuple(kind.split(":")[0] for kind in KINDS)
+#: amounts): the replay's own table of kinds.
+KINDS = tuple(kind.campaign for kind in _core.fault_kinds())
+KIND_NAMES = tuple(kind.name for kind in _core.fault_kinds())
 OUTCOMES = ("ok", "error", "crash", "hang")
 PORT_PLACEHOLDER = "{port}"
 # What sanitizers print when they find something: a crash even if the
@@ -117,41 +115,39 @@ def session_shape(session: str, profile: Optional[str] = None, match: Optional[s
 def _kind_spec(text: str) -> str:
     """A --kinds item as a campaign injects it: a bare name takes the
     campaign's amount (delay -> delay:500)."""
-    name = text.split(":")[0]
-    if name not in KIND_NAMES:
-        raise FaultInputError(f"unknown fault kind {text!r}; known: {', '.join(KIND_NAMES)}")
-    if ":" in text:
-        return text
-    return KINDS[KIND_NAMES.index(name)]
+    text = text.strip()
+    if text in KIND_NAMES:
+        return KINDS[KIND_NAMES.index(text)]
+    try:
+        return _core.normal_fault_kind(text)
+    except _core.OptionError as error:
+        raise FaultInputError(str(error)) from None
 
 
 def check_where(session: str, spec: str, shape: Optional[SessionShape] = None,
                 profile: Optional[str] = None, match: Optional[str] = None,
                 options: str = "") -> None:
-    """Raises FaultInputError for a KIND@WHERE whose WHERE lies past the
-    session's end (exchange:N, rx:N, t:SECONDS), exchanges counted as a
-    replay with ``profile``, ``match`` and ``options`` counts them; the
-    syntax itself is checked by the replay (OptionError)."""
+    """Raises FaultInputError for a plan (KIND@WHERE[;...]) that the replay
+    refuses, or whose WHERE lies past the session's end (exchange:N, rx:N,
+    t:SECONDS), exchanges counted as a replay with ``profile``, ``match``
+    and ``options`` counts them."""
+    try:
+        plan = _core.parse_faults(spec)
+    except _core.OptionError as error:
+        raise FaultInputError(str(error)) from None
     shape = shape or session_shape(session, profile=profile, match=match, options=options)
-    for item in spec.split(";"):
-        if "@" not in item:
-            continue
-        where = item.split("@", 1)[1].strip()
-        name, _, value = where.partition(":")
-        try:
-            number = float(value)
-        except ValueError:
-            continue
-        if name == "exchange" and number >= shape.exchanges:
+    for fault in plan:
+        number, value = fault.number, fault.value
+        if fault.where == "exchange" and number is not None and number >= shape.exchanges:
             raise FaultInputError(
-                f"{item.strip()}: the session has {shape.exchanges} exchanges with rx "
-                f"(0..{shape.exchanges - 1}); exchange {value} is past its end")
-        if name == "rx" and number >= shape.rx_bytes:
-            raise FaultInputError(f"{item.strip()}: the session has {shape.rx_bytes} rx bytes; "
-                                  f"rx byte {value} is past its end")
-        if name == "t" and number > shape.seconds:
-            raise FaultInputError(f"{item.strip()}: the session lasts {shape.seconds:.3f} s; "
-                                  f"t:{value} is past its end")
+                f"{fault.text}: the session has {shape.exchanges} exchanges with rx "
+                f"(0..{shape.exchanges - 1}); exchange {number} is past its end")
+        if fault.where == "rx" and number is not None and number >= shape.rx_bytes:
+            raise FaultInputError(f"{fault.text}: the session has {shape.rx_bytes} rx bytes; "
+                                  f"rx byte {number} is past its end")
+        if fault.where == "t" and value is not None and value > shape.seconds:
+            raise FaultInputError(f"{fault.text}: the session lasts {shape.seconds:.3f} s; "
+                                  f"t:{value:g} is past its end")
 
 
 def cases(session: str, kinds: Optional[Sequence[str]] = None, budget: Optional[int] = None,
@@ -168,10 +164,9 @@ def cases(session: str, kinds: Optional[Sequence[str]] = None, budget: Optional[
     for text in (kinds or KINDS):
         text = text.strip()
         if "@" in text:
-            kind, where = text.split("@", 1)
-            _kind_spec(kind)
             check_where(session, text, shape)
-            fixed.append(FaultCase(kind, where, seed))
+            fixed.extend(FaultCase(fault.kind_text, fault.where_text, seed)
+                         for fault in _core.parse_faults(text))
         else:
             spread.append(_kind_spec(text))
     everything = fixed + [FaultCase(kind, f"exchange:{n}", seed)
@@ -216,6 +211,10 @@ class Run:
     seconds: float
     repro: str = ""
     output: str = ""
+
+    @property
+    def spec(self) -> str:
+        return f"{self.kind}@{self.where}"
 
     def as_json(self) -> Dict[str, object]:
         return {"kind": self.kind, "where": self.where, "outcome": self.outcome,
@@ -274,54 +273,31 @@ def _classify(returncode: Optional[int], output: str, timed_out: bool) -> str:
     return "ok" if returncode == 0 else "error"
 
 
-def _kill_group(process: subprocess.Popen) -> None:
-    """Kills CMD and what it started (its own session), or CMD alone when it
-    shares ours (--as)."""
-    try:
-        if os.getpgid(process.pid) == process.pid:
-            os.killpg(process.pid, signal.SIGKILL)
-            return
-    except OSError:
-        pass
-    try:
-        process.kill()
-    except OSError:
-        pass
-
-
 def run_case(session: str, case: Optional[FaultCase], argv: Sequence[str], timeout: float,
              replay_options: str = "", listen: bool = False,
              as_path: Optional[str] = None) -> Run:
     """Runs CMD once against a fresh virtual device with ``case``'s fault
-    (None: clean)."""
+    (None: clean); a CMD past `timeout` is ended with everything it
+    started (its process group)."""
     started = time.monotonic()
     with faulty_device(session, case, replay_options, listen) as port:
         command = [arg.replace(PORT_PLACEHOLDER, port) for arg in argv]
-        redirected = None
         if as_path is not None:
             from .redirect import RedirectedCommand
 
-            redirected = RedirectedCommand(command, as_path, os.path.realpath(port))
-            process = redirected.process
-        else:
-            process = subprocess.Popen(command, stdout=subprocess.PIPE,
-                                       stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                       start_new_session=True)
-        timed_out = False
-        try:
-            output, _ = process.communicate(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            timed_out = True
-            _kill_group(process)
-            output, _ = process.communicate()
-        finally:
-            if redirected is not None:
+            redirected = RedirectedCommand(command, as_path, os.path.realpath(port),
+                                           capture=True)
+            try:
+                outcome = redirected.child.run(timeout)
+            finally:
                 redirected.close()
-    text = (output or b"").decode("utf-8", "replace")
-    outcome = _classify(process.returncode, text, timed_out)
-    return Run(case.kind if case else "", case.where if case else "", outcome,
-               None if timed_out else process.returncode, time.monotonic() - started,
-               output=text)
+        else:
+            outcome = Child(command).run(timeout)
+    text = outcome.text
+    returncode = None if outcome.timed_out else outcome.returncode
+    return Run(case.kind if case else "", case.where if case else "",
+               _classify(returncode, text, outcome.timed_out), returncode,
+               time.monotonic() - started, output=text)
 
 
 def reproduction(session: str, case: FaultCase, argv: Sequence[str], replay_options: str,
@@ -417,8 +393,9 @@ def table(result: Campaign) -> str:
     others: List[Run] = []
     width = 0
     for run in result.runs:
-        if run.where.startswith("exchange:"):
-            exchange = int(run.where.split(":")[1])
+        place = _core.parse_faults(run.spec)[0]
+        if place.where == "exchange" and place.number is not None:
+            exchange = place.number
             by_kind.setdefault(run.kind, {})[exchange] = run.outcome
             width = max(width, exchange + 1)
         else:

@@ -14,32 +14,18 @@ from __future__ import annotations
 
 import ctypes
 import os
-import signal
 import subprocess
 import tempfile
 from typing import Optional, Sequence
 
 from . import _core
+from .children import Child, CommandNotStarted
 
 SHIM_NAME = "_redirect_device.so"
 # The variables the shim reads (src/shim/redirect_device.c).
 ENV_FROM = "WIRETAPE_REDIRECT_FROM"
 ENV_TO = "WIRETAPE_REDIRECT_TO"
 ENV_HITS = "WIRETAPE_REDIRECT_HITS"
-
-# Shell conventions for a command that could not be started.
-EXIT_COMMAND_NOT_EXECUTABLE = 126
-EXIT_COMMAND_NOT_FOUND = 127
-# How long a command asked to end (SIGTERM) has before it is killed.
-_TERMINATE_GRACE_S = 5.0
-
-
-class CommandNotStarted(Exception):
-    """CMD could not be run; ``exit_code`` is 127 (not found) or 126."""
-
-    def __init__(self, message: str, exit_code: int):
-        super().__init__(message)
-        self.exit_code = exit_code
 
 
 def shim_path() -> str:
@@ -99,9 +85,12 @@ def _bind_mount_in_private_namespace(pty_path: str, device_path: str):
 
 
 class RedirectedCommand:
-    """CMD running with ``device_path`` redirected to ``pty_path``."""
+    """CMD running with ``device_path`` redirected to ``pty_path``, as a
+    :class:`~wiretape.children.Child`: its output passed through (or
+    captured, with ``capture``), ended with its whole group."""
 
-    def __init__(self, argv: Sequence[str], device_path: str, pty_path: str):
+    def __init__(self, argv: Sequence[str], device_path: str, pty_path: str,
+                 capture: bool = False):
         self.argv = list(argv)
         self.device_path = device_path
         # Each process of CMD that uses the path appends a line here.
@@ -117,42 +106,30 @@ class RedirectedCommand:
         preexec = (_bind_mount_in_private_namespace(pty_path, device_path)
                    if self.bind_mounted else None)
         try:
-            self.process = subprocess.Popen(self.argv, env=env, preexec_fn=preexec)
-        except FileNotFoundError:
+            self.child = Child(self.argv, env=env, preexec_fn=preexec, capture=capture,
+                               stdin=subprocess.DEVNULL if capture else None)
+        except CommandNotStarted:
             self._remove_hits_file()
-            raise CommandNotStarted(f"{self.argv[0]}: command not found",
-                                    EXIT_COMMAND_NOT_FOUND) from None
-        except PermissionError:
-            self._remove_hits_file()
-            raise CommandNotStarted(f"{self.argv[0]}: permission denied (not executable)",
-                                    EXIT_COMMAND_NOT_EXECUTABLE) from None
-        except OSError as error:
-            self._remove_hits_file()
-            raise CommandNotStarted(f"{self.argv[0]}: cannot be run: {error.strerror or error}",
-                                    EXIT_COMMAND_NOT_EXECUTABLE) from None
+            raise
 
     @property
     def name(self) -> str:
-        return os.path.basename(self.argv[0]) or self.argv[0]
+        return self.child.name
 
     def poll(self) -> Optional[int]:
-        return self.process.poll()
+        return self.child.poll()
 
     def end(self) -> None:
-        """Asks CMD to end (SIGTERM), kills it if it has not after a grace
-        period, and reaps it."""
-        if self.process.poll() is None:
-            self.process.send_signal(signal.SIGTERM)
-            try:
-                self.process.wait(_TERMINATE_GRACE_S)
-            except subprocess.TimeoutExpired:
-                self.process.kill()
-                self.process.wait()
+        """Ends CMD and what it started (SIGTERM, then SIGKILL after a grace
+        period) and reaps it."""
+        self.child.end()
 
     def exit_status(self) -> int:
         """CMD's exit status as a shell reports it (128+N for signal N)."""
-        code = self.process.wait()
-        return 128 - code if code < 0 else code
+        self.child.wait()
+        status = self.child.exit_status
+        assert status is not None  # it has exited
+        return status
 
     def used_device_path(self) -> bool:
         """True once any process of CMD opened (or looked at) the path."""

@@ -6,7 +6,6 @@
 
 #include "replay/replay_port.hpp"
 #include "session/record_kinds.hpp"
-#include "util/json.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail::bridge {
@@ -49,24 +48,24 @@ void DeviceSide::open(bool first, const char* why) {
     virtual_settings_ = device_->serial_settings();
   } catch (const PortError&) {
   }
-  json::ObjectWriter event;
-  event.add(event_field::description, description_);
-  if (why) event.add(why, true);
+  EventMembers event{{event_field::description, description_}};
+  if (why) event.emplace_back(why, true);
   // Time zero is the device's first open.
-  record_at(RecordKind::open, first ? 0 : now_ns(), event.str());
+  record_at(RecordKind::open, first ? 0 : now_ns(), event_payload(RecordKind::open, event));
 }
 
 void DeviceSide::open_session_file() {
   if (options_.output.empty()) return;
-  SessionWriterOptions writer_options;
-  writer_options.capture = Capture::wire;
-  writer_options.port_options = options_.device;
-  writer_options.port_type = device_->type();
-  writer_options.metadata = options_.metadata;
-  writer_options.flush_ms = options_.flush_ms;
-  writer_ = std::make_unique<SessionWriter>(options_.output, std::move(writer_options));
+  SessionHeader header = SessionHeader::starting_now();
+  header.capture = Capture::wire;
+  header.port_options = options_.device;
+  header.port_type = device_->type();
+  header.user_metadata = options_.metadata;
+  writer_ = std::make_unique<SessionWriter>(
+      options_.output, header, FlushPolicy{std::chrono::milliseconds(options_.flush_ms)});
   // Time zero is the device's open, which came just before the file.
-  record_at(RecordKind::open, 0, json::ObjectWriter().add(event_field::description, description_).str());
+  record_at(RecordKind::open, 0,
+            event_payload(RecordKind::open, {{event_field::description, description_}}));
 }
 
 PortCapabilities DeviceSide::capabilities() const {
@@ -76,7 +75,8 @@ PortCapabilities DeviceSide::capabilities() const {
 void DeviceSide::lost(const std::string& reason) {
   if (!device_) return;
   lost_by_fault_ = replay_lost_by_fault(*device_);
-  record(RecordKind::device_lost, json::ObjectWriter().add(event_field::error, reason).str());
+  record(RecordKind::device_lost,
+         event_payload(RecordKind::device_lost, {{event_field::error, reason}}));
   status_.update_stats([](BridgeStats& s) { ++s.device_losses; });
   status_.message("the device (" + description_ + ") went away: " + reason);
   try {
@@ -173,7 +173,9 @@ void DeviceSide::recording_stopped(const PortError& error) {
 }
 
 bool DeviceSide::client_connected(const std::string& peer, const char* role) {
-  record(RecordKind::client_connect, json::ObjectWriter().add(event_field::peer, peer).add(event_field::role, role).str());
+  record(RecordKind::client_connect,
+         event_payload(RecordKind::client_connect,
+                       {{event_field::peer, peer}, {event_field::role, std::string(role)}}));
   status_.update_stats([](BridgeStats& s) { ++s.clients_accepted; });
   if (session_peer_ || std::string_view(role) == "monitor") return false;
   session_peer_ = peer;
@@ -182,7 +184,8 @@ bool DeviceSide::client_connected(const std::string& peer, const char* role) {
 
 void DeviceSide::client_disconnected(const std::string& peer, const std::string& reason) {
   record(RecordKind::client_disconnect,
-         json::ObjectWriter().add(event_field::peer, peer).add(event_field::reason, reason).str());
+         event_payload(RecordKind::client_disconnect,
+                       {{event_field::peer, peer}, {event_field::reason, reason}}));
   if (session_peer_ != peer) return;
   session_peer_.reset();
   if (device_) replay_await_client(*device_);
@@ -253,15 +256,15 @@ bool DeviceSide::apply_settings(const SerialSettings& target, const char* source
   // the line.
   virtual_settings_ = target;
   status_.update_stats([](BridgeStats& s) { ++s.settings_changes; });
-  record(RecordKind::settings, json::ObjectWriter()
-                                   .add(event_field::baud, target.baud)
-                                   .add(event_field::databits, target.data_bits)
-                                   .add(event_field::stopbits, target.stop_bits)
-                                   .add(event_field::parity, to_string(target.parity))
-                                   .add(event_field::flow, to_string(target.flow))
-                                   .add(event_field::applied, applied)
-                                   .add(event_field::source, source)
-                                   .str());
+  record(RecordKind::settings,
+         event_payload(RecordKind::settings,
+                       {{event_field::baud, std::int64_t{target.baud}},
+                        {event_field::databits, std::int64_t{target.data_bits}},
+                        {event_field::stopbits, std::int64_t{target.stop_bits}},
+                        {event_field::parity, std::string(to_string(target.parity))},
+                        {event_field::flow, std::string(to_string(target.flow))},
+                        {event_field::applied, applied},
+                        {event_field::source, std::string(source)}}));
   status_.message(std::string(applied ? "device set to "
                                       : "line set to (device has no line settings) ") +
                   settings_text(target) + " by the " + source);
@@ -282,10 +285,10 @@ void DeviceSide::set_output_level(ModemOutput line, bool level) {
     }
   }
   (line == ModemOutput::dtr ? dtr_ : rts_) = level;
-  record(RecordKind::modem_lines, json::ObjectWriter()
-                                      .add(line == ModemOutput::dtr ? event_field::dtr : event_field::rts, level)
-                                      .add(event_field::applied, applied)
-                                      .str());
+  record(RecordKind::modem_lines,
+         event_payload(RecordKind::modem_lines,
+                       {{line == ModemOutput::dtr ? event_field::dtr : event_field::rts, level},
+                        {event_field::applied, applied}}));
 }
 
 void DeviceSide::start_break() {
@@ -308,10 +311,10 @@ void DeviceSide::end_break() {
     } catch (const PortError&) {
     }
   }
-  record(RecordKind::line_break, json::ObjectWriter()
-                                     .add(event_field::duration_ms, static_cast<std::int64_t>(on.count()))
-                                     .add(event_field::applied, applied)
-                                     .str());
+  record(RecordKind::line_break,
+         event_payload(RecordKind::line_break,
+                       {{event_field::duration_ms, std::int64_t{on.count()}},
+                        {event_field::applied, applied}}));
 }
 
 void DeviceSide::purge(bool from_device, bool for_device) {

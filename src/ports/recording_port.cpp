@@ -11,7 +11,6 @@
 #include <mutex>
 #include <string>
 
-#include "util/json.hpp"
 #include "ports/ports.hpp"
 #include "session/record_kinds.hpp"
 #include "wiretape/errors.hpp"
@@ -27,12 +26,12 @@ class RecordingPort final : public Port {
   RecordingPort(std::unique_ptr<Port> inner, RecordingConfig config)
       : inner_(std::move(inner)),
         config_(std::move(config)),
-        writer_(config_.path, writer_options(config_, *inner_)),
+        writer_(config_.path, session_header(config_, *inner_), flush_policy(config_)),
         opened_(std::chrono::steady_clock::now()) {
     set_timeout(inner_->timeout());
     set_access(inner_->access());
     record(RecordKind::open, 0,
-           json::ObjectWriter().add(event_field::description, inner_->description()).str());
+           event_payload(RecordKind::open, {{event_field::description, inner_->description()}}));
   }
 
   ~RecordingPort() override {
@@ -99,20 +98,19 @@ class RecordingPort final : public Port {
     report_failure();
     inner_->set_baud(baud);
     record(RecordKind::settings, now_ns(),
-           json::ObjectWriter().add(event_field::baud, baud).str());
+           event_payload(RecordKind::settings, {{event_field::baud, std::int64_t{baud}}}));
   }
 
   void configure(const SerialSettings& settings) override {
     report_failure();
     inner_->configure(settings);
     record(RecordKind::settings, now_ns(),
-           json::ObjectWriter()
-               .add(event_field::baud, settings.baud)
-               .add(event_field::databits, settings.data_bits)
-               .add(event_field::stopbits, settings.stop_bits)
-               .add(event_field::parity, to_string(settings.parity))
-               .add(event_field::flow, to_string(settings.flow))
-               .str());
+           event_payload(RecordKind::settings,
+                         {{event_field::baud, std::int64_t{settings.baud}},
+                          {event_field::databits, std::int64_t{settings.data_bits}},
+                          {event_field::stopbits, std::int64_t{settings.stop_bits}},
+                          {event_field::parity, std::string(to_string(settings.parity))},
+                          {event_field::flow, std::string(to_string(settings.flow))}}));
   }
 
   SerialSettings serial_settings() const override { return inner_->serial_settings(); }
@@ -120,13 +118,13 @@ class RecordingPort final : public Port {
   void set_dtr(bool level) override {
     report_failure();
     inner_->set_dtr(level);
-    record(RecordKind::modem_lines, now_ns(), json::ObjectWriter().add(event_field::dtr, level).str());
+    record(RecordKind::modem_lines, now_ns(), event_payload(RecordKind::modem_lines, {{event_field::dtr, level}}));
   }
 
   void set_rts(bool level) override {
     report_failure();
     inner_->set_rts(level);
-    record(RecordKind::modem_lines, now_ns(), json::ObjectWriter().add(event_field::rts, level).str());
+    record(RecordKind::modem_lines, now_ns(), event_payload(RecordKind::modem_lines, {{event_field::rts, level}}));
   }
 
   bool cts() override { return inner_->cts(); }
@@ -138,9 +136,8 @@ class RecordingPort final : public Port {
     report_failure();
     inner_->send_break(duration);
     record(RecordKind::line_break, now_ns(),
-           json::ObjectWriter()
-               .add(event_field::duration_ms, static_cast<std::int64_t>(duration.count()))
-               .str());
+           event_payload(RecordKind::line_break,
+                         {{event_field::duration_ms, std::int64_t{duration.count()}}}));
   }
 
  protected:
@@ -201,16 +198,17 @@ class RecordingPort final : public Port {
   }
 
  private:
-  static SessionWriterOptions writer_options(const RecordingConfig& config,
-                                             const Port& inner) {
-    SessionWriterOptions options;
-    options.capture = Capture::client;
-    options.port_options = config.options_text;
-    options.port_type = config.port_type.empty() ? inner.type() : config.port_type;
-    options.metadata = config.metadata;
-    options.flush_ms = config.flush_ms;
-    options.fsync = config.fsync;
-    return options;
+  static SessionHeader session_header(const RecordingConfig& config, const Port& inner) {
+    SessionHeader header = SessionHeader::starting_now();
+    header.capture = Capture::client;
+    header.port_options = config.options_text;
+    header.port_type = config.port_type.empty() ? inner.type() : config.port_type;
+    header.user_metadata = config.metadata;
+    return header;
+  }
+
+  static FlushPolicy flush_policy(const RecordingConfig& config) {
+    return {std::chrono::milliseconds(config.flush_ms), config.fsync};
   }
 
   std::uint64_t now_ns() const {
@@ -226,10 +224,9 @@ class RecordingPort final : public Port {
     bool expected = false;
     if (!lost_.compare_exchange_strong(expected, true)) return;
     record(RecordKind::device_lost, now_ns(),
-           json::ObjectWriter()
-               .add(event_field::error, error.what())
-               .add(event_field::error_number, error.code().value())
-               .str());
+           event_payload(RecordKind::device_lost,
+                         {{event_field::error, std::string(error.what())},
+                          {event_field::error_number, std::int64_t{error.code().value()}}}));
   }
 
   // rx is stamped when the read returned (capture=client).

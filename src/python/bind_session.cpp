@@ -1,6 +1,7 @@
 // wiretape.SessionReader, SessionWriter, Record and export_flexiport: session
 // files from Python. Records carry bytes; kinds are their names ("rx", "tx",
 // "open", ... "break"); times are integer nanoseconds since the open.
+#include <chrono>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -11,6 +12,7 @@
 #include <nanobind/stl/vector.h>
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
+#include <nanobind/stl/string_view.h>
 
 #include "posix/file_checks.hpp"
 #include "python/bindings.hpp"
@@ -19,6 +21,7 @@
 #include "session/header.hpp"
 #include "session/reader.hpp"
 #include "session/record_kinds.hpp"
+#include "wiretape/cassette_names.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 
@@ -69,8 +72,7 @@ RecordKind kind_from_python(nb::handle kind) {
 }
 
 Capture capture_from_python(const std::string& capture) {
-  if (capture == "client") return Capture::client;
-  if (capture == "wire") return Capture::wire;
+  if (auto known = detail::capture_from_name(capture)) return *known;
   throw nb::value_error(("capture must be 'client' or 'wire', not '" + capture + "'").c_str());
 }
 
@@ -129,8 +131,121 @@ nb::dict header_dict(const SessionHeader& header) {
   nb::dict metadata;
   for (const auto& [key, value] : header.user_metadata) metadata[key.c_str()] = value;
   out["metadata"] = metadata;
-  out["metadata_json"] = header.metadata_json;
   return out;
+}
+
+// The Python type name of `value`, for error messages.
+std::string python_type_name(nb::handle value) {
+  return nb::cast<std::string>(nb::handle(reinterpret_cast<PyObject*>(Py_TYPE(value.ptr())))
+                                   .attr("__name__"));
+}
+
+// Whether every str in `value` (a str, or a list or dict of them) has a
+// UTF-8 form, which a header's JSON needs.
+bool utf8_encodable(nb::handle value) {
+  if (nb::isinstance<nb::str>(value)) {
+    if (PyUnicode_AsUTF8AndSize(value.ptr(), nullptr) != nullptr) return true;
+    PyErr_Clear();
+    return false;
+  }
+  if (nb::isinstance<nb::dict>(value)) {
+    nb::dict members = nb::borrow<nb::dict>(value);
+    return utf8_encodable(nb::list(members.keys())) && utf8_encodable(nb::list(members.values()));
+  }
+  if (nb::isinstance<nb::list>(value) || nb::isinstance<nb::tuple>(value)) {
+    for (nb::handle item : value) {
+      if (!utf8_encodable(item)) return false;
+    }
+  }
+  return true;
+}
+
+// Whether `value` has the shape of the default member `model`: a str, an int,
+// a list of str or a dict of str to str.
+bool has_member_shape(nb::handle value, nb::handle model) {
+  const auto all_str = [](nb::handle items) {
+    for (nb::handle item : items) {
+      if (!nb::isinstance<nb::str>(item)) return false;
+    }
+    return true;
+  };
+  // nanobind cannot convert a str holding a lone surrogate either; refused
+  // here with the other shapes, by name.
+  if (nb::isinstance<nb::str>(model)) return nb::isinstance<nb::str>(value);
+  if (nb::isinstance<nb::list>(model)) {
+    return (nb::isinstance<nb::list>(value) || nb::isinstance<nb::tuple>(value)) &&
+           all_str(value);
+  }
+  if (nb::isinstance<nb::dict>(model)) {
+    if (!nb::isinstance<nb::dict>(value)) return false;
+    nb::dict members = nb::borrow<nb::dict>(value);
+    return all_str(members.keys()) && all_str(members.values());
+  }
+  return PyLong_Check(value.ptr()) && !PyBool_Check(value.ptr());
+}
+
+// Sets the members of `header` named in `fields` (a dict, or keyword
+// arguments), checked against the members to_dict() gives; None leaves a
+// member as it is. The names are SessionHeader's attributes, spelled once.
+void set_header_members(nb::handle header, nb::handle fields) {
+  const nb::dict known = header_dict(SessionHeader{});
+  for (auto [key, value] : nb::borrow<nb::dict>(fields)) {
+    const std::string name = nb::cast<std::string>(nb::str(key));
+    if (!nb::isinstance<nb::str>(key) || !known.contains(key)) {
+      std::string names;
+      for (nb::handle member : known.keys()) {
+        names += names.empty() ? "" : ", ";
+        names += nb::cast<std::string>(member);
+      }
+      throw nb::value_error(("SessionHeader has no member '" + name + "' (its members: " +
+                             names + ")")
+                                .c_str());
+    }
+    if (value.is_none()) continue;
+    if (!has_member_shape(value, known[key])) {
+      const std::string expected = python_type_name(known[key]);
+      throw nb::type_error(("SessionHeader member '" + name + "' must be a " +
+                            (expected == "list"   ? "list of str"
+                             : expected == "dict" ? "dict of str to str"
+                                                  : expected) +
+                            ", not " + python_type_name(value))
+                               .c_str());
+    }
+    if (!utf8_encodable(value)) {
+      throw nb::value_error(("SessionHeader member '" + name +
+                             "' is not valid UTF-8 (a lone surrogate)")
+                                .c_str());
+    }
+    nb::setattr(header, key, value);
+  }
+}
+
+// An event's members from a Python dict: bool, int or str values.
+detail::EventMembers event_members_from_python(RecordKind kind, nb::dict fields) {
+  detail::EventMembers members;
+  for (auto [key, value] : fields) {
+    const std::string name = nb::cast<std::string>(nb::str(key));
+    if (PyBool_Check(value.ptr())) {
+      members.emplace_back(name, nb::cast<bool>(value));
+    } else if (PyLong_Check(value.ptr())) {
+      int overflow = 0;
+      const long long number = PyLong_AsLongLongAndOverflow(value.ptr(), &overflow);
+      if (overflow != 0) {
+        throw nb::value_error((std::string(to_string(kind)) + " event: member \"" + name +
+                               "\" is out of the 64-bit range")
+                                  .c_str());
+      }
+      members.emplace_back(name, static_cast<std::int64_t>(number));
+    } else if (nb::isinstance<nb::str>(value)) {
+      members.emplace_back(name, nb::cast<std::string>(value));
+    } else {
+      throw nb::value_error((std::string(to_string(kind)) + " event: member \"" + name +
+                             "\" is a " + python_type_name(value) +
+                             "; event members are bool, int or str")
+                                .c_str());
+    }
+  }
+  return members;
 }
 
 // The record-kind table as Python sees it: a tuple of dicts, in code order.
@@ -232,36 +347,72 @@ void bind_session(nb::module_& m) {
                std::string(nb::repr(data).c_str()) + ")";
       });
 
-  nb::class_<SessionHeader>(m, "SessionHeader",
-                           "A session file's header (docs/session-format.md): what was "
-                           "recorded, where, when and how. Read-only.")
-      .def_ro("version_major", &SessionHeader::version_major, "the file's format version")
-      .def_ro("version_minor", &SessionHeader::version_minor)
-      .def_ro("port_options", &SessionHeader::port_options,
+  nb::class_<SessionHeader>(
+      m, "SessionHeader",
+      "A session file's header (docs/session-format.md): what was recorded, where, when "
+      "and how; the one type for reading (SessionReader.header) and writing "
+      "(SessionWriter). SessionHeader(**members) or SessionHeader.from_dict(d): members "
+      "as to_dict() names them, checked (an unknown member or a wrong type raises); the "
+      "others keep their defaults (start_utc and host empty: not known).")
+      .def(
+          "__init__",
+          [](nb::handle self, nb::kwargs fields) {
+            nb::inst_zero(self);
+            new (nb::inst_ptr<SessionHeader>(self)) SessionHeader{};
+            nb::inst_mark_ready(self);
+            set_header_members(self, fields);
+          },
+          nb::sig("def __init__(self, **members: object) -> None"))
+      .def_static(
+          "from_dict",
+          [](nb::dict fields) {
+            nb::object header = nb::cast(SessionHeader{});
+            set_header_members(header, fields);
+            return nb::cast<SessionHeader>(header);
+          },
+          "members"_a, "A header from a dict of members (as to_dict() gives them), checked.")
+      .def_static("starting_now", &SessionHeader::starting_now,
+                  "A header for a session that starts now on this machine: start_utc now, "
+                  "host this machine's name (what recorders write).")
+      .def_rw("version_major", &SessionHeader::version_major,
+              "the file's format version, as read (0.0 for a flexiport log); writers "
+              "write their own")
+      .def_rw("version_minor", &SessionHeader::version_minor)
+      .def_rw("port_options", &SessionHeader::port_options,
               "the option string the port was opened with")
-      .def_ro("port_type", &SessionHeader::port_type, "serial, tcp, udp, pty, loopback, ...")
-      .def_ro("start_utc", &SessionHeader::start_utc,
-              "when the device was opened, ISO 8601 UTC")
-      .def_ro("wiretape_version", &SessionHeader::wiretape_version,
+      .def_rw("port_type", &SessionHeader::port_type, "serial, tcp, udp, pty, loopback, ...")
+      .def_rw("start_utc", &SessionHeader::start_utc,
+              "when the device was opened, ISO 8601 UTC ('' when not known)")
+      .def_rw("wiretape_version", &SessionHeader::wiretape_version,
               "the version of wiretape that wrote the file")
-      .def_ro("host", &SessionHeader::host, "the recording machine's name")
-      .def_prop_ro(
+      .def_rw("host", &SessionHeader::host, "the recording machine's name ('' when not known)")
+      .def_prop_rw(
           "capture",
           [](const SessionHeader& h) { return std::string(detail::capture_name(h.capture)); },
+          [](SessionHeader& h, const std::string& capture) {
+            h.capture = capture_from_python(capture);
+          },
           "'client' (library recording) or 'wire' (proxy recording)")
-      .def_ro("source_format", &SessionHeader::source_format,
+      .def_rw("source_format", &SessionHeader::source_format,
               "'wiretape' (recorded by wiretape) or the format it was imported from: "
               "'flexiport', 'pcap', 'reserial', 'umockdev', ...")
-      .def_ro("source_files", &SessionHeader::source_files,
+      .def_rw("source_files", &SessionHeader::source_files,
               "an imported session's original file names")
-      .def_ro("source_details", &SessionHeader::source_details,
+      .def_rw("source_details", &SessionHeader::source_details,
               "what else the import noted (the stream, the test, the logs' formats)")
-      .def_ro("device_address", &SessionHeader::device_address,
+      .def_rw("device_address", &SessionHeader::device_address,
               "host:port of a network device, when known")
-      .def_ro("edits", &SessionHeader::edits, "what wiretape edit changed, in order")
-      .def_ro("metadata", &SessionHeader::user_metadata, "the free user metadata (--meta)")
-      .def_ro("metadata_json", &SessionHeader::metadata_json, "the header's JSON, as stored")
-      .def("to_dict", &header_dict, "the fields above as a dict")
+      .def_rw("edits", &SessionHeader::edits, "what wiretape edit changed, in order")
+      .def_rw("metadata", &SessionHeader::user_metadata, "the free user metadata (--meta)")
+      .def_rw("metadata_json", &SessionHeader::metadata_json,
+              "the header's JSON as stored (read) or written; to_json() makes it anew")
+      .def("to_json", &SessionHeader::to_json,
+           "The header's JSON object as a writer writes it. Raises OptionError naming the "
+           "member a reader would refuse (not UTF-8, a start_utc out of range).")
+      .def("to_dict", &header_dict,
+           "the members above as a dict, but metadata_json (the stored text, derived)")
+      .def("__copy__", [](const SessionHeader& h) { return h; })
+      .def("__deepcopy__", [](const SessionHeader& h, nb::handle) { return h; }, "memo"_a)
       .def("__eq__", [](const SessionHeader& a, const SessionHeader& b) {
         return header_dict(a).equal(header_dict(b));
       })
@@ -277,6 +428,19 @@ void bind_session(nb::module_& m) {
         }
         return text + ")";
       });
+
+  m.def(
+      "event_payload",
+      [](nb::handle kind, nb::dict fields) {
+        const RecordKind k = kind_from_python(kind);
+        const std::string payload = detail::event_payload(k, event_members_from_python(k, fields));
+        return to_bytes(payload);
+      },
+      "kind"_a, "fields"_a,
+      "The JSON payload of an event of KIND ('settings', 'fault', ...) with the members "
+      "FIELDS (bool, int or str), as bytes in the record-kind table's order. Raises "
+      "ValueError naming the kind and the member: not in the table, wrong type, missing "
+      "when required.");
 
   nb::class_<PyReader>(m, "SessionReader",
                        "Reads a .wtape file or a flexiport log (name.log) record by record, "
@@ -336,42 +500,29 @@ void bind_session(nb::module_& m) {
                        "readable.")
       .def(
           "__init__",
-          [](PyWriter* self, nb::handle path, const std::string& capture,
-             const std::string& port_options, const std::string& port_type,
-             std::optional<std::map<std::string, std::string>> metadata, int flush_ms,
-             bool fsync, std::optional<std::string> start_utc, std::optional<std::string> host,
-             const std::string& wiretape_version, const std::string& source_format,
-             std::optional<std::vector<std::string>> source_files,
-             std::optional<std::map<std::string, std::string>> source_details,
-             const std::string& device_address,
-             std::optional<std::vector<std::string>> edits) {
-            SessionWriterOptions options;
-            options.capture = capture_from_python(capture);
-            options.port_options = port_options;
-            options.port_type = port_type;
-            if (metadata) options.metadata = *metadata;
+          [](PyWriter* self, nb::handle path, std::optional<SessionHeader> header,
+             int flush_ms, bool fsync, nb::kwargs members) {
             if (flush_ms < 0) throw nb::value_error("flush_ms must be >= 0");
-            options.flush_ms = flush_ms;
-            options.fsync = fsync;
-            options.start_utc = std::move(start_utc);
-            options.host = std::move(host);
-            options.wiretape_version = wiretape_version;
-            options.source_format = source_format;
-            if (source_files) options.source_files = std::move(*source_files);
-            if (source_details) options.source_details = std::move(*source_details);
-            options.device_address = device_address;
-            if (edits) options.edits = std::move(*edits);
+            // No header: a session recorded now, on this machine.
+            nb::object chosen = nb::cast(header ? *header : SessionHeader::starting_now());
+            set_header_members(chosen, members);
+            const SessionHeader written = nb::cast<SessionHeader>(chosen);
             const std::string p = path_from_python(path);
             new (self) PyWriter{};
             self->path = p;
             nb::gil_scoped_release release;
-            self->writer = std::make_unique<SessionWriter>(p, std::move(options));
+            self->writer = std::make_unique<SessionWriter>(
+                p, written, FlushPolicy{std::chrono::milliseconds(flush_ms), fsync});
           },
-          "path"_a, nb::kw_only(), "capture"_a = "client", "port_options"_a = "",
-          "port_type"_a = "", "metadata"_a = nb::none(), "flush_ms"_a = 100,
-          "fsync"_a = false, "start_utc"_a = nb::none(), "host"_a = nb::none(),
-          "wiretape_version"_a = "", "source_format"_a = "", "source_files"_a = nb::none(),
-          "source_details"_a = nb::none(), "device_address"_a = "", "edits"_a = nb::none())
+          "path"_a, "header"_a = nb::none(), nb::kw_only(), "flush_ms"_a = 100,
+          "fsync"_a = false, "members"_a,
+          nb::sig("def __init__(self, path: str | os.PathLike[str] | bytes, "
+                  "header: SessionHeader | None = None, *, flush_ms: int = 100, "
+                  "fsync: bool = False, **members: object) -> None"),
+          "HEADER (default: SessionHeader.starting_now()) with MEMBERS (keyword arguments "
+          "named as SessionHeader's members) set on it is what the file's header says.")
+      .def_prop_ro("header", [](PyWriter& self) { return self.get().header(); },
+                   "the header as written (this library's format version, metadata_json)")
       .def(
           "write",
           [](PyWriter& self, nb::handle kind, std::uint64_t t_ns, nb::bytes data,
@@ -416,6 +567,25 @@ void bind_session(nb::module_& m) {
       "events are dropped. A FIFO or a "
       "device there (through a symbolic link too) is written through. Returns the "
       "number of records written.");
+
+  // Cassette rules (wiretape/cassette_names.hpp), for the pytest plugin.
+  m.attr("MAX_CASSETTE_NAME_LENGTH") = testing::max_cassette_name_length;
+  m.def("safe_file_name", &testing::safe_file_name, "name"_a,
+        "NAME as a cassette's file name: runs of characters but ASCII letters, digits and "
+        "._-=+ become one _, _ and . are trimmed; a name that changed or is longer than "
+        "MAX_CASSETTE_NAME_LENGTH is cut to fit and ends with - and 12 hex digits of its "
+        "SHA-1, so that distinct tests never share a cassette.");
+  m.def("cassette_file_name", &testing::cassette_file_name, "test_name_parts"_a,
+        "A test's cassette file name from its name's parts, outermost first (suite or "
+        "class, then the test with its parameters): joined by '.', made safe, + '.wtape'.");
+  m.def(
+      "cassette_directory",
+      [](nb::handle source_file, const std::string& directory) {
+        return testing::cassette_directory(path_from_python(source_file), directory);
+      },
+      "source_file"_a, "directory"_a = "",
+      "The folder of SOURCE_FILE's cassettes: <its dir>/recordings/<its stem>, or "
+      "<DIRECTORY>/<its stem> when a directory is given.");
 
   m.def(
       "crc32c",

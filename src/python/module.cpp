@@ -23,4 +23,5 @@ NB_MODULE(_core, m) {
   wiretape::python::bind_profile(m);
   wiretape::python::bind_util(m);
   wiretape::python::bind_exchanges(m);
+  wiretape::python::bind_faults(m);
 }

@@ -23,28 +23,6 @@ constexpr std::uint64_t kMaxAmount = 1'000'000'000;  // bytes, flips or ms
 // Bit flips and inserted bytes are made one by one: bounded so that a typo
 // cannot make a replay allocate or loop for minutes.
 constexpr std::uint64_t kMaxBytesMade = 1 << 20;
-constexpr std::uint64_t kDefaultGarbage = 8;
-constexpr std::uint64_t kDefaultTrickleMs = 1;
-
-struct KindName {
-  const char* name;
-  FaultKind kind;
-  enum { none, optional, required } amount;
-};
-
-constexpr KindName kKinds[] = {
-    {"drop", FaultKind::drop, KindName::optional},
-    {"corrupt", FaultKind::corrupt, KindName::optional},
-    {"garbage", FaultKind::garbage, KindName::optional},
-    {"truncate", FaultKind::truncate, KindName::optional},
-    {"duplicate", FaultKind::duplicate, KindName::none},
-    {"delay", FaultKind::delay, KindName::required},
-    {"stall", FaultKind::stall, KindName::required},
-    {"trickle", FaultKind::trickle, KindName::optional},
-    {"silence", FaultKind::silence, KindName::none},
-    {"disconnect", FaultKind::disconnect, KindName::none},
-    {"reconnect", FaultKind::reconnect, KindName::required},
-};
 
 std::string_view trim(std::string_view text) {
   const auto space = [](char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r'; };
@@ -88,23 +66,18 @@ std::string format_number(double value) {
   return text;
 }
 
-FaultSpec parse_item(std::string_view item) {
-  const std::size_t at = item.find('@');
-  if (at == std::string_view::npos) bad_item(item, "no '@WHERE'");
-  const std::string_view kind_text = trim(item.substr(0, at));
-  const std::string_view where_text = trim(item.substr(at + 1));
-
-  FaultSpec spec;
+// KIND into spec.kind, spec.amount and spec.kind_text; `item` for errors.
+void parse_kind(std::string_view kind_text, std::string_view item, FaultSpec& spec) {
   const std::size_t colon = kind_text.find(':');
   const std::string_view kind_name = kind_text.substr(0, colon);
-  const KindName* known = nullptr;
-  for (const KindName& candidate : kKinds) {
+  const FaultKindInfo* known = nullptr;
+  for (const FaultKindInfo& candidate : kFaultKinds) {
     if (kind_name == candidate.name) known = &candidate;
   }
   if (known == nullptr) bad_item(item, "unknown fault kind '" + std::string(kind_name) + "'");
   spec.kind = known->kind;
   if (colon != std::string_view::npos) {
-    if (known->amount == KindName::none) {
+    if (known->amount == FaultAmount::none) {
       bad_item(item, std::string("'") + known->name + "' takes no ':N'");
     }
     const auto amount = parse_unsigned(kind_text.substr(colon + 1));
@@ -122,52 +95,87 @@ FaultSpec parse_item(std::string_view item) {
                          std::to_string(kMaxBytesMade));
     }
     spec.amount = *amount;
-  } else if (known->amount == KindName::required) {
+  } else if (known->amount == FaultAmount::required) {
     bad_item(item, std::string("'") + known->name + "' needs ':MS' (milliseconds)");
   }
   spec.kind_text = known->name;
   if (spec.amount) spec.kind_text += ":" + std::to_string(*spec.amount);
+}
 
+// WHERE into spec.where, its number or value and spec.where_text.
+void parse_where(std::string_view where_text, std::string_view item, FaultSpec& spec) {
   const std::size_t where_colon = where_text.find(':');
   if (where_colon == std::string_view::npos) bad_item(item, "WHERE needs NAME:VALUE");
   const std::string_view where_name = where_text.substr(0, where_colon);
   const std::string_view value = where_text.substr(where_colon + 1);
-  if (where_name == "exchange" || where_name == "rx" || where_name == "every") {
+  const FaultPlaceInfo* place = nullptr;
+  for (const FaultPlaceInfo& candidate : kFaultPlaces) {
+    if (where_name == candidate.name) place = &candidate;
+  }
+  if (place == nullptr) bad_item(item, "unknown WHERE '" + std::string(where_name) + "'");
+  spec.where = place->where;
+  if (place->counted) {
     const auto number = parse_unsigned(value);
     if (!number || *number > std::numeric_limits<std::int64_t>::max()) {
       bad_item(item, "'" + std::string(where_name) + ":' needs a whole number");
     }
-    if (where_name == "every" && *number == 0) bad_item(item, "'every:0' never fires; give 1 or more");
-    spec.where = where_name == "exchange" ? FaultWhereKind::exchange
-                 : where_name == "rx"     ? FaultWhereKind::rx
-                                          : FaultWhereKind::every;
+    if (spec.where == FaultWhereKind::every && *number == 0) {
+      bad_item(item, "'every:0' never fires; give 1 or more");
+    }
     spec.where_number = *number;
     spec.where_text = std::string(where_name) + ":" + std::to_string(*number);
-  } else if (where_name == "t" || where_name == "p") {
-    const auto number = parse_number(value);
-    if (!number || !std::isfinite(*number) || *number > 1e9 ||
-        (where_name == "p" && *number > 1.0)) {
-      bad_item(item, where_name == "t" ? "'t:' needs session seconds (a number, 0 or more)"
-                                       : "'p:' needs a probability from 0 to 1");
-    }
-    spec.where = where_name == "t" ? FaultWhereKind::time : FaultWhereKind::probability;
-    spec.where_value = *number;
-    spec.where_text = std::string(where_name) + ":" + format_number(*number);
-  } else {
-    bad_item(item, "unknown WHERE '" + std::string(where_name) + "'");
+    return;
   }
+  const bool time = spec.where == FaultWhereKind::time;
+  const auto number = parse_number(value);
+  if (!number || !std::isfinite(*number) || *number > 1e9 || (!time && *number > 1.0)) {
+    bad_item(item, time ? "'t:' needs session seconds (a number, 0 or more)"
+                        : "'p:' needs a probability from 0 to 1");
+  }
+  spec.where_value = *number;
+  spec.where_text = std::string(where_name) + ":" + format_number(*number);
+}
+
+FaultSpec parse_item(std::string_view item) {
+  const std::size_t at = item.find('@');
+  if (at == std::string_view::npos) bad_item(item, "no '@WHERE'");
+  FaultSpec spec;
+  spec.text = std::string(item);
+  parse_kind(trim(item.substr(0, at)), item, spec);
+  parse_where(trim(item.substr(at + 1)), item, spec);
   return spec;
 }
 
-std::string bytes_of(const RxItem& item) { return std::string(item.payload()); }
+}  // namespace
 
-void set_bytes(RxItem& item, std::string bytes) {
-  item.view = PayloadView{};
-  item.data = std::move(bytes);
-  item.consumed = 0;
+const FaultKindInfo& fault_kind_info(FaultKind kind) {
+  for (const FaultKindInfo& info : kFaultKinds) {
+    if (info.kind == kind) return info;
+  }
+  return kFaultKinds[0];  // every enumerator has a row
 }
 
-}  // namespace
+std::string campaign_kind_text(const FaultKindInfo& info) {
+  if (info.amount != FaultAmount::required) return info.name;
+  return std::string(info.name) + ":" + std::to_string(info.campaign_amount);
+}
+
+const FaultPlaceInfo& fault_place_info(FaultWhereKind where) {
+  for (const FaultPlaceInfo& info : kFaultPlaces) {
+    if (info.where == where) return info;
+  }
+  return kFaultPlaces[0];  // every enumerator has a row
+}
+
+std::string normal_fault_kind(std::string_view kind) {
+  const std::string_view trimmed = trim(kind);
+  if (trimmed.find_first_of("@;") != std::string_view::npos) {
+    bad_item(trimmed, "a KIND alone has no '@' or ';'");
+  }
+  FaultSpec spec;
+  parse_kind(trimmed, trimmed, spec);
+  return spec.kind_text;
+}
 
 std::uint64_t splitmix64(std::uint64_t x) {
   x += 0x9e3779b97f4a7c15ULL;
@@ -194,279 +202,6 @@ FaultPlan parse_faults(std::string_view text, std::uint64_t seed) {
     start = end + 1;
   }
   return plan;
-}
-
-FaultInjector::FaultInjector(FaultPlan plan, bool datagrams, Reporter reporter)
-    : plan_(std::move(plan)),
-      datagrams_(datagrams),
-      reporter_(std::move(reporter)),
-      once_fired_(plan_.faults.size(), false) {}
-
-std::uint64_t FaultInjector::draw(std::size_t index, std::uint64_t exchange,
-                                  std::uint64_t purpose) const {
-  return splitmix64(splitmix64(splitmix64(plan_.seed ^ 0x5741495245544150ULL) + index) +
-                    exchange * 0x10001ULL + purpose);
-}
-
-bool FaultInjector::fires(std::size_t index, const FaultSpec& spec, std::uint64_t exchange,
-                          const RxItem& item, std::uint64_t offset) {
-  const bool starts_exchange = !current_exchange_ || *current_exchange_ != exchange;
-  switch (spec.where) {
-    case FaultWhereKind::exchange:
-      return starts_exchange && exchange == spec.where_number;
-    case FaultWhereKind::every:
-      return starts_exchange && (exchange + 1) % spec.where_number == 0;
-    case FaultWhereKind::probability: {
-      if (!starts_exchange) return false;
-      const double unit = static_cast<double>(draw(index, exchange, 0) >> 11) * 0x1.0p-53;
-      return unit < spec.where_value;
-    }
-    case FaultWhereKind::rx: {
-      if (once_fired_[index] || item.kind != RecordKind::rx) return false;
-      const std::size_t size = item.payload().size() - item.consumed;
-      if (spec.where_number >= offset + size) return false;
-      once_fired_[index] = true;
-      return true;
-    }
-    case FaultWhereKind::time:
-      if (once_fired_[index] ||
-          static_cast<double>(item.t_ns) < spec.where_value * 1e9) {
-        return false;
-      }
-      once_fired_[index] = true;
-      return true;
-  }
-  return false;
-}
-
-void FaultInjector::report(const FaultSpec& spec, std::uint64_t exchange, std::string detail) {
-  ++injected_;
-  if (reporter_) reporter_(FaultEvent{spec.kind_text, spec.where_text, std::move(detail), exchange});
-}
-
-void FaultInjector::apply(RxItem&& item, std::uint64_t exchange, std::deque<FaultedRx>& out,
-                          ReplayTime now) {
-  if (silenced_ || disconnected_) return;  // nothing more reaches the client
-  const std::uint64_t offset = rx_offset_;
-  const bool starts_exchange = !current_exchange_ || *current_exchange_ != exchange;
-
-  // The pieces the client gets instead of this record, in order.
-  std::vector<RxItem> pieces;
-  std::optional<ReplayTime> back_at;
-  bool lost = false;  // the pieces are a loss of the device
-  const auto where_in = [&](const RxItem& piece) {
-    return " in exchange " + std::to_string(exchange) + " (rx byte " +
-           std::to_string(offset) + ", " + std::to_string(piece.payload().size()) + " bytes)";
-  };
-  // Firing is decided before this record counts as the exchange's.
-  std::vector<std::size_t> firing;
-  for (std::size_t i = 0; i < plan_.faults.size(); ++i) {
-    if (fires(i, plan_.faults[i], exchange, item, offset)) firing.push_back(i);
-  }
-  if (starts_exchange) {
-    current_exchange_ = exchange;
-    drop_rest_ = false;
-    trickle_ms_.reset();
-    shift_ = std::chrono::nanoseconds(0);
-    released_at_ = now;
-  }
-  // Not earlier than the exchange's release, so that the waits below are
-  // real in every timing mode; later records of the exchange keep their
-  // own times (they may be released late, while a trickle still plays).
-  item.due = std::max(item.due, released_at_);
-  if (item.kind == RecordKind::rx) rx_offset_ += item.payload().size() - item.consumed;
-  if (drop_rest_ && item.kind == RecordKind::rx) return;
-  pieces.push_back(std::move(item));
-
-  for (const std::size_t index : firing) {
-    const FaultSpec& spec = plan_.faults[index];
-    if (pieces.empty() || lost) break;
-    RxItem& first = pieces.front();
-    const bool is_rx = first.kind == RecordKind::rx;
-    switch (spec.kind) {
-      case FaultKind::drop: {
-        if (!is_rx) break;
-        if (!spec.amount) {
-          report(spec, exchange, "dropped the rest of the response" + where_in(first));
-          pieces.clear();
-          drop_rest_ = true;
-        } else if (datagrams_) {
-          report(spec, exchange, "dropped a datagram" + where_in(first));
-          pieces.clear();
-        } else {
-          std::string bytes = bytes_of(first);
-          const std::size_t n = std::min<std::uint64_t>(*spec.amount, bytes.size());
-          const std::size_t at = bytes.size() == n ? 0 : draw(index, exchange, 1) % (bytes.size() - n + 1);
-          bytes.erase(at, n);
-          report(spec, exchange, "dropped " + std::to_string(n) + " bytes at rx byte " +
-                                     std::to_string(offset + at) + where_in(first));
-          if (bytes.empty()) {
-            pieces.erase(pieces.begin());
-          } else {
-            set_bytes(first, std::move(bytes));
-          }
-        }
-        break;
-      }
-      case FaultKind::corrupt: {
-        if (!is_rx) break;
-        std::string bytes = bytes_of(first);
-        if (bytes.empty()) break;
-        std::string detail = "flipped";
-        const std::uint64_t flips = spec.amount.value_or(1);
-        for (std::uint64_t f = 0; f < flips; ++f) {
-          const std::uint64_t r = draw(index, exchange, 100 + f);
-          const std::size_t at = r % bytes.size();
-          const unsigned bit = static_cast<unsigned>((r >> 32) % 8);
-          bytes[at] = static_cast<char>(bytes[at] ^ (1u << bit));
-          if (f < 8) detail += " bit " + std::to_string(bit) + " of rx byte " + std::to_string(offset + at) + ",";
-        }
-        if (flips > 8) detail += " ...";
-        if (detail.back() == ',') detail.pop_back();
-        report(spec, exchange, detail + where_in(first));
-        set_bytes(first, std::move(bytes));
-        break;
-      }
-      case FaultKind::garbage: {
-        if (!is_rx) break;
-        const std::uint64_t n = spec.amount.value_or(kDefaultGarbage);
-        std::string noise(n, '\0');
-        for (std::uint64_t b = 0; b < n; ++b) {
-          noise[b] = static_cast<char>(draw(index, exchange, 1000 + b) & 0xff);
-        }
-        if (datagrams_) {
-          RxItem extra;
-          extra.kind = RecordKind::rx;
-          extra.data = std::move(noise);
-          extra.t_ns = first.t_ns;
-          extra.due = first.due;
-          report(spec, exchange, "sent a datagram of " + std::to_string(n) +
-                                     " random bytes before the response" + where_in(first));
-          pieces.insert(pieces.begin(), std::move(extra));
-        } else {
-          std::string bytes = bytes_of(first);
-          const std::size_t at = draw(index, exchange, 2) % (bytes.size() + 1);
-          bytes.insert(at, noise);
-          report(spec, exchange, "inserted " + std::to_string(n) + " random bytes at rx byte " +
-                                     std::to_string(offset + at) + where_in(first));
-          set_bytes(first, std::move(bytes));
-        }
-        break;
-      }
-      case FaultKind::truncate: {
-        if (!is_rx) break;
-        std::string bytes = bytes_of(first);
-        const std::size_t keep =
-            std::min<std::uint64_t>(spec.amount.value_or(bytes.size() / 2), bytes.size());
-        report(spec, exchange, "cut the response after " + std::to_string(keep) +
-                                   " bytes" + where_in(first));
-        bytes.resize(keep);
-        if (!datagrams_) drop_rest_ = true;
-        if (bytes.empty()) {
-          pieces.erase(pieces.begin());
-        } else {
-          set_bytes(first, std::move(bytes));
-        }
-        break;
-      }
-      case FaultKind::duplicate: {
-        if (!is_rx) break;
-        RxItem copy;
-        copy.kind = RecordKind::rx;
-        copy.data = std::string(first.payload().substr(first.consumed));
-        copy.t_ns = first.t_ns;
-        copy.due = first.due;
-        report(spec, exchange, "sent the record twice" + where_in(first));
-        pieces.insert(pieces.begin() + 1, std::move(copy));
-        break;
-      }
-      case FaultKind::delay:
-        shift_ += std::chrono::milliseconds(*spec.amount);
-        report(spec, exchange, "delayed the response by " + std::to_string(*spec.amount) +
-                                   " ms" + where_in(first));
-        break;
-      case FaultKind::stall: {
-        if (!is_rx || datagrams_ || first.payload().size() < 2) {
-          shift_ += std::chrono::milliseconds(*spec.amount);
-          report(spec, exchange, "stalled " + std::to_string(*spec.amount) +
-                                     " ms before the record" + where_in(first));
-          break;
-        }
-        std::string bytes = bytes_of(first);
-        const std::size_t half = bytes.size() / 2;
-        RxItem head = first;
-        set_bytes(head, bytes.substr(0, half));
-        set_bytes(first, bytes.substr(half));
-        report(spec, exchange, "stalled " + std::to_string(*spec.amount) + " ms after rx byte " +
-                                   std::to_string(offset + half) + where_in(first));
-        // Every piece is shifted below; the head only by the shift before
-        // the stall.
-        head.due -= std::chrono::milliseconds(*spec.amount);
-        shift_ += std::chrono::milliseconds(*spec.amount);
-        pieces.insert(pieces.begin(), std::move(head));
-        break;
-      }
-      case FaultKind::trickle:
-        trickle_ms_ = spec.amount.value_or(kDefaultTrickleMs);
-        report(spec, exchange, "one byte every " + std::to_string(*trickle_ms_) +
-                                   " ms to the end of the response" + where_in(first));
-        break;
-      case FaultKind::silence:
-        report(spec, exchange, "the device stopped answering" + where_in(first));
-        silenced_ = true;
-        pieces.clear();
-        break;
-      case FaultKind::disconnect:
-      case FaultKind::reconnect: {
-        RxItem loss;
-        loss.kind = RecordKind::device_lost;
-        loss.t_ns = first.t_ns;
-        loss.due = first.due;
-        std::string text = "the device went away (fault " + spec.kind_text + "@" +
-                           spec.where_text + ")";
-        if (spec.kind == FaultKind::disconnect) {
-          disconnected_ = true;
-        } else {
-          back_at = first.due + shift_ + std::chrono::milliseconds(*spec.amount);
-          drop_rest_ = true;
-          text = "the device went away for " + std::to_string(*spec.amount) + " ms (fault " +
-                 spec.kind_text + "@" + spec.where_text + ")";
-        }
-        report(spec, exchange, text + where_in(first));
-        loss.data = std::move(text);
-        pieces.clear();
-        pieces.push_back(std::move(loss));
-        lost = true;
-        break;
-      }
-    }
-  }
-
-  for (RxItem& piece : pieces) {
-    // A stall's head already carries its own shift (see above).
-    piece.due += shift_;
-    if (trickle_ms_ && piece.kind == RecordKind::rx && !datagrams_) {
-      const std::string_view bytes = piece.payload().substr(piece.consumed);
-      for (std::size_t b = 0; b < bytes.size(); ++b) {
-        RxItem one;
-        one.kind = RecordKind::rx;
-        one.data = std::string(1, bytes[b]);
-        one.t_ns = piece.t_ns;
-        one.due = piece.due;
-        if (b > 0) {
-          shift_ += std::chrono::milliseconds(*trickle_ms_);
-          one.due += std::chrono::milliseconds(*trickle_ms_) * static_cast<std::int64_t>(b);
-        }
-        out.push_back(FaultedRx{std::move(one), std::nullopt});
-      }
-      continue;
-    }
-    if (trickle_ms_ && datagrams_ && piece.kind == RecordKind::rx) {
-      shift_ += std::chrono::milliseconds(*trickle_ms_);
-    }
-    const bool is_loss = piece.kind == RecordKind::device_lost && lost;
-    out.push_back(FaultedRx{std::move(piece), is_loss ? back_at : std::nullopt});
-  }
 }
 
 }  // namespace wiretape::detail

@@ -1,24 +1,20 @@
-// Fault injection on replay (DESIGN.md section 14): `faults=` parsed into a
-// plan, and the injector that applies it to the rx a replay releases.
+// Fault injection on replay (DESIGN.md sections 14 and 17): the kinds of
+// fault, and `faults=` parsed once into a plan that the replay config holds
+// (replay_config.hpp) and Python reads through the bindings. The stage that
+// applies a plan to the rx a replay releases is fault_stage.hpp.
 //
-// The injector sees each released rx record once, in order, with the number
-// of the exchange it answers; it hands back what the client gets instead
-// (nothing, altered bytes, several pieces, a loss of the device) and reports
-// each fault it injects. Every random choice comes from the plan's seed
-// through a generator of our own, so a plan does the same on every platform.
+// Every random choice comes from the plan's seed through a generator of our
+// own (splitmix64), so a plan does the same on every platform.
 #pragma once
 
 #include <cstdint>
-#include <deque>
-#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
 
-#include "replay/strategy.hpp"
-#include "replay/timing.hpp"
+#include "session/record_source.hpp"
 #include "wiretape/profile.hpp"
 
 namespace wiretape::detail {
@@ -37,7 +33,56 @@ enum class FaultKind {
   reconnect,   // the device is lost for MS, then answers again
 };
 
+// Whether a kind takes `:N` (or `:MS`).
+enum class FaultAmount { none, optional, required };
+
+struct FaultKindInfo {
+  const char* name;
+  FaultKind kind;
+  FaultAmount amount;
+  // What a campaign gives a kind whose amount is required (docs/faults.md
+  // says why), in ms; 0 for the others, which a campaign injects bare.
+  std::uint64_t campaign_amount;
+};
+
+// Every kind, in the order a campaign injects them: the one table the
+// parser, the campaigns (python/wiretape/faults.py) and the docs go by.
+inline constexpr FaultKindInfo kFaultKinds[] = {
+    {"drop", FaultKind::drop, FaultAmount::optional, 0},
+    {"corrupt", FaultKind::corrupt, FaultAmount::optional, 0},
+    {"garbage", FaultKind::garbage, FaultAmount::optional, 0},
+    {"truncate", FaultKind::truncate, FaultAmount::optional, 0},
+    {"duplicate", FaultKind::duplicate, FaultAmount::none, 0},
+    {"delay", FaultKind::delay, FaultAmount::required, 500},
+    {"stall", FaultKind::stall, FaultAmount::required, 500},
+    {"trickle", FaultKind::trickle, FaultAmount::optional, 0},
+    {"silence", FaultKind::silence, FaultAmount::none, 0},
+    {"disconnect", FaultKind::disconnect, FaultAmount::none, 0},
+    {"reconnect", FaultKind::reconnect, FaultAmount::required, 500},
+};
+
+const FaultKindInfo& fault_kind_info(FaultKind kind);
+// The KIND a campaign injects for `info` (delay -> delay:500, drop -> drop).
+std::string campaign_kind_text(const FaultKindInfo& info);
+
 enum class FaultWhereKind { exchange, rx, time, every, probability };
+
+struct FaultPlaceInfo {
+  const char* name;  // as WHERE spells it: NAME:VALUE
+  FaultWhereKind where;
+  bool counted;  // VALUE is a whole number (where_number), else a number (where_value)
+};
+
+// Every WHERE: the one table the parser and the bindings go by.
+inline constexpr FaultPlaceInfo kFaultPlaces[] = {
+    {"exchange", FaultWhereKind::exchange, true},
+    {"rx", FaultWhereKind::rx, true},
+    {"t", FaultWhereKind::time, false},
+    {"every", FaultWhereKind::every, true},
+    {"p", FaultWhereKind::probability, false},
+};
+
+const FaultPlaceInfo& fault_place_info(FaultWhereKind where);
 
 struct FaultSpec {
   FaultKind kind = FaultKind::drop;
@@ -45,8 +90,9 @@ struct FaultSpec {
   FaultWhereKind where = FaultWhereKind::exchange;
   std::uint64_t where_number = 0;  // exchange:N, rx:N, every:K
   double where_value = 0;          // t:SECONDS, p:P
-  std::string kind_text;           // as written (normalised), for reports
-  std::string where_text;
+  std::string kind_text;           // normalised (corrupt:4), for reports
+  std::string where_text;          // normalised (exchange:3, p:0.25)
+  std::string text;                // the item as written (trimmed), for errors
 };
 
 struct FaultPlan {
@@ -62,6 +108,10 @@ extern const char* const kFaultGrammar;
 // naming the key `faults`, the item and the grammar.
 FaultPlan parse_faults(std::string_view text, std::uint64_t seed);
 
+// Parses one KIND (drop, corrupt:4, delay:500) into its normal spelling;
+// throws OptionError naming the key `faults`, the kind and the grammar.
+std::string normal_fault_kind(std::string_view kind);
+
 // splitmix64: small, fast, and the same everywhere.
 std::uint64_t splitmix64(std::uint64_t x);
 
@@ -71,59 +121,6 @@ struct FaultEvent {
   std::string where;
   std::string detail;
   std::uint64_t exchange = 0;
-};
-
-// A released rx record after the faults: the item, and for a loss of the
-// device that ends (reconnect), when it is back.
-struct FaultedRx {
-  RxItem item;
-  std::optional<ReplayTime> back_at;
-};
-
-class FaultInjector {
- public:
-  using Reporter = std::function<void(const FaultEvent&)>;
-
-  FaultInjector(FaultPlan plan, bool datagrams, Reporter reporter);
-
-  // Passes one released record (rx, or a recorded close or loss) of
-  // exchange `exchange` through the plan, appending what the client gets
-  // to `out`. `now`: when it is released; a fault's waits count from the
-  // exchange's release at the earliest (under timing=none everything is due
-  // at the open time, long past).
-  void apply(RxItem&& item, std::uint64_t exchange, std::deque<FaultedRx>& out,
-             ReplayTime now);
-
-  // The device stopped answering (silence): writes are swallowed.
-  bool silenced() const { return silenced_; }
-  // A fault made the rest of the recording unreachable (silence,
-  // disconnect): it is not reported as unused.
-  bool rest_unreachable() const { return silenced_ || disconnected_; }
-  // Whether any fault was injected.
-  std::uint64_t injected() const { return injected_; }
-
- private:
-  bool fires(std::size_t index, const FaultSpec& spec, std::uint64_t exchange,
-             const RxItem& item, std::uint64_t offset);
-  void report(const FaultSpec& spec, std::uint64_t exchange, std::string detail);
-  // A random number for (fault, exchange, purpose): independent of the order
-  // in which things happen.
-  std::uint64_t draw(std::size_t index, std::uint64_t exchange, std::uint64_t purpose) const;
-
-  FaultPlan plan_;
-  bool datagrams_;
-  Reporter reporter_;
-  std::vector<bool> once_fired_;  // rx:N and t:S fire once
-  std::optional<std::uint64_t> current_exchange_;
-  // Per exchange, what goes on for its later records.
-  bool drop_rest_ = false;
-  std::optional<std::uint64_t> trickle_ms_;
-  std::chrono::nanoseconds shift_{0};  // delays and stalls so far in it
-  ReplayTime released_at_;             // when its first record was released
-  std::uint64_t rx_offset_ = 0;        // served rx bytes before this record
-  bool silenced_ = false;
-  bool disconnected_ = false;
-  std::uint64_t injected_ = 0;
 };
 
 }  // namespace wiretape::detail

@@ -1,7 +1,6 @@
 #include "replay/replay_config.hpp"
 
 #include <cmath>
-#include <limits>
 
 #include "replay/profiles/declared.hpp"
 #include "replay/faults.hpp"
@@ -120,10 +119,10 @@ ReplayConfig take_replay_config(Options& options) {
       options.take_choice("at_end"),
       {{"silent", ReplayAtEnd::silent}, {"closed", ReplayAtEnd::closed}});
 
-  // Fault injection: parsed here so that a bad plan fails at open.
-  config.faults = options.take_string("faults");
-  config.seed = static_cast<std::uint64_t>(options.take_int("seed"));
-  parse_faults(config.faults, config.seed);
+  // Fault injection: parsed once, here, so that a bad plan fails at open.
+  const std::string faults = options.take_string("faults");
+  const auto seed = static_cast<std::uint64_t>(options.take_int("seed"));
+  config.faults = parse_faults(faults, seed);
 
   if (config.check == ReplayCheck::timing &&
       config.timing == ReplayTiming::none) {

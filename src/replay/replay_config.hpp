@@ -6,6 +6,7 @@
 #include <memory>
 #include <string>
 
+#include "replay/faults.hpp"
 #include "wiretape/options.hpp"
 #include "wiretape/profile.hpp"
 
@@ -43,10 +44,9 @@ struct ReplayConfig {
   // file (exchanges.hpp), so a virtual device's later client session goes on
   // from the exchanges of the sessions before it.
   std::uint64_t first_exchange = 0;
-  // Fault injection (faults.hpp): the faults= text, checked by
-  // take_replay_config, and seed= for its random choices.
-  std::string faults;
-  std::uint64_t seed = 0;
+  // Fault injection (faults.hpp): faults= parsed, with seed= for its random
+  // choices; empty without faults=.
+  FaultPlan faults;
 };
 
 // Consumes the replay keys of `options` (and flexiport's spellings:

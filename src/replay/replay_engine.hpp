@@ -8,7 +8,9 @@
 // client is entitled to and checks its writes (sequence.hpp for
 // match=sequence, request.hpp for match=request), timing.hpp says when
 // entitled bytes are due, and the engine serves the released rx, reports
-// mismatches and, at close, what was never used (strategy.hpp).
+// mismatches and, at close, what was never used (strategy.hpp). The client
+// reads the released rx through the fault stage (fault_stage.hpp), a
+// pass-through without faults=.
 #pragma once
 
 #include <cstddef>
@@ -17,7 +19,7 @@
 #include <optional>
 #include <string>
 
-#include "replay/faults.hpp"
+#include "replay/fault_stage.hpp"
 #include "replay/replay_config.hpp"
 #include "replay/strategy.hpp"
 #include "replay/timing.hpp"
@@ -79,33 +81,20 @@ class ReplayEngine {
 
   // Where injected faults are reported (faults=); by default a line on
   // stderr.
-  void on_fault(FaultInjector::Reporter reporter) { fault_reporter_ = std::move(reporter); }
+  void on_fault(FaultStage::Reporter reporter) { stage_.on_fault(std::move(reporter)); }
   // Reads fail now because of an injected loss of the device.
-  bool lost_by_fault(ReplayTime now) { return fault_loss(now) != nullptr; }
+  bool lost_by_fault(ReplayTime now) { return stage_.loss(now) != nullptr; }
 
  private:
-  // Lets the strategy release what the client is now entitled to.
+  // Lets the strategy release what the client is now entitled to, and
+  // passes it through the fault stage.
   void prepare(ReplayTime now);
-
-  // --- fault injection (faults.hpp); nothing of it runs without faults= ---
-  // The client reads the released rx after the faults, from faulted_.
-  bool queue_empty() const { return faults_ ? faulted_.empty() : released_.empty(); }
-  RxItem& queue_front() { return faults_ ? faulted_.front().item : released_.front(); }
-  void queue_pop();
-  // Passes released rx through the faults, as far as the look-ahead bounds.
-  void inject_faults(ReplayTime now);
-  // A fault's loss of the device that is due now; a reconnect that is over is
-  // dropped first.
-  const RxItem* fault_loss(ReplayTime now);
-  std::unique_ptr<FaultInjector> faults_;
-  std::deque<FaultedRx> faulted_;
-  std::size_t faulted_bytes_ = 0;
-  FaultInjector::Reporter fault_reporter_;
 
   ReplayConfig config_;
   ReplayTimeline timeline_;
   ReleasedRx released_;
   MismatchReport report_;
+  FaultStage stage_;
   std::unique_ptr<ReplayStrategy> strategy_;  // made last: it uses the above
 };
 

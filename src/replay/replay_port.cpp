@@ -158,14 +158,15 @@ class ReplayPort final : public Port {
       config.first_exchange = first_exchange;
       engine_ = std::make_unique<ReplayEngine>(std::move(config), std::move(sources), now,
                                                connect_t_ns.value_or(0));
-      if (fault_reporter_) engine_->on_fault(fault_reporter_);  // faults hook
+      engine_->on_fault(fault_reporter_);  // each session's fault stage reports here
     }
     update_signal(now);
     changed_.notify_all();
     return afresh;
   }
 
-  // --- faults hook: injected faults go to `reporter` (see replay_on_fault) ---
+  // Injected faults go to `reporter` (see replay_on_fault); the engine's
+  // fault stage (fault_stage.hpp) does the rest.
   void on_fault(std::function<void(const FaultEvent&)> reporter) {
     std::lock_guard<std::mutex> lock(mutex_);
     fault_reporter_ = std::move(reporter);
@@ -558,7 +559,7 @@ class ReplayPort final : public Port {
   bool awaiting_client_ = false;
   int client_sessions_ = 0;
   SerialSettings settings_;
-  std::function<void(const FaultEvent&)> fault_reporter_;  // faults hook
+  std::function<void(const FaultEvent&)> fault_reporter_;  // empty: stderr
   bool closed_ = false;
   sys::UniqueFd signal_read_;
   sys::UniqueFd signal_write_;

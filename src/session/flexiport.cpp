@@ -272,9 +272,7 @@ std::unique_ptr<RecordSource> open_flexiport(const std::string& prefix,
   auto source = std::make_unique<FlexiportSource>(prefix);
   // flexiport's logs hold no start time, host or port: the header says
   // "not known" rather than inventing them, and names the logs it came from.
-  SessionWriterOptions provenance;
-  provenance.start_utc = "";
-  provenance.host = "";
+  SessionHeader provenance;
   provenance.source_format = "flexiport";
   const auto base_name = [](const std::string& path) {
     const auto slash = path.rfind('/');

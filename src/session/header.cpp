@@ -32,13 +32,13 @@ std::string utc_now_iso8601() {
   return text;
 }
 
-namespace {
-
 std::string host_name() {
   char name[256] = {};
   if (gethostname(name, sizeof name - 1) != 0) return "";
   return name;
 }
+
+namespace {
 
 // A header string as it may appear in an error message: in quotes and
 // escaped as payload bytes are, so that a hostile file cannot send control
@@ -111,21 +111,36 @@ const char* capture_name(Capture capture) {
   return capture == Capture::wire ? "wire" : "client";
 }
 
-std::string header_json(const SessionWriterOptions& options) {
+std::optional<Capture> capture_from_name(std::string_view name) {
+  if (name == capture_name(Capture::client)) return Capture::client;
+  if (name == capture_name(Capture::wire)) return Capture::wire;
+  return std::nullopt;
+}
+
+namespace {
+
+// A header written by wiretape itself names no source member.
+bool recorded_by_wiretape(const SessionHeader& header) {
+  return header.source_format.empty() || header.source_format == "wiretape";
+}
+
+}  // namespace
+
+std::string header_json(const SessionHeader& header) {
   namespace field = header_field;
   // What is written here must read back: the reader refuses a header that
   // is not UTF-8 or has a start time out of range.
-  require_utf8(field::port_options, options.port_options);
-  require_utf8(field::port_type, options.port_type);
-  require_utf8(field::host, options.host.value_or(""));
-  require_utf8(field::wiretape_version, options.wiretape_version);
-  for (const auto& [key, value] : options.metadata) {
+  require_utf8(field::port_options, header.port_options);
+  require_utf8(field::port_type, header.port_type);
+  require_utf8(field::host, header.host);
+  require_utf8(field::wiretape_version, header.wiretape_version);
+  for (const auto& [key, value] : header.user_metadata) {
     require_utf8("meta_" + key, key);
     require_utf8("meta_" + key, value);
   }
-  require_utf8(field::source_format, options.source_format);
-  for (const auto& name : options.source_files) require_utf8(field::source_files, name);
-  for (const auto& [key, value] : options.source_details) {
+  require_utf8(field::source_format, header.source_format);
+  for (const auto& name : header.source_files) require_utf8(field::source_files, name);
+  for (const auto& [key, value] : header.source_details) {
     if (key == field::source_format || key == field::source_files) {
       throw OptionError(field::source, "the session header's source detail \"" + key +
                                            "\" would hide the source's own " + key);
@@ -133,43 +148,39 @@ std::string header_json(const SessionWriterOptions& options) {
     require_utf8(field::source, key);
     require_utf8(field::source, value);
   }
-  require_utf8(field::device_address, options.device_address);
-  for (const auto& edit : options.edits) require_utf8(field::edits, edit);
-  if (options.start_utc) {
-    if (const auto problem = start_utc_problem(*options.start_utc)) {
-      throw OptionError(field::start_utc, "the session header's " + *problem);
-    }
+  require_utf8(field::device_address, header.device_address);
+  for (const auto& edit : header.edits) require_utf8(field::edits, edit);
+  if (const auto problem = start_utc_problem(header.start_utc)) {
+    throw OptionError(field::start_utc, "the session header's " + *problem);
   }
   json::ObjectWriter object;
-  object.add(field::port_options, options.port_options)
-      .add(field::port_type, options.port_type)
-      .add(field::start_utc, options.start_utc ? *options.start_utc : utc_now_iso8601())
-      .add(field::wiretape_version, options.wiretape_version.empty()
-                                        ? std::string(wiretape::version)
-                                        : options.wiretape_version)
-      .add(field::host, options.host ? *options.host : host_name())
-      .add(field::capture, capture_name(options.capture))
-      .add(field::metadata, options.metadata);
+  object.add(field::port_options, header.port_options)
+      .add(field::port_type, header.port_type)
+      .add(field::start_utc, header.start_utc)
+      .add(field::wiretape_version, header.wiretape_version)
+      .add(field::host, header.host)
+      .add(field::capture, capture_name(header.capture))
+      .add(field::metadata, header.user_metadata);
   // Format 1.1 members, written only when they say something, so that a
   // recording's header stays as short as before.
-  if (!options.source_format.empty()) {
+  if (!recorded_by_wiretape(header)) {
     std::string files = "[";
-    for (const auto& name : options.source_files) {
+    for (const auto& name : header.source_files) {
       if (files.size() > 1) files += ",";
       json::append_string(files, name);
     }
     files += "]";
     json::ObjectWriter source;
-    source.add(field::source_format, options.source_format).add_raw(field::source_files, files);
-    for (const auto& [key, value] : options.source_details) source.add(key, value);
+    source.add(field::source_format, header.source_format).add_raw(field::source_files, files);
+    for (const auto& [key, value] : header.source_details) source.add(key, value);
     object.add_raw(field::source, source.str());
   }
-  if (!options.device_address.empty()) {
-    object.add(field::device_address, options.device_address);
+  if (!header.device_address.empty()) {
+    object.add(field::device_address, header.device_address);
   }
-  if (!options.edits.empty()) {
+  if (!header.edits.empty()) {
     std::string edits = "[";
-    for (const auto& edit : options.edits) {
+    for (const auto& edit : header.edits) {
       if (edits.size() > 1) edits += ",";
       json::append_string(edits, edit);
     }
@@ -203,10 +214,8 @@ void parse_header_json(const std::string& text, const std::string& path,
   header.host = root.string_member(field::host).value_or("");
   const std::string capture =
       root.string_member(field::capture).value_or(capture_name(Capture::client));
-  if (capture == capture_name(Capture::client)) {
-    header.capture = Capture::client;
-  } else if (capture == capture_name(Capture::wire)) {
-    header.capture = Capture::wire;
+  if (const auto known = capture_from_name(capture)) {
+    header.capture = *known;
   } else {
     throw SessionError(path + ": unknown capture " + quoted(capture) +
                            " in the header at byte " + std::to_string(offset) +
@@ -255,3 +264,16 @@ void parse_header_json(const std::string& text, const std::string& path,
 }
 
 }  // namespace wiretape::detail
+
+namespace wiretape {
+
+SessionHeader SessionHeader::starting_now() {
+  SessionHeader header;
+  header.start_utc = detail::utc_now_iso8601();
+  header.host = detail::host_name();
+  return header;
+}
+
+std::string SessionHeader::to_json() const { return detail::header_json(*this); }
+
+}  // namespace wiretape

@@ -35,10 +35,11 @@ inline constexpr char edits[] = "edits";
 inline constexpr int min_start_year = 1970;
 inline constexpr int max_start_year = 2261;
 
-// The header JSON of a session file. Throws OptionError naming the field
-// when a string is not valid UTF-8 or start_utc is not a time the reader
-// accepts (start_utc_problem), so that nothing is written that cannot be read.
-std::string header_json(const SessionWriterOptions& options);
+// The header JSON of a session file (SessionHeader::to_json). Throws
+// OptionError naming the field when a string is not valid UTF-8 or start_utc
+// is not a time the reader accepts (start_utc_problem), so that nothing is
+// written that cannot be read.
+std::string header_json(const SessionHeader& header);
 // Why `start_utc` is not what the header allows (empty, or ISO 8601 UTC
 // YYYY-MM-DDTHH:MM:SS[.fraction]Z within min_start_year..max_start_year),
 // or std::nullopt when it is.
@@ -51,5 +52,9 @@ void parse_header_json(const std::string& json, const std::string& path,
 std::string utc_now_iso8601();
 // The header's spelling of `capture`: "client" or "wire".
 const char* capture_name(Capture capture);
+// The capture spelled `name`, or std::nullopt when it is neither.
+std::optional<Capture> capture_from_name(std::string_view name);
+// This machine's host name ("" when it has none).
+std::string host_name();
 
 }  // namespace wiretape::detail

@@ -2,6 +2,7 @@
 
 #include <array>
 #include <iterator>
+#include <stdexcept>
 
 #include "util/json.hpp"
 
@@ -197,6 +198,83 @@ std::optional<std::string> event_payload_problem(RecordKind kind, std::string_vi
     if (!known) return name + " payload member \"" + key + "\" is not in the table";
   }
   return std::nullopt;
+}
+
+namespace {
+
+std::string with_article(JsonType type) {
+  return (type == JsonType::integer ? "an " : "a ") + std::string(to_string(type));
+}
+
+JsonType type_of(const EventValue& value) {
+  if (std::holds_alternative<bool>(value)) return JsonType::boolean;
+  if (std::holds_alternative<std::int64_t>(value)) return JsonType::integer;
+  return JsonType::string;
+}
+
+}  // namespace
+
+std::string event_payload(RecordKind kind, const EventMembers& members) {
+  const RecordKindSpec* spec = find_record_kind(kind);
+  if (spec == nullptr) {
+    throw std::invalid_argument("unknown record kind " + std::to_string(static_cast<int>(kind)) +
+                                ": one of " + record_kind_names());
+  }
+  const std::string name(spec->name);
+  if (!spec->is_event) {
+    throw std::invalid_argument(name + " is a direction, not an event: its payload is bytes");
+  }
+  const auto member_list = [&] {
+    std::string names;
+    for (const EventFieldSpec& field : *spec) {
+      if (!names.empty()) names += ", ";
+      names += field.name;
+    }
+    return names.empty() ? std::string("none") : names;
+  };
+  for (std::size_t i = 0; i < members.size(); ++i) {
+    const auto& [key, value] = members[i];
+    const EventFieldSpec* field = nullptr;
+    for (const EventFieldSpec& candidate : *spec) {
+      if (candidate.name == key) field = &candidate;
+    }
+    if (field == nullptr) {
+      throw std::invalid_argument(name + " event: unknown member \"" + key +
+                                  "\" (its members: " + member_list() + ")");
+    }
+    if (type_of(value) != field->type) {
+      throw std::invalid_argument(name + " event: member \"" + key + "\" must be " +
+                                  with_article(field->type) + ", not " +
+                                  with_article(type_of(value)));
+    }
+    for (std::size_t j = 0; j < i; ++j) {
+      if (members[j].first == key) {
+        throw std::invalid_argument(name + " event: member \"" + key + "\" given twice");
+      }
+    }
+  }
+  json::ObjectWriter object;
+  for (const EventFieldSpec& field : *spec) {
+    const EventValue* value = nullptr;
+    for (const auto& [key, given] : members) {
+      if (key == field.name) value = &given;
+    }
+    if (value == nullptr) {
+      if (field.required) {
+        throw std::invalid_argument(name + " event: required member \"" +
+                                    std::string(field.name) + "\" is missing");
+      }
+      continue;
+    }
+    if (const bool* flag = std::get_if<bool>(value)) {
+      object.add(field.name, *flag);
+    } else if (const std::int64_t* number = std::get_if<std::int64_t>(value)) {
+      object.add(field.name, *number);
+    } else {
+      object.add(field.name, std::get<std::string>(*value));
+    }
+  }
+  return object.str();
 }
 
 }  // namespace detail

@@ -8,6 +8,9 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
+#include <variant>
+#include <vector>
 
 #include "wiretape/session.hpp"
 
@@ -89,5 +92,17 @@ std::string record_kind_names();
 // std::nullopt when it does. An empty payload stands for {}. Readers ignore
 // unknown members; this check is strict so that the table stays complete.
 std::optional<std::string> event_payload_problem(RecordKind kind, std::string_view payload);
+
+// A member of an event payload being made: its name and value, of one of the
+// table's JSON types (boolean, integer, string).
+using EventValue = std::variant<bool, std::int64_t, std::string>;
+using EventMembers = std::vector<std::pair<std::string, EventValue>>;
+
+// The JSON payload of a `kind` event with `members`, in the table's writing
+// order: the one maker of event payloads (C++ and, bound, Python). Throws
+// std::invalid_argument naming the kind and the member when a member is not
+// in the table, has the wrong type, is given twice or a required one is
+// missing, or when `kind` is not an event.
+std::string event_payload(RecordKind kind, const EventMembers& members);
 
 }  // namespace wiretape::detail

@@ -50,7 +50,8 @@ constexpr std::uint64_t reserve_step = 32 * 1024 * 1024;
 
 struct SessionWriter::Impl {
   std::string path;
-  SessionWriterOptions options;
+  SessionHeader header;  // as written
+  FlushPolicy flush;
   int fd = -1;
 
   // Serialises writes to the file and keeps their order.
@@ -154,7 +155,7 @@ struct SessionWriter::Impl {
       }
       written += static_cast<std::size_t>(n);
     }
-    if (error == 0 && options.fsync && sys::fsync(fd) != 0 && errno != EINVAL) {
+    if (error == 0 && flush.fsync && sys::fsync(fd) != 0 && errno != EINVAL) {
       error = errno;
       written = 0;  // nothing is known to be on the disk
     }
@@ -223,7 +224,7 @@ struct SessionWriter::Impl {
         wake.wait(lock);
         continue;
       }
-      const auto due = *oldest_unflushed + std::chrono::milliseconds(options.flush_ms);
+      const auto due = *oldest_unflushed + flush.interval;
       if (!flush_requested && Clock::now() < due) {
         wake.wait_until(lock, due);
         continue;
@@ -235,25 +236,31 @@ struct SessionWriter::Impl {
   }
 };
 
-SessionWriter::SessionWriter(const std::string& path, SessionWriterOptions options)
+SessionWriter::SessionWriter(const std::string& path, const SessionHeader& header,
+                             FlushPolicy flush)
     : impl_(std::make_unique<Impl>()) {
   impl_->path = path;
-  impl_->options = std::move(options);
-  if (impl_->options.flush_ms < 0) impl_->options.flush_ms = 0;
+  impl_->flush = flush;
+  if (impl_->flush.interval.count() < 0) impl_->flush.interval = std::chrono::milliseconds(0);
   // A header the reader would refuse is refused before the file is created.
-  const std::string json = detail::header_json(impl_->options);
+  const std::string json = detail::header_json(header);
+  impl_->header = header;
+  impl_->header.version_major = detail::session_version_major;
+  impl_->header.version_minor = detail::session_version_minor;
+  impl_->header.metadata_json = json;
+  if (impl_->header.source_format.empty()) impl_->header.source_format = "wiretape";
   impl_->fd = detail::open_output_file(path).release();
-  std::string header(detail::file_header_fixed_size, '\0');
-  std::memcpy(&header[0], detail::session_magic, sizeof detail::session_magic);
-  detail::put_u16le(&header[8], detail::session_version_major);
-  detail::put_u16le(&header[10], detail::session_version_minor);
-  detail::put_u32le(&header[12], static_cast<std::uint32_t>(json.size()));
-  header += json;
-  header.append(detail::crc_size, '\0');  // sealed by the first flush
+  std::string file_header(detail::file_header_fixed_size, '\0');
+  std::memcpy(&file_header[0], detail::session_magic, sizeof detail::session_magic);
+  detail::put_u16le(&file_header[8], detail::session_version_major);
+  detail::put_u16le(&file_header[10], detail::session_version_minor);
+  detail::put_u32le(&file_header[12], static_cast<std::uint32_t>(json.size()));
+  file_header += json;
+  file_header.append(detail::crc_size, '\0');  // sealed by the first flush
   // The header reaches the OS at once: a file that exists is readable.
-  impl_->buffer = header;
-  impl_->record_ends.push_back(header.size());
-  impl_->buffered_total = header.size();
+  impl_->buffer = file_header;
+  impl_->record_ends.push_back(file_header.size());
+  impl_->buffered_total = file_header.size();
   impl_->flush_now();
   if (impl_->failure) throw *impl_->failure;
   impl_->flusher = std::thread([impl = impl_.get()] { impl->run_flusher(); });
@@ -306,7 +313,7 @@ void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view 
       impl_->flush_requested = true;
       impl_->wake.notify_one();
     }
-    flush_here = buffer.size() >= max_buffered || impl_->options.flush_ms == 0;
+    flush_here = buffer.size() >= max_buffered || impl_->flush.interval.count() == 0;
   }
   if (flush_here) {
     impl_->flush_now();
@@ -351,6 +358,8 @@ void SessionWriter::close() {
 }
 
 const std::string& SessionWriter::path() const { return impl_->path; }
+
+const SessionHeader& SessionWriter::header() const { return impl_->header; }
 
 std::optional<PortError> SessionWriter::failure() const {
   std::lock_guard<std::mutex> lock(impl_->mutex);

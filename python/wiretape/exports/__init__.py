@@ -40,7 +40,7 @@ jsonl (wiretape.exports.jsonl): a header line, then one JSON object per
 record; ``wiretape convert`` writes and reads it.
 """
 
-from ..tools._records import escape_bytes
+from ..session import escape_bytes
 from .mcap import MCAP_TOPICS, write_mcap
 from .pcapng import LINKTYPE_RAW, LINKTYPE_USER0, write_pcapng
 

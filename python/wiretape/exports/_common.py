@@ -9,9 +9,8 @@ import json
 import os
 from typing import IO, Any, Dict, Iterator
 
-from ..tools._files import (check_output, check_regular_output, is_written_through,
-                            open_output, open_regular_output)
-from ..tools._records import SessionPath
+from ..session import (SessionPath, check_output, check_regular_output, is_written_through,
+                       open_output, open_regular_output)
 
 
 def start_epoch_ns(header: Dict[str, Any]) -> int:
@@ -81,7 +80,7 @@ def replacing(dst: SessionPath) -> Iterator[IO[bytes]]:
     by renaming; through a symbolic link, the link's target is (the link
     stays). What is not a regular file (a FIFO, a device) is written through,
     in place, never renamed over. A directory or a socket is refused
-    (tools._files)."""
+    (session.py)."""
     dst = os.fspath(dst)
     check_output(dst)
     if is_written_through(dst):

@@ -9,8 +9,7 @@ import json
 from typing import Any, Dict, Iterable
 
 from .. import _core
-from ..tools._files import open_output
-from ..tools._records import SessionPath, event_of
+from ..session import SessionPath, event_of, open_output
 
 __all__ = ["write_records", "record_to_json"]
 

@@ -8,9 +8,8 @@ import json
 from typing import Dict
 
 from .._core import __version__
-from ..tools._files import refuse_same_file, session_files
-from ..tools._records import (DIRECTIONS, SessionPath, escape_bytes, header_fields,
-                              open_session, raise_damage)
+from ..session import (DIRECTIONS, SessionPath, escape_bytes, header_fields, open_session,
+                       raise_damage, refuse_same_file, session_files)
 from ._common import event_json, replacing, start_epoch_ns
 
 __all__ = ["write_mcap", "MCAP_TOPICS"]

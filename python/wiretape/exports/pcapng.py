@@ -17,8 +17,8 @@ import struct
 from typing import Dict, Iterable, Optional, Tuple
 
 from .._core import __version__
-from ..tools._files import refuse_same_file, session_files
-from ..tools._records import SessionPath, header_fields, open_session, raise_damage
+from ..session import (SessionPath, header_fields, open_session, raise_damage,
+                       refuse_same_file, session_files)
 from ._common import event_json, replacing, start_epoch_ns
 from .network import LINKTYPE_RAW, NetworkSession
 

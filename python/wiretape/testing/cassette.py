@@ -11,9 +11,7 @@ conftest overrides to give a directory's tests their defaults), the ini file
 
 from __future__ import annotations
 
-import hashlib
 import os
-import re
 import urllib.parse
 import warnings
 from pathlib import Path
@@ -27,7 +25,7 @@ from wiretape._core import device_options
 
 RECORD_MODES = ("none", "once", "rewrite")
 DEFAULT_REPLAY_KEYS = {"timing": "none"}
-MAX_NAME_LENGTH = 100
+MAX_NAME_LENGTH = _core.MAX_CASSETTE_NAME_LENGTH
 
 
 class WiretapeWarning(UserWarning):
@@ -69,13 +67,9 @@ def publish_recording(recording: Path, cassette: Path) -> None:
     with _core.SessionReader(str(recording)) as reader:
         header = reader.header
         if recorded_as in header.port_options:
-            with _core.SessionWriter(
-                    str(rewritten), capture=header.capture,
-                    port_options=header.port_options.replace(
-                        recorded_as, "log=" + quote_option(cassette.name)),
-                    port_type=header.port_type, metadata=dict(header.metadata),
-                    start_utc=header.start_utc, host=header.host,
-                    wiretape_version=header.wiretape_version) as writer:
+            header.port_options = header.port_options.replace(
+                recorded_as, "log=" + quote_option(cassette.name))
+            with _core.SessionWriter(str(rewritten), header) as writer:
                 for record in reader:
                     writer.write(record.kind, record.t_ns, record.data)
             if reader.damage is None:
@@ -90,17 +84,9 @@ def publish_recording(recording: Path, cassette: Path) -> None:
 # cassette names
 
 
-def safe_file_name(name: str) -> str:
-    """`name` made safe for a file name (letters, digits and ``._-=+`` kept);
-    names longer than MAX_NAME_LENGTH are cut and given a hash of the whole
-    name, so that distinct tests keep distinct cassettes."""
-    safe = re.sub(r"[^A-Za-z0-9._=+-]+", "_", name).strip("_.")
-    if not safe:
-        safe = "test"
-    if len(safe) > MAX_NAME_LENGTH:
-        digest = hashlib.sha1(name.encode("utf-8")).hexdigest()[:12]
-        safe = safe[: MAX_NAME_LENGTH - 13].rstrip("_.") + "-" + digest
-    return safe
+# The rules are the C++ ones (wiretape/cassette_names.hpp), shared with the
+# GoogleTest helper: a test gets the same name from either.
+safe_file_name = _core.safe_file_name
 
 
 def source_file_of(item: pytest.Item) -> Path:
@@ -109,15 +95,15 @@ def source_file_of(item: pytest.Item) -> Path:
 
 def default_cassette_dir(item: pytest.Item) -> Path:
     """``<test dir>/recordings/<test module>``: next to the test file."""
-    test_file = source_file_of(item)
-    return test_file.parent / "recordings" / test_file.stem
+    return Path(_core.cassette_directory(source_file_of(item)))
 
 
 def cassette_file_name(item: pytest.Item) -> str:
-    """The test's name as a file name: nodeid ``dir/test_x.py::TestA::test_b[p]``
-    gives ``TestA.test_b_p.wtape``."""
-    test_name = item.nodeid.split("::", 1)[1] if "::" in item.nodeid else item.name
-    return safe_file_name(test_name.replace("::", ".")) + ".wtape"
+    """The test's cassette file name: nodeid ``dir/test_x.py::TestA::test_b``
+    gives ``TestA.test_b.wtape``; a name that must change to be a file name
+    (``test_b[p 1]``) ends with a hash of the whole name (safe_file_name)."""
+    parts = item.nodeid.split("::")[1:] or [item.name]
+    return _core.cassette_file_name(parts)
 
 
 # --------------------------------------------------------------------------

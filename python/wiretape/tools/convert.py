@@ -35,8 +35,8 @@ from typing import Iterator, Optional
 from .. import _core, exports
 from ..exports import jsonl
 from . import importers
-from ._files import FileRefused, is_stream, open_input, refuse_same_file, session_files
-from ._records import SessionPath, open_session, raise_damage
+from ..session import (FileRefused, SessionPath, is_stream, open_input, open_session,
+                       raise_damage, refuse_same_file, session_files)
 from . import pcap_import
 
 __all__ = ["convert", "detect_format", "ConvertResult", "FORMATS"]
@@ -103,14 +103,6 @@ def _check_format(name: str, allowed) -> str:
 # the CLI reports it in one line with exit 1 (a damaged session file, as for
 # .wtape sources) and what came before the bad line is converted.
 
-_HEADER_TEXT_FIELDS = ("port_options", "port_type", "start_utc", "wiretape_version", "host",
-                       "source_format", "device_address")
-# Format 1.1's provenance members that are lists or objects of strings.
-_HEADER_TEXT_LISTS = ("source_files", "edits")
-_HEADER_TEXT_OBJECTS = ("source_details",)
-_CAPTURES = ("client", "wire")
-
-
 class _BadLine(Exception):
     """A problem of one line; _jsonl_records adds the file and line number."""
 
@@ -131,63 +123,20 @@ def _record_kinds():
     return {kind["name"]: kind for kind in _core.RECORD_KINDS}
 
 
-def _jsonl_header(value) -> dict:
+def _jsonl_header(value) -> _core.SessionHeader:
+    """The header line's object as a SessionHeader: its members are checked
+    by the bound type, and what a writer would refuse (docs/session-format.md
+    #limits) is reported at this line rather than by the writer."""
     if not isinstance(value, dict):
         raise _BadLine(f"header: expected a JSON object, got {_json_type(value)}")
-    for name in _HEADER_TEXT_FIELDS:
-        if name in value and value[name] is not None and not isinstance(value[name], str):
-            raise _BadLine(f"header.{name}: expected a string, got {_json_type(value[name])}")
-    capture = value.get("capture")
-    if capture is not None and capture not in _CAPTURES:
-        raise _BadLine(f"header.capture: expected one of {', '.join(_CAPTURES)}, "
-                       f"got {_json_type(capture)}")
-    metadata = value.get("metadata")
-    if metadata is not None and not isinstance(metadata, dict):
-        raise _BadLine(f"header.metadata: expected a JSON object, got {_json_type(metadata)}")
-    extra_texts = []
-    for name in _HEADER_TEXT_LISTS:
-        items = value.get(name)
-        if items is None:
-            continue
-        if not isinstance(items, list):
-            raise _BadLine(f"header.{name}: expected a list of strings, got {_json_type(items)}")
-        for index, item in enumerate(items):
-            if not isinstance(item, str):
-                raise _BadLine(f"header.{name}[{index}]: expected a string, got {_json_type(item)}")
-            extra_texts.append((f"header.{name}[{index}]", item))
-    for name in _HEADER_TEXT_OBJECTS:
-        members = value.get(name)
-        if members is None:
-            continue
-        if not isinstance(members, dict):
-            raise _BadLine(f"header.{name}: expected a JSON object, got {_json_type(members)}")
-        for key, item in members.items():
-            if not isinstance(item, str):
-                raise _BadLine(f"header.{name}.{key[:40]}: expected a string, got {_json_type(item)}")
-            extra_texts += [(f"header.{name} key {key[:40]!r}", key), (f"header.{name}.{key[:40]}", item)]
-    # What a session header must hold to be written and read back (the C++
-    # rules of docs/session-format.md#limits), checked here so that the
-    # problem is reported at this line rather than by the writer.
-    texts = [(f"header.{name}", value.get(name)) for name in _HEADER_TEXT_FIELDS] + extra_texts
-    for key, item in (metadata or {}).items():
-        texts += [(f"header.metadata key {key[:40]!r}", key),
-                  (f"header.metadata.{key[:40]}", str(item))]
-    for where, text in texts:
-        if isinstance(text, str) and not _is_utf8(text):
-            raise _BadLine(f"{where}: not valid UTF-8 (a lone surrogate escape)")
-    start_utc = value.get("start_utc")
-    problem = _core.start_utc_problem(start_utc) if start_utc else None
-    if problem is not None:
-        raise _BadLine(f"header.start_utc: {problem}")
-    return value
-
-
-def _is_utf8(text: str) -> bool:
     try:
-        text.encode("utf-8")
-    except UnicodeEncodeError:
-        return False
-    return True
+        header = _core.SessionHeader.from_dict(value)
+        header.to_json()
+    except _core.OptionError as error:
+        raise _BadLine(f"header.{error.key}: {error}") from None
+    except (TypeError, ValueError) as error:
+        raise _BadLine(f"header: {error}") from None
+    return header
 
 
 def _jsonl_t_ns(item: dict) -> int:
@@ -237,7 +186,10 @@ def _jsonl_data(item: dict, kind, kinds: dict) -> bytes:
         event = item["event"]
         if not isinstance(event, dict):
             raise _BadLine(f"event: expected a JSON object, got {_json_type(event)}")
-        data = json.dumps(event, separators=(",", ":")).encode()
+        try:
+            data = _core.event_payload(kind, event)
+        except ValueError as error:
+            raise _BadLine(f"event: {error}") from None
     elif kind in kinds and kinds[kind]["is_event"]:
         data = b""
     else:
@@ -270,7 +222,7 @@ def _jsonl_line(text: str):
 
 
 def _jsonl_records(path: str) -> Iterator[tuple]:
-    """(header dict or None) first, then (kind, t_ns, data) per record.
+    """(SessionHeader or None) first, then (kind, t_ns, data) per record.
 
     Raises SessionError ("PATH:LINE: FIELD: problem", offset = the line's
     first byte) at the first bad line, after yielding every record before it.
@@ -307,24 +259,6 @@ def _jsonl_records(path: str) -> Iterator[tuple]:
             yield ("record", value)
         if not header_seen:
             yield ("header", None)
-
-
-def _header_of_reader(reader) -> dict:
-    header = reader.header
-    return {
-        "port_options": header.port_options,
-        "port_type": header.port_type,
-        "start_utc": header.start_utc,
-        "wiretape_version": header.wiretape_version,
-        "host": header.host,
-        "capture": header.capture,
-        "metadata": dict(header.metadata),
-        "source_format": header.source_format,
-        "source_files": list(header.source_files),
-        "source_details": dict(header.source_details),
-        "device_address": header.device_address,
-        "edits": list(header.edits),
-    }
 
 
 # --- progress ----------------------------------------------------------------
@@ -371,7 +305,7 @@ def _output_files(dst: str, fmt: str):
 
 
 def _records_of(src: str, fmt: str, choice: Optional[dict] = None):
-    """(header dict, record iterator of (kind, t_ns, data), a function that
+    """(SessionHeader, record iterator of (kind, t_ns, data), a function that
     raises the damage the records stopped at, if any). `choice`: what to
     take of a source holding several sessions (a capture's stream and device
     address, a cassette's test)."""
@@ -394,60 +328,24 @@ def _records_of(src: str, fmt: str, choice: Optional[dict] = None):
             for _, (kind, t_ns, data) in items:
                 yield kind, t_ns, data
 
-        return header or {}, records(), lambda: None
+        return header or _core.SessionHeader(), records(), lambda: None
     reader = open_session(src)
 
     def records():
         for record in reader:
             yield record.kind, record.t_ns, record.data
 
-    return _header_of_reader(reader), records(), lambda: raise_damage(reader)
+    return reader.header, records(), lambda: raise_damage(reader)
 
 
-def _provenance(header: dict) -> dict:
-    """The SessionWriter arguments of a header's provenance (format 1.1):
-    where an imported session came from, and what edit changed. A
-    ``"source": {"format": ..., "files": [...], other strings}`` member, as
-    importers give it, or the flat fields a reader's header has."""
-    source = header.get("source")
-    if isinstance(source, dict):
-        details = {str(k): str(v) for k, v in source.items() if k not in ("format", "files")}
-        source_format, files = str(source.get("format") or ""), source.get("files") or []
-    else:
-        details = dict(header.get("source_details") or {})
-        source_format, files = header.get("source_format") or "", header.get("source_files") or []
-    if source_format == "wiretape":
-        source_format = ""  # recorded by wiretape: no source member
-    return {
-        "source_format": source_format,
-        "source_files": [str(name) for name in files],
-        "source_details": details,
-        "device_address": str(header.get("device_address") or ""),
-        "edits": [str(edit) for edit in header.get("edits") or []],
-    }
+def session_writer(dst: str, header: _core.SessionHeader) -> _core.SessionWriter:
+    """A SessionWriter for `dst` writing `header` as it is: a time or host
+    the source does not know stays unknown (an import never invents them
+    from the converting machine)."""
+    return _core.SessionWriter(dst, header, flush_ms=1000)
 
 
-def session_writer(dst: str, header: dict) -> _core.SessionWriter:
-    """A SessionWriter for `dst` with the header dict's fields (as
-    _header_of_reader and the importers give them) and provenance."""
-    metadata = {str(k): str(v) for k, v in (header.get("metadata") or {}).items()}
-    return _core.SessionWriter(
-        dst,
-        capture=header.get("capture") or "client",
-        port_options=header.get("port_options") or "",
-        port_type=header.get("port_type") or "",
-        metadata=metadata,
-        # A time or host the source does not know stays unknown: "" (an
-        # import never invents them from the converting machine).
-        start_utc=header.get("start_utc") or "",
-        host=header.get("host") or "",
-        wiretape_version=header.get("wiretape_version") or "",
-        flush_ms=1000,
-        **_provenance(header),
-    )
-
-
-def _write_wiretape(dst: str, header: dict, records, progress: _Progress) -> int:
+def _write_wiretape(dst: str, header: _core.SessionHeader, records, progress: _Progress) -> int:
     with session_writer(dst, header) as writer:
         for kind, t_ns, data in records:
             writer.write(kind, t_ns, data)
@@ -455,13 +353,13 @@ def _write_wiretape(dst: str, header: dict, records, progress: _Progress) -> int
     return progress.records
 
 
-def _write_jsonl(dst: str, header: dict, records, progress: _Progress) -> int:
+def _write_jsonl(dst: str, header: _core.SessionHeader, records, progress: _Progress) -> int:
     def counted():
         for kind, t_ns, data in records:
             yield _core.Record(t_ns, kind, data)
             progress.step(len(data))
 
-    jsonl.write_records(dst, header, counted())
+    jsonl.write_records(dst, header.to_dict(), counted())
     return progress.records
 
 

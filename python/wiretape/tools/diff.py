@@ -27,8 +27,7 @@ from dataclasses import dataclass, field
 from typing import Iterable, Iterator, List, Optional, Union
 
 from .. import _core
-from ._files import is_stream
-from ._records import DIRECTIONS, open_session
+from ..session import DIRECTIONS, is_stream, open_session
 
 _CONTEXT = 16
 

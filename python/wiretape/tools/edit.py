@@ -24,15 +24,14 @@ from __future__ import annotations
 
 import collections
 import dataclasses
-import json
 import os
 import re
 from typing import Deque, Dict, Iterable, List, Optional, Sequence, Tuple
 
 from .. import _core
-from ._files import is_stream, refuse_same_file, session_files
-from ._records import DIRECTIONS, SessionPath, event_payload, open_session, raise_damage
-from .convert import _header_of_reader, session_writer
+from ..session import (DIRECTIONS, SessionPath, event_payload, is_stream, open_session,
+                       raise_damage, refuse_same_file, session_files)
+from .convert import session_writer
 
 __all__ = ["edit", "EditResult", "Cut", "Redaction", "parse_cut", "parse_redaction", "MAX_SPAN"]
 
@@ -212,8 +211,8 @@ class _Redactor:
             entry = self.queue.popleft()
             self.marked_records += bool(entry.marks)
             for offset, length in _merged(entry.marks):
-                payload = json.dumps({"offset": offset, "length": length}, separators=(",", ":"))
-                self.write("redaction", entry.t_ns, payload.encode())
+                payload = _core.event_payload("redaction", {"offset": offset, "length": length})
+                self.write("redaction", entry.t_ns, payload)
             self.write(entry.kind, entry.t_ns, bytes(entry.data))
             self.records += 1
 
@@ -345,9 +344,10 @@ def _scrub_header_text(text: str, redactions: Sequence[Redaction]) -> str:
     return data.decode("utf-8", "replace")
 
 
-def _scrubbed_event(data: bytes) -> bytes:
+def _scrubbed_event(kind: str, data: bytes) -> bytes:
     """Event payloads name devices too (open's description): by-id serial
-    numbers are cleared there, the JSON staying valid."""
+    numbers are cleared there, the payload made anew by the record-kind
+    table (a member it does not know is a ValueError naming it)."""
     payload = event_payload(data)
     if not payload:
         return data
@@ -355,7 +355,7 @@ def _scrubbed_event(data: bytes) -> bytes:
                for key, value in payload.items()}
     if changed == payload:
         return data
-    return json.dumps(changed, separators=(",", ":"), ensure_ascii=False).encode("utf-8")
+    return _core.event_payload(kind, changed)
 
 
 def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
@@ -371,27 +371,26 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
         raise ValueError("nothing to edit: give --cut, --redact or --drop-meta")
     refuse_same_file(session_files(src), [dst])
     reader = open_session(src)
-    header = _header_of_reader(reader)
-    metadata = dict(header.get("metadata") or {})
+    header = reader.header
+    metadata = dict(header.metadata)
     for key in drop:
         if key not in metadata:
             known = ", ".join(sorted(metadata)) or "none"
             raise ValueError(f"--drop-meta {key!r}: {src} has no metadata key {key!r} "
                              f"(its keys: {known})")
         del metadata[key]
-    header["metadata"] = metadata
+    header.metadata = metadata
     window = _cut_window(src, cut) if cut is not None else (None, None)
 
-    earlier_edits = list(header.get("edits") or [])
+    earlier_edits = list(header.edits)
     edits: List[str] = []
     if cut is not None:
         edits.append(cut.describe())
     if redactions:
-        header["host"] = ""
-        for name in ("port_options",):
-            header[name] = _scrub_header_text(header.get(name) or "", redactions)
-        header["metadata"] = {key: _scrub_header_text(value, redactions)
-                              for key, value in metadata.items()}
+        header.host = ""
+        header.port_options = _scrub_header_text(header.port_options, redactions)
+        header.metadata = {key: _scrub_header_text(value, redactions)
+                           for key, value in metadata.items()}
     edits += [f"dropped meta {key}" for key in drop]
 
     if redactions:
@@ -400,7 +399,7 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
         count = len(redactions)
         edits.append(f"redacted {count} pattern{'s' if count != 1 else ''}"
                      " (host and by-id serial numbers cleared)")
-    header["edits"] = earlier_edits + edits
+    header.edits = earlier_edits + edits
     writer = session_writer(dst, header)
     with writer:
         def write(kind: str, t_ns: int, data: bytes) -> None:
@@ -410,7 +409,7 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
 
         def keep(kind: str, t_ns: int, data: bytes) -> None:
             if redactions and kind not in DIRECTIONS:
-                data = _scrubbed_event(data)
+                data = _scrubbed_event(kind, data)
             redactor.add(_Entry(kind, t_ns, data))
 
         cutter = _Cutter(window[0], window[1], keep) if cut is not None else None

@@ -13,7 +13,7 @@
               ``d 0 DEVICE``, ``Q`` (stop), ``# comment``; in DATA a byte
               below 32 is ``^`` and the byte + 64, ``^`` itself is ``^```.
 
-Each reader returns (header dict, iterator of (kind, t_ns, data)) and raises
+Each reader returns (SessionHeader, iterator of (kind, t_ns, data)) and raises
 SessionError naming the file and the place (line, field) at bad input.
 """
 
@@ -26,7 +26,7 @@ import os
 from typing import Iterator, List, Optional, Tuple
 
 from .. import _core
-from ._files import open_input
+from ..session import open_input
 
 __all__ = ["reserial_records", "reserial_tests", "umockdev_records"]
 
@@ -137,13 +137,9 @@ def reserial_records(path, test: Optional[str] = None):
     number, offset, name, entry = found
     rx = _reserial_bytes(path, number, offset, name, entry, "rx")
     tx = _reserial_bytes(path, number, offset, name, entry, "tx")
-    header = {
-        "capture": "client",
-        "port_type": "serial",
-        "start_utc": "",
-        "host": "",
-        "source": {"format": "reserial", "files": [os.path.basename(path)], "test": name},
-    }
+    header = _core.SessionHeader(port_type="serial", source_format="reserial",
+                                 source_files=[os.path.basename(path)],
+                                 source_details={"test": name})
 
     def records() -> Records:
         # The greeting first, then what the client must write: every rx is
@@ -250,14 +246,9 @@ def umockdev_records(path):
         metadata["umockdev.device"] = device
     if fuzz:
         metadata["umockdev.fuzz_percent"] = str(fuzz)
-    header = {
-        "capture": "client",
-        "port_type": "serial",
-        "start_utc": "",
-        "host": "",
-        "metadata": metadata,
-        "source": {"format": "umockdev", "files": [os.path.basename(path)]},
-    }
+    header = _core.SessionHeader(port_type="serial", metadata=metadata,
+                                 source_format="umockdev",
+                                 source_files=[os.path.basename(path)])
 
     def records() -> Records:
         t_ms = 0

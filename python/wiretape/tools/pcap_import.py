@@ -22,7 +22,6 @@ from __future__ import annotations
 import base64
 import dataclasses
 import datetime as _datetime
-import json
 import os
 import shutil
 import subprocess
@@ -374,8 +373,9 @@ def _follow_chunks(path: str, conversation: Conversation) -> Iterator[Tuple[Tupl
 
 
 def read_capture(path: str, stream: Optional[str] = None,
-                 device_addr: Optional[str] = None) -> Tuple[dict, List[Tuple[str, int, bytes]]]:
-    """The session of one conversation of the capture `path`: a header dict
+                 device_addr: Optional[str] = None
+                 ) -> Tuple[_core.SessionHeader, List[Tuple[str, int, bytes]]]:
+    """The session of one conversation of the capture `path`: its header
     (as convert's other sources give it) and records (kind, t_ns, data) in
     time order."""
     with open(path, "rb"):  # missing, unreadable: an OSError naming the file (exit 3)
@@ -394,7 +394,7 @@ def read_capture(path: str, stream: Optional[str] = None,
         syn = next((p for p in conversation.packets if p.syn and not p.ack), None)
         if syn is not None:
             add(syn.epoch_ns, "client_connect",
-                json.dumps({"peer": client_text, "role": "control"}, separators=(",", ":")).encode())
+                _core.event_payload("client_connect", {"peer": client_text, "role": "control"}))
     last_data_ns = start_ns
     for sender, epoch_ns, data in _follow_chunks(path, conversation):
         if not data:
@@ -411,20 +411,18 @@ def read_capture(path: str, stream: Optional[str] = None,
             by = "the client" if first.src == client else "the device"
             reason = f"{'reset' if first.reset else 'closed'} by {by}"
             add(max(last.epoch_ns, last_data_ns), "client_disconnect",
-                json.dumps({"peer": client_text, "reason": reason}, separators=(",", ":")).encode())
+                _core.event_payload("client_disconnect", {"peer": client_text, "reason": reason}))
     records.sort()
     device_host, device_port = device
-    header = {
-        "port_type": conversation.protocol,
-        "port_options": f"type={conversation.protocol},"
-                        f"host={_core.quote_option_value(device_host)},port={device_port}",
-        "capture": "wire",
-        "start_utc": _utc_text(start_ns),
-        "host": "",
-        "wiretape_version": _core.__version__,
-        "metadata": {},
-        "source": {"format": "pcap", "files": [os.path.basename(path)],
-                   "stream": conversation.name},
-        "device_address": _address(device_host, device_port),
-    }
+    header = _core.SessionHeader(
+        port_type=conversation.protocol,
+        port_options=f"type={conversation.protocol},"
+                     f"host={_core.quote_option_value(device_host)},port={device_port}",
+        capture="wire",
+        start_utc=_utc_text(start_ns),
+        source_format="pcap",
+        source_files=[os.path.basename(path)],
+        source_details={"stream": conversation.name},
+        device_address=_address(device_host, device_port),
+    )
     return header, [(kind, t_ns, data) for t_ns, _, kind, data in records]

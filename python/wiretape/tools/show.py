@@ -14,9 +14,9 @@ from typing import IO, Iterator, Optional, Tuple
 
 from .. import _core
 from ..exports.jsonl import json_line, record_to_json
-from ._records import DIRECTIONS as _DIRECTIONS
-from ._records import SessionPath, event_of, event_payload, header_text, open_session
-from ._records import printable as _printable
+from ..session import DIRECTIONS as _DIRECTIONS
+from ..session import SessionPath, event_of, event_payload, header_text, open_session
+from ..session import printable as _printable
 
 __all__ = ["show", "show_reporting_damage"]
 

@@ -7,7 +7,8 @@ import dataclasses
 import os
 from typing import Any, Dict, List, Optional, Tuple
 
-from ._records import DIRECTIONS, SessionPath, header_text, open_session
+from .. import _core
+from ..session import DIRECTIONS, SessionPath, header_text, open_session
 
 __all__ = ["stats", "SessionStats"]
 
@@ -27,27 +28,24 @@ class SessionStats:
     last_t_ns: Optional[int]
     duration_s: float  # first to last record
     events: Dict[str, int]  # count per event kind
-    # the header's fields
-    capture: str
-    port_type: str
-    port_options: str
-    start_utc: str
-    host: str
-    wiretape_version: str
-    source_format: str
-    source_files: List[str]
-    device_address: str
-    edits: List[str]
-    version_major: int
-    version_minor: int
-    metadata: Dict[str, str]
+    header: _core.SessionHeader
     # where and why reading stopped early (None when not damaged)
     damaged: bool
     damage_offset: Optional[int]
     damage_message: Optional[str]
 
+    def __getattr__(self, name: str) -> Any:
+        # The header's members read as the result's own (stats.port_type).
+        if name == "header":
+            raise AttributeError(name)
+        return getattr(self.header, name)
+
     def to_json(self) -> Dict[str, Any]:
-        return dataclasses.asdict(self)
+        """The counts and the header's members (as SessionHeader.to_dict
+        names them) in one object."""
+        out = {field.name: getattr(self, field.name) for field in dataclasses.fields(self)
+               if field.name != "header"}
+        return {**out, **self.header.to_dict()}
 
     def text_rows(self) -> List[Tuple[str, str]]:
         """(name, value) rows for people, as ``wiretape stats`` prints them:
@@ -112,19 +110,7 @@ def stats(path: SessionPath) -> SessionStats:
         last_t_ns=last,
         duration_s=(last - first) / 1e9 if first is not None and last is not None else 0.0,
         events=events,
-        capture=header.capture,
-        port_type=header.port_type,
-        port_options=header.port_options,
-        start_utc=header.start_utc,
-        host=header.host,
-        wiretape_version=header.wiretape_version,
-        source_format=header.source_format,
-        source_files=list(header.source_files),
-        device_address=header.device_address,
-        edits=list(header.edits),
-        version_major=header.version_major,
-        version_minor=header.version_minor,
-        metadata=dict(header.metadata),
+        header=header,
         damaged=damage is not None,
         damage_offset=damage.offset if damage is not None else None,
         damage_message=damage.message if damage is not None else None,

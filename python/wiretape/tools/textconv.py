@@ -20,7 +20,7 @@ import sys
 from typing import IO, Optional, Tuple
 
 from .. import _core
-from ._records import SessionPath
+from ..session import SessionPath
 from .show import show_reporting_damage
 
 __all__ = ["textconv"]

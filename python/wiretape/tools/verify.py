@@ -7,7 +7,7 @@ import os
 from typing import Any, Dict, Optional
 
 from .. import _core
-from ._records import SessionPath, open_session
+from ..session import SessionPath, open_session
 
 __all__ = ["verify", "VerifyResult"]
 

@@ -13,9 +13,8 @@ URLs:
 
 ``wiretape://PATH?KEY=VALUE&...``
     replays the session file PATH (``wiretape:///abs/file.wtape`` or
-    ``wiretape://relative/file.wtape``); the query holds replay keys
-    (``timing``, ``match``, ``check``, ``speed``, ``tolerance``, ``unmatched``,
-    ``repeat``, ``unused``, ``at_end``), e.g.
+    ``wiretape://relative/file.wtape``); the query holds the replay keys of
+    ``type=replay`` (docs/options.md; ``wiretape.options.replay_keys()``), e.g.
     ``wiretape://run.wtape?timing=none&match=request``.
 
 ``wiretape+record://PATH?device=DEVICE&baud=115200``

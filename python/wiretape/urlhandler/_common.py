@@ -10,7 +10,17 @@ from serial.serialutil import (
     SerialTimeoutException,
 )
 
-_PARITY_NAMES = {"N": "none", "E": "even", "O": "odd", "M": "mark", "S": "space"}
+def _parity_name(letter: str) -> str:
+    """pyserial's parity letter (PARITY_EVEN is "E") as the key table's
+    parity choice it stands for."""
+    from .. import _core
+
+    for key in _core.option_keys():
+        if key.name == "parity":
+            for choice in key.choices:
+                if choice[0].upper() == letter:
+                    return choice
+    return str(letter)
 
 
 def _converted_errors():
@@ -102,7 +112,7 @@ class PortSerial(SerialBase):
         wanted = {
             "baud": int(self._baudrate),
             "databits": int(self._bytesize),
-            "parity": _PARITY_NAMES.get(self._parity, str(self._parity)),
+            "parity": _parity_name(self._parity),
             "flow": "rtscts" if self._rtscts else ("xonxoff" if self._xonxoff else "none"),
         }
         if self._stopbits in (1, 2):

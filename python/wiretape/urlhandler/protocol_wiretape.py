@@ -1,8 +1,7 @@
 """``wiretape://PATH?KEY=VALUE&...``: a pyserial port replaying a session file.
 
-The query's keys are the replay keys of ``type=replay`` (``timing``,
-``match``, ``check``, ``speed``, ``tolerance``, ``unmatched``, ``repeat``,
-``unused``, ``at_end``); an unknown key is a ``SerialException`` that names it
+The query's keys are the replay keys of ``type=replay`` (docs/options.md;
+``wiretape.options.replay_keys()``); an unknown key is a ``SerialException`` that names it
 and lists the valid ones.
 """
 

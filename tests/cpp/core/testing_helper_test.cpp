@@ -235,12 +235,33 @@ TEST(CassetteSettings, ComeFromTheEnvironment) {
 }
 
 TEST(CassettePath, IsNextToTheSourceWithSafeNames) {
+  // A name that had to change ends with 12 hex digits of its SHA-1
+  // (wiretape/cassette_names.hpp; the pytest plugin's names are the same).
   EXPECT_EQ(wiretape::testing::default_cassette_path("/src/tests/cpp/scan_test.cpp",
                                                      "Models/ScanTest", "Reads/3"),
-            "/src/tests/cpp/recordings/scan_test/Models_ScanTest.Reads_3.wtape");
+            "/src/tests/cpp/recordings/scan_test/Models_ScanTest.Reads_3-" +
+                wiretape::testing::detail::sha1_hex("Models/ScanTest.Reads/3").substr(0, 12) +
+                ".wtape");
   EXPECT_EQ(wiretape::testing::default_cassette_path("/src/a_test.cpp", "S", "T", "/elsewhere"),
             "/elsewhere/a_test/S.T.wtape");
-  EXPECT_EQ(wiretape::testing::safe_file_name("../x y"), "x_y");
+  EXPECT_EQ(wiretape::testing::safe_file_name("../x y").substr(0, 4), "x_y-");
+}
+
+TEST(CassettePath, NamesThatCollideOnceMadeSafeGetDistinctCassettes) {
+  using wiretape::testing::safe_file_name;
+  EXPECT_NE(safe_file_name("t[a b]"), safe_file_name("t[a_b]"));
+  EXPECT_EQ(safe_file_name("t_a_b"), "t_a_b");  // a safe name is kept as it is
+  const std::string long_name(300, 'x');
+  EXPECT_EQ(safe_file_name(long_name).size(), wiretape::testing::max_cassette_name_length);
+  EXPECT_NE(safe_file_name(long_name), safe_file_name(long_name + "y"));
+}
+
+TEST(CassettePath, Sha1IsTheStandardOne) {
+  EXPECT_EQ(wiretape::testing::detail::sha1_hex(""), "da39a3ee5e6b4b0d3255bfef95601890afd80709");
+  EXPECT_EQ(wiretape::testing::detail::sha1_hex("abc"),
+            "a9993e364706816aba3e25717850c26c9cd0d89d");
+  EXPECT_EQ(wiretape::testing::detail::sha1_hex(std::string(1000, 'a')),
+            "291e9a6c66994949b57ba5e650361e98fc36b1ba");
 }
 
 // The fixture itself, on a cassette recorded from type=loopback and kept in

@@ -175,9 +175,10 @@ TEST(WriterPastTheFileSizeLimit, AWriteOnTheCallersThreadFailsWithEfbigNotSigxfs
   TempDir dir;
   const std::string path = dir.file("limited.wtape");
   const ChildOutcome outcome = run_under_file_size_limit([&] {
-    SessionWriterOptions options;
-    options.flush_ms = 0;  // every record is written on this thread
-    SessionWriter writer(path, options);
+    SessionHeader header;
+    FlushPolicy flush;
+    flush.interval = std::chrono::milliseconds(0);  // every record is written on this thread
+    SessionWriter writer(path, header, flush);
     for (int i = 0; i < 1000; ++i) {
       try {
         writer.write(RecordKind::rx, static_cast<std::uint64_t>(i), std::string(100, 'r'));
@@ -201,9 +202,10 @@ TEST(WriterPastTheFileSizeLimit, TheFlusherThreadFailsWithEfbigNotSigxfsz) {
   TempDir dir;
   const std::string path = dir.file("flusher.wtape");
   const ChildOutcome outcome = run_under_file_size_limit([&] {
-    SessionWriterOptions options;
-    options.flush_ms = 1;  // the flusher thread does the writing
-    SessionWriter writer(path, options);
+    SessionHeader header;
+    FlushPolicy flush;
+    flush.interval = std::chrono::milliseconds(1);  // the flusher thread does the writing
+    SessionWriter writer(path, header, flush);
     int written = 0;
     const bool failed = eventually([&] {
       try {
@@ -229,9 +231,10 @@ TEST(WriterPastTheFileSizeLimit, ASignalBlockedByTheCallerStaysBlocked) {
   ASSERT_EQ(pthread_sigmask(SIG_BLOCK, nullptr, &before), 0);
   TempDir dir;
   {
-    SessionWriterOptions options;
-    options.flush_ms = 0;
-    SessionWriter writer(dir.file("mask.wtape"), options);
+    SessionHeader header;
+    FlushPolicy flush;
+    flush.interval = std::chrono::milliseconds(0);
+    SessionWriter writer(dir.file("mask.wtape"), header, flush);
     writer.write(RecordKind::tx, 1, "x");
   }
   sigset_t after;
@@ -245,9 +248,10 @@ TEST(ReleasedAfterAFailure, AWriterLetsGoOfItsFileAtTheFailure) {
   TempDir dir;
   const std::string path = dir.file("full.wtape");
   FailingFileWrites disk(path, ENOSPC);
-  SessionWriterOptions options;
-  options.flush_ms = 0;
-  SessionWriter writer(path, options);
+  SessionHeader header;
+  FlushPolicy flush;
+  flush.interval = std::chrono::milliseconds(0);
+  SessionWriter writer(path, header, flush);
   writer.write(RecordKind::tx, 1, "kept");
   disk.failing = true;
   try {

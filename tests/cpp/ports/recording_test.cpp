@@ -576,9 +576,9 @@ TEST(RecordingPort, ACompoundReadIsOneRxRecordOverReplay) {
   TempDir dir;
   const std::string session = dir.file("device.wtape");
   {
-    SessionWriterOptions options;
-    options.port_type = "serial";
-    SessionWriter writer(session, options);
+    SessionHeader header;
+    header.port_type = "serial";
+    SessionWriter writer(session, header);
     writer.write(RecordKind::rx, 0, "al");
     writer.write(RecordKind::rx, 1, "pha\nbe");
     writer.write(RecordKind::rx, 2, "ta\n");

@@ -37,9 +37,9 @@ using test::write_file;
 constexpr auto deadline = std::chrono::seconds(10);
 
 std::string write_sample(const std::string& path) {
-  SessionWriterOptions options;
-  options.port_type = "serial";
-  SessionWriter writer(path, options);
+  SessionHeader header;
+  header.port_type = "serial";
+  SessionWriter writer(path, header);
   writer.write(RecordKind::open, 0, "{}");
   writer.write(RecordKind::tx, 1000, "PING\n");
   writer.write(RecordKind::rx, 2000, "PONG\n");

@@ -1,12 +1,15 @@
-// Fault injection on replay (faults=, DESIGN.md section 14): the parser's
-// grammar and errors, and what a client of a replaying port sees for each
+// Fault injection on replay (faults=, DESIGN.md sections 14 and 17): the
+// parser's grammar and errors, the fault stage on its own (a pass-through
+// without a plan; each kind on the records it is given), and what a client of a replaying port sees for each
 // fault kind in each timing mode.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <string>
 #include <vector>
 
+#include "replay/fault_stage.hpp"
 #include "replay/faults.hpp"
 #include "replay/replay_config.hpp"
 #include "replay/replay_port.hpp"
@@ -243,7 +246,14 @@ TEST_P(FaultKinds, DisconnectLosesTheDevice) {
   answer(*port, "Q0\n");
   port->write("Q1\n", 3);
   char buffer[16];
-  EXPECT_THROW(port->read(buffer, sizeof buffer), PortClosed);
+  try {
+    port->read(buffer, sizeof buffer);
+    ADD_FAILURE() << "the read after a disconnect returned";
+  } catch (const PortClosed& error) {
+    // The fault's own account, not a recorded loss's.
+    EXPECT_NE(std::string(error.what()).find("fault disconnect@exchange:1"), std::string::npos)
+        << error.what();
+  }
   EXPECT_THROW(port->write("Q2\n", 3), PortClosed);
   EXPECT_THROW(port->read(buffer, sizeof buffer), PortClosed);
 }
@@ -354,4 +364,242 @@ TEST(FaultRequestMatching, ExchangesAreNumberedInServedOrder) {
   auto port = replay("timing=none,match=request,faults=truncate:2@exchange:0");
   EXPECT_EQ(answer(*port, "Q2\n"), "R2");
   EXPECT_EQ(answer(*port, "Q0\n"), "R0-abcdef\n");
+}
+
+// --- the stage on its own --------------------------------------------------------
+
+namespace {
+
+using detail::FaultStage;
+using detail::ReleasedRx;
+using detail::ReplayTime;
+using detail::RxItem;
+
+const ReplayTime kOpen{std::chrono::seconds(1000)};
+
+RxItem rx_item(const std::string& data, std::uint64_t t_ms, std::uint64_t exchange,
+               RecordKind kind = RecordKind::rx) {
+  RxItem item;
+  item.kind = kind;
+  item.data = data;
+  item.t_ns = ms(t_ms);
+  item.due = kOpen + std::chrono::milliseconds(t_ms);
+  item.exchange = exchange;
+  return item;
+}
+
+// Exchange 0 in one record, exchange 1 in two, exchange 2 in one.
+void release_three(ReleasedRx& released) {
+  released.push(rx_item("R0-abcdef\n", 1, 0));
+  released.push(rx_item("R1-ghi", 401, 1));
+  released.push(rx_item("jkl\n", 402, 1));
+  released.push(rx_item("R2-mnopqr\n", 801, 2));
+}
+
+struct Served {
+  RecordKind kind;
+  std::string data;
+  std::uint64_t t_ns;
+  std::chrono::milliseconds due;  // after kOpen
+  std::uint64_t exchange;
+};
+
+// Everything the stage hands the reader, in order, popped.
+std::vector<Served> drain(FaultStage& stage, ReplayTime now = kOpen) {
+  std::vector<Served> served;
+  stage.pull(now);
+  while (!stage.empty()) {
+    const RxItem& item = stage.front();
+    served.push_back(Served{item.kind, std::string(item.payload().substr(item.consumed)),
+                            item.t_ns,
+                            std::chrono::duration_cast<std::chrono::milliseconds>(item.due - kOpen),
+                            item.exchange});
+    stage.pop();
+    stage.pull(now);
+  }
+  return served;
+}
+
+std::string bytes_of_exchange(const std::vector<Served>& served, std::uint64_t exchange) {
+  std::string bytes;
+  for (const Served& item : served) {
+    if (item.exchange == exchange && item.kind == RecordKind::rx) bytes += item.data;
+  }
+  return bytes;
+}
+
+// A stage with `faults` over release_three(), and the faults it reported.
+struct StageRun {
+  std::vector<Served> served;
+  std::vector<detail::FaultEvent> events;
+  bool swallows_writes = false;
+  bool rest_unreachable = false;
+  bool unread_hidden = false;
+};
+
+StageRun run_stage(const std::string& faults) {
+  ReleasedRx released(/*recycle_payloads=*/false);
+  FaultStage stage(parse_faults(faults, 5), /*datagrams=*/false, released);
+  StageRun run;
+  stage.on_fault([&run](const detail::FaultEvent& event) { run.events.push_back(event); });
+  release_three(released);
+  run.served = drain(stage);
+  run.swallows_writes = stage.swallows_writes();
+  run.rest_unreachable = stage.rest_unreachable();
+  run.unread_hidden = !stage.unread().has_value();
+  return run;
+}
+
+}  // namespace
+
+TEST(FaultStage, WithoutAPlanItIsTheReleasedQueueItself) {
+  ReleasedRx released(/*recycle_payloads=*/false);
+  FaultStage stage(parse_faults("", 0), /*datagrams=*/false, released);
+  EXPECT_FALSE(stage.injects());
+  release_three(released);
+  released.push(rx_item("", 900, 2, RecordKind::device_lost));
+  stage.pull(kOpen);
+  // No copy: the reader reads the strategy's records where they are.
+  EXPECT_EQ(&stage.front(), &released.front());
+  const auto unread = stage.unread();
+  ASSERT_TRUE(unread);
+  EXPECT_EQ(unread->bytes, 30u);
+  EXPECT_EQ(unread->records, 4u);
+  std::size_t visited = 0;
+  stage.visit([&visited](const RxItem&) { return ++visited < 2; });
+  EXPECT_EQ(visited, 2u);
+
+  const std::vector<Served> served = drain(stage);
+  ASSERT_EQ(served.size(), 5u);
+  const std::vector<std::pair<std::string, std::uint64_t>> expected = {
+      {"R0-abcdef\n", 1}, {"R1-ghi", 401}, {"jkl\n", 402}, {"R2-mnopqr\n", 801}, {"", 900}};
+  for (std::size_t i = 0; i < served.size(); ++i) {
+    EXPECT_EQ(served[i].data, expected[i].first) << i;
+    EXPECT_EQ(served[i].t_ns, ms(expected[i].second)) << i;
+    EXPECT_EQ(served[i].due, std::chrono::milliseconds(expected[i].second)) << i;
+  }
+  EXPECT_EQ(served[4].kind, RecordKind::device_lost);
+  EXPECT_TRUE(released.empty());
+  EXPECT_FALSE(stage.swallows_writes());
+  EXPECT_FALSE(stage.rest_unreachable());
+}
+
+TEST(FaultStage, ARecordedLossIsTheReadersNotAFaults) {
+  ReleasedRx released(/*recycle_payloads=*/false);
+  FaultStage stage(parse_faults("drop@exchange:9", 0), /*datagrams=*/false, released);
+  released.push(rx_item("", 1, 0, RecordKind::device_lost));
+  stage.pull(kOpen);
+  ASSERT_FALSE(stage.empty());
+  EXPECT_EQ(stage.loss(kOpen + 1h), nullptr);
+  EXPECT_EQ(stage.front().kind, RecordKind::device_lost);
+}
+
+TEST(FaultStage, APlanThatNeverFiresChangesNothing) {
+  // A plan whose fault never fires copies the records but changes nothing.
+  const StageRun run = run_stage("drop@exchange:9");
+  ASSERT_EQ(run.served.size(), 4u);
+  EXPECT_EQ(bytes_of_exchange(run.served, 0), "R0-abcdef\n");
+  EXPECT_EQ(bytes_of_exchange(run.served, 1), "R1-ghijkl\n");
+  EXPECT_EQ(bytes_of_exchange(run.served, 2), "R2-mnopqr\n");
+  EXPECT_EQ(run.served[2].due, 402ms);
+  EXPECT_TRUE(run.events.empty());
+  EXPECT_FALSE(run.unread_hidden);
+}
+
+TEST(FaultStage, EachKindActsOnItsExchangeAndReportsIt) {
+  struct Case {
+    std::string kind;
+    std::string exchange_1;  // what the client gets of exchange 1, "*": checked below
+  };
+  for (const Case& c : std::vector<Case>{{"drop", ""},
+                                         {"drop:2", "*"},
+                                         {"corrupt", "*"},
+                                         {"garbage:3", "*"},
+                                         {"truncate:2", "R1"},
+                                         {"duplicate", "R1-ghiR1-ghijkl\n"},
+                                         {"delay:50", "R1-ghijkl\n"},
+                                         {"stall:50", "R1-ghijkl\n"},
+                                         {"trickle:2", "R1-ghijkl\n"},
+                                         {"silence", ""},
+                                         {"disconnect", ""},
+                                         {"reconnect:50", ""}}) {
+    SCOPED_TRACE(c.kind);
+    const StageRun run = run_stage(c.kind + "@exchange:1");
+    const std::string got = bytes_of_exchange(run.served, 1);
+    if (c.exchange_1 != "*") EXPECT_EQ(got, c.exchange_1);
+    EXPECT_EQ(bytes_of_exchange(run.served, 0), "R0-abcdef\n");
+    ASSERT_FALSE(run.events.empty());
+    EXPECT_EQ(run.events.front().exchange, 1u);
+    EXPECT_EQ(run.events.front().where, "exchange:1");
+    EXPECT_TRUE(run.unread_hidden);  // a fault fired: nothing counts as unused
+    const bool ends = c.kind == "silence" || c.kind == "disconnect";
+    EXPECT_EQ(bytes_of_exchange(run.served, 2), ends ? "" : "R2-mnopqr\n");
+    EXPECT_EQ(run.rest_unreachable, ends);
+    EXPECT_EQ(run.swallows_writes, c.kind == "silence");
+    const std::string first_record = "R1-ghi";
+    if (c.kind == "drop:2") EXPECT_EQ(got.size(), 8u);
+    if (c.kind == "corrupt") {
+      EXPECT_EQ(flip_distance(got.substr(0, 6), first_record), "1");
+      EXPECT_EQ(got.substr(6), "jkl\n");
+    }
+    if (c.kind == "garbage:3") EXPECT_EQ(got.size(), 13u);
+    std::vector<std::chrono::milliseconds> dues;
+    for (const Served& item : run.served) {
+      if (item.exchange == 1) dues.push_back(item.due);
+    }
+    if (c.kind == "delay:50") {
+      EXPECT_EQ(dues, (std::vector<std::chrono::milliseconds>{451ms, 452ms}));
+    }
+    if (c.kind == "stall:50") {  // half the first record, a gap, the rest
+      ASSERT_EQ(run.served.size(), 5u);
+      EXPECT_EQ(run.served[1].data, "R1-");
+      EXPECT_EQ(run.served[1].due, 401ms);
+      EXPECT_EQ(run.served[2].data, "ghi");
+      EXPECT_EQ(run.served[2].due, 451ms);
+    }
+    if (c.kind == "trickle:2") {  // one byte per record, 2 ms apart
+      ASSERT_EQ(dues.size(), 10u);
+      for (std::size_t i = 1; i < dues.size(); ++i) EXPECT_GE(dues[i] - dues[i - 1], 1ms) << i;
+      EXPECT_EQ(dues[5] - dues[0], 10ms);
+    }
+    if (c.kind == "disconnect" || c.kind == "reconnect:50") {
+      const auto loss = std::find_if(run.served.begin(), run.served.end(), [](const Served& item) {
+        return item.kind == RecordKind::device_lost;
+      });
+      ASSERT_NE(loss, run.served.end());
+      EXPECT_EQ(loss->exchange, 1u);
+      EXPECT_NE(loss->data.find("went away"), std::string::npos) << loss->data;
+    }
+  }
+}
+
+TEST(FaultStage, AReconnectIsALossUntilItIsOver) {
+  ReleasedRx released(/*recycle_payloads=*/false);
+  FaultStage stage(parse_faults("reconnect:50@exchange:1", 0), /*datagrams=*/false, released);
+  stage.on_fault([](const detail::FaultEvent&) {});
+  release_three(released);
+  stage.pull(kOpen);
+  stage.pop();  // exchange 0
+  // The loss is due when exchange 1 is (401 ms), and over 50 ms later.
+  EXPECT_EQ(stage.loss(kOpen + 400ms), nullptr);
+  const RxItem* loss = stage.loss(kOpen + 402ms);
+  ASSERT_NE(loss, nullptr);
+  EXPECT_NE(loss->data.find("for 50 ms"), std::string::npos) << loss->data;
+  EXPECT_EQ(stage.loss(kOpen + 452ms), nullptr);
+  // Back: the rest of exchange 1 was lost with the device, exchange 2 comes.
+  ASSERT_FALSE(stage.empty());
+  EXPECT_EQ(stage.front().payload(), "R2-mnopqr\n");
+}
+
+TEST(FaultStage, ReadsTheExchangeFromTheItem) {
+  // The stage trusts item.exchange (set by the strategy): records numbered 7
+  // are exchange 7, wherever they are in the queue.
+  ReleasedRx released(/*recycle_payloads=*/false);
+  FaultStage stage(parse_faults("drop@exchange:7", 0), /*datagrams=*/false, released);
+  stage.on_fault([](const detail::FaultEvent&) {});
+  released.push(rx_item("first", 1, 7));
+  released.push(rx_item("second", 2, 8));
+  const std::vector<Served> served = drain(stage);
+  ASSERT_EQ(served.size(), 1u);
+  EXPECT_EQ(served[0].data, "second");
 }

@@ -76,9 +76,9 @@ using wiretape::test::TempDir;
 std::string write_session(const TempDir& dir, const std::vector<Record>& records,
                           const std::string& port_type = "serial") {
   const std::string path = dir.file("session.wtape");
-  SessionWriterOptions options;
-  options.port_type = port_type;
-  SessionWriter writer(path, options);
+  SessionHeader header;
+  header.port_type = port_type;
+  SessionWriter writer(path, header);
   for (const Record& record : records) writer.write(record);
   writer.close();
   return path;

@@ -261,17 +261,17 @@ TEST(HostileSession, TimesBeyondTheBoundAreDamageAtTheirRecord) {
 
 TEST(HostileSession, TheWriterRefusesAHeaderTheReaderWouldRefuse) {
   TempDir dir;
-  SessionWriterOptions options;
-  options.metadata = {{"note", "bad \xff byte"}};
+  SessionHeader header;
+  header.user_metadata = {{"note", "bad \xff byte"}};
   try {
-    SessionWriter writer(dir.file("a.wtape"), options);
+    SessionWriter writer(dir.file("a.wtape"), header);
     FAIL();
   } catch (const OptionError& e) {
     EXPECT_EQ(e.key(), "meta_note");
   }
-  options.metadata.clear();
-  options.start_utc = "9999-01-01T00:00:00Z";
-  EXPECT_THROW(SessionWriter(dir.file("b.wtape"), options), OptionError);
+  header.user_metadata.clear();
+  header.start_utc = "9999-01-01T00:00:00Z";
+  EXPECT_THROW(SessionWriter(dir.file("b.wtape"), header), OptionError);
   // Refused before the file is created.
   EXPECT_NE(::access(dir.file("a.wtape").c_str(), F_OK), 0);
   EXPECT_NE(::access(dir.file("b.wtape").c_str(), F_OK), 0);
@@ -279,7 +279,7 @@ TEST(HostileSession, TheWriterRefusesAHeaderTheReaderWouldRefuse) {
 
 TEST(HostileSession, TheWriterRefusesARecordTheReaderWouldStopAt) {
   TempDir dir;
-  SessionWriter writer(dir.file("c.wtape"), SessionWriterOptions{});
+  SessionWriter writer(dir.file("c.wtape"), SessionHeader{});
   EXPECT_THROW(writer.write(RecordKind::rx, detail::max_record_t_ns + 1, "x"),
                std::invalid_argument);
   EXPECT_THROW(writer.write(RecordKind::settings, 1, "not json"), std::invalid_argument);

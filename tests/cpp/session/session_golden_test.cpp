@@ -47,7 +47,7 @@ struct Line {
 };
 
 struct Golden {
-  SessionWriterOptions options;
+  SessionHeader header;
   std::vector<Line> lines;
   std::optional<std::pair<std::size_t, int>> corrupt;  // byte, xor
   std::optional<std::uint64_t> damage_offset;
@@ -62,7 +62,7 @@ Golden load(const std::string& name) {
     if (text.empty()) continue;
     const json::Value line = json::parse(text);
     if (const json::Value* header = line.find("header")) {
-      SessionWriterOptions& o = golden.options;
+      SessionHeader& o = golden.header;
       o.port_options = header->string_member("port_options").value_or("");
       o.port_type = header->string_member("port_type").value_or("");
       o.start_utc = header->string_member("start_utc").value_or("");
@@ -70,7 +70,7 @@ Golden load(const std::string& name) {
       o.host = header->string_member("host").value_or("");
       o.capture = header->string_member("capture") == "wire" ? Capture::wire : Capture::client;
       for (const auto& [key, value] : header->find("metadata")->members) {
-        o.metadata[key] = value.text;
+        o.user_metadata[key] = value.text;
       }
       o.source_format = header->string_member("source_format").value_or("");
       if (const json::Value* files = header->find("source_files")) {
@@ -121,7 +121,7 @@ TEST_P(GoldenFile, WriterRecreatesItByteForByte) {
   ASSERT_NE(::mkstemp(pattern), -1);
   const std::string path = pattern;
   {
-    SessionWriter writer(path, golden.options);
+    SessionWriter writer(path, golden.header);
     for (const Line& line : golden.lines) {
       writer.write(static_cast<RecordKind>(line.kind_code), line.t_ns, line.data, line.channel);
     }
@@ -150,19 +150,19 @@ void expect_reads_as_golden(const std::string& name, std::uint16_t version_minor
   const SessionHeader& header = reader.header();
   EXPECT_EQ(header.version_major, 1);
   EXPECT_EQ(header.version_minor, version_minor);
-  EXPECT_EQ(header.port_options, golden.options.port_options);
-  EXPECT_EQ(header.port_type, golden.options.port_type);
-  EXPECT_EQ(header.start_utc, golden.options.start_utc);
-  EXPECT_EQ(header.wiretape_version, golden.options.wiretape_version);
-  EXPECT_EQ(header.host, golden.options.host);
-  EXPECT_EQ(header.capture, golden.options.capture);
-  EXPECT_EQ(header.user_metadata, golden.options.metadata);
+  EXPECT_EQ(header.port_options, golden.header.port_options);
+  EXPECT_EQ(header.port_type, golden.header.port_type);
+  EXPECT_EQ(header.start_utc, golden.header.start_utc);
+  EXPECT_EQ(header.wiretape_version, golden.header.wiretape_version);
+  EXPECT_EQ(header.host, golden.header.host);
+  EXPECT_EQ(header.capture, golden.header.capture);
+  EXPECT_EQ(header.user_metadata, golden.header.user_metadata);
   EXPECT_EQ(header.source_format,
-            golden.options.source_format.empty() ? "wiretape" : golden.options.source_format);
-  EXPECT_EQ(header.source_files, golden.options.source_files);
-  EXPECT_EQ(header.source_details, golden.options.source_details);
-  EXPECT_EQ(header.device_address, golden.options.device_address);
-  EXPECT_EQ(header.edits, golden.options.edits);
+            golden.header.source_format.empty() ? "wiretape" : golden.header.source_format);
+  EXPECT_EQ(header.source_files, golden.header.source_files);
+  EXPECT_EQ(header.source_details, golden.header.source_details);
+  EXPECT_EQ(header.device_address, golden.header.device_address);
+  EXPECT_EQ(header.edits, golden.header.edits);
   std::vector<Line> expected;
   for (const Line& line : golden.lines) {
     if (!line.skipped && line.readable) expected.push_back(line);

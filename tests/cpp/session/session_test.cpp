@@ -58,19 +58,19 @@ std::vector<Record> read_all(SessionReader& reader) {
   return records;
 }
 
-SessionWriterOptions fixed_options() {
-  SessionWriterOptions options;
-  options.port_options = "type=loopback,log=x.wtape";
-  options.port_type = "loopback";
-  options.start_utc = "2026-01-02T03:04:05.000006Z";
-  options.host = "testhost";
-  options.wiretape_version = "9.9.9";
-  options.metadata = {{"driver", "hokuyo"}, {"note", "a \"quoted\" word"}};
-  return options;
+SessionHeader fixed_header() {
+  SessionHeader header;
+  header.port_options = "type=loopback,log=x.wtape";
+  header.port_type = "loopback";
+  header.start_utc = "2026-01-02T03:04:05.000006Z";
+  header.host = "testhost";
+  header.wiretape_version = "9.9.9";
+  header.user_metadata = {{"driver", "hokuyo"}, {"note", "a \"quoted\" word"}};
+  return header;
 }
 
 std::string write_sample(const std::string& path, int records = 3) {
-  SessionWriter writer(path, fixed_options());
+  SessionWriter writer(path, fixed_header());
   for (int i = 0; i < records; ++i) {
     writer.write(i % 2 ? RecordKind::rx : RecordKind::tx, 1000u * i,
                  "record " + std::to_string(i));
@@ -119,7 +119,7 @@ TEST(SessionFile, WritesAndReadsBackEveryKindAndTheHeader) {
       RecordKind::modem_lines, RecordKind::line_break, RecordKind::client_connect,
       RecordKind::client_disconnect, RecordKind::device_lost, RecordKind::close};
   {
-    SessionWriter writer(path, fixed_options());
+    SessionWriter writer(path, fixed_header());
     std::uint64_t t = 0;
     for (RecordKind kind : kinds) writer.write(kind, t += 17, payload_of(kind));
     writer.write(RecordKind::rx, t + 1, "");
@@ -150,12 +150,12 @@ TEST(SessionFile, WritesAndReadsBackEveryKindAndTheHeader) {
   EXPECT_EQ(read_all(reader).size(), records.size());
 }
 
-TEST(SessionFile, DefaultHeaderFieldsComeFromTheMachine) {
+TEST(SessionFile, AHeaderStartingNowTakesItsFieldsFromTheMachine) {
   TempDir dir;
   const std::string path = dir.file("now.wtape");
-  SessionWriterOptions options;
-  options.capture = Capture::wire;
-  { SessionWriter writer(path, options); }
+  SessionHeader header = SessionHeader::starting_now();
+  header.capture = Capture::wire;
+  { SessionWriter writer(path, header); }
   SessionReader reader(path);
   EXPECT_EQ(reader.header().capture, Capture::wire);
   EXPECT_EQ(reader.header().wiretape_version, wiretape::version);
@@ -325,9 +325,10 @@ TEST(SessionFile, UnknownRecordKindsAreSkipped) {
 TEST(SessionWriter, BufferedRecordsReachTheFileWithinFlushMsWhenIdle) {
   TempDir dir;
   const std::string path = dir.file("idle.wtape");
-  SessionWriterOptions options;
-  options.flush_ms = 50;
-  SessionWriter writer(path, options);
+  SessionHeader header;
+  FlushPolicy flush;
+  flush.interval = std::chrono::milliseconds(50);
+  SessionWriter writer(path, header, flush);
   const std::uint64_t header_size = writer.size();
   EXPECT_EQ(read_file(path).size(), header_size) << "the header is written at once";
   const auto written = std::chrono::steady_clock::now();
@@ -354,9 +355,10 @@ TEST(SessionWriter, ThreadsWritingAtOnceLoseNothing) {
   const std::string path = dir.file("threads.wtape");
   constexpr int per_thread = 2000;
   {
-    SessionWriterOptions options;
-    options.flush_ms = 1;
-    SessionWriter writer(path, options);
+    SessionHeader header;
+    FlushPolicy flush;
+    flush.interval = std::chrono::milliseconds(1);
+    SessionWriter writer(path, header, flush);
     auto work = [&](RecordKind kind) {
       for (int i = 0; i < per_thread; ++i) writer.write(kind, i, std::to_string(i));
     };
@@ -405,9 +407,10 @@ TEST(SessionWriter, FileSizeLimitIsAClearErrorAndTheFileStaysReadable) {
     std::string report;
     int written = 0;
     try {
-      SessionWriterOptions options;
-      options.flush_ms = 1000;
-      SessionWriter writer(path, options);
+      SessionHeader header;
+      FlushPolicy flush;
+      flush.interval = std::chrono::milliseconds(1000);
+      SessionWriter writer(path, header, flush);
       for (; written < 1000; ++written) {
         writer.write(RecordKind::rx, static_cast<std::uint64_t>(written),
                      std::string(100, static_cast<char>('a' + written % 26)));
@@ -460,9 +463,10 @@ TEST(SessionWriter, KilledRecorderLosesAtMostTheLastFlushMs) {
   ASSERT_GE(child, 0);
   if (child == 0) {
     ::close(pipe_fds[0]);
-    SessionWriterOptions options;
-    options.flush_ms = flush_ms;
-    SessionWriter writer(path, options);
+    SessionHeader header;
+    FlushPolicy flush;
+    flush.interval = std::chrono::milliseconds(flush_ms);
+    SessionWriter writer(path, header, flush);
     for (std::uint32_t i = 0;; ++i) {
       writer.write(RecordKind::rx, i, "sample " + std::to_string(i));
       if (::write(pipe_fds[1], &i, sizeof i) != sizeof i) ::_exit(1);
@@ -545,11 +549,12 @@ TEST(SessionWriter, FullDiskIsAClearPortError) {
 TEST(SessionWriter, FsyncOptionWritesReadableFiles) {
   TempDir dir;
   const std::string path = dir.file("synced.wtape");
-  SessionWriterOptions options;
-  options.fsync = true;
-  options.flush_ms = 1;
+  SessionHeader header;
+  FlushPolicy flush;
+  flush.fsync = true;
+  flush.interval = std::chrono::milliseconds(1);
   {
-    SessionWriter writer(path, options);
+    SessionWriter writer(path, header, flush);
     for (int i = 0; i < 20; ++i) writer.write(RecordKind::rx, i, "synced");
     writer.flush();
   }
@@ -615,9 +620,10 @@ TEST(SessionWriterClose, AWriteDuringTheFinalFlushIsWrittenOrRefusedNeverLost) {
     }
     return sys::real().write(fd, data, size);
   };
-  SessionWriterOptions options;
-  options.flush_ms = 60'000;  // only close() flushes
-  SessionWriter writer(path, options);
+  SessionHeader header;
+  FlushPolicy flush;
+  flush.interval = std::chrono::milliseconds(60'000);  // only close() flushes
+  SessionWriter writer(path, header, flush);
   target = &writer;
   writer.write(RecordKind::tx, 1, "before");
   write_late = true;
@@ -652,9 +658,10 @@ TEST(SessionWriterClose, TwoThreadsClosingAtOnceCloseOnce) {
     }
     return sys::real().write(fd, data, size);
   };
-  SessionWriterOptions options;
-  options.flush_ms = 1;
-  SessionWriter writer(path, options);
+  SessionHeader header;
+  FlushPolicy flush;
+  flush.interval = std::chrono::milliseconds(1);
+  SessionWriter writer(path, header, flush);
   hold_flusher = true;
   writer.write(RecordKind::tx, 1, "held");
   // The flusher is now busy, so the first close() waits in its join.
@@ -704,9 +711,10 @@ TEST(SessionWriterClose, CloseAfterAWriteFailureReleasesTheFile) {
     }
     return sys::real().write(fd, data, size);
   };
-  SessionWriterOptions options;
-  options.flush_ms = 0;  // every write reaches the OS at once
-  SessionWriter writer(path, options);
+  SessionHeader header;
+  FlushPolicy flush;
+  flush.interval = std::chrono::milliseconds(0);  // every write reaches the OS at once
+  SessionWriter writer(path, header, flush);
   ASSERT_TRUE(holds_fd_on(path));
   fail = true;
   EXPECT_THROW(writer.write(RecordKind::tx, 1, "lost"), PortError);

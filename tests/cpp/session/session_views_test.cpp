@@ -44,11 +44,11 @@ std::vector<std::size_t> sizes() {
 }
 
 void write_session(const std::string& path) {
-  SessionWriterOptions options;
-  options.start_utc = "2026-01-02T03:04:05.000006Z";
-  options.host = "testhost";
-  options.wiretape_version = "9.9.9";
-  SessionWriter writer(path, options);
+  SessionHeader header;
+  header.start_utc = "2026-01-02T03:04:05.000006Z";
+  header.host = "testhost";
+  header.wiretape_version = "9.9.9";
+  SessionWriter writer(path, header);
   const auto all = sizes();
   for (std::size_t i = 0; i < all.size(); ++i) {
     writer.write(i % 3 == 2 ? RecordKind::tx : RecordKind::rx, i * 1000,

@@ -11,7 +11,7 @@ import pytest
 
 import wiretape
 from wiretape import _core, cli
-from wiretape.tools._records import header_text
+from wiretape.session import header_text
 
 ESC = "\x1b"
 HOSTILE_TEXT = f"{ESC}]0;owned{chr(7)}{ESC}[2J\u202eevil\u0085"

@@ -176,9 +176,9 @@ def test_by_id_links_map_devices_to_their_stable_names(tmp_path):
     target = tmp_path / "ttyUSB7"
     target.write_text("")
     (directory / "usb-FTDI_FT232R_A1B2-if00-port0").symlink_to(target)
-    links = cli._by_id_links(str(directory))
+    links = cli.ports._by_id_links(str(directory))
     assert links == {str(target): [str(directory / "usb-FTDI_FT232R_A1B2-if00-port0")]}
-    assert cli._by_id_links(str(tmp_path / "none")) == {}
+    assert cli.ports._by_id_links(str(tmp_path / "none")) == {}
 
 
 # --- files: verify, stats, show, convert, diff -------------------------------------------
@@ -369,8 +369,9 @@ def test_ports_show_by_id_paths_and_usb_ids(capsys, monkeypatch, tmp_path):
     info.description = "URG-Series USB Driver"
     info.serial_number = "H1234"
     monkeypatch.setattr(list_ports, "comports", lambda *a, **k: [info])
-    real_links = cli._by_id_links
-    monkeypatch.setattr(cli, "_by_id_links", lambda directory=str(by_id): real_links(directory))
+    real_links = cli.ports._by_id_links
+    monkeypatch.setattr(cli.ports, "_by_id_links",
+                        lambda directory=str(by_id): real_links(directory))
 
     code, out, _ = run(capsys, "ports", "--json")
     assert code == 0

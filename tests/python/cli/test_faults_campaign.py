@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 import textwrap
@@ -141,6 +142,15 @@ def test_cases_refuse_unknown_kinds_and_places_past_the_end(session):
         faults.cases(str(session), kinds=["explode"])
     with pytest.raises(faults.FaultInputError, match="past its end"):
         faults.cases(str(session), kinds=["drop@exchange:3"])
+
+
+def test_placed_kinds_are_the_replays_reading_of_them(session):
+    # One case per fault of the item, spelled as the replay reports it.
+    placed = faults.cases(str(session), kinds=["corrupt:04@exchange:1;delay:5@rx:2", "drop"])
+    assert [case.id for case in placed[:2]] == ["corrupt:4@exchange:1", "delay:5@rx:2"]
+    assert [case.id for case in placed[2:]] == [f"drop@exchange:{n}" for n in range(3)]
+    with pytest.raises(faults.FaultInputError, match="'delay:abc'"):
+        faults.cases(str(session), kinds=["delay:abc"])
 
 
 # --- faults= through the Python API and the URL handler ---------------------------------
@@ -406,3 +416,27 @@ def test_as_redirects_a_fixed_device_path(session, driver, tmp_path):
     assert result.returncode == 0, result.stdout + result.stderr
     runs = json.loads(report.read_text())["runs"]
     assert [run["outcome"] for run in runs] == ["error", "error"]
+
+
+# A driver that starts a helper in a session of its own, holding the
+# driver's output open, says the helper's pid and exits 0.
+LEAVES_A_DAEMON = textwrap.dedent("""
+    import subprocess, sys
+    helper = subprocess.Popen(["sleep", "1000"], start_new_session=True)
+    print(helper.pid, flush=True)
+""")
+
+
+def test_a_driver_that_leaves_a_daemon_holding_its_output_is_not_a_hang(session, tmp_path):
+    script = tmp_path / "daemonizing.py"
+    script.write_text(LEAVES_A_DAEMON)
+    run = faults.run_case(str(session), None, [sys.executable, str(script), "{port}"],
+                          timeout=60, replay_options="timing=none")
+    daemon = int(run.output.split()[0]) if run.output.strip() else None
+    try:
+        # The run ended with the driver, not when the helper's copy of the
+        # output closed.
+        assert (run.outcome, run.exit) == ("ok", 0), run.output
+    finally:
+        if daemon is not None:
+            os.kill(daemon, signal.SIGKILL)

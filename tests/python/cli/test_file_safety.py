@@ -24,7 +24,7 @@ import pytest
 
 import wiretape
 from wiretape import _core, cli
-from wiretape.tools import _files
+from wiretape import session
 from wiretape.tools.convert import convert
 
 # A command that hangs fails the test here instead of hanging the suite.
@@ -116,7 +116,7 @@ def test_convert_of_a_flexiport_log_onto_itself_is_refused(capsys, good, tmp_pat
 
 
 def test_convert_api_refuses_the_same_file(good):
-    with pytest.raises(_files.FileRefused, match="same file"):
+    with pytest.raises(session.FileRefused, match="same file"):
         convert(good, good, to_format="jsonl")
 
 
@@ -125,7 +125,7 @@ def test_the_export_functions_refuse_the_same_file(good, export):
     from wiretape import exports
 
     before = snapshot(good)
-    with pytest.raises(_files.FileRefused, match="same file"):
+    with pytest.raises(session.FileRefused, match="same file"):
         getattr(exports, export)(good, good)
     assert snapshot(good) == before
 
@@ -385,15 +385,15 @@ def test_an_existing_regular_output_is_replaced(capsys, good, tmp_path):
 
 
 def test_dev_null_is_written_through_never_replaced(tmp_path):
-    _files.check_output("/dev/null")
-    assert _files.is_written_through("/dev/null")
-    with _files.open_output("/dev/null") as out:
+    session.check_output("/dev/null")
+    assert session.is_written_through("/dev/null")
+    with session.open_output("/dev/null") as out:
         out.write(b"discarded")
-    with pytest.raises(_files.FileRefused, match="/dev/null is a character device"):
-        _files.check_regular_output("/dev/null")
+    with pytest.raises(session.FileRefused, match="/dev/null is a character device"):
+        session.check_regular_output("/dev/null")
     assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
-    with pytest.raises(_files.FileRefused, match=f"{tmp_path} is a directory"):
-        _files.open_output(tmp_path)
+    with pytest.raises(session.FileRefused, match=f"{tmp_path} is a directory"):
+        session.open_output(tmp_path)
 
 
 @pytest.mark.parametrize("what", ["fifo", "symlink", "device"])

@@ -1,6 +1,8 @@
 """The pytest plugin, run on small test files with pytester. The "real
 device" is wiretape's in-memory loopback (what is written is read back)."""
 
+import re
+
 import wiretape
 from wiretape.testing.cassette import MAX_NAME_LENGTH, safe_file_name
 
@@ -227,7 +229,8 @@ def test_parametrized_ids_become_safe_distinct_file_names(pytester):
     """)
     pytester.runpytest("--wiretape-record=once", LOOPBACK).assert_outcomes(passed=4)
     names = sorted(p.name for p in (pytester.path / "recordings" / "test_params").iterdir())
-    assert "test_word_a_b_c.wtape" in names
+    # A name that had to change ends with a hash of the whole name.
+    assert any(re.fullmatch(r"test_word_a_b_c-[0-9a-f]{12}\.wtape", n) for n in names), names
     assert "TestGroup.test_in_class.wtape" in names
     long_names = [n for n in names if n.startswith("test_word_xxx")]
     assert len(long_names) == 2
@@ -236,8 +239,9 @@ def test_parametrized_ids_become_safe_distinct_file_names(pytester):
 
 
 def test_safe_file_name():
-    assert safe_file_name("test_a[x-1]") == "test_a_x-1"
-    assert safe_file_name("test_b[../../etc/passwd]") == "test_b_.._.._etc_passwd"
+    assert safe_file_name("test_plain") == "test_plain"
+    assert safe_file_name("test_a[x-1]").startswith("test_a_x-1-")
+    assert safe_file_name("test_b[../../etc/passwd]").startswith("test_b_.._.._etc_passwd-")
     assert "/" not in safe_file_name("a/b")
     long_a, long_b = safe_file_name("t" * 300 + "a"), safe_file_name("t" * 300 + "b")
     assert long_a != long_b and len(long_a) == len(long_b) <= MAX_NAME_LENGTH

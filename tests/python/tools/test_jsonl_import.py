@@ -57,7 +57,14 @@ BAD_FILES = {
                             f"{RANGE}: {MAX_T_NS + 1}"),
     "event_nested_past_the_limit": (
         ['{"t_ns":1,"kind":"settings","event":{"a":' + "[" * 70 + "]" * 70 + "}}"], 2,
-        "record: its settings event payload is not valid JSON"),
+        'event: settings event: member "a" is a list; event members are bool, int or str'),
+    # Event members are checked against the record-kind table (event_payload).
+    "event_unknown_member": (['{"t_ns":1,"kind":"settings","event":{"baud":9600,"speed":1}}'], 2,
+                             'event: settings event: unknown member "speed"'),
+    "event_member_type": (['{"t_ns":1,"kind":"settings","event":{"baud":"fast"}}'], 2,
+                          'event: settings event: member "baud" must be an integer, not a string'),
+    "event_member_missing": (['{"t_ns":1,"kind":"fault","event":{"kind":"drop"}}'], 2,
+                             'event: fault event: required member "where" is missing'),
     "t_ns_10_to_1000": (['{"t_ns":1' + "0" * 1000 + ',"kind":"rx","data_hex":"41"}'], 2,
                         f"{RANGE}: a number of 1001 digits"),
     "t_ns_too_many_digits": (['{"t_ns":' + "9" * 5000 + ',"kind":"rx","data_hex":"41"}'], 2,
@@ -85,21 +92,24 @@ BAD_FILES = {
 }
 BAD_HEADERS = {
     "header_not_object": ('{"header": [1]}', "header: expected a JSON object, got an array"),
-    "header_field_type": ('{"header": {"host": 5}}', "header.host: expected a string, got the number 5"),
+    "header_field_type": ('{"header": {"host": 5}}', "header: SessionHeader member 'host' must be a str, not int"),
     "header_capture": ('{"header": {"capture": "radio"}}',
-                       "header.capture: expected one of client, wire, got the string 'radio'"),
+                       "header: capture must be 'client' or 'wire', not 'radio'"),
     "header_metadata": ('{"header": {"metadata": "x"}}',
-                        "header.metadata: expected a JSON object, got the string 'x'"),
+                        "header: SessionHeader member 'metadata' must be a dict of str to str, not str"),
     # Found by jsonl_import_fuzz: the writer refused it after the importer
     # had let it through.
     "header_start_utc": ('{"header": {"start_utc": "20w6-11-23T10:00:00Z"}}',
-                         'header.start_utc: start_utc "20w6-11-23T10:00:00Z"'),
+                         'header.start_utc: the session header\'s start_utc "20w6-11-23T10:00:00Z"'),
     "header_start_utc_year": ('{"header": {"start_utc": "9999-01-01T00:00:00Z"}}',
-                              "header.start_utc: start_utc"),
+                              "header.start_utc: the session header's start_utc"),
+    # Members are SessionHeader's, checked by the bound type.
+    "header_unknown_member": ('{"header": {"hots": "x"}}',
+                              "header: SessionHeader has no member 'hots'"),
     "header_lone_surrogate": ('{"header": {"host": "\\ud800"}}',
-                              "header.host: not valid UTF-8"),
+                              "header: SessionHeader member 'host' is not valid UTF-8"),
     "header_metadata_surrogate": ('{"header": {"metadata": {"k": "\\udfff"}}}',
-                                  "header.metadata.k: not valid UTF-8"),
+                                  "header: SessionHeader member 'metadata' is not valid UTF-8"),
 }
 
 

@@ -83,9 +83,10 @@ def test_records_are_the_greeting_then_the_writes(tmp_path):
     header, records = importers.reserial_records(CASSETTE, "test_binary")
     assert list(records) == [("rx", 0, client.answer(b"BIN\x01\x02\n")),
                              ("tx", 0, b"BIN\x01\x02\n")]
-    assert header["capture"] == "client"
-    assert header["source"] == {"format": "reserial", "files": [CASSETTE.name],
-                                "test": "test_binary"}
+    assert header.capture == "client"
+    assert (header.source_format, header.source_files, header.source_details) == (
+        "reserial", [CASSETTE.name], {"test": "test_binary"})
+    assert (header.start_utc, header.host) == ("", "")  # not known, never invented
 
 
 def test_a_mismatching_write_fails_the_replay(capsys, tmp_path):

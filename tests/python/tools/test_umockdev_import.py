@@ -68,8 +68,8 @@ def test_delays_become_times_and_escapes_bytes(tmp_path):
     header, records = importers.umockdev_records(script)
     assert list(records) == [("tx", 5_000_000, b"AT\r"), ("rx", 25_000_000, b"\x00^\xff\n"),
                              ("tx", 25_000_000, b" lead space")]
-    assert header["metadata"] == {"umockdev.device": "/dev/ttyS0", "umockdev.fuzz_percent": "10"}
-    assert header["source"] == {"format": "umockdev", "files": ["s.script"]}
+    assert header.metadata == {"umockdev.device": "/dev/ttyS0", "umockdev.fuzz_percent": "10"}
+    assert (header.source_format, header.source_files) == ("umockdev", ["s.script"])
 
 
 # (the script, the bad line's number, what the message must say)

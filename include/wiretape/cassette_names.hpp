@@ -1,0 +1,147 @@
+// Where a test's cassette lives and what it is called: the one set of rules
+// for the GoogleTest helper (wiretape/testing.hpp) and, bound, the pytest
+// plugin (wiretape.testing). Header-only and without GoogleTest, so that the
+// Python extension can bind it. docs/testing.md, "Cassette names".
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace wiretape::testing {
+
+// The longest file name a cassette gets, without ".wtape".
+inline constexpr std::size_t max_cassette_name_length = 100;
+// The hex digits of the name's hash that a changed name ends with.
+inline constexpr std::size_t cassette_hash_digits = 12;
+
+namespace detail {
+
+// SHA-1 of `data` as 40 hex digits. Not for security: a name's fingerprint,
+// the same one Python's hashlib.sha1 gives (cassettes named by the earlier
+// pytest plugin keep their names).
+inline std::string sha1_hex(std::string_view data) {
+  std::uint32_t h[5] = {0x67452301u, 0xEFCDAB89u, 0x98BADCFEu, 0x10325476u, 0xC3D2E1F0u};
+  const auto rotl = [](std::uint32_t x, int n) { return (x << n) | (x >> (32 - n)); };
+  std::string message(data);
+  const std::uint64_t bit_length = static_cast<std::uint64_t>(data.size()) * 8u;
+  message += static_cast<char>(0x80);
+  while (message.size() % 64 != 56) message += '\0';
+  for (int shift = 56; shift >= 0; shift -= 8) {
+    message += static_cast<char>((bit_length >> shift) & 0xffu);
+  }
+  for (std::size_t block = 0; block < message.size(); block += 64) {
+    std::array<std::uint32_t, 80> w{};
+    for (int i = 0; i < 16; ++i) {
+      for (int b = 0; b < 4; ++b) {
+        w[i] = (w[i] << 8) | static_cast<unsigned char>(message[block + 4 * i + b]);
+      }
+    }
+    for (int i = 16; i < 80; ++i) w[i] = rotl(w[i - 3] ^ w[i - 8] ^ w[i - 14] ^ w[i - 16], 1);
+    std::uint32_t a = h[0], b = h[1], c = h[2], d = h[3], e = h[4];
+    for (int i = 0; i < 80; ++i) {
+      std::uint32_t f = 0, k = 0;
+      if (i < 20) {
+        f = (b & c) | (~b & d), k = 0x5A827999u;
+      } else if (i < 40) {
+        f = b ^ c ^ d, k = 0x6ED9EBA1u;
+      } else if (i < 60) {
+        f = (b & c) | (b & d) | (c & d), k = 0x8F1BBCDCu;
+      } else {
+        f = b ^ c ^ d, k = 0xCA62C1D6u;
+      }
+      const std::uint32_t next = rotl(a, 5) + f + e + k + w[i];
+      e = d, d = c, c = rotl(b, 30), b = a, a = next;
+    }
+    h[0] += a, h[1] += b, h[2] += c, h[3] += d, h[4] += e;
+  }
+  std::string hex;
+  char digits[9];
+  for (std::uint32_t word : h) {
+    std::snprintf(digits, sizeof digits, "%08x", static_cast<unsigned>(word));
+    hex += digits;
+  }
+  return hex;
+}
+
+inline bool is_safe_name_char(char c) {
+  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+         c == '.' || c == '_' || c == '-' || c == '=' || c == '+';
+}
+
+}  // namespace detail
+
+// `name` (UTF-8) as a file name: every run of characters but ASCII letters,
+// digits and `._-=+` becomes one `_`, and `_` and `.` are trimmed from both
+// ends ("test" if nothing is left). A name that had to change, or that is
+// longer than max_cassette_name_length, is cut to fit and ends with `-` and
+// the first 12 hex digits of the SHA-1 of the whole name: two tests whose
+// names differ never share a cassette (`t[a b]` and `t[a_b]` both read
+// `t_a_b`, but their hashes differ), and a name that needed no change keeps
+// it exactly.
+inline std::string safe_file_name(std::string_view name) {
+  std::string safe;
+  safe.reserve(name.size());
+  bool in_run = false;
+  for (char c : name) {
+    if (detail::is_safe_name_char(c)) {
+      safe += c;
+      in_run = false;
+    } else if (!in_run) {
+      safe += '_';
+      in_run = true;
+    }
+  }
+  const auto trim_end = [](std::string& text) {
+    while (!text.empty() && (text.back() == '_' || text.back() == '.')) text.pop_back();
+  };
+  trim_end(safe);
+  std::size_t first = 0;
+  while (first < safe.size() && (safe[first] == '_' || safe[first] == '.')) ++first;
+  safe.erase(0, first);
+  if (safe.empty()) safe = "test";
+  if (safe == name && safe.size() <= max_cassette_name_length) return safe;
+  const std::size_t keep = max_cassette_name_length - cassette_hash_digits - 1;
+  if (safe.size() > keep) safe.resize(keep);
+  trim_end(safe);
+  return safe + "-" + detail::sha1_hex(name).substr(0, cassette_hash_digits);
+}
+
+// A test's cassette file name from the parts of its name, outermost first
+// (GoogleTest: suite, test; pytest: class(es), function with its parameters):
+// the parts joined by "." and made safe as a whole, plus ".wtape".
+inline std::string cassette_file_name(const std::vector<std::string>& test_name_parts) {
+  std::string joined;
+  for (const std::string& part : test_name_parts) {
+    if (!joined.empty()) joined += '.';
+    joined += part;
+  }
+  return safe_file_name(joined) + ".wtape";
+}
+
+// The folder of a test source's cassettes: <dir of source>/recordings/<stem
+// of source>, or <directory>/<stem of source> when a directory is given.
+inline std::string cassette_directory(std::string_view source_file,
+                                      std::string_view directory = {}) {
+  const std::filesystem::path source{std::string(source_file)};
+  const std::filesystem::path base = directory.empty()
+                                         ? source.parent_path() / "recordings"
+                                         : std::filesystem::path(std::string(directory));
+  return (base / source.stem()).string();
+}
+
+// <cassette_directory>/<cassette_file_name({suite, test})>.
+inline std::string default_cassette_path(std::string_view source_file, std::string_view suite,
+                                         std::string_view test,
+                                         const std::string& directory = {}) {
+  return (std::filesystem::path(cassette_directory(source_file, directory)) /
+          cassette_file_name({std::string(suite), std::string(test)}))
+      .string();
+}
+
+}  // namespace wiretape::testing

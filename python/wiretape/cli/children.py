@@ -1,0 +1,168 @@
+"""``record/replay ... -- CMD``: a bridge that runs a command with a
+hard-coded device path redirected to its pty (wiretape.redirect, on
+wiretape.children.Child) and ends when the command does."""
+
+from __future__ import annotations
+
+import os
+import time
+from typing import Callable, Optional, Sequence, Tuple
+
+from .console import Output, describe
+from .errors import CheckFailed, RuntimeFailure, UsageError, exit_code_for
+from .files import require_input
+from .run import POLL_S, announce_clients, meta_pairs, replay_options_of, run_bridge
+
+
+def refuse_as_without_command(args) -> None:
+    if args.redirect_path is not None:
+        raise UsageError("--as PATH names the device path of a command: give the "
+                         "command after --")
+
+
+def _command_client_side(args) -> Tuple[object, Optional[str]]:
+    """The pty of a bridge that runs a command: --pty PATH links it there,
+    else it has no link (the command reaches it through the shim)."""
+    if not args.command_argv:
+        raise UsageError("no command after --: give the program to run, e.g. "
+                         "-- ./driver --port /dev/ttyUSB0")
+    for flag, value in (("--listen", args.listen), ("--udp", args.udp)):
+        if value is not None:
+            raise UsageError(f"{flag} cannot be used with a command after --: the "
+                             "command's device path is redirected to a pty")
+    return (args.pty if args.pty is not None else True), args.pty
+
+
+def record_with_command(args, out: Output) -> int:
+    from .. import bridge
+    from ..redirect import device_path_of
+
+    pty, link = _command_client_side(args)
+    options = bridge.device_options(args.device)
+    path = args.redirect_path or device_path_of(options)
+    if not path:
+        raise UsageError(f"--device {args.device!r} has no device path to redirect: give "
+                         "the path the command opens with --as PATH")
+    _check_redirect_path(path)
+    handle = bridge.record(args.device, args.output, pty=pty, duration=args.duration,
+                           meta=meta_pairs(args.meta), quiet=args.quiet,
+                           pty_mode=args.pty_mode, pty_group=args.pty_group)
+    return _run_bridge_with_command(
+        handle, out, "record", args.command_argv, path,
+        lambda: announce_clients(handle, out, f"recording to {args.output}", link))
+
+
+def replay_with_command(args, out: Output) -> int:
+    from .. import bridge
+    from ..redirect import recorded_device_path
+    from ..session import refuse_same_file, session_files
+
+    pty, link = _command_client_side(args)
+    require_input(args.file)
+    if args.output:
+        refuse_same_file(session_files(args.file), [args.output])
+    path = args.redirect_path or recorded_device_path(args.file)
+    if not path:
+        raise UsageError(f"{args.file}: the recording names no device path: give the "
+                         "path the command opens with --as PATH")
+    _check_redirect_path(path)
+    handle = bridge.serve_replay(args.file, pty=pty, replay_options=replay_options_of(args),
+                                 restart=args.restart, output=args.output,
+                                 quiet=args.quiet, pty_mode=args.pty_mode,
+                                 pty_group=args.pty_group)
+    return _run_bridge_with_command(
+        handle, out, "replay", args.command_argv, path,
+        lambda: announce_clients(handle, out, f"replaying {args.file}", link), must_serve=True)
+
+
+def _check_redirect_path(path: str) -> None:
+    if not os.path.isabs(path):
+        raise UsageError(f"--as {path!r}: the device path must be absolute "
+                         "(as /dev/ttyUSB0)")
+
+
+def _client_has_closed(handle) -> bool:
+    """True when the pty's last client event is a close, or there was none."""
+    for message in reversed(handle.messages()):
+        if message.startswith("client closed"):
+            return True
+        if message.startswith("client connected"):
+            return False
+    return True
+
+
+def _client_connected(handle) -> bool:
+    return any(message.startswith(("client connected", "client closed"))
+               for message in handle.messages())
+
+
+def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str],
+                             device_path: str, announce: Callable[[], None],
+                             must_serve: bool = False) -> int:
+    """Runs CMD with `device_path` redirected to the bridge's pty; the bridge
+    ends when CMD exits. The exit status is CMD's when it failed, else the
+    bridge's (docs/cli.md); a bridge that ends first (a mismatch, --duration)
+    ends CMD."""
+    from ..redirect import RedirectedCommand
+
+    try:
+        announce()
+        out.note(f"{what}: running {' '.join(argv)} with {device_path} -> {handle.pty_path}")
+        command = RedirectedCommand(argv, device_path, handle.pty_path)
+    except BaseException:
+        handle.stop()
+        handle.wait()
+        raise
+    # CMD's status counts only when CMD ended by itself: not when Ctrl-C, or
+    # the bridge ending first, ended it.
+    ended_by_us = False
+    try:
+        while command.poll() is None:
+            if handle.wait(POLL_S):
+                out.note(f"{what}: ended before {command.name}; ending it")
+                ended_by_us = True
+                command.end()
+                break
+        # What CMD wrote last is read from the pty before the bridge stops:
+        # the bridge sees the terminal's last close after CMD's exit.
+        _wait_for_client_close(handle)
+    except KeyboardInterrupt:
+        ended_by_us = True
+        out.note(f"{what}: stopping")
+        command.end()
+    finally:
+        handle.stop()
+        handle.wait()
+    status = command.exit_status()
+    # The shim notes each use of the path; a bind mount is seen as the pty's
+    # client arriving.
+    used = command.used_device_path() or _client_connected(handle)
+    command.close()
+    if not used:
+        out.note(f"{what}: {command.name} never opened {device_path} (the shim reaches "
+                 "dynamically linked programs; a static one is reached as root, through a "
+                 "bind mount, only where the path exists)")
+    try:
+        verdict = run_bridge(handle, out, what, lambda: None, must_serve=must_serve)
+    except (CheckFailed, RuntimeFailure) as error:
+        if ended_by_us or status == 0:
+            raise
+        out.error(f"wiretape {what}", describe(error))
+        verdict = exit_code_for(error)
+    if ended_by_us or status == 0:
+        return verdict
+    out.note(f"{what}: {command.name} exited with status {status}")
+    return status
+
+
+# How long a bridge has to see the terminal's last close after CMD's exit.
+_CLIENT_CLOSE_DEADLINE_S = 5.0
+
+
+def _wait_for_client_close(handle) -> None:
+    import time
+
+    end = time.monotonic() + _CLIENT_CLOSE_DEADLINE_S
+    while not _client_has_closed(handle) and time.monotonic() < end:
+        if handle.wait(0.01):  # the bridge ended: no close will come
+            return

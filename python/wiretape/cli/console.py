@@ -1,0 +1,90 @@
+"""What the command line prints: stdout and stderr (in colour on a
+terminal), and a failure as one line naming the problem."""
+
+from __future__ import annotations
+
+import os
+import sys
+from typing import Optional, Sequence
+
+from .errors import CheckFailed, RuntimeFailure, UsageError
+
+
+def describe(error: BaseException) -> str:
+    """One line naming the problem."""
+    if isinstance(error, NotImplementedError):
+        text = str(error) or "this command"
+        return f"{text} (not available in this build)"
+    if isinstance(error, OSError) and not str(error).strip():
+        return type(error).__name__
+    if isinstance(error, OSError) and error.filename and error.strerror and \
+            type(error).__module__ == "builtins":
+        return f"{error.filename}: {error.strerror}"
+    text = str(error).strip()
+    if not text:
+        return type(error).__name__
+    if isinstance(error, (UsageError, CheckFailed, RuntimeFailure)):
+        return text
+    import wiretape
+
+    if isinstance(error, (wiretape.ReplayMismatch,)):
+        return "replay mismatch: " + text
+    return text
+
+
+class Output:
+    """stdout and stderr, with colour (rich) when they are terminals."""
+
+    def __init__(self) -> None:
+        self._console = None
+        self._error_console = None
+        try:
+            import rich.console
+
+            if sys.stdout.isatty():
+                self._console = rich.console.Console(highlight=False)
+            if sys.stderr.isatty():
+                self._error_console = rich.console.Console(stderr=True, highlight=False)
+        except ImportError:  # colour is a nicety
+            pass
+
+    def print(self, text: str = "", style: Optional[str] = None) -> None:
+        if self._console is not None and style:
+            self._console.print(text, style=style, markup=False, soft_wrap=True)
+        else:
+            print(text, flush=True)
+
+    def note(self, text: str) -> None:
+        """A progress or status message (stderr)."""
+        if self._error_console is not None:
+            self._error_console.print(text, style="cyan", markup=False, soft_wrap=True)
+        else:
+            print(text, file=sys.stderr, flush=True)
+
+    def error(self, prog: str, text: str) -> None:
+        line = f"{prog}: error: {text}"
+        if self._error_console is not None:
+            self._error_console.print(line, style="bold red", markup=False, soft_wrap=True)
+        else:
+            print(line, file=sys.stderr, flush=True)
+
+    def table(self, columns: Sequence[str], rows: Sequence[Sequence[str]]) -> None:
+        if self._console is not None:
+            import rich.table
+
+            table = rich.table.Table(*columns, box=None, header_style="bold")
+            for row in rows:
+                table.add_row(*row)
+            self._console.print(table)
+            return
+        widths = [max([len(c)] + [len(r[i]) for r in rows]) for i, c in enumerate(columns)]
+        for row in [list(columns)] + [list(r) for r in rows]:
+            print("  ".join(cell.ljust(width) for cell, width in zip(row, widths)).rstrip())
+
+
+def silence_stdout() -> None:
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass

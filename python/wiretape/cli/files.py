@@ -1,0 +1,139 @@
+"""The commands on session files: show, stats, verify, convert, diff, edit
+(the work is in wiretape.tools)."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+
+from .console import Output, silence_stdout
+from .errors import EXIT_CHECK_FAILED, EXIT_OK, RuntimeFailure, UsageError
+
+
+def require_input(path: str) -> None:
+    """A session file given to read must be there (exit 3 otherwise); a
+    flexiport ``name.log`` stands for ``name.logr`` + ``name.logw``."""
+    if os.path.exists(path):
+        if os.path.isdir(path):
+            raise RuntimeFailure(f"{path}: is a directory, not a session file")
+        return
+    if path.endswith(".log") and (os.path.exists(path + "r") or os.path.exists(path + "w")):
+        return
+    raise RuntimeFailure(f"{path}: no such file")
+
+
+def cmd_show(args, out: Output) -> int:
+    from ..tools.show import show_reporting_damage
+
+    require_input(args.file)
+    if args.textconv or args.no_start or args.no_times:
+        return _show_textconv(args)
+    profile = args.profile or args.decode
+    if args.profile and args.decode and args.profile != args.decode:
+        raise UsageError(f"--profile {args.profile} and --decode {args.decode} disagree: give one")
+    if profile and args.format != "text":
+        option = "--profile" if args.profile else "--decode"
+        raise UsageError(f"{option} works with --format text only")
+    try:
+        _, damage = show_reporting_damage(args.file, fmt=args.format, profile=profile)
+    except BrokenPipeError:  # `wiretape show big.wtape | head`
+        silence_stdout()
+        return EXIT_OK
+    # show reports damage itself and shows everything before it.
+    return EXIT_OK if damage is None else EXIT_CHECK_FAILED
+
+
+def _show_textconv(args) -> int:
+    """show --textconv: the text git's diff.textconv runs (tools/textconv)."""
+    from ..tools.textconv import textconv
+
+    if args.format == "jsonl" or args.profile or args.decode:
+        raise UsageError("--textconv, --no-start and --no-times work with --format text or "
+                         "hex, without --profile")
+    try:
+        textconv(args.file, fmt=args.format, start=not args.no_start, times=not args.no_times)
+    except BrokenPipeError:
+        silence_stdout()
+    # A damaged file is a line of the text: git shows the diff all the same.
+    return EXIT_OK
+
+
+def _print_stats(stats, out: Output) -> None:
+    rows = stats.text_rows()
+    width = max([len("wiretape_version")] + [len(name) for name, _ in rows])
+    for name, value in rows:
+        out.print(f"{name:<{width}}  {value}", style="bold red" if name == "damaged" else None)
+
+
+def cmd_stats(args, out: Output) -> int:
+    from ..tools.stats import stats as session_stats
+
+    require_input(args.file)
+    result = session_stats(args.file)
+    if args.json:
+        print(json.dumps(result.to_json(), indent=2, sort_keys=True, default=str))
+    else:
+        _print_stats(result, out)
+    return EXIT_CHECK_FAILED if result.damaged else EXIT_OK
+
+
+def cmd_verify(args, out: Output) -> int:
+    from ..tools.verify import verify
+
+    require_input(args.file)
+    result = verify(args.file)
+    if args.json:
+        print(json.dumps(result.to_json(), indent=2, sort_keys=True, default=str))
+    elif result.ok:
+        out.print(f"{args.file}: ok, {result.records} records", style="green")
+    else:
+        out.print(f"{args.file}: DAMAGED at byte {result.offset} after "
+                  f"{result.records} good records: {result.message}", style="bold red")
+    return EXIT_OK if result.ok else EXIT_CHECK_FAILED
+
+
+def cmd_convert(args, out: Output) -> int:
+    from ..tools.convert import convert
+
+    require_input(args.input)
+    progress = sys.stderr.isatty() and not args.quiet
+    result = convert(args.input, args.output, from_format=args.from_format,
+                     to_format=args.to_format, progress=progress,
+                     flexiport_format=args.flexiport_format,
+                     stream=args.stream, device_addr=args.device_addr, test=args.test)
+    if not args.quiet:
+        out.note(f"converted {result.records} records: {args.input} "
+                 f"({result.from_format}) -> {args.output} ({result.to_format})")
+    return EXIT_OK
+
+
+def cmd_diff(args, out: Output) -> int:
+    from ..tools.diff import diff
+
+    require_input(args.a)
+    require_input(args.b)
+    result = diff(args.a, args.b, profile=args.profile)
+    for line in result.report().splitlines():
+        style = None
+        if line == "sessions are identical":
+            style = "green"
+        elif line == "sessions differ" or "damaged" in line:
+            style = "bold red"
+        out.print(line, style=style)
+    return EXIT_OK if result.identical and not result.damaged else EXIT_CHECK_FAILED
+
+
+def cmd_edit(args, out: Output) -> int:
+    from ..tools.edit import edit, parse_cut, parse_redaction
+
+    require_input(args.input)
+    cut = parse_cut(args.cut) if args.cut is not None else None
+    redactions = [parse_redaction(spec) for spec in args.redact]
+    result = edit(args.input, args.output, cut=cut, redact=redactions, drop_meta=args.drop_meta)
+    if not args.quiet:
+        done = "; ".join(result.edits)
+        matches = (f", {result.matches} matches redacted in {result.redacted_records} records"
+                   if redactions else "")
+        out.note(f"edited {args.input} -> {args.output}: {result.records} records{matches} ({done})")
+    return EXIT_OK

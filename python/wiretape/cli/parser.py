@@ -1,0 +1,422 @@
+"""The command line's arguments: build_parser() (every command, its flags
+and their help), the checks of single values (argparse types), and
+split_command() for the CMD after ``--``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Callable, List, Optional, Sequence, Tuple
+
+from .. import __version__, _core
+from .files import cmd_convert, cmd_diff, cmd_edit, cmd_show, cmd_stats, cmd_verify
+from .ports import cmd_ports
+from .run import cmd_demo, cmd_faults, cmd_record, cmd_replay, cmd_serve
+
+
+# --------------------------------------------------------------------------
+# argument types
+
+
+def _number_checker(what: str, minimum: float, inclusive: bool, unit: str = ""):
+    """An argparse type: a float of `what` above `minimum` (or at it, when
+    `inclusive`), with a message that names the rule broken."""
+    suffix = f" {unit}" if unit else ""
+
+    def check(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+        if not (value >= minimum if inclusive else value > minimum):
+            bound = f"{minimum:g}{suffix} or more" if inclusive else f"more than {minimum:g}{suffix}"
+            raise argparse.ArgumentTypeError(f"{text!r}: must be {bound}")
+        return value
+
+    return check
+
+
+_positive_seconds = _number_checker("a number of seconds", 0, inclusive=False, unit="seconds")
+_positive_float = _number_checker("a number", 0, inclusive=False)
+_non_negative_float = _number_checker("a number", 0, inclusive=True)
+
+
+def _non_negative_int(text: str) -> int:
+    """An argparse type: a whole number, 0 or more (a seed)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 0 or value > 2**63 - 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: must be from 0 to 2**63-1")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    value = _non_negative_int(text)
+    if value == 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: must be 1 or more")
+    return value
+
+
+def _session_output(text: str) -> str:
+    """An argparse type: the session file a bridge records into (-o). An
+    empty name would silently record nothing."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError(
+            "the file name is empty: give the session file to write (.wtape)")
+    return text
+
+
+def _pty_mode(text: str) -> int:
+    """An argparse type: the permission bits of a pty, in octal (0660, 666,
+    0o666)."""
+    digits = text.strip()
+    if digits[:2] in ("0o", "0O"):
+        digits = digits[2:]
+    try:
+        mode = int(digits, 8)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not an octal mode (such as 0660 or 0666)") from None
+    if not 0 <= mode <= 0o777:
+        raise argparse.ArgumentTypeError(
+            f"{text!r} has bits beyond the permission bits 0777")
+    return mode
+
+
+def _pty_group(text: str) -> str:
+    """An argparse type: a group by name or number that exists (a number
+    is taken as it stands, as chown takes it)."""
+    import grp
+
+    name = text.strip()
+    if name.isdigit():
+        return name
+    try:
+        grp.getgrnam(name)
+    except KeyError:
+        raise argparse.ArgumentTypeError(f"there is no group {text!r}") from None
+    return name
+
+
+def _udp_address(what: str, minimum_port: int):
+    """An argparse type: a HOST:PORT for UDP, checked as the bridge will (a
+    bad one is a usage error naming the flag)."""
+    def check(text: str) -> str:
+        from ..bridge import parse_udp_address
+
+        try:
+            parse_udp_address(text, what, minimum_port)
+        except ValueError as error:
+            raise argparse.ArgumentTypeError(str(error)) from None
+        return text
+    return check
+
+
+# --------------------------------------------------------------------------
+# the parser
+
+_DESCRIPTION = "Record and replay the wire-level session between a driver and its device."
+
+_EPILOG = """exit codes: 0 ok (Ctrl-C included); 1 the checked thing failed (replay
+mismatch, damaged file, diff found a difference, unused data under
+unused=error); 2 usage error; 3 runtime error (device or file I/O).
+--device takes a port option string (type=tcp,host=10.0.0.5,port=10940) or a
+bare path, which means type=serial,device=PATH."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that raises instead of exiting, so main() returns codes."""
+
+    def error(self, message):  # noqa: D401 - argparse's hook
+        raise ParserError(self, message)
+
+    def exit(self, status=0, message=None):
+        if message:
+            print(message, file=sys.stderr if status else sys.stdout, end="")
+        raise ParserExit(status)
+
+
+class ParserError(Exception):
+    def __init__(self, parser, message):
+        super().__init__(message)
+        self.parser = parser
+
+
+class ParserExit(Exception):
+    def __init__(self, status):
+        super().__init__(status)
+        self.status = status
+
+
+def _add_client_side(parser, verb: str) -> None:
+    side = parser.add_mutually_exclusive_group()
+    side.add_argument("--pty", metavar="PATH",
+                      help=f"{verb} on a new pseudo-terminal, linked at PATH (the "
+                           "client opens PATH as if it were the device)")
+    side.add_argument("--listen", metavar="HOST:PORT",
+                      help=f"{verb} on TCP: the client connects to HOST:PORT "
+                           "(PORT alone means 127.0.0.1:PORT; 0 picks a free port)")
+    side.add_argument("--udp", metavar="HOST:PORT", type=_udp_address("udp", 0),
+                      help=f"{verb} over UDP: the client sends datagrams to HOST:PORT "
+                           "and gets the device's back, one datagram per record "
+                           "(0 picks a free port)")
+    parser.add_argument("--pty-mode", dest="pty_mode", type=_pty_mode, metavar="MODE",
+                        help="with --pty: the terminal's permission bits, octal "
+                             "(default 0660, as a serial device)")
+    parser.add_argument("--pty-group", dest="pty_group", type=_pty_group, metavar="NAME|GID",
+                        help="with --pty: the terminal's group (default dialout where it "
+                             "exists, else this process's group)")
+
+
+def _add_redirect(parser, default: str) -> None:
+    parser.add_argument("--as", dest="redirect_path", metavar="PATH",
+                        help="with -- CMD: the device path CMD opens, redirected to the "
+                             f"pty ({default})")
+
+
+_COMMANDS_WITH_CMD = ("record", "replay", "faults")
+
+
+def split_command(argv: Sequence[str]) -> Tuple[List[str], Optional[List[str]]]:
+    """wiretape's own arguments and the CMD after ``--`` of ``record`` and
+    ``replay`` (None when there is no ``--``; [] when nothing follows it)."""
+    arguments = list(argv)
+    if arguments and arguments[0] in _COMMANDS_WITH_CMD and "--" in arguments:
+        separator = arguments.index("--")
+        return arguments[:separator], arguments[separator + 1:]
+    return arguments, None
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="wiretape", description=_DESCRIPTION, epilog=_EPILOG,
+                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"wiretape {__version__}")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    def command(name: str, handler: Callable, help_text: str, description: str = ""):
+        sub = commands.add_parser(name, help=help_text, description=description or help_text,
+                                  epilog=_EPILOG,
+                                  formatter_class=argparse.RawDescriptionHelpFormatter)
+        sub.set_defaults(handler=handler)
+        return sub
+
+    record = command(
+        "record", cmd_record, "record a driver's session with a device (transparent proxy)",
+        "A transparent proxy: the driver under test opens the --pty PATH (or connects "
+        "to --listen HOST:PORT, or sends datagrams to --udp HOST:PORT) as if it were "
+        "the device; every byte both ways is "
+        "forwarded to the --device and recorded. With -- CMD ARG... the proxy runs "
+        "CMD with the device's path (or --as PATH) redirected to its pty and ends "
+        "when CMD does. Ctrl-C ends cleanly. On a pty the "
+        "terminal settings the driver sets (baud, parity, stop bits) are applied to "
+        "the device and recorded; a pty has no modem lines.")
+    record.add_argument("--device", required=True, metavar="OPTS",
+                        help="the real device: a port option string or a serial device path")
+    _add_client_side(record, "the driver connects")
+    record.add_argument("-o", "--output", required=True, metavar="FILE", type=_session_output,
+                        help="the session file to write (.wtape)")
+    record.add_argument("--duration", type=_positive_seconds, metavar="S",
+                        help="stop after S seconds (default: until Ctrl-C)")
+    record.add_argument("--meta", action="append", metavar="KEY=VALUE",
+                        help="free metadata for the session header (repeatable)")
+    record.add_argument("-q", "--quiet", action="store_true", help="no client/device messages")
+    _add_redirect(record, "default: the --device's path")
+
+    replay = command(
+        "replay", cmd_replay, "replay a recording as a virtual device (pty, TCP or UDP)",
+        "The recording becomes a virtual device any program can open: a "
+        "pseudo-terminal (--pty PATH), a TCP server (--listen HOST:PORT) or a UDP "
+        "socket (--udp HOST:PORT; one datagram per recorded record). A "
+        "client that closes and reopens continues the session (--restart starts it "
+        "over). With --as PATH -- CMD ARG... it runs CMD with PATH redirected to its "
+        "pty and ends when CMD does (exit: CMD's status when it failed, else the "
+        "replay's). The replay keys are those of type=replay (docs/options.md). Exit 1 on a "
+        "mismatch, and when the recording has rx but no client was served any of it "
+        "(no client connected, nothing matched, or the greeting was lost).")
+    replay.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
+    _add_client_side(replay, "the client connects")
+    replay.add_argument("--timing", choices=("none", "session", "causal"),
+                        help="when recorded replies are released (default causal)")
+    replay.add_argument("--speed", type=_positive_float, help="rate multiplier (default 1.0)")
+    replay.add_argument("--check", choices=("off", "data", "timing"),
+                        help="what is compared against the recording (default data)")
+    replay.add_argument("--match", choices=("sequence", "request"),
+                        help="sequence: one stream; request: answer matching requests "
+                             "in any order (default sequence)")
+    replay.add_argument("--tolerance", type=_non_negative_float, metavar="MS",
+                        help="timing tolerance in milliseconds for --check timing (default 100)")
+    replay.add_argument("--unmatched", choices=("error", "silent"),
+                        help="bytes matching no request: error or ignore (default error)")
+    replay.add_argument("--repeat", choices=("none", "last", "cycle"),
+                        help="used-up exchanges under --match request (default none)")
+    replay.add_argument("--unused", choices=("ignore", "warn", "error"),
+                        help="recorded data never consumed at close (default warn)")
+    replay.add_argument("--at-end", dest="at_end", choices=("silent", "closed"),
+                        help="after the last record (default silent)")
+    replay.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
+                        help="a protocol profile: requests are frames matched by key, "
+                             "responses fixed: " + ", ".join(_core.profile_names()))
+    replay.add_argument("--gap", type=_non_negative_float, metavar="MS",
+                        help="--match request: ms of quiet a complete request waits for a "
+                             "longer one recorded earlier (default 50)")
+    replay.add_argument("--options", metavar="KEYS",
+                        help="further replay keys as an option string (k=v,k=v)")
+    replay.add_argument("--peer", metavar="HOST:PORT", type=_udp_address("peer", 1),
+                        help="with --udp: send the device's datagrams to HOST:PORT from "
+                             "the start (default: to the last sender, once one has sent)")
+    replay.add_argument("--restart", action="store_true",
+                        help="each new client starts the session over")
+    replay.add_argument("-o", "--output", metavar="FILE", type=_session_output,
+                        help="also record what the client does to FILE")
+    replay.add_argument("-q", "--quiet", action="store_true", help="no client messages")
+    replay.add_argument("--fault", action="append", metavar="KIND@WHERE",
+                        help="inject a fault (repeatable, or ';'-joined): drop, corrupt, "
+                             "garbage, truncate, duplicate, delay:MS, stall:MS, trickle, "
+                             "silence, disconnect, reconnect:MS at exchange:N, rx:N, "
+                             "t:SECONDS, every:K or p:P (docs/faults.md)")
+    replay.add_argument("--seed", type=_non_negative_int, metavar="S",
+                        help="seed of the faults' random choices (default 0)")
+    _add_redirect(replay, "default: the recorded device's path")
+
+    faults = command(
+        "faults", cmd_faults, "a fault campaign: run a driver against faulty replays",
+        "Runs CMD once against a clean replay of SESSION (it must pass), then once "
+        "per fault (kind x exchange, sampled by --seed within --budget), each against "
+        "a fresh virtual device whose path replaces {port} in CMD (or, with --as PATH, "
+        "is what PATH opens). Each run is ok (exit 0), error (failed cleanly, in "
+        "time), crash (a signal or a sanitizer report) or hang (past --timeout). "
+        "Prints a table per kind and exchange and a one-line reproduction of every "
+        "crash and hang; exit 1 if there was any (docs/faults.md).")
+    faults.add_argument("file", metavar="SESSION", help="the session to replay")
+    faults.add_argument("--kinds", metavar="KINDS",
+                        help="comma-separated fault kinds (default all: drop, corrupt, "
+                             "garbage, truncate, duplicate, delay, stall, trickle, silence, "
+                             "disconnect, reconnect); KIND@WHERE runs one place only")
+    faults.add_argument("--budget", type=_positive_int, metavar="N",
+                        help="at most N fault runs, sampled by --seed (default: all)")
+    faults.add_argument("--seed", type=_non_negative_int, default=0, metavar="S",
+                        help="seed of the sampling and of the faults (default 0)")
+    faults.add_argument("--timeout", type=_positive_seconds, default=10.0, metavar="S",
+                        help="a run taking longer is a hang (default 10)")
+    faults.add_argument("--jobs", type=_positive_int, default=1, metavar="N",
+                        help="runs at once (default 1)")
+    faults.add_argument("--json", metavar="FILE", help="write the runs as JSON to FILE")
+    faults.add_argument("--listen", action="store_true",
+                        help="serve TCP: {port} becomes HOST:PORT")
+    faults.add_argument("--as", dest="redirect_path", metavar="PATH",
+                        help="CMD opens PATH itself: redirect it to the virtual device")
+    faults.add_argument("--options", metavar="KEYS", default="",
+                        help="replay keys for every run (e.g. timing=none,match=request)")
+
+    serve = command(
+        "serve", cmd_serve, "share a local device with remote programs over TCP",
+        "Shares a local device over TCP (raw bytes, or RFC 2217 so that remote "
+        "programs can set the line), recording on the server side with -o.")
+    serve.add_argument("--device", required=True, metavar="OPTS",
+                       help="the device: a port option string or a serial device path")
+    serve.add_argument("--listen", required=True, metavar="HOST:PORT",
+                       help="where clients connect (PORT alone means 127.0.0.1:PORT)")
+    serve.add_argument("-o", "--output", metavar="FILE", type=_session_output,
+                       help="record the session to FILE")
+    serve.add_argument("--protocol", choices=("raw", "rfc2217"), default="raw",
+                       help="raw bytes or RFC 2217 (default raw)")
+    serve.add_argument("--shared", action="store_true",
+                       help="later clients may connect to monitor (read-only)")
+    serve.add_argument("--max-monitors", dest="max_monitors", type=int, metavar="N",
+                       help="with --shared: at most N monitors at once, more are refused "
+                            "(default 16)")
+    serve.add_argument("--reopen", action="store_true",
+                       help="wait for a device that went away to come back")
+    serve.add_argument("-q", "--quiet", action="store_true", help="no client messages")
+
+    ports = command("ports", cmd_ports, "list serial devices (by-id paths, USB ids)")
+    ports.add_argument("--json", action="store_true", help="print JSON")
+
+    show = command("show", cmd_show, "print a session's timeline")
+    show.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
+    show.add_argument("--format", choices=("text", "hex", "jsonl"), default="text",
+                      help="text (default), hex dump, or one JSON object per record")
+    show.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
+                      help="cut the bytes into a protocol's frames and name them: "
+                           + ", ".join(_core.profile_names()))
+    show.add_argument("--decode", choices=("scip",),
+                      help="the older name of --profile scip")
+    show.add_argument("--textconv", action="store_true",
+                      help="for git's diff.textconv: no file name, exit 0 when damaged")
+    show.add_argument("--no-start", dest="no_start", action="store_true",
+                      help="with --textconv (implies it): leave out the start time and host")
+    show.add_argument("--no-times", dest="no_times", action="store_true",
+                      help="with --textconv (implies it): leave out each record's time")
+
+    stats = command("stats", cmd_stats, "figures of a session (exit 1 if damaged)")
+    stats.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
+    stats.add_argument("--json", action="store_true", help="print JSON")
+
+    edit = command(
+        "edit", cmd_edit, "cut a session down and scrub it before sharing it",
+        "Writes an edited copy of IN to OUT (never over IN). --cut keeps a part "
+        "(the greeting and the settings in force at the cut stay); --redact "
+        "overwrites every match of a regular expression in the rx and tx bytes and "
+        "marks it, so replay treats those bytes as wildcards and the scrubbed "
+        "recording still replays to the driver that made it (it also clears the "
+        "header's host and /dev/serial/by-id serial numbers); --drop-meta removes "
+        "a metadata key. The header's edits list says what was done.")
+    edit.add_argument("input", metavar="IN", help="the session to edit")
+    edit.add_argument("output", metavar="OUT", help="the edited session to write (.wtape)")
+    edit.add_argument("--cut", metavar="FROM:TO",
+                      help="keep FROM to TO: seconds (1.5:4) or exchanges (3e:7e, numbered "
+                           "from 0 as in mismatch reports); either side may be empty")
+    edit.add_argument("--redact", metavar="PATTERN[=REPLACEMENT]", action="append", default=[],
+                      help="a regular expression over the bytes (\\= for a literal =); "
+                           "matches become REPLACEMENT repeated to their length (default *); "
+                           "may be repeated")
+    edit.add_argument("--drop-meta", metavar="KEY", action="append", default=[],
+                      help="remove this --meta key (may be repeated)")
+    edit.add_argument("-q", "--quiet", action="store_true", help="no summary")
+
+    verify = command("verify", cmd_verify, "check every record of a session (exit 1 if damaged)")
+    verify.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
+    verify.add_argument("--json", action="store_true", help="print JSON")
+
+    convert = command(
+        "convert", cmd_convert, "convert between session formats",
+        "Converts IN to OUT. Formats: wiretape (.wtape), flexiport (name.log = "
+        "name.logr + name.logw), jsonl, and the exports pcapng (Wireshark) and "
+        "mcap (Foxglove); a packet capture (pcap, pcapng) is read with --from pcap. "
+        "A format not given is taken from the file name.")
+    convert.add_argument("input", metavar="IN", help="the session to read")
+    convert.add_argument("output", metavar="OUT", help="the file to write")
+    convert.add_argument("--from", dest="from_format",
+                         choices=("wiretape", "flexiport", "jsonl", "pcap", "reserial", "umockdev"),
+                         help="format of IN (default: from its name or content; reserial and "
+                              "umockdev are always named)")
+    convert.add_argument("--test", metavar="NAME",
+                         help="--from reserial: the test of the cassette to import "
+                              "(needed when it holds several)")
+    convert.add_argument("--to", dest="to_format",
+                         choices=("wiretape", "flexiport", "jsonl", "pcapng", "mcap"),
+                         help="format of OUT (default: from its name)")
+    convert.add_argument("--flexiport-format", choices=("new", "old"), default="new",
+                         help="for a flexiport OUT: flexiport's new log format (from "
+                              "2008-07, the default) or the old one")
+    convert.add_argument("--stream", metavar="FILTER",
+                         help="--from pcap: the conversation to import: tcp:N or udp:N (as "
+                              "listed when there are several), or a tshark display filter")
+    convert.add_argument("--device-addr", dest="device_addr", metavar="IP:PORT",
+                         help="--from pcap: the device's side of the conversation (default: "
+                              "the TCP server; for UDP the lower port)")
+    convert.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
+
+    diff = command("diff", cmd_diff,
+                   "first divergence of two sessions, per direction (exit 1 if they differ)")
+    diff.add_argument("a", metavar="A", help="a session")
+    diff.add_argument("b", metavar="B", help="another session")
+    diff.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
+                      help="compare frame by frame by the profile's match key (fields it "
+                           "leaves out do not differ): " + ", ".join(_core.profile_names()))
+
+    command("demo", cmd_demo,
+            "record a simulated Hokuyo scanner, replay it without it, compare (make demo)")
+    return parser

@@ -1,0 +1,217 @@
+"""The commands that run something: record, replay and serve (bridges,
+until they end or Ctrl-C), faults (a campaign), demo. A CMD after ``--`` is
+run by cli/children.py."""
+
+from __future__ import annotations
+
+import sys
+from typing import Callable, Dict, List, Optional, Tuple
+
+from .console import Output
+from .errors import EXIT_CHECK_FAILED, EXIT_OK, CheckFailed, RuntimeFailure, UsageError
+from .files import require_input
+
+# How often a waiting command wakes up to notice Ctrl-C (seconds).
+POLL_S = 0.2
+
+
+def meta_pairs(items: Optional[List[str]]) -> Dict[str, str]:
+    metadata: Dict[str, str] = {}
+    for item in items or []:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise UsageError(f"--meta {item!r}: expected KEY=VALUE")
+        metadata[key.strip()] = value
+    return metadata
+
+
+def _format_number(value: float) -> str:
+    return repr(int(value)) if float(value).is_integer() else repr(value)
+
+
+# --------------------------------------------------------------------------
+# bridges: record, replay, serve
+
+
+def run_bridge(handle, out: Output, what: str, announce: Callable[[], None],
+               must_serve: bool = False) -> int:
+    """Announces a started bridge and waits until it ends or Ctrl-C (or
+    SIGTERM, see main) stops it; prints the outcome; returns the exit code.
+    `must_serve`: a replay that served its clients none of the recording's
+    rx failed (exit 1), however it ended."""
+    try:
+        announce()
+        while not handle.wait(POLL_S):
+            pass
+    except KeyboardInterrupt:
+        out.note(f"{what}: stopping")
+        handle.stop()
+        handle.wait()
+    result = handle.result()
+    figures = ", ".join(f"{key}={value}" for key, value in result.stats.items() if value)
+    out.note(f"{what}: {result.outcome}" + (f" ({figures})" if figures else ""))
+    if result.ok:
+        if must_serve and result.nothing_served:
+            raise CheckFailed(result.nothing_served)
+        return EXIT_OK
+    message = result.message or result.outcome
+    if result.outcome == "mismatch":
+        if not message.startswith("replay mismatch"):
+            message = f"replay mismatch: {message}"
+        raise CheckFailed(message)
+    raise RuntimeFailure(message)
+
+
+def _client_side(args) -> Tuple[Optional[str], Optional[str]]:
+    if args.pty is None and args.listen is None and args.udp is None:
+        raise UsageError("give where the client connects: --pty PATH or --listen HOST:PORT "
+                         "(datagrams: --udp HOST:PORT)")
+    if getattr(args, "peer", None) is not None and args.udp is None:
+        raise UsageError("--peer is where --udp sends datagrams: give --udp HOST:PORT too")
+    if args.pty is None:
+        for flag, value in (("--pty-mode", args.pty_mode), ("--pty-group", args.pty_group)):
+            if value is not None:
+                raise UsageError(f"{flag} sets who may open the pty: give --pty PATH too")
+    return args.pty, args.listen
+
+
+def announce_clients(handle, out: Output, what: str, link: Optional[str] = None,
+                     udp: bool = False) -> None:
+    where = []
+    if handle.pty_path:
+        where.append(f"pty {link} -> {handle.pty_path}" if link else f"pty {handle.pty_path}")
+    if handle.address:
+        where.append(f"{'udp' if udp else 'tcp'} {handle.address}")
+    out.note(f"{what}: {handle.device_description}; clients use "
+             + (", ".join(where) or "the client side") + "; Ctrl-C ends")
+
+
+def cmd_record(args, out: Output) -> int:
+    from .. import bridge
+    from .children import record_with_command, refuse_as_without_command
+
+    if getattr(args, "command_argv", None) is not None:
+        return record_with_command(args, out)
+    refuse_as_without_command(args)
+    pty, listen = _client_side(args)
+    handle = bridge.record(args.device, args.output, pty=pty, listen=listen, udp=args.udp,
+                           duration=args.duration, meta=meta_pairs(args.meta),
+                           quiet=args.quiet, pty_mode=args.pty_mode,
+                           pty_group=args.pty_group)
+    return run_bridge(handle, out, "record",
+                      lambda: announce_clients(handle, out, f"recording to {args.output}", pty,
+                                         udp=args.udp is not None))
+
+
+def replay_options_of(args) -> str:
+    """The replay keys given as --timing, --speed... plus --options."""
+    from .._core import parse_faults, quote_option_value
+    from ..options import replay_keys
+
+    pairs = []
+    for key in replay_keys():
+        value = getattr(args, key, None)
+        if value is None:
+            continue
+        if isinstance(value, float):
+            value = _format_number(value)
+        pairs.append(f"{key}={value}")
+    # --fault is repeatable and each may hold several items: one plan,
+    # checked by the replay's own parser (a bad item is an OptionError, exit 2).
+    faults = [spec.text for spec in parse_faults(";".join(getattr(args, "fault", None) or []))]
+    if faults:
+        pairs.append("faults=" + quote_option_value(";".join(faults)))
+    elif getattr(args, "seed", None) is not None:
+        raise UsageError("--seed seeds the random choices of --fault: give --fault too")
+    if args.options:
+        pairs.append(args.options.strip().strip(","))
+    return ",".join(pairs)
+
+
+def cmd_replay(args, out: Output) -> int:
+    from .. import bridge
+    from ..session import refuse_same_file, session_files
+    from .children import refuse_as_without_command, replay_with_command
+
+    if getattr(args, "command_argv", None) is not None:
+        return replay_with_command(args, out)
+    refuse_as_without_command(args)
+    pty, listen = _client_side(args)
+    require_input(args.file)
+    _check_fault_places(args)
+    if args.output:
+        refuse_same_file(session_files(args.file), [args.output])
+    handle = bridge.serve_replay(args.file, pty=pty, listen=listen, udp=args.udp,
+                                 peer=args.peer, replay_options=replay_options_of(args),
+                                 restart=args.restart, output=args.output,
+                                 quiet=args.quiet, pty_mode=args.pty_mode,
+                                 pty_group=args.pty_group)
+    return run_bridge(handle, out, "replay",
+                      lambda: announce_clients(handle, out, f"replaying {args.file}", pty,
+                                         udp=args.udp is not None),
+                      must_serve=True)
+
+
+def _check_fault_places(args) -> None:
+    """--fault KIND@WHERE past the session's end is a usage error."""
+    from ..faults import FaultInputError, check_where
+
+    specs = ";".join(getattr(args, "fault", None) or [])
+    if not specs:
+        return
+    try:
+        check_where(args.file, specs)
+    except FaultInputError as error:
+        raise UsageError(str(error)) from None
+
+
+def cmd_serve(args, out: Output) -> int:
+    from .. import bridge
+
+    if args.max_monitors is not None and not args.shared:
+        raise UsageError("--max-monitors limits the monitors of --shared: give --shared too")
+    if args.max_monitors is not None and args.max_monitors < 1:
+        raise UsageError(f"--max-monitors must be at least 1, not {args.max_monitors}")
+    max_monitors = (bridge.DEFAULT_MAX_MONITORS if args.max_monitors is None
+                    else args.max_monitors)
+    handle = bridge.serve(args.device, args.listen, output=args.output,
+                          protocol=args.protocol, shared=args.shared,
+                          max_monitors=max_monitors, reopen=args.reopen, quiet=args.quiet)
+    return run_bridge(handle, out, "serve", lambda: announce_clients(handle, out, "serving"))
+
+
+# --------------------------------------------------------------------------
+# faults, demo
+
+
+def cmd_faults(args, out: Output) -> int:
+    from .. import faults
+
+    if args.command_argv is None:
+        raise UsageError("no command after --: give the program to run, with {port} where "
+                         "the device's path goes")
+    require_input(args.file)
+    kinds = [kind for kind in (args.kinds or "").split(",") if kind.strip()] or None
+    try:
+        result = faults.campaign(args.file, args.command_argv, kinds=kinds, budget=args.budget,
+                                 seed=args.seed, timeout=args.timeout, jobs=args.jobs,
+                                 replay_options=args.options, listen=args.listen,
+                                 as_path=args.redirect_path,
+                                 progress=sys.stderr if sys.stderr.isatty() else None)
+    except faults.FaultInputError as error:
+        raise UsageError(str(error)) from None
+    except faults.CleanRunFailed as failure:
+        raise CheckFailed(str(failure)) from None
+    out.print(faults.table(result))
+    for run in result.runs:
+        if run.repro:
+            out.print(f"{run.outcome} {run.kind}@{run.where}: {run.repro}")
+    if args.json:
+        faults.write_json(result, args.json)
+    return EXIT_CHECK_FAILED if result.failed else EXIT_OK
+
+
+def cmd_demo(args, out: Output) -> int:
+    from .. import demo
+
+    return int(demo.run() or 0)

@@ -1,0 +1,148 @@
+// The fault stage (DESIGN.md section 17): the one place between the rx a
+// match strategy released and the client's reads where faults= acts.
+//
+// The engine reads the released rx through the stage only. Without a plan
+// the stage is the released queue itself (no copy, no per-byte work); with
+// one, each released record goes once, in order, through the injector into
+// a queue of the stage's own, along with the state a fault leaves behind (a
+// loss of the device, a silenced device).
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "replay/faults.hpp"
+#include "replay/strategy.hpp"
+#include "replay/timing.hpp"
+
+namespace wiretape::detail {
+
+// A released rx record after the faults: the item, and for a loss of the
+// device that ends (reconnect), when it is back.
+struct FaultedRx {
+  RxItem item;
+  std::optional<ReplayTime> back_at;
+};
+
+// Applies a plan to released records one by one: what the client gets
+// instead (nothing, altered bytes, several pieces, a loss of the device),
+// and a report of each fault it injects.
+class FaultInjector {
+ public:
+  using Reporter = std::function<void(const FaultEvent&)>;
+
+  FaultInjector(FaultPlan plan, bool datagrams, Reporter reporter);
+
+  // Passes one released record (rx, or a recorded close or loss) of
+  // exchange `item.exchange` through the plan, appending what the client
+  // gets to `out`. `now`: when it is released; a fault's waits count from
+  // the exchange's release at the earliest (under timing=none everything is
+  // due at the open time, long past).
+  void apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime now);
+
+  // The device stopped answering (silence): writes are swallowed.
+  bool silenced() const { return silenced_; }
+  // A fault made the rest of the recording unreachable (silence,
+  // disconnect): it is not reported as unused.
+  bool rest_unreachable() const { return silenced_ || disconnected_; }
+  // How many faults were injected.
+  std::uint64_t injected() const { return injected_; }
+
+ private:
+  bool fires(std::size_t index, const FaultSpec& spec, std::uint64_t exchange,
+             const RxItem& item, std::uint64_t offset);
+  void report(const FaultSpec& spec, std::uint64_t exchange, std::string detail);
+  // A random number for (fault, exchange, purpose): independent of the order
+  // in which things happen.
+  std::uint64_t draw(std::size_t index, std::uint64_t exchange, std::uint64_t purpose) const;
+
+  FaultPlan plan_;
+  bool datagrams_;
+  Reporter reporter_;
+  std::vector<bool> once_fired_;  // rx:N and t:S fire once
+  std::optional<std::uint64_t> current_exchange_;
+  // Per exchange, what goes on for its later records.
+  bool drop_rest_ = false;
+  std::optional<std::uint64_t> trickle_ms_;
+  std::chrono::nanoseconds shift_{0};  // delays and stalls so far in it
+  ReplayTime released_at_;             // when its first record was released
+  std::uint64_t rx_offset_ = 0;        // served rx bytes before this record
+  bool silenced_ = false;
+  bool disconnected_ = false;
+  std::uint64_t injected_ = 0;
+};
+
+class FaultStage {
+ public:
+  using Reporter = FaultInjector::Reporter;
+
+  // Reads what `released` holds; `plan` empty: a pass-through. Faults are
+  // reported to the reporter given to on_fault, by default as a line on
+  // stderr.
+  FaultStage(const FaultPlan& plan, bool datagrams, ReleasedRx& released);
+  FaultStage(const FaultStage&) = delete;
+  FaultStage& operator=(const FaultStage&) = delete;
+
+  void on_fault(Reporter reporter) { reporter_ = std::move(reporter); }
+  // Whether there is a plan (otherwise the stage passes everything through).
+  bool injects() const { return injector_ != nullptr; }
+
+  // Moves released records through the faults, as far as the look-ahead
+  // bounds; nothing to do without a plan.
+  void pull(ReplayTime now);
+
+  // --- the queue the client reads ---
+  bool empty() const { return injector_ ? faulted_.empty() : released_.empty(); }
+  RxItem& front() { return injector_ ? faulted_.front().item : released_.front(); }
+  void pop();
+  // Calls `visit(item)` for the queued records in order while it returns true.
+  template <typename Visit>
+  void visit(Visit&& visit) const {
+    if (injector_) {
+      for (const FaultedRx& faulted : faulted_) {
+        if (!visit(faulted.item)) return;
+      }
+      return;
+    }
+    for (const RxItem& item : released_.items()) {
+      if (!visit(item)) return;
+    }
+  }
+
+  // --- what faults leave behind ---
+  // The fault's loss of the device that is due now at the front of the
+  // queue (its item's data says why); a reconnect that is over is dropped
+  // first. nullptr when there is none.
+  const RxItem* loss(ReplayTime now);
+  // The device stopped answering: the client's writes go nowhere.
+  bool swallows_writes() const { return injector_ && injector_->silenced(); }
+  // Nothing more reaches the client, whatever the recording holds.
+  bool rest_unreachable() const { return injector_ && injector_->rest_unreachable(); }
+
+  // rx the client never read, queued before or after the faults: what a
+  // fault made unreachable is not unused, and a client that gave up after a
+  // fault (the right answer to most) left the rest unread for the fault's
+  // sake, so nothing counts once a fault was injected.
+  struct Unread {
+    std::uint64_t bytes = 0;
+    std::uint64_t records = 0;
+  };
+  std::optional<Unread> unread() const;
+
+ private:
+  void report(const FaultEvent& event) const;
+
+  ReleasedRx& released_;
+  std::unique_ptr<FaultInjector> injector_;
+  std::deque<FaultedRx> faulted_;
+  std::size_t faulted_bytes_ = 0;
+  Reporter reporter_;
+};
+
+}  // namespace wiretape::detail

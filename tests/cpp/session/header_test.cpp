@@ -1,0 +1,144 @@
+// One SessionHeader for reading and writing (header round trip through the
+// writer and the reader) and event_payload, the one maker of event payloads,
+// checked against the record-kind table.
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+#include <string>
+
+#include "session/header.hpp"
+#include "session/record_kinds.hpp"
+#include "support/port_test_support.hpp"
+#include "wiretape/errors.hpp"
+#include "wiretape/session.hpp"
+#include "wiretape/version.hpp"
+
+using namespace wiretape;
+using wiretape::test::TempDir;
+
+namespace {
+
+SessionHeader full_header() {
+  SessionHeader header;
+  header.port_options = "type=tcp,host=10.0.0.5,port=502";
+  header.port_type = "tcp";
+  header.start_utc = "2026-01-02T03:04:05.000006Z";
+  header.wiretape_version = "9.9.9";
+  header.host = "bench";
+  header.capture = Capture::wire;
+  header.source_format = "pcap";
+  header.source_files = {"plc.pcapng"};
+  header.source_details = {{"stream", "tcp:0"}};
+  header.device_address = "10.0.0.5:502";
+  header.edits = {"cut 2e..5e", "dropped meta note"};
+  header.user_metadata = {{"robot", "r2"}, {"note", "a \"quoted\" word"}};
+  return header;
+}
+
+// Every member but those a writer sets itself (format version, stored JSON).
+void expect_same_members(const SessionHeader& a, const SessionHeader& b) {
+  EXPECT_EQ(a.port_options, b.port_options);
+  EXPECT_EQ(a.port_type, b.port_type);
+  EXPECT_EQ(a.start_utc, b.start_utc);
+  EXPECT_EQ(a.wiretape_version, b.wiretape_version);
+  EXPECT_EQ(a.host, b.host);
+  EXPECT_EQ(a.capture, b.capture);
+  EXPECT_EQ(a.source_format, b.source_format);
+  EXPECT_EQ(a.source_files, b.source_files);
+  EXPECT_EQ(a.source_details, b.source_details);
+  EXPECT_EQ(a.device_address, b.device_address);
+  EXPECT_EQ(a.edits, b.edits);
+  EXPECT_EQ(a.user_metadata, b.user_metadata);
+}
+
+}  // namespace
+
+TEST(SessionHeader, RoundTripsThroughTheWriterAndTheReader) {
+  TempDir dir;
+  const SessionHeader written = full_header();
+  {
+    SessionWriter writer(dir.file("h.wtape"), written);
+    expect_same_members(writer.header(), written);
+    EXPECT_EQ(writer.header().metadata_json, written.to_json());
+    writer.close();
+  }
+  SessionReader reader(dir.file("h.wtape"));
+  expect_same_members(reader.header(), written);
+  EXPECT_EQ(reader.header().metadata_json, written.to_json());
+  // What was read writes the same header again, byte for byte.
+  EXPECT_EQ(reader.header().to_json(), written.to_json());
+}
+
+TEST(SessionHeader, WritesWhatItIsGivenAndInventsNothing) {
+  TempDir dir;
+  { SessionWriter writer(dir.file("plain.wtape"), SessionHeader{}); }
+  SessionReader reader(dir.file("plain.wtape"));
+  EXPECT_EQ(reader.header().start_utc, "");  // not known
+  EXPECT_EQ(reader.header().host, "");
+  EXPECT_EQ(reader.header().wiretape_version, wiretape::version);
+  EXPECT_EQ(reader.header().source_format, "wiretape");
+  EXPECT_EQ(reader.header().metadata_json.find("\"source\""), std::string::npos)
+      << "a session recorded by wiretape names no source";
+}
+
+TEST(SessionHeader, StartingNowIsTheMachinesTimeAndName) {
+  const SessionHeader header = SessionHeader::starting_now();
+  EXPECT_EQ(detail::start_utc_problem(header.start_utc), std::nullopt);
+  EXPECT_FALSE(header.start_utc.empty());
+  EXPECT_EQ(header.host, detail::host_name());
+}
+
+TEST(SessionHeader, ToJsonRefusesWhatAReaderWouldRefuse) {
+  SessionHeader header;
+  header.start_utc = "yesterday";
+  try {
+    (void)header.to_json();
+    FAIL();
+  } catch (const OptionError& e) {
+    EXPECT_EQ(e.key(), "start_utc");
+  }
+  header.start_utc.clear();
+  header.source_details = {{"files", "x"}};
+  EXPECT_THROW((void)header.to_json(), OptionError);
+}
+
+TEST(EventPayload, IsWrittenInTheTablesOrderWithTheTablesTypes) {
+  EXPECT_EQ(detail::event_payload(RecordKind::fault, {{"where", std::string("exchange:3")},
+                                                      {"kind", std::string("corrupt")}}),
+            R"({"kind":"corrupt","where":"exchange:3"})");
+  EXPECT_EQ(detail::event_payload(RecordKind::settings,
+                                  {{"applied", false}, {"baud", std::int64_t{9600}}}),
+            R"({"baud":9600,"applied":false})");
+  EXPECT_EQ(detail::event_payload(RecordKind::close, {}), "{}");
+  // What it makes, the reader's check accepts.
+  const std::string payload = detail::event_payload(
+      RecordKind::redaction, {{"offset", std::int64_t{2}}, {"length", std::int64_t{4}}});
+  EXPECT_EQ(detail::event_payload_problem(RecordKind::redaction, payload), std::nullopt);
+}
+
+namespace {
+
+std::string refusal(RecordKind kind, const detail::EventMembers& members) {
+  try {
+    detail::event_payload(kind, members);
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "accepted";
+}
+
+}  // namespace
+
+TEST(EventPayload, RefusesWhatTheTableDoesNotSayNamingKindAndMember) {
+  EXPECT_EQ(refusal(RecordKind::fault, {{"kind", std::string("drop")}}),
+            "fault event: required member \"where\" is missing");
+  EXPECT_EQ(refusal(RecordKind::settings, {{"baud", std::string("fast")}}),
+            "settings event: member \"baud\" must be an integer, not a string");
+  EXPECT_EQ(refusal(RecordKind::settings, {{"baud", std::int64_t{1}}, {"speed", true}}),
+            "settings event: unknown member \"speed\" (its members: baud, databits, "
+            "stopbits, parity, flow, applied, source)");
+  EXPECT_EQ(refusal(RecordKind::line_break,
+                    {{"duration_ms", std::int64_t{1}}, {"duration_ms", std::int64_t{2}}}),
+            "break event: member \"duration_ms\" given twice");
+  EXPECT_EQ(refusal(RecordKind::rx, {}), "rx is a direction, not an event: its payload is bytes");
+}

@@ -1,0 +1,174 @@
+"""wiretape.children.Child: the one way a command is run and ended (DESIGN
+§17, "Child processes"): its own process group, ended as a whole, output
+captured without waiting for the end of a pipe a grandchild holds."""
+
+import io
+import os
+import signal
+import sys
+import textwrap
+
+import pytest
+
+from devices import DEADLINE_S, wait_until
+from wiretape.children import Child, CommandNotStarted
+
+
+def _alive(pid):
+    """False once `pid` is gone (or a zombie nobody reaped yet)."""
+    try:
+        with open(f"/proc/{pid}/stat") as stat:
+            return stat.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def _python(code):
+    return [sys.executable, "-c", textwrap.dedent(code)]
+
+
+# A child that starts a grandchild in its own group, says the grandchild's
+# pid, and waits to be ended; with ignore_term both ignore SIGTERM.
+PARENT_OF_A_SLEEPER = """
+    import signal, subprocess, sys, time
+    if sys.argv[1] == "ignore_term":
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    sleeper = subprocess.Popen([sys.executable, "-c",
+                                "import signal, sys, time\\n"
+                                "if sys.argv[1] == 'ignore_term':\\n"
+                                "    signal.signal(signal.SIGTERM, signal.SIG_IGN)\\n"
+                                "print('ready', flush=True)\\n"
+                                "time.sleep(1000)", sys.argv[1]], stdout=subprocess.PIPE)
+    sleeper.stdout.readline()  # the grandchild has set its signals up
+    print(sleeper.pid, flush=True)
+    time.sleep(1000)
+"""
+
+
+def _started_parent(mode, **options):
+    child = Child(_python(PARENT_OF_A_SLEEPER) + [mode], **options)
+    assert child.wait_for_output(lambda out: out.endswith(b"\n"), DEADLINE_S), child.stdout
+    return child, int(child.stdout)
+
+
+def test_output_is_captured_with_the_exit_status():
+    outcome = Child(["sh", "-c", "echo out; echo err >&2; exit 3"]).run(DEADLINE_S)
+    assert (outcome.returncode, outcome.exit_status, outcome.signal) == (3, 3, None)
+    assert not outcome.timed_out
+    assert sorted(outcome.stdout.splitlines()) == [b"err", b"out"]
+    assert outcome.stderr == b""
+
+
+def test_stderr_apart_and_text():
+    outcome = Child(["sh", "-c", "echo out; echo err >&2"], separate_stderr=True,
+                    text=True).run(DEADLINE_S)
+    assert (outcome.returncode, outcome.stdout, outcome.stderr) == (0, "out\n", "err\n")
+
+
+def test_a_death_by_signal_is_reported():
+    outcome = Child(["sh", "-c", "kill -SEGV $$"]).run(DEADLINE_S)
+    assert outcome.returncode == -signal.SIGSEGV
+    assert outcome.signal == signal.SIGSEGV
+    assert outcome.exit_status == 128 + signal.SIGSEGV
+    assert not outcome.timed_out
+
+
+def test_captured_output_is_relayed_as_it_comes():
+    relay = io.BytesIO()
+    outcome = Child(["sh", "-c", "echo one; echo two"], relay=relay).run(DEADLINE_S)
+    assert relay.getvalue() == outcome.stdout == b"one\ntwo\n"
+
+
+def test_output_passed_through_is_not_captured(capfd):
+    child = Child(["sh", "-c", "echo through"], capture=False)
+    outcome = child.run(DEADLINE_S)
+    assert outcome.returncode == 0 and outcome.stdout == b""
+    assert capfd.readouterr().out == "through\n"
+
+
+def test_a_timeout_ends_the_child_and_its_grandchild():
+    child, grandchild = _started_parent("plain")
+    assert _alive(grandchild)
+    outcome = child.run(timeout=0.1)
+    assert outcome.timed_out
+    assert outcome.signal == signal.SIGTERM
+    wait_until(lambda: not _alive(grandchild), DEADLINE_S, "the grandchild to be gone")
+
+
+def test_what_ignores_sigterm_is_killed_after_the_grace_period():
+    child, grandchild = _started_parent("ignore_term", grace=0.2)
+    returncode = child.end()
+    assert returncode == -signal.SIGKILL
+    wait_until(lambda: not _alive(grandchild), DEADLINE_S, "the grandchild to be gone")
+
+
+def test_ending_after_the_child_exited_ends_what_it_left_in_its_group():
+    child = Child(_python("""
+        import subprocess, sys
+        sleeper = subprocess.Popen(["sleep", "1000"])
+        print(sleeper.pid, flush=True)
+    """))
+    assert child.wait(DEADLINE_S) == 0
+    grandchild = int(child.stdout)
+    assert _alive(grandchild)
+    assert child.end() == 0
+    wait_until(lambda: not _alive(grandchild), DEADLINE_S, "the grandchild to be gone")
+
+
+def test_a_grandchild_of_another_session_holding_stdout_does_not_stall_it():
+    child = Child(_python("""
+        import subprocess
+        sleeper = subprocess.Popen(["sleep", "1000"], start_new_session=True)
+        print(sleeper.pid, flush=True)
+    """))
+    outcome = child.run(DEADLINE_S)
+    grandchild = int(outcome.stdout)
+    try:
+        assert (outcome.returncode, outcome.timed_out) == (0, False)
+        # It returned while the grandchild still holds the pipe open.
+        assert _alive(grandchild)
+    finally:
+        os.kill(grandchild, signal.SIGKILL)
+
+
+def test_a_grandchild_of_another_session_writing_on_does_not_stall_it():
+    child = Child(_python("""
+        import subprocess
+        writer = subprocess.Popen(["yes"], start_new_session=True)
+        print("writer", writer.pid, flush=True)
+    """))
+    outcome = child.run(DEADLINE_S)
+    # yes may have written before the line with its pid.
+    writer = int(next(line for line in outcome.stdout.split(b"\n")
+                      if line.startswith(b"writer ")).split()[1])
+    try:
+        assert (outcome.returncode, outcome.timed_out) == (0, False)
+        # Our end of the pipe is closed: the writer gets SIGPIPE.
+        wait_until(lambda: not _alive(writer), DEADLINE_S, "the writer to be gone")
+    finally:
+        if _alive(writer):
+            os.kill(writer, signal.SIGKILL)
+
+
+def test_waiting_for_output_that_never_comes_ends_with_the_output():
+    child = Child(["sh", "-c", "echo nothing"])
+    assert not child.wait_for_output(lambda out: b"ready" in out, DEADLINE_S)
+    assert child.run().stdout == b"nothing\n"
+
+
+def test_a_command_that_cannot_be_started_is_named(tmp_path):
+    with pytest.raises(CommandNotStarted, match="no-such-program: command not found") as error:
+        Child([str(tmp_path / "no-such-program")])
+    assert error.value.exit_code == 127
+    script = tmp_path / "not-executable"
+    script.write_text("#!/bin/sh\n")
+    with pytest.raises(CommandNotStarted, match="permission denied") as error:
+        Child([str(script)])
+    assert error.value.exit_code == 126
+
+
+def test_a_child_used_as_a_context_is_ended():
+    with Child(["sleep", "1000"]) as child:
+        pid = child.pid
+    assert child.returncode == -signal.SIGTERM
+    assert not _alive(pid)
