@@ -394,10 +394,11 @@ def test_every_combination_serves_what_the_recording_says(tmp_path_factory, comb
     fault = combination["fault"]
     # finding: silence ends with its client session (explicit xfail test below).
     assume(not silence_outlasts_its_session(combination["parts"], fault))
-    # Which exchange a greeting belongs to is not decided yet: docs/faults.md
-    # gives three rules (exchange 0 with the first answer; no exchange with a
-    # profile in match=sequence; exchange 0 of its own in match=request),
-    # which DESIGN §17's one segmentation replaces. Faults skip greetings.
+    # A greeting's exchange is decided by the one segmentation
+    # (src/replay/exchanges.hpp: exchange 0 with the first answer in
+    # match=sequence, with or without a profile; exchange 0 of its own in
+    # match=request), but the oracle does not model it yet. Faults skip
+    # greetings.
     assume(fault is None or not combination["greeting"])
     # finding: trickle across rx records (explicit xfail test below).
     assume(not trickles_over_records(combination, fault))
