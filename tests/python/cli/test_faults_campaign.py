@@ -241,6 +241,22 @@ def test_replay_fault_past_the_end_is_a_usage_error(session, tmp_path):
     assert "exchange 7 is past its end" in result.stderr
 
 
+def test_replay_fault_places_count_exchanges_as_the_replay_does(tmp_path):
+    # Two tx runs but one request line: with --profile lines exchange 1 is
+    # past the end.
+    path = tmp_path / "split.wtape"
+    with wiretape.SessionWriter(str(path), port_type="serial") as writer:
+        writer.write("tx", 1, b"A")
+        writer.write("rx", 2, b"x")
+        writer.write("tx", 3, b"B\n")
+        writer.write("rx", 4, b"y")
+    assert faults.session_shape(str(path)).exchanges == 2
+    result = run_cli("replay", str(path), "--pty", str(tmp_path / "p"), "--profile", "lines",
+                     "--fault", "drop@exchange:1", timeout=60)
+    assert result.returncode == 2
+    assert "exchange 1 is past its end" in result.stderr
+
+
 # --- the campaign -------------------------------------------------------------------------
 
 
