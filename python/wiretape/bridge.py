@@ -64,46 +64,23 @@ device_options = _core.device_options
 _quote = _core.quote_option_value
 
 
-def parse_listen(listen: Union[str, int]) -> Tuple[str, int]:
-    """``HOST:PORT``, ``[v6]:PORT`` or ``PORT`` (on 127.0.0.1) as (host, port).
-    Port 0 picks a free port."""
-    text = str(listen).strip()
-    host = "127.0.0.1"
-    port_text = text
+def _split_address(text: str, what: str, default_host: Optional[str],
+                   minimum_port: int) -> Tuple[str, int]:
+    """``HOST:PORT`` or ``[v6]:PORT`` (or ``PORT`` alone where
+    ``default_host`` is given) as (host, port); ``what`` names the option in
+    the ValueError."""
     if text.startswith("["):
         close = text.find("]")
         if close < 0 or not text[close + 1:].startswith(":"):
-            raise ValueError(f"listen address {text!r}: expected [HOST]:PORT")
+            raise ValueError(f"{what} address {text!r}: expected [HOST]:PORT")
         host, port_text = text[1:close], text[close + 2:]
     elif ":" in text:
         host, port_text = text.rsplit(":", 1)
-        host = host or "127.0.0.1"
-    try:
-        port = int(port_text)
-    except ValueError:
-        raise ValueError(
-            f"listen address {text!r}: the port must be a number (HOST:PORT)"
-        ) from None
-    if not 0 <= port <= 65535:
-        raise ValueError(f"listen address {text!r}: port {port} is out of range (0-65535)")
-    return host, port
-
-
-def parse_udp_address(address: str, what: str = "udp", minimum_port: int = 0) -> Tuple[str, int]:
-    """``HOST:PORT`` or ``[v6]:PORT`` as (host, port) for a UDP side; both
-    parts are needed and the host must resolve. ``what`` names the option in
-    the error (a ValueError). Port 0 (where ``minimum_port`` allows it)
-    picks a free port."""
-    text = str(address).strip()
-    if text.startswith("["):
-        close = text.find("]")
-        if close < 0 or not text[close + 1:].startswith(":"):
-            raise ValueError(f"{what} address {text!r}: expected HOST:PORT")
-        host, port_text = text[1:close], text[close + 2:]
-    elif ":" in text:
-        host, port_text = text.rsplit(":", 1)
+    elif default_host is not None:
+        host, port_text = default_host, text
     else:
         raise ValueError(f"{what} address {text!r}: expected HOST:PORT (the port is missing)")
+    host = host or (default_host or "")
     if not host:
         raise ValueError(f"{what} address {text!r}: expected HOST:PORT (the host is missing)")
     try:
@@ -114,6 +91,22 @@ def parse_udp_address(address: str, what: str = "udp", minimum_port: int = 0) ->
     if not minimum_port <= port <= 65535:
         raise ValueError(
             f"{what} address {text!r}: port {port} is out of range ({minimum_port}-65535)")
+    return host, port
+
+
+def parse_listen(listen: Union[str, int]) -> Tuple[str, int]:
+    """``HOST:PORT``, ``[v6]:PORT`` or ``PORT`` (on 127.0.0.1) as (host, port).
+    Port 0 picks a free port."""
+    return _split_address(str(listen).strip(), "listen", "127.0.0.1", 0)
+
+
+def parse_udp_address(address: str, what: str = "udp", minimum_port: int = 0) -> Tuple[str, int]:
+    """``HOST:PORT`` or ``[v6]:PORT`` as (host, port) for a UDP side; both
+    parts are needed and the host must resolve. ``what`` names the option in
+    the error (a ValueError). Port 0 (where ``minimum_port`` allows it)
+    picks a free port."""
+    text = str(address).strip()
+    host, port = _split_address(text, what, None, minimum_port)
     try:
         socket.getaddrinfo(host, port, type=socket.SOCK_DGRAM)
     except (socket.gaierror, UnicodeError) as error:

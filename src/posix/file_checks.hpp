@@ -16,7 +16,7 @@
 namespace wiretape::detail {
 
 // "PATH is a FIFO, not a regular file" for what `mode` says is not a regular
-// file; "" for a regular file. The Python tools (tools/_files.py) use the
+// file; "" for a regular file. The Python tools (wiretape/session.py) use the
 // same words.
 std::string not_regular_file_problem(const std::string& path, mode_t mode);
 

@@ -113,6 +113,7 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
     current_exchange_ = exchange;
     drop_rest_ = false;
     trickle_ms_.reset();
+    trickled_ = false;
     shift_ = std::chrono::nanoseconds(0);
     released_at_ = now;
   }
@@ -274,13 +275,15 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
     // A stall's head already carries its own shift (see above).
     piece.due += shift_;
     if (trickle_ms_ && piece.kind == RecordKind::rx && !datagrams_) {
+      // Every byte after the exchange's first waits MS, also the first
+      // byte of a later record of the response.
       const std::string_view bytes = piece.payload().substr(piece.consumed);
-      for (std::size_t b = 0; b < bytes.size(); ++b) {
-        RxItem one = made_like(piece, RecordKind::rx, std::string(1, bytes[b]));
-        if (b > 0) {
-          shift_ += std::chrono::milliseconds(*trickle_ms_);
-          one.due += std::chrono::milliseconds(*trickle_ms_) * static_cast<std::int64_t>(b);
-        }
+      const auto shift_before = shift_;
+      for (const char byte : bytes) {
+        RxItem one = made_like(piece, RecordKind::rx, std::string(1, byte));
+        if (trickled_) shift_ += std::chrono::milliseconds(*trickle_ms_);
+        trickled_ = true;
+        one.due += shift_ - shift_before;
         out.push_back(FaultedRx{std::move(one), std::nullopt});
       }
       continue;

@@ -70,6 +70,7 @@ class FaultInjector {
   // Per exchange, what goes on for its later records.
   bool drop_rest_ = false;
   std::optional<std::uint64_t> trickle_ms_;
+  bool trickled_ = false;  // a byte of this exchange was trickled: the next waits
   std::chrono::nanoseconds shift_{0};  // delays and stalls so far in it
   ReplayTime released_at_;             // when its first record was released
   std::uint64_t rx_offset_ = 0;        // served rx bytes before this record

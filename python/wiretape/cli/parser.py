@@ -9,6 +9,7 @@ import sys
 from typing import Callable, List, Optional, Sequence, Tuple
 
 from .. import __version__, _core
+from ..options import option_keys
 from .files import cmd_convert, cmd_diff, cmd_edit, cmd_show, cmd_stats, cmd_verify
 from .ports import cmd_ports
 from .run import cmd_demo, cmd_faults, cmd_record, cmd_replay, cmd_serve
@@ -51,6 +52,43 @@ def _non_negative_int(text: str) -> int:
         raise argparse.ArgumentTypeError(f"{text!r}: must be from 0 to 2**63-1")
     return value
 
+
+
+def _key_value(key) -> Callable[[str], object]:
+    """An argparse type checking a value of the key table's row ``key``
+    against its type and range, as the replay would."""
+    def check(text: str) -> object:
+        try:
+            value: object = int(text) if key.type == "integer" else float(text)
+        except ValueError:
+            kind = "a whole number" if key.type == "integer" else "a number"
+            raise argparse.ArgumentTypeError(f"{text!r} is not {kind}") from None
+        if not key.minimum <= value <= key.maximum:  # type: ignore[operator]
+            raise argparse.ArgumentTypeError(
+                f"{text!r}: must be from {key.minimum:g} to {key.maximum:g}")
+        return value
+
+    return check
+
+
+def _add_replay_keys(parser: argparse.ArgumentParser) -> None:
+    """The replay keys the CLI mirrors as flags (``--at-end`` for at_end),
+    made from the key table (docs/options.md): names, choices, ranges,
+    defaults and help are the table's. --fault is a flag of its own."""
+    for key in option_keys("replay"):
+        if key.flag != "--" + key.name.replace("_", "-"):
+            continue
+        help_text = f"{key.help} (default {key.default})" if key.default else key.help
+        if key.name == "profile":  # profiles are registered at run time
+            names = tuple(_core.profile_names())
+            parser.add_argument(key.flag, dest=key.name, choices=names, metavar="NAME",
+                                help=f"{help_text}: {', '.join(names)}")
+        elif key.type == "choice":
+            parser.add_argument(key.flag, dest=key.name, choices=tuple(key.choices),
+                                help=help_text)
+        else:
+            parser.add_argument(key.flag, dest=key.name, type=_key_value(key),
+                                metavar=key.name.upper(), help=help_text)
 
 def _positive_int(text: str) -> int:
     value = _non_negative_int(text)
@@ -237,30 +275,7 @@ def build_parser() -> argparse.ArgumentParser:
         "(no client connected, nothing matched, or the greeting was lost).")
     replay.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
     _add_client_side(replay, "the client connects")
-    replay.add_argument("--timing", choices=("none", "session", "causal"),
-                        help="when recorded replies are released (default causal)")
-    replay.add_argument("--speed", type=_positive_float, help="rate multiplier (default 1.0)")
-    replay.add_argument("--check", choices=("off", "data", "timing"),
-                        help="what is compared against the recording (default data)")
-    replay.add_argument("--match", choices=("sequence", "request"),
-                        help="sequence: one stream; request: answer matching requests "
-                             "in any order (default sequence)")
-    replay.add_argument("--tolerance", type=_non_negative_float, metavar="MS",
-                        help="timing tolerance in milliseconds for --check timing (default 100)")
-    replay.add_argument("--unmatched", choices=("error", "silent"),
-                        help="bytes matching no request: error or ignore (default error)")
-    replay.add_argument("--repeat", choices=("none", "last", "cycle"),
-                        help="used-up exchanges under --match request (default none)")
-    replay.add_argument("--unused", choices=("ignore", "warn", "error"),
-                        help="recorded data never consumed at close (default warn)")
-    replay.add_argument("--at-end", dest="at_end", choices=("silent", "closed"),
-                        help="after the last record (default silent)")
-    replay.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
-                        help="a protocol profile: requests are frames matched by key, "
-                             "responses fixed: " + ", ".join(_core.profile_names()))
-    replay.add_argument("--gap", type=_non_negative_float, metavar="MS",
-                        help="--match request: ms of quiet a complete request waits for a "
-                             "longer one recorded earlier (default 50)")
+    _add_replay_keys(replay)
     replay.add_argument("--options", metavar="KEYS",
                         help="further replay keys as an option string (k=v,k=v)")
     replay.add_argument("--peer", metavar="HOST:PORT", type=_udp_address("peer", 1),
@@ -276,8 +291,6 @@ def build_parser() -> argparse.ArgumentParser:
                              "garbage, truncate, duplicate, delay:MS, stall:MS, trickle, "
                              "silence, disconnect, reconnect:MS at exchange:N, rx:N, "
                              "t:SECONDS, every:K or p:P (docs/faults.md)")
-    replay.add_argument("--seed", type=_non_negative_int, metavar="S",
-                        help="seed of the faults' random choices (default 0)")
     _add_redirect(replay, "default: the recorded device's path")
 
     faults = command(

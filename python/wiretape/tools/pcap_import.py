@@ -24,10 +24,10 @@ import dataclasses
 import datetime as _datetime
 import os
 import shutil
-import subprocess
 from typing import Dict, Iterator, List, Optional, Sequence, Tuple
 
 from .. import _core
+from ..children import Child
 
 __all__ = ["CaptureError", "Conversation", "conversations", "read_capture", "is_capture"]
 
@@ -162,14 +162,14 @@ def _run_tshark(path: str, arguments: Sequence[str]) -> str:
     """tshark's standard output; CaptureError naming the file (and the
     packet, where tshark says) when tshark cannot read it."""
     command = [_tshark(), "-n", "-r", path, *arguments]
-    try:
-        result = subprocess.run(command, capture_output=True, text=True, errors="replace",
-                                timeout=_TIMEOUT_S, env={**os.environ, "LC_ALL": "C"})
-    except subprocess.TimeoutExpired:
-        raise CaptureError(f"{path}: tshark took more than {_TIMEOUT_S} s to read it") from None
-    if result.returncode != 0:
-        raise _capture_problem(path, result.stdout, result.stderr)
-    return result.stdout
+    outcome = Child(command, separate_stderr=True, text=True,
+                    env={**os.environ, "LC_ALL": "C"}).run(_TIMEOUT_S)
+    if outcome.timed_out:
+        raise CaptureError(f"{path}: tshark took more than {_TIMEOUT_S} s to read it")
+    stdout, stderr = str(outcome.stdout), str(outcome.stderr)
+    if outcome.returncode != 0:
+        raise _capture_problem(path, stdout, stderr)
+    return stdout
 
 
 def _problem_lines(stderr: str) -> List[str]:

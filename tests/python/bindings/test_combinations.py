@@ -67,9 +67,6 @@ EXAMPLES = int(EXAMPLES_FROM_ENV or "60")
 
 SILENCE_ENDS_WITH_THE_SESSION = ("finding: silence ends with the client session (each client's "
                                  "engine starts afresh), though the device stopped answering")
-TRICKLE_ACROSS_RECORDS = ("finding: trickle:MS spaces the bytes of each rx record MS apart, but the "
-                          "first byte of the response's next record comes with the previous byte, "
-                          "not MS after it")
 
 
 # --- strategies ---------------------------------------------------------------------------
@@ -373,19 +370,6 @@ def silence_outlasts_its_session(parts, fault):
     return fault.exchange < sum(len(part) for part in parts[:-1])
 
 
-def trickles_over_records(combination, fault):
-    """True when a trickle fault hits an exchange whose response spans
-    several rx records (see TRICKLE_ACROSS_RECORDS)."""
-    if fault is None or fault.name != "trickle":
-        return False
-    session = build_session(combination["parts"], combination["split"], combination["cuts"])
-    served, first = fault.exchange, 0
-    for records, order in zip(session.records, combination["orders"]):
-        if served - first < len(order):
-            return len(records[order[served - first]]) > 1
-        first += len(order)
-    return False
-
 
 @settings(max_examples=EXAMPLES, deadline=None, derandomize=EXAMPLES_FROM_ENV is None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
@@ -400,8 +384,6 @@ def test_every_combination_serves_what_the_recording_says(tmp_path_factory, comb
     # match=request), but the oracle does not model it yet. Faults skip
     # greetings.
     assume(fault is None or not combination["greeting"])
-    # finding: trickle across rx records (explicit xfail test below).
-    assume(not trickles_over_records(combination, fault))
     if len(combination["parts"]) > 1 and fault is not None:
         # A virtual device ends with a lost device (docs/faults.md): there
         # is no second client session to serve.
@@ -457,9 +439,7 @@ def test_every_fault_kind_serves_what_the_oracle_says(tmp_path, kind, match, pro
     parts = [[Exchange(line_frame(b"A"), (line_frame(b"alpha"), line_frame(b"ALPHA"))),
               Exchange(line_frame(b"B"), (line_frame(b"beta"), line_frame(b"BETA"))),
               Exchange(line_frame(b"C"), (line_frame(b"gamma"),))]]
-    # trickle over a response of several records: a finding (below).
-    split = FRAMES_TOGETHER if kind == "trickle" else FRAME_PER_RECORD
-    run_combination(tmp_path, PROTOCOLS[profile], parts, split, [1], match,
+    run_combination(tmp_path, PROTOCOLS[profile], parts, FRAME_PER_RECORD, [1], match,
                     [[2, 0, 1] if match == "request" else [0, 1, 2]], "none", Fault(kind, 1), 7)
 
 
@@ -574,7 +554,6 @@ def test_silence_in_the_first_client_session_lasts_into_the_second(tmp_path):
                     "sequence", [[0, 1], [0, 1]], "none", Fault("silence", 1), 0)
 
 
-@pytest.mark.xfail(strict=True, reason=TRICKLE_ACROSS_RECORDS)
 @pytest.mark.parametrize("match", ["sequence", "request"])
 def test_trickle_spaces_every_byte_of_a_response_over_two_records(tmp_path, match):
     # docs/faults.md: "the rest of the response one byte at a time, MS apart".
