@@ -742,6 +742,105 @@ def escape_bytes(data: bytes, limit: int = 64) -> str:
     The bytes as one line of terminal-safe text: printable ASCII kept, a backslash doubled, \\n \\r \\t and \\xNN for every other byte (ESC included); beyond `limit` bytes, '... (+N bytes)'.
     """
 
+class Exchange:
+    """
+    One exchange of a session: a request of the client's (a run of tx records; with a profile one request frame; in a udp session one datagram) and what the device sent until the next request. Numbered from 0 per file, as replay numbers them in mismatch reports and faults=exchange:N.
+    """
+
+    @property
+    def index(self) -> int: ...
+
+    @property
+    def client_session(self) -> int | None:
+        """the client session (0-based) it began in, or None outside any"""
+
+    @property
+    def first_record(self) -> int:
+        """the index of its first record in the file (every kind counted)"""
+
+    @property
+    def end_record(self) -> int:
+        """one past the index of its last record"""
+
+    @property
+    def request_first_t_ns(self) -> int | None: ...
+
+    @property
+    def request_last_t_ns(self) -> int | None: ...
+
+    @property
+    def response_first_t_ns(self) -> int | None: ...
+
+    @property
+    def response_last_t_ns(self) -> int | None: ...
+
+    @property
+    def request_bytes(self) -> int: ...
+
+    @property
+    def response_bytes(self) -> int: ...
+
+    @property
+    def response_records(self) -> int: ...
+
+    @property
+    def request_frames(self) -> list:
+        """with a profile: its request frame (a list of one); else empty"""
+
+    @property
+    def response_frames(self) -> list:
+        """with a profile: the response frames that began in it"""
+
+    def __repr__(self) -> str: ...
+
+class ClientSession:
+    """
+    A controlling client's connection to a virtual device or proxy: from its client_connect to its client_disconnect (a read-only monitor's connect is none).
+    """
+
+    @property
+    def index(self) -> int: ...
+
+    @property
+    def first_record(self) -> int:
+        """the index of its client_connect"""
+
+    @property
+    def end_record(self) -> int:
+        """
+        one past its client_disconnect (or the last record before the next session)
+        """
+
+    @property
+    def connect_t_ns(self) -> int: ...
+
+    @property
+    def disconnect_t_ns(self) -> int | None: ...
+
+def session_exchanges(path: str, profile: str | None = None, match: str | None = None, options: str = '') -> list[Exchange]:
+    """
+    The exchanges of the session file at `path`, as a replay with profile= and match= (default sequence) numbers them (under match=request a greeting is exchange 0 of its own). `options`: the replay's keys, e.g. a declared profile's 'framing=...,echo=...' (profile and match, when given, override them). OptionError for a bad or non-replay key.
+    """
+
+class ClientSessionTracker:
+    """
+    Follows client sessions through a session's records in order, by the bridge's rule: a controlling client's client_connect while none is open begins one (a read-only monitor's, or a second client's, does not); that client's client_disconnect ends it.
+    """
+
+    def __init__(self) -> None: ...
+
+    def feed(self, kind: str, payload: bytes) -> str:
+        """
+        One record: 'began' if it begins a client session, 'ended' if it ends one, else ''.
+        """
+
+    @property
+    def open(self) -> bool:
+        """whether a client session is open"""
+
+def session_client_sessions(path: str) -> list[ClientSession]:
+    """The client sessions of the session file at `path`, in order."""
+
 class FaultKind:
     """A kind of fault (docs/faults.md)."""
 

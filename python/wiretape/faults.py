@@ -79,44 +79,37 @@ class SessionShape:
     """What a campaign needs to know of a session: its exchanges (numbered
     as replay numbers them), its served rx bytes and its length."""
 
-    exchanges: int
+    exchanges: int  # one past the last exchange with rx
     rx_bytes: int
     seconds: float
+    first_exchange: int = 0  # of the client session a replay serves (numbered per file)
 
 
-def session_shape(session: str) -> SessionShape:
-    """Counts the exchanges that hold rx as replay numbers them: an exchange
-    is the client's bytes and the device's answer up to the client's next
-    write, from 0; rx before the first write belongs to exchange 0. A proxy
-    recording counts from its first client's connection, as its replay does."""
-    reader = open_session(session)
-    records = list(reader)
-    connects = [i for i, record in enumerate(records) if record.kind == "client_connect"]
-    if connects:
-        end = connects[1] if len(connects) > 1 else len(records)
-        records = records[connects[0] + 1:end]
-    exchange = 0
-    tx_seen = rx_since_tx = False
-    last_rx_exchange: Optional[int] = None
-    rx_bytes = 0
+def session_shape(session: str, profile: Optional[str] = None, match: Optional[str] = None,
+                  options: str = "") -> SessionShape:
+    """The exchanges that hold rx as a replay with ``profile`` and ``match``
+    (and further replay keys ``options``) numbers them: counted by the one
+    segmentation in C++ (``_core.session_exchanges``). A proxy recording
+    counts its first client session, as its replay serves a client (the
+    exchanges numbered per file, from ``first_exchange``)."""
+    exchanges = _core.session_exchanges(session, profile=profile, match=match, options=options)
+    sessions = _core.session_client_sessions(session)
+    first_record, end_record = 0, None
+    if sessions:
+        # A replay serves a client the records after its connect, numbered afresh.
+        first_record, end_record = sessions[0].first_record + 1, sessions[0].end_record
+        exchanges = [exchange for exchange in exchanges if exchange.client_session == 0]
+    with_rx = [exchange for exchange in exchanges if exchange.response_bytes]
+    first = exchanges[0].index if exchanges else 0
+    end = with_rx[-1].index + 1 if with_rx else 0
+    rx_bytes = sum(exchange.response_bytes for exchange in exchanges)
     first_t = last_t = None
-    for record in records:
+    for index, record in enumerate(open_session(session)):
+        if index < first_record or (end_record is not None and index >= end_record):
+            continue
         first_t = record.t_ns if first_t is None else first_t
         last_t = record.t_ns
-        if not record.data:
-            continue
-        if record.kind == "tx":
-            if rx_since_tx and tx_seen:
-                exchange += 1
-            rx_since_tx = False
-            tx_seen = True
-        elif record.kind == "rx":
-            rx_since_tx = True
-            last_rx_exchange = exchange
-            rx_bytes += len(record.data)
-    seconds = ((last_t or 0) - (first_t or 0)) / 1e9
-    return SessionShape(0 if last_rx_exchange is None else last_rx_exchange + 1, rx_bytes,
-                        seconds)
+    return SessionShape(end, rx_bytes, ((last_t or 0) - (first_t or 0)) / 1e9, first)
 
 
 def _kind_spec(text: str) -> str:
@@ -131,15 +124,18 @@ def _kind_spec(text: str) -> str:
         raise FaultInputError(str(error)) from None
 
 
-def check_where(session: str, spec: str, shape: Optional[SessionShape] = None) -> None:
+def check_where(session: str, spec: str, shape: Optional[SessionShape] = None,
+                profile: Optional[str] = None, match: Optional[str] = None,
+                options: str = "") -> None:
     """Raises FaultInputError for a plan (KIND@WHERE[;...]) that the replay
     refuses, or whose WHERE lies past the session's end (exchange:N, rx:N,
-    t:SECONDS)."""
+    t:SECONDS), exchanges counted as a replay with ``profile``, ``match``
+    and ``options`` counts them."""
     try:
         plan = _core.parse_faults(spec)
     except _core.OptionError as error:
         raise FaultInputError(str(error)) from None
-    shape = shape or session_shape(session)
+    shape = shape or session_shape(session, profile=profile, match=match, options=options)
     for fault in plan:
         number, value = fault.number, fault.value
         if fault.where == "exchange" and number is not None and number >= shape.exchanges:
@@ -155,12 +151,14 @@ def check_where(session: str, spec: str, shape: Optional[SessionShape] = None) -
 
 
 def cases(session: str, kinds: Optional[Sequence[str]] = None, budget: Optional[int] = None,
-          seed: int = 0) -> List[FaultCase]:
+          seed: int = 0, profile: Optional[str] = None, match: Optional[str] = None,
+          options: str = "") -> List[FaultCase]:
     """The campaign's cases: every kind (``kinds``, default all) at every
-    exchange of ``session``; with ``budget``, that many of them sampled by
-    ``seed``, in the same order. Items of ``kinds`` may name a place
-    themselves (``drop@rx:100``)."""
-    shape = session_shape(session)
+    exchange of ``session`` (numbered as a replay with ``profile``, ``match``
+    and further replay keys ``options`` numbers them); with ``budget``, that
+    many of them sampled by ``seed``, in the same order. Items of ``kinds``
+    may name a place themselves (``drop@rx:100``)."""
+    shape = session_shape(session, profile=profile, match=match, options=options)
     fixed: List[FaultCase] = []
     spread: List[str] = []
     for text in (kinds or KINDS):
@@ -172,7 +170,8 @@ def cases(session: str, kinds: Optional[Sequence[str]] = None, budget: Optional[
         else:
             spread.append(_kind_spec(text))
     everything = fixed + [FaultCase(kind, f"exchange:{n}", seed)
-                          for kind in spread for n in range(shape.exchanges)]
+                          for kind in spread
+                          for n in range(shape.first_exchange, shape.exchanges)]
     if budget is not None and budget < len(everything):
         chosen = sorted(random.Random(seed).sample(range(len(everything)), budget))
         everything = [everything[i] for i in chosen]
@@ -348,7 +347,7 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
         raise FaultInputError(f"--timeout {timeout}: give a number of seconds above 0")
     if replay_options:
         _core.check_replay_options("type=replay,file=x," + replay_options)
-    selected = cases(session, kinds, budget, seed)
+    selected = cases(session, kinds, budget, seed, options=replay_options)
     with _quiet_stderr(quiet_replays) as real_stderr:
         def note(text: str) -> None:
             if progress is None:

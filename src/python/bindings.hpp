@@ -14,6 +14,7 @@ void bind_session(nanobind::module_& m);  // bind_session.cpp
 void bind_bridge(nanobind::module_& m);   // bind_bridge.cpp: proxy, serve, virtual devices
 void bind_profile(nanobind::module_& m);  // bind_profile.cpp: protocol profiles
 void bind_util(nanobind::module_& m);     // bind_util.cpp: hex_ascii, escape_bytes
+void bind_exchanges(nanobind::module_& m);  // bind_exchanges.cpp: session_exchanges
 void bind_faults(nanobind::module_& m);   // bind_faults.cpp: fault plans and kinds
 
 // Helpers shared by the bindings (bind_port.cpp).

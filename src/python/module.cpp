@@ -22,5 +22,6 @@ NB_MODULE(_core, m) {
   wiretape::python::bind_bridge(m);
   wiretape::python::bind_profile(m);
   wiretape::python::bind_util(m);
+  wiretape::python::bind_exchanges(m);
   wiretape::python::bind_faults(m);
 }

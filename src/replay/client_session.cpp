@@ -3,16 +3,46 @@
 #include <string>
 #include <utility>
 
+#include "session/record_kinds.hpp"
+#include "util/json.hpp"
+
 namespace wiretape::detail {
 
 namespace {
 
-// The bridge records a monitor's connect with role "monitor"; only the
-// controlling client's connections make sessions.
-bool is_controlling_connect(const Record& record) {
-  return record.kind == RecordKind::client_connect &&
-         record.data.find("\"monitor\"") == std::string::npos;
+// A member of an event payload, or nothing (a payload that is not JSON: an
+// old or hand-made recording, read as a controlling client's).
+std::optional<std::string> event_member(std::string_view payload, const char* key) {
+  try {
+    const json::Value value = json::parse(payload.empty() ? std::string_view("{}") : payload);
+    if (const json::Value* member = value.find(key)) return member->text;
+  } catch (const json::ParseError&) {
+  }
+  return std::nullopt;
 }
+
+}  // namespace
+
+ClientSessionTracker::Change ClientSessionTracker::feed(RecordKind kind,
+                                                        std::string_view payload) {
+  if (kind == RecordKind::client_connect) {
+    if (peer_ || event_member(payload, event_field::role) == std::optional<std::string>("monitor")) {
+      return Change::none;
+    }
+    peer_ = event_member(payload, event_field::peer).value_or(std::string());
+    return Change::began;
+  }
+  if (kind == RecordKind::client_disconnect && peer_) {
+    const std::optional<std::string> peer = event_member(payload, event_field::peer);
+    // A disconnect that names no peer is the session's (hand-made recordings).
+    if (peer && !peer_->empty() && *peer != *peer_) return Change::none;
+    peer_.reset();
+    return Change::ended;
+  }
+  return Change::none;
+}
+
+namespace {
 
 class ClientSessionSource final : public RecordSource {
  public:
@@ -29,6 +59,7 @@ class ClientSessionSource final : public RecordSource {
     inner_->rewind();
     started_ = false;
     ended_ = false;
+    tracker_ = ClientSessionTracker();
   }
   const std::optional<SessionError>& damage() const override { return inner_->damage(); }
 
@@ -39,7 +70,9 @@ class ClientSessionSource final : public RecordSource {
       Record skipped;
       while (seen < k_) {
         if (!inner_->next(skipped)) return false;
-        if (is_controlling_connect(skipped)) ++seen;
+        if (tracker_.feed(skipped.kind, skipped.data) == ClientSessionTracker::Change::began) {
+          ++seen;
+        }
       }
       started_ = true;
     }
@@ -48,7 +81,7 @@ class ClientSessionSource final : public RecordSource {
     if (!got) return false;
     // What follows the client's recorded disconnect was said to nobody, or
     // belongs to the next client's session.
-    if (record.kind == RecordKind::client_disconnect) {
+    if (tracker_.feed(record.kind, record.data) == ClientSessionTracker::Change::ended) {
       ended_ = true;
       return false;
     }
@@ -59,15 +92,20 @@ class ClientSessionSource final : public RecordSource {
   const int k_;
   bool started_ = false;
   bool ended_ = false;
+  ClientSessionTracker tracker_;
 };
 
 }  // namespace
 
 std::optional<std::uint64_t> find_client_connect(RecordSource& source, int k) {
   Record record;
+  ClientSessionTracker tracker;
   int seen = 0;
   while (source.next(record)) {
-    if (is_controlling_connect(record) && ++seen == k) return record.t_ns;
+    if (tracker.feed(record.kind, record.data) == ClientSessionTracker::Change::began &&
+        ++seen == k) {
+      return record.t_ns;
+    }
   }
   return std::nullopt;
 }

@@ -6,18 +6,35 @@
 
 #include <cstdint>
 #include <optional>
+#include <string>
+#include <string_view>
 
 #include "session/record_source.hpp"
 
 namespace wiretape::detail {
 
-// The recorded time of the `k`-th (1-based) client_connect of a controlling
-// client (monitors do not count), or nothing when the recording has fewer.
+// The bridge's rule for client sessions, read back from the recorded
+// events: a `client_connect` of a controlling client while no session is
+// open begins one (a read-only monitor's connect, role "monitor", or a
+// second client's, is none); the `client_disconnect` of that client's peer
+// ends it (a monitor's or another client's does not).
+class ClientSessionTracker {
+ public:
+  enum class Change { none, began, ended };
+  Change feed(RecordKind kind, std::string_view payload);
+  bool open() const { return peer_.has_value(); }
+
+ private:
+  std::optional<std::string> peer_;
+};
+
+// The recorded time of the `k`-th (1-based) client session's connect, or
+// nothing when the recording has fewer.
 std::optional<std::uint64_t> find_client_connect(RecordSource& source, int k);
 
 // Sources over what client session `k` is served: the records after the
-// `k`-th client_connect, up to the client_disconnect that follows it (what
-// comes after was said to nobody, or to the next client).
+// `k`-th session's client_connect, up to the client_disconnect that ends it
+// (what comes after was said to nobody, or to the next client).
 RecordSourceFactory client_session_sources(RecordSourceFactory sources, int k);
 
 }  // namespace wiretape::detail

@@ -204,25 +204,4 @@ FaultPlan parse_faults(std::string_view text, std::uint64_t seed) {
   return plan;
 }
 
-std::uint64_t ExchangeCounter::next_rx() {
-  Record record;
-  while (source_->next(record)) {
-    if (record.data.empty()) continue;
-    if (record.kind == RecordKind::tx && request_framer_) {
-      frames_.clear();
-      request_framer_->feed(record.data, frames_);
-      request_frames_ += frames_.size();
-      if (request_frames_ > 0) exchange_ = request_frames_ - 1;
-    } else if (record.kind == RecordKind::tx) {
-      if (rx_since_tx_ && tx_seen_) ++exchange_;
-      rx_since_tx_ = false;
-      tx_seen_ = true;
-    } else if (record.kind == RecordKind::rx) {
-      rx_since_tx_ = true;
-      return exchange_;
-    }
-  }
-  return exchange_;
-}
-
 }  // namespace wiretape::detail

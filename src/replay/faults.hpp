@@ -123,29 +123,4 @@ struct FaultEvent {
   std::uint64_t exchange = 0;
 };
 
-// The exchange of each rx record in recorded order (match=sequence): an
-// exchange is the client's bytes and the device's answer up to the client's
-// next write, numbered from 0 as mismatch reports number them; rx before the
-// first write (a greeting) is exchange 0.
-class ExchangeCounter {
- public:
-  // With a profile's request framer, exchanges are request frames (DESIGN.md
-  // section 13): the rx after the k-th complete request frame is exchange k-1.
-  explicit ExchangeCounter(std::unique_ptr<RecordSource> source,
-                           std::unique_ptr<Framer> request_framer = nullptr)
-      : source_(std::move(source)), request_framer_(std::move(request_framer)) {}
-  // The exchange of the next non-empty rx record.
-  std::uint64_t next_rx();
-  std::uint64_t current() const { return exchange_; }
-
- private:
-  std::unique_ptr<RecordSource> source_;
-  std::unique_ptr<Framer> request_framer_;
-  std::vector<Frame> frames_;  // reused
-  std::uint64_t request_frames_ = 0;
-  std::uint64_t exchange_ = 0;
-  bool rx_since_tx_ = false;
-  bool tx_seen_ = false;
-};
-
 }  // namespace wiretape::detail

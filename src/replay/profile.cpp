@@ -139,12 +139,32 @@ std::string differing_field_text(const Profile& profile, std::string_view expect
   return field.empty() ? std::string() : ": its field '" + field + "' differs";
 }
 
+// --- TimedFramer ----------------------------------------------------------------
+
+void TimedFramer::feed(std::uint64_t t_ns, std::string_view bytes,
+                       std::vector<TimedFrame>& out) {
+  const bool tail_began_earlier = framer_->pending() > 0;
+  scratch_.clear();
+  framer_->feed_at(t_ns, bytes, scratch_);
+  for (std::size_t i = 0; i < scratch_.size(); ++i) {
+    const bool began_earlier = i == 0 && tail_began_earlier;
+    out.push_back({std::move(scratch_[i]), began_earlier ? tail_t_ns_ : t_ns});
+  }
+  if (framer_->pending() > 0 && !(scratch_.empty() && tail_began_earlier)) tail_t_ns_ = t_ns;
+}
+
+std::optional<TimedFramer::TimedFrame> TimedFramer::finish() {
+  std::optional<Frame> tail = framer_->finish();
+  if (!tail) return std::nullopt;
+  return TimedFrame{std::move(*tail), tail_t_ns_};
+}
+
 // --- SessionDecoder -----------------------------------------------------------
 
 SessionDecoder::SessionDecoder(std::shared_ptr<const Profile> profile)
     : profile_(std::move(profile)),
-      tx_{profile_->make_framer(StreamDirection::tx)},
-      rx_{profile_->make_framer(StreamDirection::rx)} {}
+      tx_(profile_->make_framer(StreamDirection::tx)),
+      rx_(profile_->make_framer(StreamDirection::rx)) {}
 
 void SessionDecoder::feed(const Record& record, std::deque<DecodedItem>& out) {
   feed(record.t_ns, record.kind, record.data, out);
@@ -162,36 +182,28 @@ void SessionDecoder::feed(std::uint64_t t_ns, RecordKind kind, std::string_view 
   }
   const StreamDirection direction =
       kind == RecordKind::tx ? StreamDirection::tx : StreamDirection::rx;
-  Stream& stream = direction == StreamDirection::tx ? tx_ : rx_;
-  // Frames are consecutive: only the first frame this record completes can
-  // have begun in an earlier record (as the kept tail); every later one
-  // began in this record.
+  TimedFramer& stream = direction == StreamDirection::tx ? tx_ : rx_;
   // A framer that cuts by silence: the other direction speaking ends its
   // frame (a device answers a whole request).
-  Stream& other = direction == StreamDirection::tx ? rx_ : tx_;
-  if (other.framer->quiet_gap() && other.framer->pending() > 0) {
-    if (std::optional<Frame> tail = other.framer->finish()) {
+  TimedFramer& other = direction == StreamDirection::tx ? rx_ : tx_;
+  if (other.framer().quiet_gap() && other.framer().pending() > 0) {
+    if (std::optional<TimedFramer::TimedFrame> tail = other.finish()) {
       emit(direction == StreamDirection::tx ? StreamDirection::rx : StreamDirection::tx,
-           other.tail_t_ns, std::move(*tail), out);
+           tail->t_ns, std::move(tail->frame), out);
     }
   }
-  const bool tail_began_earlier = stream.framer->pending() > 0;
   frames_.clear();
-  stream.framer->feed_at(t_ns, data, frames_);
-  for (std::size_t i = 0; i < frames_.size(); ++i) {
-    const bool began_earlier = i == 0 && tail_began_earlier;
-    emit(direction, began_earlier ? stream.tail_t_ns : t_ns, std::move(frames_[i]), out);
-  }
-  if (stream.framer->pending() > 0 && !(frames_.empty() && tail_began_earlier)) {
-    stream.tail_t_ns = t_ns;
+  stream.feed(t_ns, data, frames_);
+  for (TimedFramer::TimedFrame& frame : frames_) {
+    emit(direction, frame.t_ns, std::move(frame.frame), out);
   }
 }
 
 void SessionDecoder::finish(std::deque<DecodedItem>& out) {
   for (StreamDirection direction : {StreamDirection::rx, StreamDirection::tx}) {
-    Stream& stream = direction == StreamDirection::tx ? tx_ : rx_;
-    if (std::optional<Frame> tail = stream.framer->finish()) {
-      emit(direction, stream.tail_t_ns, std::move(*tail), out);
+    TimedFramer& stream = direction == StreamDirection::tx ? tx_ : rx_;
+    if (std::optional<TimedFramer::TimedFrame> tail = stream.finish()) {
+      emit(direction, tail->t_ns, std::move(tail->frame), out);
     }
   }
 }

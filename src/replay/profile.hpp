@@ -45,6 +45,29 @@ std::optional<std::size_t> first_key_difference(const Profile& profile,
 std::string differing_field_text(const Profile& profile, std::string_view expected,
                                  std::string_view actual);
 
+// A framer that also says when each frame began: the time of the record
+// holding its first byte (only the first frame a record completes can have
+// begun in an earlier record, as the framer's kept tail).
+class TimedFramer {
+ public:
+  struct TimedFrame {
+    Frame frame;
+    std::uint64_t t_ns = 0;
+  };
+  explicit TimedFramer(std::unique_ptr<Framer> framer) : framer_(std::move(framer)) {}
+
+  // Framer::feed_at(t_ns, bytes); appends the frames it completes to `out`.
+  void feed(std::uint64_t t_ns, std::string_view bytes, std::vector<TimedFrame>& out);
+  // Framer::finish(), with its time.
+  std::optional<TimedFrame> finish();
+  const Framer& framer() const { return *framer_; }
+
+ private:
+  std::unique_ptr<Framer> framer_;
+  std::vector<Frame> scratch_;   // reused
+  std::uint64_t tail_t_ns_ = 0;  // when the kept tail's first byte came
+};
+
 // One item of a decoded session: a frame of one direction, or an event
 // record passed through where it came.
 struct DecodedItem {
@@ -72,17 +95,13 @@ class SessionDecoder {
   void finish(std::deque<DecodedItem>& out);
 
  private:
-  struct Stream {
-    std::unique_ptr<Framer> framer;
-    std::uint64_t tail_t_ns = 0;  // when the kept tail's first byte came
-  };
   void emit(StreamDirection direction, std::uint64_t t_ns, Frame frame,
             std::deque<DecodedItem>& out) const;
 
   std::shared_ptr<const Profile> profile_;
-  Stream tx_;
-  Stream rx_;
-  std::vector<Frame> frames_;  // reused between records
+  TimedFramer tx_;
+  TimedFramer rx_;
+  std::vector<TimedFramer::TimedFrame> frames_;  // reused between records
 };
 
 }  // namespace wiretape::detail

@@ -40,6 +40,10 @@ struct ReplayConfig {
   std::shared_ptr<const Profile> profile;
   // Datagram sessions (recorded from udp) keep record boundaries.
   bool datagrams = false;
+  // The number of the first exchange replayed: exchanges are numbered per
+  // file (exchanges.hpp), so a virtual device's later client session goes on
+  // from the exchanges of the sessions before it.
+  std::uint64_t first_exchange = 0;
   // Fault injection (faults.hpp): faults= parsed, with seed= for its random
   // choices; empty without faults=.
   FaultPlan faults;

@@ -39,38 +39,13 @@ ReplayEngine::ReplayEngine(ReplayConfig config, RecordSourceFactory sources,
       released_(/*recycle_payloads=*/true),
       report_(config_.file, config_.match),
       stage_(config_.faults, config_.datagrams, released_),
-      strategy_(make_strategy(config_, timeline_, released_, report_, sources)) {
-  if (stage_.injects() && config_.match == ReplayMatch::sequence) {  // TEMPORARY, see hpp
-    exchanges_ = std::make_unique<ExchangeCounter>(
-        sources(), config_.profile ? config_.profile->make_framer(StreamDirection::tx) : nullptr);
-  }
-  number_exchanges(/*by_write=*/false);  // a greeting
-}
+      strategy_(make_strategy(config_, timeline_, released_, report_, sources)) {}
 
 ReplayEngine::~ReplayEngine() = default;
 
 void ReplayEngine::prepare(ReplayTime now) {
   strategy_->release(now);
-  number_exchanges(/*by_write=*/false);
   stage_.pull(now);
-  numbered_ = released_.size();
-}
-
-// TEMPORARY (see replay_engine.hpp): deleted when the strategies number.
-void ReplayEngine::number_exchanges(bool by_write) {
-  if (!stage_.injects()) return;
-  for (std::size_t i = numbered_; i < released_.size(); ++i) {
-    RxItem& item = released_.at(i);
-    if (exchanges_) {
-      item.exchange = item.kind == RecordKind::rx ? exchanges_->next_rx() : exchanges_->current();
-      continue;
-    }
-    if (i == numbered_ && (by_write || !request_exchange_)) {
-      request_exchange_ = request_exchange_ ? *request_exchange_ + 1 : 0;
-    }
-    item.exchange = *request_exchange_;
-  }
-  numbered_ = released_.size();
 }
 
 std::size_t ReplayEngine::read(char* buffer, std::size_t size, ReplayTime now) {
@@ -165,7 +140,6 @@ void ReplayEngine::write(const char* data, std::size_t size, ReplayTime now) {
   }
   if (stage_.swallows_writes()) return;  // a device that stopped answering
   strategy_->write(data, size, now);
-  number_exchanges(/*by_write=*/true);
 }
 
 void ReplayEngine::client_event(RecordKind kind,

@@ -90,16 +90,6 @@ class ReplayEngine {
   // passes it through the fault stage.
   void prepare(ReplayTime now);
 
-  // TEMPORARY, until branch `exchanges` lands (its strategies set
-  // RxItem::exchange from the one segmentation): numbers the released
-  // records not numbered yet with today's counters (`by_write`: a write
-  // released them). The lead deletes this function, its calls and the
-  // members below at merge.
-  void number_exchanges(bool by_write);
-  std::unique_ptr<ExchangeCounter> exchanges_;      // match=sequence
-  std::optional<std::uint64_t> request_exchange_;  // match=request
-  std::size_t numbered_ = 0;  // records at the front of released_ numbered
-
   ReplayConfig config_;
   ReplayTimeline timeline_;
   ReleasedRx released_;

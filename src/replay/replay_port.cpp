@@ -13,6 +13,7 @@
 #include "posix/platform.hpp"
 #include "posix/syscalls.hpp"
 #include "replay/client_session.hpp"
+#include "replay/exchanges.hpp"
 #include "replay/replay_engine.hpp"
 #include "replay/replay_port.hpp"
 #include "session/reader.hpp"
@@ -134,9 +135,15 @@ class ReplayPort final : public Port {
   bool begin_client_session() {
     const int k = client_sessions_ + 1;
     std::optional<std::uint64_t> connect_t_ns;
+    std::uint64_t first_exchange = 0;  // exchanges are numbered per file (exchanges.hpp)
     {
       const std::unique_ptr<RecordSource> source = sources_();
       connect_t_ns = find_client_connect(*source, k);
+      if (connect_t_ns) {
+        source->rewind();
+        first_exchange = first_exchange_of_client_session(
+            *source, Segmentation{config_.profile, config_.datagrams, config_.match}, k);
+      }
     }
     std::lock_guard<std::mutex> lock(mutex_);
     if (closed_) return false;
@@ -147,7 +154,9 @@ class ReplayPort final : public Port {
     if (afresh) {
       RecordSourceFactory sources =
           connect_t_ns ? client_session_sources(sources_, k) : sources_;
-      engine_ = std::make_unique<ReplayEngine>(config_, std::move(sources), now,
+      ReplayConfig config = config_;
+      config.first_exchange = first_exchange;
+      engine_ = std::make_unique<ReplayEngine>(std::move(config), std::move(sources), now,
                                                connect_t_ns.value_or(0));
       engine_->on_fault(fault_reporter_);  // each session's fault stage reports here
     }

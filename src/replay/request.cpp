@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <sstream>
 
+#include "replay/exchanges.hpp"
 #include "replay/profile.hpp"
 #include "util/hex.hpp"
 #include "wiretape/errors.hpp"
@@ -30,6 +31,9 @@ RequestStrategy::RequestStrategy(const ReplayConfig& config,
   const std::unique_ptr<RecordSource> source = sources_();
   if (config_.profile) {
     client_framer_ = config_.profile->make_framer(StreamDirection::tx);
+    if (config_.profile->fixes_responses()) {
+      fixer_ = std::make_unique<ResponseFixer>(config_.profile);
+    }
     load_frames(*source);
   } else {
     load_exchanges(*source);
@@ -127,14 +131,17 @@ void RequestStrategy::load_exchanges(RecordSource& source) {
   std::uint64_t tx_offset = 0;
   std::uint64_t records_read = 0;
   bool device_gone = false;
+  // Where requests begin: the one segmentation (exchanges.hpp).
+  ExchangeCursor cursor(Segmentation{nullptr, config_.datagrams, ReplayMatch::request});
   while (!device_gone && source.next(record, view)) {
     const std::uint64_t ordinal = records_read++;
     const std::string_view payload = view ? view.bytes : std::string_view(record.data);
+    cursor.feed(record.kind, record.t_ns, payload);
     switch (record.kind) {
       case RecordKind::tx: {
         if (payload.empty()) break;
-        if (in_request && config_.datagrams) close_request();
-        if (!in_request) {
+        if (cursor.began()) {
+          if (in_request) close_request();
           exchanges_.emplace_back();
           exchanges_.back().first_tx_t_ns = record.t_ns;
           exchanges_.back().tx_offset = tx_offset;
@@ -184,7 +191,9 @@ void RequestStrategy::add_response(RecordKind kind, std::uint64_t t_ns,
   item.kind = kind;
   item.t_ns = t_ns;
   if (exchanges_.empty()) {
-    // A greeting: released at open.
+    // A greeting: released at open, the first exchange.
+    greeting_ = true;
+    item.exchange = config_.first_exchange;
     item.data.assign(payload);
     item.due = timeline_.due(item.t_ns, std::nullopt);
     released_.push(std::move(item));
@@ -220,58 +229,53 @@ void RequestStrategy::add_response(RecordKind kind, std::uint64_t t_ns,
 
 void RequestStrategy::load_frames(RecordSource& source) {
   const Profile& profile = *config_.profile;
-  const std::unique_ptr<Framer> framer = profile.make_framer(StreamDirection::tx);
-  std::vector<Frame> frames;
   Record record;
   PayloadView view;
   std::uint64_t tx_offset = 0;  // of the frame being gathered
-  std::uint64_t first_t_ns = 0;
   std::uint64_t records_read = 0;
-  const auto add_frame = [&](const Frame& frame, std::uint64_t t_ns) {
+  // first_t_ns: of the record holding the frame's first byte; last_t_ns: of
+  // the one completing it.
+  const auto add_frame = [&](const Frame& frame, std::uint64_t first_t_ns,
+                             std::uint64_t last_t_ns) {
     if (frame.end == FrameEnd::broken || frame.end == FrameEnd::size_limit) {
       throw OptionError(
           "profile", "profile '" + std::string(profile.name()) + "' cannot frame " +
                          config_.file + ": the request frame at tx byte offset " +
                          std::to_string(tx_offset) + " (session time " +
-                         session_seconds(t_ns) + " s) is broken" +
+                         session_seconds(last_t_ns) + " s) is broken" +
                          (frame.problem.empty() ? std::string() : ": " + frame.problem) +
                          "; is this the protocol's recording?");
     }
     exchanges_.emplace_back();
     Exchange& exchange = exchanges_.back();
     exchange.first_tx_t_ns = first_t_ns;
-    exchange.last_tx_t_ns = t_ns;
+    exchange.last_tx_t_ns = last_t_ns;
     exchange.tx_offset = tx_offset;
     exchange.raw_offset = raw_requests_.size();
     exchange.raw_size = static_cast<std::uint32_t>(frame.bytes.size());
     raw_requests_.append(frame.bytes);
     tx_offset += frame.bytes.size();
-    first_t_ns = t_ns;
     join_group(group_for(profile.match_key(frame.bytes)));
   };
+  // Request frames: the one segmentation (exchanges.hpp) frames them.
+  ExchangeCursor cursor(Segmentation{config_.profile, config_.datagrams, ReplayMatch::request});
   std::uint64_t last_tx_t_ns = 0;
   bool device_gone = false;
   while (!device_gone && source.next(record, view)) {
     const std::uint64_t ordinal = records_read++;
     const std::string_view payload = view ? view.bytes : std::string_view(record.data);
-    if (record.kind == RecordKind::tx) {
-      if (payload.empty()) continue;
-      if (framer->pending() == 0) first_t_ns = record.t_ns;
-      frames.clear();
-      framer->feed_at(record.t_ns, payload, frames);
-      for (const Frame& frame : frames) add_frame(frame, record.t_ns);
-      last_tx_t_ns = record.t_ns;
-      continue;
+    cursor.feed(record.kind, record.t_ns, payload);
+    // A frame a tx record completes ends there; one the device's speaking
+    // ended (framed by silence), at the last tx.
+    if (record.kind == RecordKind::tx && !payload.empty()) last_tx_t_ns = record.t_ns;
+    for (const TimedFramer::TimedFrame& timed : cursor.frames_completed()) {
+      add_frame(timed.frame, timed.t_ns, last_tx_t_ns);
     }
     if (record.kind != RecordKind::rx && record.kind != RecordKind::close &&
         record.kind != RecordKind::device_lost) {
       continue;
     }
     if (record.kind == RecordKind::rx && payload.empty()) continue;
-    // Framed by silence: the device speaking ends the request.
-    if (framer->quiet_gap() && framer->pending() > 0) {
-      if (std::optional<Frame> tail = framer->finish()) add_frame(*tail, last_tx_t_ns);
-    }
     device_gone = record.kind != RecordKind::rx;
     if (record.kind == RecordKind::close && !session_goes_on(source)) break;
     add_response(record.kind, record.t_ns, payload, ordinal);
@@ -396,7 +400,7 @@ void RequestStrategy::push_response(const RxItem& response,
                                     const ReplayTimeline::Anchor& matched) {
   RxItem item = response;
   item.due = timeline_.due(item.t_ns, matched);
-  released_.push(std::move(item));
+  push_served(std::move(item));
 }
 
 void RequestStrategy::read_from_session(const Exchange& exchange,
@@ -421,22 +425,22 @@ void RequestStrategy::read_from_session(const Exchange& exchange,
     }
     if (item.payload().empty()) continue;
     item.due = timeline_.due(item.t_ns, matched);
-    released_.push(std::move(item));
+    push_served(std::move(item));
   }
 }
 
-void RequestStrategy::push_fixed(RxItem&& item, const Exchange& exchange) {
-  if (config_.profile && config_.profile->fixes_responses() && item.kind == RecordKind::rx) {
-    item.data = config_.profile->fix_response(raw_request(exchange), actual_frame_,
-                                              item.payload());
-    item.view = PayloadView{};
+void RequestStrategy::push_served(RxItem&& item) {
+  item.exchange = serving_exchange_;
+  if (!fixer_) {
+    released_.push(std::move(item));
+    return;
   }
-  released_.push(std::move(item));
+  fixer_->push(std::move(item), matches_);
+  while (fixer_->ready()) released_.push(fixer_->take());
 }
 
 void RequestStrategy::serve(std::uint32_t group_index, std::string_view request,
                             std::string_view actual_frame) {
-  actual_frame_.assign(actual_frame);
   Group& group = groups_[group_index];
   std::uint32_t index = 0;
   if (group.next_unused != kNone) {
@@ -462,11 +466,12 @@ void RequestStrategy::serve(std::uint32_t group_index, std::string_view request,
   }
   if (!exchange.used && exchange.has_response) --unused_with_response_;
   exchange.used = true;
-  ++exchanges_served_;
+  serving_exchange_ = config_.first_exchange + exchanges_served_++ + (greeting_ ? 1 : 0);
   last_match_time_ = now;
   last_match_t_ns_ = exchange.last_tx_t_ns;
   // Causal timing counts each response from this match.
   const ReplayTimeline::Anchor matched{now, exchange.last_tx_t_ns};
+  if (fixer_) fixer_->request(++matches_, raw_request(exchange), actual_frame);
   if (exchange.in_session) {
     read_from_session(exchange, matched);
   } else {
@@ -477,10 +482,15 @@ void RequestStrategy::serve(std::uint32_t group_index, std::string_view request,
       item.data = released_.spare_payload();
       item.data.assign(kept_bytes_, kept.offset, kept.size);
       item.due = timeline_.due(item.t_ns, matched);
-      push_fixed(std::move(item), exchange);
+      push_served(std::move(item));
     }
   }
   if (end_ && end_exchange_ == index) push_response(*end_, matched);
+  if (fixer_) {
+    // The whole response is known: its incomplete frame is served now.
+    fixer_->end_response();
+    while (fixer_->ready()) released_.push(fixer_->take());
+  }
 }
 
 void RequestStrategy::match_pending(bool quiet, bool may_raise) {
@@ -542,7 +552,7 @@ void RequestStrategy::raise_unmatched() {
   const std::uint64_t t_ns =
       ranked.empty() ? last_match_t_ns_
                      : exchanges_[ranked.front().second].first_tx_t_ns;
-  const std::int64_t exchange_number =
+  const std::int64_t reported_exchange =
       ranked.empty() ? -1 : static_cast<std::int64_t>(ranked.front().second);
   // The unmatched bytes are dropped, so that the client can go on.
   pending_offset_ += pending_.size();
@@ -550,7 +560,7 @@ void RequestStrategy::raise_unmatched() {
   report_.raise("the client wrote a request that matches no unused exchange",
                 offset, expected.substr(same, kReplayContext),
                 std::string_view(actual).substr(same, kReplayContext), t_ns,
-                exchange_number, extra.str());
+                reported_exchange, extra.str());
 }
 
 void RequestStrategy::write_frames(const char* data, std::size_t size) {
@@ -637,13 +647,13 @@ void RequestStrategy::raise_unmatched_frame(const Frame& frame, const std::strin
   pending_offset_ += frame.bytes.size();
   const std::uint64_t t_ns =
       ranked.empty() ? last_match_t_ns_ : exchanges_[ranked.front().second].first_tx_t_ns;
-  const std::int64_t exchange_number =
+  const std::int64_t reported_exchange =
       ranked.empty() ? -1 : static_cast<std::int64_t>(ranked.front().second);
   const std::string_view actual(frame.bytes);
   report_.raise(title.str(), offset,
                 expected.substr(std::min(same, expected.size()), kReplayContext),
                 actual.substr(std::min(same, actual.size()), kReplayContext), t_ns,
-                exchange_number, extra.str());
+                reported_exchange, extra.str());
 }
 
 void RequestStrategy::write(const char* data, std::size_t size, ReplayTime now) {

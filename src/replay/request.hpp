@@ -20,6 +20,7 @@
 #include <string_view>
 #include <vector>
 
+#include "replay/response_fixer.hpp"
 #include "replay/strategy.hpp"
 
 namespace wiretape::detail {
@@ -132,7 +133,8 @@ class RequestStrategy final : public ReplayStrategy {
   std::string_view raw_request(const Exchange& exchange) const {
     return std::string_view(raw_requests_).substr(exchange.raw_offset, exchange.raw_size);
   }
-  void push_fixed(RxItem&& item, const Exchange& exchange);
+  // Releases a served response's record, through the fixer if there is one.
+  void push_served(RxItem&& item);
   void index_requests();
   std::optional<Rank> rank(const Group& group) const;
   // The best group whose request the pending bytes begin with (datagrams:
@@ -172,7 +174,9 @@ class RequestStrategy final : public ReplayStrategy {
   std::string raw_requests_;  // with a profile
   std::unique_ptr<Framer> client_framer_;
   std::vector<Frame> client_frames_;
-  std::string actual_frame_;  // being served, for fixes
+  // With a profile that fixes responses.
+  std::unique_ptr<ResponseFixer> fixer_;
+  std::uint64_t matches_ = 0;  // orders requests and responses for fixer_
   std::optional<Frame> deferred_unmatched_;  // see take_frames()
   std::string kept_bytes_;
   std::vector<KeptRx> kept_;
@@ -191,6 +195,11 @@ class RequestStrategy final : public ReplayStrategy {
   std::uint64_t pending_offset_ = 0;
   std::uint64_t tx_written_ = 0;  // bytes the client wrote
   std::size_t exchanges_served_ = 0;
+  // The served exchange's number for RxItem::exchange (exchanges.hpp with
+  // match=request): matches in served order, after a greeting's exchange 0.
+  // (Mismatch reports name recorded exchanges by their recorded index.)
+  bool greeting_ = false;
+  std::uint64_t serving_exchange_ = 0;
   ReplayTime last_write_{};
   bool waiting_for_longer_ = false;
   std::optional<ReplayTime> last_match_time_;

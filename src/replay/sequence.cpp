@@ -16,8 +16,15 @@ SequenceStrategy::SequenceStrategy(const ReplayConfig& config,
       released_(released),
       report_(report),
       rx_source_(sources()),
+      rx_exchanges_(Segmentation{config.profile, config.datagrams, ReplayMatch::sequence,
+                                 config.first_exchange}),
       tx_source_(sources()),
+      tx_exchanges_(Segmentation{config.profile, config.datagrams, ReplayMatch::sequence,
+                                 config.first_exchange}),
       frame_source_(config.profile ? sources() : nullptr) {
+  if (config.profile && config.profile->fixes_responses()) {
+    fixer_ = std::make_unique<ResponseFixer>(config.profile);
+  }
   fill();
   entitle();
 }
@@ -38,7 +45,7 @@ void SequenceStrategy::client_flushed() {
 }
 
 bool SequenceStrategy::more_to_release() const {
-  return !ahead_.empty() || !rx_exhausted_;
+  return !ahead_.empty() || !rx_exhausted_ || (fixer_ && fixer_->holding());
 }
 
 void SequenceStrategy::fill() {
@@ -52,6 +59,9 @@ void SequenceStrategy::fill() {
       break;
     }
     const std::size_t size = view ? view.bytes.size() : record.data.size();
+    const std::uint64_t exchange =
+        rx_exchanges_.feed(record.kind, record.t_ns,
+                           view ? view.bytes : std::string_view(record.data));
     switch (record.kind) {
       case RecordKind::tx:
         if (size == 0) break;
@@ -73,6 +83,7 @@ void SequenceStrategy::fill() {
         Ahead ahead;
         ahead.item.kind = record.kind;
         ahead.item.t_ns = record.t_ns;
+        ahead.item.exchange = exchange;
         ahead.tx_before = rx_tx_seen_;
         ahead.anchor_t_ns = rx_last_tx_t_ns_;
         ahead.flushes_before = rx_flushes_seen_;
@@ -103,7 +114,10 @@ std::optional<ReplayTime> SequenceStrategy::finish_of(std::uint64_t tx_offset) c
 }
 
 void SequenceStrategy::entitle() {
-  while (!ahead_.empty()) {
+  while (true) {
+    // A response frame the fixer holds may go on in the next record.
+    if (ahead_.empty() && fixer_ && fixer_->holding() && !rx_exhausted_) fill();
+    if (ahead_.empty()) break;
     Ahead& ahead = ahead_.front();
     // timing=session: time alone decides, writes do not gate.
     // A client flush recorded before it (pyserial's, gpsd's on open) would
@@ -120,9 +134,14 @@ void SequenceStrategy::entitle() {
     }
     ahead.item.due = timeline_.due(ahead.item.t_ns, anchor);
     ahead_bytes_ -= ahead.item.payload().size();
-    fix_response(ahead.item, ahead.tx_before);
-    released_.push(std::move(ahead.item));
+    release_item(std::move(ahead.item), ahead.tx_before);
     ahead_.pop_front();
+  }
+  // The response ends where the client must act before more is released
+  // (or the recording ends): nothing is held back across that.
+  if (fixer_ && fixer_->holding() && (!ahead_.empty() || rx_exhausted_)) {
+    fixer_->end_response();
+    release_fixed();
   }
   // Finish times the read cursor will never ask for again.
   const std::uint64_t still_needed =
@@ -132,16 +151,19 @@ void SequenceStrategy::entitle() {
   }
 }
 
-void SequenceStrategy::fix_response(RxItem& item, std::uint64_t tx_before) {
-  if (written_frames_.empty() || item.kind != RecordKind::rx) return;
-  // The response follows the last frame the client finished before it.
-  while (written_frames_.size() > 1 && written_frames_[1].end_offset <= tx_before) {
-    written_frames_.pop_front();
+void SequenceStrategy::release_item(RxItem&& item, std::uint64_t tx_before) {
+  if (!fixer_) {
+    released_.push(std::move(item));
+    return;
   }
-  const WrittenFrame& frame = written_frames_.front();
-  if (frame.end_offset > tx_before) return;
-  item.data = config_.profile->fix_response(frame.recorded, frame.actual, item.payload());
-  item.view = PayloadView{};
+  // Rx after another request of the client's is another response.
+  if (fixer_->holding() && fixer_->held_after() != tx_before) fixer_->end_response();
+  fixer_->push(std::move(item), tx_before);
+  release_fixed();
+}
+
+void SequenceStrategy::release_fixed() {
+  while (fixer_->ready()) released_.push(fixer_->take());
 }
 
 // --- the write cursor ------------------------------------------------------------
@@ -153,13 +175,11 @@ bool SequenceStrategy::next_tx_record() {
       tx_exhausted_ = true;
       break;
     }
+    const std::uint64_t exchange = tx_exchanges_.feed(record);
     switch (record.kind) {
       case RecordKind::tx:
         if (record.data.empty()) break;
-        if (tx_after_rx_) {
-          ++tx_exchange_;
-          tx_after_rx_ = false;
-        }
+        tx_exchange_ = static_cast<std::int64_t>(exchange);
         tx_record_ = std::move(record);
         tx_position_ = 0;
         have_tx_record_ = true;
@@ -167,7 +187,6 @@ bool SequenceStrategy::next_tx_record() {
         std::swap(tx_wildcards_, pending_wildcards_);
         break;
       case RecordKind::rx:
-        if (!record.data.empty()) tx_after_rx_ = true;
         pending_wildcards_.clear();  // the redaction was of this rx record
         break;
       case RecordKind::redaction:
@@ -192,23 +211,28 @@ bool SequenceStrategy::next_tx_record() {
   return have_tx_record_;
 }
 
-std::optional<Frame> SequenceStrategy::next_recorded_frame() {
+std::optional<SequenceStrategy::RecordedFrame> SequenceStrategy::next_recorded_frame() {
   Record record;
+  const auto add = [&](TimedFramer::TimedFrame&& timed) {
+    recorded_frames_.push_back({std::move(timed.frame), timed.t_ns,
+                                static_cast<std::int64_t>(config_.first_exchange) +
+                                    recorded_frames_seen_++});
+  };
   while (recorded_frames_.empty() && !frame_source_done_) {
     if (!frame_source_->next(record)) {
       frame_source_done_ = true;
-      if (std::optional<Frame> tail = recorded_framer_->finish()) {
-        recorded_frames_.push_back(std::move(*tail));
+      if (std::optional<TimedFramer::TimedFrame> tail = recorded_framer_->finish()) {
+        add(std::move(*tail));
       }
       break;
     }
     if (record.kind != RecordKind::tx || record.data.empty()) continue;
     scratch_frames_.clear();
-    recorded_framer_->feed(record.data, scratch_frames_);
-    for (Frame& frame : scratch_frames_) recorded_frames_.push_back(std::move(frame));
+    recorded_framer_->feed(record.t_ns, record.data, scratch_frames_);
+    for (TimedFramer::TimedFrame& timed : scratch_frames_) add(std::move(timed));
   }
   if (recorded_frames_.empty()) return std::nullopt;
-  Frame frame = std::move(recorded_frames_.front());
+  RecordedFrame frame = std::move(recorded_frames_.front());
   recorded_frames_.pop_front();
   return frame;
 }
@@ -217,16 +241,17 @@ void SequenceStrategy::write_frames(const char* data, std::size_t size, ReplayTi
   const Profile& profile = *config_.profile;
   if (!client_framer_) {
     client_framer_ = profile.make_framer(StreamDirection::tx);
-    recorded_framer_ = profile.make_framer(StreamDirection::tx);
+    recorded_framer_ = std::make_unique<TimedFramer>(profile.make_framer(StreamDirection::tx));
   }
   std::vector<Frame> frames;
   client_framer_->feed(std::string_view(data, size), frames);
   for (const Frame& frame : frames) {
-    const std::optional<Frame> recorded = next_recorded_frame();
-    if (!recorded) {
+    const std::optional<RecordedFrame> recorded_frame = next_recorded_frame();
+    if (!recorded_frame) {
       write_records(frame.bytes.data(), frame.bytes.size(), now);  // raises: past the end
       continue;
     }
+    const Frame* recorded = &recorded_frame->frame;
     if (recorded->end == FrameEnd::broken || recorded->end == FrameEnd::size_limit) {
       report_.raise("the recording's " + std::string(profile.name()) +
                         " frame at this point is broken" +
@@ -234,7 +259,7 @@ void SequenceStrategy::write_frames(const char* data, std::size_t size, ReplayTi
                         ": the profile cannot frame this recording",
                     tx_written_, std::string_view(recorded->bytes).substr(0, kReplayContext),
                     std::string_view(frame.bytes).substr(0, kReplayContext),
-                    previous_tx_t_ns_, tx_exchange_);
+                    recorded_frame->t_ns, recorded_frame->exchange);
     }
     if (frame.end != FrameEnd::delimited ||
         profile.match_key(frame.bytes) != profile.match_key(recorded->bytes)) {
@@ -253,14 +278,12 @@ void SequenceStrategy::write_frames(const char* data, std::size_t size, ReplayTi
       report_.raise(title, tx_written_ + at,
                     std::string_view(recorded->bytes).substr(std::min(at, recorded->bytes.size()), kReplayContext),
                     std::string_view(frame.bytes).substr(std::min(at, frame.bytes.size()), kReplayContext),
-                    previous_tx_t_ns_, tx_exchange_);
+                    recorded_frame->t_ns, recorded_frame->exchange);
     }
     // The recorded frame's bytes stand for the client's: its counters may
     // differ, and the recording's byte counts decide what is released.
     write_records(recorded->bytes.data(), recorded->bytes.size(), now);
-    if (profile.fixes_responses()) {
-      written_frames_.push_back({tx_written_, recorded->bytes, frame.bytes});
-    }
+    if (fixer_) fixer_->request(tx_written_, recorded->bytes, frame.bytes);
   }
 }
 
@@ -459,6 +482,10 @@ std::string SequenceStrategy::unused_report(std::uint64_t queued_rx_bytes,
                                             std::uint64_t queued_rx_records) {
   std::uint64_t rx_bytes = queued_rx_bytes;
   std::uint64_t rx_records = queued_rx_records;
+  if (fixer_) {  // held back for the rest of a response frame
+    rx_bytes += fixer_->held_rx_bytes();
+    rx_records += fixer_->held_rx_records();
+  }
   for (const Ahead& ahead : ahead_) {
     if (ahead.item.kind != RecordKind::rx) continue;
     rx_bytes += ahead.item.payload().size();

@@ -13,7 +13,9 @@
 #include <optional>
 #include <string>
 
+#include "replay/exchanges.hpp"
 #include "replay/profile.hpp"
+#include "replay/response_fixer.hpp"
 #include "replay/strategy.hpp"
 
 namespace wiretape::detail {
@@ -52,7 +54,15 @@ class SequenceStrategy final : public ReplayStrategy {
   // With a profile (check=data or timing): the client's frames, compared by
   // key with the recorded ones, stand for the recorded frames' bytes.
   void write_frames(const char* data, std::size_t size, ReplayTime now);
-  std::optional<Frame> next_recorded_frame();
+  // A recorded request frame and where it is: the time of the record
+  // holding its first byte, and its exchange (its index: with a profile an
+  // exchange is one request frame, DESIGN.md section 13).
+  struct RecordedFrame {
+    Frame frame;
+    std::uint64_t t_ns = 0;
+    std::int64_t exchange = 0;
+  };
+  std::optional<RecordedFrame> next_recorded_frame();
   void fill();
   void entitle();
   std::optional<ReplayTime> finish_of(std::uint64_t tx_offset) const;
@@ -73,6 +83,7 @@ class SequenceStrategy final : public ReplayStrategy {
   std::uint64_t rx_tx_seen_ = 0;
   std::optional<std::uint64_t> rx_last_tx_t_ns_;
   std::uint64_t rx_flushes_seen_ = 0;
+  ExchangeCursor rx_exchanges_;  // numbers what the read cursor reads
   std::uint64_t client_flushes_ = 0;  // the client made
   std::deque<Ahead> ahead_;
   std::size_t ahead_bytes_ = 0;
@@ -88,8 +99,8 @@ class SequenceStrategy final : public ReplayStrategy {
   bool tx_hit_close_ = false;
   std::uint64_t tx_close_t_ns_ = 0;
   std::size_t tx_position_ = 0;
-  std::int64_t tx_exchange_ = -1;
-  bool tx_after_rx_ = true;
+  ExchangeCursor tx_exchanges_;  // numbers what the write cursor reads
+  std::int64_t tx_exchange_ = -1;  // of tx_record_; -1 before the first
   std::deque<Record> expected_events_;  // recorded before the next tx record
   std::optional<ReplayTime> previous_tx_finished_;
   std::uint64_t previous_tx_t_ns_ = 0;
@@ -99,20 +110,16 @@ class SequenceStrategy final : public ReplayStrategy {
   // With a profile: the recorded tx stream framed (its own cursor), and the
   // client's.
   std::unique_ptr<RecordSource> frame_source_;
-  std::unique_ptr<Framer> recorded_framer_;
+  std::unique_ptr<TimedFramer> recorded_framer_;
   std::unique_ptr<Framer> client_framer_;
-  std::deque<Frame> recorded_frames_;
-  std::vector<Frame> scratch_frames_;
+  std::deque<RecordedFrame> recorded_frames_;
+  std::int64_t recorded_frames_seen_ = 0;
+  std::vector<TimedFramer::TimedFrame> scratch_frames_;
   bool frame_source_done_ = false;
-  // Frames the client wrote, while responses after them may still be
-  // released: for the profile's response fixes.
-  struct WrittenFrame {
-    std::uint64_t end_offset;  // recorded tx bytes up to its end
-    std::string recorded;
-    std::string actual;
-  };
-  std::deque<WrittenFrame> written_frames_;
-  void fix_response(RxItem& item, std::uint64_t tx_before);
+  // With a profile that fixes responses: entitled rx passes through it.
+  std::unique_ptr<ResponseFixer> fixer_;
+  void release_item(RxItem&& item, std::uint64_t tx_before);
+  void release_fixed();
 };
 
 }  // namespace wiretape::detail

@@ -56,8 +56,6 @@ class ReleasedRx {
   // Payload bytes of the queued records (read or not).
   std::size_t bytes() const { return bytes_; }
   RxItem& front() { return items_.front(); }
-  // TEMPORARY: for ReplayEngine::number_exchanges, deleted with it.
-  RxItem& at(std::size_t index) { return items_[index]; }
   const std::deque<RxItem>& items() const { return items_; }
 
   void push(RxItem&& item);

@@ -160,7 +160,8 @@ def _check_fault_places(args) -> None:
     if not specs:
         return
     try:
-        check_where(args.file, specs)
+        # Exchanges counted as this replay counts them (--profile, --match, --options).
+        check_where(args.file, specs, options=replay_options_of(args))
     except FaultInputError as error:
         raise UsageError(str(error)) from None
 

@@ -21,6 +21,7 @@ import json
 import struct
 from typing import Any, Dict, Iterator, List, Optional, Tuple
 
+from .. import _core
 from .._core import OptionError
 from ..options import default_of, option_values
 
@@ -146,6 +147,9 @@ class NetworkSession:
         self.device = device
         self.client = parse_endpoint(None, PLACEHOLDER_CLIENT)
         self._connection: Optional[_TcpConnection] = None
+        # Client sessions by the bridge's rule, kept in C++: a monitor's
+        # connect or disconnect is no connection of the client's.
+        self._sessions = _core.ClientSessionTracker()
 
     @classmethod
     def of_header(cls, header: Dict[str, Any]) -> Optional["NetworkSession"]:
@@ -173,7 +177,8 @@ class NetworkSession:
     def packets(self, kind: str, data: bytes) -> Iterator[Tuple[bool, bytes]]:
         """(to the device?, IP packet) for one record; nothing for events
         that are not about the connection."""
-        if kind == "client_connect":
+        change = self._sessions.feed(kind, data) if kind.startswith("client_") else ""
+        if change == "began":
             peer = _peer(data)
             if peer is not None:
                 self.client = parse_endpoint(peer, PLACEHOLDER_CLIENT)
@@ -182,7 +187,7 @@ class NetworkSession:
                     yield from self._connection.close()
                 self._connection = _TcpConnection(self.client, self.device)
                 yield from self._connection.open()
-        elif kind == "client_disconnect" and self._connection is not None:
+        elif change == "ended" and self._connection is not None:
             yield from self._connection.close()
             self._connection = None
         elif kind in ("rx", "tx"):

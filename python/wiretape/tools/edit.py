@@ -235,19 +235,13 @@ def _merged(marks: List[Tuple[int, int]]) -> List[Tuple[int, int]]:
 
 
 def _exchange_starts(path: str) -> List[int]:
-    """The time of each exchange's first tx byte: an exchange is the
-    client's bytes and the device's answer up to the next write after it."""
+    """The time each exchange begins (its first tx byte; for one with no
+    request, its first rx), exchanges as replay numbers them
+    (``_core.session_exchanges``)."""
     starts: List[int] = []
-    answered = True
-    reader = open_session(path)
-    for record in reader:
-        if record.kind == "tx" and record.data:
-            if answered:
-                starts.append(record.t_ns)
-            answered = False
-        elif record.kind == "rx" and record.data:
-            answered = True
-    raise_damage(reader)
+    for exchange in _core.session_exchanges(path):
+        first = exchange.request_first_t_ns
+        starts.append(first if first is not None else exchange.response_first_t_ns)
     return starts
 
 
@@ -287,6 +281,9 @@ class _Cutter:
         self.first_write = 0  # when the client first wrote: where the cut part resumes
         self.state: Dict[str, Tuple[str, int, bytes]] = {}
         self.client: Optional[Tuple[str, int, bytes]] = None
+        # Client sessions by the bridge's rule (C++): a monitor's connect or
+        # disconnect does not change the client in force.
+        self.sessions = _core.ClientSessionTracker()
         self.shift = 0
         self.started = start is None or start == 0
         self.closing: Optional[Tuple[str, int, bytes]] = None
@@ -315,10 +312,12 @@ class _Cutter:
             if kind == "modem_lines":
                 key += ":" + ",".join(sorted((event_payload(data) or {}).keys()))
             self.state[key] = (kind, t_ns, data)
-        elif kind == "client_connect":
-            self.client = (kind, t_ns, data)
-        elif kind == "client_disconnect":
-            self.client = None
+        elif kind in ("client_connect", "client_disconnect"):
+            change = self.sessions.feed(kind, data)
+            if change == "began":
+                self.client = (kind, t_ns, data)
+            elif change == "ended":
+                self.client = None
 
     def _begin(self, t_ns: int) -> None:
         self.started = True

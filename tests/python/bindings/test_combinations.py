@@ -6,9 +6,10 @@ client_connect between), and how the client splits its writes, a greeting, a
 monitor; against the oracle of support/session_oracle.py, which computes
 what must be served from the recording alone.
 
-Known defects (issue 22) and findings of this test are explicit tests
-marked xfail(strict=True) with the reason, at the end of the file; the
-property tests skip exactly those combinations with assume().
+The defects issue 22 lists are explicit tests at the end of the file;
+findings of this test not fixed yet are explicit tests marked
+xfail(strict=True) with the reason, and the property tests skip exactly
+those combinations with assume().
 
 One client session is a `type=replay` port opened by the test; two are a
 virtual device (`bridge.serve_replay(listen=...)`) that the test connects to
@@ -55,7 +56,6 @@ from session_oracle import (
     expect,
     line_frame,
     modbus_frame,
-    records_align_with_frames,
     recorded_tx_times,
     write_session,
 )
@@ -65,14 +65,8 @@ QUIET = 0.3  # seconds: how long "nothing more comes" is watched for
 EXAMPLES_FROM_ENV = os.environ.get("WIRETAPE_COMBINATION_EXAMPLES")
 EXAMPLES = int(EXAMPLES_FROM_ENV or "60")
 
-KNOWN_PER_RECORD_FIXES = "issue 22: response fixes per record"
-PER_SESSION_NUMBERING = ("finding: a virtual device numbers exchanges per client session (each "
-                         "client's engine starts at 0, and silence ends with the session), not per "
-                         "file across client sessions as DESIGN §17 says")
-MONITOR_LEAVING = ("finding: a monitor's client_disconnect ends the controlling client's "
-                   "replayed session (client_session.cpp stops at any client_disconnect)")
-KNOWN_MISMATCH_LOCATION = ("issue 22: in match=sequence with a profile a mismatch report "
-                           "names the previous frame's time and exchange")
+SILENCE_ENDS_WITH_THE_SESSION = ("finding: silence ends with the client session (each client's "
+                                 "engine starts afresh), though the device stopped answering")
 
 
 # --- strategies ---------------------------------------------------------------------------
@@ -368,32 +362,12 @@ def run_combination(tmp_path, protocol, parts, split, cuts, match, orders, timin
     assert result.ok, f"{result}\n{describe()}"
 
 
-def known_defect(protocol, parts, split, cuts):
-    """The combinations issue 22 lists as defects being fixed (branch
-    `exchanges`): a response fix applied per rx record instead of per frame
-    serves wrong bytes when records do not hold exactly one frame each."""
-    if not protocol.echo or split == FRAME_PER_RECORD:
+def silence_outlasts_its_session(parts, fault):
+    """True when a silence fault fires in a client session that another
+    follows (see SILENCE_ENDS_WITH_THE_SESSION)."""
+    if fault is None or fault.name != "silence" or len(parts) == 1:
         return False
-    session = build_session(parts, split, cuts)
-    return not all(records_align_with_frames(e, r)
-                   for e, r in zip(session.exchanges, session.response_records))
-
-
-def numbered_per_session_differs(parts, fault):
-    """True when a fault would hit other exchanges if exchanges were counted
-    per client session instead of per file (what main does today, see
-    PER_SESSION_NUMBERING), or when silence would end with its session."""
-    if fault is None or len(parts) == 1:
-        return False
-    per_file, per_session, first = set(), set(), 0
-    for number, part in enumerate(parts):
-        if 0 <= fault.exchange - first < len(part):
-            per_file.add((number, fault.exchange - first))
-        if fault.exchange < len(part):
-            per_session.add((number, fault.exchange))
-        first += len(part)
-    lasting = fault.name == "silence" and any(n < len(parts) - 1 for n, _ in per_file)
-    return per_file != per_session or lasting
+    return fault.exchange < sum(len(part) for part in parts[:-1])
 
 
 
@@ -401,19 +375,15 @@ def numbered_per_session_differs(parts, fault):
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(combination=combinations())
 def test_every_combination_serves_what_the_recording_says(tmp_path_factory, combination):
-    # issue 22: response fixes per record (explicit xfail tests below).
-    assume(not known_defect(combination["protocol"], combination["parts"],
-                            combination["split"], combination["cuts"]))
     fault = combination["fault"]
-    # finding: exchanges numbered per client session (explicit xfail tests below).
-    assume(not numbered_per_session_differs(combination["parts"], fault))
-    # Which exchange a greeting belongs to is not decided yet: docs/faults.md
-    # gives three rules (exchange 0 with the first answer; no exchange with a
-    # profile in match=sequence; exchange 0 of its own in match=request),
-    # which DESIGN §17's one segmentation replaces. Faults skip greetings.
+    # finding: silence ends with its client session (explicit xfail test below).
+    assume(not silence_outlasts_its_session(combination["parts"], fault))
+    # A greeting's exchange is decided by the one segmentation
+    # (src/replay/exchanges.hpp: exchange 0 with the first answer in
+    # match=sequence, with or without a profile; exchange 0 of its own in
+    # match=request), but the oracle does not model it yet. Faults skip
+    # greetings.
     assume(fault is None or not combination["greeting"])
-    # finding: a monitor leaving ends the session (explicit xfail test below).
-    assume(not (combination["monitor"] == "leaves" and len(combination["parts"][0]) > 1))
     if len(combination["parts"]) > 1 and fault is not None:
         # A virtual device ends with a lost device (docs/faults.md): there
         # is no second client session to serve.
@@ -444,9 +414,6 @@ def mismatches(draw):
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(case=mismatches())
 def test_a_mismatch_names_the_recorded_frames_time_and_exchange(tmp_path_factory, case):
-    # issue 22: in match=sequence with a profile a mismatch report names the
-    # previous frame's time and exchange (explicit xfail tests below).
-    assume(case["protocol"].name == "none")
     session = build_session(case["parts"], case["split"], case["cuts"])
     path = write_session(tmp_path_factory.mktemp("mismatch") / "mismatch.wtape", session)
     keys = f"{case['protocol'].keys},timing={case['timing']},unused=ignore".lstrip(",")
@@ -476,7 +443,7 @@ def test_every_fault_kind_serves_what_the_oracle_says(tmp_path, kind, match, pro
                     [[2, 0, 1] if match == "request" else [0, 1, 2]], "none", Fault(kind, 1), 7)
 
 
-# --- the defects issue 22 lists, one by one (xfail until branch `exchanges` lands) ----------------
+# --- the defects issue 22 lists, one by one (fixed by branch `exchanges`) ------------------------
 
 
 def modbus_exchange_fixed(index, pdu_request, pdu_response, unit=1):
@@ -485,7 +452,6 @@ def modbus_exchange_fixed(index, pdu_request, pdu_response, unit=1):
                     (modbus_frame(transaction_id, unit, pdu_response),))
 
 
-@pytest.mark.xfail(strict=True, reason=KNOWN_PER_RECORD_FIXES)
 @pytest.mark.parametrize("match", ["sequence", "request"])
 def test_a_modbus_tcp_response_split_over_two_records_gets_the_clients_id(tmp_path, match):
     exchanges = [modbus_exchange_fixed(0, b"\x03\x00\x00\x00\x02", b"\x03\x04\x12\x34\x56\x78")]
@@ -493,7 +459,6 @@ def test_a_modbus_tcp_response_split_over_two_records_gets_the_clients_id(tmp_pa
                     [[0]], "none", None, 0)
 
 
-@pytest.mark.xfail(strict=True, reason=KNOWN_PER_RECORD_FIXES)
 @pytest.mark.parametrize("match", ["sequence", "request"])
 def test_two_modbus_tcp_response_frames_in_one_record_each_get_the_clients_id(tmp_path, match):
     exchange = Exchange(modbus_frame(0x0100, 1, b"\x03\x00\x00\x00\x01"),
@@ -503,7 +468,6 @@ def test_two_modbus_tcp_response_frames_in_one_record_each_get_the_clients_id(tm
                     [[0]], "none", None, 0)
 
 
-@pytest.mark.xfail(strict=True, reason=KNOWN_PER_RECORD_FIXES)
 def test_two_pipelined_modbus_tcp_responses_in_one_record_get_their_requests_ids(tmp_path):
     # The issue's case: two requests, then both responses in one rx record.
     # The oracle's rule: each response frame takes the client's id of the
@@ -523,7 +487,6 @@ def test_two_pipelined_modbus_tcp_responses_in_one_record_get_their_requests_ids
     port.close()
 
 
-@pytest.mark.xfail(strict=True, reason=KNOWN_PER_RECORD_FIXES)
 @pytest.mark.parametrize("match", ["sequence", "request"])
 def test_a_declared_echo_over_a_split_response_copies_the_field_once(tmp_path, match):
     exchanges = [Exchange(declared_frame(b"\x77\x00", b"\x01\x02"),
@@ -546,7 +509,6 @@ def test_without_a_profile_a_mismatch_names_the_recorded_frames_time_and_exchang
     mismatch_location(session, path, "", wrong)
 
 
-@pytest.mark.xfail(strict=True, reason=KNOWN_MISMATCH_LOCATION)
 @pytest.mark.parametrize("wrong", [0, 2])
 def test_with_a_profile_a_mismatch_names_the_recorded_frames_time_and_exchange(tmp_path, wrong):
     session, path = lines_session(tmp_path)
@@ -572,9 +534,6 @@ def two_client_sessions():
             [Exchange(line_frame(b"C"), (line_frame(b"c"),)), Exchange(line_frame(b"D"), (line_frame(b"d"),))]]
 
 
-@pytest.mark.xfail(strict=True, reason=PER_SESSION_NUMBERING)
-# Kinds whose miss serves more bytes, or other bytes, than the oracle
-# says: the xfail fails at once, not after a read's deadline.
 @pytest.mark.parametrize("kind", ["drop", "truncate:1", "corrupt"])
 def test_a_fault_at_an_exchange_of_the_second_client_session_fires_there(tmp_path, kind):
     # exchange:2 is the second client's first exchange (C); counted per
@@ -583,14 +542,13 @@ def test_a_fault_at_an_exchange_of_the_second_client_session_fires_there(tmp_pat
                     "sequence", [[0, 1], [0, 1]], "none", Fault(kind, 2), 0)
 
 
-@pytest.mark.xfail(strict=True, reason=PER_SESSION_NUMBERING)
 @pytest.mark.parametrize("match", ["sequence", "request"])
 def test_a_fault_in_the_first_client_session_does_not_fire_again_in_the_second(tmp_path, match):
     run_combination(tmp_path, PROTOCOLS["lines"], two_client_sessions(), FRAME_PER_RECORD, [1],
                     match, [[0, 1], [0, 1]], "none", Fault("duplicate", 1), 0)
 
 
-@pytest.mark.xfail(strict=True, reason=PER_SESSION_NUMBERING)
+@pytest.mark.xfail(strict=True, reason=SILENCE_ENDS_WITH_THE_SESSION)
 def test_silence_in_the_first_client_session_lasts_into_the_second(tmp_path):
     run_combination(tmp_path, PROTOCOLS["none"], two_client_sessions(), FRAME_PER_RECORD, [1],
                     "sequence", [[0, 1], [0, 1]], "none", Fault("silence", 1), 0)
@@ -614,7 +572,6 @@ def test_trickle_spaces_every_byte_of_a_response_over_two_records(tmp_path, matc
     port.close()
 
 
-@pytest.mark.xfail(strict=True, reason=MONITOR_LEAVING)
 def test_a_monitor_leaving_does_not_end_the_controlling_clients_session(tmp_path):
     run_combination(tmp_path, PROTOCOLS["none"], two_client_sessions(), FRAME_PER_RECORD, [1],
                     "sequence", [[0, 1], [0, 1]], "none", None, 0, monitor="leaves")

@@ -92,6 +92,41 @@ def test_cases_cover_every_kind_at_every_exchange(session):
     assert {case.kind for case in everything} == set(faults.KINDS)
 
 
+def test_cases_count_exchanges_as_the_replay_with_profile_and_match(tmp_path):
+    # Two request lines in one write, each answered: two exchanges with the
+    # lines profile, one without; under match=request a greeting is
+    # exchange 0 of its own.
+    path = tmp_path / "lines.wtape"
+    with wiretape.SessionWriter(str(path), port_type="serial") as writer:
+        writer.write("rx", 1, b"hello\n")
+        writer.write("tx", 2, b"Q1\nQ2\n")
+        writer.write("rx", 3, b"R1\n")
+        writer.write("tx", 4, b"Q3\n")
+        writer.write("rx", 5, b"R3\n")
+    assert faults.session_shape(str(path)).exchanges == 2
+    assert faults.session_shape(str(path), profile="lines").exchanges == 3
+    assert faults.session_shape(str(path), match="request").exchanges == 3
+    wheres = {case.where for case in faults.cases(str(path), kinds=["drop"], profile="lines")}
+    assert wheres == {"exchange:0", "exchange:1", "exchange:2"}
+
+
+def test_a_monitors_connect_does_not_cut_the_first_client_session(tmp_path):
+    path = tmp_path / "proxy.wtape"
+    event = lambda **fields: json.dumps(fields).encode()
+    with wiretape.SessionWriter(str(path), port_type="tcp") as writer:
+        writer.write("client_connect", 1, event(peer="a", role="control"))
+        writer.write("tx", 2, b"Q0\n")
+        writer.write("rx", 3, b"R0\n")
+        writer.write("client_connect", 4, event(peer="m", role="monitor"))
+        writer.write("tx", 5, b"Q1\n")
+        writer.write("rx", 6, b"R1\n")
+        writer.write("client_disconnect", 7, event(peer="a", reason="closed"))
+        writer.write("rx", 8, b"said to nobody\n")
+    shape = faults.session_shape(str(path))
+    assert shape.exchanges == 2
+    assert shape.rx_bytes == 6
+
+
 def test_a_budget_samples_by_seed_the_same_way_each_time(session):
     first = faults.cases(str(session), budget=7, seed=3)
     assert len(first) == 7
@@ -204,6 +239,22 @@ def test_replay_fault_past_the_end_is_a_usage_error(session, tmp_path):
                      "--fault", "drop@exchange:7")
     assert result.returncode == 2
     assert "exchange 7 is past its end" in result.stderr
+
+
+def test_replay_fault_places_count_exchanges_as_the_replay_does(tmp_path):
+    # Two tx runs but one request line: with --profile lines exchange 1 is
+    # past the end.
+    path = tmp_path / "split.wtape"
+    with wiretape.SessionWriter(str(path), port_type="serial") as writer:
+        writer.write("tx", 1, b"A")
+        writer.write("rx", 2, b"x")
+        writer.write("tx", 3, b"B\n")
+        writer.write("rx", 4, b"y")
+    assert faults.session_shape(str(path)).exchanges == 2
+    result = run_cli("replay", str(path), "--pty", str(tmp_path / "p"), "--profile", "lines",
+                     "--fault", "drop@exchange:1", timeout=60)
+    assert result.returncode == 2
+    assert "exchange 1 is past its end" in result.stderr
 
 
 # --- the campaign -------------------------------------------------------------------------

@@ -325,3 +325,30 @@ def test_a_serial_session_keeps_the_user_link_type(tmp_path):
     rows = tshark_fields(out, ["frame.interface_name", "frame.protocols", "data.data"])
     assert rows == [["tx", "user_dlt:data", b"VV\n".hex()],
                     ["rx", "user_dlt:data", b"VV\n00P\n".hex()]]
+
+
+def test_a_monitors_connect_and_disconnect_leave_the_clients_tcp_connection_alone():
+    # Client connections follow the bridge's rule (bound from C++): a
+    # read-only monitor's connect opens no connection and its disconnect
+    # closes none; the client's own disconnect does.
+    from wiretape.exports.network import NetworkSession
+
+    net = NetworkSession.of_header({"port_type": "tcp",
+                                    "port_options": "type=tcp,host=10.0.0.5,port=502"})
+    event = lambda **fields: json.dumps(fields).encode()
+    flags = []
+    for kind, data in [("client_connect", event(peer="10.0.0.9:4000", role="control")),
+                       ("tx", MODBUS_REQUEST),
+                       ("client_connect", event(peer="10.0.0.7:4001", role="monitor")),
+                       ("rx", MODBUS_REPLY),
+                       ("client_disconnect", event(peer="10.0.0.7:4001")),
+                       ("tx", MODBUS_REQUEST_2),
+                       ("rx", MODBUS_REPLY_2),
+                       ("client_disconnect", event(peer="10.0.0.9:4000"))]:
+        for _, packet in net.packets(kind, data):
+            header_length = (packet[0] & 0x0F) * 4
+            flags.append(packet[header_length + 13])
+    syn, fin = 0x02, 0x01
+    assert sum(1 for f in flags if f & syn) == 2  # one handshake: SYN, SYN-ACK
+    fins = [i for i, f in enumerate(flags) if f & fin]
+    assert len(fins) == 2 and fins[0] >= len(flags) - 3  # closed once, at the end

@@ -120,6 +120,44 @@ def test_cut_by_exchanges_keeps_the_greeting_and_moves_the_part_back(tmp_path):
     assert _core.SessionReader(out).header.edits == ["cut 4:6 exchanges"]
 
 
+def test_cut_by_exchanges_counts_as_replay_does_across_client_sessions(tmp_path):
+    # A new client session begins a new exchange even with no rx between the
+    # two clients' writes; a monitor's connect begins none.
+    connect = lambda peer, role: json.dumps({"peer": peer, "role": role}).encode()
+    src = write_session(tmp_path / "in.wtape", [
+        (1, "client_connect", connect("a", "control")),
+        (2, "tx", b"A"),
+        (3, "client_connect", connect("m", "monitor")),
+        (4, "client_disconnect", json.dumps({"peer": "a", "reason": "closed"}).encode()),
+        (5, "client_connect", connect("b", "control")),
+        (6, "tx", b"B"),
+        (7, "rx", b"b")])
+    assert [e.request_first_t_ns for e in _core.session_exchanges(str(src))] == [2, 6]
+    out = tmp_path / "cut.wtape"
+    edit(src, out, cut=parse_cut("1e:"))
+    assert [d for _, k, d in records(out) if k == "tx"] == [b"B"]
+
+
+def test_cut_keeps_the_client_in_force_whatever_monitors_did(tmp_path):
+    connect = lambda peer, role: json.dumps({"peer": peer, "role": role}).encode()
+    src = write_session(tmp_path / "in.wtape", [
+        (1, "tx", b"X"),
+        (2, "rx", b"x"),
+        (3, "client_connect", connect("a", "control")),
+        (4, "tx", b"A"),
+        (5, "rx", b"a"),
+        (6, "client_connect", connect("m", "monitor")),
+        (7, "client_disconnect", json.dumps({"peer": "m", "reason": "closed"}).encode()),
+        (8, "tx", b"B"),
+        (9, "rx", b"b")])
+    out = tmp_path / "cut.wtape"
+    edit(src, out, cut=parse_cut("2e:"))
+    kept = records(out)
+    connects = [json.loads(d)["peer"] for _, k, d in kept if k == "client_connect"]
+    assert connects == ["a"]  # the client's connect, not the monitor's
+    assert [d for _, k, d in kept if k == "tx"] == [b"B"]
+
+
 def test_cut_keeps_the_settings_and_client_in_force(tmp_path):
     src = write_session(tmp_path / "in.wtape", [
         (0, "open", b"{}"),
