@@ -25,6 +25,7 @@ explores new ones (hypothesis prints the falsifying example either way).
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import select
 import socket
@@ -538,6 +539,26 @@ def test_silence_in_the_first_client_session_lasts_into_the_second(tmp_path):
     # gets no answer to C or D.
     run_combination(tmp_path, PROTOCOLS["none"], two_client_sessions(), FRAME_PER_RECORD, [1],
                     "sequence", [[0, 1], [0, 1]], "none", Fault("silence", 1), 0)
+
+
+@dataclasses.dataclass(frozen=True)
+class FaultAtPlace(Fault):
+    """A fault at a once-only place (rx:N, t:S) that is the first record of
+    exchange `exchange`: the oracle expects it there and nowhere else."""
+    place: str = ""
+
+    @property
+    def option(self) -> str:
+        return f"{self.kind}@{self.place}"
+
+
+@pytest.mark.parametrize("place", ["rx:0", "t:0"])
+def test_a_once_only_place_does_not_fire_again_in_the_second_client_session(tmp_path, place):
+    # docs/faults.md: rx:N and t:S fire once, for the device; the second
+    # client's first record (rx byte 0 of its session, recorded after 0 s)
+    # is not a second place.
+    run_combination(tmp_path, PROTOCOLS["none"], two_client_sessions(), FRAME_PER_RECORD, [1],
+                    "sequence", [[0, 1], [0, 1]], "none", FaultAtPlace("duplicate", 0, place), 0)
 
 
 @pytest.mark.parametrize("match", ["sequence", "request"])
