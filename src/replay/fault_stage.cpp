@@ -34,11 +34,14 @@ void set_bytes(RxItem& item, std::string bytes) {
 
 }  // namespace
 
-FaultInjector::FaultInjector(FaultPlan plan, bool datagrams, Reporter reporter)
+FaultInjector::FaultInjector(FaultPlan plan, bool datagrams, Reporter reporter,
+                             std::shared_ptr<FaultMemory> memory)
     : plan_(std::move(plan)),
       datagrams_(datagrams),
       reporter_(std::move(reporter)),
-      once_fired_(plan_.faults.size(), false) {}
+      memory_(memory ? std::move(memory) : std::make_shared<FaultMemory>()) {
+  memory_->once_fired.resize(plan_.faults.size(), false);
+}
 
 std::uint64_t FaultInjector::draw(std::size_t index, std::uint64_t exchange,
                                   std::uint64_t purpose) const {
@@ -60,30 +63,30 @@ bool FaultInjector::fires(std::size_t index, const FaultSpec& spec, std::uint64_
       return unit < spec.where_value;
     }
     case FaultWhereKind::rx: {
-      if (once_fired_[index] || item.kind != RecordKind::rx) return false;
+      if (memory_->once_fired[index] || item.kind != RecordKind::rx) return false;
       const std::size_t size = item.payload().size() - item.consumed;
       if (spec.where_number >= offset + size) return false;
-      once_fired_[index] = true;
+      memory_->once_fired[index] = true;
       return true;
     }
     case FaultWhereKind::time:
-      if (once_fired_[index] ||
+      if (memory_->once_fired[index] ||
           static_cast<double>(item.t_ns) < spec.where_value * 1e9) {
         return false;
       }
-      once_fired_[index] = true;
+      memory_->once_fired[index] = true;
       return true;
   }
   return false;
 }
 
 void FaultInjector::report(const FaultSpec& spec, std::uint64_t exchange, std::string detail) {
-  ++injected_;
+  ++memory_->injected;
   if (reporter_) reporter_(FaultEvent{spec.kind_text, spec.where_text, std::move(detail), exchange});
 }
 
 void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime now) {
-  if (silenced_ || disconnected_) return;  // nothing more reaches the client
+  if (rest_unreachable()) return;  // nothing more reaches the client
   const std::uint64_t exchange = item.exchange;
   const std::uint64_t offset = rx_offset_;
   const bool starts_exchange = !current_exchange_ || *current_exchange_ != exchange;
@@ -245,7 +248,7 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
         break;
       case FaultKind::silence:
         report(spec, exchange, "the device stopped answering" + where_in(first));
-        silenced_ = true;
+        memory_->silenced = true;
         pieces.clear();
         break;
       case FaultKind::disconnect:
@@ -254,7 +257,7 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
         std::string text = "the device went away (fault " + spec.kind_text + "@" +
                            spec.where_text + ")";
         if (spec.kind == FaultKind::disconnect) {
-          disconnected_ = true;
+          memory_->lost = text;
         } else {
           back_at = first.due + shift_ + std::chrono::milliseconds(*spec.amount);
           drop_rest_ = true;
@@ -299,11 +302,20 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
 
 // --- the stage ------------------------------------------------------------------
 
-FaultStage::FaultStage(const FaultPlan& plan, bool datagrams, ReleasedRx& released)
+FaultStage::FaultStage(const FaultPlan& plan, bool datagrams, ReleasedRx& released,
+                       std::shared_ptr<FaultMemory> memory)
     : released_(released) {
   if (plan.empty()) return;
+  if (memory && memory->lost) {
+    // An earlier client session's disconnect: the device is still gone.
+    RxItem loss;
+    loss.kind = RecordKind::device_lost;
+    loss.data = *memory->lost;
+    loss.due = ReplayTime::min();  // due at once
+    faulted_.push_back(FaultedRx{std::move(loss), std::nullopt});
+  }
   injector_ = std::make_unique<FaultInjector>(
-      plan, datagrams, [this](const FaultEvent& event) { report(event); });
+      plan, datagrams, [this](const FaultEvent& event) { report(event); }, std::move(memory));
 }
 
 void FaultStage::report(const FaultEvent& event) const {

@@ -23,6 +23,20 @@
 
 namespace wiretape::detail {
 
+// What a plan's faults leave behind that outlasts one client session of a
+// virtual device (each session has an engine, and so a stage, of its own):
+// a silenced device stays silent, a lost one lost, a once-only place (rx:N,
+// t:S) does not fire again, and once a fault was injected no session reports
+// unused data. The replaying port keeps one and hands it to each session's
+// stage.
+struct FaultMemory {
+  bool silenced = false;
+  // Why the device is gone (disconnect); a later session starts with it.
+  std::optional<std::string> lost;
+  std::vector<bool> once_fired;  // per fault of the plan
+  std::uint64_t injected = 0;
+};
+
 // A released rx record after the faults: the item, and for a loss of the
 // device that ends (reconnect), when it is back.
 struct FaultedRx {
@@ -37,7 +51,10 @@ class FaultInjector {
  public:
   using Reporter = std::function<void(const FaultEvent&)>;
 
-  FaultInjector(FaultPlan plan, bool datagrams, Reporter reporter);
+  // `memory`: what earlier client sessions' faults left behind (shared with
+  // the later ones); nullptr: a memory of this injector's own.
+  FaultInjector(FaultPlan plan, bool datagrams, Reporter reporter,
+                std::shared_ptr<FaultMemory> memory = nullptr);
 
   // Passes one released record (rx, or a recorded close or loss) of
   // exchange `item.exchange` through the plan, appending what the client
@@ -47,12 +64,12 @@ class FaultInjector {
   void apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime now);
 
   // The device stopped answering (silence): writes are swallowed.
-  bool silenced() const { return silenced_; }
+  bool silenced() const { return memory_->silenced; }
   // A fault made the rest of the recording unreachable (silence,
   // disconnect): it is not reported as unused.
-  bool rest_unreachable() const { return silenced_ || disconnected_; }
-  // How many faults were injected.
-  std::uint64_t injected() const { return injected_; }
+  bool rest_unreachable() const { return memory_->silenced || memory_->lost.has_value(); }
+  // How many faults were injected, in this and earlier client sessions.
+  std::uint64_t injected() const { return memory_->injected; }
 
  private:
   bool fires(std::size_t index, const FaultSpec& spec, std::uint64_t exchange,
@@ -65,7 +82,7 @@ class FaultInjector {
   FaultPlan plan_;
   bool datagrams_;
   Reporter reporter_;
-  std::vector<bool> once_fired_;  // rx:N and t:S fire once
+  std::shared_ptr<FaultMemory> memory_;  // never null
   std::optional<std::uint64_t> current_exchange_;
   // Per exchange, what goes on for its later records.
   bool drop_rest_ = false;
@@ -74,9 +91,6 @@ class FaultInjector {
   std::chrono::nanoseconds shift_{0};  // delays and stalls so far in it
   ReplayTime released_at_;             // when its first record was released
   std::uint64_t rx_offset_ = 0;        // served rx bytes before this record
-  bool silenced_ = false;
-  bool disconnected_ = false;
-  std::uint64_t injected_ = 0;
 };
 
 class FaultStage {
@@ -85,8 +99,11 @@ class FaultStage {
 
   // Reads what `released` holds; `plan` empty: a pass-through. Faults are
   // reported to the reporter given to on_fault, by default as a line on
-  // stderr.
-  FaultStage(const FaultPlan& plan, bool datagrams, ReleasedRx& released);
+  // stderr. `memory`: what the faults of earlier client sessions left
+  // behind (see FaultMemory); nullptr: the stage starts afresh. A device a
+  // fault made lost is lost from the start.
+  FaultStage(const FaultPlan& plan, bool datagrams, ReleasedRx& released,
+             std::shared_ptr<FaultMemory> memory = nullptr);
   FaultStage(const FaultStage&) = delete;
   FaultStage& operator=(const FaultStage&) = delete;
 

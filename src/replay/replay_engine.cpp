@@ -33,12 +33,13 @@ bool is_due(const RxItem& item, ReplayTime now) { return item.due <= now; }
 }  // namespace
 
 ReplayEngine::ReplayEngine(ReplayConfig config, RecordSourceFactory sources,
-                           ReplayTime open_time, std::uint64_t origin_ns)
+                           ReplayTime open_time, std::uint64_t origin_ns,
+                           std::shared_ptr<FaultMemory> fault_memory)
     : config_(std::move(config)),
       timeline_(config_, open_time, origin_ns),
       released_(/*recycle_payloads=*/true),
       report_(config_.file, config_.match),
-      stage_(config_.faults, config_.datagrams, released_),
+      stage_(config_.faults, config_.datagrams, released_, std::move(fault_memory)),
       strategy_(make_strategy(config_, timeline_, released_, report_, sources)) {}
 
 ReplayEngine::~ReplayEngine() = default;

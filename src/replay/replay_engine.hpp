@@ -31,9 +31,11 @@ namespace wiretape::detail {
 class ReplayEngine {
  public:
   // `origin_ns`: the recorded time that `open_time` stands for (see
-  // ReplayTimeline).
+  // ReplayTimeline). `fault_memory`: what faults of earlier client sessions
+  // of the same device left behind (FaultMemory); nullptr: none.
   ReplayEngine(ReplayConfig config, RecordSourceFactory sources,
-               ReplayTime open_time, std::uint64_t origin_ns = 0);
+               ReplayTime open_time, std::uint64_t origin_ns = 0,
+               std::shared_ptr<FaultMemory> fault_memory = nullptr);
   ~ReplayEngine();
   ReplayEngine(const ReplayEngine&) = delete;
   ReplayEngine& operator=(const ReplayEngine&) = delete;

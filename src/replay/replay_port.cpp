@@ -157,7 +157,7 @@ class ReplayPort final : public Port {
       ReplayConfig config = config_;
       config.first_exchange = first_exchange;
       engine_ = std::make_unique<ReplayEngine>(std::move(config), std::move(sources), now,
-                                               connect_t_ns.value_or(0));
+                                               connect_t_ns.value_or(0), fault_memory_);
       engine_->on_fault(fault_reporter_);  // each session's fault stage reports here
     }
     update_signal(now);
@@ -553,6 +553,10 @@ class ReplayPort final : public Port {
   mutable std::mutex mutex_;
   std::condition_variable changed_;
   const ReplayConfig config_;  // for the engine of each client session
+  // What faults left behind, for every client session's engine: a silenced
+  // or lost device stays so for the next client (docs/faults.md). The
+  // engine made before any client has its own: nobody was served by it.
+  const std::shared_ptr<FaultMemory> fault_memory_ = std::make_shared<FaultMemory>();
   std::unique_ptr<ReplayEngine> engine_;
   // A virtual device between client sessions: nothing is released to
   // nobody (see await_client()).

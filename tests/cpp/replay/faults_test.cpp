@@ -603,3 +603,92 @@ TEST(FaultStage, ReadsTheExchangeFromTheItem) {
   ASSERT_EQ(served.size(), 1u);
   EXPECT_EQ(served[0].data, "second");
 }
+
+// --- what faults leave behind for a virtual device's next client session ----------
+
+namespace {
+
+// Two client sessions of one device: each has a stage of its own (a new
+// engine), sharing the port's FaultMemory. Session 1 is exchanges 0 and 1,
+// session 2 exchanges 2 and 3 (numbered per file), both recorded from 1 ms.
+struct TwoSessions {
+  std::vector<Served> first;
+  std::vector<Served> second;
+  std::vector<detail::FaultEvent> events;
+  bool second_swallows_writes = false;
+  bool second_rest_unreachable = false;
+  bool second_unread_hidden = false;
+  std::string second_loss;  // the loss due at once in session 2, if any
+};
+
+TwoSessions run_two_sessions(const std::string& faults) {
+  const detail::FaultPlan plan = parse_faults(faults, 5);
+  const auto memory = std::make_shared<detail::FaultMemory>();
+  TwoSessions run;
+  const auto record = [&run](const detail::FaultEvent& event) { run.events.push_back(event); };
+  {
+    ReleasedRx released(/*recycle_payloads=*/false);
+    FaultStage stage(plan, /*datagrams=*/false, released, memory);
+    stage.on_fault(record);
+    released.push(rx_item("a-first\n", 1, 0));
+    released.push(rx_item("b-first\n", 401, 1));
+    run.first = drain(stage);
+  }
+  ReleasedRx released(/*recycle_payloads=*/false);
+  FaultStage stage(plan, /*datagrams=*/false, released, memory);
+  stage.on_fault(record);
+  if (const RxItem* loss = stage.loss(kOpen)) run.second_loss = loss->data;
+  if (run.second_loss.empty()) {
+    released.push(rx_item("c-second\n", 1, 2));
+    released.push(rx_item("d-second\n", 401, 3));
+    run.second = drain(stage);
+  }
+  run.second_swallows_writes = stage.swallows_writes();
+  run.second_rest_unreachable = stage.rest_unreachable();
+  run.second_unread_hidden = !stage.unread().has_value();
+  return run;
+}
+
+}  // namespace
+
+TEST(FaultMemory, SilenceLastsIntoTheNextClientSession) {
+  const TwoSessions run = run_two_sessions("silence@exchange:1");
+  ASSERT_EQ(run.first.size(), 1u);
+  EXPECT_EQ(run.first[0].data, "a-first\n");
+  // "nothing more, ever" (docs/faults.md): not the second client's answers.
+  EXPECT_TRUE(run.second.empty()) << run.second[0].data;
+  EXPECT_TRUE(run.second_swallows_writes);
+  EXPECT_TRUE(run.second_rest_unreachable);
+  EXPECT_TRUE(run.second_unread_hidden);
+  EXPECT_EQ(run.events.size(), 1u);
+}
+
+TEST(FaultMemory, ADisconnectIsStillALossInTheNextClientSession) {
+  const TwoSessions run = run_two_sessions("disconnect@exchange:0");
+  ASSERT_EQ(run.first.size(), 1u);
+  EXPECT_EQ(run.first[0].kind, RecordKind::device_lost);
+  EXPECT_NE(run.second_loss.find("disconnect@exchange:0"), std::string::npos) << run.second_loss;
+  EXPECT_TRUE(run.second_rest_unreachable);
+  EXPECT_EQ(run.events.size(), 1u);
+}
+
+TEST(FaultMemory, OnceOnlyPlacesDoNotFireAgainInTheNextClientSession) {
+  // rx:0 and t:0 are both in each session's first record: once per device.
+  for (const std::string faults : {"duplicate@rx:0", "duplicate@t:0"}) {
+    SCOPED_TRACE(faults);
+    const TwoSessions run = run_two_sessions(faults);
+    EXPECT_EQ(bytes_of_exchange(run.first, 0), "a-first\na-first\n");
+    EXPECT_EQ(bytes_of_exchange(run.second, 2), "c-second\n");
+    EXPECT_EQ(run.events.size(), 1u);
+    EXPECT_FALSE(run.second_swallows_writes);
+  }
+}
+
+TEST(FaultMemory, AFaultInAnEarlierClientSessionHidesUnusedData) {
+  // Once any fault fired, the replay does not report unused data at close
+  // (docs/faults.md), whichever session's engine closes.
+  const TwoSessions run = run_two_sessions("duplicate@exchange:0");
+  EXPECT_EQ(bytes_of_exchange(run.second, 2), "c-second\n");
+  EXPECT_TRUE(run.second_unread_hidden);
+  EXPECT_FALSE(run.second_rest_unreachable);
+}

@@ -25,6 +25,7 @@ explores new ones (hypothesis prints the falsifying example either way).
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import select
 import socket
@@ -64,10 +65,6 @@ DEADLINE = 10.0  # seconds: generous, for what must happen at once
 QUIET = 0.3  # seconds: how long "nothing more comes" is watched for
 EXAMPLES_FROM_ENV = os.environ.get("WIRETAPE_COMBINATION_EXAMPLES")
 EXAMPLES = int(EXAMPLES_FROM_ENV or "60")
-
-SILENCE_ENDS_WITH_THE_SESSION = ("finding: silence ends with the client session (each client's "
-                                 "engine starts afresh), though the device stopped answering")
-
 
 # --- strategies ---------------------------------------------------------------------------
 
@@ -362,22 +359,11 @@ def run_combination(tmp_path, protocol, parts, split, cuts, match, orders, timin
     assert result.ok, f"{result}\n{describe()}"
 
 
-def silence_outlasts_its_session(parts, fault):
-    """True when a silence fault fires in a client session that another
-    follows (see SILENCE_ENDS_WITH_THE_SESSION)."""
-    if fault is None or fault.name != "silence" or len(parts) == 1:
-        return False
-    return fault.exchange < sum(len(part) for part in parts[:-1])
-
-
-
 @settings(max_examples=EXAMPLES, deadline=None, derandomize=EXAMPLES_FROM_ENV is None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(combination=combinations())
 def test_every_combination_serves_what_the_recording_says(tmp_path_factory, combination):
     fault = combination["fault"]
-    # finding: silence ends with its client session (explicit xfail test below).
-    assume(not silence_outlasts_its_session(combination["parts"], fault))
     # A greeting's exchange is decided by the one segmentation
     # (src/replay/exchanges.hpp: exchange 0 with the first answer in
     # match=sequence, with or without a profile; exchange 0 of its own in
@@ -548,10 +534,31 @@ def test_a_fault_in_the_first_client_session_does_not_fire_again_in_the_second(t
                     match, [[0, 1], [0, 1]], "none", Fault("duplicate", 1), 0)
 
 
-@pytest.mark.xfail(strict=True, reason=SILENCE_ENDS_WITH_THE_SESSION)
 def test_silence_in_the_first_client_session_lasts_into_the_second(tmp_path):
+    # docs/faults.md: silence is "nothing more, ever"; the second client
+    # gets no answer to C or D.
     run_combination(tmp_path, PROTOCOLS["none"], two_client_sessions(), FRAME_PER_RECORD, [1],
                     "sequence", [[0, 1], [0, 1]], "none", Fault("silence", 1), 0)
+
+
+@dataclasses.dataclass(frozen=True)
+class FaultAtPlace(Fault):
+    """A fault at a once-only place (rx:N, t:S) that is the first record of
+    exchange `exchange`: the oracle expects it there and nowhere else."""
+    place: str = ""
+
+    @property
+    def option(self) -> str:
+        return f"{self.kind}@{self.place}"
+
+
+@pytest.mark.parametrize("place", ["rx:0", "t:0"])
+def test_a_once_only_place_does_not_fire_again_in_the_second_client_session(tmp_path, place):
+    # docs/faults.md: rx:N and t:S fire once, for the device; the second
+    # client's first record (rx byte 0 of its session, recorded after 0 s)
+    # is not a second place.
+    run_combination(tmp_path, PROTOCOLS["none"], two_client_sessions(), FRAME_PER_RECORD, [1],
+                    "sequence", [[0, 1], [0, 1]], "none", FaultAtPlace("duplicate", 0, place), 0)
 
 
 @pytest.mark.parametrize("match", ["sequence", "request"])
