@@ -9,9 +9,10 @@ import pytest
 
 from wiretape import _core
 
+from real_recordings import FLEXIPORT_DIR as FLEXIPORT
+
 ROOT = pathlib.Path(__file__).resolve().parents[3]
 GOLDEN = ROOT / "tests" / "data" / "golden"
-FLEXIPORT = ROOT.parent / "shared" / "data" / "flexiport"
 GOLDEN_NAMES = ["all_kinds", "wire", "unknown_kind", "damaged", "v1_1_additions"]
 # Written by an older format version: read, no longer written.
 READ_ONLY_GOLDEN = {"v1_0": 0}
