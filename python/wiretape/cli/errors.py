@@ -7,6 +7,9 @@ Exit codes:
      found a difference, unused data under unused=error
   2  usage error: bad arguments or option strings
   3  runtime error: device or file I/O
+  130, 143  batch work (convert, edit, faults, anything with -- CMD) ended
+     by SIGINT or SIGTERM; services (record, replay and serve without
+     -- CMD) end normally on them instead (DESIGN §8, §23)
 """
 
 from __future__ import annotations
@@ -15,6 +18,21 @@ EXIT_OK = 0
 EXIT_CHECK_FAILED = 1
 EXIT_USAGE = 2
 EXIT_RUNTIME = 3
+
+
+def exit_for_signal(signum: int) -> int:
+    """The exit status of batch work a signal interrupted, as a shell
+    reports a death by that signal (130 for SIGINT, 143 for SIGTERM)."""
+    return 128 + signum
+
+
+class Interrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM arrived; ``signum`` says which. A KeyboardInterrupt,
+    so code that already ends cleanly on Ctrl-C ends cleanly on both."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
 
 
 class UsageError(Exception):

@@ -10,7 +10,7 @@ import sys
 from typing import Optional, Sequence
 
 from .console import Output, describe, silence_stdout
-from .errors import EXIT_OK, EXIT_USAGE, exit_code_for
+from .errors import EXIT_OK, EXIT_USAGE, Interrupted, exit_code_for, exit_for_signal
 from .parser import ParserError, ParserExit, build_parser, split_command
 
 
@@ -33,16 +33,31 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         return EXIT_USAGE
     prog = f"wiretape {args.command}"
     args.command_argv = command_argv
-    # SIGTERM ends a command as Ctrl-C does: cleanly, files complete, exit 0.
-    previous_sigterm = None
+    interruption = _Interruption()
     try:
-        previous_sigterm = signal.signal(signal.SIGTERM, _sigterm_as_interrupt)
-    except ValueError:  # not the main thread (main() called from a thread)
-        pass
+        status = _run(args, out, prog)
+    finally:
+        interruption.restore()
+    if interruption.signum is not None and is_batch_work(args):
+        return exit_for_signal(interruption.signum)
+    return status
+
+
+# Commands that are batch work whatever their arguments; any command with
+# -- CMD is too.
+_BATCH_COMMANDS = frozenset({"convert", "edit", "faults", "diff", "show", "stats", "verify"})
+
+
+def is_batch_work(args) -> bool:
+    """Batch work interrupted exits 130/143; a service ends normally."""
+    return args.command in _BATCH_COMMANDS or getattr(args, "command_argv", None) is not None
+
+
+def _run(args, out: Output, prog: str) -> int:
     try:
         return int(args.handler(args, out) or 0)
     except KeyboardInterrupt:
-        return EXIT_OK
+        return EXIT_OK  # main() turns it into 130/143 for batch work
     except BrokenPipeError:  # the reader of our output went away (| head)
         silence_stdout()
         return EXIT_OK
@@ -53,10 +68,28 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             traceback.print_exc()
         out.error(prog, describe(error))
         return exit_code_for(error)
-    finally:
-        if previous_sigterm is not None:
-            signal.signal(signal.SIGTERM, previous_sigterm)
 
 
-def _sigterm_as_interrupt(signum, frame):
-    raise KeyboardInterrupt
+class _Interruption:
+    """Turns SIGINT and SIGTERM into ``Interrupted`` (a KeyboardInterrupt)
+    while a command runs, and remembers which arrived first."""
+
+    def __init__(self):
+        self.signum: Optional[int] = None
+        self._previous = {}
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            try:
+                if signal.getsignal(signum) is signal.SIG_IGN:
+                    continue  # a shell's background job ignores SIGINT: so do we
+                self._previous[signum] = signal.signal(signum, self._handle)
+            except ValueError:  # not the main thread (main() called from a thread)
+                pass
+
+    def _handle(self, signum, frame):
+        if self.signum is None:
+            self.signum = signum
+        raise Interrupted(signum)
+
+    def restore(self) -> None:
+        for signum, previous in self._previous.items():
+            signal.signal(signum, previous)
