@@ -1,12 +1,16 @@
 // Protocol profiles from Python: profile_names(), find_profile(name) and the
 // Profile it returns (framing, match keys, names, and a whole session
 // decoded for `wiretape show`).
+#include <cstdint>
 #include <deque>
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/pair.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/unique_ptr.h>
 #include <nanobind/stl/vector.h>
@@ -175,6 +179,50 @@ class DecodedSession {
   bool finished_ = false;
 };
 
+// One direction's framer, fed piece by piece (wiretape edit reseals the
+// frames it scrubbed as the records come).
+class PyFramer {
+ public:
+  // (bytes, how it ended)
+  using FrameTuple = std::pair<nb::bytes, std::string>;
+
+  explicit PyFramer(std::unique_ptr<detail::Framer> framer) : framer_(std::move(framer)) {}
+
+  std::vector<FrameTuple> feed(nb::bytes data, std::uint64_t t_ns) {
+    frames_.clear();
+    framer_->feed_at(t_ns, view_of(data), frames_);
+    std::vector<FrameTuple> out;
+    out.reserve(frames_.size());
+    for (const detail::Frame& frame : frames_) out.push_back(frame_tuple(frame));
+    return out;
+  }
+
+  std::optional<FrameTuple> finish() {
+    std::optional<detail::Frame> tail = framer_->finish();
+    if (!tail) return std::nullopt;
+    return frame_tuple(*tail);
+  }
+
+  std::size_t pending() const { return framer_->pending(); }
+
+ private:
+  static FrameTuple frame_tuple(const detail::Frame& frame) {
+    return {to_bytes(frame.bytes), frame_end_name(frame.end)};
+  }
+  static std::string frame_end_name(detail::FrameEnd end) {
+    switch (end) {
+      case detail::FrameEnd::delimited: return "delimited";
+      case detail::FrameEnd::size_limit: return "size_limit";
+      case detail::FrameEnd::stream_end: return "stream_end";
+      case detail::FrameEnd::broken: return "broken";
+    }
+    return "broken";
+  }
+
+  std::unique_ptr<detail::Framer> framer_;
+  std::vector<detail::Frame> frames_;  // reused
+};
+
 }  // namespace
 
 namespace {
@@ -244,6 +292,10 @@ class CallableProfile final : public Profile {
                                             nb::bytes(response.data(), response.size())),
                         "fix_response");
   }
+  std::string recompute_checksums(StreamDirection direction,
+                                  std::string_view frame) const override {
+    return base_->recompute_checksums(direction, frame);
+  }
   std::string frame_name(StreamDirection direction, std::string_view frame) const override {
     return base_->frame_name(direction, frame);
   }
@@ -286,6 +338,24 @@ void bind_profile(nb::module_& m) {
           "The frames of one direction's whole byte stream ('tx' or 'rx'); an "
           "incomplete tail is the last frame.")
       .def(
+          "framer",
+          [](const PyProfile& p, const std::string& direction) {
+            return std::make_unique<PyFramer>(
+                p.profile->make_framer(direction_from_python(direction)));
+          },
+          "direction"_a,
+          "A new framer for one direction's stream ('tx' or 'rx'), fed piece by piece.")
+      .def(
+          "recompute_checksums",
+          [](const PyProfile& p, const std::string& direction, nb::bytes frame) {
+            return to_bytes(
+                p.profile->recompute_checksums(direction_from_python(direction), view_of(frame)));
+          },
+          "direction"_a, "frame"_a,
+          "The whole frame with every checksum it carries recomputed over its bytes as they "
+          "are now (same size); unchanged for a protocol without checksums or a frame that "
+          "is not this protocol's.")
+      .def(
           "match_key",
           [](const PyProfile& p, nb::bytes request) {
             return to_bytes(p.profile->match_key(view_of(request)));
@@ -316,6 +386,17 @@ void bind_profile(nb::module_& m) {
           "their payload and None. Frames incomplete at the end come last, rx before tx.")
       .def("__repr__",
            [](const PyProfile& p) { return "<Profile " + std::string(p.profile->name()) + ">"; });
+
+  nb::class_<PyFramer>(m, "Framer",
+                       "Cuts one direction's byte stream into frames, however it is split "
+                       "into feed() calls. Get one with Profile.framer(direction).")
+      .def("feed", &PyFramer::feed, "data"_a, "t_ns"_a = 0,
+           "The next bytes of the stream, which arrived at t_ns (for framers that cut by "
+           "silence): the frames they complete, as (bytes, end) with end one of "
+           "'delimited', 'size_limit', 'stream_end', 'broken'.")
+      .def("finish", &PyFramer::finish,
+           "The stream has ended: the kept tail as a last (bytes, end), or None.")
+      .def_prop_ro("pending", &PyFramer::pending, "How many bytes are kept for the next frame.");
 
   nb::class_<DecodedSession>(m, "DecodedSession",
                              "The items of a session decoded with a profile (an iterator).")
