@@ -144,6 +144,7 @@ def cmd_edit(args, out: Output) -> int:
             matches += " (no --profile: checksums over scrubbed bytes are left as they were)"
         out.note(f"edited {args.input} -> {args.output}: {result.records} records{matches} ({done})")
         if result.unsealed_frames:
-            out.note(f"{result.unsealed_frames} frames were too far apart from their checksums "
-                     "to recompute them: those frames keep their recorded checksums")
+            out.note(f"{result.unsealed_frames} {result.profile} frames keep part of their "
+                     "recorded checksums: the records holding them were written before the "
+                     "frame was complete (more than 8 MiB waited behind them)")
     return EXIT_OK
