@@ -219,6 +219,8 @@ class _Redactor:
 
     def add(self, entry: _Entry) -> None:
         self.queue.append(entry)
+        if not self.redactions:
+            entry.settled = True
         if not entry.settled:
             stream = self.streams[entry.kind]
             stream.entries.append((stream.base + len(stream.buffer), entry))

@@ -300,3 +300,54 @@ def test_an_interrupted_edit_leaves_a_file_it_never_opened_alone(tmp_path):
     edit(src, out, redact=[parse_redaction("x")])
     edit_module._remove_output(str(out), before)
     assert not out.exists()
+
+
+class _Interrupting:
+    """A pattern whose search is interrupted (as Ctrl-C would)."""
+
+    def finditer(self, *args):
+        raise KeyboardInterrupt
+
+    sub = search = fullmatch = finditer
+
+
+def test_an_edit_interrupted_in_process_removes_its_output(tmp_path):
+    from wiretape.tools.edit import Redaction
+
+    src = write_session(tmp_path / "in.wtape", [(0, "tx", b"x" * (2 * MAX_SPAN))])
+    out = tmp_path / "out.wtape"
+    with pytest.raises(KeyboardInterrupt):
+        edit(src, out, redact=[Redaction(_Interrupting())])
+    assert not out.exists()
+
+
+def test_one_direction_waiting_long_is_settled_at_the_hold_limit(tmp_path, monkeypatch):
+    """A tx record that waits for more tx bytes while rx goes on is handed
+    on once HOLD_LIMIT bytes wait behind it; the result is the same."""
+    from wiretape.tools import edit as edit_module
+
+    monkeypatch.setattr(edit_module, "HOLD_LIMIT", 1000)
+    items = [(0, "tx", b"pw=secret;")] + [(i, "rx", b"r" * 100 + b" secret")
+                                          for i in range(1, 200)]
+    src = write_session(tmp_path / "in.wtape", items)
+    result = edit(src, tmp_path / "out.wtape", redact=[parse_redaction("secret")])
+    assert result.matches == 200
+    assert direction_bytes(tmp_path / "out.wtape", "tx") == b"pw=******;"
+    assert direction_bytes(tmp_path / "out.wtape", "rx") == (b"r" * 100 + b" ******") * 199
+    assert [kind for _, kind, _ in records(tmp_path / "out.wtape")][:2] == ["redaction", "tx"]
+
+
+def test_a_frame_whose_checksum_was_already_written_is_counted(tmp_path, monkeypatch):
+    from wiretape.tools import edit as edit_module
+
+    sentence = nmea(b"PXYZ,alice")
+    items = ([(0, "tx", sentence[:-2])] + [(i, "rx", b"r" * 100) for i in range(1, 30)]
+             + [(30, "tx", sentence[-2:])])
+    src = write_session(tmp_path / "in.wtape", items, metadata={"profile": "nmea"})
+    whole = edit(src, tmp_path / "whole.wtape", redact=[parse_redaction("alice")])
+    assert (whole.resealed_frames, whole.unsealed_frames) == (1, 0)
+    assert direction_bytes(tmp_path / "whole.wtape", "tx") == nmea(b"PXYZ,*****")
+    monkeypatch.setattr(edit_module, "HOLD_LIMIT", 1000)
+    cut_short = edit(src, tmp_path / "held.wtape", redact=[parse_redaction("alice")])
+    assert (cut_short.resealed_frames, cut_short.unsealed_frames) == (1, 1)
+    assert direction_bytes(tmp_path / "held.wtape", "tx") == sentence.replace(b"alice", b"*****")
