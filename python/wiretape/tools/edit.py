@@ -722,7 +722,9 @@ def edit_in_child(src: SessionPath, dst: SessionPath, **options) -> EditResult:
         try:
             os.close(reading)
             for signum in (signal.SIGINT, signal.SIGTERM):
-                signal.signal(signum, signal.SIG_DFL)
+                # A signal the caller ignores stays ignored (a background job's SIGINT).
+                if signal.getsignal(signum) is not signal.SIG_IGN:
+                    signal.signal(signum, signal.SIG_DFL)
             try:
                 outcome = ("result", edit(src, dst, **options))
             except BaseException as error:  # every failure goes to the parent
