@@ -756,6 +756,11 @@ def register_callable_profile(name: str, base: str, match_key: object | None = N
     Registers `name` for profile=: the framing and names of the profile `base`, the match key match_key(request: bytes) -> bytes and the response fix fix_response(recorded_request, actual_request, response) -> bytes, where given (None: the base profile's). The callables are called with the GIL from the thread that serves the client.
     """
 
+def declared_profile(options: str) -> Profile:
+    """
+    The profile declared by 'framing=...[,ignore=...][,echo=...][,checksum=...]' (docs/replay.md); OptionError naming the key for a bad spec or another key.
+    """
+
 def find_profile(name: str) -> Profile:
     """The built-in profile called `name`; OptionError for an unknown name."""
 

@@ -17,6 +17,9 @@
 
 #include "python/bindings.hpp"
 #include "replay/profile.hpp"
+#include "replay/profiles/declared.hpp"
+#include "wiretape/errors.hpp"
+#include "wiretape/options.hpp"
 #include "wiretape/session.hpp"
 
 namespace nb = nanobind;
@@ -437,6 +440,29 @@ void bind_profile(nb::module_& m) {
       "fix_response(recorded_request, actual_request, response) -> bytes, where given "
       "(None: the base profile's). The callables are called with the GIL from the "
       "thread that serves the client.");
+  m.def(
+      "declared_profile",
+      [](const std::string& options) {
+        Options parsed = Options::parse(options);
+        parsed.set_port_type("replay");
+        std::shared_ptr<const Profile> profile = detail::take_declared_profile(parsed);
+        if (!profile) {
+          throw OptionError("framing", "a declared profile needs framing= (and may have "
+                                       "ignore=, echo=, checksum=), not '" + options + "'");
+        }
+        for (const Options::Entry& entry : parsed.entries()) {
+          if (entry.key != "framing" && entry.key != "ignore" && entry.key != "echo" &&
+              entry.key != "checksum") {
+            throw OptionError(entry.key, "option '" + entry.key +
+                                             "' is not a declared profile's key (framing=, "
+                                             "ignore=, echo=, checksum=)");
+          }
+        }
+        return PyProfile{profile};
+      },
+      "options"_a,
+      "The profile declared by 'framing=...[,ignore=...][,echo=...][,checksum=...]' "
+      "(docs/replay.md); OptionError naming the key for a bad spec or another key.");
   m.def(
       "find_profile",
       [](const std::string& name) { return PyProfile{detail::find_profile(name)}; },

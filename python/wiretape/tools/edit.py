@@ -582,6 +582,16 @@ def default_profile(header) -> Optional[str]:
     return name if name in _core.profile_names() else None
 
 
+def _profile(spec: str):
+    """The profile `spec` names, or declares (``framing=...,checksum=...``)."""
+    try:
+        if "=" in spec:
+            return _core.declared_profile(spec)
+        return _core.find_profile(spec)
+    except _core.OptionError as error:
+        raise ValueError(f"--profile {spec!r}: {error}") from None
+
+
 def _remove_output(dst: str, before: Optional[os.stat_result]) -> None:
     """Removes what an interrupted edit wrote to `dst`: a regular file it
     created or wrote over (an output that is not a regular file, a FIFO or
@@ -613,10 +623,11 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
          profile: Optional[str] = "") -> EditResult:
     """Writes an edited copy of the session `src` to `dst` (a .wtape).
     `profile`: the protocol profile whose checksums are recomputed over
-    scrubbed bytes; "" (the default) for the one the session's metadata
-    names (``profile=NAME``), None for none. Raises ValueError for an edit
-    that does not fit the session (a metadata key it lacks, an exchange
-    past its end); OptionError for an unknown profile; SessionError after
+    scrubbed bytes, a name or a declared profile's keys
+    (``framing=...,checksum=...``); "" (the default) for the one the
+    session's metadata names (``profile=NAME``), None for none. Raises
+    ValueError for an edit that does not fit the session (a metadata key it
+    lacks, an exchange past its end) or an unknown profile; SessionError after
     writing what came before when `src` is damaged. Interrupted
     (KeyboardInterrupt), it removes the output it was writing."""
     src, dst = os.fspath(src), os.fspath(dst)
@@ -629,7 +640,7 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
     header = reader.header
     if profile == "":
         profile = default_profile(header)
-    framing = _core.find_profile(profile) if profile is not None and redactions else None
+    framing = _profile(profile) if profile is not None and redactions else None
     metadata = dict(header.metadata)
     for key in drop:
         if key not in metadata:

@@ -351,3 +351,22 @@ def test_a_frame_whose_checksum_was_already_written_is_counted(tmp_path, monkeyp
     cut_short = edit(src, tmp_path / "held.wtape", redact=[parse_redaction("alice")])
     assert (cut_short.resealed_frames, cut_short.unsealed_frames) == (1, 1)
     assert direction_bytes(tmp_path / "held.wtape", "tx") == sentence.replace(b"alice", b"*****")
+
+
+def test_a_declared_profile_recomputes_its_checksum_from_the_command_line(tmp_path):
+    """[id][len][body...][sum8], as replay's framing=length:1:1:3,checksum=sum8@-1."""
+    def frame(body):
+        data = b"a" + bytes([len(body)]) + body
+        return data + bytes([sum(data) & 0xFF])
+
+    src = write_session(tmp_path / "in.wtape", [(0, "tx", frame(b"GET")),
+                                                (1, "rx", frame(b"alice"))])
+    out = tmp_path / "out.wtape"
+    done = wiretape("edit", src, out, "--redact", "alice",
+                    "--profile", "framing=length:1:1:3,checksum=sum8@-1")
+    assert done.returncode == 0, done.stderr
+    assert direction_bytes(out, "rx") == frame(b"*****")
+    bad = wiretape("edit", src, tmp_path / "bad.wtape", "--redact", "alice",
+                   "--profile", "framing=length:1:1:3,baud=9600")
+    assert bad.returncode == 2 and "'baud'" in bad.stderr
+    assert not (tmp_path / "bad.wtape").exists()
