@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import ctypes
 import os
-import subprocess
+import sys
 import tempfile
 from typing import Optional, Sequence
 
 from . import _core
-from .children import Child, CommandNotStarted
+from .children import Child, CommandNotStarted, sanitizer_report
 
 SHIM_NAME = "_redirect_device.so"
 # The variables the shim reads (src/shim/redirect_device.c).
@@ -84,13 +84,34 @@ def _bind_mount_in_private_namespace(pty_path: str, device_path: str):
     return in_child
 
 
+def _binary(stream):
+    """The byte stream under a text stream (a test's capture may have none)."""
+    stream.flush()
+    return getattr(stream, "buffer", None) or _TextRelay(stream)
+
+
+class _TextRelay:
+    """Writes bytes to a text stream that has no byte stream under it."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def write(self, data: bytes) -> None:
+        self._stream.write(data.decode("utf-8", "replace"))
+
+    def flush(self) -> None:
+        self._stream.flush()
+
+
 class RedirectedCommand:
     """CMD running with ``device_path`` redirected to ``pty_path``, as a
-    :class:`~wiretape.children.Child`: its output passed through (or
-    captured, with ``capture``), ended with its whole group."""
+    :class:`~wiretape.children.Child`: its output captured (stderr with
+    stdout), ended with its whole group. With ``relay``, stdout and stderr
+    are captured apart and relayed as they come to this process's own
+    stdout and stderr, and CMD reads this process's stdin."""
 
     def __init__(self, argv: Sequence[str], device_path: str, pty_path: str,
-                 capture: bool = False):
+                 relay: bool = False):
         self.argv = list(argv)
         self.device_path = device_path
         # Each process of CMD that uses the path appends a line here.
@@ -106,8 +127,12 @@ class RedirectedCommand:
         preexec = (_bind_mount_in_private_namespace(pty_path, device_path)
                    if self.bind_mounted else None)
         try:
-            self.child = Child(self.argv, env=env, preexec_fn=preexec, capture=capture,
-                               stdin=subprocess.DEVNULL if capture else None)
+            if relay:
+                self.child = Child(self.argv, env=env, preexec_fn=preexec,
+                                   separate_stderr=True, relay=_binary(sys.stdout),
+                                   relay_stderr=_binary(sys.stderr), stdin=None)
+            else:
+                self.child = Child(self.argv, env=env, preexec_fn=preexec)
         except CommandNotStarted:
             self._remove_hits_file()
             raise
@@ -130,6 +155,10 @@ class RedirectedCommand:
         status = self.child.exit_status
         assert status is not None  # it has exited
         return status
+
+    def sanitizer_report(self) -> Optional[str]:
+        """The first line of a sanitizer report CMD printed, or None."""
+        return sanitizer_report(self.child.stdout) or sanitizer_report(self.child.stderr)
 
     def used_device_path(self) -> bool:
         """True once any process of CMD opened (or looked at) the path."""
