@@ -237,11 +237,12 @@ class Child:
                 assert self.process.stderr is not None
                 pipes[self.process.stderr.fileno()] = self.process.stderr
                 self._stderr_fd = self.process.stderr.fileno()
-            relays = {}
+            relays: Dict[int, IO[bytes]] = {}
             if relay is not None:
                 relays[self._stdout_fd] = relay
-            if self._stderr_fd is not None and (relay_stderr or relay) is not None:
-                relays[self._stderr_fd] = relay_stderr or relay
+            stderr_relay = relay_stderr if relay_stderr is not None else relay
+            if self._stderr_fd is not None and stderr_relay is not None:
+                relays[self._stderr_fd] = stderr_relay
             self._reader = _Reader(pipes, relays)
 
     @property
@@ -377,7 +378,7 @@ class Child:
             if stop is not None and stop.is_set():
                 stopped = True
                 break
-            if left is not None and left <= step:
+            if left is not None and step is not None and left <= step:
                 self._timed_out = True
                 break
         returncode = self.end()
