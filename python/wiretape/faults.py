@@ -512,7 +512,18 @@ def table(result: Campaign) -> str:
 
 def write_json(result: Campaign, path: str) -> None:
     """Writes the campaign's JSON whole or not at all (a file beside it,
-    renamed over `path`)."""
+    renamed over `path`); to a FIFO, a device or /dev/stdout, directly."""
+    import stat
+
+    try:
+        special = not stat.S_ISREG(os.stat(path).st_mode)
+    except OSError:
+        special = False
+    if special:
+        with open(path, "w", encoding="utf-8") as output:
+            json.dump(result.as_json(), output, indent=1)
+            output.write("\n")
+        return
     folder = os.path.dirname(os.path.abspath(path))
     handle, temporary = tempfile.mkstemp(prefix=".wiretape-faults-", suffix=".json",
                                          dir=folder)
