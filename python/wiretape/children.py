@@ -20,9 +20,10 @@ import signal
 import subprocess
 import threading
 import time
-from typing import IO, Callable, Dict, List, Mapping, Optional, Sequence, Union
+from typing import IO, Callable, Dict, List, Mapping, Optional, Protocol, Sequence, Union
 
 __all__ = ["Child", "Outcome", "CommandNotStarted", "GRACE_S", "sanitizer_report",
+           "SanitizerWatch",
            "EXIT_COMMAND_NOT_EXECUTABLE", "EXIT_COMMAND_NOT_FOUND"]
 
 #: How long a child asked to end (SIGTERM) has before its group is killed.
@@ -58,6 +59,50 @@ def sanitizer_report(output: Union[bytes, str]) -> Optional[str]:
     return None
 
 
+class SanitizerWatch:
+    """A relay (``write``/``flush``) that passes a command's output on and
+    looks at each of its lines for a sanitizer's report: ``report`` is the
+    first such line, however much output came before or after."""
+
+    # A longer line is looked at in pieces of this size.
+    _LONGEST_LINE = 65536
+
+    def __init__(self, relay: Optional[Relay] = None):
+        self._relay = relay
+        self._partial = b""
+        self.report: Optional[str] = None
+
+    def write(self, data: bytes) -> None:
+        if self._relay is not None:
+            try:
+                self._relay.write(data)
+            except (OSError, ValueError):
+                self._relay = None  # whoever reads it went away: still looked at
+        if self.report is not None:
+            return
+        *lines, self._partial = (self._partial + data).split(b"\n")
+        if len(self._partial) > self._LONGEST_LINE:
+            lines.append(self._partial)
+            self._partial = self._partial[-256:]  # a marker cut in two is still seen
+        for line in lines:
+            self.report = sanitizer_report(line)
+            if self.report is not None:
+                return
+
+    def flush(self) -> None:
+        if self._relay is not None:
+            try:
+                self._relay.flush()
+            except (OSError, ValueError):
+                self._relay = None
+
+    def finish(self) -> Optional[str]:
+        """The report, the last unended line included."""
+        if self.report is None and self._partial:
+            self.report = sanitizer_report(self._partial)
+        return self.report
+
+
 class CommandNotStarted(Exception):
     """The command could not be run; ``exit_code`` is 127 (not found) or
     126 (not executable, or another reason), as a shell says."""
@@ -68,6 +113,14 @@ class CommandNotStarted(Exception):
 
 
 Output = Union[bytes, str]
+
+
+class Relay(Protocol):
+    """Where a child's output is relayed: a binary stream, or a filter."""
+
+    def write(self, data: bytes) -> object: ...
+
+    def flush(self) -> None: ...
 
 
 @dataclasses.dataclass(frozen=True)
@@ -108,8 +161,10 @@ class _Reader:
     until told to stop; then it takes what is already in the pipes, without
     waiting for their end."""
 
-    def __init__(self, pipes: Dict[int, IO[bytes]], relays: Dict[int, IO[bytes]]):
+    def __init__(self, pipes: Dict[int, IO[bytes]], relays: Dict[int, Relay],
+                 keep: Optional[int] = None):
         self._pipes = pipes  # file descriptor -> pipe
+        self._keep = keep  # at most this many of the last bytes of each pipe
         self._relays = dict(relays)  # file descriptor -> where its output is relayed
         self.buffers: Dict[int, bytearray] = {fd: bytearray() for fd in pipes}
         self.changed = threading.Condition()
@@ -134,7 +189,10 @@ class _Reader:
             if not chunk:
                 return False
             with self.changed:
-                self.buffers[fd] += chunk
+                buffer = self.buffers[fd]
+                buffer += chunk
+                if self._keep is not None and len(buffer) > self._keep:
+                    del buffer[:len(buffer) - self._keep]
                 self.changed.notify_all()
             relay = self._relays.get(fd)
             if relay is not None:
@@ -189,7 +247,9 @@ class Child:
     ``capture``: stdout and stderr are read into :attr:`stdout` (and
     :attr:`stderr`, with ``separate_stderr``), and written to ``relay`` as
     they arrive when one is given (stderr captured apart to
-    ``relay_stderr``, when given); otherwise they are passed through (the
+    ``relay_stderr``, when given); with ``keep``, only the last ``keep``
+    bytes of each are kept (a long-running command that is relayed); otherwise
+    they are passed through (the
     child writes where this process writes). ``stdin`` as subprocess takes
     it (default: nothing to read). ``preexec_fn`` runs in the child after it
     has left this session. A command that cannot be started raises
@@ -197,8 +257,8 @@ class Child:
     """
 
     def __init__(self, argv: Sequence[str], *, capture: bool = True,
-                 separate_stderr: bool = False, relay: Optional[IO[bytes]] = None,
-                 relay_stderr: Optional[IO[bytes]] = None,
+                 separate_stderr: bool = False, relay: Optional[Relay] = None,
+                 relay_stderr: Optional[Relay] = None, keep: Optional[int] = None,
                  text: bool = False, stdin=subprocess.DEVNULL,
                  env: Optional[Mapping[str, str]] = None, cwd=None,
                  preexec_fn: Optional[Callable[[], None]] = None,
@@ -237,13 +297,13 @@ class Child:
                 assert self.process.stderr is not None
                 pipes[self.process.stderr.fileno()] = self.process.stderr
                 self._stderr_fd = self.process.stderr.fileno()
-            relays: Dict[int, IO[bytes]] = {}
+            relays: Dict[int, Relay] = {}
             if relay is not None:
                 relays[self._stdout_fd] = relay
             stderr_relay = relay_stderr if relay_stderr is not None else relay
             if self._stderr_fd is not None and stderr_relay is not None:
                 relays[self._stderr_fd] = stderr_relay
-            self._reader = _Reader(pipes, relays)
+            self._reader = _Reader(pipes, relays, keep)
 
     @property
     def name(self) -> str:

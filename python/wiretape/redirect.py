@@ -16,10 +16,10 @@ import ctypes
 import os
 import sys
 import tempfile
-from typing import Optional, Sequence
+from typing import Optional, Sequence, Tuple
 
 from . import _core
-from .children import Child, CommandNotStarted, sanitizer_report
+from .children import Child, CommandNotStarted, SanitizerWatch, sanitizer_report
 
 SHIM_NAME = "_redirect_device.so"
 # The variables the shim reads (src/shim/redirect_device.c).
@@ -103,6 +103,11 @@ class _TextRelay:
         self._stream.flush()
 
 
+# A relayed CMD's output is seen as it comes; only so much of its end is
+# kept (bytes of each of stdout and stderr).
+_RELAYED_OUTPUT_KEPT = 1 << 20
+
+
 class RedirectedCommand:
     """CMD running with ``device_path`` redirected to ``pty_path``, as a
     :class:`~wiretape.children.Child`: its output captured (stderr with
@@ -114,6 +119,7 @@ class RedirectedCommand:
                  relay: bool = False):
         self.argv = list(argv)
         self.device_path = device_path
+        self._watches: Tuple[SanitizerWatch, ...] = ()
         # Each process of CMD that uses the path appends a line here.
         hits_fd, self._hits_file = tempfile.mkstemp(prefix="wiretape-redirect-")
         os.close(hits_fd)
@@ -128,9 +134,12 @@ class RedirectedCommand:
                    if self.bind_mounted else None)
         try:
             if relay:
+                self._watches = (SanitizerWatch(_binary(sys.stdout)),
+                                 SanitizerWatch(_binary(sys.stderr)))
                 self.child = Child(self.argv, env=env, preexec_fn=preexec,
-                                   separate_stderr=True, relay=_binary(sys.stdout),
-                                   relay_stderr=_binary(sys.stderr), stdin=None)
+                                   separate_stderr=True, relay=self._watches[0],
+                                   relay_stderr=self._watches[1], stdin=None,
+                                   keep=_RELAYED_OUTPUT_KEPT)
             else:
                 self.child = Child(self.argv, env=env, preexec_fn=preexec)
         except CommandNotStarted:
@@ -157,8 +166,11 @@ class RedirectedCommand:
         return status
 
     def sanitizer_report(self) -> Optional[str]:
-        """The first line of a sanitizer report CMD printed, or None."""
-        return sanitizer_report(self.child.stdout) or sanitizer_report(self.child.stderr)
+        """The first line of a sanitizer report CMD printed, or None (once
+        CMD has ended)."""
+        if self._watches:
+            return self._watches[0].finish() or self._watches[1].finish()
+        return sanitizer_report(self.child.stdout)
 
     def used_device_path(self) -> bool:
         """True once any process of CMD opened (or looked at) the path."""

@@ -209,3 +209,24 @@ def test_a_child_used_as_a_context_is_ended():
         pid = child.pid
     assert child.returncode == -signal.SIGTERM
     assert not _alive(pid)
+
+
+def test_a_sanitizer_watch_relays_and_finds_a_report_among_much_output():
+    from wiretape.children import SanitizerWatch
+
+    relay = io.BytesIO()
+    watch = SanitizerWatch(relay)
+    chunks = [b"x" * 100_000 + b"\n", b"a.c:1:2: runtime ", b"error: overflow\nmore\n",
+              b"ERROR: AddressSanitizer: later\n"]
+    for chunk in chunks:
+        watch.write(chunk)
+    assert relay.getvalue() == b"".join(chunks)
+    assert watch.finish() == "a.c:1:2: runtime error: overflow"
+    unended = SanitizerWatch()
+    unended.write(b"WARNING: ThreadSanitizer: data race")
+    assert unended.finish() == "WARNING: ThreadSanitizer: data race"
+
+
+def test_keep_holds_only_the_end_of_the_output():
+    outcome = Child(["sh", "-c", "seq 1 100000"], keep=16).run(DEADLINE_S)
+    assert outcome.stdout == b"\n".join(b"%d" % n for n in range(99997, 100001))[-15:] + b"\n"
