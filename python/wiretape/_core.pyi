@@ -630,6 +630,12 @@ class BridgeResult:
         Why a replay with rx served none of it to any client (no client connected, nothing matched, the greeting was lost); '' otherwise.
         """
 
+    @property
+    def ended_by_fault(self) -> bool:
+        """
+        True when an injected fault (disconnect) lost the replay's device and that ended the bridge.
+        """
+
     def __repr__(self) -> str: ...
 
 class Bridge:
