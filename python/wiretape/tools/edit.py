@@ -732,6 +732,7 @@ def edit_in_child(src: SessionPath, dst: SessionPath, **options) -> EditResult:
         status = 1
         try:
             os.close(reading)
+            _end_with_parent()
             for signum in (signal.SIGINT, signal.SIGTERM):
                 # A signal the caller ignores stays ignored (a background job's SIGINT).
                 if signal.getsignal(signum) is not signal.SIG_IGN:
@@ -767,6 +768,20 @@ def edit_in_child(src: SessionPath, dst: SessionPath, **options) -> EditResult:
     if kind == "error":
         raise value
     return value
+
+
+def _end_with_parent() -> None:
+    """The child ends when its parent does, however the parent ended (even
+    SIGKILL): a catastrophic match must not outlive the command as an orphan
+    holding its output pipes. Linux only (prctl PR_SET_PDEATHSIG)."""
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        pr_set_pdeathsig = 1
+        libc.prctl(pr_set_pdeathsig, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
 
 
 def _described_status(wait_status: int) -> str:
