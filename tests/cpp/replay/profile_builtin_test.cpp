@@ -12,6 +12,7 @@
 
 #include "replay/profile.hpp"
 #include "replay/profiles/checksums.hpp"
+#include "replay/profiles/declared.hpp"
 #include "replay/replay_config.hpp"
 #include "replay/replay_port.hpp"
 #include "session/record_source.hpp"
@@ -559,11 +560,20 @@ std::vector<std::string> hostile_streams() {
 
 TEST(ProfileText, EveryProfileMakesValidUtf8FromAnyDeviceBytes) {
   const std::vector<std::string> streams = hostile_streams();
+  std::vector<std::pair<std::string, std::shared_ptr<const Profile>>> profiles;
   for (const std::string& name : profile_names()) {
     // The profile ProfileInterface registers is this program's own, not a
     // built-in: its names are the raw bytes.
-    if (name == "counter4") continue;
-    const auto profile = find_profile(name);
+    if (name != "counter4") profiles.emplace_back(name, find_profile(name));
+  }
+  // Declared profiles of every framing, with a checksum.
+  for (const char* spec : {"framing=delimiter:0d0a,checksum=xor8@-3",
+                           "framing=length:1:1:2,checksum=crc16-modbus@-2",
+                           "framing=fixed:5,ignore=0:1,checksum=sum8@-1"}) {
+    Options options = Options::parse(spec);
+    profiles.emplace_back(spec, detail::take_declared_profile(options));
+  }
+  for (const auto& [name, profile] : profiles) {
     for (StreamDirection direction : {StreamDirection::tx, StreamDirection::rx}) {
       for (const std::string& stream : streams) {
         std::vector<Frame> frames = frames_of(*profile, direction, stream, stream.size() + 1);
