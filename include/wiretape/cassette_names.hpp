@@ -185,14 +185,18 @@ inline void publish_recording(const std::string& recording, const std::string& c
       header.metadata_json.clear();
       const std::string rewritten = recording + ".header";
       bool whole = false;
-      {
+      std::error_code ignored;
+      try {
         SessionWriter writer(rewritten, header);
         Record record;
         while (reader.next(record)) writer.write(record);
         whole = !reader.damage();
         writer.close();
+      } catch (...) {
+        // The recording stays where it was; no half-written copy is left.
+        std::filesystem::remove(rewritten, ignored);
+        throw;
       }
-      std::error_code ignored;
       if (whole) {
         std::filesystem::rename(rewritten, cassette);
         std::filesystem::remove(recording, ignored);
