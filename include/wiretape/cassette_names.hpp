@@ -1,7 +1,8 @@
-// Where a test's cassette lives and what it is called: the one set of rules
-// for the GoogleTest helper (wiretape/testing.hpp) and, bound, the pytest
-// plugin (wiretape.testing). Header-only and without GoogleTest, so that the
-// Python extension can bind it. docs/testing.md, "Cassette names".
+// Where a test's cassette lives, what it is called and how a recording
+// becomes it: the one set of rules for the GoogleTest helper
+// (wiretape/testing.hpp) and, bound, the pytest plugin (wiretape.testing).
+// Header-only and without GoogleTest, so that the Python extension can bind
+// it. docs/testing.md, "Cassette names".
 #pragma once
 
 #include <array>
@@ -12,6 +13,9 @@
 #include <string>
 #include <string_view>
 #include <vector>
+
+#include "wiretape/options.hpp"
+#include "wiretape/session.hpp"
 
 namespace wiretape::testing {
 
@@ -142,6 +146,66 @@ inline std::string default_cassette_path(std::string_view source_file, std::stri
   return (std::filesystem::path(cassette_directory(source_file, directory)) /
           cassette_file_name({std::string(suite), std::string(test)}))
       .string();
+}
+
+// Moves a finished recording (recorded to the temporary file `recording`,
+// e.g. "<cassette>.recording-4242") to `cassette`, so that the cassette says
+// nothing of the machine or the run that recorded it: the port option
+// string, which names the file recorded to (log=/tmp/.../x.recording-4242),
+// names the cassette's own file name instead (log=x.wtape), and so does any
+// other field of the header that named the temporary file. Everything else
+// (records, times, host, metadata) is kept. A recording that is damaged (a
+// failed write) or names no temporary file is moved as it is, so that
+// nothing it holds is lost. Throws PortError/SessionError when the files
+// cannot be read or written.
+inline void publish_recording(const std::string& recording, const std::string& cassette) {
+  const std::string cassette_name = std::filesystem::path(cassette).filename().string();
+  const std::string quoted_recording = quote_option_value(recording);
+  const auto replace_all = [](std::string text, const std::string& from, const std::string& to) {
+    for (std::size_t at = text.find(from); at != std::string::npos;
+         at = text.find(from, at + to.size())) {
+      text.replace(at, from.size(), to);
+    }
+    return text;
+  };
+  const auto stable = [&](const std::string& text) {
+    return replace_all(replace_all(text, "log=" + quoted_recording,
+                                   "log=" + quote_option_value(cassette_name)),
+                       recording, cassette_name);
+  };
+  {
+    SessionReader reader(recording);
+    SessionHeader header = reader.header();
+    const bool names_recording = header.metadata_json.find(recording) != std::string::npos ||
+                                 header.metadata_json.find(quoted_recording) != std::string::npos;
+    if (names_recording) {
+      header.port_options = stable(header.port_options);
+      header.device_address = stable(header.device_address);
+      for (auto& [key, value] : header.user_metadata) value = stable(value);
+      header.metadata_json.clear();
+      const std::string rewritten = recording + ".header";
+      bool whole = false;
+      std::error_code ignored;
+      try {
+        SessionWriter writer(rewritten, header);
+        Record record;
+        while (reader.next(record)) writer.write(record);
+        whole = !reader.damage();
+        writer.close();
+      } catch (...) {
+        // The recording stays where it was; no half-written copy is left.
+        std::filesystem::remove(rewritten, ignored);
+        throw;
+      }
+      if (whole) {
+        std::filesystem::rename(rewritten, cassette);
+        std::filesystem::remove(recording, ignored);
+        return;
+      }
+      std::filesystem::remove(rewritten, ignored);
+    }
+  }
+  std::filesystem::rename(recording, cassette);
 }
 
 }  // namespace wiretape::testing

@@ -170,6 +170,9 @@ class SessionWriter {
   std::optional<PortError> failure() const;
   // Bytes in the file so far, flushed or buffered.
   std::uint64_t size() const;
+  // Records handed whole to the OS so far: not those still buffered, nor
+  // those a failed write lost. After close(), what a reader of the file finds.
+  std::uint64_t records_written() const;
 
  private:
   struct Impl;

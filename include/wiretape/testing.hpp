@@ -23,6 +23,8 @@
 // the port is the real device (OPTS is an option string; a bare path means
 // type=serial,device=PATH) recording to the cassette. A recording is kept only
 // when the test passes; a failing test leaves the previous cassette as it was.
+// The cassette's header names the cassette (log=<its file name>), not the
+// temporary file it was recorded to (publish_recording).
 // WIRETAPE_RECORD=once records only the missing cassettes.
 // WIRETAPE_CASSETTE_DIR=DIR puts cassettes under DIR instead of next to the
 // source (for sources compiled with relative __FILE__ paths, or read-only
@@ -168,7 +170,7 @@ class Cassette {
       std::error_code ignored;
       if (passed && !close_error && std::filesystem::exists(partial_path_)) {
         std::filesystem::create_directories(std::filesystem::path(path_).parent_path());
-        std::filesystem::rename(partial_path_, path_);
+        publish_recording(partial_path_, path_);
       } else {
         std::filesystem::remove(partial_path_, ignored);
       }

@@ -565,6 +565,11 @@ def cassette_directory(source_file: object, directory: str = '') -> str:
     The folder of SOURCE_FILE's cassettes: <its dir>/recordings/<its stem>, or <DIRECTORY>/<its stem> when a directory is given.
     """
 
+def publish_recording(recording: object, cassette: object) -> None:
+    """
+    Moves a finished recording to CASSETTE, its header naming the cassette (log=<its file name>) instead of the temporary file RECORDING; a damaged recording, or one naming no such file, is moved as it is.
+    """
+
 def crc32c(data: bytes, crc: int = 0) -> int:
     """The CRC32C (Castagnoli) of data, continuing from crc."""
 

@@ -26,6 +26,13 @@ bool is_unsupported(const PortError& error) {
   return code == ENOTSUP || code == ENOTTY || code == EINVAL || code == ENOSYS;
 }
 
+// The count is the writer's: records in the file, not records buffered (a
+// write failure loses those), so the summary matches what verify finds.
+void count_records_written(Status& status, const SessionWriter& writer) {
+  const std::uint64_t in_file = writer.records_written();
+  status.update_stats([in_file](BridgeStats& s) { s.records_written = in_file; });
+}
+
 }  // namespace
 
 // --- the device ----------------------------------------------------------------------
@@ -122,7 +129,9 @@ void DeviceSide::shut_down(BridgeOutcome& outcome, std::string& message) {
   if (writer_) {
     try {
       writer_->close();
+      count_records_written(status_, *writer_);
     } catch (const std::exception& error) {
+      count_records_written(status_, *writer_);
       // The session file misses what came after the failure: that is the
       // bridge's result, whatever else ended it.
       if (outcome != BridgeOutcome::mismatch) {
@@ -161,9 +170,10 @@ void DeviceSide::record_at(RecordKind kind, std::uint64_t t_ns, std::string_view
     writer_->write(kind, t_ns, data);
   } catch (const PortError& error) {
     recording_stopped(error);
+    count_records_written(status_, *writer_);
     return;
   }
-  status_.update_stats([](BridgeStats& s) { ++s.records_written; });
+  count_records_written(status_, *writer_);
 }
 
 void DeviceSide::recording_stopped(const PortError& error) {

@@ -3,6 +3,7 @@
 // each derives from the built-in exception a Python user would catch
 // (ValueError, OSError, AssertionError) and carries attributes; nanobind's
 // nb::exception<T> gives neither.
+#include <cstring>
 #include <exception>
 #include <string>
 
@@ -118,27 +119,37 @@ nb::object errno_value(const PortError& error) {
   return nb::int_(value);
 }
 
+// An error message as str: bytes that are not UTF-8 (a file name, text a
+// profile of one's own made from device bytes) as \xNN, so that the error
+// raised is the one thrown, never a conversion error.
+nb::object message_text(const char* message) {
+  PyObject* text = PyUnicode_DecodeUTF8(message, static_cast<Py_ssize_t>(std::strlen(message)),
+                                        "backslashreplace");
+  if (text == nullptr) throw nb::python_error();
+  return nb::steal(text);
+}
+
 void translate(const std::exception_ptr& exception, void*) {
   try {
     std::rethrow_exception(exception);
   } catch (const PortClosed& error) {
     set_error(classes.port_closed,
-              nb::make_tuple(errno_value(error), error.what()));
+              nb::make_tuple(errno_value(error), message_text(error.what())));
   } catch (const PortError& error) {
     set_error(classes.port_error,
-              nb::make_tuple(errno_value(error), error.what()));
+              nb::make_tuple(errno_value(error), message_text(error.what())));
   } catch (const OptionError& error) {
-    set_error(classes.option_error, nb::make_tuple(error.what(), error.key()));
+    set_error(classes.option_error, nb::make_tuple(message_text(error.what()), error.key()));
   } catch (const ReplayMismatch& error) {
     nb::object exchange = error.exchange() < 0
                               ? nb::none()
                               : nb::object(nb::int_(error.exchange()));
     set_error(classes.replay_mismatch,
-              nb::make_tuple(error.what(), error.tx_offset(),
+              nb::make_tuple(message_text(error.what()), error.tx_offset(),
                              error.session_time_ns(), exchange));
   } catch (const SessionError& error) {
     set_error(classes.session_error,
-              nb::make_tuple(error.what(), error.offset()));
+              nb::make_tuple(message_text(error.what()), error.offset()));
   }
   // Anything else propagates to the next translator.
 }

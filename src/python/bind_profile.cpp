@@ -48,6 +48,17 @@ std::string_view view_of(const nb::bytes& data) { return {data.c_str(), data.siz
 
 nb::bytes to_bytes(std::string_view data) { return nb::bytes(data.data(), data.size()); }
 
+// A profile's text (a frame's name or description) as str. Built-in profiles
+// escape the device bytes they show, so their text is UTF-8; a profile of
+// one's own may not: its stray bytes come out as \xNN instead of the
+// conversion error nanobind would raise for them.
+nb::str to_text(std::string_view text) {
+  PyObject* str = PyUnicode_DecodeUTF8(text.data(), static_cast<Py_ssize_t>(text.size()),
+                                       "backslashreplace");
+  if (str == nullptr) throw nb::python_error();
+  return nb::steal<nb::str>(str);
+}
+
 // A record from an iterable: anything with t_ns, kind and data, as
 // SessionReader's records and show's own record views have.
 struct RecordFields {
@@ -82,9 +93,7 @@ RecordFields record_fields(nb::handle record) {
 
 // (t_ns, kind, bytes, description): a frame, or an event with None.
 nb::object item_tuple(const DecodedItem& item, nb::object kind) {
-  nb::object description = item.is_frame ? nb::object(nb::str(item.description.data(),
-                                                               item.description.size()))
-                                         : nb::none();
+  nb::object description = item.is_frame ? nb::object(to_text(item.description)) : nb::none();
   return nb::make_tuple(item.t_ns, kind, to_bytes(item.bytes), description);
 }
 
@@ -367,13 +376,13 @@ void bind_profile(nb::module_& m) {
       .def(
           "frame_name",
           [](const PyProfile& p, const std::string& direction, nb::bytes frame) {
-            return p.profile->frame_name(direction_from_python(direction), view_of(frame));
+            return to_text(p.profile->frame_name(direction_from_python(direction), view_of(frame)));
           },
           "direction"_a, "frame"_a, "The frame's short name (for SCIP, the command code).")
       .def(
           "describe",
           [](const PyProfile& p, const std::string& direction, nb::bytes frame) {
-            return p.profile->describe(direction_from_python(direction), view_of(frame));
+            return to_text(p.profile->describe(direction_from_python(direction), view_of(frame)));
           },
           "direction"_a, "frame"_a, "The frame's one-line description, as show prints it.")
       .def(

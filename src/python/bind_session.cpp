@@ -586,6 +586,18 @@ void bind_session(nb::module_& m) {
       "source_file"_a, "directory"_a = "",
       "The folder of SOURCE_FILE's cassettes: <its dir>/recordings/<its stem>, or "
       "<DIRECTORY>/<its stem> when a directory is given.");
+  m.def(
+      "publish_recording",
+      [](nb::handle recording, nb::handle cassette) {
+        const std::string from = path_from_python(recording);
+        const std::string to = path_from_python(cassette);
+        nb::gil_scoped_release release;
+        testing::publish_recording(from, to);
+      },
+      "recording"_a, "cassette"_a,
+      "Moves a finished recording to CASSETTE, its header naming the cassette "
+      "(log=<its file name>) instead of the temporary file RECORDING; a damaged "
+      "recording, or one naming no such file, is moved as it is.");
 
   m.def(
       "crc32c",

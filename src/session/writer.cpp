@@ -57,6 +57,9 @@ struct SessionWriter::Impl {
   // Serialises writes to the file and keeps their order.
   std::mutex io_mutex;
   std::uint64_t committed = 0;  // bytes in the file, all whole records
+  // Records (the file header counts as one) among those bytes: what a
+  // reader finds, whatever was buffered when a write failed.
+  std::uint64_t committed_records = 0;
   std::uint64_t reserved = 0;   // blocks reserved up to here (io_mutex)
   bool reserving = true;        // false once the file system declined
 
@@ -161,17 +164,23 @@ struct SessionWriter::Impl {
     }
     if (error == 0) {
       committed += data.size();
+      std::lock_guard<std::mutex> count(mutex);
+      committed_records += ends.size();
       data.clear();
-      std::lock_guard<std::mutex> lock(mutex);
       if (spare.capacity() < data.capacity()) spare.swap(data);
       return;
     }
     // Keep the records that made it whole.
     std::size_t whole = 0;
+    std::uint64_t whole_records = 0;
     for (const std::size_t end : ends) {
-      if (end <= written) whole = end;
+      if (end <= written) whole = end, ++whole_records;
     }
     committed += whole;
+    {
+      std::lock_guard<std::mutex> count(mutex);
+      committed_records += whole_records;
+    }
     fail_and_release(error);
   }
 
@@ -364,6 +373,12 @@ const SessionHeader& SessionWriter::header() const { return impl_->header; }
 std::optional<PortError> SessionWriter::failure() const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   return impl_->failure;
+}
+
+std::uint64_t SessionWriter::records_written() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  // The file header, in the file since the constructor, is not a record.
+  return impl_->committed_records == 0 ? 0 : impl_->committed_records - 1;
 }
 
 std::uint64_t SessionWriter::size() const {

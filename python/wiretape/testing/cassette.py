@@ -53,31 +53,13 @@ def quote_option(value: Any) -> str:
 
 
 def publish_recording(recording: Path, cassette: Path) -> None:
-    """Moves a finished recording to `cassette`.
-
-    The library writes the option string of the recorded port into the
-    session header, and it names the file recorded to: this machine's
-    temporary path (``log=/tmp/pytest-of-me/.../t.wtape.recording-4242``).
-    That becomes the cassette's own name, a path relative to the cassette
-    (``log=t.wtape``), so that the header says nothing about the machine's
-    directories. A recording that is damaged (a failed write) is moved as it
-    is, so that nothing it holds is lost."""
-    recorded_as = "log=" + quote_option(str(recording))
-    rewritten = recording.with_name(recording.name + ".header")
-    with _core.SessionReader(str(recording)) as reader:
-        header = reader.header
-        if recorded_as in header.port_options:
-            header.port_options = header.port_options.replace(
-                recorded_as, "log=" + quote_option(cassette.name))
-            with _core.SessionWriter(str(rewritten), header) as writer:
-                for record in reader:
-                    writer.write(record.kind, record.t_ns, record.data)
-            if reader.damage is None:
-                os.replace(rewritten, cassette)
-                os.unlink(recording)
-                return
-            os.unlink(rewritten)
-    os.replace(recording, cassette)
+    """Moves a finished recording to `cassette`, its header naming the
+    cassette (``log=t.wtape``) instead of this machine's temporary path
+    (``log=/tmp/pytest-of-me/.../t.wtape.recording-4242``); the GoogleTest
+    helper's rule (wiretape/cassette_names.hpp), bound. A recording that is
+    damaged (a failed write) is moved as it is, so that nothing it holds is
+    lost."""
+    _core.publish_recording(recording, cassette)
 
 
 # --------------------------------------------------------------------------
@@ -102,8 +84,19 @@ def cassette_file_name(item: pytest.Item) -> str:
     """The test's cassette file name: nodeid ``dir/test_x.py::TestA::test_b``
     gives ``TestA.test_b.wtape``; a name that must change to be a file name
     (``test_b[p 1]``) ends with a hash of the whole name (safe_file_name)."""
-    parts = item.nodeid.split("::")[1:] or [item.name]
-    return _core.cassette_file_name(parts)
+    return _core.cassette_file_name(_name_parts(item))
+
+
+def _name_parts(item: pytest.Item) -> List[str]:
+    """The classes holding the test, then the test's name with its
+    parameters. Only the part of the nodeid before the name is split at
+    ``::``: a parameter id may hold ``::`` itself (``test_f[a::b]`` is not the
+    class ``test_f[a`` and the test ``b]``, which would be read as
+    ``test_f[a.b]``, another test's cassette)."""
+    nodeid, name = item.nodeid, item.name
+    if not nodeid.endswith(name):
+        return [name]
+    return nodeid[:len(nodeid) - len(name)].split("::")[1:-1] + [name]
 
 
 # --------------------------------------------------------------------------

@@ -82,11 +82,14 @@ def show(path: SessionPath, fmt: str = "text", profile: Optional[str] = None,
 
 
 def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optional[str] = None,
-                          out: Optional[IO[str]] = None, decode: Optional[str] = None
+                          out: Optional[IO[str]] = None, decode: Optional[str] = None,
+                          wrap: Optional[int] = None
                           ) -> Tuple[int, Optional[_core.SessionError]]:
     """show(), and the damage reading stopped at (None for an intact
     session): what the command line's exit code needs, without a second
-    reading, which a pipe or FIFO would not allow."""
+    reading, which a pipe or FIFO would not allow. With `wrap` (text format,
+    for textconv), every byte of a payload is shown, `wrap` bytes a line,
+    the lines after the first indented under it."""
     if fmt not in ("text", "hex", "jsonl"):
         raise ValueError(f"unknown format {fmt!r}: use text, hex or jsonl")
     if profile is not None and decode is not None and profile != decode:
@@ -120,8 +123,15 @@ def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optiona
             size = f"{len(record.data):>6} B"
             if record.kind in _DIRECTIONS:
                 arrow = "<-" if record.kind == "rx" else "->"
-                summary = f"{arrow} {_printable(record.data)}" if fmt == "text" else ""
-                out.write(f"{_seconds(record.t_ns)}  {record.kind:<17} {size}  {summary}\n".rstrip() + "\n")
+                text = (_printable(record.data) if wrap is None
+                        else _printable(record.data[:wrap], wrap))
+                summary = f"{arrow} {text}" if fmt == "text" else ""
+                line = f"{_seconds(record.t_ns)}  {record.kind:<17} {size}  "
+                out.write(f"{line}{summary}\n".rstrip() + "\n")
+                if fmt == "text" and wrap is not None:
+                    for at in range(wrap, len(record.data), wrap):
+                        more = record.data[at:at + wrap]
+                        out.write(" " * (len(line) + 3) + _printable(more, len(more)) + "\n")
                 if fmt == "hex":
                     for line in _hexdump(record.data):
                         out.write(line + "\n")

@@ -7,7 +7,9 @@ file's name (git hands over a temporary copy, whose name changes on every
 run) is left out, and with ``start=False`` so are the start time and the
 host, which differ between two recordings of one run, and with
 ``times=False`` each record's time (a run recorded again differs in every
-time stamp, by a little). A damaged file is
+time stamp, by a little). Every byte of every record is shown (show cuts
+payloads at 64 bytes), 64 bytes a line, so that a changed byte shows in the
+diff as the one line holding it. A damaged file is
 shown up to the damage, which is a line of the text: git still shows the
 diff.
 """
@@ -31,6 +33,9 @@ FILE_PLACEHOLDER = "FILE"
 # A record line of show's timeline starts with its time: "+0.000123s  ".
 _RECORD_TIME = re.compile(r"^[+-]\d+\.\d+s  ")
 
+#: Payload bytes a line: a long payload goes on over lines of its own.
+BYTES_PER_LINE = 64
+
 
 class _StableLines:
     """A text stream that passes show's lines on, less the file's name and,
@@ -43,6 +48,9 @@ class _StableLines:
         self._times = times
         self._pending = ""
         self._in_header = True
+        # How much of the last record line its time took: its payload's
+        # further lines are indented under it, and lose as much.
+        self._time_width = 0
 
     def write(self, text: str) -> int:
         self._pending += text
@@ -60,7 +68,14 @@ class _StableLines:
             elif not self._start and line.lstrip().startswith("started "):
                 return
         elif not self._times:
-            line = _RECORD_TIME.sub("", line)
+            time = _RECORD_TIME.match(line)
+            if time:
+                self._time_width = time.end()
+                line = line[time.end():]
+            else:
+                # (a hex dump's lines are indented less than any time)
+                continued = self._time_width and line.startswith(" " * self._time_width)
+                line = line[self._time_width:] if continued else line
         if self._path:
             line = line.replace(self._path, FILE_PLACEHOLDER)
         self._out.write(line + "\n")
@@ -84,6 +99,7 @@ def textconv(path: SessionPath, fmt: str = "text", start: bool = True, times: bo
     stable = _StableLines(out if out is not None else sys.stdout, os.fspath(path), start,
                           times)
     try:
-        return show_reporting_damage(path, fmt=fmt, out=stable)  # type: ignore[arg-type]
+        return show_reporting_damage(path, fmt=fmt, out=stable,  # type: ignore[arg-type]
+                                     wrap=BYTES_PER_LINE)
     finally:
         stable.flush()

@@ -4,6 +4,7 @@
 // key is the sentence without its checksum and line end.
 #include <cctype>
 #include <cstdio>
+#include <optional>
 #include <string>
 
 #include "replay/profiles/builtin.hpp"
@@ -19,6 +20,23 @@ std::string_view without_line_end(std::string_view line) {
   return line;
 }
 
+int hex_digit_value(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  return -1;
+}
+
+// The two hex digits after '*'; nullopt unless both are hex digits (sscanf's
+// %2x would take a sign or a single digit).
+std::optional<unsigned> checksum_digits(std::string_view digits) {
+  if (digits.size() != 2) return std::nullopt;
+  const int high = hex_digit_value(digits[0]);
+  const int low = hex_digit_value(digits[1]);
+  if (high < 0 || low < 0) return std::nullopt;
+  return static_cast<unsigned>(high * 16 + low);
+}
+
 // What is wrong with a sentence; empty if nothing.
 std::string sentence_problem(std::string_view frame) {
   const std::string_view line = without_line_end(frame);
@@ -27,15 +45,15 @@ std::string sentence_problem(std::string_view frame) {
   }
   const std::size_t star = line.rfind('*');
   if (star == std::string_view::npos) return {};  // the checksum is optional
-  if (line.size() != star + 3) return "bad checksum field '" + std::string(line.substr(star)) + "'";
-  unsigned stored = 0;
-  if (std::sscanf(std::string(line.substr(star + 1)).c_str(), "%2x", &stored) != 1) {
-    return "bad checksum field '" + std::string(line.substr(star)) + "'";
-  }
+  // The field is device bytes: escaped, since the problem is shown as text.
+  const std::string bad_field = "bad checksum field '" + escape_bytes(line.substr(star)) + "'";
+  if (line.size() != star + 3) return bad_field;
+  const std::optional<unsigned> stored = checksum_digits(line.substr(star + 1));
+  if (!stored) return bad_field;
   const unsigned computed = xor8(line.substr(1, star - 1));
-  if (stored != computed) {
+  if (*stored != computed) {
     char problem[64];
-    std::snprintf(problem, sizeof problem, "bad checksum %02X, computed %02X", stored, computed);
+    std::snprintf(problem, sizeof problem, "bad checksum %02X, computed %02X", *stored, computed);
     return problem;
   }
   return {};

@@ -51,19 +51,9 @@ constexpr std::array<CommandMeaning, 18> commands = {{
 
 constexpr std::string_view scip2_switch = "SCIP2.0";
 
-// Bytes as text for names: ASCII kept as it is, every other byte as U+FFFD
-// (UTF-8), as a decoder that replaces what is not ASCII would give.
-std::string ascii_or_replacement(std::string_view bytes) {
-  std::string text;
-  for (unsigned char byte : bytes) {
-    if (byte < 0x80) {
-      text += static_cast<char>(byte);
-    } else {
-      text += "\xEF\xBF\xBD";
-    }
-  }
-  return text;
-}
+// A few device bytes as text for names: escape_bytes() text (valid UTF-8,
+// no control byte reaches a terminal), never cut.
+std::string name_text(std::string_view bytes) { return escape_bytes(bytes, bytes.size()); }
 
 std::string_view first_line(std::string_view frame) {
   return frame.substr(0, frame.find(lf));
@@ -77,7 +67,7 @@ bool starts_with(std::string_view text, std::string_view prefix) {
 // switch, else its first two bytes.
 std::string command_code(std::string_view echo) {
   if (starts_with(echo, scip2_switch)) return std::string(scip2_switch);
-  return ascii_or_replacement(echo.substr(0, 2));
+  return name_text(echo.substr(0, 2));
 }
 
 std::string_view command_meaning(std::string_view code) {
@@ -242,7 +232,7 @@ class ScipProfile final : public Profile {
     if (echo.size() < frame.size()) {
       std::string_view rest = frame.substr(echo.size() + 1);
       const std::string_view status_line = first_line(rest);
-      status = ascii_or_replacement(status_line.substr(0, 2));
+      status = name_text(status_line.substr(0, 2));
       rest.remove_prefix(std::min(rest.size(), status_line.size() + 1));
       while (!rest.empty()) {
         const std::string_view line = first_line(rest);

@@ -10,6 +10,7 @@
 #include <iterator>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
@@ -262,6 +263,64 @@ TEST(CassettePath, Sha1IsTheStandardOne) {
             "a9993e364706816aba3e25717850c26c9cd0d89d");
   EXPECT_EQ(wiretape::testing::detail::sha1_hex(std::string(1000, 'a')),
             "291e9a6c66994949b57ba5e650361e98fc36b1ba");
+}
+
+// The header's JSON less its start time, the one field that differs between
+// two recordings of one test on one machine.
+std::string header_without_start(const fs::path& cassette) {
+  wiretape::SessionReader reader(cassette.string());
+  const wiretape::SessionHeader& header = reader.header();
+  std::string json = header.metadata_json;
+  const std::size_t at = json.find(header.start_utc);
+  if (!header.start_utc.empty() && at != std::string::npos) {
+    json.erase(at, header.start_utc.size());
+  }
+  return json;
+}
+
+TEST(Cassette, TwoRecordingsOfATestHaveTheSameHeaderButForTheStartTime) {
+  // Before, the header kept the temporary file it was recorded to, an
+  // absolute path ending with the recording process's PID.
+  TemporaryDirectory first, second;
+  std::vector<std::string> headers;
+  for (const TemporaryDirectory* directory : {&first, &second}) {
+    const fs::path path = directory->path() / "recordings" / "Suite.Echo.wtape";
+    fs::create_directories(path.parent_path());
+    Cassette cassette(path.string(), recording_from_loopback(), {}, "Suite.Echo");
+    echo(cassette.port(), "hello\n");
+    cassette.finish(true);
+    ASSERT_TRUE(fs::exists(path));
+    EXPECT_EQ(leftovers(path.parent_path()), 0u);
+    EXPECT_EQ(streams(path), std::make_pair(std::string("hello\n"), std::string("hello\n")));
+    wiretape::SessionReader reader(path.string());
+    EXPECT_EQ(reader.header().port_options,
+              "type=loopback,log=Suite.Echo.wtape,meta_gtest=Suite.Echo");
+    headers.push_back(header_without_start(path));
+    EXPECT_EQ(headers.back().find(directory->path().string()), std::string::npos) << headers.back();
+    EXPECT_EQ(headers.back().find(".recording-"), std::string::npos) << headers.back();
+  }
+  EXPECT_EQ(headers[0], headers[1]);
+}
+
+TEST(Cassette, ADamagedRecordingIsPublishedAsItIs) {
+  TemporaryDirectory directory;
+  const fs::path recording = directory.path() / "t.wtape.recording-1";
+  {
+    wiretape::SessionHeader header;
+    header.port_options = "type=loopback,log=" + recording.string();
+    wiretape::SessionWriter writer(recording.string(), header);
+    writer.write(wiretape::RecordKind::tx, 1, "abc");
+    writer.write(wiretape::RecordKind::rx, 2, "abc");
+  }
+  const std::string bytes = file_bytes(recording);
+  {
+    std::ofstream cut(recording, std::ios::binary | std::ios::trunc);
+    cut << bytes.substr(0, bytes.size() - 2);
+  }
+  wiretape::testing::publish_recording(recording.string(), (directory.path() / "t.wtape").string());
+  EXPECT_FALSE(fs::exists(recording));
+  EXPECT_EQ(file_bytes(directory.path() / "t.wtape"), bytes.substr(0, bytes.size() - 2));
+  EXPECT_EQ(leftovers(directory.path()), 0u);
 }
 
 // The fixture itself, on a cassette recorded from type=loopback and kept in

@@ -5,6 +5,7 @@
 // field); and a profile registered through the public C++ interface.
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <random>
 #include <string>
 #include <vector>
@@ -16,6 +17,7 @@
 #include "replay/replay_port.hpp"
 #include "session/record_source.hpp"
 #include "support/port_test_support.hpp"
+#include "util/hex.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/options.hpp"
 #include "wiretape/port.hpp"
@@ -557,4 +559,158 @@ TEST(RecomputeChecksums, DeclaredProfilesRecomputeTheirChecksumAndOthersChangeNo
               "t1****\r")
         << name;
   }
+}
+
+// --- text made from device bytes (issue 23) ----------------------------------------------
+
+namespace {
+
+using namespace std::string_literals;
+
+// Whether `text` is valid UTF-8 (no overlong forms, no surrogates, nothing
+// past U+10FFFF): what Python's str() of it needs.
+bool is_valid_utf8(std::string_view text) {
+  std::size_t i = 0;
+  while (i < text.size()) {
+    const auto byte = static_cast<unsigned char>(text[i]);
+    std::size_t length = 0;
+    std::uint32_t code = 0;
+    if (byte < 0x80) {
+      ++i;
+      continue;
+    } else if ((byte & 0xE0) == 0xC0) {
+      length = 2, code = byte & 0x1F;
+    } else if ((byte & 0xF0) == 0xE0) {
+      length = 3, code = byte & 0x0F;
+    } else if ((byte & 0xF8) == 0xF0) {
+      length = 4, code = byte & 0x07;
+    } else {
+      return false;
+    }
+    if (i + length > text.size()) return false;
+    for (std::size_t k = 1; k < length; ++k) {
+      const auto next = static_cast<unsigned char>(text[i + k]);
+      if ((next & 0xC0) != 0x80) return false;
+      code = (code << 6) | (next & 0x3F);
+    }
+    const std::uint32_t smallest[] = {0, 0, 0x80, 0x800, 0x10000};
+    if (code < smallest[length] || code > 0x10FFFF || (code >= 0xD800 && code <= 0xDFFF)) {
+      return false;
+    }
+    i += length;
+  }
+  return true;
+}
+
+// No byte a terminal acts on: text shown by show, diff and reports.
+bool has_no_control_bytes(std::string_view text) {
+  for (unsigned char byte : text) {
+    if (byte < 0x20 || byte == 0x7F) return false;
+  }
+  return true;
+}
+
+// Random streams, and streams that look like each protocol with bytes >= 0x80
+// and control bytes where its text goes.
+std::vector<std::string> hostile_streams() {
+  std::mt19937 random(23);
+  std::vector<std::string> streams = {
+      "$GPGGA,1,2*\xff\xfe\r\n"s,
+      "$GPGGA,1,2*\x1b[\r\n"s,
+      "$\xc3(,1*00\n"s,
+      "\xff\xfe\n\x1b]0;x\x07\n"s,
+      "V\xff\n00P\n\n\x1b\x9b\n\xe9\xe9\n\n"s,
+      "\xe9\xe9\xe9\r\a"s,
+      "t\xff\xff\xff\x32\r"s,
+  };
+  for (int n = 0; n < 300; ++n) {
+    std::string stream(std::uniform_int_distribution<int>(1, 300)(random), '\0');
+    for (char& byte : stream) {
+      // Bias towards the bytes that end or begin frames.
+      const int pick = std::uniform_int_distribution<int>(0, 15)(random);
+      const char specials[] = {'\n', '\r', '$', '!', '*', ',', '\a', static_cast<char>(0xFE),
+                               static_cast<char>(0xFD)};
+      byte = pick < 9 ? specials[pick]
+                      : static_cast<char>(std::uniform_int_distribution<int>(0, 255)(random));
+    }
+    streams.push_back(stream);
+  }
+  return streams;
+}
+
+}  // namespace
+
+TEST(ProfileText, EveryProfileMakesValidUtf8FromAnyDeviceBytes) {
+  const std::vector<std::string> streams = hostile_streams();
+  std::vector<std::pair<std::string, std::shared_ptr<const Profile>>> profiles;
+  for (const std::string& name : profile_names()) {
+    // The profile ProfileInterface registers is this program's own, not a
+    // built-in: its names are the raw bytes.
+    if (name != "counter4") profiles.emplace_back(name, find_profile(name));
+  }
+  // Declared profiles of every framing, with a checksum.
+  for (const char* spec : {"framing=delimiter:0d0a,checksum=xor8@-3",
+                           "framing=length:1:1:2,checksum=crc16-modbus@-2",
+                           "framing=fixed:5,ignore=0:1,checksum=sum8@-1"}) {
+    Options options = Options::parse(spec);
+    profiles.emplace_back(spec, detail::take_declared_profile(options));
+  }
+  for (const auto& [name, profile] : profiles) {
+    for (StreamDirection direction : {StreamDirection::tx, StreamDirection::rx}) {
+      for (const std::string& stream : streams) {
+        std::vector<Frame> frames = frames_of(*profile, direction, stream, stream.size() + 1);
+        frames.push_back(Frame{stream, FrameEnd::delimited, {}});  // the whole stream, unframed
+        for (const Frame& frame : frames) {
+          const std::string where = name + (direction == StreamDirection::tx ? " tx " : " rx ") +
+                                    detail::escape_bytes(frame.bytes, 80);
+          for (const std::string& text :
+               {profile->frame_name(direction, frame.bytes), profile->describe(direction, frame.bytes),
+                frame.problem}) {
+            EXPECT_TRUE(is_valid_utf8(text)) << where << ": " << detail::escape_bytes(text, 200);
+            EXPECT_TRUE(has_no_control_bytes(text)) << where << ": " << detail::escape_bytes(text, 200);
+          }
+          for (std::size_t offset = 0; offset <= frame.bytes.size(); ++offset) {
+            const std::string field = profile->field_name(direction, frame.bytes, offset);
+            EXPECT_TRUE(is_valid_utf8(field) && has_no_control_bytes(field))
+                << where << " offset " << offset << ": " << detail::escape_bytes(field, 200);
+          }
+        }
+      }
+    }
+  }
+}
+
+TEST(ProfileText, AnNmeaChecksumOfNonAsciiBytesIsABrokenFrameShownEscaped) {
+  const auto profile = find_profile("nmea");
+  const std::string sentence = "$GPGGA,1,2*\xff\xfe\r\n"s;
+  const auto frames = frames_any_split(*profile, StreamDirection::rx, sentence);
+  ASSERT_EQ(frames.size(), 1u);
+  EXPECT_EQ(frames[0].end, FrameEnd::broken);
+  EXPECT_EQ(frames[0].problem, "bad checksum field '*\\xff\\xfe'");
+  // A sign or a single digit is no checksum either (sscanf's %2x took them).
+  EXPECT_EQ(frames_any_split(*profile, StreamDirection::rx, "$GPGGA,1*+5\r\n")[0].end,
+            FrameEnd::broken);
+  EXPECT_EQ(frames_any_split(*profile, StreamDirection::rx, "$GPGGA,1*5 \r\n")[0].end,
+            FrameEnd::broken);
+}
+
+TEST(ProfileText, AClientSentenceWithNonAsciiChecksumIsAMismatchWithUtf8Text) {
+  for (const char* mode : {"match=request", "match=sequence,check=data"}) {
+    auto port = replay({tx(1, nmea("PXXX,1")), rx(2, nmea("GPTXT,ok"))},
+                       std::string("timing=none,profile=nmea,unused=ignore,") + mode);
+    try {
+      port->write_all("$PXXX,1*\xff\xfe\r\n"s);
+      FAIL() << mode << ": no mismatch";
+    } catch (const ReplayMismatch& error) {
+      const std::string message = error.what();
+      EXPECT_TRUE(is_valid_utf8(message)) << mode << ": " << detail::escape_bytes(message, 400);
+      EXPECT_NE(message.find("\\xff\\xfe"), std::string::npos) << mode << ": " << message;
+    }
+  }
+}
+
+TEST(ProfileText, ScipNamesEscapeWhatIsNotPrintableAscii) {
+  const auto profile = find_profile("scip");
+  EXPECT_EQ(profile->frame_name(StreamDirection::tx, "\xff\x1b\n"s), "\\xff\\x1b");
+  EXPECT_EQ(profile->frame_name(StreamDirection::tx, "VV\n"), "VV");
 }

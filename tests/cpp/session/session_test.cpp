@@ -22,6 +22,7 @@
 #include <fstream>
 #include <set>
 #include <iterator>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -406,19 +407,21 @@ TEST(SessionWriter, FileSizeLimitIsAClearErrorAndTheFileStaysReadable) {
     ::setrlimit(RLIMIT_FSIZE, &limit);
     std::string report;
     int written = 0;
+    std::unique_ptr<SessionWriter> writer;
     try {
       SessionHeader header;
       FlushPolicy flush;
       flush.interval = std::chrono::milliseconds(1000);
-      SessionWriter writer(path, header, flush);
+      writer = std::make_unique<SessionWriter>(path, header, flush);
       for (; written < 1000; ++written) {
-        writer.write(RecordKind::rx, static_cast<std::uint64_t>(written),
-                     std::string(100, static_cast<char>('a' + written % 26)));
-        if (written % 5 == 4) writer.flush();
+        writer->write(RecordKind::rx, static_cast<std::uint64_t>(written),
+                      std::string(100, static_cast<char>('a' + written % 26)));
+        if (written % 5 == 4) writer->flush();
       }
       report = "no error";
     } catch (const PortError& e) {
-      report = std::to_string(e.code().value()) + " " + std::to_string(written) + " " + e.what();
+      report = std::to_string(e.code().value()) + " " + std::to_string(written) + " " +
+               std::to_string(writer ? writer->records_written() : 0) + " " + e.what();
     }
     (void)!::write(pipe_fds[1], report.data(), report.size());
     ::_exit(0);
@@ -434,12 +437,18 @@ TEST(SessionWriter, FileSizeLimitIsAClearErrorAndTheFileStaysReadable) {
   ASSERT_TRUE(WIFEXITED(status)) << "the writer died of a signal";
   ASSERT_EQ(report.rfind(std::to_string(EFBIG) + " ", 0), 0u) << report;
   EXPECT_NE(report.find(path), std::string::npos) << report;
-  const int failed_at = std::atoi(report.c_str() + report.find(' ') + 1);
+  int code = 0, failed_at = 0;
+  unsigned long long records_written = 0;
+  ASSERT_EQ(std::sscanf(report.c_str(), "%d %d %llu", &code, &failed_at, &records_written), 3)
+      << report;
   // The file holds whole records only, as many as fit in 4096 bytes.
   EXPECT_LE(read_file(path).size(), 4096u);
   SessionReader reader(path);
   const auto records = read_all(reader);
   EXPECT_FALSE(reader.damage()) << reader.damage()->what();
+  // The writer counts what reached the file, not the records it buffered
+  // and lost with the failed write.
+  EXPECT_EQ(records_written, records.size());
   EXPECT_GT(records.size(), 20u);
   EXPECT_LE(static_cast<int>(records.size()), failed_at + 1);
   for (std::size_t i = 0; i < records.size(); ++i) {

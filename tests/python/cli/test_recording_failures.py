@@ -132,6 +132,42 @@ def test_a_file_that_cannot_grow_stops_the_recording_not_the_forwarding(command,
     assert len(tx) > 0 and bytes(sent).startswith(tx)
 
 
+@pytest.mark.parametrize("command", ["record", "serve"])
+def test_the_summary_counts_the_records_in_the_file_not_those_lost_with_the_failure(
+        command, tmp_path):
+    # Before, records_written counted every record handed to the writer: the
+    # ones buffered when the write failed too (the summary said 19, verify
+    # found 15).
+    output = tmp_path / "limited.wtape"
+    child = _Child([command, "--device", "type=loopback", "--listen", "127.0.0.1:0",
+                    "-o", str(output)])
+    try:
+        host, port = child.address()
+        with socket.create_connection((host, port), timeout=DEADLINE_S) as client:
+            def exchange_until_the_failure_is_reported():
+                _echo(client, b"x" * CHUNK)
+                assert child.process.poll() is None, child.stderr()
+                return "wiretape: recording stopped" in child.stderr()
+
+            wait_until(exchange_until_the_failure_is_reported, DEADLINE_S,
+                       what=lambda: "the recording failure to be reported: " + child.stderr())
+        code = child.interrupt()
+    finally:
+        if child.process.poll() is None:
+            child.process.kill()
+    err = child.stderr()
+    assert code == cli.EXIT_RUNTIME, err
+    counts = re.findall(r"records_written=(\d+)", err)
+    assert len(counts) == 1, err
+    reader = wiretape.SessionReader(str(output))
+    in_file = len(list(reader))
+    assert reader.damage is None
+    assert int(counts[0]) == in_file, err
+    # The end says the recording failed, naming the file.
+    assert re.search(rf"{command}: failed", err), err
+    assert "error:" in err and str(output) in err and "file-size limit" in err, err
+
+
 # --- an empty -o ------------------------------------------------------------------
 
 

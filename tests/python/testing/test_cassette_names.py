@@ -12,6 +12,8 @@ import pytest
 from wiretape import _core
 from wiretape.testing import cassette
 
+pytest_plugins = ["pytester"]
+
 REPO = Path(__file__).resolve().parents[3]
 
 # (name parts, the cassette file name both sides must give)
@@ -89,3 +91,54 @@ def test_the_cpp_helper_gives_the_same_names(tmp_path):
                          check=True, timeout=60).stdout.splitlines()
     expected = [f"/src/recordings/x_test/{_core.cassette_file_name(parts)}" for parts in pairs]
     assert out == expected
+
+
+PARAMETRIZED = """
+    import pytest
+
+    IDS = ["a/b", "a b", "a::b", "a.b", "a_b", "x" * 300 + "1", "x" * 300 + "2"]
+
+    @pytest.mark.parametrize("given", IDS, ids=IDS)
+    def test_echo(wiretape_port, given):
+        data = given.encode()[-8:] + b"\\n"
+        wiretape_port.write_all(data)
+        assert wiretape_port.read_exactly(len(data), timeout=5) == data
+
+    class TestGroup:
+        @pytest.mark.parametrize("given", ["p::q", "p.q"], ids=["p::q", "p.q"])
+        def test_echo(self, wiretape_port, given):
+            data = given.encode() + b"\\n"
+            wiretape_port.write_all(data)
+            assert wiretape_port.read_exactly(len(data), timeout=5) == data
+"""
+
+
+def test_parametrized_tests_whose_ids_differ_never_share_a_cassette(pytester):
+    # Before, test_echo[a::b] was read as the class test_echo[a and the test
+    # b], so its name was test_echo[a.b]: the second of the two replayed the
+    # first's recording (and failed, or worse, passed on the wrong data).
+    pytester.makepyfile(test_ids=PARAMETRIZED)
+    result = pytester.runpytest("--wiretape-record=once", "--wiretape-device=type=loopback")
+    result.assert_outcomes(passed=9)
+    cassettes = sorted((pytester.path / "recordings" / "test_ids").glob("*.wtape"))
+    assert len(cassettes) == 9, [c.name for c in cassettes]
+    assert all(len(c.name) <= _core.MAX_CASSETTE_NAME_LENGTH + len(".wtape") for c in cassettes)
+    # Each replays its own recording.
+    result = pytester.runpytest()
+    result.assert_outcomes(passed=9)
+
+
+def test_a_parameter_id_holding_double_colons_is_not_a_class():
+    class Item:
+        nodeid = "tests/test_x.py::TestA::test_b[p::q]"
+        name = "test_b[p::q]"
+        path = REPO / "tests" / "test_x.py"
+
+    assert cassette.cassette_file_name(Item) == _core.cassette_file_name(
+        ["TestA", "test_b[p::q]"])
+    names = set()
+    for name in ("test_b[p::q]", "test_b[p.q]"):
+        Item.nodeid, Item.name = "tests/test_x.py::" + name, name
+        assert cassette.cassette_file_name(Item) == _core.cassette_file_name([name])
+        names.add(cassette.cassette_file_name(Item))
+    assert len(names) == 2

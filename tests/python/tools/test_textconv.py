@@ -9,7 +9,7 @@ import sys
 import pytest
 
 import wiretape
-from wiretape import cli
+from wiretape import _core, cli
 from wiretape.tools.textconv import textconv
 
 RECORDS = [
@@ -123,3 +123,76 @@ def test_no_times_hides_the_small_time_differences_of_a_run_recorded_again(repos
 
     configure(git, "--textconv", "--no-start")  # times kept: every record with a new time shows
     assert len(changed_lines(git("diff"))) == 2 * (len(RECORDS) - 1)
+
+
+# A long reply (a scan: 3,369 bytes) whose byte 2,000 differs between two runs.
+LONG_REPLY = bytes(((i * 7) % 64) + 48 for i in range(3_369))
+FLIPPED_AT = 2_000
+
+
+def long_records(reply):
+    return [(0, "open", b""), (1_000, "tx", b"GD0000076801\n"), (2_000, "rx", reply),
+            (3_000, "close", b"")]
+
+
+def textconv_text(path, **options):
+    from io import StringIO
+    out = StringIO()
+    textconv(path, out=out, **options)
+    return out.getvalue()
+
+
+def flipped(reply, at):
+    return reply[:at] + bytes([reply[at] ^ 0x01]) + reply[at + 1:]
+
+
+@pytest.mark.parametrize("times", [True, False])
+def test_every_byte_of_a_long_payload_is_shown_and_a_flip_changes_its_line(tmp_path, times):
+    # Before, textconv cut payloads at 64 bytes: the flip showed nothing.
+    first, second = tmp_path / "first.wtape", tmp_path / "second.wtape"
+    record(first, long_records(LONG_REPLY), "2026-11-23T10:00:00Z", "bench-a")
+    record(second, long_records(flipped(LONG_REPLY, FLIPPED_AT)), "2026-11-23T10:00:00Z",
+           "bench-a")
+    before = textconv_text(first, start=False, times=times).splitlines()
+    after = textconv_text(second, start=False, times=times).splitlines()
+    assert len(before) == len(after)
+    differing = [k for k, (a, b) in enumerate(zip(before, after)) if a != b]
+    assert len(differing) == 1, differing
+    # The line that differs is the one holding the flipped byte, and it
+    # holds it: 64 bytes a line, the first on the record's own line.
+    reply_line = next(k for k, line in enumerate(before) if "<- " in line and "3369 B" in line)
+    assert differing[0] == reply_line + FLIPPED_AT // 64
+    chunk = FLIPPED_AT // 64 * 64
+    assert before[differing[0]].strip() == _core.escape_bytes(LONG_REPLY[chunk:chunk + 64], 64)
+    assert after[differing[0]].strip() == _core.escape_bytes(
+        flipped(LONG_REPLY, FLIPPED_AT)[chunk:chunk + 64], 64)
+    # Every byte, in order: the reply's lines put together are the whole reply.
+    shown = before[reply_line].split("<- ", 1)[1] + "".join(
+        line.strip() for line in before[reply_line + 1:reply_line + (3_369 + 63) // 64])
+    assert shown == _core.escape_bytes(LONG_REPLY, len(LONG_REPLY))
+    # The lines that go on are indented under the payload's first byte.
+    column = before[reply_line].index("<- ") + 3
+    assert before[reply_line + 1].index(before[reply_line + 1].strip()) == column
+
+
+def test_git_diff_shows_a_flipped_byte_of_a_long_reply(repository):
+    repo, git = repository
+    configure(git, "--textconv", "--no-start")
+    record(repo / "scan.wtape", long_records(LONG_REPLY), "2026-11-23T10:00:00Z", "bench-a")
+    git("add", ".")
+    git("commit", "-q", "-m", "first")
+    record(repo / "scan.wtape", long_records(flipped(LONG_REPLY, FLIPPED_AT)),
+           "2026-11-24T10:00:00Z", "bench-b")
+    lines = changed_lines(git("diff"))
+    assert len(lines) == 2, lines
+    assert lines[0].startswith("-") and lines[1].startswith("+")
+
+
+def test_show_itself_still_cuts_long_payloads(tmp_path):
+    from io import StringIO
+    from wiretape.tools.show import show
+    path = tmp_path / "s.wtape"
+    record(path, long_records(LONG_REPLY), "2026-11-23T10:00:00Z", "bench-a")
+    out = StringIO()
+    show(path, out=out)
+    assert "(+3305 bytes)" in out.getvalue()
