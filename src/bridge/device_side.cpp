@@ -102,7 +102,7 @@ void DeviceSide::lost(const std::string& reason) {
   if (on_lost_) on_lost_(reason);
 }
 
-void DeviceSide::restart(bool announce) {
+void DeviceSide::restart() {
   if (device_) {
     count_what_the_port_dropped();
     record(RecordKind::close, "{}");
@@ -111,7 +111,7 @@ void DeviceSide::restart(bool announce) {
   }
   to_device_.clear();
   open(false, event_field::restarted);
-  if (announce) status_.message("a new client: the device starts over");
+  status_.message("a new client: the device starts over");
 }
 
 void DeviceSide::shut_down(BridgeOutcome& outcome, std::string& message) {

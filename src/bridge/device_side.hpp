@@ -67,9 +67,8 @@ class DeviceSide {
   // The last device lost was a replay's injected fault (faults=): TCP
   // clients see it as a reset (docs/faults.md).
   bool lost_by_fault() const { return lost_by_fault_; }
-  // Closes the device and opens it again (a replay starts over); `announce`
-  // says so in a message.
-  void restart(bool announce = true);
+  // Closes the device and opens it again (a replay starts over).
+  void restart();
   // Closes the device and the session file when the bridge ends, turning a
   // replay's mismatch at close or a failed file into the bridge's outcome.
   void shut_down(BridgeOutcome& outcome, std::string& message);

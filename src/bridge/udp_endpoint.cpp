@@ -17,10 +17,10 @@
 // A fixed peer may not be listening yet (a driver started after the
 // replay): the kernel answers "port unreachable", which the socket reports
 // (IP_RECVERR) with the address it was sent to. A datagram the peer refused
-// was not served; until the peer has taken one, each refusal drops what
-// waits for it and, a little later, starts a replayed device over, so that
-// the client session starts when the peer first takes a datagram and the
-// peer gets the recording from its start (DESIGN.md section 23).
+// was not served. Until the peer has taken one, the first datagram is sent
+// alone and kept: refused, it is sent again a little later, and nothing
+// else is read from the device, so the peer gets the data from its start
+// whenever it begins to listen (DESIGN.md section 23).
 #include <netinet/in.h>
 #include <sys/socket.h>
 #ifdef __linux__
@@ -54,6 +54,9 @@ constexpr std::size_t kMaxQueuedDatagrams = 1024;
 constexpr int kReadsPerRound = 256;
 // How long a peer that refused a datagram is left before the next try.
 constexpr std::chrono::milliseconds kPeerRetry{200};
+// How long the first datagram to a peer waits for a refusal before it
+// counts as taken (on this host the refusal comes back at once).
+constexpr std::chrono::milliseconds kPeerVerdict{50};
 
 struct Address {
   sockaddr_storage storage{};
@@ -135,34 +138,39 @@ class UdpEndpoint final : public ClientEndpoint {
     // An error pending on the socket is polled as one: a read takes it, or
     // poll() would report it round after round.
     if (ready.readable || ready.hung_up) read_clients();
-    if (fixed_peer_) {
-      take_refusals();
-      confirm_sends();
-    }
+    if (fixed_peer_) take_refusals();
     if (!to_client_.empty()) send_to_client();
     pass_to_device();
   }
 
   Clock::time_point next_timer() const override {
-    return holding_ ? retry_at_ : Clock::time_point::max();
+    if (probe_sent_) return verdict_at_;
+    if (holding_) return retry_at_;
+    return Clock::time_point::max();
   }
 
   void run_timers(Clock::time_point now) override {
-    if (!holding_ || now < retry_at_) return;
-    holding_ = false;
-    // From the start: what the peer refused is served again.
-    if (device_.is_virtual()) device_.restart(false);
+    if (probe_sent_ && now >= verdict_at_) {
+      take_refusals();
+      if (probe_sent_) peer_took_the_probe();
+    }
+    if (holding_ && now >= retry_at_) {
+      holding_ = false;
+      send_to_client();
+    }
   }
 
+  // Until a peer has taken a datagram, one is read from the device at a time.
   bool wants_device_data() const override {
-    return client_.has_value() && !to_client_.full() && !holding_;
+    if (awaiting_peer()) return client_.has_value() && to_client_.empty();
+    return client_.has_value() && !to_client_.full();
   }
 
   // One read of the device is one datagram to the client.
   bool keeps_datagram_boundaries() const override { return true; }
 
   void deliver_from_device(const char* data, std::size_t size) override {
-    if (!client_ || holding_) return;
+    if (!client_) return;
     to_client_.push(std::string(data, size));
     send_to_client();
   }
@@ -182,7 +190,7 @@ class UdpEndpoint final : public ClientEndpoint {
   }
 
   void shut_down() override {
-    send_to_client();
+    if (!awaiting_peer()) send_to_client();
     if (client_) {
       device_.client_disconnected(client_->text(), "closed: the bridge stopped");
     }
@@ -266,48 +274,40 @@ class UdpEndpoint final : public ClientEndpoint {
 #endif
   }
 
-  // A round has passed since the last datagram went to the peer and no
-  // refusal came back: the peer took it.
-  void confirm_sends() {
-    if (!unconfirmed_) return;
-    unconfirmed_ = false;
+  bool awaiting_peer() const { return fixed_peer_ && !peer_accepted_; }
+
+  // No refusal came back for the first datagram: the peer took it, and the
+  // rest follows.
+  void peer_took_the_probe() {
+    probe_sent_ = false;
+    peer_accepted_ = true;
     served_device_data_ = true;
-    if (!peer_accepted_) {
-      peer_accepted_ = true;
-      if (refused_ > 0) {
-        status_.message("the peer " + client_text_ +
-                        " took a datagram: its client session starts there");
-      }
+    if (!to_client_.empty()) to_client_.pop();
+    if (refused_ > 0) {
+      status_.message("the peer " + client_text_ +
+                      " took a datagram: its client session starts there");
     }
+    send_to_client();
   }
 
-  // The peer refused a datagram; true when what waited for it was dropped.
-  bool peer_refused(int error) {
+  void peer_refused(int error) {
     ++refused_;
-    unconfirmed_ = false;
     status_.update_stats([](BridgeStats& s) { ++s.datagrams_refused; });
-    if (peer_accepted_) {
-      if (!refusal_reported_) {
-        status_.message(system_error_message("the peer " + client_text_ +
-                                             " refused a datagram (not served)", error));
-        refusal_reported_ = true;
-      }
-      return false;
-    }
     if (!refusal_reported_) {
-      status_.message(system_error_message("the peer " + client_text_ +
-                                           " refused a datagram (nobody listens there yet); "
-                                           "trying again from the start every " +
-                                           std::to_string(kPeerRetry.count()) + " ms",
-                                           error));
+      status_.message(system_error_message(
+          "the peer " + client_text_ +
+              (peer_accepted_ ? " refused a datagram (not served)"
+                              : " refused a datagram (nobody listens there yet); the first "
+                                "datagram is sent again every " +
+                                    std::to_string(kPeerRetry.count()) + " ms until it is "
+                                                                         "taken"),
+          error));
       refusal_reported_ = true;
     }
-    if (!holding_) {
-      holding_ = true;
-      retry_at_ = Clock::now() + kPeerRetry;
-    }
-    to_client_.clear();
-    return true;
+    if (peer_accepted_) return;
+    probe_sent_ = false;
+    holding_ = true;
+    retry_at_ = Clock::now() + kPeerRetry;
   }
 
   void start_client(const Address& peer) {
@@ -359,7 +359,7 @@ class UdpEndpoint final : public ClientEndpoint {
   }
 
   void send_to_client() {
-    while (client_ && !to_client_.empty() && socket_ && !holding_) {
+    while (client_ && !to_client_.empty() && socket_ && !holding_ && !probe_sent_) {
       const std::string& datagram = to_client_.front();
       const ssize_t sent =
           sys::sendto(socket_.get(), datagram.data(), datagram.size(),
@@ -374,15 +374,18 @@ class UdpEndpoint final : public ClientEndpoint {
           const std::uint64_t before = refused_;
           take_refusals();
           if (refused_ == before) peer_refused(error);
-          if (holding_ || to_client_.empty()) return;
+          if (awaiting_peer()) return;
           continue;
         }
         // Nobody listens at the client's address (yet): UDP drops it, so
         // do we.
         status_.message(system_error_message("a datagram to " + client_->text() +
                                              " was not sent", error));
-      } else if (fixed_peer_) {
-        unconfirmed_ = true;
+      } else if (awaiting_peer()) {
+        // Kept until the peer's verdict: refused, it is sent again.
+        probe_sent_ = true;
+        verdict_at_ = Clock::now() + kPeerVerdict;
+        return;
       } else {
         served_device_data_ = true;
       }
@@ -402,7 +405,8 @@ class UdpEndpoint final : public ClientEndpoint {
   // A fixed peer: whether it has taken a datagram, one sent since the last
   // round awaits its verdict, refusals so far, and the pause after one.
   bool peer_accepted_ = false;
-  bool unconfirmed_ = false;
+  bool probe_sent_ = false;
+  Clock::time_point verdict_at_{};
   std::uint64_t refused_ = 0;
   bool refusal_reported_ = false;
   bool holding_ = false;

@@ -5,12 +5,15 @@ the peer first takes a datagram."""
 
 import re
 import select
+import signal
 import socket
+import subprocess
+import threading
 import time
 
 from wiretape import _core, bridge
 
-from devices import interrupt, start_cli
+from devices import start_cli
 
 DEADLINE = 10.0
 
@@ -50,25 +53,52 @@ def read_records(path):
 
 
 class StderrLines:
-    """A child's stderr, line by line, awaited with a deadline."""
+    """A child's stderr, line by line (read by a thread), awaited with a
+    deadline; `rest()` is all of it once the child has ended."""
 
     def __init__(self, child):
-        self.child = child
         self.lines = []
+        self._changed = threading.Condition()
+        self._ended = False
+        self._reader = threading.Thread(target=self._read, args=(child.stderr,), daemon=True)
+        self._reader.start()
+
+    def _read(self, stream):
+        for line in stream:
+            with self._changed:
+                self.lines.append(line)
+                self._changed.notify_all()
+        with self._changed:
+            self._ended = True
+            self._changed.notify_all()
 
     def wait_for(self, pattern, deadline=DEADLINE):
         end = time.monotonic() + deadline
-        while True:
-            for line in self.lines:
-                if re.search(pattern, line):
-                    return line
-            left = end - time.monotonic()
-            ready, _, _ = select.select([self.child.stderr], [], [], max(left, 0))
-            line = self.child.stderr.readline() if ready else ""
-            if not line:
-                raise AssertionError(f"no line matching {pattern!r} on stderr: "
-                                     + "".join(self.lines))
-            self.lines.append(line)
+        with self._changed:
+            while True:
+                for line in self.lines:
+                    if re.search(pattern, line):
+                        return line
+                left = end - time.monotonic()
+                if left <= 0 or self._ended:
+                    raise AssertionError(f"no line matching {pattern!r} on stderr: "
+                                         + "".join(self.lines))
+                self._changed.wait(left)
+
+    def text(self):
+        self._reader.join(DEADLINE)
+        return "".join(self.lines)
+
+
+def stop(child, stderr):
+    """Ctrl-C; (exit status, all of stderr)."""
+    child.send_signal(signal.SIGINT)
+    try:
+        child.wait(DEADLINE)
+    except subprocess.TimeoutExpired:
+        child.kill()
+        child.wait()
+    return child.returncode, stderr.text()
 
 
 # --- record --udp: the device side is the device's alone ----------------------------------
@@ -132,6 +162,26 @@ def test_a_udp_port_with_a_destination_reads_the_destination_alone():
             port.close()
 
 
+def test_record_forwards_and_records_empty_datagrams_both_ways(tmp_path):
+    out = tmp_path / "udp.wtape"
+    device = EchoDevice()
+    with device.socket, udp_socket() as driver:
+        handle = bridge.record(device.options, out, udp="127.0.0.1:0", quiet=True)
+        where = address_of(handle.address)
+        driver.sendto(b"", where)
+        assert device.answer_one() == b""
+        assert receive(driver, 1) == [b""]
+        driver.sendto(b"after", where)
+        assert device.answer_one() == b"after"
+        assert receive(driver, 1) == [b"AFTER"]
+        handle.stop()
+        assert handle.wait(DEADLINE)
+        assert handle.result().ok
+    records = read_records(out)
+    assert [r.data for r in records if r.kind == "tx"] == [b"", b"after"]
+    assert [r.data for r in records if r.kind == "rx"] == [b"", b"AFTER"]
+
+
 # --- replay --udp --peer: served is what the peer took -------------------------------------
 
 
@@ -152,8 +202,7 @@ def test_replay_to_a_peer_nobody_listens_at_exits_1_naming_the_peer(session_file
                       "--peer", "127.0.0.1:%d" % port, "--timing", "none")
     stderr = StderrLines(child)
     stderr.wait_for(r"refused a datagram")
-    status, _, err = interrupt(child)
-    err = "".join(stderr.lines) + err
+    status, err = stop(child, stderr)
     assert status == 1, err
     assert re.search(r"the peer 127\.0\.0\.1:%d refused every datagram" % port, err), err
     assert "datagrams_refused=" in err
@@ -171,7 +220,6 @@ def test_a_peer_that_binds_late_gets_the_recording_from_its_start(session_file):
             got = receive(late, len(SCANS))
             stderr.wait_for(r"took a datagram")
     finally:
-        status, _, err = interrupt(child)
-    err = "".join(stderr.lines) + err
+        status, err = stop(child, stderr)
     assert got == SCANS
     assert status == 0, err
