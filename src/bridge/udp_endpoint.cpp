@@ -122,8 +122,8 @@ class UdpEndpoint final : public ClientEndpoint {
       fixed_peer_ = true;
       watch_refusals();
       // With a peer the client session starts now: a device that streams
-      // unprompted has someone to stream to (and starts over while the
-      // peer refuses it).
+      // unprompted has someone to stream to (its first datagram is sent
+      // again while the peer refuses it).
       start_client(peer);
     }
   }
@@ -402,8 +402,9 @@ class UdpEndpoint final : public ClientEndpoint {
   std::optional<Address> client_;
   std::string client_text_;
   bool fixed_peer_ = false;
-  // A fixed peer: whether it has taken a datagram, one sent since the last
-  // round awaits its verdict, refusals so far, and the pause after one.
+  // A fixed peer: whether it has taken a datagram; whether the first one
+  // (kept at the front of to_client_) was sent and awaits its verdict, and
+  // when that verdict is due; refusals so far; the pause after one.
   bool peer_accepted_ = false;
   bool probe_sent_ = false;
   Clock::time_point verdict_at_{};
