@@ -163,6 +163,10 @@ struct BridgeResult {
   // otherwise, and for every device that is not a replay. The outcome is
   // left as it was: `wiretape replay` turns this into exit 1.
   std::string nothing_served;
+  // The replay's device was lost by an injected fault (disconnect), and that
+  // ended the bridge: the client is not to blame, and a command run against
+  // the replay is left to react to the loss.
+  bool ended_by_fault = false;
   // True unless outcome is mismatch or failed.
   bool ok() const {
     return outcome != BridgeOutcome::mismatch && outcome != BridgeOutcome::failed;

@@ -135,6 +135,18 @@ class Profile {
   }
   // Whether fix_response() may change anything (replay skips it if not).
   virtual bool fixes_responses() const { return false; }
+  // `frame`, a whole frame of `direction`, with every checksum it carries
+  // recomputed over its bytes as they are now. `wiretape edit --redact`
+  // calls it for each frame whose bytes it scrubbed, so that the driver
+  // that made a recording still accepts the scrubbed one (DESIGN.md
+  // section 23). A frame that is not this protocol's, and a protocol
+  // without checksums (the default), come back unchanged; the size never
+  // changes.
+  virtual std::string recompute_checksums(StreamDirection direction,
+                                          std::string_view frame) const {
+    (void)direction;
+    return std::string(frame);
+  }
   // A frame's short name (a command code) and its one-line description.
   virtual std::string frame_name(StreamDirection direction, std::string_view frame) const = 0;
   virtual std::string describe(StreamDirection direction, std::string_view frame) const = 0;

@@ -636,6 +636,12 @@ class BridgeResult:
         Why a replay with rx served none of it to any client (no client connected, nothing matched, the greeting was lost); '' otherwise.
         """
 
+    @property
+    def ended_by_fault(self) -> bool:
+        """
+        True when an injected fault (disconnect) lost the replay's device and that ended the bridge.
+        """
+
     def __repr__(self) -> str: ...
 
 class Bridge:
@@ -696,6 +702,16 @@ class Profile:
         The frames of one direction's whole byte stream ('tx' or 'rx'); an incomplete tail is the last frame.
         """
 
+    def framer(self, direction: str) -> Framer:
+        """
+        A new framer for one direction's stream ('tx' or 'rx'), fed piece by piece.
+        """
+
+    def recompute_checksums(self, direction: str, frame: bytes) -> bytes:
+        """
+        The whole frame with every checksum it carries recomputed over its bytes as they are now (same size); unchanged for a protocol without checksums or a frame that is not this protocol's.
+        """
+
     def match_key(self, request: bytes) -> bytes:
         """The bytes of a request frame that are compared when matching."""
 
@@ -711,6 +727,23 @@ class Profile:
         """
 
     def __repr__(self) -> str: ...
+
+class Framer:
+    """
+    Cuts one direction's byte stream into frames, however it is split into feed() calls. Get one with Profile.framer(direction).
+    """
+
+    def feed(self, data: bytes, t_ns: int = 0) -> list[tuple[bytes, str]]:
+        """
+        The next bytes of the stream, which arrived at t_ns (for framers that cut by silence): the frames they complete, as (bytes, end) with end one of 'delimited', 'size_limit', 'stream_end', 'broken'.
+        """
+
+    def finish(self) -> tuple[bytes, str] | None:
+        """The stream has ended: the kept tail as a last (bytes, end), or None."""
+
+    @property
+    def pending(self) -> int:
+        """How many bytes are kept for the next frame."""
 
 class DecodedSession:
     """The items of a session decoded with a profile (an iterator)."""
@@ -733,6 +766,11 @@ def profile_names() -> list[str]:
 def register_callable_profile(name: str, base: str, match_key: object | None = None, fix_response: object | None = None) -> None:
     """
     Registers `name` for profile=: the framing and names of the profile `base`, the match key match_key(request: bytes) -> bytes and the response fix fix_response(recorded_request, actual_request, response) -> bytes, where given (None: the base profile's). The callables are called with the GIL from the thread that serves the client.
+    """
+
+def declared_profile(options: str) -> Profile:
+    """
+    The profile declared by 'framing=...[,ignore=...][,echo=...][,checksum=...]' (docs/replay.md); OptionError naming the key for a bad spec or another key.
     """
 
 def find_profile(name: str) -> Profile:

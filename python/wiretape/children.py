@@ -20,9 +20,10 @@ import signal
 import subprocess
 import threading
 import time
-from typing import IO, Callable, Dict, List, Mapping, Optional, Sequence, Union
+from typing import IO, Callable, Dict, List, Mapping, Optional, Protocol, Sequence, Union
 
-__all__ = ["Child", "Outcome", "CommandNotStarted", "GRACE_S",
+__all__ = ["Child", "Outcome", "CommandNotStarted", "GRACE_S", "sanitizer_report",
+           "SanitizerWatch",
            "EXIT_COMMAND_NOT_EXECUTABLE", "EXIT_COMMAND_NOT_FOUND"]
 
 #: How long a child asked to end (SIGTERM) has before its group is killed.
@@ -33,10 +34,73 @@ EXIT_COMMAND_NOT_FOUND = 127
 # How often the members of an ended group are looked for while they may
 # still be ending (there is no event for a process group becoming empty).
 _GROUP_POLL_S = 0.01
+# How often a running child's caller looks at its stop event.
+_STOP_POLL_S = 0.05
 _CHUNK = 65536
 # A pipe holds at most 1 MiB (Linux's default pipe-max-size): so many reads
 # take all it held when the reading stops.
 _PIPE_CHUNKS = (1 << 20) // _CHUNK
+
+
+# What sanitizers print when they find something: a crash even if the
+# program then exits with a plain error code, or 0 (UBSan goes on).
+SANITIZER_MARKERS = ("ERROR: AddressSanitizer", "ERROR: LeakSanitizer",
+                     "ERROR: MemorySanitizer", "WARNING: ThreadSanitizer",
+                     "runtime error:", "ERROR: UndefinedBehaviorSanitizer")
+
+
+def sanitizer_report(output: Union[bytes, str]) -> Optional[str]:
+    """The first line of a sanitizer's report in a command's output, or
+    None when there is none."""
+    text = output.decode("utf-8", "replace") if isinstance(output, bytes) else output
+    for line in text.splitlines():
+        if any(marker in line for marker in SANITIZER_MARKERS):
+            return line.strip()
+    return None
+
+
+class SanitizerWatch:
+    """A relay (``write``/``flush``) that passes a command's output on and
+    looks at each of its lines for a sanitizer's report: ``report`` is the
+    first such line, however much output came before or after."""
+
+    # A longer line is looked at in pieces of this size.
+    _LONGEST_LINE = 65536
+
+    def __init__(self, relay: Optional[Relay] = None):
+        self._relay = relay
+        self._partial = b""
+        self.report: Optional[str] = None
+
+    def write(self, data: bytes) -> None:
+        if self._relay is not None:
+            try:
+                self._relay.write(data)
+            except (OSError, ValueError):
+                self._relay = None  # whoever reads it went away: still looked at
+        if self.report is not None:
+            return
+        *lines, self._partial = (self._partial + data).split(b"\n")
+        if len(self._partial) > self._LONGEST_LINE:
+            lines.append(self._partial)
+            self._partial = self._partial[-256:]  # a marker cut in two is still seen
+        for line in lines:
+            self.report = sanitizer_report(line)
+            if self.report is not None:
+                return
+
+    def flush(self) -> None:
+        if self._relay is not None:
+            try:
+                self._relay.flush()
+            except (OSError, ValueError):
+                self._relay = None
+
+    def finish(self) -> Optional[str]:
+        """The report, the last unended line included."""
+        if self.report is None and self._partial:
+            self.report = sanitizer_report(self._partial)
+        return self.report
 
 
 class CommandNotStarted(Exception):
@@ -51,6 +115,14 @@ class CommandNotStarted(Exception):
 Output = Union[bytes, str]
 
 
+class Relay(Protocol):
+    """Where a child's output is relayed: a binary stream, or a filter."""
+
+    def write(self, data: bytes) -> object: ...
+
+    def flush(self) -> None: ...
+
+
 @dataclasses.dataclass(frozen=True)
 class Outcome:
     """How a child ended. ``returncode`` as subprocess has it (minus N for
@@ -63,6 +135,8 @@ class Outcome:
     timed_out: bool
     stdout: Output
     stderr: Output
+    #: The caller's ``stop`` event ended it before it exited or timed out.
+    stopped: bool = False
 
     @property
     def exit_status(self) -> int:
@@ -87,9 +161,11 @@ class _Reader:
     until told to stop; then it takes what is already in the pipes, without
     waiting for their end."""
 
-    def __init__(self, pipes: Dict[int, IO[bytes]], relay: Optional[IO[bytes]]):
+    def __init__(self, pipes: Dict[int, IO[bytes]], relays: Dict[int, Relay],
+                 keep: Optional[int] = None):
         self._pipes = pipes  # file descriptor -> pipe
-        self._relay = relay
+        self._keep = keep  # at most this many of the last bytes of each pipe
+        self._relays = dict(relays)  # file descriptor -> where its output is relayed
         self.buffers: Dict[int, bytearray] = {fd: bytearray() for fd in pipes}
         self.changed = threading.Condition()
         self.done = False
@@ -113,14 +189,18 @@ class _Reader:
             if not chunk:
                 return False
             with self.changed:
-                self.buffers[fd] += chunk
+                buffer = self.buffers[fd]
+                buffer += chunk
+                if self._keep is not None and len(buffer) > self._keep:
+                    del buffer[:len(buffer) - self._keep]
                 self.changed.notify_all()
-            if self._relay is not None:
+            relay = self._relays.get(fd)
+            if relay is not None:
                 try:
-                    self._relay.write(chunk)
-                    self._relay.flush()
+                    relay.write(chunk)
+                    relay.flush()
                 except (OSError, ValueError):
-                    self._relay = None  # whoever reads our relay went away
+                    del self._relays[fd]  # whoever reads our relay went away
         return True
 
     def _run(self) -> None:
@@ -166,7 +246,10 @@ class Child:
 
     ``capture``: stdout and stderr are read into :attr:`stdout` (and
     :attr:`stderr`, with ``separate_stderr``), and written to ``relay`` as
-    they arrive when one is given; otherwise they are passed through (the
+    they arrive when one is given (stderr captured apart to
+    ``relay_stderr``, when given); with ``keep``, only the last ``keep``
+    bytes of each are kept (a long-running command that is relayed); otherwise
+    they are passed through (the
     child writes where this process writes). ``stdin`` as subprocess takes
     it (default: nothing to read). ``preexec_fn`` runs in the child after it
     has left this session. A command that cannot be started raises
@@ -174,7 +257,8 @@ class Child:
     """
 
     def __init__(self, argv: Sequence[str], *, capture: bool = True,
-                 separate_stderr: bool = False, relay: Optional[IO[bytes]] = None,
+                 separate_stderr: bool = False, relay: Optional[Relay] = None,
+                 relay_stderr: Optional[Relay] = None, keep: Optional[int] = None,
                  text: bool = False, stdin=subprocess.DEVNULL,
                  env: Optional[Mapping[str, str]] = None, cwd=None,
                  preexec_fn: Optional[Callable[[], None]] = None,
@@ -213,7 +297,13 @@ class Child:
                 assert self.process.stderr is not None
                 pipes[self.process.stderr.fileno()] = self.process.stderr
                 self._stderr_fd = self.process.stderr.fileno()
-            self._reader = _Reader(pipes, relay)
+            relays: Dict[int, Relay] = {}
+            if relay is not None:
+                relays[self._stdout_fd] = relay
+            stderr_relay = relay_stderr if relay_stderr is not None else relay
+            if self._stderr_fd is not None and stderr_relay is not None:
+                relays[self._stderr_fd] = stderr_relay
+            self._reader = _Reader(pipes, relays, keep)
 
     @property
     def name(self) -> str:
@@ -329,14 +419,31 @@ class Child:
                 self._reader.stop()
         return self.process.wait()
 
-    def run(self, timeout: Optional[float] = None) -> Outcome:
+    def run(self, timeout: Optional[float] = None,
+            stop: Optional[threading.Event] = None) -> Outcome:
         """Waits for the direct child to exit, ending it at `timeout`
-        seconds (then ``timed_out``); then ends what is left of its group
-        and returns the :class:`Outcome`."""
-        if self.wait(timeout) is None:
-            self._timed_out = True
+        seconds (then ``timed_out``) or once `stop` is set (then
+        ``stopped``: another thread was interrupted); then ends what is left
+        of its group and returns the :class:`Outcome`."""
+        stopped = False
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            left = None if deadline is None else max(deadline - time.monotonic(), 0.0)
+            # A threading.Event has no descriptor to poll with the exit:
+            # it is looked at this often.
+            step = left if stop is None else min(_STOP_POLL_S, _STOP_POLL_S if left is None
+                                                 else left)
+            if self.wait(step) is not None:
+                break
+            if stop is not None and stop.is_set():
+                stopped = True
+                break
+            if left is not None and step is not None and left <= step:
+                self._timed_out = True
+                break
         returncode = self.end()
-        return Outcome(tuple(self.argv), returncode, self._timed_out, self.stdout, self.stderr)
+        return Outcome(tuple(self.argv), returncode, self._timed_out, self.stdout, self.stderr,
+                       stopped)
 
     def __enter__(self) -> "Child":
         return self

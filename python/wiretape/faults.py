@@ -21,9 +21,11 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import json
+import math
 import os
 import random
 import shlex
+import signal
 import sys
 import tempfile
 import threading
@@ -32,7 +34,7 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Dict, Iterator, List, Optional, Sequence, TextIO
 
 from . import _core, bridge
-from .children import Child
+from .children import Child, sanitizer_report
 from .session import open_session
 
 #: Every fault kind, as a campaign injects it (docs/faults.md says why these
@@ -40,16 +42,18 @@ from .session import open_session
 KINDS = tuple(kind.campaign for kind in _core.fault_kinds())
 KIND_NAMES = tuple(kind.name for kind in _core.fault_kinds())
 OUTCOMES = ("ok", "error", "crash", "hang")
+#: The longest --timeout a campaign takes (seconds, about 11.6 days): a
+#: bound that no run needs, and that every clock and poll can count to.
+MAX_TIMEOUT_S = 1e6
 PORT_PLACEHOLDER = "{port}"
-# What sanitizers print when they find something: a crash even if the
-# program then exits with a plain error code.
-_SANITIZER_MARKERS = ("ERROR: AddressSanitizer", "ERROR: LeakSanitizer",
-                      "ERROR: MemorySanitizer", "WARNING: ThreadSanitizer",
-                      "runtime error:", "ERROR: UndefinedBehaviorSanitizer")
 
 
 class FaultInputError(ValueError):
     """Bad input to a campaign (exit 2): names the problem."""
+
+
+class _Stopped(Exception):
+    """A run ended early because the campaign was interrupted."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -226,6 +230,11 @@ class Campaign:
     session: str
     seed: int
     runs: List[Run]
+    #: SIGINT or SIGTERM ended it early: ``runs`` are those that ended by
+    #: themselves before (the run it stopped has no outcome).
+    interrupted: bool = False
+    #: How many cases were to run.
+    planned: int = 0
 
     @property
     def summary(self) -> Dict[str, int]:
@@ -241,7 +250,19 @@ class Campaign:
 
     def as_json(self) -> Dict[str, object]:
         return {"session": self.session, "seed": self.seed,
-                "runs": [run.as_json() for run in self.runs], "summary": self.summary}
+                "runs": [run.as_json() for run in self.runs], "summary": self.summary,
+                "interrupted": self.interrupted}
+
+
+class CampaignInterrupted(KeyboardInterrupt):
+    """SIGINT or SIGTERM (``signum``) stopped a campaign: the running case's
+    CMD and replay were ended, and ``campaign`` holds the runs so far. A
+    KeyboardInterrupt, so that it ends a caller as Ctrl-C does."""
+
+    def __init__(self, campaign: Campaign, signum: int):
+        super().__init__(signum)
+        self.campaign = campaign
+        self.signum = signum
 
 
 class CleanRunFailed(Exception):
@@ -268,31 +289,35 @@ def _classify(returncode: Optional[int], output: str, timed_out: bool) -> str:
         return "hang"
     if returncode is not None and returncode < 0:
         return "crash"
-    if any(marker in output for marker in _SANITIZER_MARKERS):
+    if sanitizer_report(output) is not None:
         return "crash"
     return "ok" if returncode == 0 else "error"
 
 
 def run_case(session: str, case: Optional[FaultCase], argv: Sequence[str], timeout: float,
              replay_options: str = "", listen: bool = False,
-             as_path: Optional[str] = None) -> Run:
+             as_path: Optional[str] = None, stop: Optional[threading.Event] = None) -> Run:
     """Runs CMD once against a fresh virtual device with ``case``'s fault
     (None: clean); a CMD past `timeout` is ended with everything it
-    started (its process group)."""
+    started (its process group), and so is one running when `stop` is set
+    (then this raises _Stopped: the run has no outcome). The outcome is
+    decided by CMD's own exit, not by the end of its output: a daemon it
+    left holding the output is not waited for."""
     started = time.monotonic()
     with faulty_device(session, case, replay_options, listen) as port:
         command = [arg.replace(PORT_PLACEHOLDER, port) for arg in argv]
         if as_path is not None:
             from .redirect import RedirectedCommand
 
-            redirected = RedirectedCommand(command, as_path, os.path.realpath(port),
-                                           capture=True)
+            redirected = RedirectedCommand(command, as_path, os.path.realpath(port))
             try:
-                outcome = redirected.child.run(timeout)
+                outcome = redirected.child.run(timeout, stop)
             finally:
                 redirected.close()
         else:
-            outcome = Child(command).run(timeout)
+            outcome = Child(command).run(timeout, stop)
+    if outcome.stopped:
+        raise _Stopped()
     text = outcome.text
     returncode = None if outcome.timed_out else outcome.returncode
     return Run(case.kind if case else "", case.where if case else "",
@@ -300,18 +325,38 @@ def run_case(session: str, case: Optional[FaultCase], argv: Sequence[str], timeo
                time.monotonic() - started, output=text)
 
 
+#: Where a reproduction line puts the virtual device (a pty link, or with
+#: --listen a TCP address).
+REPRO_PORT = "/tmp/wiretape-fault-port"
+REPRO_ADDRESS = "127.0.0.1:5020"
+
+
 def reproduction(session: str, case: FaultCase, argv: Sequence[str], replay_options: str,
-                 as_path: Optional[str]) -> str:
-    """One line that replays the fault and runs the command against it."""
-    port = "/tmp/wiretape-fault-port"
-    replay = ["wiretape", "replay", session, "--pty", port, "--fault", case.spec,
-              "--seed", str(case.seed)]
+                 as_path: Optional[str], listen: bool = False,
+                 timeout: Optional[float] = None) -> str:
+    """One line for a shell that replays the fault, runs the command
+    against it and exits with the command's status, as the campaign's run
+    did (with `timeout`, a hang ends as `timeout` ends it: status 124)."""
+    replay = ["wiretape", "replay", session, "--fault", case.spec, "--seed", str(case.seed)]
     if replay_options:
         replay += ["--options", replay_options]
+    limit = [] if timeout is None else ["timeout", "-k", "5", _seconds_text(timeout)]
     if as_path is not None:
-        return shlex.join(replay + ["--as", as_path, "--"] + list(argv))
+        # replay -- CMD keeps CMD running under an injected loss, and exits
+        # with CMD's status when CMD failed: the run's own.
+        return shlex.join(limit + replay + ["-q", "--as", as_path, "--"] + list(argv))
+    port = REPRO_ADDRESS if listen else REPRO_PORT
     command = [arg.replace(PORT_PLACEHOLDER, port) for arg in argv]
-    return (shlex.join(replay) + " & sleep 0.5; " + shlex.join(command) + "; kill %1")
+    replay += ["--listen", port] if listen else ["--pty", port]
+    # CMD starts once the device is there: its link appears (a TCP
+    # listener is given a second: a probe would be a client of the replay).
+    ready = "sleep 1" if listen else f"until [ -e {shlex.quote(port)} ]; do sleep 0.1; done"
+    return (f"({shlex.join(replay + ['-q'])} & {ready}; {shlex.join(limit + command)}; "
+            "status=$?; kill $!; wait $!; exit $status)")
+
+
+def _seconds_text(value: float) -> str:
+    return str(int(value)) if float(value).is_integer() else repr(value)
 
 
 @contextlib.contextmanager
@@ -334,20 +379,40 @@ def _quiet_stderr(enabled: bool) -> Iterator[Optional[int]]:
         os.close(saved)
 
 
+def _check_timeout(timeout: float) -> None:
+    if not math.isfinite(timeout) or timeout <= 0 or timeout > MAX_TIMEOUT_S:
+        raise FaultInputError(f"--timeout {timeout:g}: give a finite number of seconds above 0 "
+                              f"and at most {MAX_TIMEOUT_S:g}")
+
+
+def _end_pool(pool: ThreadPoolExecutor) -> None:
+    """Waits for the running cases to end (they were told to stop), a further
+    interruption notwithstanding: none of them is left behind."""
+    while True:
+        try:
+            pool.shutdown(wait=True, cancel_futures=True)
+            return
+        except KeyboardInterrupt:
+            continue
+
+
 def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] = None,
              budget: Optional[int] = None, seed: int = 0, timeout: float = 10.0, jobs: int = 1,
              replay_options: str = "", listen: bool = False, as_path: Optional[str] = None,
              progress: Optional[TextIO] = None, quiet_replays: bool = True) -> Campaign:
-    """Runs the campaign; raises FaultInputError (bad input) or
-    CleanRunFailed."""
+    """Runs the campaign; raises FaultInputError (bad input),
+    CleanRunFailed, or CampaignInterrupted (SIGINT/SIGTERM as a
+    KeyboardInterrupt: the runs so far are in it)."""
     check_command(argv, as_path)
     if jobs < 1:
         raise FaultInputError(f"--jobs {jobs}: give 1 or more")
-    if timeout <= 0:
-        raise FaultInputError(f"--timeout {timeout}: give a number of seconds above 0")
+    _check_timeout(timeout)
     if replay_options:
         _core.check_replay_options("type=replay,file=x," + replay_options)
     selected = cases(session, kinds, budget, seed, options=replay_options)
+    runs: List[Optional[Run]] = [None] * len(selected)
+    # Set when the campaign must end: each running case ends its CMD.
+    stop = threading.Event()
     with _quiet_stderr(quiet_replays) as real_stderr:
         def note(text: str) -> None:
             if progress is None:
@@ -358,29 +423,55 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
                 progress.write(text)
                 progress.flush()
 
-        clean = run_case(session, None, argv, timeout, replay_options, listen, as_path)
-        if clean.outcome != "ok":
-            raise CleanRunFailed(clean)
-        runs: List[Optional[Run]] = [None] * len(selected)
         done = [0]
         lock = threading.Lock()
 
         def one(index: int) -> None:
+            if stop.is_set():
+                return
             case = selected[index]
-            run = run_case(session, case, argv, timeout, replay_options, listen, as_path)
+            try:
+                run = run_case(session, case, argv, timeout, replay_options, listen, as_path,
+                               stop)
+            except _Stopped:
+                return
             if run.outcome in ("crash", "hang"):
-                run.repro = reproduction(session, case, argv, replay_options, as_path)
+                run.repro = reproduction(session, case, argv, replay_options, as_path, listen,
+                                         timeout if run.outcome == "hang" else None)
             runs[index] = run
             with lock:
                 done[0] += 1
                 note(f"\r{done[0]}/{len(selected)} runs")
 
-        with ThreadPoolExecutor(max_workers=jobs) as pool:
+        # The runs go on in worker threads (the clean one too): the main
+        # thread only waits, so SIGINT/SIGTERM reach it there, and it tells
+        # the workers to stop.
+        pool = ThreadPoolExecutor(max_workers=jobs)
+        try:
+            clean = pool.submit(run_case, session, None, argv, timeout, replay_options,
+                                listen, as_path, stop).result()
+            if clean.outcome != "ok":
+                raise CleanRunFailed(clean)
             for future in [pool.submit(one, i) for i in range(len(selected))]:
                 future.result()
+        except KeyboardInterrupt as interruption:
+            stop.set()
+            _end_pool(pool)
+            if selected:
+                note("\n")
+            result = Campaign(session, seed, [run for run in runs if run is not None],
+                              interrupted=True, planned=len(selected))
+            signum = getattr(interruption, "signum", signal.SIGINT)
+            raise CampaignInterrupted(result, signum) from None
+        except BaseException:
+            stop.set()
+            raise
+        finally:
+            _end_pool(pool)
         if selected:
             note("\n")
-    return Campaign(session, seed, [run for run in runs if run is not None])
+    return Campaign(session, seed, [run for run in runs if run is not None],
+                    planned=len(selected))
 
 
 _LETTERS = {"ok": ".", "error": "E", "crash": "C", "hang": "H"}
@@ -420,6 +511,33 @@ def table(result: Campaign) -> str:
 
 
 def write_json(result: Campaign, path: str) -> None:
-    with open(path, "w", encoding="utf-8") as output:
-        json.dump(result.as_json(), output, indent=1)
-        output.write("\n")
+    """Writes the campaign's JSON whole or not at all (a file beside it,
+    renamed over `path`); to a FIFO, a device or /dev/stdout, directly."""
+    import stat
+
+    try:
+        special = not stat.S_ISREG(os.stat(path).st_mode)
+    except OSError:
+        special = False
+    if special:
+        with open(path, "w", encoding="utf-8") as output:
+            json.dump(result.as_json(), output, indent=1)
+            output.write("\n")
+        return
+    folder = os.path.dirname(os.path.abspath(path))
+    handle, temporary = tempfile.mkstemp(prefix=".wiretape-faults-", suffix=".json",
+                                         dir=folder)
+    try:
+        with os.fdopen(handle, "w", encoding="utf-8") as output:
+            json.dump(result.as_json(), output, indent=1)
+            output.write("\n")
+        umask = os.umask(0o022)
+        os.umask(umask)
+        os.chmod(temporary, 0o666 & ~umask)  # as open() would have made it
+        os.replace(temporary, path)
+    except BaseException:
+        try:
+            os.unlink(temporary)
+        except OSError:
+            pass
+        raise

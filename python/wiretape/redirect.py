@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import ctypes
 import os
-import subprocess
+import sys
 import tempfile
-from typing import Optional, Sequence
+from typing import Optional, Sequence, Tuple
 
 from . import _core
-from .children import Child, CommandNotStarted
+from .children import Child, CommandNotStarted, SanitizerWatch, sanitizer_report
 
 SHIM_NAME = "_redirect_device.so"
 # The variables the shim reads (src/shim/redirect_device.c).
@@ -84,15 +84,42 @@ def _bind_mount_in_private_namespace(pty_path: str, device_path: str):
     return in_child
 
 
+def _binary(stream):
+    """The byte stream under a text stream (a test's capture may have none)."""
+    stream.flush()
+    return getattr(stream, "buffer", None) or _TextRelay(stream)
+
+
+class _TextRelay:
+    """Writes bytes to a text stream that has no byte stream under it."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def write(self, data: bytes) -> None:
+        self._stream.write(data.decode("utf-8", "replace"))
+
+    def flush(self) -> None:
+        self._stream.flush()
+
+
+# A relayed CMD's output is seen as it comes; only so much of its end is
+# kept (bytes of each of stdout and stderr).
+_RELAYED_OUTPUT_KEPT = 1 << 20
+
+
 class RedirectedCommand:
     """CMD running with ``device_path`` redirected to ``pty_path``, as a
-    :class:`~wiretape.children.Child`: its output passed through (or
-    captured, with ``capture``), ended with its whole group."""
+    :class:`~wiretape.children.Child`: its output captured (stderr with
+    stdout), ended with its whole group. With ``relay``, stdout and stderr
+    are captured apart and relayed as they come to this process's own
+    stdout and stderr, and CMD reads this process's stdin."""
 
     def __init__(self, argv: Sequence[str], device_path: str, pty_path: str,
-                 capture: bool = False):
+                 relay: bool = False):
         self.argv = list(argv)
         self.device_path = device_path
+        self._watches: Tuple[SanitizerWatch, ...] = ()
         # Each process of CMD that uses the path appends a line here.
         hits_fd, self._hits_file = tempfile.mkstemp(prefix="wiretape-redirect-")
         os.close(hits_fd)
@@ -106,8 +133,15 @@ class RedirectedCommand:
         preexec = (_bind_mount_in_private_namespace(pty_path, device_path)
                    if self.bind_mounted else None)
         try:
-            self.child = Child(self.argv, env=env, preexec_fn=preexec, capture=capture,
-                               stdin=subprocess.DEVNULL if capture else None)
+            if relay:
+                self._watches = (SanitizerWatch(_binary(sys.stdout)),
+                                 SanitizerWatch(_binary(sys.stderr)))
+                self.child = Child(self.argv, env=env, preexec_fn=preexec,
+                                   separate_stderr=True, relay=self._watches[0],
+                                   relay_stderr=self._watches[1], stdin=None,
+                                   keep=_RELAYED_OUTPUT_KEPT)
+            else:
+                self.child = Child(self.argv, env=env, preexec_fn=preexec)
         except CommandNotStarted:
             self._remove_hits_file()
             raise
@@ -130,6 +164,13 @@ class RedirectedCommand:
         status = self.child.exit_status
         assert status is not None  # it has exited
         return status
+
+    def sanitizer_report(self) -> Optional[str]:
+        """The first line of a sanitizer report CMD printed, or None (once
+        CMD has ended)."""
+        if self._watches:
+            return self._watches[0].finish() or self._watches[1].finish()
+        return sanitizer_report(self.child.stdout)
 
     def used_device_path(self) -> bool:
         """True once any process of CMD opened (or looked at) the path."""

@@ -100,6 +100,7 @@ struct Bridge::Impl {
   bool replay_has_rx_ = false;
   bool replay_greets_ = false;
   std::string nothing_served_;
+  bool ended_by_fault_ = false;
 
   void end(BridgeOutcome outcome, std::string text) {
     if (end_outcome_ != BridgeOutcome::running) return;
@@ -268,6 +269,7 @@ void Bridge::Impl::read_device(Readiness ready) {
 void Bridge::Impl::device_lost(const std::string& reason) {
   endpoint_->device_lost();
   if (!options_.reopen) {
+    if (!ending()) ended_by_fault_ = device_.lost_by_fault();
     end(BridgeOutcome::device_closed, "the device went away: " + reason);
     return;
   }
@@ -316,6 +318,11 @@ std::string Bridge::Impl::why_nothing_was_served() const {
     stats = status_.result.stats;
   }
   const std::string none = "no client was served any of the recording's rx: ";
+  // A fault wiretape injected is never the client's doing.
+  if (ended_by_fault_) {
+    return none + "an injected fault ended the replay before any was served (" +
+           end_message_ + ")";
+  }
   if (std::string why = endpoint_->why_nothing_was_served(); !why.empty()) return none + why;
   if (stats.clients_accepted == 0) return none + "no client connected before the end";
   if (stats.bytes_from_device == 0 && stats.bytes_to_device == 0 && replay_greets_) {
@@ -433,6 +440,7 @@ void Bridge::start() {
     impl.status_.result.outcome = impl.end_outcome_;
     impl.status_.result.message = impl.end_message_;
     impl.status_.result.nothing_served = impl.nothing_served_;
+    impl.status_.result.ended_by_fault = impl.ended_by_fault_;
     impl.status_.finished = true;
     impl.status_.finished_cv.notify_all();
   });

@@ -83,6 +83,9 @@ void bind_results(nb::module_& m) {
       .def_ro("nothing_served", &BridgeResult::nothing_served,
               "Why a replay with rx served none of it to any client (no client "
               "connected, nothing matched, the greeting was lost); '' otherwise.")
+      .def_ro("ended_by_fault", &BridgeResult::ended_by_fault,
+              "True when an injected fault (disconnect) lost the replay's device and "
+              "that ended the bridge.")
       .def("__repr__", [](const BridgeResult& r) {
         return "BridgeResult(outcome=" + std::string(to_string(r.outcome)) +
                ", ok=" + (r.ok() ? "True" : "False") + ", message=" +

@@ -1,18 +1,25 @@
 // Protocol profiles from Python: profile_names(), find_profile(name) and the
 // Profile it returns (framing, match keys, names, and a whole session
 // decoded for `wiretape show`).
+#include <cstdint>
 #include <deque>
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/pair.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/unique_ptr.h>
 #include <nanobind/stl/vector.h>
 
 #include "python/bindings.hpp"
 #include "replay/profile.hpp"
+#include "replay/profiles/declared.hpp"
+#include "wiretape/errors.hpp"
+#include "wiretape/options.hpp"
 #include "wiretape/session.hpp"
 
 namespace nb = nanobind;
@@ -175,6 +182,50 @@ class DecodedSession {
   bool finished_ = false;
 };
 
+// One direction's framer, fed piece by piece (wiretape edit reseals the
+// frames it scrubbed as the records come).
+class PyFramer {
+ public:
+  // (bytes, how it ended)
+  using FrameTuple = std::pair<nb::bytes, std::string>;
+
+  explicit PyFramer(std::unique_ptr<detail::Framer> framer) : framer_(std::move(framer)) {}
+
+  std::vector<FrameTuple> feed(nb::bytes data, std::uint64_t t_ns) {
+    frames_.clear();
+    framer_->feed_at(t_ns, view_of(data), frames_);
+    std::vector<FrameTuple> out;
+    out.reserve(frames_.size());
+    for (const detail::Frame& frame : frames_) out.push_back(frame_tuple(frame));
+    return out;
+  }
+
+  std::optional<FrameTuple> finish() {
+    std::optional<detail::Frame> tail = framer_->finish();
+    if (!tail) return std::nullopt;
+    return frame_tuple(*tail);
+  }
+
+  std::size_t pending() const { return framer_->pending(); }
+
+ private:
+  static FrameTuple frame_tuple(const detail::Frame& frame) {
+    return {to_bytes(frame.bytes), frame_end_name(frame.end)};
+  }
+  static std::string frame_end_name(detail::FrameEnd end) {
+    switch (end) {
+      case detail::FrameEnd::delimited: return "delimited";
+      case detail::FrameEnd::size_limit: return "size_limit";
+      case detail::FrameEnd::stream_end: return "stream_end";
+      case detail::FrameEnd::broken: return "broken";
+    }
+    return "broken";
+  }
+
+  std::unique_ptr<detail::Framer> framer_;
+  std::vector<detail::Frame> frames_;  // reused
+};
+
 }  // namespace
 
 namespace {
@@ -244,6 +295,10 @@ class CallableProfile final : public Profile {
                                             nb::bytes(response.data(), response.size())),
                         "fix_response");
   }
+  std::string recompute_checksums(StreamDirection direction,
+                                  std::string_view frame) const override {
+    return base_->recompute_checksums(direction, frame);
+  }
   std::string frame_name(StreamDirection direction, std::string_view frame) const override {
     return base_->frame_name(direction, frame);
   }
@@ -286,6 +341,24 @@ void bind_profile(nb::module_& m) {
           "The frames of one direction's whole byte stream ('tx' or 'rx'); an "
           "incomplete tail is the last frame.")
       .def(
+          "framer",
+          [](const PyProfile& p, const std::string& direction) {
+            return std::make_unique<PyFramer>(
+                p.profile->make_framer(direction_from_python(direction)));
+          },
+          "direction"_a,
+          "A new framer for one direction's stream ('tx' or 'rx'), fed piece by piece.")
+      .def(
+          "recompute_checksums",
+          [](const PyProfile& p, const std::string& direction, nb::bytes frame) {
+            return to_bytes(
+                p.profile->recompute_checksums(direction_from_python(direction), view_of(frame)));
+          },
+          "direction"_a, "frame"_a,
+          "The whole frame with every checksum it carries recomputed over its bytes as they "
+          "are now (same size); unchanged for a protocol without checksums or a frame that "
+          "is not this protocol's.")
+      .def(
           "match_key",
           [](const PyProfile& p, nb::bytes request) {
             return to_bytes(p.profile->match_key(view_of(request)));
@@ -316,6 +389,17 @@ void bind_profile(nb::module_& m) {
           "their payload and None. Frames incomplete at the end come last, rx before tx.")
       .def("__repr__",
            [](const PyProfile& p) { return "<Profile " + std::string(p.profile->name()) + ">"; });
+
+  nb::class_<PyFramer>(m, "Framer",
+                       "Cuts one direction's byte stream into frames, however it is split "
+                       "into feed() calls. Get one with Profile.framer(direction).")
+      .def("feed", &PyFramer::feed, "data"_a, "t_ns"_a = 0,
+           "The next bytes of the stream, which arrived at t_ns (for framers that cut by "
+           "silence): the frames they complete, as (bytes, end) with end one of "
+           "'delimited', 'size_limit', 'stream_end', 'broken'.")
+      .def("finish", &PyFramer::finish,
+           "The stream has ended: the kept tail as a last (bytes, end), or None.")
+      .def_prop_ro("pending", &PyFramer::pending, "How many bytes are kept for the next frame.");
 
   nb::class_<DecodedSession>(m, "DecodedSession",
                              "The items of a session decoded with a profile (an iterator).")
@@ -356,6 +440,29 @@ void bind_profile(nb::module_& m) {
       "fix_response(recorded_request, actual_request, response) -> bytes, where given "
       "(None: the base profile's). The callables are called with the GIL from the "
       "thread that serves the client.");
+  m.def(
+      "declared_profile",
+      [](const std::string& options) {
+        Options parsed = Options::parse(options);
+        parsed.set_port_type("replay");
+        std::shared_ptr<const Profile> profile = detail::take_declared_profile(parsed);
+        if (!profile) {
+          throw OptionError("framing", "a declared profile needs framing= (and may have "
+                                       "ignore=, echo=, checksum=), not '" + options + "'");
+        }
+        for (const Options::Entry& entry : parsed.entries()) {
+          if (entry.key != "framing" && entry.key != "ignore" && entry.key != "echo" &&
+              entry.key != "checksum") {
+            throw OptionError(entry.key, "option '" + entry.key +
+                                             "' is not a declared profile's key (framing=, "
+                                             "ignore=, echo=, checksum=)");
+          }
+        }
+        return PyProfile{profile};
+      },
+      "options"_a,
+      "The profile declared by 'framing=...[,ignore=...][,echo=...][,checksum=...]' "
+      "(docs/replay.md); OptionError naming the key for a bad spec or another key.");
   m.def(
       "find_profile",
       [](const std::string& name) { return PyProfile{detail::find_profile(name)}; },

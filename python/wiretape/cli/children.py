@@ -50,7 +50,8 @@ def record_with_command(args, out: Output) -> int:
                            pty_mode=args.pty_mode, pty_group=args.pty_group)
     return _run_bridge_with_command(
         handle, out, "record", args.command_argv, path,
-        lambda: announce_clients(handle, out, f"recording to {args.output}", link))
+        lambda: announce_clients(handle, out, f"recording to {args.output}", link),
+        must_use_path=True)
 
 
 def replay_with_command(args, out: Output) -> int:
@@ -58,8 +59,12 @@ def replay_with_command(args, out: Output) -> int:
     from ..redirect import recorded_device_path
     from ..session import refuse_same_file, session_files
 
+    from .run import check_fault_places
+
     pty, link = _command_client_side(args)
     require_input(args.file)
+    # A --fault past the session's end is a usage error before CMD starts.
+    check_fault_places(args)
     if args.output:
         refuse_same_file(session_files(args.file), [args.output])
     path = args.redirect_path or recorded_device_path(args.file)
@@ -73,7 +78,8 @@ def replay_with_command(args, out: Output) -> int:
                                  pty_group=args.pty_group)
     return _run_bridge_with_command(
         handle, out, "replay", args.command_argv, path,
-        lambda: announce_clients(handle, out, f"replaying {args.file}", link), must_serve=True)
+        lambda: announce_clients(handle, out, f"replaying {args.file}", link), must_serve=True,
+        outlive_injected_loss=True)
 
 
 def _check_redirect_path(path: str) -> None:
@@ -99,17 +105,22 @@ def _client_connected(handle) -> bool:
 
 def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str],
                              device_path: str, announce: Callable[[], None],
-                             must_serve: bool = False) -> int:
+                             must_serve: bool = False, must_use_path: bool = False,
+                             outlive_injected_loss: bool = False) -> int:
     """Runs CMD with `device_path` redirected to the bridge's pty; the bridge
     ends when CMD exits. The exit status is CMD's when it failed, else the
     bridge's (docs/cli.md); a bridge that ends first (a mismatch, --duration)
-    ends CMD."""
+    ends CMD, except, with `outlive_injected_loss`, a replay ended by an
+    injected device loss: CMD is left to react to it and exit by itself.
+    CMD's output is captured and relayed; a sanitizer report in it fails a
+    CMD that exits 0. `must_use_path`: a CMD that never opened the path
+    fails (a replay fails anyway: its client never came)."""
     from ..redirect import RedirectedCommand
 
     try:
         announce()
         out.note(f"{what}: running {' '.join(argv)} with {device_path} -> {handle.pty_path}")
-        command = RedirectedCommand(argv, device_path, handle.pty_path)
+        command = RedirectedCommand(argv, device_path, handle.pty_path, relay=True)
     except BaseException:
         handle.stop()
         handle.wait()
@@ -118,12 +129,22 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
     # the bridge ending first, ended it.
     ended_by_us = False
     try:
+        bridge_ended = False
         while command.poll() is None:
-            if handle.wait(POLL_S):
+            if bridge_ended:
+                command.child.wait(POLL_S)
+            elif handle.wait(POLL_S):
+                bridge_ended = True
+                if outlive_injected_loss and handle.result().ended_by_fault:
+                    out.note(f"{what}: an injected fault lost the device; {command.name} "
+                             "goes on until it exits")
+                    continue
                 out.note(f"{what}: ended before {command.name}; ending it")
                 ended_by_us = True
-                command.end()
                 break
+        # What CMD left running in its group ends with it; its output is
+        # read until then.
+        command.end()
         # What CMD wrote last is read from the pty before the bridge stops:
         # the bridge sees the terminal's last close after CMD's exit.
         _wait_for_client_close(handle)
@@ -138,6 +159,7 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
     # The shim notes each use of the path; a bind mount is seen as the pty's
     # client arriving.
     used = command.used_device_path() or _client_connected(handle)
+    sanitizer = command.sanitizer_report()
     command.close()
     if not used:
         out.note(f"{what}: {command.name} never opened {device_path} (the shim reaches "
@@ -145,11 +167,16 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
                  "bind mount, only where the path exists)")
     try:
         verdict = run_bridge(handle, out, what, lambda: None, must_serve=must_serve)
+        if not used and must_use_path and not ended_by_us:
+            raise CheckFailed(f"{command.name} never opened {device_path}: nothing was "
+                              "recorded from it")
     except (CheckFailed, RuntimeFailure) as error:
         if ended_by_us or status == 0:
             raise
         out.error(f"wiretape {what}", describe(error))
         verdict = exit_code_for(error)
+    if sanitizer is not None and status == 0 and not ended_by_us:
+        raise CheckFailed(f"{command.name} exited 0 but printed a sanitizer report: {sanitizer}")
     if ended_by_us or status == 0:
         return verdict
     out.note(f"{what}: {command.name} exited with status {status}")

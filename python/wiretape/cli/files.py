@@ -125,15 +125,26 @@ def cmd_diff(args, out: Output) -> int:
 
 
 def cmd_edit(args, out: Output) -> int:
-    from ..tools.edit import edit, parse_cut, parse_redaction
+    from ..tools.edit import edit_in_child, parse_cut, parse_redaction
 
     require_input(args.input)
     cut = parse_cut(args.cut) if args.cut is not None else None
     redactions = [parse_redaction(spec) for spec in args.redact]
-    result = edit(args.input, args.output, cut=cut, redact=redactions, drop_meta=args.drop_meta)
+    profile = {None: "", "none": None}.get(args.profile, args.profile)
+    # In a child process: a signal ends a catastrophic pattern's matching too.
+    result = edit_in_child(args.input, args.output, cut=cut, redact=redactions,
+                           drop_meta=args.drop_meta, profile=profile)
     if not args.quiet:
         done = "; ".join(result.edits)
         matches = (f", {result.matches} matches redacted in {result.redacted_records} records"
                    if redactions else "")
+        if redactions and result.profile is not None:
+            matches += f", checksums recomputed in {result.resealed_frames} {result.profile} frames"
+        elif redactions and result.matches:
+            matches += " (no --profile: checksums over scrubbed bytes are left as they were)"
         out.note(f"edited {args.input} -> {args.output}: {result.records} records{matches} ({done})")
+        if result.unsealed_frames:
+            out.note(f"{result.unsealed_frames} {result.profile} frames keep part of their "
+                     "recorded checksums: the records holding them were written before the "
+                     "frame was complete (more than 8 MiB waited behind them)")
     return EXIT_OK

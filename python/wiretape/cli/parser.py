@@ -404,6 +404,11 @@ def build_parser() -> argparse.ArgumentParser:
                       help="a regular expression over the bytes (\\= for a literal =); "
                            "matches become REPLACEMENT repeated to their length (default *); "
                            "may be repeated")
+    edit.add_argument("--profile", metavar="NAME",
+                      help="the protocol whose checksums --redact recomputes over scrubbed "
+                           "bytes (default: the session's --meta profile=NAME, else none): "
+                           + ", ".join(_core.profile_names()) + ", a declared profile "
+                           "('framing=...,checksum=...') or none")
     edit.add_argument("--drop-meta", metavar="KEY", action="append", default=[],
                       help="remove this --meta key (may be repeated)")
     edit.add_argument("-q", "--quiet", action="store_true", help="no summary")

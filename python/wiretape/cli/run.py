@@ -140,7 +140,7 @@ def cmd_replay(args, out: Output) -> int:
     refuse_as_without_command(args)
     pty, listen = _client_side(args)
     require_input(args.file)
-    _check_fault_places(args)
+    check_fault_places(args)
     if args.output:
         refuse_same_file(session_files(args.file), [args.output])
     handle = bridge.serve_replay(args.file, pty=pty, listen=listen, udp=args.udp,
@@ -155,7 +155,7 @@ def cmd_replay(args, out: Output) -> int:
                       must_serve=True)
 
 
-def _check_fault_places(args) -> None:
+def check_fault_places(args) -> None:
     """--fault KIND@WHERE past the session's end is a usage error."""
     from ..faults import FaultInputError, check_where
 
@@ -191,11 +191,14 @@ def cmd_serve(args, out: Output) -> int:
 
 def cmd_faults(args, out: Output) -> int:
     from .. import faults
+    from ..session import refuse_same_file, session_files
 
     if args.command_argv is None:
         raise UsageError("no command after --: give the program to run, with {port} where "
                          "the device's path goes")
     require_input(args.file)
+    if args.json:
+        refuse_same_file(session_files(args.file), [args.json])
     kinds = [kind for kind in (args.kinds or "").split(",") if kind.strip()] or None
     try:
         result = faults.campaign(args.file, args.command_argv, kinds=kinds, budget=args.budget,
@@ -207,13 +210,33 @@ def cmd_faults(args, out: Output) -> int:
         raise UsageError(str(error)) from None
     except faults.CleanRunFailed as failure:
         raise CheckFailed(str(failure)) from None
+    except faults.CampaignInterrupted as interruption:
+        # The runs so far, as a finished campaign gives them; main() then
+        # exits 130/143.
+        partial = interruption.campaign
+        out.note(f"faults: interrupted after {len(partial.runs)} of {partial.planned} runs")
+        _report_campaign(partial, args.json, out)
+        raise
+    _report_campaign(result, args.json, out)
+    return EXIT_CHECK_FAILED if result.failed else EXIT_OK
+
+
+def _report_campaign(result, json_path: Optional[str], out: Output) -> None:
+    from .. import faults
+
+    if json_path:
+        faults.write_json(result, json_path)
     out.print(faults.table(result))
     for run in result.runs:
         if run.repro:
             out.print(f"{run.outcome} {run.kind}@{run.where}: {run.repro}")
-    if args.json:
-        faults.write_json(result, args.json)
-    return EXIT_CHECK_FAILED if result.failed else EXIT_OK
+            # What CMD said last (a sanitizer's report, a backtrace...).
+            for line in run.output.splitlines()[-_OUTPUT_TAIL_LINES:]:
+                out.print(f"  | {line}")
+
+
+# How much of a crashed or hung run's output the campaign shows.
+_OUTPUT_TAIL_LINES = 20
 
 
 def cmd_demo(args, out: Output) -> int:

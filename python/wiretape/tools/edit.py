@@ -10,11 +10,15 @@ shared (DESIGN §15, docs/cli.md "edit").
 - ``redact``: a regular expression over the rx and tx bytes; each match is
   overwritten (with ``*``, or REPLACEMENT repeated to the match's length,
   so lengths and framing stay) and marked by a ``redaction`` event, which
-  replay treats as wildcards: a scrubbed recording still replays to the
-  driver that made it. A match may span records, up to ``MAX_SPAN`` bytes.
-  Redacting also clears the header's host and the serial numbers of
-  ``/dev/serial/by-id`` paths, and applies the patterns to the header's
-  text.
+  replay treats as wildcards. A match may span records, up to ``MAX_SPAN``
+  bytes. Redacting scrubs every place a value appears (DESIGN §23): it also
+  clears the header's host and the serial numbers of ``/dev/serial/by-id``
+  paths, and applies the patterns to the header's text (port options,
+  device address, metadata values, import source) and to every string of
+  every event (an open's description, a client's peer...). With a protocol
+  profile, the checksums of each frame holding scrubbed bytes are
+  recomputed (``Profile.recompute_checksums``), so that a scrubbed
+  recording still replays to the driver that made it.
 - ``drop_meta``: removes user metadata keys.
 
 The header's ``edits`` list says what was done (never the scrubbed text).
@@ -24,16 +28,21 @@ from __future__ import annotations
 
 import collections
 import dataclasses
+import itertools
 import os
+import pickle
 import re
-from typing import Deque, Dict, Iterable, List, Optional, Sequence, Tuple
+import signal
+import stat
+import sys
+from typing import Callable, Deque, Dict, Iterable, List, Optional, Sequence, Tuple
 
 from .. import _core
 from ..session import (DIRECTIONS, SessionPath, event_payload, is_stream, open_session,
                        raise_damage, refuse_same_file, session_files)
 from .convert import session_writer
 
-__all__ = ["edit", "EditResult", "Cut", "Redaction", "parse_cut", "parse_redaction", "MAX_SPAN"]
+__all__ = ["edit", "edit_in_child", "default_profile", "EditResult", "Cut", "Redaction", "parse_cut", "parse_redaction", "MAX_SPAN"]
 
 #: How far back a match may reach into a direction's earlier records.
 MAX_SPAN = 4096
@@ -68,6 +77,8 @@ class Redaction:
     replacement: bytes = b"*"
 
     def scrub(self, length: int) -> bytes:
+        if len(self.replacement) == 1:
+            return self.replacement * length
         return (self.replacement * (length // len(self.replacement) + 1))[:length]
 
 
@@ -107,10 +118,15 @@ def parse_cut(spec: str) -> Cut:
     return Cut(start, end, exchanges, spec)
 
 
+#: The ``=`` between PATTERN and REPLACEMENT: not escaped, not a lookaround's.
+_SEPARATOR = re.compile(r"(?<!\\)(?<!\(\?)(?<!\(\?<)(?<!\(\?P)=")
+
+
 def parse_redaction(spec: str) -> Redaction:
     """``PATTERN[=REPLACEMENT]``: a regular expression (Python syntax) over
-    the bytes; ``\\=`` is a literal ``=`` in the pattern."""
-    split = re.search(r"(?<!\\)=", spec)
+    the bytes; ``\\=`` is a literal ``=`` in the pattern, and so is the
+    ``=`` of the regex syntax ``(?=``, ``(?<=`` and ``(?P=``."""
+    split = _SEPARATOR.search(spec)
     pattern_text, replacement = (spec, "*") if split is None else (
         spec[:split.start()], spec[split.end():])
     if not pattern_text:
@@ -134,93 +150,259 @@ class EditResult:
     matches: int  # redacted matches
     redacted_records: int  # records with redacted bytes
     edits: Tuple[str, ...]  # what this edit added to the header's edits list
+    profile: Optional[str] = None  # the profile whose checksums were recomputed
+    resealed_frames: int = 0  # frames whose checksums it recomputed
+    unsealed_frames: int = 0  # ... a byte of which was already written (HOLD_LIMIT)
 
 
 class _Entry:
-    __slots__ = ("kind", "t_ns", "data", "marks", "settled")
+    """A record on its way to the output: rx and tx bytes may still change
+    (redaction, checksums recomputed) until the stages before the writer
+    settle them."""
+
+    __slots__ = ("kind", "t_ns", "data", "marks", "settled", "written")
 
     def __init__(self, kind: str, t_ns: int, data: bytes):
         self.kind = kind
         self.t_ns = t_ns
-        self.data = bytearray(data) if kind in DIRECTIONS else data
-        self.marks: List[Tuple[int, int]] = []
-        self.settled = kind not in DIRECTIONS
+        self.data = data
+        self.marks: List[Tuple[int, int]] = []  # (offset, length) scrubbed
+        self.settled = kind not in DIRECTIONS or not data
+        self.written = False
+
+
+#: How many bytes before a search the redactor keeps for a lookbehind.
+LOOKBEHIND = 256
+
+#: How many bytes of records the stages before the writer hold at most
+#: while one direction waits for more bytes: past it, that direction is
+#: settled as if it had ended (a match or frame reaching further is cut
+#: there), so that memory stays bounded.
+HOLD_LIMIT = 8 << 20
+
+
+class _Stream:
+    """One direction's bytes held by the redactor: ``buffer`` from stream
+    offset ``base`` on, ``marked`` a byte per byte (1: scrubbed), and the
+    records not yet settled with the offset each begins at."""
+
+    __slots__ = ("buffer", "marked", "base", "entries", "scanned_end", "unscanned", "resume")
+
+    def __init__(self, patterns: int):
+        self.buffer = bytearray()
+        self.marked = bytearray()
+        self.base = 0
+        self.entries: Deque[Tuple[int, _Entry]] = collections.deque()
+        self.scanned_end = 0  # the stream offset the last scan reached
+        self.unscanned = 0  # bytes added since
+        self.resume = [0] * patterns  # per pattern: where its next match may begin
 
 
 class _Redactor:
-    """Applies the patterns to each direction's byte stream as records
-    arrive, holding back the last MAX_SPAN bytes of each direction so that
-    a match spanning records is found, and hands records on in order."""
+    """Applies the patterns to each direction's byte stream and hands the
+    records on in order once their bytes can no longer change.
 
-    def __init__(self, redactions: Sequence[Redaction], write):
+    Linear in the stream: each direction is searched once MAX_SPAN new bytes
+    have come (or at the end), from where the last match ended but at most
+    MAX_SPAN bytes before the previous search's end, so that a match may
+    span records; matches are scrubbed in place, never by joining the held
+    records again (which made many matches, or many small records,
+    quadratic)."""
+
+    def __init__(self, redactions: Sequence[Redaction], hand_on: Callable[[_Entry], None]):
         self.redactions = redactions
-        self.write = write
+        self.hand_on = hand_on
         self.queue: Deque[_Entry] = collections.deque()
-        self.window: Dict[str, List[_Entry]] = {kind: [] for kind in DIRECTIONS}
+        self.held = 0  # bytes in the queue
+        self.streams = {kind: _Stream(len(redactions)) for kind in DIRECTIONS}
         self.matches = 0
-        self.records = 0
-        self.marked_records = 0
 
     def add(self, entry: _Entry) -> None:
         self.queue.append(entry)
-        if entry.kind in DIRECTIONS and self.redactions:
-            self._scan(entry)
-        else:
+        if not self.redactions:
             entry.settled = True
+        if not entry.settled:
+            stream = self.streams[entry.kind]
+            stream.entries.append((stream.base + len(stream.buffer), entry))
+            stream.buffer += entry.data
+            stream.marked += bytes(len(entry.data))
+            stream.unscanned += len(entry.data)
+            self.held += len(entry.data)
+            if stream.unscanned >= MAX_SPAN:
+                self._scan(stream, final=False)
         self._drain()
-
-    def _scan(self, entry: Optional[_Entry], kind: str = "") -> None:
-        """Applies the patterns to the window of `entry`'s direction. A match
-        that reaches the window's end may grow with the next record (a
-        greedy pattern cut by a record boundary): it waits for it, or for
-        the end of the session (entry None)."""
-        final = entry is None
-        window = self.window[kind if final else entry.kind]
-        if final:
-            if not window:
-                return
-        else:
-            window.append(entry)
-        held = sum(len(e.data) for e in window[:-1])
-        while window and held - len(window[0].data) >= MAX_SPAN:
-            held -= len(window[0].data)
-            window.pop(0).settled = True
-        starts, position = [], 0
-        for e in window:
-            starts.append(position)
-            position += len(e.data)
-        new_from = position if final else starts[-1]
-        text = b"".join(bytes(e.data) for e in window)
-        for redaction in self.redactions:
-            for match in redaction.pattern.finditer(text):
-                if match.end() < new_from:
-                    continue  # applied when its last record came
-                if match.end() == len(text) and not final:
-                    continue  # may grow with the next record
-                self.matches += 1
-                scrub = redaction.scrub(match.end() - match.start())
-                for e, start in zip(window, starts):
-                    lo, hi = max(match.start(), start), min(match.end(), start + len(e.data))
-                    if lo < hi:
-                        e.data[lo - start:hi - start] = scrub[lo - match.start():hi - match.start()]
-                        e.marks.append((lo - start, hi - lo))
-                text = b"".join(bytes(e.data) for e in window)
-
-    def _drain(self, everything: bool = False) -> None:
-        while self.queue and (everything or self.queue[0].settled):
-            entry = self.queue.popleft()
-            self.marked_records += bool(entry.marks)
-            for offset, length in _merged(entry.marks):
-                payload = _core.event_payload("redaction", {"offset": offset, "length": length})
-                self.write("redaction", entry.t_ns, payload)
-            self.write(entry.kind, entry.t_ns, bytes(entry.data))
-            self.records += 1
+        while self.held > HOLD_LIMIT and self.queue and not self.queue[0].settled:
+            self._scan(self.streams[self.queue[0].kind], final=True)
+            self._drain()
 
     def finish(self) -> None:
-        if self.redactions:
-            for kind in DIRECTIONS:
-                self._scan(None, kind)
-        self._drain(everything=True)
+        for stream in self.streams.values():
+            self._scan(stream, final=True)
+        self._drain()
+
+    def _scan(self, stream: _Stream, final: bool) -> None:
+        """Applies the patterns to what `stream` holds. A match that
+        reaches its end may grow with the next bytes (a greedy pattern cut
+        by a record boundary): unless `final`, it waits for them."""
+        buffer, base, end = stream.buffer, stream.base, len(stream.buffer)
+        floor = stream.scanned_end - MAX_SPAN
+        marked = stream.marked
+        for index, redaction in enumerate(self.redactions):
+            position = max(0, max(floor, stream.resume[index]) - base)
+            scrub = redaction.scrub
+            # Over the bytes as the patterns before this one left them.
+            for match in redaction.pattern.finditer(bytes(buffer), position):
+                start, stop = match.span()
+                if stop == end and not final:
+                    stream.resume[index] = base + start
+                    break
+                if stop == start:  # an empty match (a lookaround) scrubs nothing
+                    continue
+                buffer[start:stop] = scrub(stop - start)
+                marked[start:stop] = b"\x01" * (stop - start)
+                self.matches += 1
+                stream.resume[index] = base + stop
+        stream.scanned_end = base + end
+        stream.unscanned = 0
+        # No later search begins before `settled`: records ending there are done.
+        settled = base + end if final else min(
+            [max(resume, stream.scanned_end - MAX_SPAN) for resume in stream.resume] or [base + end])
+        while stream.entries:
+            offset, entry = stream.entries[0]
+            size = len(entry.data)
+            if offset + size > settled:
+                break
+            stream.entries.popleft()
+            at = offset - base
+            entry.data = bytes(buffer[at:at + size])
+            entry.marks = _runs(stream.marked, at, at + size)
+            entry.settled = True
+        # Bytes before the next search stay a little, for lookbehinds:
+        # '(?<=SERI:)[^;]*' scrubs only the value.
+        keep_from = min(settled, stream.entries[0][0] if stream.entries else base + end)
+        keep_from -= LOOKBEHIND
+        if keep_from > base:
+            del buffer[:keep_from - base]
+            del stream.marked[:keep_from - base]
+            stream.base = keep_from
+
+    def _drain(self) -> None:
+        while self.queue and self.queue[0].settled:
+            entry = self.queue.popleft()
+            if entry.kind in DIRECTIONS:
+                self.held -= len(entry.data)
+            self.hand_on(entry)
+
+
+def _runs(marked: bytearray, start: int, stop: int) -> List[Tuple[int, int]]:
+    """The (offset from `start`, length) of each run of marked bytes in
+    marked[start:stop]."""
+    runs: List[Tuple[int, int]] = []
+    at = marked.find(1, start, stop)
+    while at != -1:
+        run_end = marked.find(0, at, stop)
+        if run_end == -1:
+            run_end = stop
+        runs.append((at - start, run_end - at))
+        at = marked.find(1, run_end, stop)
+    return runs
+
+
+class _Resealer:
+    """Between the redactor and the writer: frames each direction with a
+    protocol profile and has it recompute the checksums of every whole frame
+    holding scrubbed bytes (``Profile.recompute_checksums``), writing the
+    changed bytes back into the records they fall in. A record is held until
+    every frame it is part of is complete (a frame is at most 1 MiB), or
+    until HOLD_LIMIT bytes wait behind it. A tx byte so changed is marked
+    as scrubbed too: replay without the profile then takes it as a
+    wildcard, as the client's own checksum is over the unscrubbed bytes."""
+
+    def __init__(self, profile, hand_on: Callable[[_Entry], None]):
+        self.profile = profile
+        self.hand_on = hand_on
+        self.framers = {kind: profile.framer(kind) for kind in DIRECTIONS}
+        self.fed = dict.fromkeys(DIRECTIONS, 0)  # stream bytes given to the framer
+        self.framed = dict.fromkeys(DIRECTIONS, 0)  # stream bytes in complete frames
+        self.entries: Dict[str, List[Tuple[int, _Entry]]] = {kind: [] for kind in DIRECTIONS}
+        self.first = dict.fromkeys(DIRECTIONS, 0)  # the first entry a next frame may hold
+        self.queue: Deque[Tuple[_Entry, int]] = collections.deque()
+        self.held = 0
+        self.frames = 0  # frames whose checksums changed
+        self.missed = 0  # ... of which a changed byte was in a record already written
+
+    def add(self, entry: _Entry) -> None:
+        end = 0
+        if entry.kind in DIRECTIONS and entry.data:
+            kind = entry.kind
+            self.entries[kind].append((self.fed[kind], entry))
+            self.fed[kind] += len(entry.data)
+            end = self.fed[kind]
+            self.held += len(entry.data)
+            for frame, how in self.framers[kind].feed(entry.data, entry.t_ns):
+                self._frame(kind, frame, how)
+        self.queue.append((entry, end))
+        self._drain()
+
+    def finish(self) -> None:
+        for kind, framer in self.framers.items():
+            tail = framer.finish()
+            if tail is not None:
+                self._frame(kind, *tail)
+        self._drain()
+
+    def _frame(self, kind: str, frame: bytes, how: str) -> None:
+        start = self.framed[kind]
+        stop = self.framed[kind] = start + len(frame)
+        entries, first = self.entries[kind], self.first[kind]
+        while first < len(entries) and entries[first][0] + len(entries[first][1].data) <= start:
+            first += 1
+        if first > 4096:
+            del entries[:first]
+            first = 0
+        self.first[kind] = first
+        if how not in ("delimited", "broken"):
+            return  # cut short or cut at the size limit: no whole frame to seal
+        held = []
+        scrubbed = False
+        for offset, entry in itertools.islice(entries, first, None):
+            if offset >= stop:
+                break
+            held.append((offset, entry))
+            lo, hi = max(start, offset) - offset, min(stop, offset + len(entry.data)) - offset
+            scrubbed = scrubbed or any(at < hi and at + length > lo for at, length in entry.marks)
+        if not scrubbed:
+            return
+        sealed = self.profile.recompute_checksums(kind, frame)
+        if sealed == frame:
+            return
+        self.frames += 1
+        missed = False
+        for at in (i for i in range(len(frame)) if frame[i] != sealed[i]):
+            where = start + at
+            for offset, entry in held:
+                if offset <= where < offset + len(entry.data):
+                    if entry.written:
+                        missed = True
+                        break
+                    if not isinstance(entry.data, bytearray):
+                        entry.data = bytearray(entry.data)
+                    entry.data[where - offset] = sealed[at]
+                    if kind == "tx":
+                        entry.marks.append((where - offset, 1))
+                    break
+        self.missed += missed
+
+    def _drain(self) -> None:
+        while self.queue:
+            entry, end = self.queue[0]
+            if end > self.framed.get(entry.kind, end) and self.held <= HOLD_LIMIT:
+                break
+            self.queue.popleft()
+            if end:
+                self.held -= len(entry.data)
+            entry.written = True
+            self.hand_on(entry)
 
 
 def _merged(marks: List[Tuple[int, int]]) -> List[Tuple[int, int]]:
@@ -336,7 +518,7 @@ class _Cutter:
             self.keep(kind, (self.end if self.end is not None else t_ns) - self.shift, data)
 
 
-def _scrub_header_text(text: str, redactions: Sequence[Redaction]) -> str:
+def _scrub_text(text: str, redactions: Sequence[Redaction]) -> str:
     text = _BY_ID.sub(_BY_ID_REPLACEMENT, text)
     data = text.encode("utf-8", "surrogatepass")
     for redaction in redactions:
@@ -344,26 +526,110 @@ def _scrub_header_text(text: str, redactions: Sequence[Redaction]) -> str:
     return data.decode("utf-8", "replace")
 
 
-def _scrubbed_event(kind: str, data: bytes) -> bytes:
-    """Event payloads name devices too (open's description): by-id serial
-    numbers are cleared there, the payload made anew by the record-kind
-    table (a member it does not know is a ValueError naming it)."""
+def _scrub_value(value, redactions: Sequence[Redaction]):
+    """Every string in a JSON value scrubbed (lists and objects walked)."""
+    if isinstance(value, str):
+        return _scrub_text(value, redactions)
+    if isinstance(value, list):
+        return [_scrub_value(item, redactions) for item in value]
+    if isinstance(value, dict):
+        return {key: _scrub_value(item, redactions) for key, item in value.items()}
+    return value
+
+
+def _scrub_header(header, redactions: Sequence[Redaction]) -> None:
+    """Every header field that can name the device, the machine or a user:
+    the host is cleared; the port options, the device's address, metadata
+    values and where an import came from are scrubbed."""
+    header.host = ""
+    header.port_options = _scrub_text(header.port_options, redactions)
+    header.device_address = _scrub_text(header.device_address, redactions)
+    header.metadata = {key: _scrub_text(value, redactions)
+                       for key, value in header.metadata.items()}
+    header.source_files = [_scrub_text(name, redactions) for name in header.source_files]
+    header.source_details = {key: _scrub_text(value, redactions)
+                             for key, value in header.source_details.items()}
+
+
+def _scrubbed_event(kind: str, data: bytes, redactions: Sequence[Redaction]) -> bytes:
+    """An event's payload with every string in it scrubbed: the open's
+    description, a client's peer address, a device_lost's error... (by-id
+    serial numbers and the patterns), made anew by the record-kind table (a
+    member it does not know is a ValueError naming it). A payload that is
+    not JSON has the patterns applied to its bytes."""
     payload = event_payload(data)
+    if payload is None:
+        for redaction in redactions:
+            data = redaction.pattern.sub(lambda m: redaction.scrub(len(m.group(0))), data)
+        return data
     if not payload:
         return data
-    changed = {key: _BY_ID.sub(_BY_ID_REPLACEMENT, value) if isinstance(value, str) else value
-               for key, value in payload.items()}
+    changed = _scrub_value(payload, redactions)
     if changed == payload:
         return data
     return _core.event_payload(kind, changed)
 
 
+#: The metadata key that names the protocol profile of a recording
+#: (``--meta profile=scip``): edit's default profile.
+PROFILE_META_KEY = "profile"
+
+
+def default_profile(header) -> Optional[str]:
+    """The profile a recording names in its metadata (``profile=NAME``, a
+    known profile), else None."""
+    name = header.metadata.get(PROFILE_META_KEY)
+    return name if name in _core.profile_names() else None
+
+
+def _profile(spec: str):
+    """The profile `spec` names, or declares (``framing=...,checksum=...``)."""
+    try:
+        if "=" in spec:
+            return _core.declared_profile(spec)
+        return _core.find_profile(spec)
+    except _core.OptionError as error:
+        raise ValueError(f"--profile {spec!r}: {error}") from None
+
+
+def _remove_output(dst: str, before: Optional[os.stat_result]) -> None:
+    """Removes what an interrupted edit wrote to `dst`: a regular file it
+    created or wrote over (an output that is not a regular file, a FIFO or
+    /dev/stdout, is written through and cannot be taken back)."""
+    try:
+        now = os.stat(dst)
+    except OSError:
+        return
+    if not stat.S_ISREG(now.st_mode):
+        return
+    if before is not None and (before.st_ino, before.st_mtime_ns, before.st_size) == (
+            now.st_ino, now.st_mtime_ns, now.st_size):
+        return  # never opened: the file there is not ours
+    try:
+        os.unlink(dst)
+    except OSError:
+        pass
+
+
+def _stat_or_none(path: str) -> Optional[os.stat_result]:
+    try:
+        return os.stat(path)
+    except OSError:
+        return None
+
+
 def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
-         redact: Iterable[Redaction] = (), drop_meta: Iterable[str] = ()) -> EditResult:
+         redact: Iterable[Redaction] = (), drop_meta: Iterable[str] = (),
+         profile: Optional[str] = "") -> EditResult:
     """Writes an edited copy of the session `src` to `dst` (a .wtape).
-    Raises ValueError for an edit that does not fit the session (a metadata
-    key it lacks, an exchange past its end); SessionError after writing
-    what came before when `src` is damaged."""
+    `profile`: the protocol profile whose checksums are recomputed over
+    scrubbed bytes, a name or a declared profile's keys
+    (``framing=...,checksum=...``); "" (the default) for the one the
+    session's metadata names (``profile=NAME``), None for none. Raises
+    ValueError for an edit that does not fit the session (a metadata key it
+    lacks, an exchange past its end) or an unknown profile; SessionError after
+    writing what came before when `src` is damaged. Interrupted
+    (KeyboardInterrupt), it removes the output it was writing."""
     src, dst = os.fspath(src), os.fspath(dst)
     redactions = list(redact)
     drop = list(drop_meta)
@@ -372,6 +638,9 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
     refuse_same_file(session_files(src), [dst])
     reader = open_session(src)
     header = reader.header
+    if profile == "":
+        profile = default_profile(header)
+    framing = _profile(profile) if profile is not None and redactions else None
     metadata = dict(header.metadata)
     for key in drop:
         if key not in metadata:
@@ -387,40 +656,120 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
     if cut is not None:
         edits.append(cut.describe())
     if redactions:
-        header.host = ""
-        header.port_options = _scrub_header_text(header.port_options, redactions)
-        header.metadata = {key: _scrub_header_text(value, redactions)
-                           for key, value in metadata.items()}
+        _scrub_header(header, redactions)
     edits += [f"dropped meta {key}" for key in drop]
 
     if redactions:
         # The header comes first, before any match is found: it names the
         # patterns' count; the redaction events say where each match was.
         count = len(redactions)
+        sealed = f"; checksums recomputed ({framing.name})" if framing is not None else ""
         edits.append(f"redacted {count} pattern{'s' if count != 1 else ''}"
-                     " (host and by-id serial numbers cleared)")
+                     f" (host and by-id serial numbers cleared{sealed})")
     header.edits = earlier_edits + edits
-    writer = session_writer(dst, header)
-    with writer:
-        def write(kind: str, t_ns: int, data: bytes) -> None:
-            writer.write(kind, t_ns, data)
+    before = _stat_or_none(dst)
+    counts = {"records": 0, "marked": 0}
+    try:
+        with session_writer(dst, header) as writer:
+            def emit(entry: _Entry) -> None:
+                marks = _merged(entry.marks)
+                for offset, length in marks:
+                    payload = _core.event_payload("redaction", {"offset": offset, "length": length})
+                    writer.write("redaction", entry.t_ns, payload)
+                writer.write(entry.kind, entry.t_ns, bytes(entry.data))
+                counts["records"] += 1
+                counts["marked"] += bool(marks)
 
-        redactor = _Redactor(redactions, write)
+            resealer = _Resealer(framing, emit) if framing is not None else None
+            redactor = _Redactor(redactions, resealer.add if resealer is not None else emit)
 
-        def keep(kind: str, t_ns: int, data: bytes) -> None:
-            if redactions and kind not in DIRECTIONS:
-                data = _scrubbed_event(kind, data)
-            redactor.add(_Entry(kind, t_ns, data))
+            def keep(kind: str, t_ns: int, data: bytes) -> None:
+                if redactions and kind not in DIRECTIONS:
+                    data = _scrubbed_event(kind, data, redactions)
+                redactor.add(_Entry(kind, t_ns, data))
 
-        cutter = _Cutter(window[0], window[1], keep) if cut is not None else None
-        for record in reader:
+            cutter = _Cutter(window[0], window[1], keep) if cut is not None else None
+            for record in reader:
+                if cutter is not None:
+                    cutter.add(record.kind, record.t_ns, record.data)
+                else:
+                    keep(record.kind, record.t_ns, record.data)
             if cutter is not None:
-                cutter.add(record.kind, record.t_ns, record.data)
-            else:
-                keep(record.kind, record.t_ns, record.data)
-        if cutter is not None:
-            cutter.finish()
-        redactor.finish()
+                cutter.finish()
+            redactor.finish()
+            if resealer is not None:
+                resealer.finish()
+    except KeyboardInterrupt:
+        _remove_output(dst, before)
+        raise
     raise_damage(reader)
-    return EditResult(records=redactor.records, matches=redactor.matches,
-                      redacted_records=redactor.marked_records, edits=tuple(edits))
+    return EditResult(records=counts["records"], matches=redactor.matches,
+                      redacted_records=counts["marked"], edits=tuple(edits),
+                      profile=framing.name if framing is not None else None,
+                      resealed_frames=resealer.frames if resealer is not None else 0,
+                      unsealed_frames=resealer.missed if resealer is not None else 0)
+
+
+def edit_in_child(src: SessionPath, dst: SessionPath, **options) -> EditResult:
+    """edit() in a forked child while this process only waits for it.
+
+    Python's ``re`` does not look at signals while it matches, so a
+    catastrophic pattern (``(a+)+$`` over a long ``aaa...b``) would hold
+    SIGINT and SIGTERM off for as long as it runs, and the command could
+    neither end nor remove its partial output. Waiting on a pipe, this
+    process takes the signal at once (its handler raises
+    KeyboardInterrupt): it kills the child, removes the output and lets the
+    command exit 130/143. A fork costs about a millisecond; running the
+    matching in a thread would not help (``re`` holds the GIL throughout).
+    The child's outcome, a result or an exception, comes back pickled."""
+    src, dst = os.fspath(src), os.fspath(dst)
+    before = _stat_or_none(dst)
+    for stream in (sys.stdout, sys.stderr):
+        stream.flush()
+    reading, writing = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: never returns into the caller's code
+        status = 1
+        try:
+            os.close(reading)
+            for signum in (signal.SIGINT, signal.SIGTERM):
+                # A signal the caller ignores stays ignored (a background job's SIGINT).
+                if signal.getsignal(signum) is not signal.SIG_IGN:
+                    signal.signal(signum, signal.SIG_DFL)
+            try:
+                outcome = ("result", edit(src, dst, **options))
+            except BaseException as error:  # every failure goes to the parent
+                outcome = ("error", error)
+            try:
+                message = pickle.dumps(outcome)
+            except Exception:
+                message = pickle.dumps(("error", RuntimeError(str(outcome[1]))))
+            with os.fdopen(writing, "wb") as pipe:
+                pipe.write(message)
+            status = 0
+        finally:
+            os._exit(status)
+    os.close(writing)
+    try:
+        with os.fdopen(reading, "rb") as pipe:
+            message = pipe.read()
+        _, wait_status = os.waitpid(pid, 0)
+    except BaseException:
+        os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+        _remove_output(dst, before)
+        raise
+    if not message:
+        _remove_output(dst, before)
+        raise RuntimeError(f"edit {src} -> {dst}: the editing process ended without a result "
+                           f"({_described_status(wait_status)})")
+    kind, value = pickle.loads(message)
+    if kind == "error":
+        raise value
+    return value
+
+
+def _described_status(wait_status: int) -> str:
+    if os.WIFSIGNALED(wait_status):
+        return f"killed by signal {os.WTERMSIG(wait_status)}"
+    return f"exit status {os.waitstatus_to_exitcode(wait_status)}"

@@ -349,6 +349,10 @@ class DeclaredProfile final : public Profile {
         fixed[*to + i] = actual[*from + i];
       }
     }
+    return recompute_checksums(StreamDirection::rx, fixed);
+  }
+  std::string recompute_checksums(StreamDirection, std::string_view frame) const override {
+    std::string fixed(frame);
     if (spec_.checksum) {
       if (const auto at = resolve(spec_.checksum->offset, fixed.size())) {
         const std::string sum =

@@ -2,6 +2,7 @@
 // both directions. A sentence is a line ending with LF; one that does not
 // begin with '$' or '!', or whose checksum is wrong, is a broken frame. The
 // key is the sentence without its checksum and line end.
+#include <cctype>
 #include <cstdio>
 #include <string>
 
@@ -70,6 +71,23 @@ class NmeaProfile final : public Profile {
     const std::size_t star = line.rfind('*');
     if (star != std::string_view::npos) line = line.substr(0, star);
     return std::string(line);
+  }
+  // The two hex digits after the '*' (in the case the sentence used), where
+  // there are two; a sentence without a checksum keeps none.
+  std::string recompute_checksums(StreamDirection, std::string_view frame) const override {
+    std::string fixed(frame);
+    const std::string_view line = without_line_end(frame);
+    if (line.empty() || (line[0] != '$' && line[0] != '!')) return fixed;
+    const std::size_t star = line.rfind('*');
+    if (star == std::string_view::npos || line.size() != star + 3) return fixed;
+    const bool lower = std::islower(static_cast<unsigned char>(line[star + 1])) ||
+                       std::islower(static_cast<unsigned char>(line[star + 2]));
+    char digits[3];
+    std::snprintf(digits, sizeof digits, lower ? "%02x" : "%02X",
+                  static_cast<unsigned>(xor8(line.substr(1, star - 1))));
+    fixed[star + 1] = digits[0];
+    fixed[star + 2] = digits[1];
+    return fixed;
   }
   std::string frame_name(StreamDirection, std::string_view frame) const override {
     const std::string_view line = without_line_end(frame);

@@ -88,6 +88,19 @@ std::string_view command_meaning(std::string_view code) {
   return "unknown command";
 }
 
+// SCIP 2.0's line sum: the low six bits of the bytes' sum, plus 0x30.
+char line_sum(std::string_view bytes) {
+  unsigned sum = 0;
+  for (unsigned char byte : bytes) sum += byte;
+  return static_cast<char>((sum & 0x3F) + 0x30);
+}
+
+// Parameter lines (replies to VV, PP and II: "SERI:H0706400;F") end with a
+// ';' that their sum leaves out; every other line's sum covers all of it.
+bool is_parameter_reply(std::string_view code) {
+  return code == "VV" || code == "PP" || code == "II";
+}
+
 std::string pad_right(std::string text, std::size_t width) {
   if (text.size() < width) text.append(width - text.size(), ' ');
   return text;
@@ -175,6 +188,37 @@ class ScipProfile final : public Profile {
     if (!request.empty() && request.back() == lf) request.remove_suffix(1);
     if (!request.empty() && request.back() == cr) request.remove_suffix(1);
     return std::string(request);
+  }
+
+  // A reply's lines after the echo each end with their sum (the status
+  // line too). A line whose sum is right is kept as it is (a parameter
+  // line's under either rule: drivers accept both); commands carry no sum.
+  std::string recompute_checksums(StreamDirection direction,
+                                  std::string_view frame) const override {
+    std::string fixed(frame);
+    if (direction == StreamDirection::tx) return fixed;
+    const bool parameters = is_parameter_reply(command_code(first_line(frame)));
+    std::size_t start = frame.find(lf);
+    while (start != std::string_view::npos && start + 1 < fixed.size()) {
+      const std::size_t line_start = start + 1;
+      const std::size_t end = fixed.find(lf, line_start);
+      if (end == std::string::npos) break;  // a line cut short has no sum yet
+      start = end;
+      std::string_view line = std::string_view(fixed).substr(line_start, end - line_start);
+      if (!line.empty() && line.back() == cr) line.remove_suffix(1);
+      if (line.size() < 2) continue;  // an empty line, or SCIP 1.1's one-byte status
+      const std::string_view data = line.substr(0, line.size() - 1);
+      const char stored = line.back();
+      const bool semicolon = data.back() == ';';
+      const bool leaves_out_semicolon = parameters && semicolon;
+      if (stored == line_sum(data) ||
+          (leaves_out_semicolon && stored == line_sum(data.substr(0, data.size() - 1)))) {
+        continue;
+      }
+      fixed[line_start + data.size()] =
+          line_sum(leaves_out_semicolon ? data.substr(0, data.size() - 1) : data);
+    }
+    return fixed;
   }
 
   std::string frame_name(StreamDirection, std::string_view frame) const override {

@@ -241,4 +241,62 @@ TEST(Bridge, BadDeviceOptionsFailAtStart) {
   EXPECT_NE(bridge.result().message.find("bogus"), std::string::npos) << bridge.result().message;
 }
 
+
+// A replay whose first answer an injected disconnect replaces: the bridge
+// ends with the device lost, says a fault ended it, and its verdict does not
+// blame the client, whose bytes matched.
+std::string ping_session(const wiretape::test::TempDir& dir) {
+  const std::string path = dir.file("ping.wtape");
+  wiretape::SessionHeader header;
+  header.port_type = "serial";
+  wiretape::SessionWriter writer(path, header);
+  writer.write({1'000'000, RecordKind::tx, "PING\n"});
+  writer.write({2'000'000, RecordKind::rx, "PONG\n"});
+  writer.close();
+  return path;
+}
+
+bool hung_up_or_closed(int fd) {
+  pollfd ready{fd, POLLIN, 0};
+  if (::poll(&ready, 1, static_cast<int>(std::chrono::milliseconds(kDeadline).count())) != 1) {
+    return false;
+  }
+  char byte = 0;
+  return (ready.revents & POLLHUP) != 0 || ::read(fd, &byte, 1) <= 0;
+}
+
+TEST(Bridge, AnInjectedLossBeforeAnyAnswerIsNotBlamedOnTheClient) {
+  wiretape::test::TempDir dir;
+  BridgeOptions options;
+  options.device = "type=replay,timing=none,faults=disconnect@exchange:0,file=" +
+                   ping_session(dir);
+  options.quiet = true;
+  Bridge bridge(options);
+  bridge.start();
+  Fd terminal(::open(bridge.pty_path().c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC));
+  ASSERT_GE(terminal.get(), 0);
+  write_all(terminal.get(), "PING\n");
+  EXPECT_TRUE(hung_up_or_closed(terminal.get()));
+  ASSERT_TRUE(bridge.wait(kDeadline));
+  const auto result = bridge.result();
+  EXPECT_EQ(result.outcome, BridgeOutcome::device_closed);
+  EXPECT_TRUE(result.ended_by_fault);
+  EXPECT_NE(result.nothing_served.find("an injected fault ended the replay"), std::string::npos)
+      << result.nothing_served;
+  EXPECT_EQ(result.nothing_served.find("nothing the client sent matched"), std::string::npos)
+      << result.nothing_served;
+}
+
+TEST(Bridge, AReplayStoppedByItsUserWasNotEndedByAFault) {
+  wiretape::test::TempDir dir;
+  BridgeOptions options;
+  options.device = "type=replay,timing=none,file=" + ping_session(dir);
+  options.quiet = true;
+  Bridge bridge(options);
+  bridge.start();
+  bridge.stop();
+  ASSERT_TRUE(bridge.wait(kDeadline));
+  EXPECT_FALSE(bridge.result().ended_by_fault);
+}
+
 }  // namespace

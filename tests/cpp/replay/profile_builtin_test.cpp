@@ -11,6 +11,7 @@
 
 #include "replay/profile.hpp"
 #include "replay/profiles/checksums.hpp"
+#include "replay/profiles/declared.hpp"
 #include "replay/replay_config.hpp"
 #include "replay/replay_port.hpp"
 #include "session/record_source.hpp"
@@ -473,5 +474,87 @@ TEST(DeclaredProfile, GapFramingInSequenceModeIsAnOptionError) {
   } catch (const OptionError& error) {
     EXPECT_EQ(error.key(), "framing");
     EXPECT_NE(std::string(error.what()).find("match=request"), std::string::npos);
+  }
+}
+
+// --- checksums recomputed over scrubbed bytes (wiretape edit --redact) --------
+
+namespace {
+
+// `frame` with the bytes [at, at + length) overwritten by '*', as a
+// redaction leaves them.
+std::string scrubbed(std::string frame, std::size_t at, std::size_t length) {
+  frame.replace(at, length, std::string(length, '*'));
+  return frame;
+}
+
+// The one frame `bytes` makes, with how it ended.
+Frame only_frame(const Profile& profile, StreamDirection direction, const std::string& bytes) {
+  const std::vector<Frame> frames = frames_of(profile, direction, bytes, bytes.size() + 1);
+  EXPECT_EQ(frames.size(), 1u);
+  return frames.empty() ? Frame{} : frames[0];
+}
+
+}  // namespace
+
+TEST(RecomputeChecksums, NmeaSentencesGetTheirSumOverTheScrubbedText) {
+  const auto profile = find_profile("nmea");
+  const std::string gga = nmea("GPGGA,123519,4807.038,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,");
+  const std::string dirty = scrubbed(gga, 14, 8);
+  EXPECT_EQ(only_frame(*profile, StreamDirection::rx, dirty).end, FrameEnd::broken);
+  const std::string fixed = profile->recompute_checksums(StreamDirection::rx, dirty);
+  EXPECT_EQ(fixed, nmea("GPGGA,123519,********,N,01131.000,E,1,08,0.9,545.4,M,46.9,M,,"));
+  EXPECT_EQ(only_frame(*profile, StreamDirection::rx, fixed).end, FrameEnd::delimited);
+  // A sentence without a checksum, and garbage, stay as they are.
+  EXPECT_EQ(profile->recompute_checksums(StreamDirection::tx, "$PX,1\r\n"), "$PX,1\r\n");
+  EXPECT_EQ(profile->recompute_checksums(StreamDirection::rx, "junk*00\r\n"), "junk*00\r\n");
+}
+
+TEST(RecomputeChecksums, ModbusRtuFramesGetTheirCrcInBothDirections) {
+  const auto profile = find_profile("modbus-rtu");
+  const std::string reply = rtu(std::string("\x01\x03\x04\x00\x01\x00\x02", 7));
+  const std::string dirty = scrubbed(reply, 3, 4);
+  EXPECT_EQ(only_frame(*profile, StreamDirection::rx, dirty).end, FrameEnd::broken);
+  const std::string fixed = profile->recompute_checksums(StreamDirection::rx, dirty);
+  EXPECT_EQ(fixed, rtu(std::string("\x01\x03\x04****", 7)));
+  EXPECT_EQ(only_frame(*profile, StreamDirection::rx, fixed).end, FrameEnd::delimited);
+  const std::string request = rtu(std::string("\x01", 1) + read_holding(0, 2));
+  EXPECT_EQ(profile->recompute_checksums(StreamDirection::tx, scrubbed(request, 2, 2)),
+            rtu(scrubbed(std::string("\x01", 1) + read_holding(0, 2), 2, 2)));
+  // Garbage (no function code it knows) is left as it is.
+  EXPECT_EQ(profile->recompute_checksums(StreamDirection::tx, "\x01\x63"), "\x01\x63");
+}
+
+TEST(RecomputeChecksums, MavlinkPacketsOfKnownMessagesGetTheirCrc) {
+  const auto profile = find_profile("mavlink");
+  const std::string heartbeat = heartbeat_v1(7);
+  const std::string dirty = scrubbed(heartbeat, 6, 4);
+  EXPECT_EQ(only_frame(*profile, StreamDirection::tx, dirty).end, FrameEnd::broken);
+  const std::string fixed = profile->recompute_checksums(StreamDirection::tx, dirty);
+  EXPECT_EQ(fixed.substr(0, fixed.size() - 2), dirty.substr(0, dirty.size() - 2));
+  EXPECT_EQ(only_frame(*profile, StreamDirection::tx, fixed).end, FrameEnd::delimited);
+  const std::string v2 = param_request_list_v2(3);
+  const std::string fixed_v2 =
+      profile->recompute_checksums(StreamDirection::tx, scrubbed(v2, 10, 1));
+  EXPECT_EQ(only_frame(*profile, StreamDirection::tx, fixed_v2).end, FrameEnd::delimited);
+  EXPECT_EQ(profile->recompute_checksums(StreamDirection::rx, "\x11\x22"), "\x11\x22");
+}
+
+TEST(RecomputeChecksums, DeclaredProfilesRecomputeTheirChecksumAndOthersChangeNothing) {
+  Options options = Options::parse("framing=length:1:1:3,checksum=sum8@-1");
+  const auto profile = detail::take_declared_profile(options);
+  ASSERT_NE(profile, nullptr);
+  const std::string body = std::string("a\x03GET", 5);
+  const std::string frame = body + static_cast<char>(detail::sum8(body));
+  const std::string dirty = scrubbed(frame, 2, 3);
+  EXPECT_EQ(only_frame(*profile, StreamDirection::rx, dirty).end, FrameEnd::broken);
+  const std::string fixed = profile->recompute_checksums(StreamDirection::rx, dirty);
+  EXPECT_EQ(fixed.back(), static_cast<char>(detail::sum8(dirty.substr(0, 5))));
+  EXPECT_EQ(only_frame(*profile, StreamDirection::rx, fixed).end, FrameEnd::delimited);
+  // No checksum to recompute: the frame comes back as it was.
+  for (const char* name : {"lines", "slcan", "modbus-tcp"}) {
+    EXPECT_EQ(find_profile(name)->recompute_checksums(StreamDirection::rx, "t1****\r"),
+              "t1****\r")
+        << name;
   }
 }

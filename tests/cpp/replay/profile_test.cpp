@@ -341,3 +341,70 @@ TEST(SessionDecoder, FramesTakeTheTimeOfTheirFirstByteAndEventsPassThrough) {
   EXPECT_EQ(out[1].description, "VV                       VV: version information");
   EXPECT_TRUE(out[0].description.empty());
 }
+
+namespace {
+
+char scip_sum(std::string_view bytes) {
+  unsigned sum = 0;
+  for (unsigned char byte : bytes) sum += byte;
+  return static_cast<char>((sum & 0x3F) + 0x30);
+}
+
+// Whether every line of a SCIP 2.0 reply after its echo holds a right sum
+// (a parameter line's without its ';', as the real scanners send them).
+bool scip_sums_hold(std::string_view reply) {
+  std::size_t start = reply.find('\n') + 1;
+  while (start < reply.size()) {
+    const std::size_t end = reply.find('\n', start);
+    const std::string_view line = reply.substr(start, end - start);
+    start = end + 1;
+    if (line.empty()) continue;
+    std::string_view data = line.substr(0, line.size() - 1);
+    if (scip_sum(data) == line.back()) continue;
+    if (!data.empty() && data.back() == ';') data.remove_suffix(1);
+    if (scip_sum(data) != line.back()) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+TEST(ScipChecksums, AScrubbedSerialNumberGetsItsLineSumAndTheRestStays) {
+  const auto profile = find_profile("scip");
+  // The URG-04LX's own VV reply (tests/data/flexiport): parameter lines sum
+  // without their ';'.
+  const std::string vv =
+      "VV\n00P\nVEND:Hokuyo Automatic Co.,Ltd.;[\nPROD:SOKUIKI Sensor URG-04LX;[\n"
+      "FIRM:3.1.04(02/Aug./2007);a\nPROT:SCIP 2.0;N\nSERI:H0706400;F\n\n";
+  ASSERT_TRUE(scip_sums_hold(vv));
+  std::string dirty = vv;
+  const std::size_t serial = dirty.find("SERI:");
+  dirty.replace(serial, 13, std::string(13, '*'));
+  ASSERT_FALSE(scip_sums_hold(dirty));
+  const std::string fixed = profile->recompute_checksums(StreamDirection::rx, dirty);
+  EXPECT_TRUE(scip_sums_hold(fixed)) << fixed;
+  EXPECT_EQ(fixed.size(), vv.size());
+  // Only the scrubbed line's sum changed; it leaves the ';' out as before.
+  EXPECT_EQ(fixed.substr(0, serial), vv.substr(0, serial));
+  EXPECT_EQ(fixed.substr(serial, 15), std::string(13, '*') + ";" + scip_sum(std::string(13, '*')));
+  EXPECT_EQ(profile->recompute_checksums(StreamDirection::rx, vv), vv);
+  // Commands carry no sum.
+  EXPECT_EQ(profile->recompute_checksums(StreamDirection::tx, "VV\n"), "VV\n");
+}
+
+TEST(ScipChecksums, ScanDataLinesSumOverEveryByteAndAStatusLineToo) {
+  const auto profile = find_profile("scip");
+  // A data line ending in ';' is data, not a parameter: its sum covers it.
+  const std::string data = "0;2;";
+  const std::string reply = std::string("GD0044072501\n") + "00" + scip_sum("00") + "\n" +
+                            data + scip_sum(data) + "\n\n";
+  std::string dirty = reply;
+  dirty.replace(dirty.find("0;2;"), 4, "****");
+  dirty.replace(13, 2, "**");  // the status
+  const std::string fixed = profile->recompute_checksums(StreamDirection::rx, dirty);
+  EXPECT_EQ(fixed, std::string("GD0044072501\n") + "**" + scip_sum("**") + "\n" + "****" +
+                       scip_sum("****") + "\n\n");
+  // SCIP 1.1's one-character status and a reply cut short are left alone.
+  EXPECT_EQ(profile->recompute_checksums(StreamDirection::rx, "SCIP2.0\n0\n\n"), "SCIP2.0\n0\n\n");
+  EXPECT_EQ(profile->recompute_checksums(StreamDirection::rx, "GD\n00P\n12"), "GD\n00P\n12");
+}

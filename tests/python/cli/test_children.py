@@ -79,6 +79,43 @@ def test_captured_output_is_relayed_as_it_comes():
     assert relay.getvalue() == outcome.stdout == b"one\ntwo\n"
 
 
+def test_stdout_and_stderr_are_relayed_apart():
+    out, err = io.BytesIO(), io.BytesIO()
+    outcome = Child(["sh", "-c", "echo out; echo err >&2"], separate_stderr=True, relay=out,
+                    relay_stderr=err).run(DEADLINE_S)
+    assert (out.getvalue(), err.getvalue()) == (b"out\n", b"err\n")
+    assert (outcome.stdout, outcome.stderr) == (b"out\n", b"err\n")
+
+
+def test_a_stop_event_ends_the_child_and_its_grandchild_at_once():
+    import threading
+
+    child, grandchild = _started_parent("plain")
+    stop = threading.Event()
+    stop.set()  # as an interrupted campaign sets it for each running case
+    outcome = child.run(timeout=DEADLINE_S * 10, stop=stop)
+    assert outcome.stopped and not outcome.timed_out
+    assert outcome.signal == signal.SIGTERM
+    wait_until(lambda: not _alive(grandchild), DEADLINE_S, "the grandchild to be gone")
+
+
+def test_a_child_that_exits_is_not_stopped():
+    import threading
+
+    outcome = Child(["sh", "-c", "exit 4"]).run(DEADLINE_S, stop=threading.Event())
+    assert (outcome.returncode, outcome.stopped, outcome.timed_out) == (4, False, False)
+
+
+def test_a_sanitizer_report_is_found_in_output():
+    from wiretape.children import sanitizer_report
+
+    assert sanitizer_report(b"ok\nx.c:3:5: runtime error: shift\n") == \
+        "x.c:3:5: runtime error: shift"
+    assert sanitizer_report("==1==ERROR: AddressSanitizer: heap-use-after-free") is not None
+    assert sanitizer_report("WARNING: ThreadSanitizer: data race") is not None
+    assert sanitizer_report("all is well\n") is None
+
+
 def test_output_passed_through_is_not_captured(capfd):
     child = Child(["sh", "-c", "echo through"], capture=False)
     outcome = child.run(DEADLINE_S)
@@ -172,3 +209,24 @@ def test_a_child_used_as_a_context_is_ended():
         pid = child.pid
     assert child.returncode == -signal.SIGTERM
     assert not _alive(pid)
+
+
+def test_a_sanitizer_watch_relays_and_finds_a_report_among_much_output():
+    from wiretape.children import SanitizerWatch
+
+    relay = io.BytesIO()
+    watch = SanitizerWatch(relay)
+    chunks = [b"x" * 100_000 + b"\n", b"a.c:1:2: runtime ", b"error: overflow\nmore\n",
+              b"ERROR: AddressSanitizer: later\n"]
+    for chunk in chunks:
+        watch.write(chunk)
+    assert relay.getvalue() == b"".join(chunks)
+    assert watch.finish() == "a.c:1:2: runtime error: overflow"
+    unended = SanitizerWatch()
+    unended.write(b"WARNING: ThreadSanitizer: data race")
+    assert unended.finish() == "WARNING: ThreadSanitizer: data race"
+
+
+def test_keep_holds_only_the_end_of_the_output():
+    outcome = Child(["sh", "-c", "seq 1 100000"], keep=16).run(DEADLINE_S)
+    assert outcome.stdout == b"\n".join(b"%d" % n for n in range(99997, 100001))[-15:] + b"\n"

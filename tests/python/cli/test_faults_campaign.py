@@ -275,7 +275,7 @@ def test_a_campaign_sorts_runs_into_outcomes(session, driver, tmp_path):
     assert data["summary"] == {"ok": 3, "error": 3, "crash": 3, "hang": 3}
     assert data["session"] == str(session) and data["seed"] == 0
     crash = next(run for run in data["runs"] if run["outcome"] == "crash")
-    assert crash["repro"].startswith("wiretape replay ")
+    assert crash["repro"].startswith("(wiretape replay ")  # a subshell: CMD's status
     assert "--fault corrupt@exchange:" in crash["repro"]
     assert "corrupt   " in result.stdout or "corrupt" in result.stdout
     assert crash["repro"] in result.stdout

@@ -150,12 +150,31 @@ def test_a_command_that_never_opens_the_path_is_named_and_fails_the_replay(c_cli
     assert "no client connected" in replayed.stderr
 
 
-def test_record_says_when_the_command_never_opened_the_path(tmp_path):
+def test_record_fails_when_the_command_never_opened_the_path(tmp_path):
+    # As a replay does (exit 1); the recording is kept, as replay keeps -o.
+    session = tmp_path / "run.wtape"
     with TcpDevice() as device:
         done = wiretape("record", "--device", device.options, "--as", HARD_CODED,
-                        "-o", str(tmp_path / "run.wtape"), "--", "true")
-    assert done.returncode == 0, done.stderr
+                        "-o", str(session), "--", "true")
+    assert done.returncode == 1, done.stderr
     assert f"true never opened {HARD_CODED}" in done.stderr
+    assert "nothing was recorded" in done.stderr
+    with _core.SessionReader(str(session)) as reader:
+        assert [record.kind for record in reader] == ["open", "close"]
+
+
+def test_record_of_a_loopback_with_a_command_that_never_opened_the_path_fails(tmp_path):
+    done = wiretape("record", "--device", "type=loopback", "--as", "/dev/ttyFAKE9",
+                    "-o", str(tmp_path / "r.wtape"), "--", "true")
+    assert done.returncode == 1, done.stderr
+    assert "true never opened /dev/ttyFAKE9" in done.stderr
+
+
+def test_a_failing_command_that_never_opened_the_path_gives_its_own_status(tmp_path):
+    done = wiretape("record", "--device", "type=loopback", "--as", "/dev/ttyFAKE9",
+                    "-o", str(tmp_path / "r.wtape"), "--", "sh", "-c", "exit 6")
+    assert done.returncode == 6, done.stderr
+    assert "nothing was recorded" in done.stderr
 
 
 def test_no_command_after_the_separator_is_a_usage_error(c_client, tmp_path):
