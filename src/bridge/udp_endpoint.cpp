@@ -67,6 +67,23 @@ struct Address {
     return length == other.length && std::memcmp(&storage, &other.storage, length) == 0;
   }
   std::string text() const { return address_text(get(), length); }
+  // The same host and port, whatever else the kernel filled in (an IPv6
+  // flow label or scope in an error report).
+  bool same_endpoint(const Address& other) const {
+    if (storage.ss_family != other.storage.ss_family) return false;
+    if (storage.ss_family == AF_INET) {
+      const auto& a = reinterpret_cast<const sockaddr_in&>(storage);
+      const auto& b = reinterpret_cast<const sockaddr_in&>(other.storage);
+      return a.sin_port == b.sin_port && a.sin_addr.s_addr == b.sin_addr.s_addr;
+    }
+    if (storage.ss_family == AF_INET6) {
+      const auto& a = reinterpret_cast<const sockaddr_in6&>(storage);
+      const auto& b = reinterpret_cast<const sockaddr_in6&>(other.storage);
+      return a.sin6_port == b.sin6_port &&
+             std::memcmp(&a.sin6_addr, &b.sin6_addr, sizeof a.sin6_addr) == 0;
+    }
+    return *this == other;
+  }
 };
 
 // Datagrams waiting, bounded in count and bytes.
@@ -269,7 +286,7 @@ class UdpEndpoint final : public ClientEndpoint {
           error = static_cast<int>(extended.ee_errno);
         }
       }
-      if (error != 0 && client_ && to == *client_) peer_refused(error);
+      if (error != 0 && client_ && to.same_endpoint(*client_)) peer_refused(error);
     }
 #endif
   }

@@ -11,6 +11,8 @@ import subprocess
 import threading
 import time
 
+import pytest
+
 from wiretape import _core, bridge
 
 from devices import start_cli
@@ -206,6 +208,35 @@ def test_replay_to_a_peer_nobody_listens_at_exits_1_naming_the_peer(session_file
     assert status == 1, err
     assert re.search(r"the peer 127\.0\.0\.1:%d refused every datagram" % port, err), err
     assert "datagrams_refused=" in err
+
+
+def ipv6_loopback_works():
+    try:
+        with socket.socket(socket.AF_INET6, socket.SOCK_DGRAM) as sock:
+            sock.bind(("::1", 0))
+        return True
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not ipv6_loopback_works(), reason="no IPv6 loopback")
+def test_an_ipv6_peer_that_binds_late_gets_the_recording_from_its_start(session_file):
+    path = session_file(STREAM, port_type="udp")
+    with socket.socket(socket.AF_INET6, socket.SOCK_DGRAM) as sock:
+        sock.bind(("::1", 0))
+        port = sock.getsockname()[1]
+    child = start_cli("replay", str(path), "--udp", "[::1]:0",
+                      "--peer", "[::1]:%d" % port, "--timing", "none")
+    stderr = StderrLines(child)
+    try:
+        stderr.wait_for(r"refused a datagram")
+        with socket.socket(socket.AF_INET6, socket.SOCK_DGRAM) as late:
+            late.bind(("::1", port))
+            got = receive(late, len(SCANS))
+    finally:
+        status, err = stop(child, stderr)
+    assert got == SCANS
+    assert status == 0, err
 
 
 def test_a_peer_that_binds_late_gets_the_recording_from_its_start(session_file):
