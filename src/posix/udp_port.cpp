@@ -40,8 +40,6 @@ bool same_address(const sockaddr_storage& a, const sockaddr_storage& b) {
   return false;
 }
 
-}  // namespace
-
 class UdpPort final : public SocketPort, public DatagramPort {
  public:
   UdpPort(sys::UniqueFd fd, std::string description,
@@ -151,6 +149,7 @@ class UdpPort final : public SocketPort, public DatagramPort {
   std::atomic<std::uint64_t> from_others_{0};
 };
 
+}  // namespace
 
 std::unique_ptr<Port> open_udp(Options& options) {
   const std::string host = options.take_string("host");
