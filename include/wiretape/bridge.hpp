@@ -74,6 +74,11 @@ struct BridgeOptions {
   // free port (see Bridge::listen_address()).
   std::string listen_host = "127.0.0.1";
   int listen_port = 0;
+  // tcp: how many connections the kernel completes and holds for the bridge
+  // to accept (listen(2)'s backlog; at least 1). Linux caps it at
+  // net.core.somaxconn (4096 since Linux 5.4, 128 before). A small backlog
+  // makes a burst of clients time out in their SYN retries.
+  int listen_backlog = 4096;
   // udp: where device datagrams go. "" (the default): to the last sender,
   // and a client session starts with its first datagram; a host and port:
   // always there, and the client session starts at once.
@@ -126,6 +131,14 @@ struct BridgeStats {
   // udp: datagrams a client sent while the queue to the device was full,
   // neither forwarded nor recorded.
   std::uint64_t datagrams_dropped = 0;
+  // udp device side (record --udp): datagrams from a sender other than the
+  // device, dropped, neither recorded nor forwarded. The kernel drops most
+  // of them before they are read (the device side is connected to the
+  // device); this counts those that reached the socket.
+  std::uint64_t datagrams_from_others = 0;
+  // udp with a peer (replay --udp --peer): datagrams the peer refused
+  // (nobody listened there: ICMP port unreachable), not served.
+  std::uint64_t datagrams_refused = 0;
 };
 
 enum class BridgeOutcome {

@@ -175,13 +175,15 @@ DEFAULT_PTY_MODE = 0o660
 
 
 def _start(device: str, *, pty, listen, udp=None, peer=None,
-           pty_mode: Optional[int] = None,
+           backlog: Optional[int] = None, pty_mode: Optional[int] = None,
            pty_group: PtyGroup = None, **options) -> BridgeHandle:
     if sum(side is not None for side in (pty, listen, udp)) != 1:
         raise ValueError("give exactly one client side: pty=PATH, listen=HOST:PORT "
                          "or udp=HOST:PORT")
     if peer is not None and udp is None:
         raise ValueError("peer is where a UDP side sends: give udp=HOST:PORT too")
+    if backlog is not None and listen is None:
+        raise ValueError("backlog is the queue of TCP connections: give listen=HOST:PORT")
     if pty is None and (pty_mode is not None or pty_group is not None):
         raise ValueError("pty_mode and pty_group set who may open a pty: give pty=PATH")
     if pty is not None:
@@ -197,6 +199,8 @@ def _start(device: str, *, pty, listen, udp=None, peer=None,
                               udp_peer_host=peer_host, udp_peer_port=peer_port, **options)
     else:
         host, port = parse_listen(listen)
+        if backlog is not None:
+            options["listen_backlog"] = backlog
         bridge = _core.Bridge(device, client_side="tcp", listen_host=host,
                               listen_port=port, **options)
     bridge.start()
@@ -204,7 +208,7 @@ def _start(device: str, *, pty, listen, udp=None, peer=None,
 
 
 def record(device: str, output, *, pty=None, listen=None, udp=None,
-           duration: Optional[float] = None,
+           backlog: Optional[int] = None, duration: Optional[float] = None,
            meta: Optional[Mapping[str, str]] = None,
            quiet: bool = False, pty_mode: Optional[int] = None,
            pty_group: PtyGroup = None) -> BridgeHandle:
@@ -214,11 +218,12 @@ def record(device: str, output, *, pty=None, listen=None, udp=None,
     the last sender); every byte both ways is recorded to ``output``
     (capture=wire). On a pty, the terminal settings the client sets are
     applied to the device; ``pty_mode``/``pty_group`` set who may open it
-    (default 0o660, group dialout)."""
+    (default 0o660, group dialout). ``backlog``: the TCP listen queue (see
+    ``serve``)."""
     path = os.fspath(output)
     if not path.strip():
         raise ValueError("output: the file name is empty; give the session file to record to")
-    return _start(device_options(device), pty=pty, listen=listen, udp=udp,
+    return _start(device_options(device), pty=pty, listen=listen, udp=udp, backlog=backlog,
                   output=path, metadata=dict(meta or {}),
                   duration=duration, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group)
 
@@ -228,21 +233,25 @@ DEFAULT_MAX_MONITORS = 16
 
 def serve(device: str, listen, *, output=None, protocol: str = "raw",
           shared: bool = False, max_monitors: int = DEFAULT_MAX_MONITORS,
-          reopen: bool = False, quiet: bool = False) -> BridgeHandle:
+          reopen: bool = False, backlog: Optional[int] = None,
+          quiet: bool = False) -> BridgeHandle:
     """``wiretape serve``: shares ``device`` with TCP clients at ``listen``
     (127.0.0.1 unless a host is given), raw or RFC 2217, one controlling
     client at a time (``shared``: later ones, up to ``max_monitors``, get
     read-only monitoring), recording server-side to ``output`` if given;
-    ``reopen`` waits for a device that went away to come back."""
+    ``reopen`` waits for a device that went away to come back. ``backlog``
+    is how many connections the kernel completes before the bridge accepts
+    them (default 4096, capped by the kernel at net.core.somaxconn)."""
     if shared and max_monitors < 1:
         raise ValueError(f"max_monitors must be at least 1, not {max_monitors}")
     return _start(device_options(device), pty=None, listen=listen,
                   output=os.fspath(output) if output else "", protocol=protocol,
-                  shared=shared, max_monitors=max_monitors, reopen=reopen, quiet=quiet)
+                  shared=shared, max_monitors=max_monitors, reopen=reopen, backlog=backlog,
+                  quiet=quiet)
 
 
 def serve_replay(file, *, pty=None, listen=None, udp=None, peer=None,
-                 replay_options: str = "",
+                 replay_options: str = "", backlog: Optional[int] = None,
                  restart: bool = False, output=None,
                  quiet: bool = False, pty_mode: Optional[int] = None,
                  pty_group: PtyGroup = None) -> BridgeHandle:
@@ -263,6 +272,7 @@ def serve_replay(file, *, pty=None, listen=None, udp=None, peer=None,
     # no replay whose closing would warn about unused data.
     _core.check_replay_options(options)
     # The terminal settings of a replayed device are not applied anywhere.
-    return _start(options, pty=pty, listen=listen, udp=udp, peer=peer, restart=restart,
+    return _start(options, pty=pty, listen=listen, udp=udp, peer=peer, backlog=backlog,
+                  restart=restart,
                   output=os.fspath(output) if output else "",
                   mirror_settings=False, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group)

@@ -200,7 +200,8 @@ void Bridge::Impl::loop() {
     poll_set.wait(sleep);
 
     if (poll_set.ready(wake_slot).readable) wake_->drain();
-    const Readiness device_ready = poll_set.ready(device_slot);
+    Readiness device_ready = poll_set.ready(device_slot);
+    device_.take_datagram_bounce(device_ready);
     if (device_ready.hung_up && !device_read_wanted) {
       // Reading now would overfill the clients' queues; what the device
       // still holds goes with it.
@@ -231,21 +232,24 @@ void Bridge::Impl::read_device(Readiness ready) {
       // ahead of us: read on and pass the lot to the clients at once, one
       // send instead of one per read.
       for (;;) {
+        if (one_read_per_delivery) {
+          // One read is one datagram (an empty one too): recorded and
+          // delivered alone, and read on while the client side takes more.
+          const std::optional<std::size_t> n = device_.read_datagram(buffer.data(), buffer.size());
+          if (!n) break;
+          device_.record(RecordKind::rx, std::string_view(buffer.data(), *n));
+          filled = *n;
+          deliver();
+          filled = 0;
+          if (!endpoint_->wants_device_data() || !device_.is_open()) break;
+          continue;
+        }
         const std::size_t n = device_.port().read(buffer.data() + filled, buffer.size() - filled,
                                                   std::chrono::nanoseconds(0));
         if (n > 0) {
           device_.record(RecordKind::rx, std::string_view(buffer.data() + filled, n));
         }
         filled += n;
-        if (one_read_per_delivery) {
-          // One read is one datagram: delivered alone, and read on while
-          // the client side takes more.
-          if (n == 0) break;
-          deliver();
-          filled = 0;
-          if (!endpoint_->wants_device_data() || !device_.is_open()) break;
-          continue;
-        }
         if (n < kLineDisciplineBuffer || buffer.size() - filled < kLineDisciplineBuffer) break;
       }
     }
@@ -319,6 +323,7 @@ std::string Bridge::Impl::why_nothing_was_served() const {
     return none + "an injected fault ended the replay before any was served (" +
            end_message_ + ")";
   }
+  if (std::string why = endpoint_->why_nothing_was_served(); !why.empty()) return none + why;
   if (stats.clients_accepted == 0) return none + "no client connected before the end";
   if (stats.bytes_from_device == 0 && stats.bytes_to_device == 0 && replay_greets_) {
     // A client session releases the greeting at the client's connect; a
@@ -365,6 +370,10 @@ Bridge::Bridge(BridgeOptions options) : impl_(std::make_unique<Impl>(std::move(o
   }
   if (o.client_side == BridgeClientSide::pty && o.protocol == BridgeProtocol::rfc2217) {
     throw OptionError("protocol", "protocol rfc2217 needs a TCP listener, not a pty");
+  }
+  if (o.client_side == BridgeClientSide::tcp && o.listen_backlog < 1) {
+    throw OptionError("backlog", "the listen backlog must be at least 1, not " +
+                                     std::to_string(o.listen_backlog));
   }
   if (o.client_side == BridgeClientSide::tcp && o.shared && o.max_monitors < 1) {
     throw OptionError("max_monitors", "max_monitors must be at least 1 with shared");

@@ -4,6 +4,7 @@
 #include <cerrno>
 #include <cstdio>
 
+#include "posix/transports.hpp"
 #include "replay/replay_port.hpp"
 #include "session/record_kinds.hpp"
 #include "wiretape/errors.hpp"
@@ -79,8 +80,19 @@ PortCapabilities DeviceSide::capabilities() const {
   return device_ ? device_->capabilities() : PortCapabilities{};
 }
 
+void DeviceSide::count_what_the_port_dropped() {
+  const auto* datagrams = dynamic_cast<const DatagramPort*>(device_.get());
+  const std::uint64_t from_others = datagrams ? datagrams->datagrams_from_others() : 0;
+  if (from_others == 0) return;
+  status_.update_stats([from_others](BridgeStats& s) { s.datagrams_from_others += from_others; });
+  status_.message("dropped " + std::to_string(from_others) +
+                  " datagrams that another sender than the device sent to the device side "
+                  "(neither recorded nor forwarded)");
+}
+
 void DeviceSide::lost(const std::string& reason) {
   if (!device_) return;
+  count_what_the_port_dropped();
   lost_by_fault_ = replay_lost_by_fault(*device_);
   record(RecordKind::device_lost,
          event_payload(RecordKind::device_lost, {{event_field::error, reason}}));
@@ -99,6 +111,7 @@ void DeviceSide::lost(const std::string& reason) {
 
 void DeviceSide::restart() {
   if (device_) {
+    count_what_the_port_dropped();
     record(RecordKind::close, "{}");
     device_->close();
     device_.reset();
@@ -110,6 +123,7 @@ void DeviceSide::restart() {
 
 void DeviceSide::shut_down(BridgeOutcome& outcome, std::string& message) {
   if (device_) {
+    count_what_the_port_dropped();
     try {
       record(RecordKind::close, "{}");
     } catch (const std::exception&) {
@@ -205,6 +219,46 @@ void DeviceSide::client_disconnected(const std::string& peer, const std::string&
 
 std::size_t DeviceSide::room_for_client_data() const {
   return to_device_.room();
+}
+
+std::optional<std::size_t> DeviceSide::read_datagram(char* buffer, std::size_t size) {
+  if (auto* datagrams = dynamic_cast<DatagramPort*>(device_.get())) {
+    return datagrams->receive_datagram(buffer, size);
+  }
+  // A Port's read of 0 bytes means none now: an empty datagram of another
+  // port (a replay) does not get through.
+  const std::size_t n = device_->read(buffer, size, std::chrono::nanoseconds(0));
+  if (n == 0) return std::nullopt;
+  return n;
+}
+
+void DeviceSide::take_datagram_bounce(Readiness& ready) {
+  if (!ready.hung_up || !device_) return;
+  auto* datagrams = dynamic_cast<DatagramPort*>(device_.get());
+  if (!datagrams) return;
+  ready.hung_up = false;
+  const int error = datagrams->take_error();
+  if (error != 0 && !bounce_reported_) {
+    bounce_reported_ = true;
+    status_.message(system_error_message(
+        "a datagram to the device (" + description_ + ") bounced: it was recorded but not "
+        "received", error));
+  }
+}
+
+void DeviceSide::send_datagram(const char* data, std::size_t size) {
+  auto* datagrams = dynamic_cast<DatagramPort*>(device_.get());
+  if (!device_ || size > 0 || !datagrams) {
+    send(data, size);
+    return;
+  }
+  // An empty datagram is a datagram: recorded, and sent as one.
+  record(RecordKind::tx, std::string_view());
+  try {
+    datagrams->send_empty_datagram();
+  } catch (const PortClosed& closed) {
+    lost(closed.what());
+  }
 }
 
 void DeviceSide::send(const char* data, std::size_t size) {

@@ -15,6 +15,7 @@
 
 #include "bridge/byte_queue.hpp"
 #include "bridge/status.hpp"
+#include "posix/poll_set.hpp"
 #include "wiretape/bridge.hpp"
 #include "wiretape/port.hpp"
 #include "wiretape/session.hpp"
@@ -101,6 +102,16 @@ class DeviceSide {
   void send(const char* data, std::size_t size);
   // Writes what is queued, as far as the device takes it now.
   void flush();
+  // A datagram endpoint's datagram for the device: as send(), and an empty
+  // one is recorded and sent as an empty datagram to a datagram port.
+  void send_datagram(const char* data, std::size_t size);
+  // One read of the device for a datagram endpoint, now: the size of the
+  // next datagram (0 for an empty one from a datagram port), or nothing
+  // when none waits. Raises PortClosed when the device went away.
+  std::optional<std::size_t> read_datagram(char* buffer, std::size_t size);
+  // poll() shows a datagram port's bounced datagram (ICMP port unreachable
+  // from the device) as an error: taken here, and no longer a hang-up.
+  void take_datagram_bounce(Readiness& ready);
 
   // --- the line ----------------------------------------------------------------
   // The device's line settings, or for a device without any (tcp) the ones
@@ -141,10 +152,14 @@ class DeviceSide {
   std::optional<Clock::time_point> break_since_;
   std::optional<ModemInputs> last_modem_inputs_;
   bool modem_inputs_unreadable_ = false;
+  bool bounce_reported_ = false;
   // The controlling client whose session a replayed device serves.
   std::optional<std::string> session_peer_;
 
   void recording_stopped(const PortError& error);
+  // Adds what the device's port dropped (a udp device side: datagrams from
+  // other senders) to the stats; call before the port closes.
+  void count_what_the_port_dropped();
 };
 
 }  // namespace wiretape::detail::bridge

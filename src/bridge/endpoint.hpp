@@ -11,6 +11,7 @@
 #pragma once
 
 #include <memory>
+#include <string>
 
 #include "bridge/device_side.hpp"
 #include "bridge/status.hpp"
@@ -52,6 +53,9 @@ class ClientEndpoint {
   // the terminal, or its connection accepted it): a replay that served its
   // clients nothing is no success.
   virtual bool served_device_data() const = 0;
+  // Why nothing was served when the endpoint knows better than the bridge
+  // (a UDP peer that refused every datagram); "" otherwise.
+  virtual std::string why_nothing_was_served() const { return ""; }
   // The device's modem inputs changed (RFC 2217 clients are told).
   virtual void modem_inputs_changed() {}
   // The bridge ends: flush what can be flushed, say goodbye, close.

@@ -71,7 +71,7 @@ class TcpEndpoint final : public ClientEndpoint {
       : options_(options),
         device_(device),
         status_(status),
-        listener_(options.listen_host, options.listen_port) {
+        listener_(options.listen_host, options.listen_port, options.listen_backlog) {
     const std::string& address = listener_.address();
     status_.set(&Status::listen_address, address);
     const std::string& host = options_.listen_host;

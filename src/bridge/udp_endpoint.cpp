@@ -13,11 +13,23 @@
 // left in the kernel is dropped there too, uncounted. A dropped datagram was
 // never forwarded, so it is not recorded either: the recording holds exactly
 // what the device saw.
+//
+// A fixed peer may not be listening yet (a driver started after the
+// replay): the kernel answers "port unreachable", which the socket reports
+// (IP_RECVERR) with the address it was sent to. A datagram the peer refused
+// was not served. Until the peer has taken one, the first datagram is sent
+// alone and kept: refused, it is sent again a little later, and nothing
+// else is read from the device, so the peer gets the data from its start
+// whenever it begins to listen (DESIGN.md section 23).
 #include <netinet/in.h>
 #include <sys/socket.h>
+#ifdef __linux__
+#include <linux/errqueue.h>
+#endif
 
 #include <array>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <deque>
 #include <optional>
@@ -40,6 +52,11 @@ constexpr std::size_t kMaxQueuedDatagrams = 1024;
 // Datagrams read from the socket per round, so that a flood does not keep
 // the loop from the device.
 constexpr int kReadsPerRound = 256;
+// How long a peer that refused a datagram is left before the next try.
+constexpr std::chrono::milliseconds kPeerRetry{200};
+// How long the first datagram to a peer waits for a refusal before it
+// counts as taken (on this host the refusal comes back at once).
+constexpr std::chrono::milliseconds kPeerVerdict{50};
 
 struct Address {
   sockaddr_storage storage{};
@@ -50,6 +67,23 @@ struct Address {
     return length == other.length && std::memcmp(&storage, &other.storage, length) == 0;
   }
   std::string text() const { return address_text(get(), length); }
+  // The same host and port, whatever else the kernel filled in (an IPv6
+  // flow label or scope in an error report).
+  bool same_endpoint(const Address& other) const {
+    if (storage.ss_family != other.storage.ss_family) return false;
+    if (storage.ss_family == AF_INET) {
+      const auto& a = reinterpret_cast<const sockaddr_in&>(storage);
+      const auto& b = reinterpret_cast<const sockaddr_in&>(other.storage);
+      return a.sin_port == b.sin_port && a.sin_addr.s_addr == b.sin_addr.s_addr;
+    }
+    if (storage.ss_family == AF_INET6) {
+      const auto& a = reinterpret_cast<const sockaddr_in6&>(storage);
+      const auto& b = reinterpret_cast<const sockaddr_in6&>(other.storage);
+      return a.sin6_port == b.sin6_port &&
+             std::memcmp(&a.sin6_addr, &b.sin6_addr, sizeof a.sin6_addr) == 0;
+    }
+    return *this == other;
+  }
 };
 
 // Datagrams waiting, bounded in count and bytes.
@@ -103,8 +137,10 @@ class UdpEndpoint final : public ClientEndpoint {
       std::memcpy(&peer.storage, chosen->ai_addr, chosen->ai_addrlen);
       peer.length = chosen->ai_addrlen;
       fixed_peer_ = true;
+      watch_refusals();
       // With a peer the client session starts now: a device that streams
-      // unprompted has someone to stream to.
+      // unprompted has someone to stream to (its first datagram is sent
+      // again while the peer refuses it).
       start_client(peer);
     }
   }
@@ -119,11 +155,33 @@ class UdpEndpoint final : public ClientEndpoint {
     // An error pending on the socket is polled as one: a read takes it, or
     // poll() would report it round after round.
     if (ready.readable || ready.hung_up) read_clients();
+    if (fixed_peer_) take_refusals();
     if (!to_client_.empty()) send_to_client();
     pass_to_device();
   }
 
-  bool wants_device_data() const override { return client_.has_value() && !to_client_.full(); }
+  Clock::time_point next_timer() const override {
+    if (probe_sent_) return verdict_at_;
+    if (holding_) return retry_at_;
+    return Clock::time_point::max();
+  }
+
+  void run_timers(Clock::time_point now) override {
+    if (probe_sent_ && now >= verdict_at_) {
+      take_refusals();
+      if (probe_sent_) peer_took_the_probe();
+    }
+    if (holding_ && now >= retry_at_) {
+      holding_ = false;
+      send_to_client();
+    }
+  }
+
+  // Until a peer has taken a datagram, one is read from the device at a time.
+  bool wants_device_data() const override {
+    if (awaiting_peer()) return client_.has_value() && to_client_.empty();
+    return client_.has_value() && !to_client_.full();
+  }
 
   // One read of the device is one datagram to the client.
   bool keeps_datagram_boundaries() const override { return true; }
@@ -142,8 +200,14 @@ class UdpEndpoint final : public ClientEndpoint {
 
   bool served_device_data() const override { return served_device_data_; }
 
+  std::string why_nothing_was_served() const override {
+    if (!fixed_peer_ || peer_accepted_ || refused_ == 0) return "";
+    return "the peer " + client_text_ + " refused every datagram sent to it (" +
+           std::to_string(refused_) + " refused: nobody listened there)";
+  }
+
   void shut_down() override {
-    send_to_client();
+    if (!awaiting_peer()) send_to_client();
     if (client_) {
       device_.client_disconnected(client_->text(), "closed: the bridge stopped");
     }
@@ -180,6 +244,89 @@ class UdpEndpoint final : public ClientEndpoint {
     socket_ = std::move(fd);
   }
 
+  // Asks the socket to report the datagrams the peer refuses (Linux).
+  void watch_refusals() {
+#ifdef __linux__
+    const int on = 1;
+    if (family_ == AF_INET6) {
+      sys::setsockopt(socket_.get(), SOL_IPV6, IPV6_RECVERR, &on, sizeof on);
+    } else {
+      sys::setsockopt(socket_.get(), SOL_IP, IP_RECVERR, &on, sizeof on);
+    }
+#endif
+  }
+
+  // Reads the socket's error queue: each entry is a datagram that did not
+  // arrive, with the address it was sent to.
+  void take_refusals() {
+#ifdef __linux__
+    for (;;) {
+      Address to;
+      std::array<char, 512> control{};
+      char byte = 0;
+      iovec vector{&byte, sizeof byte};
+      msghdr message{};
+      message.msg_name = &to.storage;
+      message.msg_namelen = sizeof to.storage;
+      message.msg_iov = &vector;
+      message.msg_iovlen = 1;
+      message.msg_control = control.data();
+      message.msg_controllen = control.size();
+      if (sys::recvmsg(socket_.get(), &message, MSG_ERRQUEUE | MSG_DONTWAIT) < 0) {
+        if (errno == EINTR) continue;
+        return;  // EAGAIN: none left
+      }
+      to.length = message.msg_namelen;
+      int error = 0;
+      for (cmsghdr* c = CMSG_FIRSTHDR(&message); c; c = CMSG_NXTHDR(&message, c)) {
+        if ((c->cmsg_level == SOL_IP && c->cmsg_type == IP_RECVERR) ||
+            (c->cmsg_level == SOL_IPV6 && c->cmsg_type == IPV6_RECVERR)) {
+          sock_extended_err extended{};
+          std::memcpy(&extended, CMSG_DATA(c), sizeof extended);
+          error = static_cast<int>(extended.ee_errno);
+        }
+      }
+      if (error != 0 && client_ && to.same_endpoint(*client_)) peer_refused(error);
+    }
+#endif
+  }
+
+  bool awaiting_peer() const { return fixed_peer_ && !peer_accepted_; }
+
+  // No refusal came back for the first datagram: the peer took it, and the
+  // rest follows.
+  void peer_took_the_probe() {
+    probe_sent_ = false;
+    peer_accepted_ = true;
+    served_device_data_ = true;
+    if (!to_client_.empty()) to_client_.pop();
+    if (refused_ > 0) {
+      status_.message("the peer " + client_text_ +
+                      " took a datagram: its client session starts there");
+    }
+    send_to_client();
+  }
+
+  void peer_refused(int error) {
+    ++refused_;
+    status_.update_stats([](BridgeStats& s) { ++s.datagrams_refused; });
+    if (!refusal_reported_) {
+      status_.message(system_error_message(
+          "the peer " + client_text_ +
+              (peer_accepted_ ? " refused a datagram (not served)"
+                              : " refused a datagram (nobody listens there yet); the first "
+                                "datagram is sent again every " +
+                                    std::to_string(kPeerRetry.count()) + " ms until it is "
+                                                                         "taken"),
+          error));
+      refusal_reported_ = true;
+    }
+    if (peer_accepted_) return;
+    probe_sent_ = false;
+    holding_ = true;
+    retry_at_ = Clock::now() + kPeerRetry;
+  }
+
   void start_client(const Address& peer) {
     if (client_) {
       device_.client_disconnected(client_->text(), "another sender took over");
@@ -187,6 +334,7 @@ class UdpEndpoint final : public ClientEndpoint {
       if (options_.restart) device_.restart();
     }
     client_ = peer;
+    client_text_ = peer.text();
     device_.client_connected(peer.text(), "control");
     status_.message("client " + peer.text() +
                     (fixed_peer_ ? " (the peer)" : " connected (its first datagram)"));
@@ -223,12 +371,12 @@ class UdpEndpoint final : public ClientEndpoint {
     while (!to_device_.empty() && device_.is_open() && !device_.has_data_for_device()) {
       const std::string datagram = to_device_.front();
       to_device_.pop();
-      device_.send(datagram.data(), datagram.size());
+      device_.send_datagram(datagram.data(), datagram.size());
     }
   }
 
   void send_to_client() {
-    while (client_ && !to_client_.empty() && socket_) {
+    while (client_ && !to_client_.empty() && socket_ && !holding_ && !probe_sent_) {
       const std::string& datagram = to_client_.front();
       const ssize_t sent =
           sys::sendto(socket_.get(), datagram.data(), datagram.size(),
@@ -238,10 +386,23 @@ class UdpEndpoint final : public ClientEndpoint {
         const int error = errno;
         if (error == EINTR) continue;
         if (error == EAGAIN || error == EWOULDBLOCK || error == ENOBUFS) return;
+        // An earlier datagram bounced; this one was not sent.
+        if (fixed_peer_ && error == ECONNREFUSED) {
+          const std::uint64_t before = refused_;
+          take_refusals();
+          if (refused_ == before) peer_refused(error);
+          if (awaiting_peer()) return;
+          continue;
+        }
         // Nobody listens at the client's address (yet): UDP drops it, so
         // do we.
         status_.message(system_error_message("a datagram to " + client_->text() +
                                              " was not sent", error));
+      } else if (awaiting_peer()) {
+        // Kept until the peer's verdict: refused, it is sent again.
+        probe_sent_ = true;
+        verdict_at_ = Clock::now() + kPeerVerdict;
+        return;
       } else {
         served_device_data_ = true;
       }
@@ -256,7 +417,18 @@ class UdpEndpoint final : public ClientEndpoint {
   int family_ = AF_INET;
   PollSet::Slot slot_ = PollSet::none;
   std::optional<Address> client_;
+  std::string client_text_;
   bool fixed_peer_ = false;
+  // A fixed peer: whether it has taken a datagram; whether the first one
+  // (kept at the front of to_client_) was sent and awaits its verdict, and
+  // when that verdict is due; refusals so far; the pause after one.
+  bool peer_accepted_ = false;
+  bool probe_sent_ = false;
+  Clock::time_point verdict_at_{};
+  std::uint64_t refused_ = 0;
+  bool refusal_reported_ = false;
+  bool holding_ = false;
+  Clock::time_point retry_at_{};
   DatagramQueue to_device_;
   DatagramQueue to_client_;
   std::uint64_t dropped_ = 0;

@@ -141,7 +141,8 @@ std::vector<OptionKey> build_table() {
       Row("nodelay", tcp, boolean, "TCP_NODELAY").fallback("true"),
 
       // type=udp
-      Row("host", udp, text, "destination of written datagrams").fallback("127.0.0.1"),
+      Row("host", udp, text, "destination of written datagrams, and with port the only sender read")
+          .fallback("127.0.0.1"),
       Row("port", udp, integer, "destination port; 0: the last sender")
           .fallback("0")
           .integers(0, 65535),

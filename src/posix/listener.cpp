@@ -74,7 +74,7 @@ Transfer Connection::send(const void* data, std::size_t size) {
   return transfer;
 }
 
-Listener::Listener(const std::string& host, int port) {
+Listener::Listener(const std::string& host, int port, int backlog) {
   const std::string where = "listen " + host + ":" + std::to_string(port);
   const AddrInfoList list = resolve(host, port, SOCK_STREAM, /*passive=*/true, where);
   const addrinfo* found = list.get();
@@ -85,7 +85,7 @@ Listener::Listener(const std::string& host, int port) {
   const int on = 1;
   sys::setsockopt(fd.get(), SOL_SOCKET, SO_REUSEADDR, &on, sizeof on);
   if (sys::bind(fd.get(), found->ai_addr, found->ai_addrlen) != 0) raise_errno(where + ": bind");
-  if (sys::listen(fd.get(), 8) != 0) raise_errno(where + ": listen");
+  if (sys::listen(fd.get(), backlog) != 0) raise_errno(where + ": listen");
   sockaddr_storage bound{};
   socklen_t length = sizeof bound;
   sys::getsockname(fd.get(), reinterpret_cast<sockaddr*>(&bound), &length);

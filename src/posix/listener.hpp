@@ -45,9 +45,11 @@ class Connection {
 
 class Listener {
  public:
-  // Listens on `host` ("" for every address) and `port` (0: a free one).
-  // Throws PortError naming "listen HOST:PORT" and the step that failed.
-  Listener(const std::string& host, int port);
+  // Listens on `host` ("" for every address) and `port` (0: a free one),
+  // with room for `backlog` connections not yet accepted (the kernel caps
+  // it at net.core.somaxconn). Throws PortError naming "listen HOST:PORT"
+  // and the step that failed.
+  Listener(const std::string& host, int port, int backlog);
 
   int fd() const noexcept { return fd_.get(); }
   // Where clients connect, with the port the system picked: "HOST:PORT".

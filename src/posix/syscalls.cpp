@@ -73,6 +73,7 @@ Table make_real() {
                   sockaddr* from, socklen_t* length) {
     return ::recvfrom(fd, buffer, size, flags, from, length);
   };
+  t.recvmsg = [](int fd, msghdr* message, int flags) { return ::recvmsg(fd, message, flags); };
   t.setsockopt = [](int fd, int level, int name, const void* value,
                     socklen_t length) {
     return ::setsockopt(fd, level, name, value, length);

@@ -50,6 +50,7 @@ struct Table {
   std::function<ssize_t(int fd, void* buffer, size_t size, int flags,
                         sockaddr* from, socklen_t* length)>
       recvfrom;
+  std::function<ssize_t(int fd, msghdr* message, int flags)> recvmsg;
   std::function<int(int fd, int level, int name, const void* value,
                     socklen_t length)>
       setsockopt;
@@ -157,6 +158,9 @@ inline ssize_t sendto(int fd, const void* data, size_t size, int flags,
 inline ssize_t recvfrom(int fd, void* buffer, size_t size, int flags,
                         sockaddr* from, socklen_t* length) {
   return current().recvfrom(fd, buffer, size, flags, from, length);
+}
+inline ssize_t recvmsg(int fd, msghdr* message, int flags) {
+  return current().recvmsg(fd, message, flags);
 }
 inline int setsockopt(int fd, int level, int name, const void* value,
                       socklen_t length) {

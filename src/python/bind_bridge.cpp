@@ -42,6 +42,8 @@ constexpr std::pair<const char*, std::uint64_t BridgeStats::*> kStatFields[] = {
     {"device_reopens", &BridgeStats::device_reopens},
     {"records_written", &BridgeStats::records_written},
     {"datagrams_dropped", &BridgeStats::datagrams_dropped},
+    {"datagrams_from_others", &BridgeStats::datagrams_from_others},
+    {"datagrams_refused", &BridgeStats::datagrams_refused},
 };
 
 std::string stats_repr(const BridgeStats& stats) {
@@ -109,8 +111,8 @@ Value one_of(const char* key, const std::string& text,
 BridgeOptions make_options(const std::string& device, const std::string& client_side,
                            const std::string& pty_link, long long pty_mode,
                            const std::string& pty_group, const std::string& listen_host,
-                           int listen_port, const std::string& udp_peer_host,
-                           int udp_peer_port, const std::string& protocol, bool shared,
+                           int listen_port, int listen_backlog,
+                           const std::string& udp_peer_host, int udp_peer_port, const std::string& protocol, bool shared,
                            std::size_t max_monitors, const std::string& output,
                            const std::map<std::string, std::string>& metadata,
                            int flush_ms, bool mirror_settings, bool reopen, bool restart,
@@ -131,6 +133,7 @@ BridgeOptions make_options(const std::string& device, const std::string& client_
   o.pty_group = pty_group;
   o.listen_host = listen_host;
   o.listen_port = listen_port;
+  o.listen_backlog = listen_backlog;
   o.udp_peer_host = udp_peer_host;
   o.udp_peer_port = udp_peer_port;
   o.protocol = one_of<BridgeProtocol>("protocol", protocol,
@@ -161,15 +164,16 @@ void bind_bridge(nb::module_& m) {
           "__init__",
           [](Bridge* self, const std::string& device, const std::string& client_side,
              const std::string& pty_link, long long pty_mode, const std::string& pty_group,
-             const std::string& listen_host, int listen_port, const std::string& udp_peer_host,
-             int udp_peer_port, const std::string& protocol, bool shared, std::size_t max_monitors,
+             const std::string& listen_host, int listen_port, int listen_backlog,
+             const std::string& udp_peer_host, int udp_peer_port, const std::string& protocol, bool shared, std::size_t max_monitors,
              const std::string& output,
              const std::map<std::string, std::string>& metadata, int flush_ms,
              bool mirror_settings, bool reopen, bool restart, nb::handle duration,
              std::size_t buffer_limit, bool quiet) {
             new (self) Bridge(make_options(device, client_side, pty_link, pty_mode,
                                            pty_group, listen_host,
-                                           listen_port, udp_peer_host, udp_peer_port,
+                                           listen_port, listen_backlog, udp_peer_host,
+                                           udp_peer_port,
                                            protocol, shared, max_monitors,
                                            output, metadata,
                                            flush_ms, mirror_settings, reopen, restart,
@@ -177,7 +181,8 @@ void bind_bridge(nb::module_& m) {
           },
           "device"_a, nb::kw_only(), "client_side"_a = "pty", "pty_link"_a = "",
           "pty_mode"_a = 0660LL, "pty_group"_a = "",
-          "listen_host"_a = "127.0.0.1", "listen_port"_a = 0, "udp_peer_host"_a = "",
+          "listen_host"_a = "127.0.0.1", "listen_port"_a = 0, "listen_backlog"_a = BridgeOptions{}.listen_backlog,
+          "udp_peer_host"_a = "",
           "udp_peer_port"_a = 0, "protocol"_a = "raw",
           "shared"_a = false, "max_monitors"_a = std::size_t{16}, "output"_a = "",
           "metadata"_a = std::map<std::string, std::string>{}, "flush_ms"_a = 100,

@@ -26,7 +26,8 @@ def _command_client_side(args) -> Tuple[object, Optional[str]]:
     if not args.command_argv:
         raise UsageError("no command after --: give the program to run, e.g. "
                          "-- ./driver --port /dev/ttyUSB0")
-    for flag, value in (("--listen", args.listen), ("--udp", args.udp)):
+    for flag, value in (("--listen", args.listen), ("--udp", args.udp),
+                        ("--backlog", getattr(args, "backlog", None))):
         if value is not None:
             raise UsageError(f"{flag} cannot be used with a command after --: the "
                              "command's device path is redirected to a pty")

@@ -97,6 +97,22 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _backlog(text: str) -> int:
+    """An argparse type: a listen backlog, 1 to 2**31-1 (the kernel caps it
+    at net.core.somaxconn)."""
+    value = _positive_int(text)
+    if value > 2**31 - 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: must be from 1 to 2**31-1")
+    return value
+
+
+def _add_backlog(parser) -> None:
+    parser.add_argument("--backlog", type=_backlog, metavar="N",
+                        help="with --listen: how many connections the kernel completes "
+                             "before they are accepted (default 4096; the kernel caps it "
+                             "at net.core.somaxconn)")
+
+
 def _session_output(text: str) -> str:
     """An argparse type: the session file a bridge records into (-o). An
     empty name would silently record nothing."""
@@ -253,6 +269,7 @@ def build_parser() -> argparse.ArgumentParser:
     record.add_argument("--device", required=True, metavar="OPTS",
                         help="the real device: a port option string or a serial device path")
     _add_client_side(record, "the driver connects")
+    _add_backlog(record)
     record.add_argument("-o", "--output", required=True, metavar="FILE", type=_session_output,
                         help="the session file to write (.wtape)")
     record.add_argument("--duration", type=_positive_seconds, metavar="S",
@@ -275,6 +292,7 @@ def build_parser() -> argparse.ArgumentParser:
         "(no client connected, nothing matched, or the greeting was lost).")
     replay.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
     _add_client_side(replay, "the client connects")
+    _add_backlog(replay)
     _add_replay_keys(replay)
     replay.add_argument("--options", metavar="KEYS",
                         help="further replay keys as an option string (k=v,k=v)")
@@ -342,6 +360,7 @@ def build_parser() -> argparse.ArgumentParser:
                             "(default 16)")
     serve.add_argument("--reopen", action="store_true",
                        help="wait for a device that went away to come back")
+    _add_backlog(serve)
     serve.add_argument("-q", "--quiet", action="store_true", help="no client messages")
 
     ports = command("ports", cmd_ports, "list serial devices (by-id paths, USB ids)")

@@ -68,6 +68,8 @@ def _client_side(args) -> Tuple[Optional[str], Optional[str]]:
                          "(datagrams: --udp HOST:PORT)")
     if getattr(args, "peer", None) is not None and args.udp is None:
         raise UsageError("--peer is where --udp sends datagrams: give --udp HOST:PORT too")
+    if getattr(args, "backlog", None) is not None and args.listen is None:
+        raise UsageError("--backlog is the queue of TCP connections: give --listen HOST:PORT")
     if args.pty is None:
         for flag, value in (("--pty-mode", args.pty_mode), ("--pty-group", args.pty_group)):
             if value is not None:
@@ -95,7 +97,7 @@ def cmd_record(args, out: Output) -> int:
     refuse_as_without_command(args)
     pty, listen = _client_side(args)
     handle = bridge.record(args.device, args.output, pty=pty, listen=listen, udp=args.udp,
-                           duration=args.duration, meta=meta_pairs(args.meta),
+                           backlog=args.backlog, duration=args.duration, meta=meta_pairs(args.meta),
                            quiet=args.quiet, pty_mode=args.pty_mode,
                            pty_group=args.pty_group)
     return run_bridge(handle, out, "record",
@@ -142,7 +144,8 @@ def cmd_replay(args, out: Output) -> int:
     if args.output:
         refuse_same_file(session_files(args.file), [args.output])
     handle = bridge.serve_replay(args.file, pty=pty, listen=listen, udp=args.udp,
-                                 peer=args.peer, replay_options=replay_options_of(args),
+                                 peer=args.peer, backlog=args.backlog,
+                                 replay_options=replay_options_of(args),
                                  restart=args.restart, output=args.output,
                                  quiet=args.quiet, pty_mode=args.pty_mode,
                                  pty_group=args.pty_group)
@@ -177,7 +180,8 @@ def cmd_serve(args, out: Output) -> int:
                     else args.max_monitors)
     handle = bridge.serve(args.device, args.listen, output=args.output,
                           protocol=args.protocol, shared=args.shared,
-                          max_monitors=max_monitors, reopen=args.reopen, quiet=args.quiet)
+                          max_monitors=max_monitors, reopen=args.reopen,
+                          backlog=args.backlog, quiet=args.quiet)
     return run_bridge(handle, out, "serve", lambda: announce_clients(handle, out, "serving"))
 
 

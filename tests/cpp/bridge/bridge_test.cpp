@@ -220,6 +220,14 @@ TEST(Bridge, OptionsAreCheckedWithClearMessages) {
   } catch (const wiretape::OptionError& error) {
     EXPECT_NE(std::string(error.what()).find("70000"), std::string::npos);
   }
+  options.listen_port = 0;
+  options.listen_backlog = 0;
+  try {
+    Bridge bridge(options);
+    FAIL() << "a listen backlog of 0 was accepted";
+  } catch (const wiretape::OptionError& error) {
+    EXPECT_EQ(error.key(), "backlog");
+  }
 }
 
 TEST(Bridge, BadDeviceOptionsFailAtStart) {

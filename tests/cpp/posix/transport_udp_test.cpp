@@ -8,6 +8,8 @@
 #include <chrono>
 #include <string>
 
+#include "posix/syscalls.hpp"
+#include "posix/transports.hpp"
 #include "support/port_test_support.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/port.hpp"
@@ -124,4 +126,84 @@ TEST(Udp, ReadUntilGathersALineFromDatagrams) {
   a->write_all("next\n");
   EXPECT_EQ(b->read_until("\n", wiretape::Port::unlimited, 5s), "abc\n");
   EXPECT_EQ(b->read_until("\n", wiretape::Port::unlimited, 5s), "next\n");
+}
+
+namespace {
+
+// A plain socket bound to 127.0.0.1 (port 0: any), closed at the end.
+struct PlainUdp {
+  int fd = ::socket(AF_INET, SOCK_DGRAM, 0);
+  sockaddr_in address{};
+  PlainUdp() {
+    address.sin_family = AF_INET;
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    ::bind(fd, reinterpret_cast<sockaddr*>(&address), sizeof address);
+    socklen_t length = sizeof address;
+    ::getsockname(fd, reinterpret_cast<sockaddr*>(&address), &length);
+  }
+  ~PlainUdp() { ::close(fd); }
+  int port() const { return ntohs(address.sin_port); }
+  void send_to(const sockaddr_in& to, const std::string& data) const {
+    ::sendto(fd, data.data(), data.size(), 0, reinterpret_cast<const sockaddr*>(&to), sizeof to);
+  }
+  // One datagram, and who sent it.
+  std::string receive(sockaddr_in& from) const {
+    char buffer[256];
+    socklen_t length = sizeof from;
+    const ssize_t n = ::recvfrom(fd, buffer, sizeof buffer, 0,
+                                 reinterpret_cast<sockaddr*>(&from), &length);
+    return n < 0 ? std::string("<error>") : std::string(buffer, static_cast<std::size_t>(n));
+  }
+};
+
+}  // namespace
+
+// A port with a destination reads the destination's datagrams alone (the
+// record proxy's device side, DESIGN.md section 23): the socket is
+// connected, and a datagram that reached it from anyone else (queued
+// before the connect) is dropped and counted. The seam leaves the socket
+// unconnected here, so the stranger's datagram does reach it.
+TEST(Udp, ADatagramFromAnotherSenderThanTheDestinationIsDroppedAndCounted) {
+  wiretape::detail::sys::ScopedOverride seam;
+  bool connected = false;
+  seam->connect = [&connected](int, const sockaddr*, socklen_t) {
+    connected = true;
+    return 0;
+  };
+  PlainUdp device;
+  PlainUdp stranger;
+  auto port = open_port("type=udp,timeout=5,host=127.0.0.1,port=" +
+                        std::to_string(device.port()));
+  EXPECT_TRUE(connected) << "a port with a destination connects its socket";
+  port->write_all("ping");
+  sockaddr_in proxy{};
+  ASSERT_EQ(device.receive(proxy), "ping");
+  stranger.send_to(proxy, "not the device");
+  device.send_to(proxy, "pong");
+  char buffer[64];
+  const std::size_t n = port->read(buffer, sizeof buffer);
+  EXPECT_EQ(std::string(buffer, n), "pong");
+  auto* datagrams = dynamic_cast<wiretape::detail::DatagramPort*>(port.get());
+  ASSERT_NE(datagrams, nullptr);
+  EXPECT_EQ(datagrams->datagrams_from_others(), 1u);
+}
+
+// Port::read cannot return an empty datagram (0 bytes is a timeout): a
+// DatagramPort receives and sends them.
+TEST(Udp, EmptyDatagramsGoBothWaysThroughADatagramPort) {
+  PlainUdp device;
+  auto port = open_port("type=udp,timeout=5,host=127.0.0.1,port=" +
+                        std::to_string(device.port()));
+  auto* datagrams = dynamic_cast<wiretape::detail::DatagramPort*>(port.get());
+  ASSERT_NE(datagrams, nullptr);
+  EXPECT_FALSE(datagrams->receive_datagram(nullptr, 0).has_value()) << "none waits yet";
+  ASSERT_TRUE(datagrams->send_empty_datagram());
+  sockaddr_in proxy{};
+  EXPECT_EQ(device.receive(proxy), "");
+  device.send_to(proxy, "");
+  ASSERT_TRUE(port->wait_readable(5s));
+  char buffer[16];
+  const std::optional<std::size_t> n = datagrams->receive_datagram(buffer, sizeof buffer);
+  ASSERT_TRUE(n.has_value());
+  EXPECT_EQ(*n, 0u);
 }
