@@ -30,7 +30,7 @@ import os
 import sys
 import tempfile
 import time
-from typing import Iterator, Optional
+from typing import Iterator, List, Optional
 
 from .. import _core, exports
 from ..exports import jsonl
@@ -421,11 +421,12 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
         readable = src
         if source_format in _NEEDS_A_FILE and is_stream(src):
             readable = _spool(src, scratch)
+        outputs = _output_files(dst, target_format)
         try:
-            with _removed_unless_done(_output_files(dst, target_format),
-                                      keep_on_damage=source_format not in _IMPORTED):
-                return _convert(readable, dst, source_format, target_format, progress,
-                                flexiport_format, choice, scratch)
+            with _removed_unless_done(outputs, keep_on_damage=source_format not in _IMPORTED):
+                with _parent_folders(outputs):
+                    return _convert(readable, dst, source_format, target_format, progress,
+                                    flexiport_format, choice, scratch)
         except _core.SessionError as error:
             if readable == src:
                 raise
@@ -489,6 +490,37 @@ class _removed_unless_done:
                     os.unlink(path)
                 except OSError:
                     pass
+        return False
+
+
+class _parent_folders:
+    """Creates the missing folders of the outputs' paths (a recording goes
+    where the pytest plugin looks for it: tests/recordings/MODULE/TEST.wtape,
+    docs/cli.md); removes those it created, if still empty, when the block
+    fails."""
+
+    def __init__(self, outputs):
+        self.created: List[str] = []
+        for output in outputs:
+            folder = os.path.dirname(os.path.abspath(output))
+            missing = []
+            while folder and not os.path.lexists(folder):
+                missing.append(folder)
+                folder = os.path.dirname(folder)
+            for folder in reversed(missing):
+                os.mkdir(folder)
+                self.created.append(folder)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, error, traceback):
+        if kind is not None:
+            for folder in reversed(self.created):
+                try:
+                    os.rmdir(folder)
+                except OSError:
+                    break
         return False
 
 
