@@ -458,7 +458,8 @@ def _is_marker(data: bytes, epoch_ns: int, sender: Tuple[str, int],
     if match is None:
         return None
     packet = packets.get(number) if number is not None else None
-    if packet is not None and packet.src == sender and packet.epoch_ns == epoch_ns \
+    # tshark's follow prints times through a double: close, not equal.
+    if packet is not None and packet.src == sender and abs(packet.epoch_ns - epoch_ns) < 1_000_000 \
             and packet.payload_size >= len(data):
         return None  # a segment really carried this text
     return int(match.group(1))
