@@ -576,4 +576,9 @@ def read_capture(path: str, stream: Optional[str] = None,
         source_details={"stream": conversation.name},
         device_address=_address(device_host, device_port),
     )
+    try:
+        header.to_json()  # what the session writer would refuse, refused here
+    except _core.OptionError as error:
+        raise CaptureError(f"{path}: packet {first.number}: its time cannot start a session "
+                           f"(the capture's times are damaged): {error}", 0) from None
     return header, [(kind, t_ns, data) for t_ns, _, kind, data in records]

@@ -138,9 +138,14 @@ def test_a_capture_from_a_fifo_is_read_and_tshark_is_not_left_blocked(tmp_path):
     fifo = tmp_path / "capture"
     os.mkfifo(fifo)
     child = cli_child("convert", fifo, tmp_path / "out.wtape", "--from", "pcap")
-    with open(fifo, "wb") as writer:  # waits for the reader
-        writer.write(pcap(tcp_conversation(EXCHANGES)))
-    _, err = child.communicate(timeout=120)
+    try:
+        with open(fifo, "wb") as writer:  # waits for the reader
+            writer.write(pcap(tcp_conversation(EXCHANGES)))
+        _, err = child.communicate(timeout=120)
+    finally:
+        if child.poll() is None:  # before the fix: tshark blocked on a second open
+            child.kill()
+            child.wait()
     assert child.returncode == 0, err
     assert joined(records_of(tmp_path / "out.wtape"), "tx") == b"HELLOWORLDAGAIN"
 
