@@ -97,3 +97,15 @@ def test_damaged_imports_convert_honestly_or_fail_cleanly(tmp_path, fmt, name, d
     print(f"damage sweep {fmt} {name}: {tried} inputs, {outcomes['ok']} converted, "
           f"{outcomes['refused']} refused, 0 crashes, 0 hangs, 0 wrong successes")
     assert outcomes["refused"] > 0
+
+
+CORPUS = [(fmt, path) for fmt in ("pcap", "umockdev")
+          for path in sorted((ROOT / "fuzz" / "corpus" / f"{fmt}_import_fuzz").iterdir())]
+
+
+@pytest.mark.parametrize("fmt,path", CORPUS, ids=[f"{f}-{p.name}" for f, p in CORPUS])
+def test_the_fuzz_corpus_converts_or_fails_cleanly(tmp_path, fmt, path):
+    """What ctest's corpus replay is for the C++ fuzz targets."""
+    if fmt == "pcap" and shutil.which("tshark") is None:
+        pytest.skip("SKIPPED LOUDLY: tshark is not installed")
+    _checker().check_input(fmt, path.read_bytes(), str(tmp_path))
