@@ -169,6 +169,11 @@ _UMOCKDEV_OPS = {b"r": "rx", b"w": "tx"}
 _UMOCKDEV_KNOWN = "r (read), w (write), f (fuzz), d (device), Q (stop), # (comment)"
 
 
+def _escaped(data: bytes) -> str:
+    """Bytes as a message shows them: control bytes and non-ASCII escaped."""
+    return data.decode("latin-1").encode("unicode_escape").decode("ascii")
+
+
 def _umockdev_data(text: bytes) -> bytes:
     """DATA unescaped: ``^`` + chr(b + 64) is the byte b < 32, ``^``` is ``^``;
     ValueError naming the column of a bad escape."""
@@ -191,7 +196,8 @@ def _umockdev_data(text: bytes) -> bytes:
         elif 0x40 <= code <= 0x5F:
             out.append(code - 0x40)
         else:
-            raise ValueError(f"bad escape '^{chr(code)}' at column {index + 1}: '^' is followed "
+            raise ValueError(f"bad escape '^{_escaped(bytes([code]))}' at column {index + 1}: "
+                             "'^' is followed "
                              "by one of @ A..Z [ \\ ] ^ _ (bytes 0..31) or ` (the '^' itself)")
         index += 2
     return bytes(out)
@@ -210,7 +216,7 @@ def _umockdev_lines(path: str):
         if op == b"Q":
             return
         if op not in (b"r", b"w", b"f", b"d"):
-            shown = op.decode("latin-1").encode("unicode_escape").decode("ascii")
+            shown = _escaped(op)
             raise _error(path, number, f"unknown operation {shown!r}: one of {_UMOCKDEV_KNOWN}",
                          line_offset)
         if line[1:2] != b" ":
@@ -218,7 +224,7 @@ def _umockdev_lines(path: str):
                                        "operation", line_offset)
         value_text, space, data = line[2:].partition(b" ")
         if not value_text.isdigit() or len(value_text) > 20:
-            shown = value_text[:20].decode("latin-1").encode("unicode_escape").decode("ascii")
+            shown = _escaped(value_text[:20])
             if value_text.isdigit():
                 shown = f"a number of {len(value_text)} digits"
             raise _error(path, number, f"value: expected a whole number (milliseconds, or the "

@@ -230,6 +230,17 @@ def test_umockdev_delays_no_session_holds_are_exit_1_naming_the_line(tmp_path, c
     assert not out.exists()
 
 
+@pytest.mark.parametrize("line", [b"w 0 A^\x1b[2JB\n", b"\x1b[2J 0 A\n", b"r 1\x1b[2J A\n"],
+                         ids=["escape", "operation", "delay"])
+def test_terminal_escapes_in_a_bad_umockdev_line_are_shown_escaped(tmp_path, capsys, line):
+    # Found by umockdev_import_fuzz: '^' + ESC was printed raw.
+    script = tmp_path / "talk.script"
+    script.write_bytes(line)
+    code, err = run(capsys, "convert", script, tmp_path / "o.wtape", "--from", "umockdev")
+    assert code == 1 and f"{script}:1:" in err
+    assert "\x1b" not in err and "\\x1b" in err
+
+
 def test_a_failed_import_leaves_an_existing_output_alone(tmp_path, capsys):
     script = tmp_path / "talk.script"
     script.write_text("r " + "9" * 30 + " OK\n")
