@@ -7,7 +7,7 @@ an internal message, a hang or an invented byte.
 Fast in `make test` (every truncation and flip of the text formats; a
 sample of positions for pcap, where each input runs tshark twice).
 WIRETAPE_DAMAGE_SWEEP=full (as `make fuzz` sets) sweeps every position of
-the captures too."""
+the captures too, WIRETAPE_DAMAGE_SWEEP=N samples N positions of them."""
 
 import importlib.util
 import json
@@ -21,8 +21,11 @@ import pytest
 from captures import pcap, pcapng, tcp_conversation
 
 ROOT = pathlib.Path(__file__).resolve().parents[3]
-FULL = os.environ.get("WIRETAPE_DAMAGE_SWEEP") == "full"
-PCAP_SAMPLES = 4
+SWEEP = os.environ.get("WIRETAPE_DAMAGE_SWEEP", "")
+FULL = SWEEP == "full"
+# Positions sampled in a capture (each input runs tshark twice);
+# WIRETAPE_DAMAGE_SWEEP=N samples N.
+PCAP_SAMPLES = int(SWEEP) if SWEEP.isdigit() else 4
 
 
 def _checker():
