@@ -197,8 +197,10 @@ def _run_tshark(path: str, arguments: Sequence[str]) -> str:
     # check counts bytes from the start of each direction.
     command = [_tshark(), "-n", "-o", "tcp.relative_sequence_numbers:TRUE", "-r", path,
                *arguments]
-    outcome = Child(command, separate_stderr=True, text=True,
-                    env={**os.environ, "LC_ALL": "C"}).run(_TIMEOUT_S)
+    # Interrupted (SIGINT, SIGTERM), the block ends tshark: none is left behind.
+    with Child(command, separate_stderr=True, text=True,
+               env={**os.environ, "LC_ALL": "C"}) as child:
+        outcome = child.run(_TIMEOUT_S)
     if outcome.timed_out:
         raise CaptureError(f"{path}: tshark took more than {_TIMEOUT_S} s to read it")
     stdout, stderr = str(outcome.stdout), str(outcome.stderr)

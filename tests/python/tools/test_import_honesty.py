@@ -182,6 +182,42 @@ def test_waiting_on_a_fifo_is_interrupted_with_130_or_143_and_nothing_written(
     assert not out.exists()
 
 
+def children_of(pid):
+    found = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as handle:
+                    fields = handle.read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid:
+                found.append(int(entry))
+    return found
+
+
+@needs_tshark
+def test_an_import_interrupted_while_tshark_reads_ends_tshark_and_writes_nothing(tmp_path):
+    exchanges = [("tx" if index % 2 == 0 else "rx", b"%05d;" % index) for index in range(30_000)]
+    capture = tmp_path / "big.pcap"
+    capture.write_bytes(pcap(tcp_conversation(exchanges)))
+    out = tmp_path / "out.wtape"
+    child = cli_child("convert", capture, out)
+    try:
+        wait_until(lambda: children_of(child.pid), what="tshark to start")
+        tsharks = children_of(child.pid)
+        child.send_signal(signal.SIGTERM)
+        _, err = child.communicate(timeout=60)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+    assert child.returncode == 143, err
+    wait_until(lambda: not any(os.path.exists(f"/proc/{pid}") for pid in tsharks),
+               what="tshark to end")
+    assert not out.exists()
+
+
 def test_a_conversion_interrupted_mid_stream_removes_its_partial_output(tmp_path):
     fifo = tmp_path / "input.jsonl"
     os.mkfifo(fifo)
