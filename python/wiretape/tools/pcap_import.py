@@ -417,12 +417,21 @@ def _follow_chunks(path: str, conversation: Conversation
             yield chunk
 
 
-def _sequence_holes(conversation: Conversation, device: Tuple[str, int]) -> Dict[str, List[CaptureGap]]:
-    """The bytes of each direction of a TCP conversation that no captured
-    segment holds, from the sequence numbers: between the SYN (or the first
-    segment seen) and the furthest byte the stream is known to have reached
-    (a segment's end, its FIN, or what the other side acknowledged)."""
-    holes: Dict[str, List[CaptureGap]] = {"rx": [], "tx": []}
+@dataclasses.dataclass
+class _Extent:
+    """What the sequence numbers say of one direction of a TCP stream."""
+
+    start: int  # the relative sequence number of its first byte
+    length: int  # how far it is known to have reached, in bytes
+    holes: List[CaptureGap]  # the bytes no captured segment claims
+
+
+def _sequence_extents(conversation: Conversation, device: Tuple[str, int]) -> Dict[str, _Extent]:
+    """Each direction of a TCP conversation from its sequence numbers:
+    from the SYN (or the first segment seen) to the furthest byte the stream
+    is known to have reached (a segment's end, its FIN, or what the other
+    side acknowledged), and the bytes between that no segment claims."""
+    extents: Dict[str, _Extent] = {}
     for direction in ("rx", "tx"):
         mine = [p for p in conversation.packets
                 if (p.src == device) == (direction == "rx") and p.seq is not None]
@@ -441,15 +450,16 @@ def _sequence_holes(conversation: Conversation, device: Tuple[str, int]) -> Dict
         else:
             end = max([last for _, last in covered] +
                       [p.acknowledged for p in theirs if p.acknowledged >= start] + [start])
+        holes = []
         position = start
         for first, last in covered:
             if first > position and position < end:
-                holes[direction].append(CaptureGap(direction, position - start,
-                                                   min(first, end) - position))
+                holes.append(CaptureGap(direction, position - start, min(first, end) - position))
             position = max(position, last)
         if position < end:
-            holes[direction].append(CaptureGap(direction, position - start, end - position))
-    return holes
+            holes.append(CaptureGap(direction, position - start, end - position))
+        extents[direction] = _Extent(start, max(end - start, 0), holes)
+    return extents
 
 
 def _is_marker(data: bytes, epoch_ns: int, sender: Tuple[str, int],
@@ -506,8 +516,10 @@ def read_capture(path: str, stream: Optional[str] = None,
         if syn is not None:
             add(syn.epoch_ns, "client_connect",
                 _core.event_payload("client_connect", {"peer": client_text, "role": "control"}))
-    holes = (_sequence_holes(conversation, device) if conversation.protocol == "tcp"
-             else {"rx": [], "tx": []})
+    extents = (_sequence_extents(conversation, device) if conversation.protocol == "tcp"
+               else {})
+    holes = {direction: list(extents[direction].holes) if direction in extents else []
+             for direction in ("rx", "tx")}
     packets = {packet.number: packet for packet in conversation.packets}
     offsets = {"rx": 0, "tx": 0}
     gaps: List[CaptureGap] = []
@@ -553,10 +565,22 @@ def read_capture(path: str, stream: Optional[str] = None,
             continue
         last_data_ns = max(last_data_ns, epoch_ns)
         holes_before(direction, last_data_ns, offsets[direction])
+        packet = packets.get(number) if number is not None else None
+        if direction in extents and packet is not None and packet.src == sender \
+                and packet.seq is not None:
+            # A segment cut short by the capture's snapshot length: tshark
+            # gives what was captured, and the next segment starts later.
+            expected = packet.seq - extents[direction].start
+            if expected > offsets[direction]:
+                gap(last_data_ns, CaptureGap(direction, offsets[direction],
+                                             expected - offsets[direction]))
         add(last_data_ns, direction, data)
         offsets[direction] += len(data)
     for direction in ("rx", "tx"):
         holes_before(direction, last_data_ns, 1 << 64)
+        if direction in extents and offsets[direction] < extents[direction].length:
+            gap(last_data_ns, CaptureGap(direction, offsets[direction],
+                                         extents[direction].length - offsets[direction]))
     if conversation.protocol == "tcp":
         ends = [p for p in conversation.packets if p.fin or p.reset]
         if ends:

@@ -73,12 +73,15 @@ def tcp_conversation(exchanges: Sequence[Tuple[str, bytes]], lose: Iterable[int]
 
 
 def pcap(frames: Sequence[bytes], start_s: int = 1_700_000_000,
-         step_us: int = 1000) -> bytes:
-    """A classic pcap (microseconds, Ethernet) of `frames`, `step_us` apart."""
+         step_us: int = 1000, cut: Optional[dict] = None) -> bytes:
+    """A classic pcap (microseconds, Ethernet) of `frames`, `step_us` apart;
+    `cut` {frame index: bytes}: those frames captured without their last
+    bytes, as a snapshot length shorter than the frame does."""
     out = [struct.pack("<IHHiIII", 0xA1B2C3D4, 2, 4, 0, 0, 65535, 1)]
     for index, frame in enumerate(frames):
         seconds, micros = divmod(start_s * 1_000_000 + index * step_us, 1_000_000)
-        out.append(struct.pack("<IIII", seconds, micros, len(frame), len(frame)) + frame)
+        captured = frame[:len(frame) - (cut or {}).get(index, 0)]
+        out.append(struct.pack("<IIII", seconds, micros, len(captured), len(frame)) + captured)
     return b"".join(out)
 
 

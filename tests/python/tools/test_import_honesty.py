@@ -79,6 +79,26 @@ def test_a_segment_lost_without_tsharks_marker_is_found_by_its_sequence_numbers(
 
 
 @needs_tshark
+@pytest.mark.parametrize("frame", [3, 6], ids=["segment", "last-segment"])
+def test_a_segment_cut_by_the_snapshot_length_is_a_gap(tmp_path, capsys, frame):
+    # frames: 3 of handshake, HELLO-WORLD (3), OK, AGAIN, BYE-BYE! (6); 6 bytes cut
+    exchanges = [("tx", b"HELLO-WORLD"), ("rx", b"OK"), ("tx", b"AGAIN"), ("rx", b"BYE-BYE!")]
+    capture = tmp_path / "snap.pcap"
+    capture.write_bytes(pcap(tcp_conversation(exchanges), cut={frame: 6}))
+    out = tmp_path / "out.wtape"
+    code, err = run(capsys, "convert", capture, out)
+    assert code == 1, err
+    where = "(tx) stream at offset 5" if frame == 3 else "(rx) stream at offset 4"
+    assert "6 bytes missing" in err and where in err
+    assert not out.exists()
+    code, err = run(capsys, "convert", capture, out, "--allow-gaps")
+    assert code == 0, err
+    gaps = [json.loads(data) for kind, data in records_of(out) if kind == "capture_gap"]
+    assert gaps == [{"direction": "tx" if frame == 3 else "rx",
+                     "offset": 5 if frame == 3 else 4, "length": 6}]
+
+
+@needs_tshark
 def test_allow_gaps_records_a_capture_gap_event_and_no_bytes_for_the_gap(tmp_path, capsys):
     capture = tmp_path / "lost.pcap"
     capture.write_bytes(pcap(tcp_conversation(EXCHANGES, lose=[1, 4])))
