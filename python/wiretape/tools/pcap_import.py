@@ -433,23 +433,23 @@ def _sequence_extents(conversation: Conversation, device: Tuple[str, int]) -> Di
     side acknowledged), and the bytes between that no segment claims."""
     extents: Dict[str, _Extent] = {}
     for direction in ("rx", "tx"):
-        mine = [p for p in conversation.packets
-                if (p.src == device) == (direction == "rx") and p.seq is not None]
-        theirs = [p for p in conversation.packets
-                  if (p.src == device) != (direction == "rx") and p.acknowledged is not None]
-        if not mine:
-            continue
-        syn = any(p.syn for p in mine)
-        covered = sorted((p.seq, p.seq + p.payload_size) for p in mine if p.payload_size > 0)
+        from_device = direction == "rx"
+        # (sequence number, packet) of this direction's segments
+        mine = [(p.seq, p) for p in conversation.packets
+                if (p.src == device) == from_device and p.seq is not None]
+        acknowledged = [p.acknowledged for p in conversation.packets
+                        if (p.src == device) != from_device and p.acknowledged is not None]
+        syn = any(p.syn for _, p in mine)
+        covered = sorted((seq, seq + p.payload_size) for seq, p in mine if p.payload_size > 0)
         if not covered and not syn:
             continue
         start = 1 if syn else covered[0][0]
-        fins = [p.seq for p in mine if p.fin]
+        fins = [seq for seq, p in mine if p.fin]
         if fins:
             end = min(fins)
         else:
             end = max([last for _, last in covered] +
-                      [p.acknowledged for p in theirs if p.acknowledged >= start] + [start])
+                      [ack for ack in acknowledged if ack >= start] + [start])
         holes = []
         position = start
         for first, last in covered:
@@ -498,6 +498,23 @@ def read_capture(path: str, stream: Optional[str] = None,
     if start_utc is None:
         raise CaptureError(f"{path}: packet {first.number}: timestamp {_seconds_text(start_ns)} s "
                            f"since 1970 is not a date (the capture's times are damaged)", 0)
+    device_host, device_port = device
+    header = _core.SessionHeader(
+        port_type=conversation.protocol,
+        port_options=f"type={conversation.protocol},"
+                     f"host={_core.quote_option_value(device_host)},port={device_port}",
+        capture="wire",
+        start_utc=start_utc,
+        source_format="pcap",
+        source_files=[os.path.basename(path)],
+        source_details={"stream": conversation.name},
+        device_address=_address(device_host, device_port),
+    )
+    try:
+        header.to_json()  # what the session writer would refuse, refused here
+    except _core.OptionError as error:
+        raise CaptureError(f"{path}: {conversation.name}: no session can start as its first "
+                           f"packet ({first.number}) says: {error}", 0) from None
     records: List[Tuple[int, int, str, bytes]] = []  # (t_ns, order, kind, data)
 
     def add(epoch_ns: int, kind: str, data: bytes) -> None:
@@ -522,14 +539,12 @@ def read_capture(path: str, stream: Optional[str] = None,
              for direction in ("rx", "tx")}
     packets = {packet.number: packet for packet in conversation.packets}
     offsets = {"rx": 0, "tx": 0}
-    gaps: List[CaptureGap] = []
 
     def gap(epoch_ns: int, found: CaptureGap) -> None:
         if not allow_gaps:
             raise CaptureError(f"{path}: {found.describe(conversation.name)}: the capture lost "
                                f"them, and an import never invents bytes; --allow-gaps imports "
                                f"the rest with a capture_gap event there", 0)
-        gaps.append(found)
         add(epoch_ns, "capture_gap", _core.event_payload(
             "capture_gap", {"direction": found.direction, "offset": found.offset,
                             "length": found.length}))
@@ -550,9 +565,6 @@ def read_capture(path: str, stream: Optional[str] = None,
         if not data:
             continue
         direction = "rx" if sender == device else "tx"
-        # tshark gives the chunks in stream order, each with its packet's
-        # time: bytes that came before a missing segment reach the receiver
-        # only when it arrives, so a chunk is never earlier than the last.
         missing = _is_marker(data, epoch_ns, sender, packets, number)
         if missing is not None:
             holes_before(direction, last_data_ns, offsets[direction] - 1)
@@ -563,6 +575,9 @@ def read_capture(path: str, stream: Optional[str] = None,
                                 or h.offset >= found.offset + found.length]
             gap(last_data_ns, found)
             continue
+        # tshark gives the chunks in stream order, each with its packet's
+        # time: bytes that came before a missing segment reach the receiver
+        # only when it arrives, so a chunk is never earlier than the last.
         last_data_ns = max(last_data_ns, epoch_ns)
         holes_before(direction, last_data_ns, offsets[direction])
         packet = packets.get(number) if number is not None else None
@@ -584,27 +599,10 @@ def read_capture(path: str, stream: Optional[str] = None,
     if conversation.protocol == "tcp":
         ends = [p for p in conversation.packets if p.fin or p.reset]
         if ends:
-            first, last = ends[0], ends[-1]
-            by = "the client" if first.src == client else "the device"
-            reason = f"{'reset' if first.reset else 'closed'} by {by}"
-            add(max(last.epoch_ns, last_data_ns), "client_disconnect",
+            first_end, last_end = ends[0], ends[-1]
+            by = "the client" if first_end.src == client else "the device"
+            reason = f"{'reset' if first_end.reset else 'closed'} by {by}"
+            add(max(last_end.epoch_ns, last_data_ns), "client_disconnect",
                 _core.event_payload("client_disconnect", {"peer": client_text, "reason": reason}))
     records.sort()
-    device_host, device_port = device
-    header = _core.SessionHeader(
-        port_type=conversation.protocol,
-        port_options=f"type={conversation.protocol},"
-                     f"host={_core.quote_option_value(device_host)},port={device_port}",
-        capture="wire",
-        start_utc=start_utc,
-        source_format="pcap",
-        source_files=[os.path.basename(path)],
-        source_details={"stream": conversation.name},
-        device_address=_address(device_host, device_port),
-    )
-    try:
-        header.to_json()  # what the session writer would refuse, refused here
-    except _core.OptionError as error:
-        raise CaptureError(f"{path}: packet {first.number}: its time cannot start a session "
-                           f"(the capture's times are damaged): {error}", 0) from None
     return header, [(kind, t_ns, data) for t_ns, _, kind, data in records]
