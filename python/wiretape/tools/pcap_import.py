@@ -591,6 +591,11 @@ def read_capture(path: str, stream: Optional[str] = None,
                                              expected - offsets[direction]))
         add(last_data_ns, direction, data)
         offsets[direction] += len(data)
+        if conversation.protocol == "udp" and packet is not None \
+                and packet.payload_size > len(data):
+            # A datagram cut short by the capture's snapshot length.
+            gap(last_data_ns, CaptureGap(direction, offsets[direction],
+                                         packet.payload_size - len(data)))
     for direction in ("rx", "tx"):
         holes_before(direction, last_data_ns, 1 << 64)
         if direction in extents and offsets[direction] < extents[direction].length:

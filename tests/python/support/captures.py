@@ -36,6 +36,7 @@ def tcp_frame(src: Tuple[str, int], dst: Tuple[str, int], seq: int, ack: int, fl
 
 
 def udp_frame(src: Tuple[str, int], dst: Tuple[str, int], payload: bytes) -> bytes:
+    """An Ethernet frame of one UDP datagram."""
     udp = struct.pack(">HHHH", src[1], dst[1], 8 + len(payload), 0) + payload
     return _ethernet_ipv4(src[0], dst[0], 17, udp)
 

@@ -19,7 +19,7 @@ import pytest
 import wiretape
 from wiretape import cli
 
-from captures import pcap, pcapng, tcp_conversation
+from captures import CLIENT, DEVICE, pcap, pcapng, tcp_conversation, udp_frame
 from devices import wait_until
 
 DOCS = os.path.join(os.path.dirname(__file__), "..", "..", "..", "docs", "cli.md")
@@ -96,6 +96,18 @@ def test_a_segment_cut_by_the_snapshot_length_is_a_gap(tmp_path, capsys, frame):
     gaps = [json.loads(data) for kind, data in records_of(out) if kind == "capture_gap"]
     assert gaps == [{"direction": "tx" if frame == 3 else "rx",
                      "offset": 5 if frame == 3 else 4, "length": 6}]
+
+
+@needs_tshark
+def test_a_datagram_cut_by_the_snapshot_length_is_a_gap(tmp_path, capsys):
+    frames = [udp_frame(CLIENT, DEVICE, b"PING 1"), udp_frame(DEVICE, CLIENT, b"PONG 1 LONG")]
+    capture = tmp_path / "snap.pcap"
+    capture.write_bytes(pcap(frames, cut={1: 5}))
+    out = tmp_path / "out.wtape"
+    code, err = run(capsys, "convert", capture, out)
+    assert code == 1, err
+    assert "udp:0" in err and "5 bytes missing" in err and "(rx) stream at offset 6" in err
+    assert not out.exists()
 
 
 @needs_tshark
