@@ -30,6 +30,10 @@ def _scratch() -> str:
 def _random_fuzz(fmt: str, argv: list, scratch: str) -> int:
     seconds = 60.0
     dirs = []
+    if "-help=1" in argv:
+        print(f"{fmt}_import_fuzz: random mutation (atheris is not installed); flags: "
+              "-max_total_time=SECONDS, -runs=0, CORPUS_DIR...")
+        return 0
     for arg in argv:
         if arg.startswith("-max_total_time="):
             seconds = float(arg.split("=", 1)[1])
