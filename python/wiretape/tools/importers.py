@@ -68,6 +68,11 @@ def _reserial_lines(path: str):
                 raise _error(path, number, "expected a JSON object {\"TEST NAME\": {\"rx\": ..., "
                                            "\"tx\": ...}}, as pytest-reserial writes", line_offset)
             for name, entry in item.items():
+                try:
+                    name.encode("utf-8")
+                except UnicodeEncodeError:  # JSON's "\ud800": no session can hold it
+                    raise _error(path, number, f"test {_shown(name)}: the name is not valid "
+                                               "UTF-8 (a lone surrogate)", line_offset) from None
                 yield number, line_offset, name, entry
 
 

@@ -351,6 +351,16 @@ def test_terminal_escapes_in_test_names_are_shown_escaped(tmp_path, capsys):
     assert not (tmp_path / "o.wtape").exists()
 
 
+def test_a_test_name_no_session_can_hold_is_exit_1_naming_the_line(tmp_path, capsys):
+    path = tmp_path / "surrogate.jsonl"
+    path.write_text('{"t\\ud800x": {"rx": "a", "tx": "b", "rx_encoding": "utf-8", '
+                    '"tx_encoding": "utf-8"}}\n')
+    code, err = run(capsys, "convert", path, tmp_path / "o.wtape", "--from", "reserial")
+    assert code == 1, err
+    assert f"{path}:1: test 't\\ud800x'" in err and "lone surrogate" in err
+    assert not (tmp_path / "o.wtape").exists()
+
+
 # --- the documented migration command ---------------------------------------------
 
 def test_the_documented_reserial_migration_command_works(tmp_path):
