@@ -423,10 +423,11 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
             readable = _spool(src, scratch)
         outputs = _output_files(dst, target_format)
         try:
-            with _removed_unless_done(outputs, keep_on_damage=source_format not in _IMPORTED):
-                with _parent_folders(outputs):
-                    return _convert(readable, dst, source_format, target_format, progress,
-                                    flexiport_format, choice, scratch)
+            # The folders outside: a failure removes the output, then them.
+            with _parent_folders(outputs), \
+                    _removed_unless_done(outputs, keep_on_damage=source_format not in _IMPORTED):
+                return _convert(readable, dst, source_format, target_format, progress,
+                                flexiport_format, choice, scratch)
         except _core.SessionError as error:
             if readable == src:
                 raise

@@ -376,3 +376,20 @@ def test_the_documented_reserial_migration_command_works(tmp_path):
                            capture_output=True, text=True, timeout=120)
     assert child.returncode == 0, child.stderr
     assert records_of(tmp_path / target) == [("rx", b"OK\n"), ("tx", b"ID\n")]
+
+
+def test_a_failed_conversion_leaves_no_folder_it_created(tmp_path, capsys):
+    script = tmp_path / "talk.script"
+    script.write_text("w 0 ID^J\nr 5 OK^!\n")  # a bad escape on line 2
+    out = tmp_path / "recordings" / "module" / "test.wtape"
+    code, err = run(capsys, "convert", script, out, "--from", "umockdev")
+    assert code == 1 and f"{script}:2:" in err
+    assert not (tmp_path / "recordings").exists()
+    # A damaged .wtape source keeps what came before the damage, and its folder.
+    script.write_text("w 0 ID^J\nr 5 OK^J\n")
+    session = tmp_path / "s.wtape"
+    assert run(capsys, "convert", script, session, "--from", "umockdev")[0] == 0
+    session.write_bytes(session.read_bytes()[:-3])
+    code, _ = run(capsys, "convert", session, out)
+    assert code == 1
+    assert [kind for kind, _ in records_of(out)] == ["tx"]
