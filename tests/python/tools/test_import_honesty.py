@@ -182,6 +182,18 @@ def test_a_capture_from_a_fifo_is_read_and_tshark_is_not_left_blocked(tmp_path):
     assert joined(records_of(tmp_path / "out.wtape"), "tx") == b"HELLOWORLDAGAIN"
 
 
+@pytest.mark.parametrize("source,content", [
+    ("umockdev", b"w 0 ID^J\nr 5 OK^J\n"),
+    ("reserial", b'{"t": {"rx": "OK\\n", "tx": "ID\\n", "rx_encoding": "utf-8", '
+                 b'"tx_encoding": "utf-8"}}\n')])
+def test_other_imports_read_a_pipe_as_a_stream(tmp_path, source, content):
+    out = tmp_path / "out.wtape"
+    child = cli_child("convert", "/dev/stdin", out, "--from", source, stdin=subprocess.PIPE)
+    _, err = child.communicate(content, timeout=120)
+    assert child.returncode == 0, err
+    assert sorted(records_of(out)) == [("rx", b"OK\n"), ("tx", b"ID\n")]
+
+
 @pytest.mark.parametrize("content", [b"", pcap(tcp_conversation(EXCHANGES))[:70]],
                          ids=["empty", "short"])
 @needs_tshark
