@@ -37,6 +37,7 @@ enum class RecordKind : std::uint8_t {
   device_lost = 0x1a,  // the device went away (EOF, ENXIO, ECONNRESET)
   fault = 0x1b,        // replay injected a fault here: {"kind":"corrupt","where":"exchange:3"}
   redaction = 0x1c,    // the next direction record's bytes at offset, length were scrubbed
+  capture_gap = 0x1d,  // an imported capture lost `length` bytes of a direction at `offset`
 };
 
 // "rx", "tx", "open", ... "line_break" is spelled "break".

@@ -68,6 +68,11 @@ constexpr EventFieldSpec redaction_fields[] = {
     {f::offset, integer, required, "the first scrubbed byte, from the start of the next rx or tx record"},
     {f::length, integer, required, "how many bytes were scrubbed; replay matches them as wildcards"},
 };
+constexpr EventFieldSpec capture_gap_fields[] = {
+    {f::direction, string, required, "rx or tx: the direction whose bytes the capture lost"},
+    {f::offset, integer, required, "the first lost byte, counted from the start of that direction"},
+    {f::length, integer, required, "how many bytes were lost; none of them is in a record"},
+};
 
 template <std::size_t n>
 constexpr RecordKindSpec event(RecordKind kind, std::string_view name, std::string_view meaning,
@@ -111,6 +116,9 @@ constexpr RecordKindSpec kinds[] = {
     event(RecordKind::redaction, "redaction",
           "bytes of the next rx or tx record were scrubbed by wiretape edit --redact",
           redaction_fields),
+    event(RecordKind::capture_gap, "capture_gap",
+          "an imported packet capture lost bytes here (convert --from pcap --allow-gaps)",
+          capture_gap_fields),
 };
 
 bool is_integer(const json::Value& value) {

@@ -42,6 +42,7 @@ inline constexpr char where[] = "where";
 inline constexpr char detail[] = "detail";
 inline constexpr char offset[] = "offset";
 inline constexpr char length[] = "length";
+inline constexpr char direction[] = "direction";
 }  // namespace event_field
 
 // The JSON type of an event payload member. Integers are JSON numbers

@@ -101,7 +101,8 @@ def cmd_convert(args, out: Output) -> int:
     result = convert(args.input, args.output, from_format=args.from_format,
                      to_format=args.to_format, progress=progress,
                      flexiport_format=args.flexiport_format,
-                     stream=args.stream, device_addr=args.device_addr, test=args.test)
+                     stream=args.stream, device_addr=args.device_addr, test=args.test,
+                     allow_gaps=args.allow_gaps)
     if not args.quiet:
         out.note(f"converted {result.records} records: {args.input} "
                  f"({result.from_format}) -> {args.output} ({result.to_format})")

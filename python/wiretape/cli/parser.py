@@ -444,6 +444,9 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("--device-addr", dest="device_addr", metavar="IP:PORT",
                          help="--from pcap: the device's side of the conversation (default: "
                               "the TCP server; for UDP the lower port)")
+    convert.add_argument("--allow-gaps", dest="allow_gaps", action="store_true",
+                         help="--from pcap: import a capture that lost bytes, with a "
+                              "capture_gap event where they are missing (default: refuse it)")
     convert.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
 
     diff = command("diff", cmd_diff,

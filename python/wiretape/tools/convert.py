@@ -30,12 +30,13 @@ import os
 import sys
 import tempfile
 import time
-from typing import Iterator, Optional
+from typing import Iterator, List, Optional
 
 from .. import _core, exports
 from ..exports import jsonl
 from . import importers
-from ..session import (FileRefused, SessionPath, is_stream, open_input, open_session,
+from ..session import (FileRefused, SessionPath, is_stream, is_written_through,
+                       open_input, open_session,
                        raise_damage, refuse_same_file, session_files)
 from . import pcap_import
 
@@ -312,14 +313,15 @@ def _records_of(src: str, fmt: str, choice: Optional[dict] = None):
     choice = choice or {}
     if fmt == "pcap":
         header, captured = pcap_import.read_capture(
-            src, stream=choice.get("stream"), device_addr=choice.get("device_addr"))
+            src, stream=choice.get("stream"), device_addr=choice.get("device_addr"),
+            allow_gaps=bool(choice.get("allow_gaps")))
         return header, iter(captured), lambda: None
     if fmt == "reserial":
         header, records = importers.reserial_records(src, choice.get("test"))
-        return header, records, lambda: None
+        return header, iter(list(records)), lambda: None  # checked whole before writing
     if fmt == "umockdev":
         header, records = importers.umockdev_records(src)
-        return header, records, lambda: None
+        return header, iter(list(records)), lambda: None
     if fmt == "jsonl":
         items = _jsonl_records(src)
         _, header = next(items)
@@ -375,7 +377,8 @@ class ConvertResult:
 def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = None,
             to_format: Optional[str] = None, progress: bool = False,
             flexiport_format: str = "new", stream: Optional[str] = None,
-            device_addr: Optional[str] = None, test: Optional[str] = None) -> ConvertResult:
+            device_addr: Optional[str] = None, test: Optional[str] = None,
+            allow_gaps: bool = False) -> ConvertResult:
     """Converts the session `src` into `dst`.
 
     Returns the number of records written and both formats. A damaged
@@ -390,6 +393,9 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
     `device_addr` (``IP:PORT``) says which side is the device
     (pcap_import's text has the rules); a capture of several conversations
     and none chosen raises pcap_import.CaptureError listing them.
+    A capture that lost bytes raises pcap_import.CaptureError naming the
+    stream, direction and offset, unless `allow_gaps` (a ``capture_gap``
+    event stands there, and no bytes).
     `test` chooses the test of a pytest-reserial cassette.
     """
     if flexiport_format not in ("new", "old"):
@@ -406,33 +412,152 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
     if source_format == "flexiport":
         src = _core.flexiport_prefix(src) or src
     refuse_same_file(session_files(src), _output_files(dst, target_format))
-    report = _Progress(progress, _source_size(src, source_format))
-    choice = {"stream": stream, "device_addr": device_addr, "test": test}
-    if source_format != "pcap" and (stream is not None or device_addr is not None):
-        raise ValueError("--stream and --device-addr choose a conversation of a packet "
+    choice = {"stream": stream, "device_addr": device_addr, "test": test,
+              "allow_gaps": allow_gaps}
+    if source_format != "pcap" and (stream is not None or device_addr is not None or allow_gaps):
+        raise ValueError("--stream, --device-addr and --allow-gaps are about a packet "
                          "capture: they need --from pcap")
+    with tempfile.TemporaryDirectory(prefix="wiretape-convert-") as scratch:
+        readable = src
+        if source_format in _NEEDS_A_FILE and is_stream(src):
+            readable = _spool(src, scratch)
+        outputs = _output_files(dst, target_format)
+        try:
+            # The folders outside: a failure removes the output, then them.
+            with _parent_folders(outputs), \
+                    _removed_unless_done(outputs, keep_on_damage=source_format not in _IMPORTED):
+                return _convert(readable, dst, source_format, target_format, progress,
+                                flexiport_format, choice, scratch)
+        except _core.SessionError as error:
+            if readable == src:
+                raise
+            # Name the stream given, not the scratch copy of it.
+            raise type(error)(str(error).replace(readable, src), error.offset) from None
 
+
+# Formats another program reads (tshark reads a capture twice): a pipe or
+# FIFO is copied to a scratch file first.
+_NEEDS_A_FILE = ("pcap",)
+_SPOOL_CHUNK = 1 << 16
+
+
+def _spool(src: str, scratch: str) -> str:
+    """The stream `src` copied to a file in `scratch`, named as it is (the
+    import's header names its source file). Interruptible: open_input waits
+    for a writer in poll(), reads are restarted after a signal handler
+    (PEP 475) unless it raises. An empty stream is a SessionError."""
+    folder = os.path.join(scratch, "input")
+    os.mkdir(folder)
+    copy = os.path.join(folder, os.path.basename(src) or "stream")
+    size = 0
+    with open_input(src) as stream, open(copy, "wb") as out:
+        while True:
+            chunk = stream.read(_SPOOL_CHUNK)
+            if not chunk:
+                break
+            out.write(chunk)
+            size += len(chunk)
+    if size == 0:
+        raise _core.SessionError(f"{src}: an empty stream: no capture was written to it", 0)
+    return copy
+
+
+class _removed_unless_done:
+    """Removes the regular files among `outputs` that the block wrote, when
+    it does not complete: an interrupted conversion (SIGINT, SIGTERM) and a
+    failed import leave nothing under the name asked for (DESIGN §23). A
+    damaged session or jsonl source keeps what came before the damage
+    (`keep_on_damage`), as docs/cli.md says. Outputs written through (a
+    FIFO, a device) are left alone."""
+
+    def __init__(self, outputs, keep_on_damage: bool):
+        # What was there before: a file the block never wrote is left alone.
+        self.before = {path: _identity(path) for path in outputs
+                       if not is_written_through(path)}
+        self.keep_on_damage = keep_on_damage
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, error, traceback):
+        if kind is None:
+            return False
+        if self.keep_on_damage and issubclass(kind, _core.SessionError):
+            return False
+        for path, before in self.before.items():
+            now = _identity(path)
+            if now is not None and now != before:
+                try:
+                    os.unlink(path)
+                except OSError:
+                    pass
+        return False
+
+
+class _parent_folders:
+    """Creates the missing folders of the outputs' paths (a recording goes
+    where the pytest plugin looks for it: tests/recordings/MODULE/TEST.wtape,
+    docs/cli.md); removes those it created, if still empty, when the block
+    fails."""
+
+    def __init__(self, outputs):
+        self.created: List[str] = []
+        for output in outputs:
+            folder = os.path.dirname(os.path.abspath(output))
+            missing = []
+            while folder and not os.path.lexists(folder):
+                missing.append(folder)
+                folder = os.path.dirname(folder)
+            for folder in reversed(missing):
+                os.mkdir(folder)
+                self.created.append(folder)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, error, traceback):
+        if kind is not None:
+            for folder in reversed(self.created):
+                try:
+                    os.rmdir(folder)
+                except OSError:
+                    break
+        return False
+
+
+def _identity(path: str):
+    """(inode, size, mtime) of the regular file at `path`, or None."""
+    try:
+        info = os.stat(path)
+    except OSError:
+        return None
+    if not os.path.isfile(path):
+        return None
+    return info.st_ino, info.st_size, info.st_mtime_ns
+
+
+def _convert(src: str, dst: str, source_format: str, target_format: str, progress: bool,
+             flexiport_format: str, choice: dict, scratch: str) -> ConvertResult:
+    report = _Progress(progress, _source_size(src, source_format))
     if target_format in ("pcapng", "mcap"):
         session = src
-        with tempfile.TemporaryDirectory(prefix="wiretape-convert-") as scratch:
-            if source_format in _RECORD_SOURCES:
-                session = os.path.join(scratch, "session.wtape")
-                header, records, _ = _records_of(src, source_format, choice)
-                _write_wiretape(session, header, records, _Progress(False, 0))
-            writer = exports.write_pcapng if target_format == "pcapng" else exports.write_mcap
-            # Raises the damage once dst is written. Its counts, not a second
-            # reading: a pipe or FIFO can be read only once.
-            written = sum(writer(session, dst).values())
+        if source_format in _RECORD_SOURCES:
+            session = os.path.join(scratch, "session.wtape")
+            header, records, _ = _records_of(src, source_format, choice)
+            _write_wiretape(session, header, records, _Progress(False, 0))
+        writer = exports.write_pcapng if target_format == "pcapng" else exports.write_mcap
+        # Raises the damage once dst is written. Its counts, not a second
+        # reading: a pipe or FIFO can be read only once.
+        written = sum(writer(session, dst).values())
         return ConvertResult(written, source_format, target_format)
 
     if target_format == "flexiport":
         prefix = _core.flexiport_prefix(dst) or dst
         if source_format in _RECORD_SOURCES:
-            with tempfile.TemporaryDirectory(prefix="wiretape-convert-") as scratch:
-                session = os.path.join(scratch, "session.wtape")
-                header, records, _ = _records_of(src, source_format, choice)
-                written = _write_wiretape(session, header, records, report)
-                _core.export_flexiport(session, prefix, flexiport_format)
+            session = os.path.join(scratch, "session.wtape")
+            header, records, _ = _records_of(src, source_format, choice)
+            written = _write_wiretape(session, header, records, report)
+            _core.export_flexiport(session, prefix, flexiport_format)
         else:
             # Its count, not a reading of the output, which may be a FIFO or
             # /dev/null written through.

@@ -23,7 +23,7 @@ import base64
 import binascii
 import json
 import os
-from typing import Iterator, List, Optional, Tuple
+from typing import Dict, Iterator, List, Optional, Tuple
 
 from .. import _core
 from ..session import open_input
@@ -68,22 +68,38 @@ def _reserial_lines(path: str):
                 raise _error(path, number, "expected a JSON object {\"TEST NAME\": {\"rx\": ..., "
                                            "\"tx\": ...}}, as pytest-reserial writes", line_offset)
             for name, entry in item.items():
+                try:
+                    name.encode("utf-8")
+                except UnicodeEncodeError:  # JSON's "\ud800": no session can hold it
+                    raise _error(path, number, f"test {_shown(name)}: the name is not valid "
+                                               "UTF-8 (a lone surrogate)", line_offset) from None
                 yield number, line_offset, name, entry
 
 
 def reserial_tests(path) -> List[str]:
     """The names of the tests a cassette holds, in file order."""
     path = os.fspath(path)
-    names: List[str] = []
+    names: Dict[str, None] = {}  # ordered, and linear in the number of tests
     for _, _, name, _ in _reserial_lines(path):
-        if name not in names:
-            names.append(name)
-    return names
+        names.setdefault(name, None)
+    return list(names)
+
+
+def _shown(name: str, limit: int = 80) -> str:
+    """A test name as a message shows it: quoted, control characters
+    (terminal escapes) escaped, cut at `limit` characters."""
+    shown = repr(name[:limit])
+    return shown + (f" (cut, {len(name)} characters)" if len(name) > limit else "")
+
+
+def _listing(names: List[str], limit: int = 20) -> str:
+    shown = ", ".join(_shown(name) for name in names[:limit])
+    return shown + (f" and {len(names) - limit} more" if len(names) > limit else "")
 
 
 def _reserial_bytes(path: str, number: int, offset: int, name: str, entry: dict,
                     direction: str) -> bytes:
-    field = f"test {name!r}: {direction}"
+    field = f"test {_shown(name)}: {direction}"
     text = entry.get(direction, "")
     if not isinstance(text, str):
         raise _error(path, number, f"{field}: expected a string, got {type(text).__name__}", offset)
@@ -95,8 +111,9 @@ def _reserial_bytes(path: str, number: int, offset: int, name: str, entry: dict,
             raise _error(path, number, f"{field}: not base64 (no {direction}_encoding, so "
                                        f"pytest-reserial wrote base64): {error}", offset) from None
     if encoding != "utf-8":
-        raise _error(path, number, f"test {name!r}: {direction}_encoding: expected \"utf-8\" "
-                                   f"(or none: base64), got {encoding!r:.40}", offset)
+        raise _error(path, number, f"test {_shown(name)}: {direction}_encoding: expected "
+                                   f"\"utf-8\" (or none: base64), got {_shown(str(encoding), 40)}",
+                     offset)
     try:
         return text.encode("utf-8")
     except UnicodeEncodeError as error:
@@ -110,29 +127,28 @@ def reserial_records(path, test: Optional[str] = None):
     SessionError lists the tests it holds."""
     path = os.fspath(path)
     found = None
-    names: List[str] = []
+    names: Dict[str, None] = {}  # ordered, and linear in the number of tests
     for number, offset, name, entry in _reserial_lines(path):
         if not isinstance(entry, dict):
-            raise _error(path, number, f"test {name!r}: expected a JSON object with rx and tx",
-                         offset)
+            raise _error(path, number, f"test {_shown(name)}: expected a JSON object with rx "
+                                       "and tx", offset)
         unknown = [key for key in entry if key not in _RESERIAL_FIELDS]
         if unknown:
-            raise _error(path, number, f"test {name!r}: unknown field {unknown[0][:40]!r} "
-                                       f"(pytest-reserial writes {', '.join(_RESERIAL_FIELDS)})",
-                         offset)
-        if name not in names:
-            names.append(name)
+            raise _error(path, number, f"test {_shown(name)}: unknown field "
+                                       f"{_shown(unknown[0], 40)} (pytest-reserial writes "
+                                       f"{', '.join(_RESERIAL_FIELDS)})", offset)
+        names.setdefault(name, None)
         # The first line of a name, as pytest-reserial itself replays.
         if found is None and (test is None or name == test):
             found = (number, offset, name, entry)
-    listing = ", ".join(names)
+    listing = _listing(list(names))
     if test is None and len(names) > 1:
         raise _error(path, None, f"a pytest-reserial cassette of {len(names)} tests: choose one "
                                  f"with --test NAME ({listing})")
     if found is None:
         if test is None:
             raise _error(path, None, "no test in this pytest-reserial cassette (an empty file)")
-        raise _error(path, None, f"no test {test!r} in this pytest-reserial cassette: it holds "
+        raise _error(path, None, f"no test {_shown(test)} in this pytest-reserial cassette: it holds "
                                  f"{listing or 'none'}")
     number, offset, name, entry = found
     rx = _reserial_bytes(path, number, offset, name, entry, "rx")
@@ -158,6 +174,11 @@ _UMOCKDEV_OPS = {b"r": "rx", b"w": "tx"}
 _UMOCKDEV_KNOWN = "r (read), w (write), f (fuzz), d (device), Q (stop), # (comment)"
 
 
+def _escaped(data: bytes) -> str:
+    """Bytes as a message shows them: control bytes and non-ASCII escaped."""
+    return data.decode("latin-1").encode("unicode_escape").decode("ascii")
+
+
 def _umockdev_data(text: bytes) -> bytes:
     """DATA unescaped: ``^`` + chr(b + 64) is the byte b < 32, ``^``` is ``^``;
     ValueError naming the column of a bad escape."""
@@ -180,7 +201,8 @@ def _umockdev_data(text: bytes) -> bytes:
         elif 0x40 <= code <= 0x5F:
             out.append(code - 0x40)
         else:
-            raise ValueError(f"bad escape '^{chr(code)}' at column {index + 1}: '^' is followed "
+            raise ValueError(f"bad escape '^{_escaped(bytes([code]))}' at column {index + 1}: "
+                             "'^' is followed "
                              "by one of @ A..Z [ \\ ] ^ _ (bytes 0..31) or ` (the '^' itself)")
         index += 2
     return bytes(out)
@@ -199,17 +221,20 @@ def _umockdev_lines(path: str):
         if op == b"Q":
             return
         if op not in (b"r", b"w", b"f", b"d"):
-            shown = op.decode("latin-1").encode("unicode_escape").decode("ascii")
+            shown = _escaped(op)
             raise _error(path, number, f"unknown operation {shown!r}: one of {_UMOCKDEV_KNOWN}",
                          line_offset)
         if line[1:2] != b" ":
             raise _error(path, number, f"expected '{op.decode()} VALUE DATA': a space after the "
                                        "operation", line_offset)
         value_text, space, data = line[2:].partition(b" ")
-        if not value_text.isdigit():
-            shown = value_text[:20].decode("latin-1").encode("unicode_escape").decode("ascii")
+        if not value_text.isdigit() or len(value_text) > 20:
+            shown = _escaped(value_text[:20])
+            if value_text.isdigit():
+                shown = f"a number of {len(value_text)} digits"
             raise _error(path, number, f"value: expected a whole number (milliseconds, or the "
-                                       f"fuzz percentage), got {shown!r}", line_offset)
+                                       f"fuzz percentage) of at most 20 digits, got {shown!r}",
+                         line_offset)
         if op in _UMOCKDEV_OPS and not space:
             raise _error(path, number, f"expected '{op.decode()} DELAY_MS DATA': no data after "
                                        "the delay", line_offset)
@@ -241,6 +266,9 @@ def umockdev_records(path):
         except ValueError as error:
             raise _error(path, number, f"data: {error}", offset) from None
         operations.append((_UMOCKDEV_OPS[op], value, payload, number, offset))
+    if not operations and device is None and fuzz is None:
+        raise _error(path, None, "no operation: an empty file, or only comments (an umockdev "
+                                 "script has r, w, f or d lines)")
     metadata = {}
     if device:
         metadata["umockdev.device"] = device
@@ -255,6 +283,10 @@ def umockdev_records(path):
         for kind, delay_ms, payload, number, offset in operations:
             t_ms += delay_ms
             t_ns = t_ms * 1_000_000
+            if t_ns > _core.MAX_RECORD_T_NS:
+                raise _error(path, number, f"delay: the delays add up to {t_ms} ms here, beyond "
+                                           f"the {_core.MAX_RECORD_T_NS // 1_000_000} ms a "
+                                           "session can hold", offset)
             if not payload:
                 continue
             problem = _core.record_content_problem(kind, t_ns, payload)

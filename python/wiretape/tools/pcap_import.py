@@ -23,13 +23,15 @@ import base64
 import dataclasses
 import datetime as _datetime
 import os
+import re
 import shutil
 from typing import Dict, Iterator, List, Optional, Sequence, Tuple
 
 from .. import _core
 from ..children import Child
 
-__all__ = ["CaptureError", "Conversation", "conversations", "read_capture", "is_capture"]
+__all__ = ["CaptureError", "CaptureGap", "Conversation", "conversations", "read_capture",
+           "is_capture"]
 
 # A capture's first four bytes: pcap (both byte orders, micro- and
 # nanosecond variants) and pcapng's section header block.
@@ -43,8 +45,12 @@ _FIELDS = (
     "ip.src", "ip.dst", "ipv6.src", "ipv6.dst",
     "tcp.srcport", "tcp.dstport", "udp.srcport", "udp.dstport",
     "tcp.flags.syn", "tcp.flags.ack", "tcp.flags.fin", "tcp.flags.reset",
-    "tcp.len", "udp.length",
+    "tcp.len", "udp.length", "tcp.seq", "tcp.ack",
 )
+
+# What tshark's "follow" writes in place of bytes the capture lost: text in
+# the stream, never to be taken for payload.
+_MISSING_MARKER = re.compile(rb"\[([0-9]{1,20}) bytes missing in capture file\]\x00?")
 
 _TIMEOUT_S = 600
 
@@ -77,10 +83,20 @@ def _epoch_ns(text: str) -> int:
     return int(whole) * 1_000_000_000 + int((fraction + "000000000")[:9])
 
 
-def _utc_text(epoch_ns: int) -> str:
+def _utc_text(epoch_ns: int) -> Optional[str]:
+    """The time as UTC text; None when no calendar date holds it (a
+    timestamp near 2^64, before year 1)."""
     seconds, ns = divmod(epoch_ns, 1_000_000_000)
-    moment = _datetime.datetime.fromtimestamp(seconds, tz=_datetime.timezone.utc)
+    try:
+        moment = _datetime.datetime.fromtimestamp(seconds, tz=_datetime.timezone.utc)
+    except (OverflowError, ValueError, OSError):  # OSError: EOVERFLOW from the C library
+        return None
     return moment.strftime("%Y-%m-%dT%H:%M:%S") + f".{ns:09d}Z"
+
+
+def _seconds_text(ns: int) -> str:
+    text = f"{ns / 1e9:.9g}"
+    return text if len(text) <= 30 else f"a number of {len(str(ns))} digits"
 
 
 def _address(host: str, port: int) -> str:
@@ -108,6 +124,22 @@ class _Packet:
     fin: bool
     reset: bool
     payload_size: int
+    seq: Optional[int] = None  # tshark's relative sequence number (TCP)
+    acknowledged: Optional[int] = None  # relative acknowledgement number, when ACK is set
+
+
+@dataclasses.dataclass(frozen=True)
+class CaptureGap:
+    """Bytes of one direction of a TCP stream that the capture lost."""
+
+    direction: str  # "rx" (device to client) or "tx"
+    offset: int  # the first lost byte, from the start of that direction
+    length: int
+
+    def describe(self, stream: str) -> str:
+        side = "device to client (rx)" if self.direction == "rx" else "client to device (tx)"
+        return (f"{stream}: {self.length} bytes missing from the {side} stream at offset "
+                f"{self.offset}")
 
 
 @dataclasses.dataclass
@@ -161,9 +193,14 @@ class Conversation:
 def _run_tshark(path: str, arguments: Sequence[str]) -> str:
     """tshark's standard output; CaptureError naming the file (and the
     packet, where tshark says) when tshark cannot read it."""
-    command = [_tshark(), "-n", "-r", path, *arguments]
-    outcome = Child(command, separate_stderr=True, text=True,
-                    env={**os.environ, "LC_ALL": "C"}).run(_TIMEOUT_S)
+    # Relative sequence numbers whatever the user's preferences: the gap
+    # check counts bytes from the start of each direction.
+    command = [_tshark(), "-n", "-o", "tcp.relative_sequence_numbers:TRUE", "-r", path,
+               *arguments]
+    # Interrupted (SIGINT, SIGTERM), the block ends tshark: none is left behind.
+    with Child(command, separate_stderr=True, text=True,
+               env={**os.environ, "LC_ALL": "C"}) as child:
+        outcome = child.run(_TIMEOUT_S)
     if outcome.timed_out:
         raise CaptureError(f"{path}: tshark took more than {_TIMEOUT_S} s to read it")
     stdout, stderr = str(outcome.stdout), str(outcome.stderr)
@@ -202,6 +239,10 @@ def _field(row: Dict[str, str], name: str) -> str:
     return row.get(name, "")
 
 
+def _number(text: str) -> Optional[int]:
+    return int(text) if text.isdigit() else None
+
+
 def _packets(path: str) -> Iterator[Tuple[str, int, _Packet]]:
     """(protocol, stream index, packet) for every TCP or UDP packet."""
     arguments = ["-T", "fields", "-E", "separator=/t", "-E", "occurrence=f"]
@@ -234,6 +275,9 @@ def _packets(path: str) -> Iterator[Tuple[str, int, _Packet]]:
             fin=flag("tcp.flags.fin"), reset=flag("tcp.flags.reset"),
             payload_size=payload,
         )
+        if protocol == "tcp":
+            packet.seq = _number(_field(row, "tcp.seq"))
+            packet.acknowledged = _number(_field(row, "tcp.ack")) if packet.ack else None
         yield protocol, int(row[f"{protocol}.stream"]), packet
 
 
@@ -319,8 +363,9 @@ def choose(path: str, stream: Optional[str] = None,
     return conversation, conversation.device(device)
 
 
-def _follow_chunks(path: str, conversation: Conversation) -> Iterator[Tuple[Tuple[str, int], int, bytes]]:
-    """(sender, epoch ns, bytes) per chunk of the reassembled stream, from
+def _follow_chunks(path: str, conversation: Conversation
+                   ) -> Iterator[Tuple[Tuple[str, int], int, Optional[int], bytes]]:
+    """(sender, epoch ns, packet number, bytes) per chunk of the reassembled stream, from
     ``tshark -z follow,PROTO,yaml,N``."""
     output = _run_tshark(path, ["-q", "-z", f"follow,{conversation.protocol},yaml,"
                                             f"{conversation.index}"])
@@ -334,7 +379,7 @@ def _follow_chunks(path: str, conversation: Conversation) -> Iterator[Tuple[Tupl
         if "peer" in item:
             sender = peers[int(item["peer"])]
             data = base64.b64decode("".join(data_lines)) if data_lines else b""
-            return sender, _epoch_ns(item["timestamp"]), data
+            return sender, _epoch_ns(item["timestamp"]), _number(item.get("packet", "")), data
         return None
 
     for raw in output.splitlines():
@@ -372,20 +417,113 @@ def _follow_chunks(path: str, conversation: Conversation) -> Iterator[Tuple[Tupl
             yield chunk
 
 
+@dataclasses.dataclass
+class _Extent:
+    """What the sequence numbers say of one direction of a TCP stream."""
+
+    start: int  # the relative sequence number of its first byte
+    length: int  # how far it is known to have reached, in bytes
+    holes: List[CaptureGap]  # the bytes no captured segment claims
+
+
+def _sequence_extents(conversation: Conversation, device: Tuple[str, int]) -> Dict[str, _Extent]:
+    """Each direction of a TCP conversation from its sequence numbers:
+    from the SYN (or the first segment seen) to the furthest byte the stream
+    is known to have reached (a segment's end, its FIN, or what the other
+    side acknowledged), and the bytes between that no segment claims."""
+    extents: Dict[str, _Extent] = {}
+    for direction in ("rx", "tx"):
+        from_device = direction == "rx"
+        # (sequence number, packet) of this direction's segments
+        mine = [(p.seq, p) for p in conversation.packets
+                if (p.src == device) == from_device and p.seq is not None]
+        acknowledged = [p.acknowledged for p in conversation.packets
+                        if (p.src == device) != from_device and p.acknowledged is not None]
+        syn = any(p.syn for _, p in mine)
+        covered = sorted((seq, seq + p.payload_size) for seq, p in mine if p.payload_size > 0)
+        if not covered and not syn:
+            continue
+        start = 1 if syn else covered[0][0]
+        fins = [seq for seq, p in mine if p.fin]
+        if fins:
+            end = min(fins)
+        else:
+            end = max([last for _, last in covered] +
+                      [ack for ack in acknowledged if ack >= start] + [start])
+        holes = []
+        position = start
+        for first, last in covered:
+            if first > position and position < end:
+                holes.append(CaptureGap(direction, position - start, min(first, end) - position))
+            position = max(position, last)
+        if position < end:
+            holes.append(CaptureGap(direction, position - start, end - position))
+        extents[direction] = _Extent(start, max(end - start, 0), holes)
+    return extents
+
+
+def _is_marker(data: bytes, epoch_ns: int, sender: Tuple[str, int],
+               packets: Dict[int, _Packet], number: Optional[int]) -> Optional[int]:
+    """The byte count tshark's "[N bytes missing in capture file]" stands
+    for, when `data` is that marker and not bytes the packet carried."""
+    match = _MISSING_MARKER.fullmatch(data)
+    if match is None:
+        return None
+    packet = packets.get(number) if number is not None else None
+    # tshark's follow prints times through a double: close, not equal.
+    if packet is not None and packet.src == sender and abs(packet.epoch_ns - epoch_ns) < 1_000_000 \
+            and packet.payload_size >= len(data):
+        return None  # a segment really carried this text
+    return int(match.group(1))
+
+
 def read_capture(path: str, stream: Optional[str] = None,
-                 device_addr: Optional[str] = None
+                 device_addr: Optional[str] = None, allow_gaps: bool = False
                  ) -> Tuple[_core.SessionHeader, List[Tuple[str, int, bytes]]]:
     """The session of one conversation of the capture `path`: its header
     (as convert's other sources give it) and records (kind, t_ns, data) in
-    time order."""
+    time order.
+
+    Bytes the capture lost (a TCP sequence hole, or tshark's "[N bytes
+    missing in capture file]") are never payload: CaptureError names the
+    stream, the direction and the offset, unless `allow_gaps`, which
+    records a ``capture_gap`` event (direction, offset, length) there and
+    no bytes."""
     with open(path, "rb"):  # missing, unreadable: an OSError naming the file (exit 3)
         pass
     conversation, device = choose(path, stream, device_addr)
-    start_ns = conversation.packets[0].epoch_ns
+    first = conversation.packets[0]
+    start_ns = first.epoch_ns
+    start_utc = _utc_text(start_ns)
+    if start_utc is None:
+        raise CaptureError(f"{path}: packet {first.number}: timestamp {_seconds_text(start_ns)} s "
+                           f"since 1970 is not a date (the capture's times are damaged)", 0)
+    device_host, device_port = device
+    header = _core.SessionHeader(
+        port_type=conversation.protocol,
+        port_options=f"type={conversation.protocol},"
+                     f"host={_core.quote_option_value(device_host)},port={device_port}",
+        capture="wire",
+        start_utc=start_utc,
+        source_format="pcap",
+        source_files=[os.path.basename(path)],
+        source_details={"stream": conversation.name},
+        device_address=_address(device_host, device_port),
+    )
+    try:
+        header.to_json()  # what the session writer would refuse, refused here
+    except _core.OptionError as error:
+        raise CaptureError(f"{path}: {conversation.name}: no session can start as its first "
+                           f"packet ({first.number}) says: {error}", 0) from None
     records: List[Tuple[int, int, str, bytes]] = []  # (t_ns, order, kind, data)
 
     def add(epoch_ns: int, kind: str, data: bytes) -> None:
-        records.append((max(epoch_ns - start_ns, 0), len(records), kind, data))
+        t_ns = max(epoch_ns - start_ns, 0)
+        if t_ns > _core.MAX_RECORD_T_NS:
+            raise CaptureError(f"{path}: a packet {_seconds_text(t_ns)} s after the first: "
+                               f"beyond the {_seconds_text(_core.MAX_RECORD_T_NS)} s a session "
+                               f"can hold (the capture's times are damaged)", 0)
+        records.append((t_ns, len(records), kind, data))
 
     client = next((side for side in conversation.endpoints if side != device),
                   conversation.endpoints[0])
@@ -395,34 +533,81 @@ def read_capture(path: str, stream: Optional[str] = None,
         if syn is not None:
             add(syn.epoch_ns, "client_connect",
                 _core.event_payload("client_connect", {"peer": client_text, "role": "control"}))
+    extents = (_sequence_extents(conversation, device) if conversation.protocol == "tcp"
+               else {})
+    holes = {direction: list(extents[direction].holes) if direction in extents else []
+             for direction in ("rx", "tx")}
+    packets = {packet.number: packet for packet in conversation.packets}
+    offsets = {"rx": 0, "tx": 0}
+
+    def gap(epoch_ns: int, found: CaptureGap) -> None:
+        if not allow_gaps:
+            raise CaptureError(f"{path}: {found.describe(conversation.name)}: the capture lost "
+                               f"them, and an import never invents bytes; --allow-gaps imports "
+                               f"the rest with a capture_gap event there", 0)
+        add(epoch_ns, "capture_gap", _core.event_payload(
+            "capture_gap", {"direction": found.direction, "offset": found.offset,
+                            "length": found.length}))
+        offsets[found.direction] = found.offset + found.length
+
+    def holes_before(direction: str, epoch_ns: int, offset: int) -> None:
+        """The sequence holes up to `offset` (tshark may pass over a lost
+        segment without a marker)."""
+        pending = holes[direction]
+        while pending and pending[0].offset <= offset:
+            hole = pending.pop(0)
+            lost_from, lost_to = max(hole.offset, offsets[direction]), hole.offset + hole.length
+            if lost_to > lost_from:
+                gap(epoch_ns, CaptureGap(direction, lost_from, lost_to - lost_from))
+
     last_data_ns = start_ns
-    for sender, epoch_ns, data in _follow_chunks(path, conversation):
+    for sender, epoch_ns, number, data in _follow_chunks(path, conversation):
         if not data:
+            continue
+        direction = "rx" if sender == device else "tx"
+        missing = _is_marker(data, epoch_ns, sender, packets, number)
+        if missing is not None:
+            holes_before(direction, last_data_ns, offsets[direction] - 1)
+            found = CaptureGap(direction, offsets[direction], missing)
+            # The sequence hole it stands for is this gap.
+            holes[direction] = [h for h in holes[direction]
+                                if h.offset + h.length <= found.offset
+                                or h.offset >= found.offset + found.length]
+            gap(last_data_ns, found)
             continue
         # tshark gives the chunks in stream order, each with its packet's
         # time: bytes that came before a missing segment reach the receiver
         # only when it arrives, so a chunk is never earlier than the last.
         last_data_ns = max(last_data_ns, epoch_ns)
-        add(last_data_ns, "rx" if sender == device else "tx", data)
+        holes_before(direction, last_data_ns, offsets[direction])
+        packet = packets.get(number) if number is not None else None
+        if direction in extents and packet is not None and packet.src == sender \
+                and packet.seq is not None:
+            # A segment cut short by the capture's snapshot length: tshark
+            # gives what was captured, and the next segment starts later.
+            expected = packet.seq - extents[direction].start
+            if expected > offsets[direction]:
+                gap(last_data_ns, CaptureGap(direction, offsets[direction],
+                                             expected - offsets[direction]))
+        add(last_data_ns, direction, data)
+        offsets[direction] += len(data)
+        if conversation.protocol == "udp" and packet is not None \
+                and packet.payload_size > len(data):
+            # A datagram cut short by the capture's snapshot length.
+            gap(last_data_ns, CaptureGap(direction, offsets[direction],
+                                         packet.payload_size - len(data)))
+    for direction in ("rx", "tx"):
+        holes_before(direction, last_data_ns, 1 << 64)
+        if direction in extents and offsets[direction] < extents[direction].length:
+            gap(last_data_ns, CaptureGap(direction, offsets[direction],
+                                         extents[direction].length - offsets[direction]))
     if conversation.protocol == "tcp":
         ends = [p for p in conversation.packets if p.fin or p.reset]
         if ends:
-            first, last = ends[0], ends[-1]
-            by = "the client" if first.src == client else "the device"
-            reason = f"{'reset' if first.reset else 'closed'} by {by}"
-            add(max(last.epoch_ns, last_data_ns), "client_disconnect",
+            first_end, last_end = ends[0], ends[-1]
+            by = "the client" if first_end.src == client else "the device"
+            reason = f"{'reset' if first_end.reset else 'closed'} by {by}"
+            add(max(last_end.epoch_ns, last_data_ns), "client_disconnect",
                 _core.event_payload("client_disconnect", {"peer": client_text, "reason": reason}))
     records.sort()
-    device_host, device_port = device
-    header = _core.SessionHeader(
-        port_type=conversation.protocol,
-        port_options=f"type={conversation.protocol},"
-                     f"host={_core.quote_option_value(device_host)},port={device_port}",
-        capture="wire",
-        start_utc=_utc_text(start_ns),
-        source_format="pcap",
-        source_files=[os.path.basename(path)],
-        source_details={"stream": conversation.name},
-        device_address=_address(device_host, device_port),
-    )
     return header, [(kind, t_ns, data) for t_ns, _, kind, data in records]

@@ -129,9 +129,9 @@ BAD = {
     "bad_encoding": ([{"test_a": {"rx": "A", "tx": "", "rx_encoding": "latin-1"}}], None, 1,
                      "rx_encoding: expected \"utf-8\""),
     "several_tests_no_name": ([GOOD, {"test_b": {"rx": "", "tx": ""}}], None, None,
-                              "choose one with --test NAME (test_a, test_b)"),
+                              "choose one with --test NAME ('test_a', 'test_b')"),
     "no_such_test": ([GOOD], "test_z", None, "no test 'test_z' in this pytest-reserial "
-                                             "cassette: it holds test_a"),
+                                             "cassette: it holds 'test_a'"),
     "empty": ([], None, None, "no test in this pytest-reserial cassette"),
 }
 
