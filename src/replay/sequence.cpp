@@ -12,6 +12,7 @@ SequenceStrategy::SequenceStrategy(const ReplayConfig& config,
                                    ReleasedRx& released, MismatchReport& report,
                                    const RecordSourceFactory& sources)
     : config_(config),
+      empty_datagrams_(replays_empty_datagrams(config)),
       timeline_(timeline),
       released_(released),
       report_(report),
@@ -64,6 +65,7 @@ void SequenceStrategy::fill() {
                            view ? view.bytes : std::string_view(record.data));
     switch (record.kind) {
       case RecordKind::tx:
+        if (empty_datagrams_) ++rx_tx_datagrams_seen_;
         if (size == 0) break;
         rx_tx_seen_ += size;
         rx_last_tx_t_ns_ = record.t_ns;
@@ -75,7 +77,7 @@ void SequenceStrategy::fill() {
       case RecordKind::rx:
       case RecordKind::close:
       case RecordKind::device_lost: {
-        if (record.kind == RecordKind::rx && size == 0) break;
+        if (record.kind == RecordKind::rx && size == 0 && !empty_datagrams_) break;
         if (record.kind == RecordKind::close && !session_goes_on(*rx_source_)) {
           rx_exhausted_ = true;
           break;
@@ -84,7 +86,7 @@ void SequenceStrategy::fill() {
         ahead.item.kind = record.kind;
         ahead.item.t_ns = record.t_ns;
         ahead.item.exchange = exchange;
-        ahead.tx_before = rx_tx_seen_;
+        ahead.tx_before = rx_tx_progress();
         ahead.anchor_t_ns = rx_last_tx_t_ns_;
         ahead.flushes_before = rx_flushes_seen_;
         ahead_bytes_ += size;
@@ -123,7 +125,7 @@ void SequenceStrategy::entitle() {
     // A client flush recorded before it (pyserial's, gpsd's on open) would
     // have discarded it had it come earlier: it waits for the client's.
     const bool entitled = config_.timing == ReplayTiming::session ||
-                          (tx_written_ >= ahead.tx_before &&
+                          (tx_progress() >= ahead.tx_before &&
                            client_flushes_ >= ahead.flushes_before);
     if (!entitled) break;  // later records need at least as many tx bytes
     std::optional<ReplayTimeline::Anchor> anchor;
@@ -145,7 +147,7 @@ void SequenceStrategy::entitle() {
   }
   // Finish times the read cursor will never ask for again.
   const std::uint64_t still_needed =
-      ahead_.empty() ? rx_tx_seen_ : ahead_.front().tx_before;
+      ahead_.empty() ? rx_tx_progress() : ahead_.front().tx_before;
   while (tx_ends_.size() > 1 && tx_ends_.front().end_offset < still_needed) {
     tx_ends_.pop_front();
   }
@@ -178,7 +180,7 @@ bool SequenceStrategy::next_tx_record() {
     const std::uint64_t exchange = tx_exchanges_.feed(record);
     switch (record.kind) {
       case RecordKind::tx:
-        if (record.data.empty()) break;
+        if (record.data.empty() && !empty_datagrams_) break;
         tx_exchange_ = static_cast<std::int64_t>(exchange);
         tx_record_ = std::move(record);
         tx_position_ = 0;
@@ -304,8 +306,10 @@ void SequenceStrategy::write(const char* data, std::size_t size, ReplayTime now)
 void SequenceStrategy::write_records(const char* data, std::size_t size,
                                      ReplayTime now) {
   const bool compare = config_.check != ReplayCheck::off;
+  if (size == 0 && !empty_datagrams_) return;
   std::size_t done = 0;
-  while (done < size) {
+  // Once at least: an empty datagram is a write of one record.
+  do {
     const std::string_view rest(data + done, size - done);
     if (!next_tx_record()) {
       if (tx_hit_close_) {
@@ -386,13 +390,14 @@ void SequenceStrategy::write_records(const char* data, std::size_t size,
       }
     }
     tx_recorded_done_ += expected.size();
-    tx_ends_.push_back({tx_written_, now});
+    if (empty_datagrams_) ++tx_datagrams_written_;
+    tx_ends_.push_back({tx_progress(), now});
     previous_tx_finished_ = now;
     previous_tx_t_ns_ = tx_record_.t_ns;
     have_tx_record_ = false;
     done += accepted;
     if (config_.datagrams) return;
-  }
+  } while (done < size);
 }
 
 // --- recorded events ---------------------------------------------------------------
@@ -473,6 +478,14 @@ constexpr std::uint64_t kUnusedScanBytes = 1 << 20;
 constexpr std::uint64_t kUnusedScanRecords = 4096;
 
 }  // namespace
+
+std::uint64_t SequenceStrategy::rx_tx_progress() const {
+  return empty_datagrams_ ? rx_tx_datagrams_seen_ : rx_tx_seen_;
+}
+
+std::uint64_t SequenceStrategy::tx_progress() const {
+  return empty_datagrams_ ? tx_datagrams_written_ : tx_written_;
+}
 
 std::uint64_t SequenceStrategy::tx_consumed() const {
   return tx_recorded_done_ + (have_tx_record_ ? tx_position_ : 0);
