@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "posix/syscalls.hpp"
+#include "posix/transports.hpp"
 #include "session/record_source.hpp"
 #include "replay/replay_config.hpp"
 #include "replay/replay_engine.hpp"
@@ -332,6 +333,37 @@ TEST(ReplaySequence, DatagramSessionsKeepRecordBoundaries) {
   EXPECT_EQ(read_some(*port, 3), "sec");  // truncated, as recv does
   EXPECT_EQ(read_some(*port, 100, 0ms), "");
   EXPECT_THROW(port->write("Q"), ReplayMismatch);  // half a datagram
+}
+
+// An empty datagram is a record like any other (DESIGN.md section 23): the
+// replay of a datagram session says it through DatagramPort, where a Port's
+// read of 0 bytes cannot.
+TEST(ReplaySequence, EmptyDatagramsAreServedAndCheckedAtTheirPlace) {
+  auto port = replay({tx(0, ""), rx(1, ""), tx(2, "Q"), rx(3, "A")}, "timing=none",
+                     /*datagrams=*/true);
+  auto* datagrams = dynamic_cast<detail::DatagramPort*>(port.get());
+  ASSERT_NE(datagrams, nullptr);
+  char buffer[16];
+  EXPECT_EQ(datagrams->receive_datagram(buffer, sizeof buffer), std::nullopt);
+  EXPECT_TRUE(datagrams->send_empty_datagram());
+  EXPECT_EQ(datagrams->receive_datagram(buffer, sizeof buffer), std::optional<std::size_t>(0));
+  EXPECT_EQ(datagrams->receive_datagram(buffer, sizeof buffer), std::nullopt);
+  port->write("Q");
+  ASSERT_EQ(datagrams->receive_datagram(buffer, sizeof buffer), std::optional<std::size_t>(1));
+  EXPECT_EQ(buffer[0], 'A');
+}
+
+TEST(ReplaySequence, ADatagramWhereAnEmptyOneWasRecordedIsAMismatch) {
+  auto port = replay({tx(0, ""), rx(1, ""), tx(2, "Q"), rx(3, "A")}, "timing=none",
+                     /*datagrams=*/true);
+  EXPECT_THROW(port->write("Q"), ReplayMismatch);
+}
+
+TEST(ReplaySequence, AnEmptyDatagramWhereBytesWereRecordedIsAMismatch) {
+  auto port = replay({tx(0, "Q"), rx(1, "A")}, "timing=none", /*datagrams=*/true);
+  auto* datagrams = dynamic_cast<detail::DatagramPort*>(port.get());
+  ASSERT_NE(datagrams, nullptr);
+  EXPECT_THROW(datagrams->send_empty_datagram(), ReplayMismatch);
 }
 
 TEST(ReplaySequence, UdpSessionFileReplaysAsDatagrams) {
