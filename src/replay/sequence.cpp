@@ -356,7 +356,7 @@ void SequenceStrategy::write_records(const char* data, std::size_t size,
                       tx_written_,
                       std::string_view(expected).substr(0, kReplayContext),
                       rest.substr(0, kReplayContext), tx_record_.t_ns,
-                      tx_exchange_);
+                      tx_exchange_, {}, /*expected_is_datagram=*/true);
       }
       // One datagram is one record, whatever its length.
       tx_written_ += expected.size();

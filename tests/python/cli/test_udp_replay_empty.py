@@ -87,6 +87,7 @@ def test_a_datagram_in_place_of_a_recorded_empty_one_is_a_mismatch(session_file)
     assert status == 1, err
     assert "the client's datagram differs from the recorded one " \
            "(5 bytes written, 0 recorded)" in err, err
+    assert "expected: (an empty datagram)" in err, err
 
 
 def test_an_empty_datagram_in_place_of_a_recorded_one_is_a_mismatch(session_file):
