@@ -6,6 +6,8 @@ datagram is checked against a recorded empty request under check=data."""
 import socket
 import subprocess
 
+import pytest
+
 from wiretape import bridge
 
 from devices import announced_address, interrupt, start_cli
@@ -29,8 +31,8 @@ def udp_socket():
     return sock
 
 
-def start_replay(path):
-    child = start_cli("replay", str(path), "--udp", "127.0.0.1:0", "--timing", "none")
+def start_replay(path, timing="none"):
+    child = start_cli("replay", str(path), "--udp", "127.0.0.1:0", "--timing", timing)
     return child, announced_address(child, "udp")
 
 
@@ -52,10 +54,11 @@ def record_empty_both_ways(out):
         assert handle.result().ok
 
 
-def test_a_recorded_empty_exchange_replays_as_empty_datagrams(tmp_path):
+@pytest.mark.parametrize("timing", ["none", "causal", "session"])
+def test_a_recorded_empty_exchange_replays_as_empty_datagrams(tmp_path, timing):
     out = tmp_path / "udp.wtape"
     record_empty_both_ways(out)
-    child, where = start_replay(out)
+    child, where = start_replay(out, timing)
     try:
         with udp_socket() as client:
             client.sendto(b"", where)
@@ -101,3 +104,19 @@ def test_an_empty_datagram_in_place_of_a_recorded_one_is_a_mismatch(session_file
     assert status == 1, err
     assert "the client's datagram differs from the recorded one " \
            "(0 bytes written, 4 recorded)" in err, err
+
+
+def test_a_peer_gets_an_unprompted_empty_datagram_at_its_place(session_file):
+    records = [("open", 0, b"{}"), ("rx", 1_000_000, b"scan 0"), ("rx", 2_000_000, b""),
+               ("rx", 3_000_000, b"scan 1"), ("close", 4_000_000, b"")]
+    path = session_file(records, port_type="udp")
+    with udp_socket() as peer:
+        host, port = peer.getsockname()
+        child = start_cli("replay", str(path), "--udp", "127.0.0.1:0",
+                          "--peer", "%s:%d" % (host, port), "--timing", "none")
+        try:
+            got = [peer.recv(65535) for _ in range(3)]
+        finally:
+            status, _, err = interrupt(child)
+    assert got == [b"scan 0", b"", b"scan 1"]
+    assert status == 0, err
