@@ -511,6 +511,14 @@ std::string SequenceStrategy::unused_report(std::uint64_t queued_rx_bytes,
   const auto tx_unused = [&] {
     return tx_seen > tx_consumed() ? tx_seen - tx_consumed() : 0;
   };
+  // Where empty datagrams are records, one unused is unused too.
+  std::uint64_t tx_datagrams_seen = rx_tx_datagrams_seen_;
+  const auto tx_datagrams_unused = [&]() -> std::uint64_t {
+    if (!empty_datagrams_) return 0;
+    return tx_datagrams_seen > tx_datagrams_written_ ? tx_datagrams_seen - tx_datagrams_written_
+                                                     : 0;
+  };
+  const auto rx_unused = [&] { return rx_bytes > 0 || (empty_datagrams_ && rx_records > 0); };
   bool more = false;
   std::uint64_t scanned_records = 0;
   std::uint64_t scanned_bytes = 0;
@@ -522,36 +530,42 @@ std::string SequenceStrategy::unused_report(std::uint64_t queued_rx_bytes,
         record.kind == RecordKind::device_lost) {
       break;
     }
-    if (record.kind == RecordKind::rx && size > 0) {
+    if (record.kind == RecordKind::rx && (size > 0 || empty_datagrams_)) {
       rx_bytes += size;
       ++rx_records;
     }
-    if (record.kind == RecordKind::tx) tx_seen += size;
+    if (record.kind == RecordKind::tx) {
+      tx_seen += size;
+      ++tx_datagrams_seen;
+    }
     ++scanned_records;
     scanned_bytes += size;
     // Until something unused is found the scan is still within what the
     // client wrote (or events), so it only stops once it has.
     if ((scanned_bytes >= kUnusedScanBytes ||
          scanned_records >= kUnusedScanRecords) &&
-        (rx_bytes > 0 || tx_unused() > 0)) {
+        (rx_unused() || tx_unused() > 0 || tx_datagrams_unused() > 0)) {
       more = true;
       break;
     }
   }
   rx_exhausted_ = true;
   const std::uint64_t tx_bytes = tx_unused();
+  const std::uint64_t tx_datagrams = tx_datagrams_unused();
   tx_exhausted_ = true;
   have_tx_record_ = false;
   const std::string at_least = more ? "at least " : "";
   std::string report;
-  if (rx_bytes > 0) {
+  if (rx_unused()) {
     report = at_least + std::to_string(rx_bytes) + " recorded rx bytes (" +
              at_least + std::to_string(rx_records) + " records) were never read";
   }
-  if (tx_bytes > 0) {
-    if (rx_bytes > 0) report += "; ";
-    report += at_least + std::to_string(tx_bytes) +
-              " recorded tx bytes were never written";
+  if (tx_bytes > 0 || tx_datagrams > 0) {
+    if (!report.empty()) report += "; ";
+    report += at_least + std::to_string(tx_bytes) + " recorded tx bytes " +
+              (empty_datagrams_ ? "(" + at_least + std::to_string(tx_datagrams) + " datagrams) "
+                                : std::string()) +
+              "were never written";
   }
   if (more) report += " (the rest of the recording was not counted)";
   return report;

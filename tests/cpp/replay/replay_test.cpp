@@ -532,6 +532,25 @@ TEST(ReplayEnd, UnusedReportCountsExactlyUnderTheBound) {
   }
 }
 
+// An empty datagram a client never read or wrote is a record unused like any
+// other (DESIGN.md section 23).
+TEST(ReplayEnd, UnusedEmptyDatagramsAreReported) {
+  auto port = replay({tx(0, "Q"), rx(1, "A"), tx(2, ""), rx(3, "")},
+                     "timing=none,unused=error", /*datagrams=*/true);
+  port->write("Q");
+  EXPECT_EQ(read_some(*port), "A");
+  try {
+    port->close();
+    FAIL() << "the unused empty datagrams were not reported";
+  } catch (const ReplayMismatch& mismatch) {
+    const std::string report = mismatch.what();
+    EXPECT_NE(report.find(": 0 recorded rx bytes (1 records) were never read; "
+                          "0 recorded tx bytes (1 datagrams) were never written"),
+              std::string::npos)
+        << report;
+  }
+}
+
 // The write cursor's source is not read at close: what the client never
 // wrote is counted from where the read cursor got to, exactly, even after a
 // long stream the client read in full.
