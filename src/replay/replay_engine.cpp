@@ -58,7 +58,15 @@ void ReplayEngine::raise_device_gone(const RxItem& item) const {
 }
 
 std::size_t ReplayEngine::read(char* buffer, std::size_t size, ReplayTime now) {
-  if (config_.datagrams) return read_datagram(buffer, size, now).value_or(0);
+  if (config_.datagrams) {
+    // A read of 0 bytes says nothing is due: an empty datagram is passed
+    // over here (read_datagram serves it).
+    for (;;) {
+      const std::optional<std::size_t> n = read_datagram(buffer, size, now);
+      if (!n) return 0;
+      if (*n > 0 || size == 0) return *n;
+    }
+  }
   prepare(now);
   std::size_t copied = 0;
   while (copied < size) {
@@ -116,6 +124,7 @@ std::size_t ReplayEngine::available(ReplayTime now) {
   stage_.loss(now);  // drops a reconnect that is over
   stage_.visit([&](const RxItem& item) {
     if (item.kind != RecordKind::rx || !is_due(item, now)) return false;
+    if (config_.datagrams && item.payload().empty()) return true;  // read() passes it over
     total += config_.datagrams ? item.payload().size() : item.payload().size() - item.consumed;
     return !config_.datagrams;
   });

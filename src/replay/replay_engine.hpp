@@ -43,6 +43,7 @@ class ReplayEngine {
   // Copies released, due bytes (at most one datagram in datagram sessions);
   // 0 when nothing is readable now. Raises PortClosed when the next thing
   // the recording holds is a close or a device loss that is due.
+  // An empty datagram is passed over: 0 would say that nothing is due.
   std::size_t read(char* buffer, std::size_t size, ReplayTime now);
   // In a datagram session: the next due datagram, truncated to `size` as
   // recv does (0 for an empty one); nothing when none is due now. Raises as

@@ -353,6 +353,14 @@ TEST(ReplaySequence, EmptyDatagramsAreServedAndCheckedAtTheirPlace) {
   EXPECT_EQ(buffer[0], 'A');
 }
 
+// Through Port::read, where 0 bytes means nothing now, an empty datagram is
+// passed over: available() and read() see the next one.
+TEST(ReplaySequence, APortReadPassesOverAnEmptyDatagram) {
+  auto port = replay({rx(0, ""), rx(1, "one")}, "timing=none", /*datagrams=*/true);
+  EXPECT_EQ(port->available(), 3u);
+  EXPECT_EQ(read_some(*port, 100, 0ms), "one");
+}
+
 TEST(ReplaySequence, ADatagramWhereAnEmptyOneWasRecordedIsAMismatch) {
   auto port = replay({tx(0, ""), rx(1, ""), tx(2, "Q"), rx(3, "A")}, "timing=none",
                      /*datagrams=*/true);
