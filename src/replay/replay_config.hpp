@@ -49,6 +49,14 @@ struct ReplayConfig {
   FaultPlan faults;
 };
 
+// Whether empty tx and rx records are datagrams that the replay serves and
+// checks like any other (DESIGN.md section 23): in a datagram session
+// matched in sequence without a profile, whose framers cannot frame an
+// empty datagram. Elsewhere an empty record means nothing and is skipped.
+inline bool replays_empty_datagrams(const ReplayConfig& config) {
+  return config.datagrams && config.match == ReplayMatch::sequence && !config.profile;
+}
+
 // Consumes the replay keys of `options` (and flexiport's spellings:
 // strictness, ignoretimes, jitter), then refuses any key left, so the keys
 // that are not replay keys must have been taken before. Throws OptionError

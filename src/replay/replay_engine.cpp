@@ -49,7 +49,24 @@ void ReplayEngine::prepare(ReplayTime now) {
   stage_.pull(now);
 }
 
+// Raises PortClosed for what the stage holds instead of due rx: a fault's
+// loss, a recorded close or device loss.
+void ReplayEngine::raise_device_gone(const RxItem& item) const {
+  throw PortClosed("replay of " + config_.file + ": the recorded device " +
+                   (item.kind == RecordKind::close ? "was closed" : "went away") +
+                   " at session time " + session_seconds(item.t_ns) + " s");
+}
+
 std::size_t ReplayEngine::read(char* buffer, std::size_t size, ReplayTime now) {
+  if (config_.datagrams) {
+    // A read of 0 bytes says nothing is due: an empty datagram is passed
+    // over here (read_datagram serves it).
+    for (;;) {
+      const std::optional<std::size_t> n = read_datagram(buffer, size, now);
+      if (!n) return 0;
+      if (*n > 0 || size == 0) return *n;
+    }
+  }
   prepare(now);
   std::size_t copied = 0;
   while (copied < size) {
@@ -66,20 +83,9 @@ std::size_t ReplayEngine::read(char* buffer, std::size_t size, ReplayTime now) {
     if (!is_due(item, now)) break;
     if (item.kind != RecordKind::rx) {
       if (copied > 0) break;
-      throw PortClosed("replay of " + config_.file + ": the recorded device " +
-                       (item.kind == RecordKind::close ? "was closed"
-                                                       : "went away") +
-                       " at session time " + session_seconds(item.t_ns) + " s");
+      raise_device_gone(item);
     }
     const std::string_view payload = item.payload();
-    if (config_.datagrams) {
-      if (copied > 0) break;
-      // One datagram per read; a shorter read truncates it, as recv does.
-      const std::size_t n = std::min(size, payload.size());
-      std::memcpy(buffer, payload.data(), n);
-      stage_.pop();
-      return n;
-    }
     const std::size_t n = std::min(size - copied, payload.size() - item.consumed);
     std::memcpy(buffer + copied, payload.data() + item.consumed, n);
     item.consumed += n;
@@ -89,12 +95,36 @@ std::size_t ReplayEngine::read(char* buffer, std::size_t size, ReplayTime now) {
   return copied;
 }
 
+std::optional<std::size_t> ReplayEngine::read_datagram(char* buffer, std::size_t size,
+                                                       ReplayTime now) {
+  prepare(now);
+  for (;;) {
+    if (stage_.empty()) {
+      prepare(now);
+      if (stage_.empty()) return std::nullopt;
+    }
+    if (const RxItem* loss = stage_.loss(now)) {
+      throw PortClosed("replay of " + config_.file + ": " + loss->data);
+    }
+    if (stage_.empty()) continue;  // a reconnect that is over was dropped
+    const RxItem& item = stage_.front();
+    if (!is_due(item, now)) return std::nullopt;
+    if (item.kind != RecordKind::rx) raise_device_gone(item);
+    const std::string_view payload = item.payload();
+    const std::size_t n = std::min(size, payload.size());
+    if (n > 0) std::memcpy(buffer, payload.data(), n);
+    stage_.pop();
+    return n;
+  }
+}
+
 std::size_t ReplayEngine::available(ReplayTime now) {
   prepare(now);
   std::size_t total = 0;
   stage_.loss(now);  // drops a reconnect that is over
   stage_.visit([&](const RxItem& item) {
     if (item.kind != RecordKind::rx || !is_due(item, now)) return false;
+    if (config_.datagrams && item.payload().empty()) return true;  // read() passes it over
     total += config_.datagrams ? item.payload().size() : item.payload().size() - item.consumed;
     return !config_.datagrams;
   });
@@ -135,7 +165,7 @@ void ReplayEngine::flush_input(ReplayTime now) {
 void ReplayEngine::client_flushed() { strategy_->client_flushed(); }
 
 void ReplayEngine::write(const char* data, std::size_t size, ReplayTime now) {
-  if (size == 0) return;
+  if (size == 0 && !replays_empty_datagrams(config_)) return;
   if (const RxItem* loss = stage_.loss(now)) {
     throw PortClosed("replay of " + config_.file + ": " + loss->data);
   }

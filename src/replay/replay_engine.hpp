@@ -43,7 +43,12 @@ class ReplayEngine {
   // Copies released, due bytes (at most one datagram in datagram sessions);
   // 0 when nothing is readable now. Raises PortClosed when the next thing
   // the recording holds is a close or a device loss that is due.
+  // An empty datagram is passed over: 0 would say that nothing is due.
   std::size_t read(char* buffer, std::size_t size, ReplayTime now);
+  // In a datagram session: the next due datagram, truncated to `size` as
+  // recv does (0 for an empty one); nothing when none is due now. Raises as
+  // read() does.
+  std::optional<std::size_t> read_datagram(char* buffer, std::size_t size, ReplayTime now);
   // Bytes read() would return at once.
   std::size_t available(ReplayTime now);
 
@@ -91,6 +96,7 @@ class ReplayEngine {
   // Lets the strategy release what the client is now entitled to, and
   // passes it through the fault stage.
   void prepare(ReplayTime now);
+  [[noreturn]] void raise_device_gone(const RxItem& item) const;
 
   ReplayConfig config_;
   ReplayTimeline timeline_;

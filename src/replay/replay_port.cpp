@@ -12,6 +12,7 @@
 
 #include "posix/platform.hpp"
 #include "posix/syscalls.hpp"
+#include "posix/transports.hpp"
 #include "replay/client_session.hpp"
 #include "replay/exchanges.hpp"
 #include "replay/replay_engine.hpp"
@@ -74,7 +75,7 @@ std::string describe(const ReplayConfig& config) {
          ")";
 }
 
-class ReplayPort final : public Port {
+class ReplayPort : public Port {
  public:
   ReplayPort(ReplayConfig config, RecordSourceFactory sources)
       : description_(describe(config)),
@@ -224,7 +225,7 @@ class ReplayPort final : public Port {
         sessions ? client_session_sources(sources_, 1)() : sources_();
     Record record;
     while (source->next(record)) {
-      if (record.data.empty()) continue;
+      if (record.data.empty() && !replays_empty_datagrams(config_)) continue;
       if (record.kind == RecordKind::rx) return true;
       if (record.kind == RecordKind::tx) return false;
     }
@@ -322,6 +323,27 @@ class ReplayPort final : public Port {
       if (deadline && now >= *deadline) return 0;
       wait(lock, now, deadline, outlook);
     }
+  }
+
+  // A datagram session's next due datagram (see DatagramPort): nothing
+  // when none is due; at_end=closed raises at the end as read() does.
+  std::optional<std::size_t> read_datagram(void* buffer, std::size_t size) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    check_open();
+    const auto now = ReplayClock::now();
+    const std::optional<std::size_t> n =
+        awaiting_client_ ? std::nullopt
+                         : engine_->read_datagram(static_cast<char*>(buffer), size, now);
+    const ReplayEngine::Outlook outlook = update_signal(now);
+    if (n) {
+      reschedule(outlook);
+      return n;
+    }
+    if (outlook.state == ReplayEngine::ReadState::ended &&
+        engine_->config().at_end == ReplayAtEnd::closed) {
+      throw PortClosed(description_ + ": the recording has ended (at_end=closed)");
+    }
+    return std::nullopt;
   }
 
   std::size_t write_some(const void* data, std::size_t size,
@@ -574,6 +596,24 @@ class ReplayPort final : public Port {
   std::thread scheduler_;
 };
 
+// A replay of a session recorded over udp: empty datagrams too are served
+// and checked (a Port's read of 0 bytes and write of 0 bytes cannot say
+// them), for the bridge's udp endpoint.
+class DatagramReplayPort final : public ReplayPort, public DatagramPort {
+ public:
+  using ReplayPort::ReplayPort;
+
+  std::optional<std::size_t> receive_datagram(void* buffer, std::size_t size) override {
+    return read_datagram(buffer, size);
+  }
+  bool send_empty_datagram() override {
+    write_some("", 0, std::nullopt);  // the engine checks it (or ignores it, with a profile)
+    return true;
+  }
+  std::uint64_t datagrams_from_others() const override { return 0; }
+  int take_error() override { return 0; }
+};
+
 }  // namespace
 
 RecordSourceFactory session_source_factory(const std::string& path) {
@@ -585,6 +625,9 @@ RecordSourceFactory session_source_factory(const std::string& path) {
 
 std::unique_ptr<Port> open_replay_session(ReplayConfig config,
                                           RecordSourceFactory sources) {
+  if (config.datagrams) {
+    return std::make_unique<DatagramReplayPort>(std::move(config), std::move(sources));
+  }
   return std::make_unique<ReplayPort>(std::move(config), std::move(sources));
 }
 

@@ -12,6 +12,7 @@ SequenceStrategy::SequenceStrategy(const ReplayConfig& config,
                                    ReleasedRx& released, MismatchReport& report,
                                    const RecordSourceFactory& sources)
     : config_(config),
+      empty_datagrams_(replays_empty_datagrams(config)),
       timeline_(timeline),
       released_(released),
       report_(report),
@@ -64,6 +65,7 @@ void SequenceStrategy::fill() {
                            view ? view.bytes : std::string_view(record.data));
     switch (record.kind) {
       case RecordKind::tx:
+        if (empty_datagrams_) ++rx_tx_datagrams_seen_;
         if (size == 0) break;
         rx_tx_seen_ += size;
         rx_last_tx_t_ns_ = record.t_ns;
@@ -75,7 +77,7 @@ void SequenceStrategy::fill() {
       case RecordKind::rx:
       case RecordKind::close:
       case RecordKind::device_lost: {
-        if (record.kind == RecordKind::rx && size == 0) break;
+        if (record.kind == RecordKind::rx && size == 0 && !empty_datagrams_) break;
         if (record.kind == RecordKind::close && !session_goes_on(*rx_source_)) {
           rx_exhausted_ = true;
           break;
@@ -84,7 +86,7 @@ void SequenceStrategy::fill() {
         ahead.item.kind = record.kind;
         ahead.item.t_ns = record.t_ns;
         ahead.item.exchange = exchange;
-        ahead.tx_before = rx_tx_seen_;
+        ahead.tx_before = rx_tx_progress();
         ahead.anchor_t_ns = rx_last_tx_t_ns_;
         ahead.flushes_before = rx_flushes_seen_;
         ahead_bytes_ += size;
@@ -123,7 +125,7 @@ void SequenceStrategy::entitle() {
     // A client flush recorded before it (pyserial's, gpsd's on open) would
     // have discarded it had it come earlier: it waits for the client's.
     const bool entitled = config_.timing == ReplayTiming::session ||
-                          (tx_written_ >= ahead.tx_before &&
+                          (tx_progress() >= ahead.tx_before &&
                            client_flushes_ >= ahead.flushes_before);
     if (!entitled) break;  // later records need at least as many tx bytes
     std::optional<ReplayTimeline::Anchor> anchor;
@@ -145,7 +147,7 @@ void SequenceStrategy::entitle() {
   }
   // Finish times the read cursor will never ask for again.
   const std::uint64_t still_needed =
-      ahead_.empty() ? rx_tx_seen_ : ahead_.front().tx_before;
+      ahead_.empty() ? rx_tx_progress() : ahead_.front().tx_before;
   while (tx_ends_.size() > 1 && tx_ends_.front().end_offset < still_needed) {
     tx_ends_.pop_front();
   }
@@ -178,7 +180,7 @@ bool SequenceStrategy::next_tx_record() {
     const std::uint64_t exchange = tx_exchanges_.feed(record);
     switch (record.kind) {
       case RecordKind::tx:
-        if (record.data.empty()) break;
+        if (record.data.empty() && !empty_datagrams_) break;
         tx_exchange_ = static_cast<std::int64_t>(exchange);
         tx_record_ = std::move(record);
         tx_position_ = 0;
@@ -304,8 +306,10 @@ void SequenceStrategy::write(const char* data, std::size_t size, ReplayTime now)
 void SequenceStrategy::write_records(const char* data, std::size_t size,
                                      ReplayTime now) {
   const bool compare = config_.check != ReplayCheck::off;
+  if (size == 0 && !empty_datagrams_) return;
   std::size_t done = 0;
-  while (done < size) {
+  // Once at least: an empty datagram is a write of one record.
+  do {
     const std::string_view rest(data + done, size - done);
     if (!next_tx_record()) {
       if (tx_hit_close_) {
@@ -352,7 +356,7 @@ void SequenceStrategy::write_records(const char* data, std::size_t size,
                       tx_written_,
                       std::string_view(expected).substr(0, kReplayContext),
                       rest.substr(0, kReplayContext), tx_record_.t_ns,
-                      tx_exchange_);
+                      tx_exchange_, {}, /*expected_is_datagram=*/true);
       }
       // One datagram is one record, whatever its length.
       tx_written_ += expected.size();
@@ -386,13 +390,14 @@ void SequenceStrategy::write_records(const char* data, std::size_t size,
       }
     }
     tx_recorded_done_ += expected.size();
-    tx_ends_.push_back({tx_written_, now});
+    if (empty_datagrams_) ++tx_datagrams_written_;
+    tx_ends_.push_back({tx_progress(), now});
     previous_tx_finished_ = now;
     previous_tx_t_ns_ = tx_record_.t_ns;
     have_tx_record_ = false;
     done += accepted;
     if (config_.datagrams) return;
-  }
+  } while (done < size);
 }
 
 // --- recorded events ---------------------------------------------------------------
@@ -474,6 +479,14 @@ constexpr std::uint64_t kUnusedScanRecords = 4096;
 
 }  // namespace
 
+std::uint64_t SequenceStrategy::rx_tx_progress() const {
+  return empty_datagrams_ ? rx_tx_datagrams_seen_ : rx_tx_seen_;
+}
+
+std::uint64_t SequenceStrategy::tx_progress() const {
+  return empty_datagrams_ ? tx_datagrams_written_ : tx_written_;
+}
+
 std::uint64_t SequenceStrategy::tx_consumed() const {
   return tx_recorded_done_ + (have_tx_record_ ? tx_position_ : 0);
 }
@@ -498,6 +511,14 @@ std::string SequenceStrategy::unused_report(std::uint64_t queued_rx_bytes,
   const auto tx_unused = [&] {
     return tx_seen > tx_consumed() ? tx_seen - tx_consumed() : 0;
   };
+  // Where empty datagrams are records, one unused is unused too.
+  std::uint64_t tx_datagrams_seen = rx_tx_datagrams_seen_;
+  const auto tx_datagrams_unused = [&]() -> std::uint64_t {
+    if (!empty_datagrams_) return 0;
+    return tx_datagrams_seen > tx_datagrams_written_ ? tx_datagrams_seen - tx_datagrams_written_
+                                                     : 0;
+  };
+  const auto rx_unused = [&] { return rx_bytes > 0 || (empty_datagrams_ && rx_records > 0); };
   bool more = false;
   std::uint64_t scanned_records = 0;
   std::uint64_t scanned_bytes = 0;
@@ -509,36 +530,42 @@ std::string SequenceStrategy::unused_report(std::uint64_t queued_rx_bytes,
         record.kind == RecordKind::device_lost) {
       break;
     }
-    if (record.kind == RecordKind::rx && size > 0) {
+    if (record.kind == RecordKind::rx && (size > 0 || empty_datagrams_)) {
       rx_bytes += size;
       ++rx_records;
     }
-    if (record.kind == RecordKind::tx) tx_seen += size;
+    if (record.kind == RecordKind::tx) {
+      tx_seen += size;
+      ++tx_datagrams_seen;
+    }
     ++scanned_records;
     scanned_bytes += size;
     // Until something unused is found the scan is still within what the
     // client wrote (or events), so it only stops once it has.
     if ((scanned_bytes >= kUnusedScanBytes ||
          scanned_records >= kUnusedScanRecords) &&
-        (rx_bytes > 0 || tx_unused() > 0)) {
+        (rx_unused() || tx_unused() > 0 || tx_datagrams_unused() > 0)) {
       more = true;
       break;
     }
   }
   rx_exhausted_ = true;
   const std::uint64_t tx_bytes = tx_unused();
+  const std::uint64_t tx_datagrams = tx_datagrams_unused();
   tx_exhausted_ = true;
   have_tx_record_ = false;
   const std::string at_least = more ? "at least " : "";
   std::string report;
-  if (rx_bytes > 0) {
+  if (rx_unused()) {
     report = at_least + std::to_string(rx_bytes) + " recorded rx bytes (" +
              at_least + std::to_string(rx_records) + " records) were never read";
   }
-  if (tx_bytes > 0) {
-    if (rx_bytes > 0) report += "; ";
-    report += at_least + std::to_string(tx_bytes) +
-              " recorded tx bytes were never written";
+  if (tx_bytes > 0 || tx_datagrams > 0) {
+    if (!report.empty()) report += "; ";
+    report += at_least + std::to_string(tx_bytes) + " recorded tx bytes " +
+              (empty_datagrams_ ? "(" + at_least + std::to_string(tx_datagrams) + " datagrams) "
+                                : std::string()) +
+              "were never written";
   }
   if (more) report += " (the rest of the recording was not counted)";
   return report;

@@ -39,15 +39,16 @@ class SequenceStrategy final : public ReplayStrategy {
   // An rx record the read cursor looked ahead to, not yet entitled.
   struct Ahead {
     RxItem item;
-    // tx bytes recorded before it, and the time of the last tx record
-    // before it (none: before any write).
+    // Where the recorded tx was before it (tx_progress: bytes, or
+    // datagrams), and the time of the last tx record before it (none:
+    // before any write).
     std::uint64_t tx_before = 0;
     std::optional<std::uint64_t> anchor_t_ns;
     // Client flushes (flush_input, flush_output) recorded before it.
     std::uint64_t flushes_before = 0;
   };
   struct TxEnd {  // a recorded tx record the client finished writing
-    std::uint64_t end_offset;
+    std::uint64_t end_offset;  // in tx progress
     ReplayTime finished;
   };
 
@@ -71,8 +72,14 @@ class SequenceStrategy final : public ReplayStrategy {
   bool checks_events() const;
   // Recorded tx bytes the write cursor has passed (the client wrote them).
   std::uint64_t tx_consumed() const;
+  // How far the recorded tx is, for what entitles rx: in bytes, or where
+  // empty datagrams are records (replays_empty_datagrams) in datagrams, as
+  // an empty request moves no byte. Of the read cursor; of the client.
+  std::uint64_t rx_tx_progress() const;
+  std::uint64_t tx_progress() const;
 
   const ReplayConfig& config_;
+  const bool empty_datagrams_;  // replays_empty_datagrams(config_)
   const ReplayTimeline& timeline_;
   ReleasedRx& released_;
   MismatchReport& report_;
@@ -81,6 +88,7 @@ class SequenceStrategy final : public ReplayStrategy {
   std::unique_ptr<RecordSource> rx_source_;
   bool rx_exhausted_ = false;
   std::uint64_t rx_tx_seen_ = 0;
+  std::uint64_t rx_tx_datagrams_seen_ = 0;
   std::optional<std::uint64_t> rx_last_tx_t_ns_;
   std::uint64_t rx_flushes_seen_ = 0;
   ExchangeCursor rx_exchanges_;  // numbers what the read cursor reads
@@ -105,6 +113,7 @@ class SequenceStrategy final : public ReplayStrategy {
   std::optional<ReplayTime> previous_tx_finished_;
   std::uint64_t previous_tx_t_ns_ = 0;
   std::uint64_t tx_written_ = 0;  // bytes the client wrote
+  std::uint64_t tx_datagrams_written_ = 0;  // recorded tx datagrams the client wrote
   std::uint64_t tx_recorded_done_ = 0;  // of the tx records written in full
 
   // With a profile: the recorded tx stream framed (its own cursor), and the

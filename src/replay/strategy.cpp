@@ -56,7 +56,7 @@ void MismatchReport::accepted(std::string_view bytes) {
 void MismatchReport::raise(const std::string& title, std::uint64_t offset,
                            std::string_view expected, std::string_view actual,
                            std::uint64_t session_t_ns, std::int64_t exchange,
-                           const std::string& extra) const {
+                           const std::string& extra, bool expected_is_datagram) const {
   std::ostringstream report;
   report << "replay mismatch in " << file_ << ": " << title << "\n"
          << "  at tx byte offset " << offset << ", session time "
@@ -69,7 +69,9 @@ void MismatchReport::raise(const std::string& title, std::uint64_t offset,
   report << "\n";
   report << "  before:   " << hex_ascii(history_) << "\n"
          << "  expected: "
-         << (expected.empty() && match_ == ReplayMatch::sequence
+         << (expected.empty() && expected_is_datagram
+                 ? std::string("(an empty datagram)")
+             : expected.empty() && match_ == ReplayMatch::sequence
                  ? std::string("(nothing: the recorded writes end here)")
                  : hex_ascii(expected))
          << "\n"

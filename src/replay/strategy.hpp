@@ -89,10 +89,13 @@ class MismatchReport {
   // The client wrote these bytes and they were accepted.
   void accepted(std::string_view bytes);
 
+  // An empty `expected` is the end of the recorded writes, unless
+  // `expected_is_datagram` (a recorded empty datagram).
   [[noreturn]] void raise(const std::string& title, std::uint64_t offset,
                           std::string_view expected, std::string_view actual,
                           std::uint64_t session_t_ns, std::int64_t exchange,
-                          const std::string& extra = {}) const;
+                          const std::string& extra = {},
+                          bool expected_is_datagram = false) const;
 
  private:
   std::string file_;

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "posix/syscalls.hpp"
+#include "posix/transports.hpp"
 #include "session/record_source.hpp"
 #include "replay/replay_config.hpp"
 #include "replay/replay_engine.hpp"
@@ -334,6 +335,45 @@ TEST(ReplaySequence, DatagramSessionsKeepRecordBoundaries) {
   EXPECT_THROW(port->write("Q"), ReplayMismatch);  // half a datagram
 }
 
+// An empty datagram is a record like any other (DESIGN.md section 23): the
+// replay of a datagram session says it through DatagramPort, where a Port's
+// read of 0 bytes cannot.
+TEST(ReplaySequence, EmptyDatagramsAreServedAndCheckedAtTheirPlace) {
+  auto port = replay({tx(0, ""), rx(1, ""), tx(2, "Q"), rx(3, "A")}, "timing=none",
+                     /*datagrams=*/true);
+  auto* datagrams = dynamic_cast<detail::DatagramPort*>(port.get());
+  ASSERT_NE(datagrams, nullptr);
+  char buffer[16];
+  EXPECT_EQ(datagrams->receive_datagram(buffer, sizeof buffer), std::nullopt);
+  EXPECT_TRUE(datagrams->send_empty_datagram());
+  EXPECT_EQ(datagrams->receive_datagram(buffer, sizeof buffer), std::optional<std::size_t>(0));
+  EXPECT_EQ(datagrams->receive_datagram(buffer, sizeof buffer), std::nullopt);
+  port->write("Q");
+  ASSERT_EQ(datagrams->receive_datagram(buffer, sizeof buffer), std::optional<std::size_t>(1));
+  EXPECT_EQ(buffer[0], 'A');
+}
+
+// Through Port::read, where 0 bytes means nothing now, an empty datagram is
+// passed over: available() and read() see the next one.
+TEST(ReplaySequence, APortReadPassesOverAnEmptyDatagram) {
+  auto port = replay({rx(0, ""), rx(1, "one")}, "timing=none", /*datagrams=*/true);
+  EXPECT_EQ(port->available(), 3u);
+  EXPECT_EQ(read_some(*port, 100, 0ms), "one");
+}
+
+TEST(ReplaySequence, ADatagramWhereAnEmptyOneWasRecordedIsAMismatch) {
+  auto port = replay({tx(0, ""), rx(1, ""), tx(2, "Q"), rx(3, "A")}, "timing=none",
+                     /*datagrams=*/true);
+  EXPECT_THROW(port->write("Q"), ReplayMismatch);
+}
+
+TEST(ReplaySequence, AnEmptyDatagramWhereBytesWereRecordedIsAMismatch) {
+  auto port = replay({tx(0, "Q"), rx(1, "A")}, "timing=none", /*datagrams=*/true);
+  auto* datagrams = dynamic_cast<detail::DatagramPort*>(port.get());
+  ASSERT_NE(datagrams, nullptr);
+  EXPECT_THROW(datagrams->send_empty_datagram(), ReplayMismatch);
+}
+
 TEST(ReplaySequence, UdpSessionFileReplaysAsDatagrams) {
   TempDir dir;
   const std::string path =
@@ -497,6 +537,25 @@ TEST(ReplayEnd, UnusedReportCountsExactlyUnderTheBound) {
               std::string::npos)
         << report;
     EXPECT_EQ(report.find("at least"), std::string::npos) << report;
+  }
+}
+
+// An empty datagram a client never read or wrote is a record unused like any
+// other (DESIGN.md section 23).
+TEST(ReplayEnd, UnusedEmptyDatagramsAreReported) {
+  auto port = replay({tx(0, "Q"), rx(1, "A"), tx(2, ""), rx(3, "")},
+                     "timing=none,unused=error", /*datagrams=*/true);
+  port->write("Q");
+  EXPECT_EQ(read_some(*port), "A");
+  try {
+    port->close();
+    FAIL() << "the unused empty datagrams were not reported";
+  } catch (const ReplayMismatch& mismatch) {
+    const std::string report = mismatch.what();
+    EXPECT_NE(report.find(": 0 recorded rx bytes (1 records) were never read; "
+                          "0 recorded tx bytes (1 datagrams) were never written"),
+              std::string::npos)
+        << report;
   }
 }
 
