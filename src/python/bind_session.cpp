@@ -15,6 +15,7 @@
 #include <nanobind/stl/string_view.h>
 
 #include "posix/file_checks.hpp"
+#include "util/hex.hpp"
 #include "python/bindings.hpp"
 #include "session/flexiport.hpp"
 #include "session/format.hpp"
@@ -197,7 +198,7 @@ void set_header_members(nb::handle header, nb::handle fields) {
         names += names.empty() ? "" : ", ";
         names += nb::cast<std::string>(member);
       }
-      throw nb::value_error(("SessionHeader has no member '" + name + "' (its members: " +
+      throw nb::value_error(("SessionHeader has no member '" + detail::escape_bytes(name, 200) + "' (its members: " +
                              names + ")")
                                 .c_str());
     }

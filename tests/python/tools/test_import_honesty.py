@@ -405,3 +405,18 @@ def test_a_failed_conversion_leaves_no_folder_it_created(tmp_path, capsys):
     code, _ = run(capsys, "convert", session, out)
     assert code == 1
     assert [kind for kind, _ in records_of(out)] == ["tx"]
+
+
+def test_a_header_member_with_a_newline_in_its_name_is_named_on_one_line(tmp_path):
+    """Found by jsonl_import_fuzz: the member's name was echoed raw."""
+    source = tmp_path / "in.jsonl"
+    source.write_bytes(b'{"header":{"port_opti\\ns":"x","port_type":"serial"}}\n')
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-m", "wiretape.cli", "convert", str(source),
+                           str(tmp_path / "out.wtape"), "--from", "jsonl"],
+                          capture_output=True, text=True)
+    assert done.returncode == 1, done.stderr
+    assert done.stderr.count("\n") == 1 and "port_opti\\ns" in done.stderr, done.stderr
+    assert not (tmp_path / "out.wtape").exists()
