@@ -77,6 +77,14 @@ TARGETS = {
     "modbus_reordering_vs_sequence_time_ratio": (2.0, "lower",
                                                  "profile=modbus-tcp reordering / sequence"),
     "request_rss_MB_1GiB": (64, "lower", "MiB peak RSS, match=request, 1 GiB session"),
+    # --- the --as shim (docs/replay.md, "Serial lines under --as") ---
+    "shim_redirected_write_added_ns": (2000, "lower",
+                                       "ns a 1-byte write to the redirected pty gains"),
+    "shim_redirected_read_added_ns": (2000, "lower",
+                                      "ns a 1-byte read of the redirected pty gains"),
+    "shim_unrelated_call_added_ns": (100, "lower",
+                                     "ns an unrelated write/dup/close gains (worst)"),
+    "shim_redirected_write_ratio": (None, "info", "with the shim / without, redirected write"),
 }
 
 # Google Benchmark counters that are figures of the table: benchmark name ->
@@ -379,6 +387,55 @@ class Bench:
             f"faulty runs wait for the driver's timeouts, clean ones do not; "
             f"{os.cpu_count()} CPUs, shared")
 
+    # --- the --as shim -------------------------------------------------------
+    def shim(self) -> None:
+        """The shim's added cost per call: bench/shim_bench.c run with and
+        without it, interleaved, on the same pty; medians of the rounds."""
+        program = self.build / "bin" / "wiretape_shim_bench"
+        if not program.exists():
+            raise Skip(f"{program} not built")
+        located = subprocess.run([str(self.python), "-c",
+                                  "from wiretape import redirect; print(redirect.shim_path())"],
+                                 capture_output=True, text=True, env=self.env)
+        if located.returncode != 0:
+            raise Skip("the shim: " + (located.stderr.strip().splitlines() or ["missing"])[-1])
+        shim = located.stdout.strip()
+        calls = 20_000 if self.quick else 200_000
+        runs: dict[str, list[dict]] = {"with": [], "without": []}
+        for _ in range(3 if self.quick else 7):
+            for kind in ("without", "with"):
+                master, terminal = os.openpty()
+                try:
+                    env = dict(self.env)
+                    path = os.ttyname(terminal)
+                    if kind == "with":
+                        env.update(LD_PRELOAD=shim, WIRETAPE_REDIRECT_FROM="/dev/ttyBENCH0",
+                                   WIRETAPE_REDIRECT_TO=path)
+                        env.pop("WIRETAPE_LINE_CHANNEL", None)
+                        path = "/dev/ttyBENCH0"
+                    proc = subprocess.run([str(program), path, str(master), str(calls)],
+                                          capture_output=True, text=True, timeout=600,
+                                          env=env, pass_fds=(master,))
+                finally:
+                    os.close(master)
+                    os.close(terminal)
+                if proc.returncode != 0:
+                    raise Skip("shim_bench: " + (proc.stderr.strip() or "failed"))
+                runs[kind].append(json.loads(proc.stdout))
+        median = {kind: {key: statistics.median(run[key] for run in runs[kind])
+                         for key in runs[kind][0]} for kind in runs}
+        added = {key: median["with"][key] - median["without"][key] for key in median["with"]}
+        self.results["shim_redirected_write_added_ns"] = round(added["redirected_write"], 1)
+        self.results["shim_redirected_read_added_ns"] = round(added["redirected_read"], 1)
+        self.results["shim_unrelated_call_added_ns"] = round(
+            max(added["unrelated_write"], added["unrelated_close"] / 2), 1)
+        self.results["shim_redirected_write_ratio"] = round(
+            median["with"]["redirected_write"] / median["without"]["redirected_write"], 3)
+        self.notes["shim"] = ", ".join(
+            f"{key} {median['without'][key]:.0f} -> {median['with'][key]:.0f} ns"
+            for key in median["with"]) + (" (unrelated_close is a dup and a close: two "
+                                          "wrapped calls)")
+
     def gbench(self) -> None:
         """The Google Benchmark program: the per-call view, and the request
         mode figures (GBENCH_FIGURES)."""
@@ -407,7 +464,7 @@ class Bench:
 
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
-           "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults"]
+           "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "shim"]
 
 
 def machine_note() -> dict:
@@ -433,7 +490,7 @@ def machine_note() -> dict:
 def build_programs(build: Path) -> None:
     subprocess.run(["cmake", "-S", str(ROOT), "-B", str(build), "-DWIRETAPE_BENCH=ON"],
                    check=True, stdout=subprocess.DEVNULL)
-    targets = ["wiretape_bench_tool", "wiretape_relay_bench"]
+    targets = ["wiretape_bench_tool", "wiretape_relay_bench", "wiretape_shim_bench"]
     # wiretape_bench exists only when Google Benchmark was found.
     listing = subprocess.run(["cmake", "--build", str(build), "--target", "help"],
                              capture_output=True, text=True).stdout

@@ -8,6 +8,10 @@ reaches dynamically linked programs. Where the shim cannot reach (static
 programs, programs that scan /dev), CMD also runs in a private mount
 namespace with the pty bind-mounted over the path, when wiretape runs as
 root and the path exists (a bind mount needs something to cover).
+
+A pty has no modem lines, break or custom baud: the shim emulates them on
+the redirected descriptor and tells the bridge through a side channel, a
+Unix socket made by :class:`LineChannelPath` (DESIGN §20).
 """
 
 from __future__ import annotations
@@ -26,6 +30,30 @@ SHIM_NAME = "_redirect_device.so"
 ENV_FROM = "WIRETAPE_REDIRECT_FROM"
 ENV_TO = "WIRETAPE_REDIRECT_TO"
 ENV_HITS = "WIRETAPE_REDIRECT_HITS"
+# The side channel's socket (src/shim/line_protocol.h, WT_LINE_ENV).
+ENV_LINE_CHANNEL = "WIRETAPE_LINE_CHANNEL"
+
+
+class LineChannelPath:
+    """A path for the side channel's socket, in a private directory of its
+    own (the bridge creates the socket there); removed by :meth:`close`."""
+
+    def __init__(self) -> None:
+        self._directory = tempfile.mkdtemp(prefix="wiretape-lines-")
+        self.path = os.path.join(self._directory, "lines")
+
+    def close(self) -> None:
+        for remove in (lambda: os.unlink(self.path), lambda: os.rmdir(self._directory)):
+            try:
+                remove()
+            except OSError:
+                pass
+
+    def __enter__(self) -> "LineChannelPath":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
 
 
 def shim_path() -> str:
@@ -113,10 +141,12 @@ class RedirectedCommand:
     :class:`~wiretape.children.Child`: its output captured (stderr with
     stdout), ended with its whole group. With ``relay``, stdout and stderr
     are captured apart and relayed as they come to this process's own
-    stdout and stderr, and CMD reads this process's stdin."""
+    stdout and stderr, and CMD reads this process's stdin. ``line_channel``:
+    the bridge's side-channel socket for the serial lines (without it the
+    shim emulates them in CMD alone)."""
 
     def __init__(self, argv: Sequence[str], device_path: str, pty_path: str,
-                 relay: bool = False):
+                 relay: bool = False, line_channel: Optional[str] = None):
         self.argv = list(argv)
         self.device_path = device_path
         self._watches: Tuple[SanitizerWatch, ...] = ()
@@ -129,6 +159,10 @@ class RedirectedCommand:
         env[ENV_FROM] = device_path
         env[ENV_TO] = pty_path
         env[ENV_HITS] = self._hits_file
+        if line_channel:
+            env[ENV_LINE_CHANNEL] = line_channel
+        else:
+            env.pop(ENV_LINE_CHANNEL, None)
         self.bind_mounted = can_bind_mount(device_path)
         preexec = (_bind_mount_in_private_namespace(pty_path, device_path)
                    if self.bind_mounted else None)
