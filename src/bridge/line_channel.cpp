@@ -107,7 +107,9 @@ bool LineChannel::receive(Connection& connection, std::uint64_t relayed) {
 std::uint64_t LineChannel::bytes_before_next_change(std::uint64_t relayed) const {
   std::uint64_t fewest = std::numeric_limits<std::uint64_t>::max();
   for (const Connection& connection : connections_) {
-    if (connection.pending.empty()) continue;
+    // A connection waiting for the inputs holds no bytes back: the shim
+    // sends nothing more on it.
+    if (connection.pending.empty() || connection.waiting) continue;
     const wt_line_request& next = connection.pending.front();
     if (!held_for_bytes(next.op)) continue;
     const std::uint64_t due_at = connection.base + next.written;

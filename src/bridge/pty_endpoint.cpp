@@ -170,6 +170,7 @@ class PtyEndpoint final : public ClientEndpoint {
       const std::uint64_t before_change = line_channel_->bytes_before_next_change(relayed_);
       room = static_cast<std::size_t>(std::min<std::uint64_t>(room, before_change));
       if (room == 0) {
+        last_read_took_data_ = false;
         line_channel_->apply_due(relayed_);
         return;
       }

