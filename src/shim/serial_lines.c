@@ -37,6 +37,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <sys/syscall.h>
 #include <sys/types.h>
 #include <sys/uio.h>
@@ -54,6 +55,8 @@ int tcdrain(int fd);
 
 /* Descriptors beyond this are never redirected (not tracked). */
 #define TRACKED_FDS 65536
+/* Inherited descriptors are looked for among the first ones only. */
+#define INHERITED_FDS_CHECKED 256
 #define BITS_PER_WORD (8 * sizeof(unsigned long))
 static _Atomic unsigned long redirected_fds[TRACKED_FDS / BITS_PER_WORD];
 /* Any descriptor ever redirected: spares unrelated calls the bitmap. */
@@ -109,14 +112,45 @@ static void forked_child(void) {
   pthread_mutex_init(&stored_lock, NULL);
 }
 
+static void mark(int fd, int redirected);
+static int ensure_connected(void);
+
+/* Descriptors this program inherited open on the pty (a shell's `prog
+ * </dev/ttyUSB0`, a launcher that opened the device and exec'd): the same
+ * device as the ones it opens itself. Through system calls: the wrappers
+ * of open and stat are not to be entered from here. */
+static int adopt_inherited(void) {
+  const char *pty = getenv("WIRETAPE_REDIRECT_TO");
+  if (pty == NULL || pty[0] != '/') return 0;
+  int probe = (int)syscall(SYS_openat, AT_FDCWD, pty, O_PATH | O_CLOEXEC);
+  if (probe < 0) return 0;
+  struct stat terminal;
+  int known = fstat(probe, &terminal) == 0 && S_ISCHR(terminal.st_mode);
+  syscall(SYS_close, probe);
+  if (!known) return 0;
+  int adopted = 0;
+  for (int fd = 0; fd < INHERITED_FDS_CHECKED; ++fd) {
+    struct stat seen;
+    if (fstat(fd, &seen) == 0 && S_ISCHR(seen.st_mode) && seen.st_rdev == terminal.st_rdev) {
+      mark(fd, 1);
+      adopted = 1;
+    }
+  }
+  return adopted;
+}
+
 __attribute__((constructor)) static void start_serial_lines(void) {
   resolve_all();
+  int saved_errno = errno;
   const char *path = getenv(WT_LINE_ENV);
   if (path != NULL && strlen(path) < sizeof channel_path) strcpy(channel_path, path);
   stored_serial.type = PORT_16550A;
   stored_serial.xmit_fifo_size = 16;
   stored_serial.baud_base = 115200;
   pthread_atfork(NULL, NULL, forked_child);
+  /* Connected before the program writes, as at an open. */
+  if (adopt_inherited()) ensure_connected();
+  errno = saved_errno;
 }
 
 static int is_redirected(int fd) {

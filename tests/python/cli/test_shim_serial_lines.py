@@ -275,3 +275,28 @@ def test_without_a_channel_the_lines_are_the_programs_own(tmp_path):
     assert results["dup_mget"] == TIOCM_RTS | TIOCM_CTS | TIOCM_DSR | TIOCM_CD
     assert results["miwait"] == {"errno": 5}
     assert results["custom_baud"] == 250000
+
+
+def test_a_descriptor_inherited_open_on_the_pty_is_emulated(tmp_path, channel):
+    """A program started with the device already open (a shell's `prog
+    </dev/ttyUSB0`, a launcher that exec'd it) gets the lines on it too."""
+    path, bridge = channel
+    controller, terminal = os.openpty()
+    env = dict(os.environ, LD_PRELOAD=redirect.shim_path())
+    env[redirect.ENV_FROM] = HARD_CODED
+    env[redirect.ENV_TO] = os.ttyname(terminal)
+    env[redirect.ENV_LINE_CHANNEL] = path
+    probe = ("import array, fcntl, sys\n"
+             "b = array.array('i', [0])\n"
+             "fcntl.ioctl(int(sys.argv[1]), 0x5415, b, True)\n"
+             "print(b[0])\n")
+    try:
+        done = subprocess.run([sys.executable, "-c", probe, str(terminal)], env=env,
+                              capture_output=True, text=True, timeout=DEADLINE_S,
+                              pass_fds=(terminal,))
+    finally:
+        os.close(controller)
+        os.close(terminal)
+    assert done.returncode == 0, done.stderr
+    assert int(done.stdout) == TIOCM_CTS | TIOCM_RI
+    assert [r["op"] for r in bridge.requests] == ["hello", "get"]
