@@ -16,7 +16,7 @@ import wiretape
 from wiretape import _core, bridge
 
 from devices import wait_until
-from test_shim_serial_lines import MAGIC, REPLY, REQUEST, TIOCM_CTS, TIOCM_DSR, TIOCM_CD, \
+from shim_channel import MAGIC, REPLY, REQUEST, TIOCM_CTS, TIOCM_DSR, TIOCM_CD, \
     TIOCM_DTR, TIOCM_RTS
 
 pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
