@@ -45,8 +45,8 @@ def test_members_are_checked_by_name_and_type():
         _core.SessionHeader(device_identity={"vid": "2341"})
     with pytest.raises(TypeError, match="member 'device_identity' must be a dict of str to str"):
         _core.SessionHeader(device_identity={"vendor_id": 0x2341})
-    with pytest.raises(_core.OptionError, match="device_identity.product is not valid UTF-8"):
-        _core.SessionHeader(device_identity={"product": "\udcff"}).to_json()
+    with pytest.raises(ValueError, match="member 'device_identity' is not valid UTF-8"):
+        _core.SessionHeader(device_identity={"product": "\udcff"})
 
 
 def test_clear_device_serial_clears_it_in_the_by_id_name_too():

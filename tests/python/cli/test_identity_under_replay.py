@@ -104,3 +104,19 @@ def test_a_recording_without_an_identity_presents_none(tmp_path, finder):
     # The finder finds nothing and says so (exit 5, CMD's own status).
     assert done.returncode == 5, done.stdout + done.stderr
     assert "2341" not in done.stdout
+
+
+def test_record_on_a_pty_records_no_identity(tmp_path):
+    import os
+    master, slave = os.openpty()
+    try:
+        session = tmp_path / "pty.wtape"
+        done = wiretape("record", "--device", os.ttyname(slave), "-o", session,
+                        "--pty", tmp_path / "client", "--duration", "0.1", "-q")
+        assert done.returncode == 0, done.stderr
+        header = _core.SessionReader(session).header
+        assert header.port_type == "serial"
+        assert header.device_identity == {}
+    finally:
+        os.close(master)
+        os.close(slave)
