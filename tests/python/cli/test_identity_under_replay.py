@@ -120,3 +120,23 @@ def test_record_on_a_pty_records_no_identity(tmp_path):
     finally:
         os.close(master)
         os.close(slave)
+
+
+def test_the_presented_tree_is_removed_when_the_command_is_done(tmp_path, monkeypatch):
+    import tempfile
+
+    from wiretape.redirect import RedirectedCommand
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    command = RedirectedCommand(
+        [sys.executable, "-c", "import os; print(os.path.realpath('/sys/class/tty/ttyACM0/device'))"],
+        "/dev/ttyACM0", "/dev/null", identity=ARDUINO)
+    try:
+        assert command.exit_status() == 0
+        assert any(p.name.startswith("wiretape-identity-") for p in tmp_path.iterdir())
+        # The tty's device is the presented USB interface, inside the tree.
+        assert command.child.stdout.decode().strip().startswith(str(tmp_path))
+        assert command.child.stdout.decode().strip().endswith("/usb1/1-2/1-2:1.0")
+    finally:
+        command.close()
+    assert not any(p.name.startswith("wiretape-identity-") for p in tmp_path.iterdir())
