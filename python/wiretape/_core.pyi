@@ -496,7 +496,7 @@ def read_device_identity(device: str, sysfs_root: str = '/sys', dev_root: str = 
 
 def present_device_identity(identity: dict, root: str, device_path: str) -> tuple:
     """
-    Writes under `root` the sysfs folders that present `identity` (as SessionHeader.device_identity) to a command that opens `device_path`: returns (tty_name, folder), the kernel name presented (device_path's own name when it is directly under /dev, else the recorded one) and the folder that stands for /sys/class/tty/TTY_NAME; ('', '') when no name can be presented.
+    Writes under `root` the sysfs folders that present `identity` (as SessionHeader.device_identity) to a command that opens `device_path`: returns (tty_name, folder, by_id), the kernel name presented (device_path's own name when it is directly under /dev, else the recorded one), the folder that stands for /sys/class/tty/TTY_NAME (tty_name and folder '' when no name can be presented) and the by-id name to redirect ('' when none).
     """
 
 def event_payload(kind: object, fields: dict) -> bytes:

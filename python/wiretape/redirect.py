@@ -176,10 +176,9 @@ class RedirectedCommand:
     def _present(self, identity: Dict[str, str]) -> Dict[str, str]:
         """The shim's variables that present `identity`, its tree written."""
         self._identity_tree = tempfile.mkdtemp(prefix="wiretape-identity-")
-        tty_name, folder = _core.present_device_identity(identity, self._identity_tree,
-                                                         self.device_path)
+        tty_name, folder, by_id = _core.present_device_identity(
+            identity, self._identity_tree, self.device_path)
         env = {ENV_IDENTITY_TTY: tty_name, ENV_IDENTITY_SYSFS: folder} if tty_name else {}
-        by_id = identity.get("by_id", "")
         if by_id:
             env[ENV_IDENTITY_BY_ID] = by_id
         return env

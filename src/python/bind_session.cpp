@@ -502,15 +502,17 @@ void bind_session(nb::module_& m) {
       [](nb::dict identity, const std::string& root, const std::string& device_path) {
         const DeviceIdentity known = identity_from_python(identity).value_or(DeviceIdentity{});
         const std::string tty_name = detail::presented_tty_name(known, device_path);
-        if (tty_name.empty()) return nb::make_tuple(tty_name, std::string());
-        return nb::make_tuple(tty_name, detail::write_device_tree(known, root, tty_name));
+        if (tty_name.empty()) return nb::make_tuple(tty_name, std::string(), known.by_id);
+        return nb::make_tuple(tty_name, detail::write_device_tree(known, root, tty_name),
+                              known.by_id);
       },
       "identity"_a, "root"_a, "device_path"_a,
       "Writes under `root` the sysfs folders that present `identity` (as "
       "SessionHeader.device_identity) to a command that opens `device_path`: returns "
-      "(tty_name, folder), the kernel name presented (device_path's own name when it is "
-      "directly under /dev, else the recorded one) and the folder that stands for "
-      "/sys/class/tty/TTY_NAME; ('', '') when no name can be presented.");
+      "(tty_name, folder, by_id), the kernel name presented (device_path's own name when "
+      "it is directly under /dev, else the recorded one), the folder that stands for "
+      "/sys/class/tty/TTY_NAME (tty_name and folder '' when no name can be presented) "
+      "and the by-id name to redirect ('' when none).");
 
   m.def(
       "event_payload",

@@ -72,8 +72,9 @@ def test_clear_device_serial_clears_it_in_the_by_id_name_too():
 
 
 def test_a_presented_tree_reads_back_as_the_identity(tmp_path):
-    tty, folder = _core.present_device_identity(ARDUINO, str(tmp_path / "sys"), "/dev/ttyACM0")
-    assert tty == "ttyACM0"
+    tty, folder, by_id = _core.present_device_identity(ARDUINO, str(tmp_path / "sys"),
+                                                       "/dev/ttyACM0")
+    assert (tty, by_id) == ("ttyACM0", ARDUINO["by_id"])
     assert os.path.realpath(tmp_path / "sys" / "class" / "tty" / "ttyACM0") == folder
     (tmp_path / "dev").mkdir()
     (tmp_path / "dev" / "ttyACM0").write_text("")
@@ -81,8 +82,13 @@ def test_a_presented_tree_reads_back_as_the_identity(tmp_path):
                                       str(tmp_path / "sys"), str(tmp_path / "dev"))
     assert read == dict(ARDUINO, by_id="")  # the tree has no /dev links
     # A path not directly under /dev presents the recorded kernel name.
-    tty, _ = _core.present_device_identity(ARDUINO, str(tmp_path / "sys2"), ARDUINO["by_id"])
+    tty, _, _ = _core.present_device_identity(ARDUINO, str(tmp_path / "sys2"), ARDUINO["by_id"])
     assert tty == "ttyACM0"
+    # No name to present: nothing written, the by-id name still redirected.
+    nameless = dict(ARDUINO, kernel_name="")
+    assert _core.present_device_identity(nameless, str(tmp_path / "sys3"), "/tmp/x") == (
+        "", "", ARDUINO["by_id"])
+    assert not (tmp_path / "sys3").exists()
 
 
 def test_a_pty_has_no_identity():
