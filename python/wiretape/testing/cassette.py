@@ -184,7 +184,7 @@ class WiretapeCassette:
         self.recording = record == "rewrite" or (record == "once" and not self.path.exists())
         self.partial_path = self.path.with_name(f"{self.path.name}.recording-{os.getpid()}")
         self.device_from_driver = False
-        self.driver_device = None  # wiretape_serial: the device the driver opened
+        self.opened_device = None  # what open_port(device) was given
         self._ports: List[wiretape.Port] = []
         self._cleanups: List[Callable[[], None]] = []
 
@@ -192,7 +192,7 @@ class WiretapeCassette:
     @property
     def options(self) -> str:
         """The option string that opens the device (recording) or the replay."""
-        return self.options_for(self.device or self.driver_device)
+        return self.options_for(self.opened_device or self.device)
 
     def options_for(self, device: Any) -> str:
         """`options`, recording from `device` (an option string or a path)."""
@@ -248,10 +248,10 @@ class WiretapeCassette:
                 pytrace=False)
 
     def open_port(self, device: Any = None) -> wiretape.Port:
-        """Opens the replay, or the device recording to the cassette (`device`
-        if the device setting gives none)."""
-        if not self.device:
-            self.driver_device = device
+        """Opens the replay, or the device recording to the cassette: `device`,
+        or else the device setting."""
+        if device:
+            self.opened_device = device
         options = self.options
         try:
             port = wiretape.open_port(options)

@@ -213,9 +213,12 @@ def wiretape_serial(wiretape_cassette: WiretapeCassette) -> Iterator[SerialPatch
         fail_test(f"{cassette.item.nodeid}: wiretape marker: {error}")
 
     def open_port(path, baud):
-        device = device_options(path)
+        if not cassette.recording:
+            return cassette.open_port()
+        device = device_options(cassette.device or path)
         if baud and device.startswith("type=serial,") and ",baud=" not in device:
-            device += f",baud={int(baud)}"  # the rate the driver opens at, not a later change
+            # The rate the driver opens at, not a settings change after open.
+            device += f",baud={int(baud)}"
         return cassette.open_port(device)
 
     patch = SerialPatch(open_port, fail_test, paths)
