@@ -22,9 +22,11 @@ command line beats the marker, which beats ``wiretape_config``, which beats
 the ini file.
 
 Marker: ``@pytest.mark.wiretape(cassette=None, device=None, record=None,
-**replay_keys)``. ``cassette`` is a path relative to the test file's directory
-(or absolute); the replay keys are those of ``type=replay`` (``timing``,
-``match``, ``check``, ``unused``, ...). Replays default to ``timing=none``.
+serial_port=None, **replay_keys)``. ``cassette`` is a path relative to the
+test file's directory (or absolute); ``serial_port`` the path (or list of
+paths of one device) that ``wiretape_serial`` serves; the replay keys are
+those of ``type=replay`` (``timing``, ``match``, ``check``, ``unused``, ...).
+Replays default to ``timing=none``.
 
 Fixtures a conftest overrides to change what the plugin does:
 ``wiretape_config``       a dict of settings for the test, with the marker's
@@ -98,9 +100,10 @@ def pytest_addoption(parser):
 def pytest_configure(config):
     config.addinivalue_line(
         "markers",
-        "wiretape(cassette=None, device=None, record=None, **replay_keys): "
-        "the wiretape cassette, device and record mode of a test, and replay keys "
-        "(timing, match, check, unused...) for its replay")
+        "wiretape(cassette=None, device=None, record=None, serial_port=None, **replay_keys): "
+        "the wiretape cassette, device and record mode of a test, the path(s) "
+        "wiretape_serial serves, and replay keys (timing, match, check, unused...) "
+        "for its replay")
     urlhandler.register()
 
 

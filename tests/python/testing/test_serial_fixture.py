@@ -111,6 +111,15 @@ TESTS = """
         assert port.readline() == b"PONG\\n"
         port.reset_input_buffer()
         port.close()
+
+    class GadgetPort(serial.Serial):            # a driver's subclass
+        def version(self):
+            self.write(b"VER\\n")
+            return self.readline()
+
+    def test_subclass(wiretape_serial):
+        with GadgetPort(PATH, 115200, timeout=5) as port:
+            assert port.version() == b"GADGET 1.0\\n"
 """
 
 
@@ -132,8 +141,8 @@ def test_a_driver_building_its_own_serial_records_then_replays_without_the_devic
         pytester, gadget):
     make_driver_tests(pytester, gadget.path)
     result = pytester.runpytest("--wiretape-record=once")
-    result.assert_outcomes(passed=2)
-    assert gadget.heard == b"PING\nVER\nPING\n"
+    result.assert_outcomes(passed=3)
+    assert gadget.heard == b"PING\nVER\nPING\nVER\n"
 
     cassette = cassette_of(pytester, "test_gadget")
     kinds = [kind for kind, _ in records(cassette)]
@@ -148,9 +157,9 @@ def test_a_driver_building_its_own_serial_records_then_replays_without_the_devic
 
     gadget.unplug()
     result = pytester.runpytest()  # record=none: from the cassettes alone
-    result.assert_outcomes(passed=2)
+    result.assert_outcomes(passed=3)
     result = pytester.runpytest("--wiretape-record=once")  # they exist
-    result.assert_outcomes(passed=2)
+    result.assert_outcomes(passed=3)
 
 
 def test_a_driver_that_writes_something_else_fails_with_the_mismatch_report(pytester, gadget):
