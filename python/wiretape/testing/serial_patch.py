@@ -171,7 +171,12 @@ class SerialPatch:
                 from serial import SerialException
                 raise SerialException("Port is already open.")
             self.__dict__["_wiretape_patch"] = patch
-            self._wiretape_port = patch.attach(self)
+            try:
+                # A device that cannot be opened is pyserial's SerialException.
+                self._wiretape_port = self._convert_errors(patch.attach, self)
+            except BaseException:
+                del self.__dict__["_wiretape_patch"]
+                raise
             self._applied_write_timeout = ...  # none yet: the first write sets it
             self.is_open = True
             try:

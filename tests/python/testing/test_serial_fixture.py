@@ -275,3 +275,19 @@ def test_serial_port_serves_the_named_path_and_leaves_the_others_real(
         assert other.heard == b"VER\nVER\n"             # the other is the device
     finally:
         other.unplug()
+
+
+def test_recording_from_a_device_that_is_not_there_is_pyserials_error_naming_it(
+        pytester, tmp_path):
+    make_driver_tests(pytester, str(tmp_path / "ttyNONE"), """
+        import pytest
+        import serial
+        from gadget import Gadget, PATH
+
+        def test_absent(wiretape_serial):
+            with pytest.raises(serial.SerialException, match=PATH):
+                Gadget()
+    """)
+    result = pytester.runpytest("--wiretape-record=once")
+    result.assert_outcomes(passed=1)
+    assert not cassette_of(pytester, "test_absent").exists()
