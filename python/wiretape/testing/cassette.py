@@ -303,7 +303,8 @@ class WiretapeCassette:
         if not self.partial_path.exists():
             warnings.warn(WiretapeWarning(
                 f"{self.item.nodeid} passed while recording but opened no port from "
-                f"wiretape_options: nothing was written to {self.path}"))
+                f"{'wiretape_serial' if self.device_from_driver else 'wiretape_options'}: "
+                f"nothing was written to {self.path}"))
             return
         publish_recording(self.partial_path, self.path)
 
