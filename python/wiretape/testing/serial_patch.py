@@ -84,7 +84,6 @@ class SerialPatch:
         self._open_port = open_port
         self._fail = fail
         self._paths = None if paths is None else {_same_device(p) for p in paths}
-        self._named = None if paths is None else list(paths)
         self._served_path: Optional[str] = None
         self._port = None
         self._holder = None  # the serial.Serial that has the port open

@@ -293,3 +293,19 @@ def test_recording_from_a_device_that_is_not_there_is_pyserials_error_naming_it(
     result.stdout.fnmatch_lines(["*test_absent passed while recording but opened no port "
                                  "from wiretape_serial: nothing was written to*"])
     assert not cassette_of(pytester, "test_absent").exists()
+
+
+def test_a_second_serial_on_the_served_path_while_the_first_is_open_is_an_error(
+        pytester, gadget):
+    make_driver_tests(pytester, gadget.path, """
+        import serial
+        from gadget import Gadget, PATH
+
+        def test_twice(wiretape_serial):
+            first = Gadget()
+            serial.Serial(PATH, 115200, timeout=1)
+    """)
+    result = pytester.runpytest("--wiretape-record=once")
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines([f"*wiretape_serial: {gadget.path} is opened by a second "
+                                 "serial.Serial while the first is still open*"])
