@@ -63,7 +63,12 @@ def served_paths(setting: Any) -> Optional[List[str]]:
     """The marker's ``serial_port=`` as a list of paths (None: every path)."""
     if setting is None:
         return None
-    paths = [setting] if isinstance(setting, (str, os.PathLike)) else list(setting)
+    if isinstance(setting, (str, os.PathLike)):
+        paths = [setting]
+    elif isinstance(setting, (list, tuple, set, frozenset)):
+        paths = list(setting)
+    else:
+        paths = []
     if not paths or not all(isinstance(p, (str, os.PathLike)) for p in paths):
         raise ValueError(f"{MARKER_KEY}= takes a device path or a list of them, "
                          f"not {setting!r}")

@@ -102,6 +102,8 @@ TESTS = """
         assert not gadget.port.is_open
         gadget.port.open()                       # a reopen continues the session
         assert gadget.ask(b"VER") == b"GADGET 1.0\\n"
+        gadget.port.timeout = 0.2                # a silent device: the read times out
+        assert gadget.port.read(1) == b""
         gadget.close()
 
     def test_serial_for_url(wiretape_serial):
@@ -309,3 +311,17 @@ def test_a_second_serial_on_the_served_path_while_the_first_is_open_is_an_error(
     result.assert_outcomes(failed=1)
     result.stdout.fnmatch_lines([f"*wiretape_serial: {gadget.path} is opened by a second "
                                  "serial.Serial while the first is still open*"])
+
+
+def test_a_bad_serial_port_setting_is_an_error_naming_it(pytester, gadget):
+    make_driver_tests(pytester, gadget.path, """
+        import pytest
+
+        @pytest.mark.wiretape(serial_port=5)
+        def test_bad(wiretape_serial):
+            pass
+    """)
+    result = pytester.runpytest("--wiretape-record=once")
+    result.assert_outcomes(errors=1)
+    result.stdout.fnmatch_lines(["*test_bad: wiretape marker: serial_port= takes a device "
+                                 "path or a list of them, not 5*"])
