@@ -171,29 +171,15 @@ class SerialPatch:
             if not patch.serves(self._port):
                 self.__dict__.pop("_wiretape_patch", None)  # a served port moved to another path
                 return native_open(self)
-            if self.is_open:
-                from serial import SerialException
-                raise SerialException("Port is already open.")
             self.__dict__["_wiretape_patch"] = patch
             try:
-                # A device that cannot be opened is pyserial's SerialException.
-                self._wiretape_port = self._convert_errors(patch.attach, self)
+                PortSerial.open(self)  # the URL handler's open, over _open_wiretape_port
             except BaseException:
-                del self.__dict__["_wiretape_patch"]
+                self.__dict__.pop("_wiretape_patch", None)
                 raise
-            self._applied_write_timeout = ...  # none yet: the first write sets it
-            self.is_open = True
-            try:
-                PortSerial._reconfigure_port(self)
-                # The OS raises DTR and RTS at open: only a lowered level set
-                # before open() is news.
-                if not self._dsrdtr and not self._dtr_state:
-                    PortSerial._update_dtr_state(self)
-                if not self._rtscts and not self._rts_state:
-                    PortSerial._update_rts_state(self)
-            except BaseException:
-                close(self)
-                raise
+
+        def open_wiretape_port(self, path):
+            return patch.attach(self)
 
         def close(self):
             if not served(self):
@@ -220,6 +206,7 @@ class SerialPatch:
         native_out_waiting = cls.out_waiting
         native_nonblocking = cls.nonblocking
         replacements: Dict[str, Any] = {"open": open, "close": close,
+                                        "_open_wiretape_port": open_wiretape_port,
                                         "out_waiting": property(out_waiting),
                                         "nonblocking": nonblocking,
                                         "cancel_read": cancel(cls.cancel_read),

@@ -325,3 +325,52 @@ def test_a_bad_serial_port_setting_is_an_error_naming_it(pytester, gadget):
     result.assert_outcomes(errors=1)
     result.stdout.fnmatch_lines(["*test_bad: wiretape marker: serial_port= takes a device "
                                  "path or a list of them, not 5*"])
+
+
+class FakePort:
+    """Stands for the cassette's port: what SerialPatch asks of it."""
+
+    type = "replay"
+
+    def __init__(self):
+        self.calls = []
+
+    def __setattr__(self, name, value):
+        if name in ("dtr", "rts"):
+            self.calls.append((name, value))
+        object.__setattr__(self, name, value)
+
+    def flush_input(self):
+        self.calls.append(("flush_input",))
+
+
+def test_lines_lowered_before_open_are_applied_at_open_and_a_reopen_flushes_input():
+    from wiretape.testing.serial_patch import SerialPatch
+
+    port = FakePort()
+    opened = []
+
+    def open_port(path, baud):
+        opened.append((path, baud))
+        return port
+
+    def fail(message):
+        raise AssertionError(message)
+
+    patch = SerialPatch(open_port, fail)
+    patch.install()
+    try:
+        board = serial.Serial()
+        board.port = "/dev/ttyUSB7"
+        board.baudrate = 57600
+        board.dtr = False   # an Arduino that must not reset when the port opens
+        board.open()
+        assert opened == [("/dev/ttyUSB7", 57600)]
+        assert port.calls == [("dtr", False)]
+        board.close()
+        board.open()
+        assert opened == [("/dev/ttyUSB7", 57600)]   # one port for the test
+        assert port.calls == [("dtr", False), ("flush_input",), ("dtr", False)]
+        board.close()
+    finally:
+        patch.uninstall()
