@@ -57,3 +57,11 @@ def test_the_example_records_again_from_its_simulator(example, tmp_path):
     assert streams(example / CASSETTE) == streams(EXAMPLE / CASSETTE)
     result = run_pytest(example)  # and the new cassette replays
     assert result.returncode == 0, result.stdout + result.stderr
+
+
+@pytest.mark.parametrize("name", ["thermometer.py", "test_thermometer.py"])
+def test_the_docs_show_the_example_as_it_is(name):
+    docs = (EXAMPLE.parents[1] / "docs" / "testing.md").read_text()
+    start = docs.index(f"# examples/pyserial/{name}\n") + len(f"# examples/pyserial/{name}\n")
+    shown = docs[start:docs.index("```", start)]
+    assert shown.strip() and shown in (EXAMPLE / name).read_text()
