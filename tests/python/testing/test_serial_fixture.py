@@ -374,3 +374,21 @@ def test_lines_lowered_before_open_are_applied_at_open_and_a_reopen_flushes_inpu
         board.close()
     finally:
         patch.uninstall()
+
+
+def test_recorded_data_the_driver_never_read_fails_it_under_unused_error(pytester, gadget):
+    make_driver_tests(pytester, gadget.path)
+    pytester.runpytest("--wiretape-record=once", "-k", "test_gadget").assert_outcomes(passed=1)
+    gadget.unplug()
+    make_driver_tests(pytester, gadget.path, """
+        import pytest
+        from gadget import Gadget
+
+        @pytest.mark.wiretape(cassette="recordings/test_driver/test_gadget.wtape",
+                              unused="error")
+        def test_only_ping(wiretape_serial):
+            assert Gadget().ask(b"PING") == b"PONG\\n"
+    """)
+    result = pytester.runpytest()
+    result.assert_outcomes(failed=1)  # a failure of the test's call, not of its teardown
+    result.stdout.fnmatch_lines(["*ReplayMismatch*were never read*(unused=error)*"])
