@@ -43,7 +43,7 @@ from ..urlhandler._common import PortSerial
 MARKER_KEY = "serial_port"
 
 # PortSerial's pyserial interface: what a served instance runs instead of the
-# native method. open is the patch's own (the cassette decides the port).
+# native method (open, close and the rest of pyserial's are the patch's own).
 _SERVED_METHODS = ("close", "_reconfigure_port", "read", "read_until", "readline", "write",
                    "flush", "reset_input_buffer", "reset_output_buffer", "fileno",
                    "_update_dtr_state", "_update_rts_state", "_update_break_state",
@@ -51,6 +51,7 @@ _SERVED_METHODS = ("close", "_reconfigure_port", "read", "read_until", "readline
 _SERVED_PROPERTIES = ("in_waiting", "cts", "dsr", "ri", "cd")
 # PortSerial's helpers, which the native class does not have.
 _HELPERS = ("_require_open", "_convert_errors", "_raise_converted", "_line", "_set_line")
+_MISSING = object()  # an attribute the class did not have: deleted when the patch is undone
 
 
 def _native_class():
@@ -238,9 +239,6 @@ class SerialPatch:
             self._holder.is_open = False
             self._holder._wiretape_port = None
             self._holder = None
-
-
-_MISSING = object()
 
 
 def fail_test(message: str) -> None:
