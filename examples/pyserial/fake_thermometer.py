@@ -1,12 +1,13 @@
 """A simulated thermometer on a pseudo-terminal, to record the example's
 cassette without the hardware:
 
-    python fake_thermometer.py /tmp/ttyTHERMO      # until Ctrl-C
+    python fake_thermometer.py /tmp/ttyTHERMO      # until Ctrl-C (or kill)
 
 makes /tmp/ttyTHERMO a link to a pty that answers ``*IDN?`` and ``TEMP?``."""
 
 import os
 import pty
+import signal
 import sys
 import tty
 
@@ -14,6 +15,10 @@ ANSWERS = {b"*IDN?": b"ACME THERMO 2.1\n", b"TEMP?": b"21.5\n"}
 
 
 def main(link: str) -> None:
+    # Ctrl-C and kill end it, also when started in the background of a
+    # script (which would ignore SIGINT), and remove the link.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, signal.default_int_handler)
     master, slave = pty.openpty()
     tty.setraw(slave)
     os.symlink(os.ttyname(slave), link)

@@ -52,8 +52,9 @@ def test_the_example_records_again_from_its_simulator(example, tmp_path):
         result = run_pytest(example, "--wiretape-record=rewrite", f"--wiretape-device={link}")
         assert result.returncode == 0, result.stdout + result.stderr
     finally:
-        simulator.send_signal(signal.SIGINT)
+        simulator.send_signal(signal.SIGTERM)
         simulator.wait(30)
+    assert not link.exists()  # the simulator ended and removed its link
     assert streams(example / CASSETTE) == streams(EXAMPLE / CASSETTE)
     result = run_pytest(example)  # and the new cassette replays
     assert result.returncode == 0, result.stdout + result.stderr
