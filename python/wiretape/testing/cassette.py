@@ -157,6 +157,10 @@ class WiretapeCassette:
                                    defaults.pop("device", None),
                                    config.getini("wiretape_device"))
 
+        # The paths wiretape_serial serves (serial_patch); not a replay key.
+        self.serial_port = _first_given(marker.pop("serial_port", None),
+                                        defaults.pop("serial_port", None))
+
         cassette = _first_given(marker.pop("cassette", None), defaults.pop("cassette", None))
         if cassette is None:
             self.path = Path(cassette_dir) / cassette_file_name(item)
@@ -179,6 +183,8 @@ class WiretapeCassette:
 
         self.recording = record == "rewrite" or (record == "once" and not self.path.exists())
         self.partial_path = self.path.with_name(f"{self.path.name}.recording-{os.getpid()}")
+        self.device_from_driver = False
+        self.opened_device = None  # what open_port(device) was given
         self._ports: List[wiretape.Port] = []
         self._cleanups: List[Callable[[], None]] = []
 
@@ -186,8 +192,14 @@ class WiretapeCassette:
     @property
     def options(self) -> str:
         """The option string that opens the device (recording) or the replay."""
+        return self.options_for(self.opened_device or self.device)
+
+    def options_for(self, device: Any) -> str:
+        """`options`, recording from `device` (an option string or a path)."""
         if self.recording:
-            return (device_options(self.device) + ",log=" + quote_option(str(self.partial_path))
+            if not device:
+                return "(none yet: the device is the path the driver opens)"
+            return (device_options(device) + ",log=" + quote_option(str(self.partial_path))
                     + ",meta_pytest_node=" + quote_option(self.item.nodeid))
         return "type=replay,file=" + quote_option(str(self.path)) + "," + self.replay_options
 
@@ -206,15 +218,21 @@ class WiretapeCassette:
         return f"wiretape://{urllib.parse.quote(str(self.path))}?{query}"
 
     def record_command(self) -> str:
+        if self.device_from_driver and not self.device:
+            # wiretape_serial records from the path the driver opens.
+            return f"pytest --wiretape-record=once {self.item.nodeid!r}"
         device = self.device or "OPTS"
         return (f"pytest --wiretape-record=once --wiretape-device={device!r} "
                 f"{self.item.nodeid!r}")
 
-    def prepare(self) -> None:
+    def prepare(self, device_from_driver: bool = False) -> None:
         """Checks that the test can run: a cassette to replay, or a device to
-        record from; makes the cassette's directory when recording."""
+        record from (`device_from_driver`: the driver names it when it opens
+        it, as wiretape_serial's do); makes the cassette's directory when
+        recording."""
+        self.device_from_driver = device_from_driver
         if self.recording:
-            if not self.device:
+            if not self.device and not device_from_driver:
                 pytest.fail(
                     f"wiretape: cassette {self.path} must be recorded "
                     f"(--wiretape-record={self.record_mode}) but no device is given: "
@@ -229,13 +247,18 @@ class WiretapeCassette:
                 f"Record it from the device with:\n    {self.record_command()}",
                 pytrace=False)
 
-    def open_port(self) -> wiretape.Port:
+    def open_port(self, device: Any = None) -> wiretape.Port:
+        """Opens the replay, or the device recording to the cassette: `device`,
+        or else the device setting."""
+        if device:
+            self.opened_device = device
+        options = self.options
         try:
-            port = wiretape.open_port(self.options)
+            port = wiretape.open_port(options)
         except wiretape.OptionError as error:
             source = "the device setting" if self.recording else "the marker's replay keys"
             pytest.fail(f"{self.item.nodeid}: bad wiretape options (check {source}): "
-                        f"{error}\n    options: {self.options}", pytrace=False)
+                        f"{error}\n    options: {options}", pytrace=False)
         self._ports.append(port)
         return port
 
@@ -280,7 +303,8 @@ class WiretapeCassette:
         if not self.partial_path.exists():
             warnings.warn(WiretapeWarning(
                 f"{self.item.nodeid} passed while recording but opened no port from "
-                f"wiretape_options: nothing was written to {self.path}"))
+                f"{'wiretape_serial' if self.device_from_driver else 'wiretape_options'}: "
+                f"nothing was written to {self.path}"))
             return
         publish_recording(self.partial_path, self.path)
 

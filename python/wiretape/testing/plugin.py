@@ -22,9 +22,11 @@ command line beats the marker, which beats ``wiretape_config``, which beats
 the ini file.
 
 Marker: ``@pytest.mark.wiretape(cassette=None, device=None, record=None,
-**replay_keys)``. ``cassette`` is a path relative to the test file's directory
-(or absolute); the replay keys are those of ``type=replay`` (``timing``,
-``match``, ``check``, ``unused``, ...). Replays default to ``timing=none``.
+serial_port=None, **replay_keys)``. ``cassette`` is a path relative to the
+test file's directory (or absolute); ``serial_port`` the path (or list of
+paths of one device) that ``wiretape_serial`` serves; the replay keys are
+those of ``type=replay`` (``timing``, ``match``, ``check``, ``unused``, ...).
+Replays default to ``timing=none``.
 
 Fixtures a conftest overrides to change what the plugin does:
 ``wiretape_config``       a dict of settings for the test, with the marker's
@@ -45,6 +47,13 @@ Fixtures tests use:
 ``wiretape_udp``      ``HOST:PORT`` of a UDP virtual device serving the replay
                       (or proxying the device while recording): a driver
                       sends its datagrams there and gets the answers back.
+``wiretape_serial``   pyserial's ``serial.Serial`` patched for the test, so a
+                      driver that builds ``serial.Serial("/dev/ttyUSB0", ...)``
+                      itself is served by the cassette (recording: the real
+                      device at the path the driver opens, or
+                      ``--wiretape-device``). The marker's ``serial_port=``
+                      names the path (or paths) served; by default the first
+                      path the test opens. Gives the patch (serial_patch).
 ``wiretape_cassette`` what the plugin decided: ``path``, ``recording``,
                       ``options``...
 
@@ -64,6 +73,7 @@ from wiretape import bridge, urlhandler
 
 from .._core import device_options
 from .cassette import RECORD_MODES, WiretapeCassette, default_cassette_dir
+from .serial_patch import SerialPatch, fail_test, served_paths
 
 _CASSETTE_KEY = pytest.StashKey[WiretapeCassette]()
 _REPORTS_KEY = pytest.StashKey[Dict[str, pytest.TestReport]]()
@@ -90,9 +100,10 @@ def pytest_addoption(parser):
 def pytest_configure(config):
     config.addinivalue_line(
         "markers",
-        "wiretape(cassette=None, device=None, record=None, **replay_keys): "
-        "the wiretape cassette, device and record mode of a test, and replay keys "
-        "(timing, match, check, unused...) for its replay")
+        "wiretape(cassette=None, device=None, record=None, serial_port=None, **replay_keys): "
+        "the wiretape cassette, device and record mode of a test, the path(s) "
+        "wiretape_serial serves, and replay keys (timing, match, check, unused...) "
+        "for its replay")
     urlhandler.register()
 
 
@@ -156,7 +167,8 @@ def wiretape_cassette(request: pytest.FixtureRequest, wiretape_config: Dict[str,
                       wiretape_cassette_dir: Path) -> Iterator[WiretapeCassette]:
     """The cassette of this test: path, recording or replay, option string."""
     cassette = WiretapeCassette(request.node, wiretape_config, Path(wiretape_cassette_dir))
-    cassette.prepare()
+    # wiretape_serial records from the path the driver opens: no device needed.
+    cassette.prepare(device_from_driver="wiretape_serial" in request.fixturenames)
     request.node.stash[_CASSETTE_KEY] = cassette
     yield cassette
     cassette.finish(_test_passed(request.node))
@@ -185,6 +197,39 @@ def wiretape_url(wiretape_cassette: WiretapeCassette) -> str:
     """A pyserial URL (``serial.serial_for_url``) for the device or the replay.
     Close the pyserial port before the test ends."""
     return wiretape_cassette.url
+
+
+@pytest.fixture
+def wiretape_serial(wiretape_cassette: WiretapeCassette) -> Iterator[SerialPatch]:
+    """pyserial's ``serial.Serial`` (the class, whatever name a driver bound
+    it to) served by the cassette for this test: the replay, or, while
+    recording, the real device at the path the driver opens (or the device
+    setting) recording to the cassette. Undone when the test ends."""
+    try:
+        import serial  # noqa: F401
+    except ImportError:
+        pytest.skip("wiretape_serial needs pyserial (pip install pyserial)")
+    cassette = wiretape_cassette
+    try:
+        paths = served_paths(cassette.serial_port)
+    except ValueError as error:
+        fail_test(f"{cassette.item.nodeid}: wiretape marker: {error}")
+
+    def open_port(path, baud):
+        if not cassette.recording:
+            return cassette.open_port()
+        device = device_options(cassette.device or path)
+        if baud and device.startswith("type=serial,") and ",baud=" not in device:
+            # The rate the driver opens at, not a settings change after open.
+            device += f",baud={int(baud)}"
+        return cassette.open_port(device)
+
+    patch = SerialPatch(open_port, fail_test, paths)
+    patch.install()
+    try:
+        yield patch
+    finally:
+        patch.uninstall()
 
 
 @pytest.fixture
