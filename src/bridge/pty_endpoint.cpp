@@ -7,11 +7,13 @@
 #include <sys/ioctl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
 #include <cstring>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "bridge/endpoint.hpp"
 #include "posix/platform.hpp"
@@ -67,8 +69,14 @@ class PtyEndpoint final : public ClientEndpoint {
   }
 
   void handle_events(const PollSet& poll_set) override {
-    if (poll_set.ready(watch_slot_).any()) watch_clients();
-    if (poll_set.ready(pty_slot_).readable) read_pty();
+    const bool pty_readable = poll_set.ready(pty_slot_).readable;
+    // Bytes are read only after the opens and closes before them were seen
+    // (the watch may have turned readable after poll() looked at it): a
+    // client's write after a reopen belongs to its new session.
+    if (opens_and_closes_ && (pty_readable || poll_set.ready(watch_slot_).any())) {
+      watch_clients();
+    }
+    if (pty_readable) read_pty();
     if (!to_pty_.empty()) write_pty();
   }
 
@@ -144,6 +152,7 @@ class PtyEndpoint final : public ClientEndpoint {
     }
     const std::size_t n = got - 1;
     if (n == 0) return;
+    unread_write_ = false;
     std::memmove(buffer.data(), buffer.data() + 1, n);
     if (!client_wrote_) {
       client_wrote_ = true;
@@ -289,14 +298,36 @@ class PtyEndpoint final : public ClientEndpoint {
     set_terminal_access(*pty_, mode, ::getegid());
   }
 
-  // The first opener of the terminal is a client arriving, the last close
-  // its leaving (a program may open the terminal more than once, and tools
-  // such as stty open and close it too).
-  void watch_clients() {
+  // Whether the client's last close (at `closed` in `events`) was followed
+  // by an open already: reads from the watch until now, so that the answer is
+  // as late as can be.
+  bool reopened_after(std::vector<platform::TerminalEvent>& events, std::size_t closed) {
     for (const platform::TerminalEvent event :
          platform::read_opens_and_closes(opens_and_closes_.get())) {
+      events.push_back(event);
+    }
+    return std::find(events.begin() + static_cast<std::ptrdiff_t>(closed) + 1, events.end(),
+                     platform::TerminalEvent::opened) != events.end();
+  }
+
+  // The first opener of the terminal is a client arriving, the last close
+  // its leaving (a program may open the terminal more than once, and tools
+  // such as stty open and close it too). A close and a reopen at once
+  // (pyserial's close() then Serial(), to change the baud rate) are two
+  // client sessions: every byte written after the reopen belongs to the
+  // second (DESIGN.md section 12).
+  void watch_clients() {
+    std::vector<platform::TerminalEvent> events =
+        platform::read_opens_and_closes(opens_and_closes_.get());
+    for (std::size_t i = 0; i < events.size(); ++i) {
+      const platform::TerminalEvent event = events[i];
       if (event == platform::TerminalEvent::read) {
         client_read();
+        continue;
+      }
+      if (event == platform::TerminalEvent::wrote) {
+        // Its bytes may wait in the terminal still.
+        if (openers_ > 0) unread_write_ = true;
         continue;
       }
       if (event == platform::TerminalEvent::opened) {
@@ -318,7 +349,13 @@ class PtyEndpoint final : public ClientEndpoint {
         }
         status_.message("client connected to " + pty_->description());
       } else if (openers_ > 0 && --openers_ == 0) {
-        drain_pty();
+        // What the terminal holds is the leaving client's when it wrote
+        // since the last read, or when nobody opened the terminal since;
+        // else it was written after a reopen, for the next session. (Both
+        // wrote before the bridge looked: the bytes cannot be told apart,
+        // and the leaving client's last bytes come first.)
+        if (unread_write_ || !reopened_after(events, i)) drain_pty();
+        unread_write_ = false;
         device_.client_disconnected("pty", "closed the terminal");
         status_.message("client closed " + pty_->description());
       }
@@ -364,6 +401,8 @@ class PtyEndpoint final : public ClientEndpoint {
   bool client_read_ = false;
   // The current client has written to the terminal.
   bool client_wrote_ = false;
+  // The watch saw the client write since the last read of its bytes.
+  bool unread_write_ = false;
   // See retaining().
   std::string retained_;
   ByteQueue to_pty_{options_.buffer_limit};

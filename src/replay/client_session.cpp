@@ -110,6 +110,68 @@ std::optional<std::uint64_t> find_client_connect(RecordSource& source, int k) {
   return std::nullopt;
 }
 
+namespace {
+
+class SessionsFirstSource final : public RecordSource {
+ public:
+  SessionsFirstSource(RecordSourceFactory sources, int k)
+      : sources_(std::move(sources)), k_(k), own_(sources_(), k) {}
+
+  bool next(Record& record) override { return next_record(record, nullptr); }
+  bool next(Record& record, PayloadView& view) override { return next_record(record, &view); }
+  void rewind() override {
+    own_.rewind();
+    others_.reset();
+    tracker_ = ClientSessionTracker();
+    session_ = 0;
+  }
+  const std::optional<SessionError>& damage() const override {
+    return others_ ? others_->damage() : own_.damage();
+  }
+
+ private:
+  bool next_record(Record& record, PayloadView* view) {
+    if (!others_) {
+      if (view ? own_.next(record, *view) : own_.next(record)) return true;
+      others_ = sources_();
+    }
+    for (;;) {
+      if (!(view ? others_->next(record, *view) : others_->next(record))) return false;
+      const std::string_view payload =
+          view && *view ? view->bytes : std::string_view(record.data);
+      const ClientSessionTracker::Change change = tracker_.feed(record.kind, payload);
+      if (change == ClientSessionTracker::Change::began) ++session_;
+      if (change == ClientSessionTracker::Change::ended) continue;
+      if (tracker_.open() && session_ != k_) return true;
+    }
+  }
+
+  const RecordSourceFactory sources_;
+  const int k_;
+  ClientSessionSource own_;
+  std::unique_ptr<RecordSource> others_;
+  ClientSessionTracker tracker_;
+  int session_ = 0;
+};
+
+}  // namespace
+
+int count_client_sessions(RecordSource& source) {
+  Record record;
+  ClientSessionTracker tracker;
+  int seen = 0;
+  while (source.next(record)) {
+    if (tracker.feed(record.kind, record.data) == ClientSessionTracker::Change::began) ++seen;
+  }
+  return seen;
+}
+
+RecordSourceFactory sessions_first_sources(RecordSourceFactory sources, int k) {
+  return [sources = std::move(sources), k] {
+    return std::make_unique<SessionsFirstSource>(sources, k);
+  };
+}
+
 RecordSourceFactory client_session_sources(RecordSourceFactory sources, int k) {
   return [sources = std::move(sources), k] {
     return std::make_unique<ClientSessionSource>(sources(), k);
