@@ -114,42 +114,49 @@ namespace {
 
 class SessionsFirstSource final : public RecordSource {
  public:
-  SessionsFirstSource(RecordSourceFactory sources, int k)
-      : sources_(std::move(sources)), k_(k), own_(sources_(), k) {}
+  SessionsFirstSource(RecordSourceFactory sources, int k) : sources_(std::move(sources)), k_(k) {}
 
   bool next(Record& record) override { return next_record(record, nullptr); }
   bool next(Record& record, PayloadView& view) override { return next_record(record, &view); }
   void rewind() override {
-    own_.rewind();
-    others_.reset();
-    tracker_ = ClientSessionTracker();
-    session_ = 0;
+    source_.reset();
+    others_ = false;
   }
   const std::optional<SessionError>& damage() const override {
-    return others_ ? others_->damage() : own_.damage();
+    static const std::optional<SessionError> none;
+    return source_ ? source_->damage() : none;
   }
 
  private:
+  // Two passes over the recording: session k's records, then the other
+  // sessions'; each session from the client_connect that began it to the
+  // client_disconnect that ended it.
   bool next_record(Record& record, PayloadView* view) {
-    if (!others_) {
-      if (view ? own_.next(record, *view) : own_.next(record)) return true;
-      others_ = sources_();
-    }
     for (;;) {
-      if (!(view ? others_->next(record, *view) : others_->next(record))) return false;
+      if (!source_) {
+        source_ = sources_();
+        tracker_ = ClientSessionTracker();
+        session_ = 0;
+      }
+      if (!(view ? source_->next(record, *view) : source_->next(record))) {
+        if (others_) return false;
+        others_ = true;
+        source_.reset();
+        continue;
+      }
       const std::string_view payload =
           view && *view ? view->bytes : std::string_view(record.data);
       const ClientSessionTracker::Change change = tracker_.feed(record.kind, payload);
       if (change == ClientSessionTracker::Change::began) ++session_;
-      if (change == ClientSessionTracker::Change::ended) continue;
-      if (tracker_.open() && session_ != k_) return true;
+      const bool in_session = tracker_.open() || change == ClientSessionTracker::Change::ended;
+      if (in_session && (session_ == k_) != others_) return true;
     }
   }
 
   const RecordSourceFactory sources_;
   const int k_;
-  ClientSessionSource own_;
-  std::unique_ptr<RecordSource> others_;
+  std::unique_ptr<RecordSource> source_;
+  bool others_ = false;  // the second pass
   ClientSessionTracker tracker_;
   int session_ = 0;
 };

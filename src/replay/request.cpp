@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <sstream>
 
+#include "replay/client_session.hpp"
 #include "replay/exchanges.hpp"
 #include "replay/profile.hpp"
 #include "util/hex.hpp"
@@ -137,7 +138,7 @@ void RequestStrategy::load_exchanges(RecordSource& source) {
     const std::uint64_t ordinal = records_read++;
     const std::string_view payload = view ? view.bytes : std::string_view(record.data);
     cursor.feed(record.kind, record.t_ns, payload);
-    if (another_client_session(record.kind)) {
+    if (another_client_session(record.kind, payload)) {
       if (in_request) close_request();
       continue;
     }
@@ -185,8 +186,14 @@ void RequestStrategy::load_exchanges(RecordSource& source) {
 // client sessions follow this one's, each opened by its client_connect.
 // Their exchanges are matched after this session's; their greetings were
 // for their own clients and are not served.
-bool RequestStrategy::another_client_session(RecordKind kind) {
-  if (config_.client_session == 0 || kind != RecordKind::client_connect) return false;
+bool RequestStrategy::another_client_session(RecordKind kind, std::string_view payload) {
+  if (config_.client_session == 0) return false;
+  if (kind != RecordKind::client_connect && kind != RecordKind::client_disconnect) return false;
+  // The first session begun is this one's.
+  if (sessions_.feed(kind, payload) != ClientSessionTracker::Change::began ||
+      ++sessions_begun_ < 2) {
+    return false;
+  }
   if (own_exchanges_ == kAllExchanges) own_exchanges_ = exchanges_.size();
   greeting_of_another_ = true;
   return true;
@@ -289,7 +296,7 @@ void RequestStrategy::load_frames(RecordSource& source) {
       add_frame(timed.frame, timed.t_ns, last_tx_t_ns);
       greeting_of_another_ = false;
     }
-    if (another_client_session(record.kind) || greeting_of_another_) continue;
+    if (another_client_session(record.kind, payload) || greeting_of_another_) continue;
     if (record.kind != RecordKind::rx && record.kind != RecordKind::close &&
         record.kind != RecordKind::device_lost) {
       continue;

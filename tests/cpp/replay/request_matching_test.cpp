@@ -353,3 +353,18 @@ TEST(RequestConnectionOrder, TheUnusedReportCountsTheConnectionsOwnExchanges) {
   port->close();
   EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
 }
+
+TEST(RequestConnectionOrder, AMonitorJoiningIsNoConnectionOfItsOwn) {
+  std::vector<Record> records = two_connections();
+  records.insert(records.begin() + 4,
+                 {ms(3), RecordKind::client_connect, "{\"peer\":\"m\",\"role\":\"monitor\"}"});
+  auto port = replay_of(records);
+  ASSERT_TRUE(detail::replay_begin_client_session(*port));
+  EXPECT_EQ(port->read_exactly(8), "hello a\n");
+  port->write_all("A1\n");
+  EXPECT_EQ(port->read_exactly(3), "a1\n");
+  port->write_all("B1\n");
+  EXPECT_EQ(port->read_exactly(3), "b1\n");
+  EXPECT_EQ(read_now(*port), "");
+  port->close();
+}
