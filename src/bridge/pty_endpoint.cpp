@@ -71,9 +71,6 @@ class PtyEndpoint final : public ClientEndpoint {
 
   void handle_events(const PollSet& poll_set) override {
     const bool pty_readable = poll_set.ready(pty_slot_).readable;
-    // Bytes are read only after the opens and closes before them were seen
-    // (the watch may have turned readable after poll() looked at it): a
-    // client's write after a reopen belongs to its new session.
     if (!opens_and_closes_) {
       if (pty_readable) read_pty();
     } else if (pty_readable || unread_write_ || poll_set.ready(watch_slot_).any()) {
@@ -82,13 +79,12 @@ class PtyEndpoint final : public ClientEndpoint {
       // held until the watch is read again: every open and close before
       // those bytes were written is in the watch by then (an open is
       // reported before it returns), so each byte goes to the client session
-      // it was written in.
+      // it was written in (DESIGN.md section 12: a close and a reopen at
+      // once are two client sessions).
       holding_ = true;
-      watch_clients();
       if (pty_readable || unread_write_) drain_pty();
       holding_ = false;
-      watch_clients();
-      pass_on_held();
+      watch_clients();  // passes on what it held
     }
     if (!to_pty_.empty()) write_pty();
   }
