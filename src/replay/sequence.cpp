@@ -129,13 +129,7 @@ void SequenceStrategy::entitle() {
     const bool entitled = config_.timing == ReplayTiming::session ||
                           (tx_progress() >= ahead.tx_before && !held_by_flush_gate());
     if (!entitled) break;  // later records need at least as many tx bytes
-    std::optional<ReplayTimeline::Anchor> anchor;
-    if (ahead.anchor_t_ns) {
-      if (const auto finished = finish_of(ahead.tx_before)) {
-        anchor = ReplayTimeline::Anchor{*finished, *ahead.anchor_t_ns};
-      }
-    }
-    ahead.item.due = timeline_.due(ahead.item.t_ns, anchor);
+    ahead.item.due = due_of(ahead);
     ahead_bytes_ -= ahead.item.payload().size();
     release_item(std::move(ahead.item), ahead.tx_before);
     ahead_.pop_front();
@@ -154,6 +148,18 @@ void SequenceStrategy::entitle() {
   }
 }
 
+// When an entitled record is due: anchored on the client's write that the
+// recording shows before it, once the client finished it.
+ReplayTime SequenceStrategy::due_of(const Ahead& ahead) const {
+  std::optional<ReplayTimeline::Anchor> anchor;
+  if (ahead.anchor_t_ns) {
+    if (const auto finished = finish_of(ahead.tx_before)) {
+      anchor = ReplayTimeline::Anchor{*finished, *ahead.anchor_t_ns};
+    }
+  }
+  return timeline_.due(ahead.item.t_ns, anchor);
+}
+
 // A recorded flush gates rx only as long as the client could still make it
 // (DESIGN.md section 12): flushes made back to back may reach the bridge as
 // one (TIOCPKT), and a probing client (gpsd) flushes a number of times that
@@ -166,14 +172,7 @@ bool SequenceStrategy::held_by_flush_gate() {
     return false;
   }
   if (!flush_gate_ends_) {
-    std::optional<ReplayTimeline::Anchor> anchor;
-    if (ahead.anchor_t_ns) {
-      if (const auto finished = finish_of(ahead.tx_before)) {
-        anchor = ReplayTimeline::Anchor{*finished, *ahead.anchor_t_ns};
-      }
-    }
-    const ReplayTime due = timeline_.due(ahead.item.t_ns, anchor);
-    flush_gate_ends_ = std::max(due, now_) +
+    flush_gate_ends_ = std::max(due_of(ahead), now_) +
                        std::chrono::duration_cast<ReplayClock::duration>(config_.flush_wait);
   }
   if (now_ < *flush_gate_ends_) return true;

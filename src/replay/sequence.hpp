@@ -105,6 +105,7 @@ class SequenceStrategy final : public ReplayStrategy {
   // Whether the front record waits for a flush alone (the client wrote what
   // the recording shows before it); sets flush_gate_ends_.
   bool held_by_flush_gate();
+  ReplayTime due_of(const Ahead& ahead) const;
   std::deque<Ahead> ahead_;
   std::size_t ahead_bytes_ = 0;
   std::deque<TxEnd> tx_ends_;
