@@ -257,8 +257,10 @@ def serve_replay(file, *, pty=None, listen=None, udp=None, peer=None,
                  pty_group: PtyGroup = None) -> BridgeHandle:
     """``wiretape replay --pty/--listen``: the recording ``file`` becomes a
     virtual device. ``replay_options`` are replay keys (``"timing=none,
-    check=data"``). A client that reconnects continues the session;
-    ``restart`` starts it over for each new client (TCP, or pty on Linux). The result is ok,
+    check=data"``). Each connection is a client session (DESIGN §12:
+    in match=sequence the k-th starts at the recording's k-th client_connect,
+    in match=request connection order is free); ``restart`` starts the
+    recording over for each new client (TCP, or pty on Linux). The result is ok,
     or ``outcome == "mismatch"`` with the report in ``message``; a recording
     with rx that no client was served leaves the reason in
     ``nothing_served``. ``pty_mode``/``pty_group`` set who may open the pty
