@@ -228,6 +228,15 @@ def record(device: str, output, *, pty=None, listen=None, udp=None,
                   duration=duration, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group)
 
 
+def proxy(device: str, *, pty=None, listen=None, udp=None, quiet: bool = True,
+          pty_mode: Optional[int] = None, pty_group: PtyGroup = None) -> BridgeHandle:
+    """``record`` without a file: the client side (``pty``, ``listen`` or
+    ``udp``) forwards to ``device`` and nothing is recorded (the pytest
+    plugin's ``--wiretape-live``)."""
+    return _start(device_options(device), pty=pty, listen=listen, udp=udp, quiet=quiet,
+                  pty_mode=pty_mode, pty_group=pty_group)
+
+
 DEFAULT_MAX_MONITORS = 16
 
 

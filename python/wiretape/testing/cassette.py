@@ -23,7 +23,9 @@ import wiretape
 from wiretape import _core
 from wiretape._core import device_options
 
-RECORD_MODES = ("none", "once", "rewrite")
+RECORD_MODES = ("none", "once", "rewrite", "all")
+#: VCR's names for ours.
+RECORD_MODE_ALIASES = {"all": "rewrite"}
 DEFAULT_REPLAY_KEYS = {"timing": "none"}
 MAX_NAME_LENGTH = _core.MAX_CASSETTE_NAME_LENGTH
 
@@ -124,6 +126,23 @@ def _first_given(*values):
     return None
 
 
+def _ini_flag(config, name: str) -> bool:
+    return str(config.getini(name)).strip().lower() in ("1", "true", "yes", "on")
+
+
+def _live_url(device: str, nodeid: str) -> str:
+    """pyserial's own URL for a device wiretape_url opens live."""
+    options = dict(_core.parse_options(device))
+    kind = options.get("type")
+    if kind == "serial" and options.get("device"):
+        return options["device"]
+    if kind == "tcp" and options.get("host") and options.get("port"):
+        return f"socket://{options['host']}:{options['port']}"
+    pytest.fail(f"{nodeid}: wiretape_url under --wiretape-live opens serial and TCP devices "
+                f"(pyserial's own URLs); {device!r} is neither: use wiretape_port",
+                pytrace=False)
+
+
 class WiretapeCassette:
     """What the plugin decided for one test, and the cleanup it owes.
 
@@ -151,7 +170,9 @@ class WiretapeCassette:
             pytest.fail(
                 f"{item.nodeid}: wiretape record mode {record!r} (from the {source}) "
                 f"is not one of {', '.join(RECORD_MODES)}", pytrace=False)
-        self.record_mode = record
+        self.record_mode = RECORD_MODE_ALIASES.get(record, record)
+        # Hardware in the loop: the real device, nothing recorded or replayed.
+        self.live = bool(config.getoption("wiretape_live")) or _ini_flag(config, "wiretape_live")
         self.device = _first_given(config.getoption("wiretape_device"),
                                    marker.pop("device", None),
                                    defaults.pop("device", None),
@@ -181,7 +202,8 @@ class WiretapeCassette:
                             "profile= (the profile whose framing they go with)", pytrace=False)
             self.replay_keys["profile"] = callable_profile(str(base), **callables)
 
-        self.recording = record == "rewrite" or (record == "once" and not self.path.exists())
+        self.recording = not self.live and (
+            self.record_mode == "rewrite" or (self.record_mode == "once" and not self.path.exists()))
         self.partial_path = self.path.with_name(f"{self.path.name}.recording-{os.getpid()}")
         self.device_from_driver = False
         self.opened_device = None  # what open_port(device) was given
@@ -194,8 +216,17 @@ class WiretapeCassette:
         """The option string that opens the device (recording) or the replay."""
         return self.options_for(self.opened_device or self.device)
 
+    @property
+    def mode(self) -> str:
+        """What the test does with its cassette: live, recording or replay."""
+        return "live" if self.live else "recording" if self.recording else "replay"
+
     def options_for(self, device: Any) -> str:
         """`options`, recording from `device` (an option string or a path)."""
+        if self.live:
+            if not device:
+                return "(none yet: the device is the path the driver opens)"
+            return device_options(device)
         if self.recording:
             if not device:
                 return "(none yet: the device is the path the driver opens)"
@@ -210,6 +241,8 @@ class WiretapeCassette:
 
     @property
     def url(self) -> str:
+        if self.live:
+            return _live_url(device_options(self.device), self.item.nodeid)
         if self.recording:
             query = urllib.parse.urlencode({"options": device_options(self.device)})
             return f"wiretape+record://{urllib.parse.quote(str(self.partial_path))}?{query}"
@@ -231,6 +264,13 @@ class WiretapeCassette:
         it, as wiretape_serial's do); makes the cassette's directory when
         recording."""
         self.device_from_driver = device_from_driver
+        if self.live:
+            if not self.device and not device_from_driver:
+                pytest.fail(
+                    f"wiretape: {self.item.nodeid} runs live (--wiretape-live) but no device "
+                    "is given: pass --wiretape-device=OPTS, the marker's device=, or set "
+                    "wiretape_device in the ini file", pytrace=False)
+            return
         if self.recording:
             if not self.device and not device_from_driver:
                 pytest.fail(
@@ -309,9 +349,10 @@ class WiretapeCassette:
         publish_recording(self.partial_path, self.path)
 
     def describe(self) -> str:
+        if self.live:
+            return f"live (--wiretape-live): nothing recorded\noptions: {self.options}"
         lines = [f"cassette: {self.path}",
-                 f"mode: {'recording' if self.recording else 'replay'} "
-                 f"(--wiretape-record={self.record_mode})",
+                 f"mode: {self.mode} (--wiretape-record={self.record_mode})",
                  f"options: {self.options}"]
         if not self.recording:
             lines.append(f"to record it again: {self.record_command().replace('=once', '=rewrite')}")

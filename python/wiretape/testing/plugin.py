@@ -10,9 +10,18 @@ it from the real device or replays it:
     command that records it.
 ``--wiretape-record=once``
     record when the cassette is missing, else replay.
-``--wiretape-record=rewrite``
+``--wiretape-record=rewrite`` (or ``all``, VCR's name)
     always record anew; a test that fails while recording leaves the previous
     cassette as it was.
+``--wiretape-live``
+    hardware in the loop: every test talks to the real device
+    (``--wiretape-device``, or the path a ``wiretape_serial`` driver opens);
+    nothing is replayed or recorded, cassettes are neither needed nor touched.
+
+The run ends with a summary: cassettes replayed, recorded (and those not
+kept because the test failed), run live, and the cassettes in the test
+files' recording folders that no collected test names (left by a renamed or
+removed test).
 
 Recording needs the device: ``--wiretape-device=OPTS`` (a wiretape option
 string; a bare path means ``type=serial,device=PATH``). Both settings can
@@ -73,10 +82,18 @@ from wiretape import bridge, urlhandler
 
 from .._core import device_options
 from .cassette import RECORD_MODES, WiretapeCassette, default_cassette_dir
+from .summary import CassetteSummary
 from .serial_patch import SerialPatch, fail_test, served_paths
 
 _CASSETTE_KEY = pytest.StashKey[WiretapeCassette]()
 _REPORTS_KEY = pytest.StashKey[Dict[str, pytest.TestReport]]()
+_SUMMARY_KEY = pytest.StashKey[CassetteSummary]()
+
+
+def _summary(config) -> CassetteSummary:
+    if _SUMMARY_KEY not in config.stash:
+        config.stash[_SUMMARY_KEY] = CassetteSummary()
+    return config.stash[_SUMMARY_KEY]
 
 
 # --------------------------------------------------------------------------
@@ -88,12 +105,19 @@ def pytest_addoption(parser):
     group.addoption(
         "--wiretape-record", dest="wiretape_record", default=None, choices=RECORD_MODES,
         help="none: replay only (default); once: record missing cassettes; "
-             "rewrite: record every cassette anew")
+             "rewrite (or all): record every cassette anew")
+    group.addoption(
+        "--wiretape-live", dest="wiretape_live", action="store_true", default=False,
+        help="hardware in the loop: every test talks to the real device "
+             "(--wiretape-device); nothing is replayed or recorded")
     group.addoption(
         "--wiretape-device", dest="wiretape_device", default=None, metavar="OPTS",
         help="the device to record from: a wiretape option string "
              "(e.g. type=serial,device=/dev/ttyACM0,baud=115200) or a serial device path")
-    parser.addini("wiretape_record", "wiretape record mode: none, once or rewrite", default="")
+    parser.addini("wiretape_record", "wiretape record mode: none, once, rewrite or all",
+                  default="")
+    parser.addini("wiretape_live", "true: run against the real device, record nothing",
+                  default="")
     parser.addini("wiretape_device", "wiretape device option string to record from", default="")
 
 
@@ -105,6 +129,22 @@ def pytest_configure(config):
         "wiretape_serial serves, and replay keys (timing, match, check, unused...) "
         "for its replay")
     urlhandler.register()
+
+
+def pytest_collection_modifyitems(session, config, items):
+    # Before deselection (-k, -m): every test the files hold names its
+    # cassette, so a cassette no test names is an orphan, whatever ran.
+    summary = _summary(config)
+    for item in items:
+        summary.note_collected(item)
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    lines = _summary(config).lines()
+    if lines:
+        terminalreporter.write_sep("-", "wiretape")
+        for line in lines:
+            terminalreporter.write_line(line)
 
 
 # --------------------------------------------------------------------------
@@ -171,7 +211,9 @@ def wiretape_cassette(request: pytest.FixtureRequest, wiretape_config: Dict[str,
     cassette.prepare(device_from_driver="wiretape_serial" in request.fixturenames)
     request.node.stash[_CASSETTE_KEY] = cassette
     yield cassette
-    cassette.finish(_test_passed(request.node))
+    passed = _test_passed(request.node)
+    cassette.finish(passed)
+    _summary(request.config).note(cassette, passed)
 
 
 @pytest.fixture
@@ -216,7 +258,7 @@ def wiretape_serial(wiretape_cassette: WiretapeCassette) -> Iterator[SerialPatch
         fail_test(f"{cassette.item.nodeid}: wiretape marker: {error}")
 
     def open_port(path, baud):
-        if not cassette.recording:
+        if not cassette.recording and not cassette.live:
             return cassette.open_port()
         device = device_options(cassette.device or path)
         if baud and device.startswith("type=serial,") and ",baud=" not in device:
@@ -253,7 +295,9 @@ def wiretape_udp(wiretape_cassette: WiretapeCassette) -> str:
 def _virtual_device(cassette: WiretapeCassette, fixture: str, **client_side):
     """A bridge serving the cassette's replay, or recording its device, on
     `client_side`; stopped, and its verdict checked, when the test ends."""
-    if cassette.recording:
+    if cassette.live:
+        handle = bridge.proxy(device_options(cassette.device), **client_side)
+    elif cassette.recording:
         handle = bridge.record(device_options(cassette.device), str(cassette.partial_path),
                                **client_side)
     else:
