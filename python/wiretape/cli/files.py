@@ -1,5 +1,5 @@
-"""The commands on session files: show, stats, verify, convert, diff, edit
-(the work is in wiretape.tools)."""
+"""The commands on session files: show, stats, verify, convert, diff, edit,
+view (the work is in wiretape.tools)."""
 
 from __future__ import annotations
 
@@ -148,4 +148,20 @@ def cmd_edit(args, out: Output) -> int:
             out.note(f"{result.unsealed_frames} {result.profile} frames keep part of their "
                      "recorded checksums: the records holding them were written before the "
                      "frame was complete (more than 8 MiB waited behind them)")
+    return EXIT_OK
+
+
+def cmd_view(args, out: Output) -> int:
+    from ..tools.view import default_output, view
+
+    require_input(args.file)
+    if args.campaign is not None:
+        require_input(args.campaign)
+    if args.output == "":
+        raise UsageError("-o needs a file name (FILE.html)")
+    output = args.output if args.output is not None else default_output(args.file)
+    written = view(args.file, output, profile=args.profile, campaign=args.campaign)
+    if not args.quiet:
+        default = "" if args.output is not None else " (the default: SESSION with .html; -o to choose)"
+        out.note(f"wrote {written}{default}: open it in a browser")
     return EXIT_OK

@@ -18,11 +18,13 @@ page's script (view_page/view.js) reads it.
 from __future__ import annotations
 
 import base64
+import contextlib
 import json
 import os
 import re
+import tempfile
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Any, Dict, Iterator, List, Optional, Tuple
 
 from .. import _core
 from ..exports._common import replacing
@@ -145,7 +147,9 @@ def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
     if campaign is not None:
         from ..faults import read_json
         options = read_json(campaign).options
-    exchanges = _exchanges(path, profile, options)
+    with _intact_part(path, reader) as intact:
+        exchanges = _exchanges(intact, profile, options)
+        frames = _frames(intact, profile) if profile is not None else []
     if campaign is not None:
         campaign_data = _campaign(campaign, path, exchanges)
     data = {
@@ -159,11 +163,27 @@ def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
         "records": {"t_ns": times, "kind": kind_of, "size": sizes, "kept": kept,
                     "channel": 0, "bytes": base64.b64encode(bytes(payload)).decode("ascii")},
         "exchanges": exchanges,
-        "frames": _frames(path, profile) if profile is not None else [],
+        "frames": frames,
         "campaign": campaign_data,
         "mismatch": _mismatch(header, path),
     }
     return data, reader.damage
+
+
+@contextlib.contextmanager
+def _intact_part(path: str, read: _core.SessionReader) -> Iterator[str]:
+    """`path`, or for a damaged session a temporary copy of the records
+    before the damage: exchanges are found in what can be shown."""
+    if read.damage is None:
+        yield path
+        return
+    with tempfile.TemporaryDirectory(prefix="wiretape-view-") as directory:
+        copy = os.path.join(directory, "intact.wtape")
+        reader = open_session(path)
+        with _core.SessionWriter(copy, reader.header) as writer:
+            for record in reader:
+                writer.write(record.kind, record.t_ns, record.data)
+        yield copy
 
 
 def _script_json(value: Any) -> str:

@@ -1,0 +1,309 @@
+"""wiretape view (DESIGN §21): the page, seen in headless Chromium.
+
+Chromium is driven by its own command line (--headless --dump-dom,
+--screenshot, console messages through --enable-logging): no driver to
+install. The page sets data-first-paint-ms on <html> once its timeline is
+drawn, data-ready once its lists are, and selects the record named by
+#record=N, so a DOM dump after the page settles shows what a user sees."""
+
+from __future__ import annotations
+
+import html
+import json
+import os
+import re
+import shutil
+import struct
+import subprocess
+import sys
+import zlib
+from pathlib import Path
+
+import pytest
+
+import serial  # pyserial, a test dependency
+
+from devices import skip_unless_serial_opens_on_a_pty, start_cli, wait_until
+from wiretape import _core
+from wiretape.faults import session_digest
+from wiretape.tools.view import MAX_RECORD_BYTES, default_output, view
+
+ROOT = Path(__file__).resolve().parents[3]
+HOKUYO = ROOT / "examples" / "hokuyo" / "recordings"
+TX_COLOUR = (0x1F, 0x6F, 0xD1)
+RX_COLOUR = (0x1A, 0x9A, 0x3A)
+CRASH_COLOUR = (0xC6, 0x28, 0x28)
+
+
+def chromium() -> str:
+    for name in ("chromium", "chromium-browser"):
+        found = shutil.which(name) or (f"/usr/bin/{name}" if os.path.exists(f"/usr/bin/{name}") else None)
+        if found:
+            return found
+    pytest.skip("chromium is not installed (Debian: apt-get install chromium): "
+                "the view is tested in headless Chromium")
+
+
+def open_page(page: Path, tmp_path: Path, fragment: str = "", screenshot: Path = None):
+    """The page after it settled in headless Chromium: (its DOM, the
+    console messages it logged)."""
+    profile = tmp_path / f"chromium-profile-{len(list(tmp_path.glob('chromium-profile-*')))}"
+    argv = [chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+            "--enable-logging=stderr", "--v=0", f"--user-data-dir={profile}",
+            "--window-size=1200,900", "--force-device-scale-factor=1",
+            "--virtual-time-budget=10000"]
+    argv += [f"--screenshot={screenshot}"] if screenshot else ["--dump-dom"]
+    result = subprocess.run(argv + [page.resolve().as_uri() + fragment], capture_output=True,
+                            text=True, timeout=180)
+    console = [line for line in result.stderr.splitlines() if ":CONSOLE" in line]
+    if screenshot:
+        assert screenshot.exists(), result.stderr[-2000:]
+    else:
+        assert "data-ready" in result.stdout, result.stderr[-2000:]
+    return result.stdout, console
+
+
+def png_pixels(path: Path):
+    """The RGB pixels of a non-interlaced 8-bit RGB or RGBA PNG (Chromium's
+    screenshots), as a set of colours."""
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    at, chunks, width = 8, b"", 0
+    while at < len(data):
+        length, kind = struct.unpack(">I4s", data[at:at + 8])
+        body = data[at + 8:at + 8 + length]
+        if kind == b"IHDR":
+            width, height, depth, colour = struct.unpack(">IIBB", body[:10])
+            assert depth == 8 and colour in (2, 6), (depth, colour)
+            channels = 3 if colour == 2 else 4
+        elif kind == b"IDAT":
+            chunks += body
+        at += 12 + length
+    raw = zlib.decompress(chunks)
+    stride = width * channels
+    previous = bytearray(stride)
+    colours = set()
+    for row in range(height):
+        line = raw[row * (stride + 1):(row + 1) * (stride + 1)]
+        kind, current = line[0], bytearray(line[1:])
+        for i in range(stride):
+            left = current[i - channels] if i >= channels else 0
+            up = previous[i]
+            corner = previous[i - channels] if i >= channels else 0
+            if kind == 1:
+                current[i] = (current[i] + left) & 0xFF
+            elif kind == 2:
+                current[i] = (current[i] + up) & 0xFF
+            elif kind == 3:
+                current[i] = (current[i] + (left + up) // 2) & 0xFF
+            elif kind == 4:
+                p = left + up - corner
+                pa, pb, pc = abs(p - left), abs(p - up), abs(p - corner)
+                predictor = left if pa <= pb and pa <= pc else up if pb <= pc else corner
+                current[i] = (current[i] + predictor) & 0xFF
+        for i in range(0, stride, channels):
+            colours.add(tuple(current[i:i + 3]))
+        previous = current
+    return colours
+
+
+def element_text(dom: str, element_id: str) -> str:
+    match = re.search(rf'id="{element_id}"[^>]*>(.*?)</(?:pre|div|section)>', dom, re.S)
+    assert match, f"no #{element_id} in the page"
+    return html.unescape(re.sub(r"<[^>]+>", "\n", match.group(1)))
+
+
+def table_rows(dom: str, section_id: str):
+    match = re.search(rf'<div id="{section_id}">(.*?)</table>', dom, re.S)
+    assert match, f"no #{section_id} list in the page"
+    rows = re.findall(r"<tr([^>]*)>(.*?)</tr>", match.group(1), re.S)
+    return [(attributes, [html.unescape(cell) for cell in re.findall(r"<td>(.*?)</td>", cells, re.S)])
+            for attributes, cells in rows[1:]]
+
+
+def records_of(path):
+    return list(_core.SessionReader(os.fspath(path)))
+
+
+# --------------------------------------------------------------------------
+
+
+def test_a_hokuyo_session_shows_both_lanes_its_exchanges_and_frames(tmp_path):
+    session = HOKUYO / "urg04lx_gd.wtape"
+    page = Path(view(session, tmp_path / "gd.html", profile="scip"))
+    dom, console = open_page(page, tmp_path)
+    assert console == []
+    exchanges = _core.session_exchanges(os.fspath(session), profile="scip")
+    rows = table_rows(dom, "exchange-list")
+    assert [cells[0] for _, cells in rows] == [f"#{e.index}" for e in exchanges]
+    assert rows[-1][1][2] == "GD0044072501\\n"
+    frames = [cells[3] for _, cells in table_rows(dom, "frame-list")]
+    assert len(frames) == 18 and any(name.startswith("GD0044072501") for name in frames)
+    assert 'data-first-paint-ms="' in dom
+
+    picture = tmp_path / "gd.png"
+    open_page(page, tmp_path, screenshot=picture)
+    colours = png_pixels(picture)
+    assert TX_COLOUR in colours and RX_COLOUR in colours
+
+
+def test_the_hex_pane_shows_the_selected_records_bytes(tmp_path):
+    session = HOKUYO / "urg04lx_md.wtape"
+    page = Path(view(session, tmp_path / "md.html"))
+    records = records_of(session)
+    chosen = max((i for i, r in enumerate(records) if r.kind == "rx"), key=lambda i: len(records[i].data))
+    dom, console = open_page(page, tmp_path, fragment=f"#record={chosen}")
+    assert console == []
+    assert f'data-record="{chosen}"' in dom
+    pane = element_text(dom, "hex").splitlines()
+    assert pane[0].startswith(f"record {chosen} ") and " rx " in pane[0]
+    shown = bytearray()
+    for line in pane[1:]:
+        match = re.match(r"^[0-9a-f]{8}  ((?:[0-9a-f]{2} )+)", line)
+        if match:
+            shown += bytes.fromhex(match.group(1))
+    assert bytes(shown) == records[chosen].data[:MAX_RECORD_BYTES]
+    assert len(shown) > 100
+
+
+def test_a_campaigns_runs_mark_the_exchanges_they_faulted(tmp_path):
+    session = HOKUYO / "urg04lx_gd.wtape"
+    runs = [{"case": 0, "kind": "corrupt", "where": "exchange:8", "outcome": "crash", "exit": -11,
+             "seconds": 0.5, "repro": "wiretape replay ... --fault corrupt@exchange:8"},
+            {"case": 1, "kind": "drop", "where": "exchange:3", "outcome": "ok", "exit": 0,
+             "seconds": 0.2, "repro": ""},
+            {"case": 2, "kind": "silence", "where": "rx:100", "outcome": "hang", "exit": None,
+             "seconds": 5.0, "repro": ""}]
+    campaign = tmp_path / "campaign.json"
+    campaign.write_text(json.dumps({
+        "session": os.fspath(session), "session_sha256": session_digest(os.fspath(session)),
+        "seed": 0, "kinds": None, "budget": None, "options": "", "cases": 3, "shard": None,
+        "runs": runs, "summary": {"ok": 1, "error": 0, "crash": 1, "hang": 1},
+        "interrupted": False}))
+    page = Path(view(session, tmp_path / "campaign.html", campaign=os.fspath(campaign)))
+    dom, console = open_page(page, tmp_path)
+    assert console == []
+    listed = table_rows(dom, "runs")
+    assert [(cells[1], cells[2], cells[5]) for _, cells in listed] == [
+        ("corrupt@exchange:8", "crash", "#8"), ("drop@exchange:3", "ok", "#3"),
+        ("silence@rx:100", "hang", "")]
+    exchanges = {cells[0]: (attributes, cells) for attributes, cells in table_rows(dom, "exchange-list")}
+    assert 'outcome-crash' in exchanges["#8"][0] and exchanges["#8"][1][4] == "corrupt:crash"
+    assert "warning" not in element_text(dom, "notes")
+
+    picture = tmp_path / "campaign.png"
+    open_page(page, tmp_path, screenshot=picture)
+    assert CRASH_COLOUR in png_pixels(picture)
+
+
+def test_a_campaign_of_another_session_is_refused_naming_the_run(tmp_path):
+    campaign = tmp_path / "campaign.json"
+    campaign.write_text(json.dumps({
+        "session": "other.wtape", "session_sha256": "", "seed": 0, "kinds": None,
+        "budget": None, "options": "", "cases": 1, "shard": None, "interrupted": False,
+        "runs": [{"case": 0, "kind": "drop", "where": "exchange:99", "outcome": "ok",
+                  "exit": 0, "seconds": 0.1, "repro": ""}], "summary": {}}))
+    result = subprocess.run([sys.executable, "-m", "wiretape.cli", "view",
+                             os.fspath(HOKUYO / "urg04lx_gd.wtape"), "--campaign",
+                             os.fspath(campaign), "-o", os.fspath(tmp_path / "x.html")],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2, result.stderr
+    assert "exchange 99" in result.stderr and "9 exchanges" in result.stderr
+    assert not (tmp_path / "x.html").exists()
+
+
+def test_a_replays_mismatch_is_marked_on_the_clients_record(tmp_path):
+    skip_unless_serial_opens_on_a_pty()
+    original = HOKUYO / "urg04lx_gd.wtape"
+    link, recording = tmp_path / "pty", tmp_path / "replayed.wtape"
+    child = start_cli("replay", os.fspath(original), "--pty", os.fspath(link),
+                      "-o", os.fspath(recording))
+    try:
+        wait_until(link.exists, what="the replay's pty")
+        with serial.Serial(os.fspath(link), timeout=30) as client:
+            client.write(b"VV\n")
+            assert client.read(6) == b"VV\nE\n\n"
+            client.write(b"XX\n")  # the recording holds QT\n here
+            _, err = child.communicate(timeout=60)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.communicate()
+    assert child.returncode == 1 and "mismatch" in err, err
+    page = Path(view(recording, tmp_path / "mismatch.html"))
+    records = records_of(recording)
+    wrong = next(i for i, r in enumerate(records) if r.kind == "tx" and r.data == b"XX\n")
+    dom, console = open_page(page, tmp_path, fragment=f"#record={wrong}")
+    assert console == []
+    notes = element_text(dom, "notes")
+    assert f"Mismatch (record {wrong}, tx byte 3)" in notes
+    assert "expected: 51 54 0a  |QT.|" in notes and "actual:   58 58 0a  |XX.|" in notes
+    assert "MISMATCH" in element_text(dom, "hex").splitlines()[0]
+    picture = tmp_path / "mismatch.png"
+    open_page(page, tmp_path, fragment=f"#record={wrong}", screenshot=picture)
+    assert CRASH_COLOUR in png_pixels(picture)  # the mismatch's mark
+
+
+def many_records(path, pairs):
+    with _core.SessionWriter(os.fspath(path)) as writer:
+        writer.write("open", 0, b'{"description":"generated"}')
+        for n in range(pairs):
+            writer.write("tx", 1_000_000 * n + 1, b"GET %d\n" % n)
+            writer.write("rx", 1_000_000 * n + 200_000, b"VALUE %d\n" % (n * 7))
+    return path
+
+
+def test_100000_records_open_in_under_2_s_to_first_paint(tmp_path):
+    session = many_records(tmp_path / "big.wtape", 50_000)
+    page = Path(view(session, tmp_path / "big.html"))
+    dom, console = open_page(page, tmp_path)
+    assert console == []
+    first_paint_ms = float(re.search(r'data-first-paint-ms="([0-9.]+)"', dom).group(1))
+    assert first_paint_ms <= 2000, f"first paint after {first_paint_ms} ms"
+    assert "100001 records" in element_text(dom, "summary")
+
+
+# --- the command line ------------------------------------------------------
+
+
+def run_view(*argv, cwd=None):
+    return subprocess.run([sys.executable, "-m", "wiretape.cli", "view", *argv], cwd=cwd,
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_the_default_page_is_the_session_with_html_and_says_so(tmp_path):
+    session = tmp_path / "scan.wtape"
+    shutil.copy(HOKUYO / "urg04lx_gd.wtape", session)
+    result = run_view(os.fspath(session))
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "scan.html").is_file()
+    assert default_output(session) == os.fspath(tmp_path / "scan.html")
+    assert "scan.html (the default: SESSION with .html" in result.stderr
+    page = (tmp_path / "scan.html").read_text()
+    # Self-contained: nothing fetched from anywhere.
+    assert not re.search(r'(src|href)="(https?:)?//', page)
+    assert "default-src 'none'" in page
+
+
+def test_the_page_is_never_written_over_its_session(tmp_path):
+    session = tmp_path / "scan.wtape"
+    shutil.copy(HOKUYO / "urg04lx_gd.wtape", session)
+    os.symlink(session, tmp_path / "scan.html")
+    before = session.read_bytes()
+    for output in (session, tmp_path / "scan.html"):
+        result = run_view(os.fspath(session), "-o", os.fspath(output))
+        assert result.returncode == 3 and "refusing to overwrite the input" in result.stderr
+    result = run_view(os.fspath(session))  # the default output is the link to the session
+    assert result.returncode == 3
+    assert session.read_bytes() == before
+
+
+def test_a_damaged_session_is_shown_up_to_the_damage_and_exits_1(tmp_path):
+    session = tmp_path / "cut.wtape"
+    data = (HOKUYO / "urg04lx_gd.wtape").read_bytes()
+    session.write_bytes(data[:len(data) - 100])
+    result = run_view(os.fspath(session), "-o", os.fspath(tmp_path / "cut.html"))
+    assert result.returncode == 1, result.stderr
+    dom, console = open_page(tmp_path / "cut.html", tmp_path)
+    assert console == []
+    assert "Damaged:" in element_text(dom, "notes")
