@@ -7,6 +7,7 @@ import json
 import os
 import sys
 
+from .. import SessionError
 from .console import Output, silence_stdout
 from .errors import EXIT_CHECK_FAILED, EXIT_OK, RuntimeFailure, UsageError
 
@@ -160,8 +161,13 @@ def cmd_view(args, out: Output) -> int:
     if args.output == "":
         raise UsageError("-o needs a file name (FILE.html)")
     output = args.output if args.output is not None else default_output(args.file)
-    written = view(args.file, output, profile=args.profile, campaign=args.campaign)
+    default = "" if args.output is not None else " (the default: SESSION with .html; -o to choose)"
+    try:
+        view(args.file, output, profile=args.profile, campaign=args.campaign)
+    except SessionError:  # the page shows what came before the damage
+        if not args.quiet:
+            out.note(f"wrote {output}{default}, up to the damage:")
+        raise
     if not args.quiet:
-        default = "" if args.output is not None else " (the default: SESSION with .html; -o to choose)"
-        out.note(f"wrote {written}{default}: open it in a browser")
+        out.note(f"wrote {output}{default}: open it in a browser")
     return EXIT_OK

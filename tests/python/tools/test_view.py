@@ -307,3 +307,27 @@ def test_a_damaged_session_is_shown_up_to_the_damage_and_exits_1(tmp_path):
     dom, console = open_page(tmp_path / "cut.html", tmp_path)
     assert console == []
     assert "Damaged:" in element_text(dom, "notes")
+
+
+def test_bytes_and_names_from_the_file_stay_text_in_the_page(tmp_path):
+    hostile = b"</script><script>console.error('injected')</script><img src=x onerror=alert(1)>"
+    session = tmp_path / "hostile.wtape"
+    with _core.SessionWriter(os.fspath(session), metadata={"note": hostile.decode()}) as writer:
+        writer.write("tx", 1_000, hostile)
+        writer.write("rx", 2_000, hostile)
+        writer.write("settings", 3_000, b'{"baud":9600,"source":"</script>"}')
+    page = Path(view(session, tmp_path / "hostile.html"))
+    assert page.read_text().count("<script") == 2  # the data's and the page's own
+    dom, console = open_page(page, tmp_path, fragment="#record=0")
+    assert console == []
+    rows = table_rows(dom, "exchange-list")
+    assert rows[0][1][2] == hostile.decode()[:60]
+    assert "<img" not in dom.split('id="lists"')[1].replace("&lt;img", "")
+
+
+def test_an_empty_session_draws_without_errors(tmp_path):
+    session = tmp_path / "empty.wtape"
+    _core.SessionWriter(os.fspath(session)).close()
+    dom, console = open_page(Path(view(session, tmp_path / "empty.html")), tmp_path)
+    assert console == []
+    assert "0 records" in element_text(dom, "summary")
