@@ -9,6 +9,8 @@ drawn, data-ready once its lists are, and selects the record named by
 from __future__ import annotations
 
 import html
+import select
+import time
 import json
 import os
 import re
@@ -331,3 +333,124 @@ def test_an_empty_session_draws_without_errors(tmp_path):
     dom, console = open_page(Path(view(session, tmp_path / "empty.html")), tmp_path)
     assert console == []
     assert "0 records" in element_text(dom, "summary")
+
+
+# --- pointing, zooming, panning: Chromium's DevTools protocol over a pipe ---
+
+class DevTools:
+    """Headless Chromium driven through --remote-debugging-pipe (JSON
+    messages ended by NUL on its fds 3 and 4): mouse events as a user makes
+    them, and the page's state read back."""
+
+    def __init__(self, tmp_path: Path):
+        to_browser_r, self._to_browser = os.pipe()
+        self._from_browser, from_browser_w = os.pipe()
+        null = os.open(os.devnull, os.O_RDWR)
+        actions = [(os.POSIX_SPAWN_DUP2, to_browser_r, 3), (os.POSIX_SPAWN_DUP2, from_browser_w, 4),
+                   (os.POSIX_SPAWN_DUP2, null, 1), (os.POSIX_SPAWN_DUP2, null, 2)]
+        argv = [chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+                "--remote-debugging-pipe", f"--user-data-dir={tmp_path / 'chromium-devtools'}",
+                "--window-size=1200,900", "--force-device-scale-factor=1", "about:blank"]
+        self._pid = os.posix_spawn(argv[0], argv, os.environ, file_actions=actions)
+        for fd in (to_browser_r, from_browser_w, null):
+            os.close(fd)
+        self._buffer = b""
+        self._next_id = 0
+        self._session = None
+
+    def call(self, method, session=True, **params):
+        self._next_id += 1
+        message = {"id": self._next_id, "method": method, "params": params}
+        if session and self._session:
+            message["sessionId"] = self._session
+        os.write(self._to_browser, json.dumps(message).encode() + b"\0")
+        deadline = time.monotonic() + 60
+        while True:
+            while b"\0" in self._buffer:
+                raw, self._buffer = self._buffer.split(b"\0", 1)
+                reply = json.loads(raw)
+                if reply.get("id") == self._next_id:
+                    assert "error" not in reply, reply["error"]
+                    return reply["result"]
+            remaining = deadline - time.monotonic()
+            assert remaining > 0, f"no answer to {method}"
+            ready, _, _ = select.select([self._from_browser], [], [], remaining)
+            if ready:
+                chunk = os.read(self._from_browser, 1 << 16)
+                assert chunk, "chromium went away"
+                self._buffer += chunk
+
+    def open(self, url: str) -> None:
+        target = self.call("Target.createTarget", url=url)["targetId"]
+        self._session = self.call("Target.attachToTarget", targetId=target, flatten=True)["sessionId"]
+        wait_until(lambda: self.evaluate("location.href.startsWith('file:') && "
+                                         "!!document.documentElement && "
+                                         "document.documentElement.dataset.ready") == "true",
+                   what="the page to be ready")
+
+    def evaluate(self, expression: str):
+        result = self.call("Runtime.evaluate", expression=expression, returnByValue=True)
+        assert "exceptionDetails" not in result, result
+        return result["result"].get("value")
+
+    def mouse(self, kind: str, x: float, y: float, **extra) -> None:
+        self.call("Input.dispatchMouseEvent", type=kind, x=x, y=y, **extra)
+
+    def close(self) -> None:
+        try:
+            self.call("Browser.close", session=False)
+        except (AssertionError, OSError):
+            os.kill(self._pid, 9)
+        os.waitpid(self._pid, 0)
+        os.close(self._to_browser)
+        os.close(self._from_browser)
+
+
+@pytest.fixture
+def devtools(tmp_path):
+    browser = DevTools(tmp_path)
+    yield browser
+    browser.close()
+
+
+def test_the_wheel_zooms_at_the_pointer_dragging_pans_and_a_click_selects(tmp_path, devtools):
+    session = HOKUYO / "urg04lx_md.wtape"
+    page = Path(view(session, tmp_path / "md.html"))
+    devtools.open(page.resolve().as_uri())
+    left, top = devtools.evaluate(
+        "(r => [r.left, r.top])(document.getElementById('lanes').getBoundingClientRect())")
+    before = devtools.evaluate("wiretapeView.range()")
+    middle = (before[0] + before[1]) / 2
+    x = left + devtools.evaluate(f"wiretapeView.xOf({middle})")
+    y = top + devtools.evaluate("wiretapeView.laneMiddle('rx')")
+    devtools.mouse("mouseWheel", x, y, deltaX=0, deltaY=-400)
+    wait_until(lambda: devtools.evaluate("wiretapeView.range()") != before, what="the zoom")
+    zoomed = devtools.evaluate("wiretapeView.range()")
+    assert zoomed[1] - zoomed[0] < (before[1] - before[0]) / 1.5
+    assert zoomed[0] < middle < zoomed[1]  # around the pointer
+
+    devtools.mouse("mousePressed", x, y, button="left", buttons=1, clickCount=1)
+    devtools.mouse("mouseMoved", x - 200, y, button="left", buttons=1)
+    devtools.mouse("mouseReleased", x - 200, y, button="left", buttons=0, clickCount=1)
+    panned = devtools.evaluate("wiretapeView.range()")
+    assert panned[1] - panned[0] == pytest.approx(zoomed[1] - zoomed[0])
+    assert panned[0] > zoomed[0]  # dragged to the left: later times come into view
+
+    records = records_of(session)
+    fit = devtools.evaluate("document.getElementById('fit').click(), wiretapeView.range()")
+    chosen = next(i for i, r in enumerate(records) if r.kind == "rx" and len(r.data) > 100)
+    wait_until(lambda: devtools.evaluate("wiretapeView.range()") == fit, what="the fit")
+    devtools.mouse("mouseWheel", left + devtools.evaluate(f"wiretapeView.xOf({records[chosen].t_ns})"),
+                   y, deltaX=0, deltaY=-3000)  # close enough to tell records apart
+    wait_until(lambda: devtools.evaluate("wiretapeView.range()") != fit, what="the zoom")
+    x = left + devtools.evaluate(f"wiretapeView.xOf({records[chosen].t_ns})")
+    devtools.mouse("mousePressed", x, y, button="left", buttons=1, clickCount=1)
+    devtools.mouse("mouseReleased", x, y, button="left", buttons=0, clickCount=1)
+    wait_until(lambda: devtools.evaluate("document.getElementById('hex').dataset.record") == str(chosen),
+               what="the click's record in the hex pane")
+    devtools.mouse("mouseMoved", left + 5, top + 5)  # off the records: the pane keeps the selection
+    pane = devtools.evaluate("document.getElementById('hex').textContent")
+    assert pane.startswith(f"record {chosen} ")
+    assert records[chosen].data[:16].hex(" ") in pane
+    devtools.evaluate("window.dispatchEvent(new KeyboardEvent('keydown', {key: 'ArrowRight'}))")
+    assert devtools.evaluate("document.getElementById('hex').dataset.record") == str(chosen + 1)

@@ -259,6 +259,7 @@
     drawLanes();
     drawMarks();
     document.getElementById("status").textContent = seconds(t0, 6) + " … " + seconds(t1, 6);
+    canvas.dataset.from = String(t0); canvas.dataset.to = String(t1);
   }
   function redraw() { if (!pending) { pending = true; requestAnimationFrame(draw); } }
 
@@ -425,6 +426,14 @@
     });
     document.documentElement.dataset.listsReady = "true";
   }
+
+  // Where things are drawn, for tests that point at them (CSS pixels from
+  // the canvas's left and top edges).
+  window.wiretapeView = {
+    xOf: xOf,
+    laneMiddle: name => { const lane = lanes.find(l => l.name === name); return lane.top + lane.height / 2; },
+    range: () => [t0, t1],
+  };
 
   // ---- start: the first paint, then the rest
   resize();
