@@ -130,9 +130,11 @@ def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
     kind_of: List[int] = []
     sizes: List[int] = []
     kept: List[int] = []
+    channels: List[int] = []
     payload = bytearray()
     for record in reader:
         data = record.data
+        channels.append(getattr(record, "channel", 0))
         times.append(record.t_ns)
         kind_of.append(kind_code.setdefault(record.kind, len(kinds)))
         if kind_of[-1] == len(kinds):
@@ -156,12 +158,14 @@ def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
         "format": PAGE_FORMAT,
         "session": {"path": path, "name": os.path.basename(path), "header": header,
                     "damage": damage, "profile": profile},
-        # One channel for now: a session of several ports (DESIGN §19) lists
-        # one per port, and records say theirs in "channel".
-        "channels": [{"id": 0, "name": header.get("port_type") or "port"}],
+        # A group of lanes per channel: one today; a session of several
+        # ports (DESIGN §19) has one per port, and "channel" is then a
+        # column, one number per record, rather than one number for all.
+        "channels": [{"id": channel, "name": header.get("port_type") or "port"}
+                     for channel in sorted(set(channels) | {0})],
         "kinds": kinds,
         "records": {"t_ns": times, "kind": kind_of, "size": sizes, "kept": kept,
-                    "channel": 0, "bytes": base64.b64encode(bytes(payload)).decode("ascii")},
+                    "channel": channels if any(channels) else 0, "bytes": base64.b64encode(bytes(payload)).decode("ascii")},
         "exchanges": exchanges,
         "frames": frames,
         "campaign": campaign_data,

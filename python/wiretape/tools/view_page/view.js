@@ -92,6 +92,10 @@
   }
   const canvasHeight = y + 4;
   function laneOfKind(k) { return k === TX ? "tx" : k === RX ? "rx" : "events"; }
+  // The channel of each record: one number for all, or one per record.
+  const channelOf = Array.isArray(rec.channel) ? (i => rec.channel[i]) : (() => rec.channel);
+  const laneIndex = new Map(lanes.map((lane, n) => [lane.channel + "/" + lane.name, n]));
+  function laneOf(i) { return laneIndex.get(channelOf(i) + "/" + laneOfKind(kinds[i])); }
 
   // ---- view state
   const canvas = document.getElementById("lanes");
@@ -173,31 +177,31 @@
     const hi = firstAtOrAfter(times, t1 + 1);
     // Decimation: one bar per pixel column and lane, as high as the largest
     // record there; one event marker per column.
-    const biggest = { tx: new Float64Array(pw + 1), rx: new Float64Array(pw + 1) };
-    const eventAt = new Int32Array(pw + 1).fill(-1);
+    const columns = lanes.map(lane => lane.name === "events" ? new Int32Array(pw + 1).fill(-1) : new Float64Array(pw + 1));
     let maxSize = 1;
     for (let i = lo; i < hi; i++) {
       const col = Math.floor(xOf(times[i]) - LABEL_W);
       if (col < 0 || col > pw) continue;
-      const k = kinds[i];
+      const k = kinds[i], n = laneOf(i);
+      if (n === undefined) continue;
       if (k === TX || k === RX) {
-        const lane = biggest[k === TX ? "tx" : "rx"], size = rec.size[i] + 1;
-        if (size > lane[col]) lane[col] = size;
+        const bars = columns[n], size = rec.size[i] + 1;
+        if (size > bars[col]) bars[col] = size;
         if (size > maxSize) maxSize = size;
-      } else if (eventAt[col] < 0 || kindNames[k] === "fault") {
-        eventAt[col] = i;
+      } else if (columns[n][col] < 0 || kindNames[k] === "fault") {
+        columns[n][col] = i;
       }
     }
     const scale = Math.log(maxSize + 1);
-    for (const lane of lanes) {
+    lanes.forEach((lane, n) => {
       ctx.fillStyle = COLOURS.text; ctx.font = "11px sans-serif"; ctx.textBaseline = "middle";
-      ctx.fillText(lane.name, 2, lane.top + lane.height / 2);
+      ctx.fillText(data.channels.length > 1 ? lane.channel + " " + lane.name : lane.name, 2, lane.top + lane.height / 2);
       ctx.strokeStyle = COLOURS.grid; ctx.beginPath();
       ctx.moveTo(LABEL_W, lane.top + lane.height + 0.5); ctx.lineTo(LABEL_W + pw, lane.top + lane.height + 0.5); ctx.stroke();
       if (lane.name === "events") {
         let lastLabel = -1e9;
         for (let col = 0; col <= pw; col++) {
-          const i = eventAt[col];
+          const i = columns[n][col];
           if (i < 0) continue;
           const name = kindNames[kinds[i]];
           ctx.fillStyle = COLOURS.event[name] || COLOURS.axis;
@@ -208,16 +212,16 @@
             lastLabel = col;
           }
         }
-        continue;
+        return;
       }
-      const bars = biggest[lane.name];
+      const bars = columns[n];
       ctx.fillStyle = COLOURS[lane.name];
       for (let col = 0; col <= pw; col++) {
         if (!bars[col]) continue;
         const h = Math.max(3, Math.round((lane.height - 6) * (0.25 + 0.75 * Math.log(bars[col] + 1) / scale)));
         ctx.fillRect(LABEL_W + col - 1, lane.top + lane.height - 2 - h, 3, h);
       }
-    }
+    });
     drawFrames();
   }
 
@@ -309,7 +313,7 @@
     const t = tOf(x), slack = 5 * (t1 - t0) / plotWidth();
     let best = -1, bestDistance = Infinity;
     for (let i = Math.max(0, firstAtOrAfter(times, t - slack)); i < count && times[i] <= t + slack; i++) {
-      if (laneOfKind(kinds[i]) !== lane.name) continue;
+      if (lanes[laneOf(i)] !== lane) continue;
       const distance = Math.abs(times[i] - t);
       if (distance < bestDistance) { best = i; bestDistance = distance; }
     }
