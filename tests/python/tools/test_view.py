@@ -454,3 +454,55 @@ def test_the_wheel_zooms_at_the_pointer_dragging_pans_and_a_click_selects(tmp_pa
     assert records[chosen].data[:16].hex(" ") in pane
     devtools.evaluate("window.dispatchEvent(new KeyboardEvent('keydown', {key: 'ArrowRight'}))")
     assert devtools.evaluate("document.getElementById('hex').dataset.record") == str(chosen + 1)
+
+
+# A driver that trusts its device: it aborts (a crash) on an answer it did
+# not expect, and fails cleanly (an error) when the device goes away.
+TRUSTING_DRIVER = """
+import os, sys, tty
+fd = os.open(sys.argv[1], os.O_RDWR | os.O_NOCTTY)
+tty.setraw(fd)
+for n in range(3):
+    os.write(fd, b"Q%d\\n" % n)
+    line = b""
+    while not line.endswith(b"\\n"):
+        try:
+            chunk = os.read(fd, 1)
+        except OSError:
+            sys.exit(3)
+        if not chunk:
+            sys.exit(3)
+        line += chunk
+    if line != b"R%d-abcdef\\n" % n:
+        os.abort()
+"""
+
+
+def test_a_real_campaigns_json_colours_the_exchanges_it_crashed(tmp_path):
+    skip_unless_serial_opens_on_a_pty()
+    session = tmp_path / "lines.wtape"
+    with _core.SessionWriter(os.fspath(session), port_type="serial") as writer:
+        for n in range(3):
+            writer.write("tx", n * 10_000_000, b"Q%d\n" % n)
+            writer.write("rx", n * 10_000_000 + 1_000_000, b"R%d-abcdef\n" % n)
+    driver = tmp_path / "driver.py"
+    driver.write_text(TRUSTING_DRIVER)
+    campaign = tmp_path / "campaign.json"
+    result = subprocess.run([sys.executable, "-m", "wiretape.cli", "faults", os.fspath(session),
+                             "--kinds", "corrupt,disconnect", "--timeout", "20", "--json",
+                             os.fspath(campaign), "--", sys.executable, os.fspath(driver), "{port}"],
+                            capture_output=True, text=True, timeout=600)
+    assert result.returncode == 1 and campaign.exists(), result.stderr
+    runs = json.loads(campaign.read_text())["runs"]
+    page = Path(view(session, tmp_path / "campaign.html", campaign=os.fspath(campaign)))
+    dom, console = open_page(page, tmp_path)
+    assert console == []
+    listed = [(cells[1], cells[2]) for _, cells in table_rows(dom, "runs")]
+    assert listed == [(f"{run['kind']}@{run['where']}", run["outcome"]) for run in runs]
+    assert ("corrupt@exchange:1", "crash") in listed
+    exchanges = {cells[0]: (attributes, cells) for attributes, cells in table_rows(dom, "exchange-list")}
+    assert "outcome-crash" in exchanges["#1"][0]
+    assert "corrupt:crash" in exchanges["#1"][1][4].split()
+    picture = tmp_path / "campaign.png"
+    open_page(page, tmp_path, screenshot=picture)
+    assert CRASH_COLOUR in png_pixels(picture)
