@@ -24,7 +24,7 @@ import os
 import re
 import tempfile
 from pathlib import Path
-from typing import Any, Dict, Iterator, List, Optional, Tuple
+from typing import Any, Dict, Iterable, Iterator, List, Optional, Tuple, cast
 
 from .. import _core
 from ..exports._common import replacing
@@ -67,7 +67,9 @@ def _frames(path: str, profile: str) -> List[List[Any]]:
     """The profile's frames: [t_ns, direction, size, name]."""
     framing = _core.find_profile(profile)
     frames = []
-    for t_ns, kind, data, description in framing.decode_session(path):
+    # The stub says object: its items are (t_ns, kind, bytes, description).
+    decoded = cast(Iterable[Tuple[int, str, bytes, Optional[str]]], framing.decode_session(path))
+    for t_ns, kind, data, description in decoded:
         if description is None:  # an event
             continue
         frames.append([t_ns, kind, len(data), description])
@@ -133,14 +135,14 @@ def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
     channels: List[int] = []
     payload = bytearray()
     for record in reader:
-        data = record.data
+        content = record.data
         channels.append(getattr(record, "channel", 0))
         times.append(record.t_ns)
         kind_of.append(kind_code.setdefault(record.kind, len(kinds)))
         if kind_of[-1] == len(kinds):
             kinds.append(record.kind)
-        sizes.append(len(data))
-        piece = data[:MAX_RECORD_BYTES]
+        sizes.append(len(content))
+        piece = content[:MAX_RECORD_BYTES]
         kept.append(len(piece))
         payload += piece
     damage = reader.damage.message if reader.damage is not None else None
@@ -236,18 +238,16 @@ def _mismatch(header: Dict[str, Any], path: str) -> Optional[Dict[str, Any]]:
     its tx stream compared with the session's, as ``wiretape diff`` compares
     them). None when the client kept to the session, stopped early, or the
     replay matched requests in any order (match=request)."""
-    from .diff import diff
+    from .diff import DirectionDiff, diff
 
     original = _replayed_session(header, path)
     if original is None or original["match"] != "sequence":
         return None
     tx = diff(original["path"], path)["tx"]
-    actual = getattr(tx, "at_b", b"")
-    if tx.identical or tx.offset is None or not actual:
+    if not isinstance(tx, DirectionDiff) or tx.identical or tx.offset is None or not tx.at_b:
         return None
     return {"original": original["path"], "tx_offset": tx.offset,
-            "expected": _core.hex_ascii(bytes(getattr(tx, "at_a", b""))),
-            "actual": _core.hex_ascii(bytes(actual))}
+            "expected": _core.hex_ascii(bytes(tx.at_a)), "actual": _core.hex_ascii(bytes(tx.at_b))}
 
 
 def view(session: SessionPath, output: Optional[SessionPath] = None,
