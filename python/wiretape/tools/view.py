@@ -28,6 +28,7 @@ from typing import Any, Dict, Iterable, Iterator, List, Optional, Tuple, cast
 
 from .. import _core
 from ..exports._common import replacing
+from ..faults import Campaign, read_json
 from ..session import (FileRefused, SessionPath, header_fields, is_stream, open_session,
                        refuse_same_file, session_files)
 
@@ -76,13 +77,13 @@ def _frames(path: str, profile: str) -> List[List[Any]]:
     return frames
 
 
-def _campaign(path: str, session: str, exchanges: List[List[Any]]) -> Dict[str, Any]:
-    """A campaign's --json, its runs placed on the exchange (exchange:N) or
-    the time (t:SECONDS) they faulted; the others (rx:N, every:K, p:P) are
-    listed without a place."""
-    from ..faults import FaultInputError, read_json, session_digest
+def _campaign(path: str, result: Campaign, session: str,
+              exchanges: List[List[Any]]) -> Dict[str, Any]:
+    """The campaign read from `path` (its --json), its runs placed on the
+    exchange (exchange:N) or the time (t:SECONDS) they faulted; the others
+    (rx:N, every:K, p:P) are listed without a place."""
+    from ..faults import FaultInputError, session_digest
 
-    result = read_json(path)
     count = len(exchanges)
     runs = []
     for run in result.runs:
@@ -146,16 +147,15 @@ def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
         kept.append(len(piece))
         payload += piece
     damage = reader.damage.message if reader.damage is not None else None
-    options = ""
-    campaign_data = None
-    if campaign is not None:
-        from ..faults import read_json
-        options = read_json(campaign).options
+    # A campaign's exchanges are numbered under its replay keys.
+    campaign_runs = read_json(campaign) if campaign is not None else None
+    options = campaign_runs.options if campaign_runs is not None else ""
     with _intact_part(path, reader) as intact:
         exchanges = _exchanges(intact, profile, options)
         frames = _frames(intact, profile) if profile is not None else []
-    if campaign is not None:
-        campaign_data = _campaign(campaign, path, exchanges)
+    campaign_data = None
+    if campaign is not None and campaign_runs is not None:
+        campaign_data = _campaign(campaign, campaign_runs, path, exchanges)
     data = {
         "format": PAGE_FORMAT,
         "session": {"path": path, "name": os.path.basename(path), "header": header,
@@ -167,7 +167,8 @@ def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
                      for channel in sorted(set(channels) | {0})],
         "kinds": kinds,
         "records": {"t_ns": times, "kind": kind_of, "size": sizes, "kept": kept,
-                    "channel": channels if any(channels) else 0, "bytes": base64.b64encode(bytes(payload)).decode("ascii")},
+                    "channel": channels if any(channels) else 0,
+                    "bytes": base64.b64encode(bytes(payload)).decode("ascii")},
         "exchanges": exchanges,
         "frames": frames,
         "campaign": campaign_data,
