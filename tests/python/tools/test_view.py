@@ -1,13 +1,16 @@
 """wiretape view (DESIGN §21): the page, seen in headless Chromium.
 
-Chromium is driven by its own command line (--headless --dump-dom,
---screenshot, console messages through --enable-logging): no driver to
-install. The page sets data-first-paint-ms on <html> once its timeline is
-drawn, data-ready once its lists are, and selects the record named by
-#record=N, so a DOM dump after the page settles shows what a user sees."""
+Chromium (Debian's; skipped, saying so, when missing) is driven through its
+own DevTools protocol over --remote-debugging-pipe: no driver to install.
+The page sets data-ready on <html> once its lists are built (the tests wait
+for it), data-first-paint-ms once its timeline is drawn, selects the record
+named by #record=N, and exposes wiretapeView to point at records; console
+calls, uncaught exceptions and the browser's errors about the page are
+collected, and must be none."""
 
 from __future__ import annotations
 
+import base64
 import html
 import select
 import time
@@ -46,23 +49,114 @@ def chromium() -> str:
                 "the view is tested in headless Chromium")
 
 
+
+class DevTools:
+    """Headless Chromium driven through --remote-debugging-pipe (JSON
+    messages ended by NUL on its fds 3 and 4): mouse events as a user makes
+    them, and the page's state read back."""
+
+    def __init__(self, tmp_path: Path):
+        to_browser_r, self._to_browser = os.pipe()
+        self._from_browser, from_browser_w = os.pipe()
+        null = os.open(os.devnull, os.O_RDWR)
+        actions = [(os.POSIX_SPAWN_DUP2, to_browser_r, 3), (os.POSIX_SPAWN_DUP2, from_browser_w, 4),
+                   (os.POSIX_SPAWN_DUP2, null, 1), (os.POSIX_SPAWN_DUP2, null, 2)]
+        argv = [chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+                "--remote-debugging-pipe", f"--user-data-dir={tmp_path / 'chromium-devtools'}",
+                "--window-size=1200,900", "--force-device-scale-factor=1", "about:blank"]
+        self._pid = os.posix_spawn(argv[0], argv, os.environ, file_actions=actions)
+        for fd in (to_browser_r, from_browser_w, null):
+            os.close(fd)
+        self._buffer = b""
+        self._next_id = 0
+        self._session = None
+        self.events = []
+
+    def call(self, method, session=True, **params):
+        self._next_id += 1
+        message = {"id": self._next_id, "method": method, "params": params}
+        if session and self._session:
+            message["sessionId"] = self._session
+        os.write(self._to_browser, json.dumps(message).encode() + b"\0")
+        deadline = time.monotonic() + 60
+        while True:
+            while b"\0" in self._buffer:
+                raw, self._buffer = self._buffer.split(b"\0", 1)
+                reply = json.loads(raw)
+                if reply.get("id") == self._next_id:
+                    assert "error" not in reply, reply["error"]
+                    return reply["result"]
+                if "method" in reply:
+                    self.events.append(reply)
+            remaining = deadline - time.monotonic()
+            assert remaining > 0, f"no answer to {method}"
+            ready, _, _ = select.select([self._from_browser], [], [], remaining)
+            if ready:
+                chunk = os.read(self._from_browser, 1 << 16)
+                assert chunk, "chromium went away"
+                self._buffer += chunk
+
+    def open(self, url: str) -> None:
+        target = self.call("Target.createTarget", url="about:blank")["targetId"]
+        self._session = self.call("Target.attachToTarget", targetId=target, flatten=True)["sessionId"]
+        self.call("Emulation.setDeviceMetricsOverride", width=1200, height=900,
+                  deviceScaleFactor=1, mobile=False)
+        for domain in ("Runtime", "Log", "Page"):
+            self.call(f"{domain}.enable")
+        self.call("Page.navigate", url=url)
+        wait_until(lambda: self.evaluate("location.href.startsWith('file:') && "
+                                         "!!document.documentElement && "
+                                         "document.documentElement.dataset.ready") == "true",
+                   what="the page to be ready")
+
+    def evaluate(self, expression: str):
+        result = self.call("Runtime.evaluate", expression=expression, returnByValue=True)
+        assert "exceptionDetails" not in result, result
+        return result["result"].get("value")
+
+    def console(self):
+        """What the page logged: console calls, uncaught exceptions, and
+        the browser's errors and warnings about it (a refused fetch...)."""
+        self.evaluate("0")  # every event before this answer has arrived
+        found = []
+        for event in self.events:
+            method, params = event["method"], event["params"]
+            if method == "Runtime.consoleAPICalled":
+                found.append(f"console.{params['type']}: {params['args']}")
+            elif method == "Runtime.exceptionThrown":
+                found.append(f"exception: {params['exceptionDetails']}")
+            elif method == "Log.entryAdded" and params["entry"]["level"] in ("error", "warning"):
+                found.append(f"log: {params['entry']}")
+        return found
+
+    def mouse(self, kind: str, x: float, y: float, **extra) -> None:
+        self.call("Input.dispatchMouseEvent", type=kind, x=x, y=y, **extra)
+
+    def close(self) -> None:
+        try:
+            self.call("Browser.close", session=False)
+        except (AssertionError, OSError):
+            os.kill(self._pid, 9)
+        os.waitpid(self._pid, 0)
+        os.close(self._to_browser)
+        os.close(self._from_browser)
+
+
+
 def open_page(page: Path, tmp_path: Path, fragment: str = "", screenshot: Path = None):
-    """The page after it settled in headless Chromium: (its DOM, the
-    console messages it logged)."""
-    profile = tmp_path / f"chromium-profile-{len(list(tmp_path.glob('chromium-profile-*')))}"
-    argv = [chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-            "--enable-logging=stderr", "--v=0", f"--user-data-dir={profile}",
-            "--window-size=1200,900", "--force-device-scale-factor=1",
-            "--virtual-time-budget=10000"]
-    argv += [f"--screenshot={screenshot}"] if screenshot else ["--dump-dom"]
-    result = subprocess.run(argv + [page.resolve().as_uri() + fragment], capture_output=True,
-                            text=True, timeout=180)
-    console = [line for line in result.stderr.splitlines() if ":CONSOLE" in line]
-    if screenshot:
-        assert screenshot.exists(), result.stderr[-2000:]
-    else:
-        assert "data-ready" in result.stdout, result.stderr[-2000:]
-    return result.stdout, console
+    """The page once ready in headless Chromium: (its DOM, the console
+    messages and errors it logged); with `screenshot`, its picture saved
+    there too."""
+    browser = DevTools(tmp_path)
+    try:
+        browser.open(page.resolve().as_uri() + fragment)
+        dom = browser.evaluate("document.documentElement.outerHTML")
+        if screenshot:
+            picture = browser.call("Page.captureScreenshot", format="png")["data"]
+            screenshot.write_bytes(base64.b64decode(picture))
+        return dom, browser.console()
+    finally:
+        browser.close()
 
 
 def png_pixels(path: Path):
@@ -333,77 +427,6 @@ def test_an_empty_session_draws_without_errors(tmp_path):
     dom, console = open_page(Path(view(session, tmp_path / "empty.html")), tmp_path)
     assert console == []
     assert "0 records" in element_text(dom, "summary")
-
-
-# --- pointing, zooming, panning: Chromium's DevTools protocol over a pipe ---
-
-class DevTools:
-    """Headless Chromium driven through --remote-debugging-pipe (JSON
-    messages ended by NUL on its fds 3 and 4): mouse events as a user makes
-    them, and the page's state read back."""
-
-    def __init__(self, tmp_path: Path):
-        to_browser_r, self._to_browser = os.pipe()
-        self._from_browser, from_browser_w = os.pipe()
-        null = os.open(os.devnull, os.O_RDWR)
-        actions = [(os.POSIX_SPAWN_DUP2, to_browser_r, 3), (os.POSIX_SPAWN_DUP2, from_browser_w, 4),
-                   (os.POSIX_SPAWN_DUP2, null, 1), (os.POSIX_SPAWN_DUP2, null, 2)]
-        argv = [chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-                "--remote-debugging-pipe", f"--user-data-dir={tmp_path / 'chromium-devtools'}",
-                "--window-size=1200,900", "--force-device-scale-factor=1", "about:blank"]
-        self._pid = os.posix_spawn(argv[0], argv, os.environ, file_actions=actions)
-        for fd in (to_browser_r, from_browser_w, null):
-            os.close(fd)
-        self._buffer = b""
-        self._next_id = 0
-        self._session = None
-
-    def call(self, method, session=True, **params):
-        self._next_id += 1
-        message = {"id": self._next_id, "method": method, "params": params}
-        if session and self._session:
-            message["sessionId"] = self._session
-        os.write(self._to_browser, json.dumps(message).encode() + b"\0")
-        deadline = time.monotonic() + 60
-        while True:
-            while b"\0" in self._buffer:
-                raw, self._buffer = self._buffer.split(b"\0", 1)
-                reply = json.loads(raw)
-                if reply.get("id") == self._next_id:
-                    assert "error" not in reply, reply["error"]
-                    return reply["result"]
-            remaining = deadline - time.monotonic()
-            assert remaining > 0, f"no answer to {method}"
-            ready, _, _ = select.select([self._from_browser], [], [], remaining)
-            if ready:
-                chunk = os.read(self._from_browser, 1 << 16)
-                assert chunk, "chromium went away"
-                self._buffer += chunk
-
-    def open(self, url: str) -> None:
-        target = self.call("Target.createTarget", url=url)["targetId"]
-        self._session = self.call("Target.attachToTarget", targetId=target, flatten=True)["sessionId"]
-        wait_until(lambda: self.evaluate("location.href.startsWith('file:') && "
-                                         "!!document.documentElement && "
-                                         "document.documentElement.dataset.ready") == "true",
-                   what="the page to be ready")
-
-    def evaluate(self, expression: str):
-        result = self.call("Runtime.evaluate", expression=expression, returnByValue=True)
-        assert "exceptionDetails" not in result, result
-        return result["result"].get("value")
-
-    def mouse(self, kind: str, x: float, y: float, **extra) -> None:
-        self.call("Input.dispatchMouseEvent", type=kind, x=x, y=y, **extra)
-
-    def close(self) -> None:
-        try:
-            self.call("Browser.close", session=False)
-        except (AssertionError, OSError):
-            os.kill(self._pid, 9)
-        os.waitpid(self._pid, 0)
-        os.close(self._to_browser)
-        os.close(self._from_browser)
 
 
 @pytest.fixture
