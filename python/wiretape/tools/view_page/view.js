@@ -144,7 +144,7 @@
     ctx.font = "10px sans-serif"; ctx.textBaseline = "middle";
     for (let n = lo; n < exchanges.length && exchangeStart[n] <= t1; n++) {
       const x0 = Math.max(LABEL_W, xOf(exchangeStart[n]));
-      const x1 = Math.min(LABEL_W + pw, Math.max(xOf(exchangeEnd[n]), x0 + 1));
+      const x1 = Math.min(LABEL_W + pw, Math.max(xOf(exchangeEnd[n]), x0 + 3));
       if (x1 < LABEL_W || Math.floor(x1) <= lastX) continue;  // decimated: one per pixel
       lastX = Math.floor(x1);
       ctx.fillStyle = n % 2 ? COLOURS.exchangeB : COLOURS.exchangeA;
@@ -245,7 +245,7 @@
   }
 
   function drawMarks() {
-    for (const [i, colour, label] of [[mismatchRecord, COLOURS.mismatch, "mismatch"], [selected, COLOURS.selected, null]]) {
+    for (const [i, colour, label] of [[selected, COLOURS.selected, null], [mismatchRecord, COLOURS.mismatch, "mismatch"]]) {
       if (i < 0 || times[i] < t0 || times[i] > t1) continue;
       const x = Math.round(xOf(times[i])) + 0.5;
       ctx.strokeStyle = colour; ctx.lineWidth = 2; ctx.beginPath();
