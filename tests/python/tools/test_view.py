@@ -529,3 +529,27 @@ def test_a_real_campaigns_json_colours_the_exchanges_it_crashed(tmp_path):
     picture = tmp_path / "campaign.png"
     open_page(page, tmp_path, screenshot=picture)
     assert CRASH_COLOUR in png_pixels(picture)
+
+
+def test_every_kind_of_event_is_drawn_and_listed(tmp_path):
+    events = [("open", b'{"description":"serial /dev/ttyUSB0 @ 9600 8N1"}'),
+              ("settings", b'{"baud":115200}'), ("modem_lines", b'{"dtr":true}'),
+              ("flush_input", b""), ("client_connect", b'{"peer":"pty","role":"control"}'),
+              ("fault", b'{"kind":"corrupt","where":"exchange:0","detail":"flipped bit 3"}'),
+              ("capture_gap", b'{"direction":"rx","offset":0,"length":4}'),
+              ("client_disconnect", b'{"peer":"pty"}'), ("close", b"")]
+    session = tmp_path / "events.wtape"
+    with _core.SessionWriter(os.fspath(session)) as writer:
+        for n, (kind, payload) in enumerate(events):
+            writer.write(kind, n * 10_000_000, payload)
+            writer.write("tx", n * 10_000_000 + 1_000_000, b"Q\n")
+    page = Path(view(session, tmp_path / "events.html"))
+    picture = tmp_path / "events.png"
+    dom, console = open_page(page, tmp_path, screenshot=picture)
+    assert console == []
+    listed = [(cells[1], cells[2]) for _, cells in table_rows(dom, "event-list")]
+    assert listed == [(kind, payload.decode() or "") for kind, payload in events]
+    colours = png_pixels(picture)
+    for colour in ((0x6A, 0x3F, 0xB5), (0xB5, 0x28, 0x7A), (0xE0, 0x7A, 0x00),
+                   (0x0A, 0x8A, 0x8A), (0xC6, 0x28, 0x28), (0x8A, 0x8A, 0x8A)):
+        assert colour in colours  # settings, modem lines, flush, connect, fault, gap
