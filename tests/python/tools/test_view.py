@@ -18,6 +18,7 @@ import json
 import os
 import re
 import shutil
+import signal
 import struct
 import subprocess
 import sys
@@ -553,3 +554,23 @@ def test_every_kind_of_event_is_drawn_and_listed(tmp_path):
     for colour in ((0x6A, 0x3F, 0xB5), (0xB5, 0x28, 0x7A), (0xE0, 0x7A, 0x00),
                    (0x0A, 0x8A, 0x8A), (0xC6, 0x28, 0x28), (0x8A, 0x8A, 0x8A)):
         assert colour in colours  # settings, modem lines, flush, connect, fault, gap
+
+
+def test_an_interrupted_view_exits_130_and_leaves_no_page(tmp_path):
+    # The campaign is a FIFO: the view blocks reading it, after the session,
+    # and opening its other end says when the view got there.
+    campaign = tmp_path / "campaign.json"
+    os.mkfifo(campaign)
+    output = tmp_path / "gd.html"
+    child = start_cli("view", os.fspath(HOKUYO / "urg04lx_gd.wtape"), "--campaign",
+                      os.fspath(campaign), "-o", os.fspath(output))
+    try:
+        with open(campaign, "w"):  # returns once the view opened it to read
+            child.send_signal(signal.SIGINT)
+            _, err = child.communicate(timeout=60)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.communicate()
+    assert child.returncode == 130, err
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["campaign.json"]
