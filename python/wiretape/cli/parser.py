@@ -10,9 +10,9 @@ from typing import Callable, List, Optional, Sequence, Tuple
 
 from .. import __version__, _core
 from ..options import option_keys
-from .files import cmd_convert, cmd_diff, cmd_edit, cmd_show, cmd_stats, cmd_verify
+from .files import cmd_convert, cmd_diff, cmd_edit, cmd_show, cmd_stats, cmd_verify, cmd_view
 from .ports import cmd_ports
-from .run import cmd_demo, cmd_faults, cmd_record, cmd_replay, cmd_serve
+from .run import cmd_demo, cmd_faults, cmd_faults_merge, cmd_record, cmd_replay, cmd_serve
 
 
 # --------------------------------------------------------------------------
@@ -237,6 +237,9 @@ def split_command(argv: Sequence[str]) -> Tuple[List[str], Optional[List[str]]]:
     """wiretape's own arguments and the CMD after ``--`` of ``record`` and
     ``replay`` (None when there is no ``--``; [] when nothing follows it)."""
     arguments = list(argv)
+    if arguments[:2] == ["faults", "merge"]:
+        # A command of two words (a session named merge is given as ./merge).
+        return ["faults merge"] + arguments[2:], None
     if arguments and arguments[0] in _COMMANDS_WITH_CMD and "--" in arguments:
         separator = arguments.index("--")
         return arguments[:separator], arguments[separator + 1:]
@@ -283,9 +286,11 @@ def build_parser() -> argparse.ArgumentParser:
         "replay", cmd_replay, "replay a recording as a virtual device (pty, TCP or UDP)",
         "The recording becomes a virtual device any program can open: a "
         "pseudo-terminal (--pty PATH), a TCP server (--listen HOST:PORT) or a UDP "
-        "socket (--udp HOST:PORT; one datagram per recorded record). A "
-        "client that closes and reopens continues the session (--restart starts it "
-        "over). With --as PATH -- CMD ARG... it runs CMD with PATH redirected to its "
+        "socket (--udp HOST:PORT; one datagram per recorded record). Each "
+        "connection (an open of the pty) is a client session: with --match sequence the "
+        "k-th continues at the recording's k-th client connect, with --match request "
+        "connection order is free; a close and reopen at once is two sessions "
+        "(--restart starts the whole recording over for each client). With --as PATH -- CMD ARG... it runs CMD with PATH redirected to its "
         "pty and ends when CMD does (exit: CMD's status when it failed, else the "
         "replay's). The replay keys are those of type=replay (docs/options.md). Exit 1 on a "
         "mismatch, and when the recording has rx but no client was served any of it "
@@ -340,6 +345,20 @@ def build_parser() -> argparse.ArgumentParser:
                         help="CMD opens PATH itself: redirect it to the virtual device")
     faults.add_argument("--options", metavar="KEYS", default="",
                         help="replay keys for every run (e.g. timing=none,match=request)")
+    faults.add_argument("--shard", metavar="K/N",
+                        help="run only shard K of N: the cases whose index is K-1 modulo N "
+                             "(merge the shards' --json with 'wiretape faults merge')")
+
+    merge = command(
+        "faults merge", cmd_faults_merge, "one campaign's table from the --json of its shards",
+        "Merges the --json files of a campaign run in shards (wiretape faults ... --shard "
+        "K/N --json FILE, every K once) into one table and JSON, as one unsharded run "
+        "gives them. Refuses files of different sessions, seeds, kinds, budgets or replay "
+        "keys, a missing or repeated shard and an interrupted one (exit 2). Exit 1 if "
+        "any run crashed or hung (docs/faults.md).")
+    merge.add_argument("files", nargs="+", metavar="FILE.json",
+                       help="the --json of each shard")
+    merge.add_argument("--json", metavar="FILE", help="write the merged runs as JSON to FILE")
 
     serve = command(
         "serve", cmd_serve, "share a local device with remote programs over TCP",
@@ -385,6 +404,23 @@ def build_parser() -> argparse.ArgumentParser:
     stats = command("stats", cmd_stats, "figures of a session (exit 1 if damaged)")
     stats.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
     stats.add_argument("--json", action="store_true", help="print JSON")
+
+    view = command(
+        "view", cmd_view, "a session as a timeline in one HTML page, for a browser",
+        "Writes one self-contained HTML page (no network access: script, styles and data "
+        "inline) with a zoomable timeline of the session: tx, rx and events lanes, the "
+        "exchanges, a profile's frames, faults, a replay's mismatch, and a hex/ASCII pane. "
+        "Open it in any browser.")
+    view.add_argument("file", metavar="SESSION", help="the session (.wtape or flexiport name.log)")
+    view.add_argument("-o", "--output", metavar="FILE.html",
+                      help="the page to write (default: SESSION with .html for its suffix)")
+    view.add_argument("--campaign", metavar="FILE.json",
+                      help="a `wiretape faults --json` file of this session: its runs on the "
+                           "exchanges they faulted")
+    view.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
+                      help="name the frames by a protocol profile (default: the session's "
+                           "--meta profile=NAME): " + ", ".join(_core.profile_names()))
+    view.add_argument("-q", "--quiet", action="store_true", help="no summary")
 
     edit = command(
         "edit", cmd_edit, "cut a session down and scrub it before sharing it",
