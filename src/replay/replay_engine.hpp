@@ -76,6 +76,9 @@ class ReplayEngine {
   void client_event(RecordKind kind,
                     const std::map<std::string, std::string>& fields,
                     ReplayTime now);
+  // The device's modem inputs released and due by `now` (DESIGN.md section
+  // 20): CTS, DSR and CD up and RI down until the recording says otherwise.
+  ModemInputs device_lines(ReplayTime now);
   // Drops rx that was released and is due but not yet read; a client flush.
   void flush_input(ReplayTime now);
   // The client flushed without dropping released rx (its output, or its
