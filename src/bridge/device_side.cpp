@@ -348,6 +348,8 @@ bool DeviceSide::apply_settings(const SerialSettings& target, const char* source
 }
 
 void DeviceSide::set_output_level(ModemOutput line, bool level) {
+  // The bytes the client sent before the change reach the device before it.
+  flush();
   bool applied = false;
   if (capabilities().modem_lines) {
     try {
@@ -377,6 +379,7 @@ void DeviceSide::end_break() {
   auto on = std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - *break_since_);
   on = std::clamp(on, std::chrono::milliseconds(1), std::chrono::milliseconds(2000));
   break_since_.reset();
+  flush();
   bool applied = false;
   if (capabilities().send_break) {
     try {
