@@ -169,19 +169,19 @@ TEST(ReplayLines, TimingNoneReleasesTheDeviceLinesWithTheirEntitlement) {
 
 TEST(ReplayLines, TimingSessionReleasesTheDeviceLinesAtTheirRecordedTimes) {
   // The answer late enough that a loaded machine still sees the lines before it.
-  const std::uint64_t answer = ms(600);
+  const std::uint64_t answer = ms(1000);
   const auto records = reset_session(answer);
+  const auto before_open = std::chrono::steady_clock::now();  // the replay's clock starts later
   auto port = replay(records, "timing=session,unused=ignore");
-  const auto opened = std::chrono::steady_clock::now();
   EXPECT_EQ(lines_of(*port), lines_at(records, 0));
   EXPECT_FALSE(port->cts());
   port->set_dtr(false);
   port->set_dtr(true);
-  const auto deadline = opened + test::kEventDeadline;
+  const auto deadline = before_open + test::kEventDeadline;
   while (!port->cts() && std::chrono::steady_clock::now() < deadline) {
     port->wait_readable(5ms);  // an event to wait on: the banner comes 10 ms later
   }
-  const auto seen = std::chrono::steady_clock::now() - opened;
+  const auto seen = std::chrono::steady_clock::now() - before_open;
   EXPECT_TRUE(port->cts());
   EXPECT_GE(seen, std::chrono::nanoseconds(answer));
   EXPECT_EQ(lines_of(*port), lines_at(records, answer));
@@ -189,7 +189,7 @@ TEST(ReplayLines, TimingSessionReleasesTheDeviceLinesAtTheirRecordedTimes) {
 }
 
 TEST(ReplayLines, ARecordingWithoutLineEventsReportsTheLineUp) {
-  auto port = replay(without_device_lines(reset_session()), "timing=none");
+  auto port = replay(without_device_lines(reset_session()), "timing=none,unused=ignore");
   const ModemInputs up{true, true, false, true};
   EXPECT_EQ(lines_of(*port), up);
   port->write_all("PING\n");
@@ -222,7 +222,7 @@ TEST(ReplayLines, TheRecordedClientPasses) {
 TEST(ReplayLines, AMissingResetPulseIsAMismatchNamingTheLine) {
   for (const char* keys : {"timing=none", "timing=session"}) {
     SCOPED_TRACE(keys);
-    auto port = replay(reset_session(), keys);
+    auto port = replay(reset_session(), std::string(keys) + ",unused=ignore");
     EXPECT_EQ(read_exactly(*port, 5), "BOOT\n");
     const std::string report = mismatch_of([&] { port->write_all("PING\n"); });
     expect_contains(report, "the recording has DTR low before these bytes, and the client "
@@ -234,7 +234,7 @@ TEST(ReplayLines, AMissingResetPulseIsAMismatchNamingTheLine) {
 }
 
 TEST(ReplayLines, AnExtraPulseIsAMismatch) {
-  auto port = replay(reset_session(), "timing=none");
+  auto port = replay(reset_session(), "timing=none,unused=ignore");
   port->set_dtr(false);
   port->set_dtr(true);
   const std::string report = mismatch_of([&] { port->set_dtr(false); });
@@ -244,7 +244,7 @@ TEST(ReplayLines, AnExtraPulseIsAMismatch) {
 }
 
 TEST(ReplayLines, AWrongLevelIsAMismatchWithBothLevels) {
-  auto port = replay(reset_session(), "timing=none");
+  auto port = replay(reset_session(), "timing=none,unused=ignore");
   const std::string report = mismatch_of([&] { port->set_dtr(true); });
   expect_contains(report, "the client made DTR high; the recording has DTR low");
   expect_contains(report, "session time 0.001000 s");
@@ -253,7 +253,7 @@ TEST(ReplayLines, AWrongLevelIsAMismatchWithBothLevels) {
 }
 
 TEST(ReplayLines, AnotherLineIsAMismatch) {
-  auto port = replay(reset_session(), "timing=none");
+  auto port = replay(reset_session(), "timing=none,unused=ignore");
   const std::string report = mismatch_of([&] { port->set_rts(false); });
   expect_contains(report, "the client made RTS low; the recording has DTR low");
 }
@@ -292,7 +292,7 @@ TEST(ReplayLines, ALineChangeAfterTheLastWriteNeverMadeIsUnused) {
 }
 
 TEST(ReplayLines, CheckOffChecksNoLines) {
-  auto port = replay(reset_session(), "timing=none,check=off");
+  auto port = replay(reset_session(), "timing=none,check=off,unused=ignore");
   port->set_rts(false);
   port->write_all("PING\n");
   EXPECT_EQ(lines_of(*port), released_lines(reset_session(), 5));
@@ -305,4 +305,27 @@ TEST(ReplayLines, RequestModeServesTheLinesBeforeTheFirstRequestAndChecksNone) {
   port->set_rts(false);  // not checked
   port->write_all("PING\n");
   EXPECT_EQ(read_exactly(*port, 10), "BOOT\nPONG\n");
+}
+
+TEST(ReplayLines, WithAProfileSequenceModeChecksTheLinesAmongTheFrames) {
+  {
+    auto port = replay(reset_session(), "timing=none,profile=lines,unused=error");
+    reset_and_talk(*port);
+    EXPECT_NO_THROW(port->close());
+  }
+  {
+    auto port = replay(reset_session(), "timing=none,profile=lines,unused=ignore");
+    EXPECT_EQ(read_exactly(*port, 5), "BOOT\n");
+    const std::string report = mismatch_of([&] { port->write_all("PING\n"); });
+    expect_contains(report, "expected line change: DTR low");
+  }
+}
+
+TEST(ReplayLines, WithAProfileRequestModeServesTheLinesAndChecksNone) {
+  const auto records = reset_session();
+  auto port = replay(records, "timing=none,profile=lines,match=request,unused=ignore");
+  EXPECT_EQ(lines_of(*port), released_lines(records, 0));
+  port->write_all("PING\n");
+  EXPECT_EQ(read_exactly(*port, 10), "BOOT\nPONG\n");
+  EXPECT_EQ(lines_of(*port), released_lines(records, 0));  // later changes: not served
 }
