@@ -376,7 +376,9 @@ void SequenceStrategy::write_records(const char* data, std::size_t size,
                     tx_written_,
                     std::string_view(expected).substr(0, kReplayContext),
                     rest.substr(0, kReplayContext), missing.t_ns, tx_exchange_,
-                    event_levels_text(missing, std::nullopt));
+                    missing.kind == RecordKind::settings
+                        ? std::string()
+                        : event_levels_text(missing, std::nullopt));
     }
     if (tx_position_ == 0 && config_.check == ReplayCheck::timing) {
       if (const auto miss = timeline_.check_write(tx_record_.t_ns, previous_tx_finished_,
