@@ -165,7 +165,8 @@ void ReplayEngine::flush_input(ReplayTime now) {
 void ReplayEngine::client_flushed() { strategy_->client_flushed(); }
 
 ModemInputs ReplayEngine::device_lines(ReplayTime now) {
-  prepare(now);
+  // Released rx is left where it is: the fault stage takes it as reads do.
+  strategy_->release(now);
   return released_.device_lines(now);
 }
 
