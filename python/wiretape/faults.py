@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import hashlib
 import json
 import math
 import os
@@ -35,7 +36,7 @@ from typing import Dict, Iterator, List, Optional, Sequence, TextIO
 
 from . import _core, bridge
 from .children import Child, sanitizer_report
-from .session import open_session
+from .session import open_session, session_files
 
 #: Every fault kind, as a campaign injects it (docs/faults.md says why these
 #: amounts): the replay's own table of kinds.
@@ -54,6 +55,35 @@ class FaultInputError(ValueError):
 
 class _Stopped(Exception):
     """A run ended early because the campaign was interrupted."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Shard:
+    """Shard ``number`` of ``count`` (``--shard K/N``, K from 1): the cases
+    whose index is K-1 modulo N. Every shard makes its own clean run."""
+
+    number: int
+    count: int
+
+    def __post_init__(self) -> None:
+        if self.count < 1 or not 1 <= self.number <= self.count:
+            raise FaultInputError(f"--shard {self.number}/{self.count}: K must be from 1 to N "
+                                  "(e.g. 1/3, 2/3, 3/3)")
+
+    @classmethod
+    def parse(cls, text: str) -> "Shard":
+        """``K/N`` as the command line gives it."""
+        number, slash, count = text.strip().partition("/")
+        if not slash or not number.strip().isdigit() or not count.strip().isdigit():
+            raise FaultInputError(f"--shard {text!r}: give K/N, e.g. 2/3 for the second of "
+                                  "three shards")
+        return cls(int(number), int(count))
+
+    def owns(self, index: int) -> bool:
+        return index % self.count == self.number - 1
+
+    def __str__(self) -> str:
+        return f"{self.number}/{self.count}"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -156,12 +186,21 @@ def check_where(session: str, spec: str, shape: Optional[SessionShape] = None,
 
 def cases(session: str, kinds: Optional[Sequence[str]] = None, budget: Optional[int] = None,
           seed: int = 0, profile: Optional[str] = None, match: Optional[str] = None,
-          options: str = "") -> List[FaultCase]:
+          options: str = "", shard: Optional[Shard] = None) -> List[FaultCase]:
     """The campaign's cases: every kind (``kinds``, default all) at every
     exchange of ``session`` (numbered as a replay with ``profile``, ``match``
     and further replay keys ``options`` numbers them); with ``budget``, that
     many of them sampled by ``seed``, in the same order. Items of ``kinds``
-    may name a place themselves (``drop@rx:100``)."""
+    may name a place themselves (``drop@rx:100``). With ``shard``, only the
+    cases of that shard (``Shard.owns``), in the same order."""
+    everything = _all_cases(session, kinds, budget, seed, profile, match, options)
+    if shard is None:
+        return everything
+    return [case for index, case in enumerate(everything) if shard.owns(index)]
+
+
+def _all_cases(session: str, kinds: Optional[Sequence[str]], budget: Optional[int], seed: int,
+               profile: Optional[str], match: Optional[str], options: str) -> List[FaultCase]:
     shape = session_shape(session, profile=profile, match=match, options=options)
     fixed: List[FaultCase] = []
     spread: List[str] = []
@@ -215,14 +254,17 @@ class Run:
     seconds: float
     repro: str = ""
     output: str = ""
+    #: The case's index among the campaign's cases (all shards).
+    case: int = 0
 
     @property
     def spec(self) -> str:
         return f"{self.kind}@{self.where}"
 
     def as_json(self) -> Dict[str, object]:
-        return {"kind": self.kind, "where": self.where, "outcome": self.outcome,
-                "exit": self.exit, "seconds": round(self.seconds, 3), "repro": self.repro}
+        return {"case": self.case, "kind": self.kind, "where": self.where,
+                "outcome": self.outcome, "exit": self.exit, "seconds": round(self.seconds, 3),
+                "repro": self.repro}
 
 
 @dataclasses.dataclass
@@ -233,8 +275,17 @@ class Campaign:
     #: SIGINT or SIGTERM ended it early: ``runs`` are those that ended by
     #: themselves before (the run it stopped has no outcome).
     interrupted: bool = False
-    #: How many cases were to run.
+    #: How many cases were to run (in this shard).
     planned: int = 0
+    #: What makes the cases: shards of one campaign agree on all of these
+    #: (``merge`` checks it).
+    kinds: Optional[List[str]] = None
+    budget: Optional[int] = None
+    options: str = ""
+    session_sha256: str = ""
+    #: The campaign's cases in all shards, and this one's shard (None: all).
+    cases: int = 0
+    shard: Optional[Shard] = None
 
     @property
     def summary(self) -> Dict[str, int]:
@@ -249,7 +300,10 @@ class Campaign:
         return summary["crash"] > 0 or summary["hang"] > 0
 
     def as_json(self) -> Dict[str, object]:
-        return {"session": self.session, "seed": self.seed,
+        return {"session": self.session, "session_sha256": self.session_sha256,
+                "seed": self.seed, "kinds": self.kinds, "budget": self.budget,
+                "options": self.options, "cases": self.cases,
+                "shard": str(self.shard) if self.shard else None,
                 "runs": [run.as_json() for run in self.runs], "summary": self.summary,
                 "interrupted": self.interrupted}
 
@@ -307,9 +361,10 @@ def run_case(session: str, case: Optional[FaultCase], argv: Sequence[str], timeo
     with faulty_device(session, case, replay_options, listen) as port:
         command = [arg.replace(PORT_PLACEHOLDER, port) for arg in argv]
         if as_path is not None:
-            from .redirect import RedirectedCommand
+            from .redirect import RedirectedCommand, recorded_identity
 
-            redirected = RedirectedCommand(command, as_path, os.path.realpath(port))
+            redirected = RedirectedCommand(command, as_path, os.path.realpath(port),
+                                           identity=recorded_identity(session))
             try:
                 outcome = redirected.child.run(timeout, stop)
             finally:
@@ -399,18 +454,30 @@ def _end_pool(pool: ThreadPoolExecutor) -> None:
 def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] = None,
              budget: Optional[int] = None, seed: int = 0, timeout: float = 10.0, jobs: int = 1,
              replay_options: str = "", listen: bool = False, as_path: Optional[str] = None,
-             progress: Optional[TextIO] = None, quiet_replays: bool = True) -> Campaign:
-    """Runs the campaign; raises FaultInputError (bad input),
-    CleanRunFailed, or CampaignInterrupted (SIGINT/SIGTERM as a
-    KeyboardInterrupt: the runs so far are in it)."""
+             progress: Optional[TextIO] = None, quiet_replays: bool = True,
+             shard: Optional[Shard] = None) -> Campaign:
+    """Runs the campaign (with ``shard``, that shard's cases and a clean
+    run); raises FaultInputError (bad input), CleanRunFailed, or
+    CampaignInterrupted (SIGINT/SIGTERM as a KeyboardInterrupt: the runs so
+    far are in it)."""
     check_command(argv, as_path)
     if jobs < 1:
         raise FaultInputError(f"--jobs {jobs}: give 1 or more")
     _check_timeout(timeout)
     if replay_options:
         _core.check_replay_options("type=replay,file=x," + replay_options)
-    selected = cases(session, kinds, budget, seed, options=replay_options)
+    everything = _all_cases(session, kinds, budget, seed, None, None, replay_options)
+    indices = [index for index in range(len(everything)) if shard is None or shard.owns(index)]
+    selected = [everything[index] for index in indices]
     runs: List[Optional[Run]] = [None] * len(selected)
+
+    def finished(interrupted: bool) -> Campaign:
+        return Campaign(session, seed, [run for run in runs if run is not None],
+                        interrupted=interrupted, planned=len(selected),
+                        kinds=[kind.strip() for kind in kinds] if kinds else None,
+                        budget=budget, options=replay_options,
+                        session_sha256=session_digest(session), cases=len(everything),
+                        shard=shard)
     # Set when the campaign must end: each running case ends its CMD.
     stop = threading.Event()
     with _quiet_stderr(quiet_replays) as real_stderr:
@@ -438,6 +505,7 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
             if run.outcome in ("crash", "hang"):
                 run.repro = reproduction(session, case, argv, replay_options, as_path, listen,
                                          timeout if run.outcome == "hang" else None)
+            run.case = indices[index]
             runs[index] = run
             with lock:
                 done[0] += 1
@@ -459,8 +527,7 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
             _end_pool(pool)
             if selected:
                 note("\n")
-            result = Campaign(session, seed, [run for run in runs if run is not None],
-                              interrupted=True, planned=len(selected))
+            result = finished(interrupted=True)
             signum = getattr(interruption, "signum", signal.SIGINT)
             raise CampaignInterrupted(result, signum) from None
         except BaseException:
@@ -470,8 +537,19 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
             _end_pool(pool)
         if selected:
             note("\n")
-    return Campaign(session, seed, [run for run in runs if run is not None],
-                    planned=len(selected))
+    return finished(interrupted=False)
+
+
+def session_digest(session: str) -> str:
+    """SHA-256 of the session's bytes (every file of a flexiport pair): what
+    tells shards run on other machines, under other paths, that they
+    replayed the same recording."""
+    digest = hashlib.sha256()
+    for path in session_files(session):
+        with open(path, "rb") as stream:
+            for block in iter(lambda: stream.read(1 << 20), b""):
+                digest.update(block)
+    return digest.hexdigest()
 
 
 _LETTERS = {"ok": ".", "error": "E", "crash": "C", "hang": "H"}
@@ -541,3 +619,108 @@ def write_json(result: Campaign, path: str) -> None:
         except OSError:
             pass
         raise
+
+
+# --------------------------------------------------------------------------
+# shards of one campaign, merged
+
+
+def _member(document: Dict[str, object], name: str, types, where: str):
+    if name not in document:
+        raise FaultInputError(f"{where}: no {name!r}: not the --json of a wiretape faults run "
+                              "with --shard (run it again with this wiretape)")
+    value = document[name]
+    allowed = types if isinstance(types, tuple) else (types,)
+    # A JSON true is a Python bool, which is an int too: not a count.
+    if not isinstance(value, allowed) or (isinstance(value, bool) and bool not in allowed):
+        raise FaultInputError(f"{where}: {name!r} is {json.dumps(value)[:60]}: not what a "
+                              "campaign writes")
+    return value
+
+
+def read_json(path: str) -> Campaign:
+    """A campaign's ``--json`` file read back (for ``merge``); FaultInputError
+    names the file and what is wrong in it."""
+    try:
+        with open(path, encoding="utf-8") as stream:
+            document = json.load(stream)
+    except (OSError, UnicodeDecodeError, ValueError) as error:
+        raise FaultInputError(f"{path}: not a campaign's JSON: {error}") from None
+    if not isinstance(document, dict):
+        raise FaultInputError(f"{path}: not a campaign's JSON: not an object")
+    shard_text = _member(document, "shard", (str, type(None)), path)
+    kinds = _member(document, "kinds", (list, type(None)), path)
+    if kinds is not None and not all(isinstance(kind, str) for kind in kinds):
+        raise FaultInputError(f"{path}: 'kinds' holds something that is not a kind")
+    runs = []
+    for number, item in enumerate(_member(document, "runs", list, path)):
+        where = f"{path}: runs[{number}]"
+        if not isinstance(item, dict):
+            raise FaultInputError(f"{where}: not an object")
+        outcome = _member(item, "outcome", str, where)
+        if outcome not in OUTCOMES:
+            raise FaultInputError(f"{where}: outcome {outcome!r} is not one of "
+                                  + ", ".join(OUTCOMES))
+        runs.append(Run(_member(item, "kind", str, where), _member(item, "where", str, where),
+                        outcome, _member(item, "exit", (int, type(None)), where),
+                        float(_member(item, "seconds", (int, float), where)),
+                        repro=_member(item, "repro", str, where),
+                        case=_member(item, "case", int, where)))
+    try:
+        shard = Shard.parse(shard_text) if shard_text is not None else None
+    except FaultInputError as error:
+        raise FaultInputError(f"{path}: {error}") from None
+    return Campaign(_member(document, "session", str, path), _member(document, "seed", int, path),
+                    runs, interrupted=_member(document, "interrupted", bool, path),
+                    kinds=kinds, budget=_member(document, "budget", (int, type(None)), path),
+                    options=_member(document, "options", str, path),
+                    session_sha256=_member(document, "session_sha256", str, path),
+                    cases=_member(document, "cases", int, path), shard=shard,
+                    planned=len(runs))
+
+
+# What shards of one campaign agree on, and the flag that sets each.
+_CAMPAIGN_IDENTITY = (("session_sha256", "SESSION (its bytes differ)"), ("seed", "--seed"),
+                      ("kinds", "--kinds"), ("budget", "--budget"), ("options", "--options"),
+                      ("cases", "the cases (a different wiretape?)"))
+
+
+def merge(paths: Sequence[str]) -> Campaign:
+    """One campaign from the ``--json`` of its shards (``--shard K/N``, every
+    K once): the runs in the cases' order, as one unsharded run gives them.
+    Refuses (FaultInputError) files of different sessions, seeds, kinds,
+    budgets or replay keys, a shard missing or given twice, and an
+    interrupted shard."""
+    if not paths:
+        raise FaultInputError("give the --json files of every shard")
+    shards = [(path, read_json(path)) for path in paths]
+    first_path, first = shards[0]
+    by_number: Dict[int, str] = {}
+    for path, part in shards:
+        if part.shard is None:
+            raise FaultInputError(f"{path}: a whole campaign (run without --shard): nothing to "
+                                  "merge")
+        if part.interrupted:
+            raise FaultInputError(f"{path}: shard {part.shard} was interrupted after "
+                                  f"{len(part.runs)} runs: run it again")
+        for member, flag in _CAMPAIGN_IDENTITY:
+            if getattr(part, member) != getattr(first, member):
+                raise FaultInputError(
+                    f"{path}: {member} {json.dumps(getattr(part, member))} but {first_path}: "
+                    f"{json.dumps(getattr(first, member))}: shards of one campaign share {flag}")
+        if part.shard.count != first.shard.count:
+            raise FaultInputError(f"{path}: --shard {part.shard} but {first_path}: --shard "
+                                  f"{first.shard}: shards of one campaign share N")
+        if part.shard.number in by_number:
+            raise FaultInputError(f"{path}: shard {part.shard} is also {by_number[part.shard.number]}")
+        by_number[part.shard.number] = path
+        expected = [index for index in range(part.cases) if part.shard.owns(index)]
+        if sorted(run.case for run in part.runs) != expected:
+            raise FaultInputError(f"{path}: its runs are not the cases of shard {part.shard} "
+                                  f"({len(part.runs)} runs, {len(expected)} cases)")
+    missing = [f"{number}/{first.shard.count}" for number in range(1, first.shard.count + 1)
+               if number not in by_number]
+    if missing:
+        raise FaultInputError("missing shard " + ", ".join(missing) + " of the campaign")
+    runs = sorted((run for _, part in shards for run in part.runs), key=lambda run: run.case)
+    return dataclasses.replace(first, runs=runs, planned=first.cases, shard=None)

@@ -45,7 +45,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
 # Commands that are batch work whatever their arguments; any command with
 # -- CMD is too.
-_BATCH_COMMANDS = frozenset({"convert", "edit", "faults", "diff", "show", "stats", "verify"})
+_BATCH_COMMANDS = frozenset({"convert", "edit", "faults", "faults merge", "diff", "show", "stats",
+                             "verify"})
 
 
 def is_batch_work(args) -> bool:

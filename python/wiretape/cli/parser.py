@@ -12,7 +12,7 @@ from .. import __version__, _core
 from ..options import option_keys
 from .files import cmd_convert, cmd_diff, cmd_edit, cmd_show, cmd_stats, cmd_verify
 from .ports import cmd_ports
-from .run import cmd_demo, cmd_faults, cmd_record, cmd_replay, cmd_serve
+from .run import cmd_demo, cmd_faults, cmd_faults_merge, cmd_record, cmd_replay, cmd_serve
 
 
 # --------------------------------------------------------------------------
@@ -237,6 +237,9 @@ def split_command(argv: Sequence[str]) -> Tuple[List[str], Optional[List[str]]]:
     """wiretape's own arguments and the CMD after ``--`` of ``record`` and
     ``replay`` (None when there is no ``--``; [] when nothing follows it)."""
     arguments = list(argv)
+    if arguments[:2] == ["faults", "merge"]:
+        # A command of two words (a session named merge is given as ./merge).
+        return ["faults merge"] + arguments[2:], None
     if arguments and arguments[0] in _COMMANDS_WITH_CMD and "--" in arguments:
         separator = arguments.index("--")
         return arguments[:separator], arguments[separator + 1:]
@@ -344,6 +347,20 @@ def build_parser() -> argparse.ArgumentParser:
                         help="CMD opens PATH itself: redirect it to the virtual device")
     faults.add_argument("--options", metavar="KEYS", default="",
                         help="replay keys for every run (e.g. timing=none,match=request)")
+    faults.add_argument("--shard", metavar="K/N",
+                        help="run only shard K of N: the cases whose index is K-1 modulo N "
+                             "(merge the shards' --json with 'wiretape faults merge')")
+
+    merge = command(
+        "faults merge", cmd_faults_merge, "one campaign's table from the --json of its shards",
+        "Merges the --json files of a campaign run in shards (wiretape faults ... --shard "
+        "K/N --json FILE, every K once) into one table and JSON, as one unsharded run "
+        "gives them. Refuses files of different sessions, seeds, kinds, budgets or replay "
+        "keys, a missing or repeated shard and an interrupted one (exit 2). Exit 1 if "
+        "any run crashed or hung (docs/faults.md).")
+    merge.add_argument("files", nargs="+", metavar="FILE.json",
+                       help="the --json of each shard")
+    merge.add_argument("--json", metavar="FILE", help="write the merged runs as JSON to FILE")
 
     serve = command(
         "serve", cmd_serve, "share a local device with remote programs over TCP",

@@ -204,10 +204,11 @@ def cmd_faults(args, out: Output) -> int:
         refuse_same_file(session_files(args.file), [args.json])
     kinds = [kind for kind in (args.kinds or "").split(",") if kind.strip()] or None
     try:
+        shard = faults.Shard.parse(args.shard) if args.shard is not None else None
         result = faults.campaign(args.file, args.command_argv, kinds=kinds, budget=args.budget,
                                  seed=args.seed, timeout=args.timeout, jobs=args.jobs,
                                  replay_options=args.options, listen=args.listen,
-                                 as_path=args.redirect_path,
+                                 as_path=args.redirect_path, shard=shard,
                                  progress=sys.stderr if sys.stderr.isatty() else None)
     except faults.FaultInputError as error:
         raise UsageError(str(error)) from None
@@ -220,6 +221,22 @@ def cmd_faults(args, out: Output) -> int:
         out.note(f"faults: interrupted after {len(partial.runs)} of {partial.planned} runs")
         _report_campaign(partial, args.json, out)
         raise
+    _report_campaign(result, args.json, out)
+    return EXIT_CHECK_FAILED if result.failed else EXIT_OK
+
+
+def cmd_faults_merge(args, out: Output) -> int:
+    from .. import faults
+    from ..session import refuse_same_file
+
+    for path in args.files:
+        require_input(path)
+    if args.json:
+        refuse_same_file(args.files, [args.json])
+    try:
+        result = faults.merge(args.files)
+    except faults.FaultInputError as error:
+        raise UsageError(str(error)) from None
     _report_campaign(result, args.json, out)
     return EXIT_CHECK_FAILED if result.failed else EXIT_OK
 
