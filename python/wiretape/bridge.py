@@ -263,6 +263,7 @@ def serve(device: str, listen, *, output=None, protocol: str = "raw",
 
 def serve_replay(file, *, pty=None, listen=None, udp=None, peer=None,
                  replay_options: str = "", backlog: Optional[int] = None,
+                 protocol: str = "raw",
                  restart: bool = False, output=None,
                  quiet: bool = False, pty_mode: Optional[int] = None,
                  pty_group: PtyGroup = None, line_channel: str = "") -> BridgeHandle:
@@ -277,7 +278,11 @@ def serve_replay(file, *, pty=None, listen=None, udp=None, peer=None,
     ``nothing_served``. ``pty_mode``/``pty_group`` set who may open the pty
     (default 0o660, group dialout). ``udp="HOST:PORT"`` answers request
     datagrams there with the recorded rx datagrams and sends unprompted ones
-    to the last sender, or from the start to ``peer="HOST:PORT"``."""
+    to the last sender, or from the start to ``peer="HOST:PORT"``.
+    ``protocol="rfc2217"`` (with ``listen``) serves pyserial's ``rfc2217://``
+    clients: the recorded modem lines, and their line changes checked."""
+    if protocol != "raw" and listen is None:
+        raise ValueError(f"protocol {protocol!r} is spoken over TCP: give listen=HOST:PORT")
     options = "type=replay,file=" + _quote(os.fspath(file))
     if replay_options.strip():
         options += "," + replay_options.strip()
@@ -286,7 +291,7 @@ def serve_replay(file, *, pty=None, listen=None, udp=None, peer=None,
     _core.check_replay_options(options)
     # The terminal settings of a replayed device are not applied anywhere.
     return _start(options, pty=pty, listen=listen, udp=udp, peer=peer, backlog=backlog,
-                  restart=restart,
+                  restart=restart, protocol=protocol,
                   output=os.fspath(output) if output else "",
                   mirror_settings=False, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group,
                   line_channel=line_channel)

@@ -164,6 +164,12 @@ void ReplayEngine::flush_input(ReplayTime now) {
 
 void ReplayEngine::client_flushed() { strategy_->client_flushed(); }
 
+ModemInputs ReplayEngine::device_lines(ReplayTime now) {
+  // Released rx is left where it is: the fault stage takes it as reads do.
+  strategy_->release(now);
+  return released_.device_lines(now);
+}
+
 void ReplayEngine::write(const char* data, std::size_t size, ReplayTime now) {
   if (size == 0 && !replays_empty_datagrams(config_)) return;
   if (const RxItem* loss = stage_.loss(now)) {

@@ -299,10 +299,12 @@ class ReplayPort : public Port {
   }
   void set_dtr(bool level) override { modem_line(event_field::dtr, level); }
   void set_rts(bool level) override { modem_line(event_field::rts, level); }
-  bool cts() override { return true; }
-  bool dsr() override { return true; }
-  bool ri() override { return false; }
-  bool cd() override { return true; }
+  // The device's lines as the recording released them so far (a modem with
+  // the line up where it holds none).
+  bool cts() override { return device_lines().cts; }
+  bool dsr() override { return device_lines().dsr; }
+  bool ri() override { return device_lines().ri; }
+  bool cd() override { return device_lines().cd; }
   void send_break(std::chrono::milliseconds duration) override {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
@@ -417,6 +419,14 @@ class ReplayPort : public Port {
 
   void check_open() const {
     if (closed_) throw PortClosed(description_ + " is closed");
+  }
+
+  ModemInputs device_lines() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    check_open();
+    if (awaiting_client_) return lines_before_client_;
+    lines_before_client_ = engine_->device_lines(ReplayClock::now());
+    return lines_before_client_;
   }
 
   void modem_line(const char* line, bool level) {
@@ -606,6 +616,8 @@ class ReplayPort : public Port {
   // A virtual device between client sessions: nothing is released to
   // nobody (see await_client()).
   bool awaiting_client_ = false;
+  // The lines the last client session left, seen until the next begins.
+  ModemInputs lines_before_client_;
   int client_sessions_ = 0;
   SerialSettings settings_;
   std::function<void(const FaultEvent&)> fault_reporter_;  // empty: stderr

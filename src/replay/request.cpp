@@ -175,6 +175,9 @@ void RequestStrategy::load_exchanges(RecordSource& source) {
       case RecordKind::redaction:
         next_record_wildcards.add_event(payload);
         break;
+      case RecordKind::modem_lines:
+        if (!greeting_of_another_) serve_greeting_lines(payload);
+        break;
       default:
         break;
     }
@@ -297,6 +300,7 @@ void RequestStrategy::load_frames(RecordSource& source) {
       greeting_of_another_ = false;
     }
     if (another_client_session(record.kind, payload) || greeting_of_another_) continue;
+    if (record.kind == RecordKind::modem_lines) serve_greeting_lines(payload);
     if (record.kind != RecordKind::rx && record.kind != RecordKind::close &&
         record.kind != RecordKind::device_lost) {
       continue;
@@ -305,6 +309,16 @@ void RequestStrategy::load_frames(RecordSource& source) {
     device_gone = record.kind != RecordKind::rx;
     if (record.kind == RecordKind::close && !session_goes_on(source)) break;
     add_response(record.kind, record.t_ns, payload, ordinal);
+  }
+}
+
+// Served, not checked (docs/replay.md): the device's lines as the recording
+// shows them before the first request, from open on.
+void RequestStrategy::serve_greeting_lines(std::string_view payload) {
+  if (!exchanges_.empty()) return;
+  if (const auto inputs = modem_inputs_of(payload, greeting_lines_)) {
+    greeting_lines_ = *inputs;
+    released_.push_lines(ReplayTime::min(), *inputs);
   }
 }
 

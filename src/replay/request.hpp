@@ -49,6 +49,8 @@ class RequestStrategy final : public ReplayStrategy {
 
  private:
   static constexpr std::uint32_t kNone = UINT32_MAX;
+  ModemInputs greeting_lines_;  // the device's lines before the first request
+  void serve_greeting_lines(std::string_view payload);
   struct Exchange {
     std::uint32_t group = 0;               // its request
     std::uint32_t next_in_group = kNone;   // the group's next exchange

@@ -7,6 +7,15 @@
 
 namespace wiretape::detail {
 
+namespace {
+
+std::string recorded_event_text(const Record& record);
+std::string event_levels_text(
+    const std::optional<Record>& recorded,
+    const std::optional<std::pair<RecordKind, std::map<std::string, std::string>>>& made);
+
+}  // namespace
+
 SequenceStrategy::SequenceStrategy(const ReplayConfig& config,
                                    const ReplayTimeline& timeline,
                                    ReleasedRx& released, MismatchReport& report,
@@ -75,6 +84,25 @@ void SequenceStrategy::fill() {
       case RecordKind::flush_output:
         ++rx_flushes_seen_;
         break;
+      case RecordKind::modem_lines: {
+        // The device's lines are released like rx; the host's are checked
+        // by the write cursor.
+        const std::string_view payload = view ? view.bytes : std::string_view(record.data);
+        const std::optional<ModemInputs> inputs = modem_inputs_of(payload, rx_device_lines_);
+        if (!inputs) break;
+        rx_device_lines_ = *inputs;
+        Ahead ahead;
+        ahead.item.kind = RecordKind::modem_lines;
+        ahead.item.t_ns = record.t_ns;
+        ahead.item.exchange = exchange;
+        ahead.item.data = modem_inputs_payload(*inputs);  // all four: read back alone
+        ahead.tx_before = rx_tx_progress();
+        ahead.anchor_t_ns = rx_last_tx_t_ns_;
+        ahead.flushes_before = rx_flushes_seen_;
+        ahead_bytes_ += ahead.item.data.size();
+        ahead_.push_back(std::move(ahead));
+        break;
+      }
       case RecordKind::rx:
       case RecordKind::close:
       case RecordKind::device_lost: {
@@ -182,6 +210,10 @@ bool SequenceStrategy::held_by_flush_gate() {
 }
 
 void SequenceStrategy::release_item(RxItem&& item, std::uint64_t tx_before) {
+  if (item.kind == RecordKind::modem_lines) {
+    released_.push_lines(item.due, modem_inputs_of(item.data, {}).value_or(ModemInputs{}));
+    return;
+  }
   if (!fixer_) {
     released_.push(std::move(item));
     return;
@@ -223,9 +255,18 @@ bool SequenceStrategy::next_tx_record() {
         pending_wildcards_.add_event(record.data);
         break;
       case RecordKind::settings:
-      case RecordKind::modem_lines:
-      case RecordKind::line_break:
         if (checks_events()) expected_events_.push_back(std::move(record));
+        break;
+      case RecordKind::modem_lines:
+        // The device's lines recorded: this recording's client lines are
+        // checked from here on (the recorders write them first).
+        if (modem_inputs_of(record.data, {})) lines_recorded_ = true;
+        if (records_host_lines(record.data) && checks_lines()) {
+          expected_events_.push_back(std::move(record));
+        }
+        break;
+      case RecordKind::line_break:
+        if (checks_lines()) expected_events_.push_back(std::move(record));
         break;
       case RecordKind::close:
       case RecordKind::device_lost:
@@ -359,12 +400,14 @@ void SequenceStrategy::write_records(const char* data, std::size_t size,
     const std::string& expected = tx_record_.data;
     if (tx_position_ == 0 && !expected_events_.empty()) {
       const Record& missing = expected_events_.front();
-      report_.raise("the recording has a " + std::string(to_string(missing.kind)) +
-                        " event " + missing.data +
+      report_.raise("the recording has " + recorded_event_text(missing) +
                         " before these bytes, and the client did not make it",
                     tx_written_,
                     std::string_view(expected).substr(0, kReplayContext),
-                    rest.substr(0, kReplayContext), missing.t_ns, tx_exchange_);
+                    rest.substr(0, kReplayContext), missing.t_ns, tx_exchange_,
+                    missing.kind == RecordKind::settings
+                        ? std::string()
+                        : event_levels_text(missing, std::nullopt));
     }
     if (tx_position_ == 0 && config_.check == ReplayCheck::timing) {
       if (const auto miss = timeline_.check_write(tx_record_.t_ns, previous_tx_finished_,
@@ -435,6 +478,10 @@ bool SequenceStrategy::checks_events() const {
   return config_.check == ReplayCheck::timing;
 }
 
+bool SequenceStrategy::checks_lines() const {
+  return checks_events() || (config_.check == ReplayCheck::data && lines_recorded_);
+}
+
 namespace {
 
 std::string member_text(const json::Value& value) {
@@ -461,36 +508,104 @@ std::string fields_json(const std::map<std::string, std::string>& fields) {
   return text + "}";
 }
 
+// A line change in words: "DTR low", "RTS high", "a break"; other events as
+// their kind and members.
+std::string line_change_text(RecordKind kind, const std::map<std::string, std::string>& fields) {
+  if (kind == RecordKind::line_break) return "a break";
+  if (kind == RecordKind::modem_lines) {
+    std::string text;
+    for (const char* line : {event_field::dtr, event_field::rts}) {
+      const auto level = fields.find(line);
+      if (level == fields.end()) continue;
+      if (!text.empty()) text += ", ";
+      for (const char* c = line; *c != '\0'; ++c) text += static_cast<char>(*c - 'a' + 'A');
+      text += level->second == "true" ? " high" : " low";
+    }
+    if (!text.empty()) return text;
+  }
+  return std::string(to_string(kind)) + " " + fields_json(fields);
+}
+
+std::map<std::string, std::string> recorded_fields(const Record& record) {
+  std::map<std::string, std::string> fields;
+  try {
+    const json::Value value = json::parse(record.data.empty() ? "{}" : record.data);
+    for (const auto& [key, member] : value.members) {
+      if (key == event_field::applied) continue;  // the proxy's note, not the client's doing
+      fields[key] = member_text(member);
+    }
+  } catch (const json::ParseError&) {
+  }
+  return fields;
+}
+
+std::string recorded_event_text(const Record& record) {
+  if (record.kind == RecordKind::modem_lines || record.kind == RecordKind::line_break) {
+    return line_change_text(record.kind, recorded_fields(record));
+  }
+  return "a " + std::string(to_string(record.kind)) + " event " + record.data;
+}
+
+// The report's lines for a line change: what the recording has there and
+// what the client did (nothing: it made none).
+std::string event_levels_text(
+    const std::optional<Record>& recorded,
+    const std::optional<std::pair<RecordKind, std::map<std::string, std::string>>>& made) {
+  return "  expected line change: " +
+         (recorded ? line_change_text(recorded->kind, recorded_fields(*recorded))
+                   : std::string("(none)")) +
+         "\n  actual line change:   " +
+         (made ? line_change_text(made->first, made->second) : std::string("(none)")) + "\n";
+}
+
 }  // namespace
 
 void SequenceStrategy::client_event(RecordKind kind,
                                     const std::map<std::string, std::string>& fields) {
-  if (!checks_events()) return;
+  const bool line = kind == RecordKind::modem_lines || kind == RecordKind::line_break;
+  // Settings are checked under check=timing; the client's lines also under
+  // check=data, where the recording holds the device's lines.
+  if (!checks_events() && !(line && config_.check == ReplayCheck::data)) return;
   if (!have_tx_record_ || tx_position_ == 0) next_tx_record();
-  const std::string made = std::string(to_string(kind)) + " " + fields_json(fields);
+  if (line && !checks_lines()) return;
+  const std::string made = line ? line_change_text(kind, fields)
+                                : "a " + std::string(to_string(kind)) + " " + fields_json(fields) +
+                                      " event";
+  const auto made_event = std::make_pair(kind, fields);
   if (expected_events_.empty()) {
-    report_.raise("the client made a " + made +
-                      " event where the recording has none",
-                  tx_written_, {}, {}, previous_tx_t_ns_, tx_exchange_);
+    report_.raise("the client made " + made + " where the recording has none",
+                  tx_written_, {}, {}, previous_tx_t_ns_, tx_exchange_,
+                  line ? event_levels_text(std::nullopt, made_event) : std::string());
   }
   const Record& recorded = expected_events_.front();
   bool same = recorded.kind == kind;
   if (same) {
-    try {
-      const json::Value value = json::parse(recorded.data.empty() ? "{}" : recorded.data);
-      // Only what both say is compared (set_baud against a full configure).
-      for (const auto& [key, text] : fields) {
-        const json::Value* member = value.find(key);
-        if (member != nullptr && member_text(*member) != text) same = false;
+    const std::map<std::string, std::string> recorded_members = recorded_fields(recorded);
+    // Only what both say is compared (set_baud against a full configure); a
+    // break's length is the client's timing, compared only under
+    // check=timing.
+    for (const auto& [key, text] : fields) {
+      if (key == event_field::duration_ms && !checks_events()) continue;
+      const auto member = recorded_members.find(key);
+      if (member != recorded_members.end() && member->second != text) same = false;
+    }
+    // A line the recording changed that the client did not.
+    if (kind == RecordKind::modem_lines) {
+      for (const char* name : {event_field::dtr, event_field::rts}) {
+        if (recorded_members.count(name) != fields.count(name)) same = false;
       }
-    } catch (const json::ParseError&) {
-      same = false;
     }
   }
   if (!same) {
-    report_.raise("the client made a " + made + " event; the recording has " +
-                      std::string(to_string(recorded.kind)) + " " + recorded.data,
-                  tx_written_, {}, {}, recorded.t_ns, tx_exchange_);
+    const bool recorded_line =
+        recorded.kind == RecordKind::modem_lines || recorded.kind == RecordKind::line_break;
+    report_.raise("the client made " + made + "; the recording has " +
+                      (recorded_line ? recorded_event_text(recorded)
+                                     : std::string(to_string(recorded.kind)) + " " + recorded.data),
+                  tx_written_, {}, {}, recorded.t_ns, tx_exchange_,
+                  line || recorded.kind != RecordKind::settings
+                      ? event_levels_text(recorded, made_event)
+                      : std::string());
   }
   expected_events_.pop_front();
 }
@@ -548,6 +663,23 @@ std::string SequenceStrategy::unused_report(std::uint64_t queued_rx_bytes,
                   held.item.t_ns, static_cast<std::int64_t>(held.item.exchange),
                   "  held:     " + std::to_string(held_bytes) + " rx bytes\n");
   }
+  // Line changes the recording has after the client's last write, which
+  // the client never made (those before a write it made were a mismatch).
+  if (!have_tx_record_) next_tx_record();
+  std::string lines_never_made;
+  std::size_t line_changes = 0;
+  const Record* first_line_change = nullptr;
+  for (const Record& event : expected_events_) {
+    if (event.kind != RecordKind::modem_lines && event.kind != RecordKind::line_break) continue;
+    if (line_changes++ == 0) first_line_change = &event;
+  }
+  if (first_line_change != nullptr) {
+    lines_never_made = std::to_string(line_changes) +
+                       " recorded line changes of the client were never made (the first: " +
+                       recorded_event_text(*first_line_change) + " at session time " +
+                       session_seconds(first_line_change->t_ns) + " s)";
+  }
+  expected_events_.clear();
   std::uint64_t rx_bytes = queued_rx_bytes;
   std::uint64_t rx_records = queued_rx_records;
   if (fixer_) {  // held back for the rest of a response frame
@@ -623,6 +755,10 @@ std::string SequenceStrategy::unused_report(std::uint64_t queued_rx_bytes,
               "were never written";
   }
   if (more) report += " (the rest of the recording was not counted)";
+  if (!lines_never_made.empty()) {
+    if (!report.empty()) report += "; ";
+    report += lines_never_made;
+  }
   return report;
 }
 

@@ -304,6 +304,10 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument("--peer", metavar="HOST:PORT", type=_udp_address("peer", 1),
                         help="with --udp: send the device's datagrams to HOST:PORT from "
                              "the start (default: to the last sender, once one has sent)")
+    replay.add_argument("--protocol", choices=("raw", "rfc2217"), default="raw",
+                        help="with --listen: raw bytes or RFC 2217, for pyserial's "
+                             "rfc2217:// (the client sets the line and reads the recorded "
+                             "modem lines; default raw)")
     replay.add_argument("--restart", action="store_true",
                         help="each new client starts the session over")
     replay.add_argument("-o", "--output", metavar="FILE", type=_session_output,

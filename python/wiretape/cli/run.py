@@ -139,12 +139,15 @@ def cmd_replay(args, out: Output) -> int:
         return replay_with_command(args, out)
     refuse_as_without_command(args)
     pty, listen = _client_side(args)
+    if args.protocol != "raw" and listen is None:
+        raise UsageError(f"--protocol {args.protocol} is spoken over TCP: give --listen HOST:PORT")
     require_input(args.file)
     check_fault_places(args)
     if args.output:
         refuse_same_file(session_files(args.file), [args.output])
     handle = bridge.serve_replay(args.file, pty=pty, listen=listen, udp=args.udp,
                                  peer=args.peer, backlog=args.backlog,
+                                 protocol=args.protocol,
                                  replay_options=replay_options_of(args),
                                  restart=args.restart, output=args.output,
                                  quiet=args.quiet, pty_mode=args.pty_mode,
