@@ -223,3 +223,44 @@ def test_pyserial_lines_and_break_under_as(tmp_path):
         ("tx", b"PING\n"),
         ("rx", b"PONG\n"),
     ]
+
+
+WAITING_CLIENT = textwrap.dedent("""
+    import array, fcntl, os, threading
+
+    TIOCMGET, TIOCMIWAIT, TIOCGICOUNT, TIOCM_CTS = 0x5415, 0x545C, 0x545D, 0x20
+    fd = os.open("/dev/ttyUSB0", os.O_RDWR | os.O_NOCTTY)
+    woke = []
+    waiter = threading.Thread(target=lambda: woke.append(fcntl.ioctl(fd, TIOCMIWAIT, TIOCM_CTS)))
+    waiter.start()
+    os.write(fd, b"GO\\n")
+    waiter.join(60)
+    lines = array.array("i", [0])
+    fcntl.ioctl(fd, TIOCMGET, lines, True)
+    counts = array.array("i", [0] * 20)
+    fcntl.ioctl(fd, TIOCGICOUNT, counts, True)
+    print("woke=%d cts=%d cts_changes=%d" % (len(woke), bool(lines[0] & TIOCM_CTS), counts[0]))
+    os._exit(0)
+""")
+
+
+def test_tiocmiwait_wakes_when_the_replayed_device_raises_cts(tmp_path):
+    """The device's CTS, recorded low and raised 2 s after the client's
+    request, wakes a TIOCMIWAIT the client made before it."""
+    ms = 1_000_000
+    inputs = '{{"cts":{},"dsr":true,"ri":false,"cd":true}}'
+    recording = tmp_path / "cts.wtape"
+    with wiretape.SessionWriter(str(recording), capture="wire", port_type="serial",
+                                port_options="type=serial,device=/dev/ttyUSB0") as writer:
+        writer.write("open", 0, b"{}")
+        writer.write("modem_lines", 1, inputs.format("false").encode())
+        writer.write("tx", 1 * ms, b"GO\n")
+        writer.write("modem_lines", 2001 * ms, inputs.format("true").encode())
+        writer.write("close", 2002 * ms, b"{}")
+    script = tmp_path / "client.py"
+    script.write_text(WAITING_CLIENT)
+    replayed = wiretape_cli("replay", str(recording), "--as", HARD_CODED, "-q", "--",
+                            sys.executable, str(script))
+    assert replayed.returncode == 0, replayed.stdout + replayed.stderr
+    assert "woke=1 cts=1 cts_changes=" in replayed.stdout, replayed.stdout + replayed.stderr
+    assert "cts_changes=0" not in replayed.stdout
