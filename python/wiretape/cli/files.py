@@ -24,7 +24,7 @@ def require_input(path: str) -> None:
 
 
 def cmd_show(args, out: Output) -> int:
-    from ..tools.show import show_reporting_damage
+    from ..tools.show import Selection, color_wanted, show_reporting_damage
 
     require_input(args.file)
     if args.textconv or args.no_start or args.no_times:
@@ -36,7 +36,16 @@ def cmd_show(args, out: Output) -> int:
         option = "--profile" if args.profile else "--decode"
         raise UsageError(f"{option} works with --format text only")
     try:
-        _, damage = show_reporting_damage(args.file, fmt=args.format, profile=profile)
+        select = Selection(kinds=frozenset(args.kind) if args.kind else None,
+                           start_s=args.start_s, end_s=args.end_s,
+                           grep=args.grep.encode("utf-8", "surrogateescape")
+                           if args.grep is not None else None)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    try:
+        _, damage = show_reporting_damage(args.file, fmt=args.format, profile=profile,
+                                          select=select, full=args.full,
+                                          color=color_wanted(args.color, sys.stdout))
     except BrokenPipeError:  # `wiretape show big.wtape | head`
         silence_stdout()
         return EXIT_OK
@@ -51,6 +60,13 @@ def _show_textconv(args) -> int:
     if args.format == "jsonl" or args.profile or args.decode:
         raise UsageError("--textconv, --no-start and --no-times work with --format text or "
                          "hex, without --profile")
+    chosen = [flag for flag, given in (("--kind", args.kind), ("--from", args.start_s is not None),
+                                       ("--to", args.end_s is not None),
+                                       ("--grep", args.grep is not None), ("--full", args.full))
+              if given]
+    if chosen:
+        raise UsageError(f"{chosen[0]} does not go with --textconv (which shows every record "
+                         "and every byte)")
     try:
         textconv(args.file, fmt=args.format, start=not args.no_start, times=not args.no_times)
     except BrokenPipeError:

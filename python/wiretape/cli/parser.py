@@ -90,6 +90,27 @@ def _add_replay_keys(parser: argparse.ArgumentParser) -> None:
             parser.add_argument(key.flag, dest=key.name, type=_key_value(key),
                                 metavar=key.name.upper(), help=help_text)
 
+def _kind_list(text: str) -> Tuple[str, ...]:
+    from ..tools.show import check_kinds
+
+    kinds = tuple(kind.strip() for kind in text.split(",") if kind.strip())
+    try:
+        check_kinds(kinds)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+    return kinds
+
+
+def _seconds_of_session(text: str) -> float:
+    try:
+        value = float(text.strip().rstrip("s"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if value != value or value in (float("inf"), float("-inf")):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds")
+    return value
+
+
 def _positive_int(text: str) -> int:
     value = _non_negative_int(text)
     if value == 0:
@@ -398,6 +419,20 @@ def build_parser() -> argparse.ArgumentParser:
                       help="with --textconv (implies it): leave out the start time and host")
     show.add_argument("--no-times", dest="no_times", action="store_true",
                       help="with --textconv (implies it): leave out each record's time")
+    show.add_argument("--color", choices=("auto", "always", "never"), default="auto",
+                      help="colour: auto (default) on a terminal unless NO_COLOR is set")
+    show.add_argument("--kind", type=_kind_list, metavar="K[,K]",
+                      help="only records of these kinds (tx, rx, settings, ...)")
+    show.add_argument("--from", dest="start_s", type=_seconds_of_session, metavar="S",
+                      help="only records at or after S seconds of session time (the first "
+                           "column)")
+    show.add_argument("--to", dest="end_s", type=_seconds_of_session, metavar="S",
+                      help="only records at or before S seconds of session time")
+    show.add_argument("--grep", metavar="PATTERN",
+                      help="only tx and rx records whose bytes match PATTERN (a Python bytes "
+                           "regular expression; \\x00 escapes work)")
+    show.add_argument("--full", action="store_true",
+                      help="every byte of each payload (not the first 64)")
 
     stats = command("stats", cmd_stats, "figures of a session (exit 1 if damaged)")
     stats.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
