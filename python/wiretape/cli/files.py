@@ -77,7 +77,8 @@ def _show_textconv(args) -> int:
 
 def _print_stats(stats, out: Output) -> None:
     rows = stats.text_rows()
-    width = max([len("wiretape_version")] + [len(name) for name, _ in rows])
+    width = max([len("wiretape_version")] + [len(name) for name, _ in rows
+                                             if not name.startswith("latency ")])
     for name, value in rows:
         out.print(f"{name:<{width}}  {value}", style="bold red" if name == "damaged" else None)
 
@@ -86,7 +87,7 @@ def cmd_stats(args, out: Output) -> int:
     from ..tools.stats import stats as session_stats
 
     require_input(args.file)
-    result = session_stats(args.file)
+    result = session_stats(args.file, profile=args.profile)
     if args.json:
         print(json.dumps(result.to_json(), indent=2, sort_keys=True, default=str))
     else:

@@ -437,6 +437,9 @@ def build_parser() -> argparse.ArgumentParser:
     stats = command("stats", cmd_stats, "figures of a session (exit 1 if damaged)")
     stats.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
     stats.add_argument("--json", action="store_true", help="print JSON")
+    stats.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
+                       help="latency per request frame name of a protocol: "
+                            + ", ".join(_core.profile_names()))
 
     edit = command(
         "edit", cmd_edit, "cut a session down and scrub it before sharing it",
