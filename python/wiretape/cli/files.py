@@ -131,7 +131,7 @@ def cmd_diff(args, out: Output) -> int:
 
     require_input(args.a)
     require_input(args.b)
-    result = diff(args.a, args.b, profile=args.profile)
+    result = diff(args.a, args.b, profile=args.profile, max_divergences=args.max_divergences)
     for line in result.report().splitlines():
         style = None
         if line == "sessions are identical":

@@ -505,12 +505,16 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
 
     diff = command("diff", cmd_diff,
-                   "first divergence of two sessions, per direction (exit 1 if they differ)")
+                   "where two sessions differ: the first difference per direction, then "
+                   "every divergence by exchange (exit 1 if they differ)")
     diff.add_argument("a", metavar="A", help="a session")
     diff.add_argument("b", metavar="B", help="another session")
     diff.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
                       help="compare frame by frame by the profile's match key (fields it "
                            "leaves out do not differ): " + ", ".join(_core.profile_names()))
+    diff.add_argument("--max", dest="max_divergences", type=_non_negative_int, default=10,
+                      metavar="N", help="show the first N divergences by exchange (default "
+                                        "10; all are counted)")
 
     command("demo", cmd_demo,
             "record a simulated Hokuyo scanner, replay it without it, compare (make demo)")
