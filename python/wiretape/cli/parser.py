@@ -194,11 +194,31 @@ def _udp_address(what: str, minimum_port: int):
 
 _DESCRIPTION = "Record and replay the wire-level session between a driver and its device."
 
-_EPILOG = """exit codes: 0 ok (Ctrl-C included); 1 the checked thing failed (replay
+_EXIT_CODES = """exit codes: 0 ok (Ctrl-C included); 1 the checked thing failed (replay
 mismatch, damaged file, diff found a difference, unused data under
-unused=error); 2 usage error; 3 runtime error (device or file I/O).
---device takes a port option string (type=tcp,host=10.0.0.5,port=10940) or a
+unused=error); 2 usage error; 3 runtime error (device or file I/O)."""
+
+_DEVICE_NOTE = """--device takes a port option string (type=tcp,host=10.0.0.5,port=10940) or a
 bare path, which means type=serial,device=PATH."""
+
+_EPILOG = _EXIT_CODES + "\n" + _DEVICE_NOTE
+
+# What follows `--` on the usage line of the commands that run a program.
+_COMMAND_USAGE = {
+    "record": "[-- CMD [ARG...]]",
+    "replay": "[-- CMD [ARG...]]",
+    "faults": "-- CMD [ARG...] {port} [ARG...]",
+}
+
+
+def _finish_help(name: str, sub: argparse.ArgumentParser) -> None:
+    """The usage line shows the CMD after ``--`` (argparse never sees it),
+    and the note on --device is only where there is a --device."""
+    has_device = any("--device" in action.option_strings for action in sub._actions)
+    sub.epilog = _EPILOG if has_device else _EXIT_CODES
+    if name in _COMMAND_USAGE:
+        usage = sub.format_usage().rstrip()
+        sub.usage = usage[len("usage: "):] + " " + _COMMAND_USAGE[name]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -518,4 +538,6 @@ def build_parser() -> argparse.ArgumentParser:
 
     command("demo", cmd_demo,
             "record a simulated Hokuyo scanner, replay it without it, compare (make demo)")
+    for name, sub in commands.choices.items():
+        _finish_help(name, sub)
     return parser

@@ -406,7 +406,8 @@ TEST(OptionsFinish, AnUnknownKeyNearAValidOneSaysDidYouMean) {
   } catch (const OptionError& e) {
     EXPECT_EQ(e.key(), "bud");
     EXPECT_NE(std::string(e.what()).find("did you mean 'baud'?"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("valid keys for type=serial"), std::string::npos);
+    // the suggestion alone: no list of every key to read through
+    EXPECT_EQ(std::string(e.what()).find("valid keys"), std::string::npos) << e.what();
   }
 }
 
