@@ -8,7 +8,7 @@ import os
 import sys
 
 from .console import Output, silence_stdout
-from .errors import EXIT_CHECK_FAILED, EXIT_OK, RuntimeFailure, UsageError
+from .errors import EXIT_CHECK_FAILED, EXIT_OK, CheckFailed, RuntimeFailure, UsageError
 
 
 def require_input(path: str) -> None:
@@ -23,10 +23,24 @@ def require_input(path: str) -> None:
     raise RuntimeFailure(f"{path}: no such file")
 
 
+def require_session(path: str) -> None:
+    """require_input(), and a file wiretape imports but does not read as it
+    is (a capture, a pytest-reserial cassette) named with the command that
+    converts it (exit 1, as any file that is not a session)."""
+    from ..tools.convert import unconverted_format
+
+    require_input(path)
+    found = unconverted_format(path)
+    if found is not None:
+        what, command = found
+        raise CheckFailed(f"{path}: not a wiretape session but {what}: convert it first: "
+                          f"{command}")
+
+
 def cmd_show(args, out: Output) -> int:
     from ..tools.show import Selection, color_wanted, show_reporting_damage
 
-    require_input(args.file)
+    require_session(args.file)
     if args.textconv or args.no_start or args.no_times:
         return _show_textconv(args)
     profile = args.profile or args.decode
@@ -86,7 +100,7 @@ def _print_stats(stats, out: Output) -> None:
 def cmd_stats(args, out: Output) -> int:
     from ..tools.stats import stats as session_stats
 
-    require_input(args.file)
+    require_session(args.file)
     result = session_stats(args.file, profile=args.profile)
     if args.json:
         print(json.dumps(result.to_json(), indent=2, sort_keys=True, default=str))
@@ -98,7 +112,7 @@ def cmd_stats(args, out: Output) -> int:
 def cmd_verify(args, out: Output) -> int:
     from ..tools.verify import verify
 
-    require_input(args.file)
+    require_session(args.file)
     result = verify(args.file)
     if args.json:
         print(json.dumps(result.to_json(), indent=2, sort_keys=True, default=str))
@@ -129,8 +143,8 @@ def cmd_convert(args, out: Output) -> int:
 def cmd_diff(args, out: Output) -> int:
     from ..tools.diff import diff
 
-    require_input(args.a)
-    require_input(args.b)
+    require_session(args.a)
+    require_session(args.b)
     result = diff(args.a, args.b, profile=args.profile, max_divergences=args.max_divergences)
     for line in result.report().splitlines():
         style = None
