@@ -13,6 +13,8 @@ from .files import require_input
 
 # How often a waiting command wakes up to notice Ctrl-C (seconds).
 POLL_S = 0.2
+# How often a campaign writing to a log (not a terminal) says how far it is.
+FAULTS_PROGRESS_EVERY_S = 5.0
 
 
 def meta_pairs(items: Optional[List[str]]) -> Dict[str, str]:
@@ -235,7 +237,9 @@ def cmd_faults(args, out: Output) -> int:
                                  seed=args.seed, timeout=args.timeout, jobs=args.jobs,
                                  replay_options=args.options, listen=args.listen,
                                  as_path=args.redirect_path, shard=shard,
-                                 progress=sys.stderr if sys.stderr.isatty() else None)
+                                 progress=sys.stderr,
+                                 progress_every=None if sys.stderr.isatty() else
+                                 FAULTS_PROGRESS_EVERY_S)
     except faults.FaultInputError as error:
         raise UsageError(str(error)) from None
     except faults.CleanRunFailed as failure:
