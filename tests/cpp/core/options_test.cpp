@@ -83,13 +83,13 @@ TEST(OptionsTake, BadValueNamesKeyAndValid) {
 }
 
 TEST(OptionsFinish, UnknownAndInapplicableKeysAreErrors) {
-  auto unknown = Options::parse("bod=9600");
+  auto unknown = Options::parse("zzzz=9600");  // near no key: the valid ones are listed
   unknown.take("device");
   try {
     unknown.finish("serial");
     FAIL();
   } catch (const OptionError& e) {
-    EXPECT_EQ(e.key(), "bod");
+    EXPECT_EQ(e.key(), "zzzz");
     EXPECT_NE(std::string(e.what()).find("unknown option"), std::string::npos);
     EXPECT_NE(std::string(e.what()).find("device"), std::string::npos);
   }
