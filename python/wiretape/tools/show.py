@@ -228,6 +228,15 @@ def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optiona
         count = records.count
     else:
         count = 0
+        columns: dict = {}
+
+        def kind_column(kind: str) -> str:
+            # painted once per kind: a big session has millions of lines, few kinds
+            if kind not in columns:
+                style = kind if kind in _DIRECTIONS else _event_style(kind)
+                columns[kind] = paint(style, f"{kind:<17}")
+            return columns[kind]
+
         for record in reader:
             count += 1
             t_ns, kind, data = record.t_ns, record.kind, record.data
@@ -244,7 +253,7 @@ def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optiona
                 else:
                     text = _printable(data, len(data) if full else limit)
                 summary = f"{arrow} {text}" if fmt == "text" else ""
-                head = f"{line}{paint(kind, f'{kind:<17}')} {size}  "
+                head = f"{line}{kind_column(kind)} {size}  "
                 out.write(f"{head}{summary}\n".rstrip() + "\n")
                 if fmt == "text" and wrap is not None:
                     indent = " " * (len(_stamp(_plain, t_ns, None, False)) + 17 + 1 + 8 + 2 + 3)
@@ -258,7 +267,7 @@ def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optiona
                 event = event_of(record)
                 text = (json.dumps(event, separators=(",", ":")) if event is not None
                         else _printable(data, len(data) if full else limit))
-                out.write(f"{line}{paint(_event_style(kind), f'{kind:<17}')} {'':>8}  {text}"
+                out.write(f"{line}{kind_column(kind)} {'':>8}  {text}"
                           .rstrip() + "\n")
     if reader.damage is not None:
         out.write("\n" + paint("problem", f"DAMAGED at byte {reader.damage.offset}: "
