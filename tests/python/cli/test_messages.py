@@ -40,3 +40,20 @@ def test_record_speaks_with_one_prefix_and_ends_with_a_summary(tmp_path):
     assert any(line.startswith(f"wiretape record: recording to {output}") for line in ours)
     assert re.fullmatch(r"wiretape record: finished: \d+ records? written.*", ours[-1]), ours
     assert "=" not in ours[-1]
+
+
+def test_the_unused_data_report_says_1_record_not_1_records(tmp_path, capfd):
+    import wiretape
+
+    path = tmp_path / "u.wtape"
+    with wiretape.SessionWriter(str(path), port_type="serial") as writer:
+        for n in range(2):
+            writer.write("tx", n * 1000, b"Q%d\n" % n)
+            writer.write("rx", n * 1000 + 500, b"R%d\n" % n)
+    port = wiretape.open_port(f"type=replay,file={path},timing=none,unused=warn")
+    port.write(b"Q0\n")
+    assert port.read(10, timeout=5) == b"R0\n"
+    port.close()
+    err = capfd.readouterr().err
+    assert "3 recorded rx bytes (1 record) were never read" in err, err
+    assert "1 records" not in err
