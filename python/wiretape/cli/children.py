@@ -78,7 +78,8 @@ def replay_with_command(args, out: Output) -> int:
                                  pty_group=args.pty_group)
     return _run_bridge_with_command(
         handle, out, "replay", args.command_argv, path,
-        lambda: announce_clients(handle, out, f"wiretape replay: replaying {args.file}", link), must_serve=True,
+        lambda: announce_clients(handle, out, f"wiretape replay: replaying {args.file}", link),
+        must_serve=True,
         outlive_injected_loss=True)
 
 

@@ -132,8 +132,9 @@ def cmd_record(args, out: Output) -> int:
                            quiet=args.quiet, pty_mode=args.pty_mode,
                            pty_group=args.pty_group)
     return run_bridge(handle, out, "record",
-                      lambda: announce_clients(handle, out, f"wiretape record: recording to {args.output}", pty,
-                                         udp=args.udp is not None))
+                      lambda: announce_clients(handle, out,
+                                               f"wiretape record: recording to {args.output}", pty,
+                                               udp=args.udp is not None))
 
 
 def replay_options_of(args) -> str:
@@ -181,8 +182,9 @@ def cmd_replay(args, out: Output) -> int:
                                  quiet=args.quiet, pty_mode=args.pty_mode,
                                  pty_group=args.pty_group)
     return run_bridge(handle, out, "replay",
-                      lambda: announce_clients(handle, out, f"wiretape replay: replaying {args.file}", pty,
-                                         udp=args.udp is not None),
+                      lambda: announce_clients(handle, out,
+                                               f"wiretape replay: replaying {args.file}", pty,
+                                               udp=args.udp is not None),
                       must_serve=True)
 
 
@@ -213,7 +215,8 @@ def cmd_serve(args, out: Output) -> int:
                           protocol=args.protocol, shared=args.shared,
                           max_monitors=max_monitors, reopen=args.reopen,
                           backlog=args.backlog, quiet=args.quiet)
-    return run_bridge(handle, out, "serve", lambda: announce_clients(handle, out, "wiretape serve: serving"))
+    return run_bridge(handle, out, "serve",
+                      lambda: announce_clients(handle, out, "wiretape serve: serving"))
 
 
 # --------------------------------------------------------------------------

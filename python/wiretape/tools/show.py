@@ -21,7 +21,8 @@ from ..session import DIRECTIONS as _DIRECTIONS
 from ..session import SessionPath, event_of, event_payload, header_text, open_session
 from ..session import printable as _printable
 
-__all__ = ["show", "show_reporting_damage", "Selection", "check_kinds", "record_kinds", "color_wanted"]
+__all__ = ["show", "show_reporting_damage", "Selection", "check_kinds", "record_kinds",
+           "color_wanted"]
 
 
 def _seconds(t_ns: int) -> str:

@@ -17,7 +17,8 @@ def write(path: Path, requests) -> Path:
                                 port_options="type=serial,device=/dev/ttyX") as writer:
         for n, request in enumerate(requests):
             writer.write("tx", n * 1_000_000, request)
-            writer.write("rx", n * 1_000_000 + 500_000, request + b"00P\n" + bytes([48 + n]) + b"\n\n")
+            reply = request + b"00P\n" + bytes([48 + n]) + b"\n\n"
+            writer.write("rx", n * 1_000_000 + 500_000, reply)
     return path
 
 
