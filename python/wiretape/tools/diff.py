@@ -260,8 +260,8 @@ class Divergence:
 
 class _ExchangeParts:
     """The exchanges of a session file with their bytes, one at a time:
-    (request bytes, response bytes, request time, response time), or with a
-    profile the request frame and the response frames joined."""
+    (request pieces, response pieces, request time, response time), a piece
+    being a frame with a profile, else all of that direction's bytes."""
 
     def __init__(self, path: str, profile: Optional[str]):
         self._path = path
@@ -271,8 +271,8 @@ class _ExchangeParts:
         exchanges = _core.session_exchanges(self._path, self._profile)
         if self._profile is not None:
             for exchange in exchanges:
-                yield (b"".join(bytes(f) for f in exchange.request_frames),
-                       b"".join(bytes(f) for f in exchange.response_frames),
+                yield ([bytes(f) for f in exchange.request_frames],
+                       [bytes(f) for f in exchange.response_frames],
                        exchange.request_first_t_ns, exchange.response_first_t_ns)
             return
         ends = iter([(exchange.end_record, exchange) for exchange in exchanges])
@@ -281,7 +281,7 @@ class _ExchangeParts:
         with open_session(self._path) as reader:
             for index, record in enumerate(reader):
                 while end is not None and index >= end:
-                    yield (bytes(parts["tx"]), bytes(parts["rx"]),
+                    yield (_pieces(parts["tx"]), _pieces(parts["rx"]),
                            exchange.request_first_t_ns, exchange.response_first_t_ns)
                     parts = {"tx": bytearray(), "rx": bytearray()}
                     end, exchange = next(ends, (None, None))
@@ -290,14 +290,52 @@ class _ExchangeParts:
                 if record.kind in parts:
                     parts[record.kind] += record.data
         if end is not None:
-            yield (bytes(parts["tx"]), bytes(parts["rx"]),
+            yield (_pieces(parts["tx"]), _pieces(parts["rx"]),
                    exchange.request_first_t_ns, exchange.response_first_t_ns)
+
+
+def _pieces(data: bytearray) -> List[bytes]:
+    return [bytes(data)] if data else []
+
+
+def _first_key_difference(a: bytes, b: bytes, key) -> int:
+    """The first byte where A and B differ that the key compares: B's byte
+    put in A changes A's key (a Modbus TCP transaction id differs first, but
+    it is not what differs by key). The first difference when none alone does."""
+    key_a = key(a)
+    for at in range(min(len(a), len(b))):
+        if a[at] != b[at] and key(a[:at] + b[at:at + 1] + a[at + 1:]) != key_a:
+            return at
+    return _first_difference(a, b)
+
+
+def _differs_at(pieces_a: List[bytes], pieces_b: List[bytes], key) -> Optional[int]:
+    """The offset (in the pieces joined) of the first byte of the first
+    piece whose key differs, None when every key is the same."""
+    offset = 0
+    for at in range(max(len(pieces_a), len(pieces_b))):
+        if at >= len(pieces_a) or at >= len(pieces_b):
+            return offset
+        piece_a, piece_b = pieces_a[at], pieces_b[at]
+        if key(piece_a) != key(piece_b):
+            return offset + _first_key_difference(piece_a, piece_b, key)
+        offset += len(piece_a)
+    return None
+
+
+def _request_name(framing, direction: str, pieces: Optional[List[bytes]]) -> str:
+    """A request's description under a profile (it is one frame): which
+    command differs."""
+    if framing is None or direction != "tx" or not pieces:
+        return ""
+    return framing.describe("tx", pieces[0])
 
 
 def _divergences(path_a: str, path_b: str, profile: Optional[str], keep: int
                  ) -> "tuple[List[Divergence], int]":
     """The first `keep` divergences by exchange, and how many there are."""
     framing = _core.find_profile(profile) if profile is not None else None
+    key = framing.match_key if framing is not None else (lambda piece: piece)
     found: List[Divergence] = []
     total = 0
     exchanges_a = iter(_ExchangeParts(path_a, profile))
@@ -308,29 +346,28 @@ def _divergences(path_a: str, path_b: str, profile: Optional[str], keep: int
         if part_a is None and part_b is None:
             break
         for direction, slot, time_slot in (("tx", 0, 2), ("rx", 1, 3)):
-            data_a = part_a[slot] if part_a is not None else None
-            data_b = part_b[slot] if part_b is not None else None
-            if data_a == data_b or (not data_a and not data_b):
+            pieces_a = part_a[slot] if part_a is not None else None
+            pieces_b = part_b[slot] if part_b is not None else None
+            if not pieces_a and not pieces_b:
                 continue
-            if framing is not None and data_a is not None and data_b is not None and \
-                    direction == "tx" and framing.match_key(data_a) == framing.match_key(data_b):
-                continue  # the profile says these requests are the same
+            if pieces_a is not None and pieces_b is not None:
+                # with a profile, what its match key leaves out does not differ
+                offset = _differs_at(pieces_a, pieces_b, key)
+                if offset is None:
+                    continue
+            else:
+                offset = 0
+            data_a = b"".join(pieces_a) if pieces_a is not None else None
+            data_b = b"".join(pieces_b) if pieces_b is not None else None
             total += 1
             if len(found) >= keep:
                 continue
-            offset = (_first_difference(data_a, data_b)
-                      if data_a is not None and data_b is not None else 0)
-            def named(data: Optional[bytes]) -> str:
-                # a request is one frame: its name says which command differs
-                if framing is None or direction != "tx" or not data:
-                    return ""
-                return framing.describe("tx", data)
-
             found.append(Divergence(
                 index, direction, offset,
                 part_a[time_slot] if part_a is not None else None,
                 part_b[time_slot] if part_b is not None else None,
-                data_a, data_b, named(data_a), named(data_b)))
+                data_a, data_b, _request_name(framing, direction, pieces_a),
+                _request_name(framing, direction, pieces_b)))
         index += 1
     return found, total
 
@@ -439,6 +476,7 @@ class FrameDiff:
     describe_b: str = ""
     time_a_ns: Optional[int] = None
     time_b_ns: Optional[int] = None
+    byte: int = 0  # the first differing byte of the frames that the key compares
 
     def report(self) -> str:
         counts = f"A: {self.frames_a} frames, B: {self.frames_b} frames"
@@ -452,10 +490,8 @@ class FrameDiff:
                 lines.append(f"  {name}:      (no more frames)")
             else:
                 lines.append(f"  {name}:      {description}")
-        at = (_first_difference(self.frame_a, self.frame_b)
-              if self.frame_a is not None and self.frame_b is not None else 0)
-        lines.append(f"  at byte {at} of the frame:")
-        lines += pointed(self.frame_a, self.frame_b, at)
+        lines.append(f"  at byte {self.byte} of the frame:")
+        lines += pointed(self.frame_a, self.frame_b, self.byte)
         lines.append(f"  {counts}")
         return "\n".join(lines)
 
@@ -489,6 +525,8 @@ def _compare_frames(profile, a, b, direction: str) -> FrameDiff:
             result.time_a_ns, result.frame_a, result.describe_a = next_a
         if next_b is not None:
             result.time_b_ns, result.frame_b, result.describe_b = next_b
+        if next_a is not None and next_b is not None:
+            result.byte = _first_key_difference(next_a[1], next_b[1], profile.match_key)
     return result
 
 

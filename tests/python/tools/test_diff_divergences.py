@@ -84,3 +84,29 @@ def test_identical_sessions_list_no_divergence(pair):
     result = diff(pair[0], pair[0])
     assert result.identical and result.divergence_count == 0
     assert "by exchange" not in result.report()
+
+
+def modbus_tcp(transaction: int, pdu: bytes) -> bytes:
+    return transaction.to_bytes(2, "big") + b"\x00\x00" + (len(pdu) + 1).to_bytes(2, "big") + \
+        b"\x01" + pdu
+
+
+def test_with_a_profile_what_the_key_leaves_out_is_no_divergence(tmp_path):
+    def session(name, transactions, register):
+        path = tmp_path / name
+        with wiretape.SessionWriter(str(path), port_type="tcp") as writer:
+            for n, transaction in enumerate(transactions):
+                pdu = b"\x03\x00" + bytes([register if n == 2 else n]) + b"\x00\x01"
+                writer.write("tx", n * 1_000_000, modbus_tcp(transaction, pdu))
+                writer.write("rx", n * 1_000_000 + 500_000,
+                             modbus_tcp(transaction, b"\x03\x02\x00" + bytes([n])))
+        return path
+
+    a = session("a.wtape", [1, 2, 3, 4], 2)
+    b = session("b.wtape", [101, 102, 103, 104], 9)  # other transaction ids; one register
+    result = diff(a, b, profile="modbus-tcp")
+    # the transaction ids differ in every frame, but only exchange 2's request does by key
+    assert [(d.exchange, d.direction, d.offset) for d in result.divergences] == [(2, "tx", 9)]
+    first = result["tx"]
+    assert first.index == 2 and first.byte == 9
+    assert "at byte 9 of the frame:" in result.report()
