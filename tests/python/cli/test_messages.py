@@ -57,3 +57,23 @@ def test_the_unused_data_report_says_1_record_not_1_records(tmp_path, capfd):
     err = capfd.readouterr().err
     assert "3 recorded rx bytes (1 record) were never read" in err, err
     assert "1 records" not in err
+
+
+def test_after_a_mismatch_no_unused_data_warning_follows(tmp_path, capfd):
+    import pytest
+
+    import wiretape
+
+    path = tmp_path / "m.wtape"
+    with wiretape.SessionWriter(str(path), port_type="serial") as writer:
+        for n in range(3):
+            writer.write("tx", n * 1000, b"Q%d\n" % n)
+            writer.write("rx", n * 1000 + 500, b"R%d\n" % n)
+    port = wiretape.open_port(f"type=replay,file={path},timing=none,unused=warn")
+    port.write(b"Q0\n")
+    assert port.read(10, timeout=5) == b"R0\n"
+    with pytest.raises(wiretape.ReplayMismatch):
+        port.write(b"XX\n")
+    port.close()
+    err = capfd.readouterr().err
+    assert "never read" not in err and "never written" not in err, err
