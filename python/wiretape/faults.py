@@ -455,11 +455,14 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
              budget: Optional[int] = None, seed: int = 0, timeout: float = 10.0, jobs: int = 1,
              replay_options: str = "", listen: bool = False, as_path: Optional[str] = None,
              progress: Optional[TextIO] = None, quiet_replays: bool = True,
-             shard: Optional[Shard] = None) -> Campaign:
+             shard: Optional[Shard] = None,
+             progress_every: Optional[float] = None) -> Campaign:
     """Runs the campaign (with ``shard``, that shard's cases and a clean
     run); raises FaultInputError (bad input), CleanRunFailed, or
     CampaignInterrupted (SIGINT/SIGTERM as a KeyboardInterrupt: the runs so
-    far are in it)."""
+    far are in it). Progress goes to ``progress``: one line rewritten in
+    place (a terminal), or with ``progress_every`` a line every that many
+    seconds and one at the end (a log)."""
     check_command(argv, as_path)
     if jobs < 1:
         raise FaultInputError(f"--jobs {jobs}: give 1 or more")
@@ -492,6 +495,20 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
 
         done = [0]
         lock = threading.Lock()
+        started = time.monotonic()
+        counted = {outcome: 0 for outcome in OUTCOMES}
+        last_line = [started]
+
+        def report() -> None:
+            elapsed = time.monotonic() - started
+            problems = ", ".join(f"{counted[o]} {o}" for o in OUTCOMES if o != "ok" and counted[o])
+            text = (f"wiretape faults: {done[0]}/{len(selected)} runs"
+                    + (f" ({problems})" if problems else "") + f", {elapsed:.0f} s")
+            if progress_every is None:
+                note(f"\r{text}\x1b[K")
+            elif done[0] == len(selected) or time.monotonic() - last_line[0] >= progress_every:
+                last_line[0] = time.monotonic()
+                note(text + "\n")
 
         def one(index: int) -> None:
             if stop.is_set():
@@ -509,12 +526,15 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
             runs[index] = run
             with lock:
                 done[0] += 1
-                note(f"\r{done[0]}/{len(selected)} runs")
+                counted[run.outcome] = counted.get(run.outcome, 0) + 1
+                report()
 
         # The runs go on in worker threads (the clean one too): the main
         # thread only waits, so SIGINT/SIGTERM reach it there, and it tells
         # the workers to stop.
         pool = ThreadPoolExecutor(max_workers=jobs)
+        if progress_every is not None:
+            note(f"wiretape faults: a clean run, then {len(selected)} runs with faults\n")
         try:
             clean = pool.submit(run_case, session, None, argv, timeout, replay_options,
                                 listen, as_path, stop).result()
@@ -525,7 +545,7 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
         except KeyboardInterrupt as interruption:
             stop.set()
             _end_pool(pool)
-            if selected:
+            if selected and progress_every is None:
                 note("\n")
             result = finished(interrupted=True)
             signum = getattr(interruption, "signum", signal.SIGINT)
@@ -535,7 +555,7 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
             raise
         finally:
             _end_pool(pool)
-        if selected:
+        if selected and progress_every is None:
             note("\n")
     return finished(interrupted=False)
 
@@ -583,9 +603,23 @@ def table(result: Campaign) -> str:
     for run in others:
         lines.append(f"{run.kind}@{run.where}: {run.outcome}")
     summary = result.summary
+    blank = any(n not in outcomes for outcomes in by_kind.values() for n in range(width))
     lines.append(f"{len(result.runs)} runs: " + ", ".join(f"{summary[o]} {o}" for o in OUTCOMES)
-                 + "  (. ok  E error  C crash  H hang)")
+                 + "  (. ok  E error  C crash  H hang" + (f"  blank: {_not_run(result)}"
+                                                          if blank else "") + ")")
     return "\n".join(lines)
+
+
+def _not_run(result: Campaign) -> str:
+    """Why a cell of the table is blank: the case was not run, because..."""
+    reasons = []
+    if result.interrupted:
+        reasons.append("the campaign was interrupted")
+    if result.shard is not None:
+        reasons.append(f"another shard's (this is {result.shard})")
+    if result.budget is not None and result.budget < result.cases:
+        reasons.append(f"left out by --budget {result.budget} (sampled by --seed {result.seed})")
+    return "not run: " + ("; or ".join(reasons) if reasons else "no such fault there")
 
 
 def write_json(result: Campaign, path: str) -> None:

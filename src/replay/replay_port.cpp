@@ -371,6 +371,11 @@ class ReplayPort : public Port {
     const auto now = ReplayClock::now();
     try {
       engine_->write(static_cast<const char*>(data), size, now);
+    } catch (const ReplayMismatch&) {
+      mismatched_ = true;
+      update_signal(now);
+      changed_.notify_all();
+      throw;
     } catch (...) {
       update_signal(now);
       changed_.notify_all();
@@ -594,6 +599,9 @@ class ReplayPort : public Port {
       unused = engine_->unused_report();
       if (unused.empty() || policy == ReplayUnused::ignore) return;
       if (policy == ReplayUnused::warn || !may_throw) {
+        // After a mismatch what the client left unused follows from it: the
+        // mismatch was said, a warning about its consequence is noise.
+        if (mismatched_) return;
         std::fprintf(stderr, "wiretape: %s\n", unused.c_str());
         return;
       }
@@ -606,6 +614,8 @@ class ReplayPort : public Port {
   // client goes).
   const RecordSourceFactory sources_;
   mutable std::mutex mutex_;
+  // A write did not match the recording (ReplayMismatch was raised).
+  bool mismatched_ = false;
   std::condition_variable changed_;
   const ReplayConfig config_;  // for the engine of each client session
   // What faults left behind, for every client session's engine: a silenced

@@ -621,6 +621,11 @@ namespace {
 constexpr std::uint64_t kUnusedScanBytes = 1 << 20;
 constexpr std::uint64_t kUnusedScanRecords = 4096;
 
+// "1 record", "3 records": a count and its noun agreeing.
+std::string counted(std::uint64_t count, const std::string& noun) {
+  return std::to_string(count) + " " + noun + (count == 1 ? "" : "s");
+}
+
 }  // namespace
 
 std::uint64_t SequenceStrategy::rx_tx_progress() const {
@@ -744,15 +749,16 @@ std::string SequenceStrategy::unused_report(std::uint64_t queued_rx_bytes,
   const std::string at_least = more ? "at least " : "";
   std::string report;
   if (rx_unused()) {
-    report = at_least + std::to_string(rx_bytes) + " recorded rx bytes (" +
-             at_least + std::to_string(rx_records) + " records) were never read";
+    report = at_least + counted(rx_bytes, "recorded rx byte") + " (" + at_least +
+             counted(rx_records, "record") + ") " + (rx_bytes == 1 && !more ? "was" : "were") +
+             " never read";
   }
   if (tx_bytes > 0 || tx_datagrams > 0) {
     if (!report.empty()) report += "; ";
-    report += at_least + std::to_string(tx_bytes) + " recorded tx bytes " +
-              (empty_datagrams_ ? "(" + at_least + std::to_string(tx_datagrams) + " datagrams) "
+    report += at_least + counted(tx_bytes, "recorded tx byte") + " " +
+              (empty_datagrams_ ? "(" + at_least + counted(tx_datagrams, "datagram") + ") "
                                 : std::string()) +
-              "were never written";
+              (tx_bytes == 1 && !more ? "was" : "were") + " never written";
   }
   if (more) report += " (the rest of the recording was not counted)";
   if (!lines_never_made.empty()) {

@@ -52,7 +52,8 @@ def record_with_command(args, out: Output) -> int:
                                line_channel=lines.path)
         return _run_bridge_with_command(
             handle, out, "record", args.command_argv, path,
-            lambda: announce_clients(handle, out, f"recording to {args.output}", link),
+            lambda: announce_clients(handle, out,
+                                     f"wiretape record: recording to {args.output}", link),
             must_use_path=True, line_channel=lines.path)
 
 
@@ -82,7 +83,8 @@ def replay_with_command(args, out: Output) -> int:
                                      pty_group=args.pty_group, line_channel=lines.path)
         return _run_bridge_with_command(
             handle, out, "replay", args.command_argv, path,
-            lambda: announce_clients(handle, out, f"replaying {args.file}", link),
+            lambda: announce_clients(handle, out, f"wiretape replay: replaying {args.file}",
+                                     link),
             must_serve=True, outlive_injected_loss=True, identity=recorded_identity(args.file),
             line_channel=lines.path)
 
@@ -127,7 +129,8 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
 
     try:
         announce()
-        out.note(f"{what}: running {' '.join(argv)} with {device_path} -> {handle.pty_path}")
+        out.note(f"wiretape {what}: running {' '.join(argv)} with {device_path} -> "
+                 f"{handle.pty_path}")
         command = RedirectedCommand(argv, device_path, handle.pty_path, relay=True,
                                     identity=identity, line_channel=line_channel)
     except BaseException:
@@ -145,10 +148,10 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
             elif handle.wait(POLL_S):
                 bridge_ended = True
                 if outlive_injected_loss and handle.result().ended_by_fault:
-                    out.note(f"{what}: an injected fault lost the device; {command.name} "
+                    out.note(f"wiretape {what}: an injected fault lost the device; {command.name} "
                              "goes on until it exits")
                     continue
-                out.note(f"{what}: ended before {command.name}; ending it")
+                out.note(f"wiretape {what}: ended before {command.name}; ending it")
                 ended_by_us = True
                 break
         # What CMD left running in its group ends with it; its output is
@@ -159,7 +162,7 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
         _wait_for_client_close(handle)
     except KeyboardInterrupt:
         ended_by_us = True
-        out.note(f"{what}: stopping")
+        out.note(f"wiretape {what}: stopping")
         command.end()
     finally:
         handle.stop()
@@ -171,7 +174,7 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
     sanitizer = command.sanitizer_report()
     command.close()
     if not used:
-        out.note(f"{what}: {command.name} never opened {device_path} (the shim reaches "
+        out.note(f"wiretape {what}: {command.name} never opened {device_path} (the shim reaches "
                  "dynamically linked programs; a static one is reached as root, through a "
                  "bind mount, only where the path exists)")
     try:
@@ -188,7 +191,7 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
         raise CheckFailed(f"{command.name} exited 0 but printed a sanitizer report: {sanitizer}")
     if ended_by_us or status == 0:
         return verdict
-    out.note(f"{what}: {command.name} exited with status {status}")
+    out.note(f"wiretape {what}: {command.name} exited with status {status}")
     return status
 
 

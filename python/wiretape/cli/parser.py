@@ -90,6 +90,27 @@ def _add_replay_keys(parser: argparse.ArgumentParser) -> None:
             parser.add_argument(key.flag, dest=key.name, type=_key_value(key),
                                 metavar=key.name.upper(), help=help_text)
 
+def _kind_list(text: str) -> Tuple[str, ...]:
+    from ..tools.show import check_kinds
+
+    kinds = tuple(kind.strip() for kind in text.split(",") if kind.strip())
+    try:
+        check_kinds(kinds)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+    return kinds
+
+
+def _seconds_of_session(text: str) -> float:
+    try:
+        value = float(text.strip().rstrip("s"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if value != value or value in (float("inf"), float("-inf")):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds")
+    return value
+
+
 def _positive_int(text: str) -> int:
     value = _non_negative_int(text)
     if value == 0:
@@ -173,11 +194,31 @@ def _udp_address(what: str, minimum_port: int):
 
 _DESCRIPTION = "Record and replay the wire-level session between a driver and its device."
 
-_EPILOG = """exit codes: 0 ok (Ctrl-C included); 1 the checked thing failed (replay
+_EXIT_CODES = """exit codes: 0 ok (Ctrl-C included); 1 the checked thing failed (replay
 mismatch, damaged file, diff found a difference, unused data under
-unused=error); 2 usage error; 3 runtime error (device or file I/O).
---device takes a port option string (type=tcp,host=10.0.0.5,port=10940) or a
+unused=error); 2 usage error; 3 runtime error (device or file I/O)."""
+
+_DEVICE_NOTE = """--device takes a port option string (type=tcp,host=10.0.0.5,port=10940) or a
 bare path, which means type=serial,device=PATH."""
+
+_EPILOG = _EXIT_CODES + "\n" + _DEVICE_NOTE
+
+# What follows `--` on the usage line of the commands that run a program.
+_COMMAND_USAGE = {
+    "record": "[-- CMD [ARG...]]",
+    "replay": "[-- CMD [ARG...]]",
+    "faults": "-- CMD [ARG...] {port} [ARG...]",
+}
+
+
+def _finish_help(name: str, sub: argparse.ArgumentParser) -> None:
+    """The usage line shows the CMD after ``--`` (argparse never sees it),
+    and the note on --device is only where there is a --device."""
+    has_device = any("--device" in action.option_strings for action in sub._actions)
+    sub.epilog = _EPILOG if has_device else _EXIT_CODES
+    if name in _COMMAND_USAGE:
+        usage = sub.format_usage().rstrip()
+        sub.usage = usage[len("usage: "):] + " " + _COMMAND_USAGE[name]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -404,10 +445,27 @@ def build_parser() -> argparse.ArgumentParser:
                       help="with --textconv (implies it): leave out the start time and host")
     show.add_argument("--no-times", dest="no_times", action="store_true",
                       help="with --textconv (implies it): leave out each record's time")
+    show.add_argument("--color", choices=("auto", "always", "never"), default="auto",
+                      help="colour: auto (default) on a terminal unless NO_COLOR is set")
+    show.add_argument("--kind", type=_kind_list, metavar="K[,K]",
+                      help="only records of these kinds (tx, rx, settings, ...)")
+    show.add_argument("--from", dest="start_s", type=_seconds_of_session, metavar="S",
+                      help="only records at or after S seconds of session time (the first "
+                           "column)")
+    show.add_argument("--to", dest="end_s", type=_seconds_of_session, metavar="S",
+                      help="only records at or before S seconds of session time")
+    show.add_argument("--grep", metavar="PATTERN",
+                      help="only tx and rx records whose bytes match PATTERN (a Python bytes "
+                           "regular expression; \\x00 escapes work)")
+    show.add_argument("--full", action="store_true",
+                      help="every byte of each payload (not the first 64)")
 
     stats = command("stats", cmd_stats, "figures of a session (exit 1 if damaged)")
     stats.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
     stats.add_argument("--json", action="store_true", help="print JSON")
+    stats.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
+                       help="latency per request frame name of a protocol: "
+                            + ", ".join(_core.profile_names()))
 
     view = command(
         "view", cmd_view, "a session as a timeline in one HTML page, for a browser",
@@ -490,13 +548,19 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
 
     diff = command("diff", cmd_diff,
-                   "first divergence of two sessions, per direction (exit 1 if they differ)")
+                   "where two sessions differ: the first difference per direction, then "
+                   "every divergence by exchange (exit 1 if they differ)")
     diff.add_argument("a", metavar="A", help="a session")
     diff.add_argument("b", metavar="B", help="another session")
     diff.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
                       help="compare frame by frame by the profile's match key (fields it "
                            "leaves out do not differ): " + ", ".join(_core.profile_names()))
+    diff.add_argument("--max", dest="max_divergences", type=_non_negative_int, default=10,
+                      metavar="N", help="show the first N divergences by exchange (default "
+                                        "10; all are counted)")
 
     command("demo", cmd_demo,
             "record a simulated Hokuyo scanner, replay it without it, compare (make demo)")
+    for name, sub in commands.choices.items():
+        _finish_help(name, sub)
     return parser

@@ -452,6 +452,9 @@ def _cut_window(path: str, cut: Cut) -> Tuple[Optional[int], Optional[int]]:
 
 
 _STATE_EVENTS = ("settings", "modem_lines")
+# The lines the host sets (a modem_lines event's dtr, rts); the device's
+# inputs (cts, dsr, ri, cd) are served, and held over a cut.
+_HOST_LINES = {"dtr", "rts"}
 
 
 class _Cutter:
@@ -493,7 +496,12 @@ class _Cutter:
         if kind in _STATE_EVENTS:
             key = kind
             if kind == "modem_lines":
-                key += ":" + ",".join(sorted((event_payload(data) or {}).keys()))
+                members = sorted((event_payload(data) or {}).keys())
+                if set(members) & _HOST_LINES:
+                    # The client's own line changes are checked on replay:
+                    # held over the cut they would be changes it never made.
+                    return
+                key += ":" + ",".join(members)
             self.state[key] = (kind, t_ns, data)
         elif kind in ("client_connect", "client_disconnect"):
             change = self.sessions.feed(kind, data)

@@ -182,6 +182,34 @@ def test_cut_keeps_the_settings_and_client_in_force(tmp_path):
     ]
 
 
+def test_cut_holds_the_devices_lines_not_the_clients(tmp_path):
+    """The device's inputs in force are served after the cut; the client's
+    DTR/RTS changes before it are not put back, since replay checks them as
+    changes the client makes."""
+    inputs = b'{"cts":true,"dsr":true,"ri":false,"cd":false}'
+    src = write_session(tmp_path / "in.wtape", [
+        (0, "open", b"{}"),
+        (1, "modem_lines", b'{"cts":true,"dsr":true,"ri":false,"cd":true}'),
+        (5, "rx", b"HELLO\n"),
+        (10, "tx", b"a\n"), (11, "rx", b"A\n"),
+        (20, "modem_lines", b'{"dtr":false}'),
+        (22, "modem_lines", inputs),
+        (25, "modem_lines", b'{"dtr":true}'),
+        (40, "tx", b"b\n"), (41, "rx", b"B\n"),
+        (60, "close", b"{}"),
+    ])
+    edit(src, tmp_path / "out.wtape", cut=parse_cut("0.00000004:0.00000005"))
+    kept = records(tmp_path / "out.wtape")
+    assert kept == [
+        (0, "open", b"{}"),
+        (1, "modem_lines", b'{"cts":true,"dsr":true,"ri":false,"cd":true}'),
+        (5, "rx", b"HELLO\n"),
+        (10, "modem_lines", inputs),
+        (10, "tx", b"b\n"), (11, "rx", b"B\n"),
+        (20, "close", b"{}"),
+    ]
+
+
 def test_drop_meta_and_unknown_key(tmp_path):
     src = write_session(tmp_path / "in.wtape", [(0, "open", b"{}")],
                         metadata={"robot": "r2", "site": "lab"})

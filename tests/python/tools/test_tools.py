@@ -74,7 +74,8 @@ def test_show_scip_reassembles_commands_and_replies():
     out = io.StringIO()
     show(flexiport_log("urg04lx_2011"), decode="scip", out=out)
     lines = [line for line in out.getvalue().splitlines() if "  tx  " in line or "  rx  " in line]
-    commands = [line.split("  tx  ")[1].split()[0] for line in lines if "  tx  " in line]
+    # time, Δt, kind, size ("3 B"), then the frame's name
+    commands = [line.split("  tx  ")[1].split()[2] for line in lines if "  tx  " in line]
     assert commands == ["VV", "VV", "PP", "II", "BM", "CR00", "VV", "PP", "II", "GD0044072501"]
     replies = [line for line in lines if "  rx  " in line]
     assert len(replies) == 10
