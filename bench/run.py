@@ -511,11 +511,7 @@ class Bench:
 
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
-<<<<<<< HEAD
-           "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "view", "shim"]
-=======
-           "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "view", "show"]
->>>>>>> main
+           "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "view", "show", "shim"]
 
 
 def machine_note() -> dict:
