@@ -85,6 +85,14 @@ TARGETS = {
     "view_first_paint_ms_100k": (2000, "lower", "ms to first paint, 100,000 records, Chromium"),
     "view_write_s_100k": (None, "info", "s to write that page"),
     "view_page_MB_100k": (None, "info", "MB, that page"),
+    # --- the --as shim (docs/replay.md, "Serial lines under --as") ---
+    "shim_redirected_write_added_ns": (2000, "lower",
+                                       "ns a 1-byte write to the redirected pty gains"),
+    "shim_redirected_read_added_ns": (2000, "lower",
+                                      "ns a 1-byte read of the redirected pty gains"),
+    "shim_unrelated_call_added_ns": (100, "lower",
+                                     "ns an unrelated write/dup/close gains (worst)"),
+    "shim_redirected_write_ratio": (None, "info", "with the shim / without, redirected write"),
 }
 
 # Google Benchmark counters that are figures of the table: benchmark name ->
@@ -293,7 +301,7 @@ class Bench:
         latency = self.pair_ratios(figures, "one_way_p99_us")
         self.results[f"{prefix}_vs_socat_cpu_ratio"] = round(statistics.median(cpu), 3)
         self.results[f"{prefix}_vs_socat_latency_p99_ratio"] = round(statistics.median(latency), 3)
-        median = {kind: {key: statistics.median(f[key] for f in runs)
+        best = {kind: {key: statistics.median(f[key] for f in runs)
                          for key in ("bytes_per_s", "cpu_s_per_MB", "one_way_p50_us",
                                      "one_way_p99_us")}
                   for kind, runs in figures.items()}
@@ -405,6 +413,55 @@ class Bench:
             f"{figures['records']} records, first paint in "
             + ", ".join(f"{ms:.0f}" for ms in figures["paints_ms"])
             + " ms (three loads, median kept)")
+    # --- the --as shim -------------------------------------------------------
+    def shim(self) -> None:
+        """The shim's added cost per call: bench/shim_bench.c run with and
+        without it, interleaved, each on a pty of its own; the best of the
+        rounds (a shared machine only ever adds time)."""
+        program = self.build / "bin" / "wiretape_shim_bench"
+        if not program.exists():
+            raise Skip(f"{program} not built")
+        located = subprocess.run([str(self.python), "-c",
+                                  "from wiretape import redirect; print(redirect.shim_path())"],
+                                 capture_output=True, text=True, env=self.env)
+        if located.returncode != 0:
+            raise Skip("the shim: " + (located.stderr.strip().splitlines() or ["missing"])[-1])
+        shim = located.stdout.strip()
+        calls = 20_000 if self.quick else 200_000
+        runs: dict[str, list[dict]] = {"with": [], "without": []}
+        for _ in range(3 if self.quick else 7):
+            for kind in ("without", "with"):
+                master, terminal = os.openpty()
+                try:
+                    env = dict(self.env)
+                    path = os.ttyname(terminal)
+                    if kind == "with":
+                        env.update(LD_PRELOAD=shim, WIRETAPE_REDIRECT_FROM="/dev/ttyBENCH0",
+                                   WIRETAPE_REDIRECT_TO=path)
+                        env.pop("WIRETAPE_LINE_CHANNEL", None)
+                        path = "/dev/ttyBENCH0"
+                    proc = subprocess.run([str(program), path, str(master), str(calls)],
+                                          capture_output=True, text=True, timeout=600,
+                                          env=env, pass_fds=(master,))
+                finally:
+                    os.close(master)
+                    os.close(terminal)
+                if proc.returncode != 0:
+                    raise Skip("shim_bench: " + (proc.stderr.strip() or "failed"))
+                runs[kind].append(json.loads(proc.stdout))
+        best = {kind: {key: min(run[key] for run in runs[kind])
+                         for key in runs[kind][0]} for kind in runs}
+        added = {key: best["with"][key] - best["without"][key] for key in best["with"]}
+        self.results["shim_redirected_write_added_ns"] = round(added["redirected_write"], 1)
+        self.results["shim_redirected_read_added_ns"] = round(added["redirected_read"], 1)
+        self.results["shim_unrelated_call_added_ns"] = round(
+            max(added["unrelated_write"], added["unrelated_close"] / 2), 1)
+        self.results["shim_redirected_write_ratio"] = round(
+            best["with"]["redirected_write"] / best["without"]["redirected_write"], 3)
+        self.notes["shim"] = ", ".join(
+            f"{key} {best['without'][key]:.0f} -> {best['with'][key]:.0f} ns"
+            for key in best["with"]) + (" (unrelated_close is a dup and a close: two "
+                                          "wrapped calls)")
 
     # --- show ----------------------------------------------------------------
     def show(self) -> None:
@@ -454,7 +511,7 @@ class Bench:
 
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
-           "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "view", "show"]
+           "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "view", "show", "shim"]
 
 
 def machine_note() -> dict:
@@ -480,7 +537,7 @@ def machine_note() -> dict:
 def build_programs(build: Path) -> None:
     subprocess.run(["cmake", "-S", str(ROOT), "-B", str(build), "-DWIRETAPE_BENCH=ON"],
                    check=True, stdout=subprocess.DEVNULL)
-    targets = ["wiretape_bench_tool", "wiretape_relay_bench"]
+    targets = ["wiretape_bench_tool", "wiretape_relay_bench", "wiretape_shim_bench"]
     # wiretape_bench exists only when Google Benchmark was found.
     listing = subprocess.run(["cmake", "--build", str(build), "--target", "help"],
                              capture_output=True, text=True).stdout

@@ -678,7 +678,7 @@ class Bridge:
     Forwards bytes between a device port and a pty, TCP clients or UDP clients, optionally recording them (see wiretape.bridge).
     """
 
-    def __init__(self, device: str, *, client_side: str = 'pty', pty_link: str = '', pty_mode: int = 432, pty_group: str = '', listen_host: str = '127.0.0.1', listen_port: int = 0, listen_backlog: int = 4096, udp_peer_host: str = '', udp_peer_port: int = 0, protocol: str = 'raw', shared: bool = False, max_monitors: int = 16, output: str = '', metadata: Mapping[str, str] = {}, flush_ms: int = 100, mirror_settings: bool = True, reopen: bool = False, restart: bool = False, duration: object | None = None, buffer_limit: int = 1048576, quiet: bool = False) -> None: ...
+    def __init__(self, device: str, *, client_side: str = 'pty', pty_link: str = '', pty_mode: int = 432, pty_group: str = '', listen_host: str = '127.0.0.1', listen_port: int = 0, listen_backlog: int = 4096, udp_peer_host: str = '', udp_peer_port: int = 0, protocol: str = 'raw', shared: bool = False, max_monitors: int = 16, output: str = '', metadata: Mapping[str, str] = {}, flush_ms: int = 100, mirror_settings: bool = True, reopen: bool = False, restart: bool = False, duration: object | None = None, buffer_limit: int = 1048576, quiet: bool = False, line_channel: str = '') -> None: ...
 
     def start(self) -> None:
         """

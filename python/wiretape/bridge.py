@@ -211,7 +211,7 @@ def record(device: str, output, *, pty=None, listen=None, udp=None,
            backlog: Optional[int] = None, duration: Optional[float] = None,
            meta: Optional[Mapping[str, str]] = None,
            quiet: bool = False, pty_mode: Optional[int] = None,
-           pty_group: PtyGroup = None) -> BridgeHandle:
+           pty_group: PtyGroup = None, line_channel: str = "") -> BridgeHandle:
     """``wiretape record``: a transparent proxy between ``device`` and a pty
     at ``pty`` (a symlink path; True for none) or a TCP listener at
     ``listen`` or a UDP socket at ``udp`` (a datagram proxy: replies go to
@@ -219,13 +219,15 @@ def record(device: str, output, *, pty=None, listen=None, udp=None,
     (capture=wire). On a pty, the terminal settings the client sets are
     applied to the device; ``pty_mode``/``pty_group`` set who may open it
     (default 0o660, group dialout). ``backlog``: the TCP listen queue (see
-    ``serve``)."""
+    ``serve``). ``line_channel``: the socket the ``--as`` shim tells the
+    client's serial lines through (``wiretape.redirect``)."""
     path = os.fspath(output)
     if not path.strip():
         raise ValueError("output: the file name is empty; give the session file to record to")
     return _start(device_options(device), pty=pty, listen=listen, udp=udp, backlog=backlog,
                   output=path, metadata=dict(meta or {}),
-                  duration=duration, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group)
+                  duration=duration, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group,
+                  line_channel=line_channel)
 
 
 def proxy(device: str, *, pty=None, listen=None, udp=None, quiet: bool = True,
@@ -264,7 +266,7 @@ def serve_replay(file, *, pty=None, listen=None, udp=None, peer=None,
                  protocol: str = "raw",
                  restart: bool = False, output=None,
                  quiet: bool = False, pty_mode: Optional[int] = None,
-                 pty_group: PtyGroup = None) -> BridgeHandle:
+                 pty_group: PtyGroup = None, line_channel: str = "") -> BridgeHandle:
     """``wiretape replay --pty/--listen``: the recording ``file`` becomes a
     virtual device. ``replay_options`` are replay keys (``"timing=none,
     check=data"``). Each connection is a client session (DESIGN §12:
@@ -291,4 +293,5 @@ def serve_replay(file, *, pty=None, listen=None, udp=None, peer=None,
     return _start(options, pty=pty, listen=listen, udp=udp, peer=peer, backlog=backlog,
                   restart=restart, protocol=protocol,
                   output=os.fspath(output) if output else "",
-                  mirror_settings=False, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group)
+                  mirror_settings=False, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group,
+                  line_channel=line_channel)

@@ -13,6 +13,10 @@ Under ``replay``, the recording's device identity (DESIGN §20, "Identity")
 is presented too: the shim redirects its ``/dev/serial/by-id`` name and
 answers pyserial's ``list_ports`` lookups from a small sysfs tree written
 to a temporary folder (``_core.present_device_identity``).
+
+A pty has no modem lines, break or custom baud: the shim emulates them on
+the redirected descriptor and tells the bridge through a side channel, a
+Unix socket made by :class:`LineChannelPath` (DESIGN §20).
 """
 
 from __future__ import annotations
@@ -32,6 +36,30 @@ SHIM_NAME = "_redirect_device.so"
 ENV_FROM = "WIRETAPE_REDIRECT_FROM"
 ENV_TO = "WIRETAPE_REDIRECT_TO"
 ENV_HITS = "WIRETAPE_REDIRECT_HITS"
+# The side channel's socket (src/shim/line_protocol.h, WT_LINE_ENV).
+ENV_LINE_CHANNEL = "WIRETAPE_LINE_CHANNEL"
+
+
+class LineChannelPath:
+    """A path for the side channel's socket, in a private directory of its
+    own (the bridge creates the socket there); removed by :meth:`close`."""
+
+    def __init__(self) -> None:
+        self._directory = tempfile.mkdtemp(prefix="wiretape-lines-")
+        self.path = os.path.join(self._directory, "lines")
+
+    def close(self) -> None:
+        for remove in (lambda: os.unlink(self.path), lambda: os.rmdir(self._directory)):
+            try:
+                remove()
+            except OSError:
+                pass
+
+    def __enter__(self) -> "LineChannelPath":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
 # The presented identity's (src/shim/device_identity.c).
 ENV_IDENTITY_TTY = "WIRETAPE_IDENTITY_TTY"
 ENV_IDENTITY_SYSFS = "WIRETAPE_IDENTITY_SYSFS"
@@ -133,10 +161,13 @@ class RedirectedCommand:
     stdout and stderr, and CMD reads this process's stdin. A recorded
     device ``identity`` (SessionHeader.device_identity) is presented to CMD:
     its by-id name is redirected too, and pyserial's ``list_ports`` finds
-    the device by its USB ids."""
+    the device by its USB ids. ``line_channel``: the bridge's side-channel
+    socket for the serial lines (without it the shim emulates them in CMD
+    alone)."""
 
     def __init__(self, argv: Sequence[str], device_path: str, pty_path: str,
-                 relay: bool = False, identity: Optional[Dict[str, str]] = None):
+                 relay: bool = False, identity: Optional[Dict[str, str]] = None,
+                 line_channel: Optional[str] = None):
         self.argv = list(argv)
         self.device_path = device_path
         self._watches: Tuple[SanitizerWatch, ...] = ()
@@ -150,6 +181,10 @@ class RedirectedCommand:
         env[ENV_FROM] = device_path
         env[ENV_TO] = pty_path
         env[ENV_HITS] = self._hits_file
+        if line_channel:
+            env[ENV_LINE_CHANNEL] = line_channel
+        else:
+            env.pop(ENV_LINE_CHANNEL, None)
         try:
             if identity:
                 env.update(self._present(identity))

@@ -385,6 +385,10 @@ void DeviceSide::end_break() {
   auto on = std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - *break_since_);
   on = std::clamp(on, std::chrono::milliseconds(1), std::chrono::milliseconds(2000));
   break_since_.reset();
+  send_break_for(on);
+}
+
+void DeviceSide::send_break_for(std::chrono::milliseconds on) {
   flush();
   bool applied = false;
   if (capabilities().send_break) {

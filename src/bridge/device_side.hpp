@@ -118,6 +118,8 @@ class DeviceSide {
   void start_break();
   // Sends a break as long as it was on, and records it.
   void end_break();
+  // Sends a break of `on` and records it (a timed break: tcsendbreak).
+  void send_break_for(std::chrono::milliseconds on);
   void purge(bool from_device, bool for_device);
   // The device's modem inputs; nothing where it has none.
   std::optional<ModemInputs> modem_inputs();

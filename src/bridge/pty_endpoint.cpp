@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "bridge/endpoint.hpp"
+#include "bridge/line_channel.hpp"
 #include "posix/platform.hpp"
 #include "posix/pty_terminal.hpp"
 #include "posix/syscalls.hpp"
@@ -60,16 +61,32 @@ class PtyEndpoint final : public ClientEndpoint {
     } catch (const PortError&) {
     }
     next_settings_check_ = Clock::now() + kSettingsPollInterval;
+    if (!options_.line_channel.empty()) {
+      line_channel_ = std::make_unique<LineChannel>(
+          options_.line_channel, device_, status_,
+          [this] {
+            if (options_.mirror_settings) check_settings();
+          },
+          // Bytes written before a hello: held here, or still in the terminal.
+          [this] { return static_cast<std::uint64_t>(held_bytes_ + client_bytes_in_terminal()); });
+    }
   }
 
   void add_to_poll(PollSet& poll_set) override {
-    pty_slot_ = poll_set.add(pty_->native_handle(), device_.room_for_client_data() > 0,
-                             !to_pty_.empty());
+    // A line change due before the next byte is applied before it is read.
+    const bool change_due =
+        line_channel_ && line_channel_->bytes_before_next_change(read_from_client_) == 0;
+    pty_slot_ = poll_set.add(pty_->native_handle(),
+                             device_.room_for_client_data() > 0 && !change_due, !to_pty_.empty());
+    if (line_channel_) line_channel_->add_to_poll(poll_set);
     watch_slot_ = opens_and_closes_ ? poll_set.add(opens_and_closes_.get(), true, false)
                                     : PollSet::none;
   }
 
   void handle_events(const PollSet& poll_set) override {
+    // A line change the shim made before bytes now in the terminal is in
+    // the channel already: taken first, it holds those bytes back.
+    if (line_channel_) line_channel_->handle_events(poll_set, relayed_);
     const bool pty_readable = poll_set.ready(pty_slot_).readable;
     if (!opens_and_closes_) {
       if (pty_readable) read_pty();
@@ -90,11 +107,15 @@ class PtyEndpoint final : public ClientEndpoint {
   }
 
   Clock::time_point next_timer() const override {
-    return options_.mirror_settings ? next_settings_check_ : Clock::time_point::max();
+    Clock::time_point next =
+        polls_settings() ? next_settings_check_ : Clock::time_point::max();
+    if (line_channel_) next = std::min(next, line_channel_->next_timer());
+    return next;
   }
 
   void run_timers(Clock::time_point now) override {
-    if (options_.mirror_settings && now >= next_settings_check_) {
+    if (line_channel_) line_channel_->run_timers(now);
+    if (polls_settings() && now >= next_settings_check_) {
       check_settings();
       next_settings_check_ = Clock::now() + kSettingsPollInterval;
     }
@@ -153,10 +174,35 @@ class PtyEndpoint final : public ClientEndpoint {
     return room > held_bytes_ ? room - held_bytes_ : 0;
   }
 
+  // The shim tells settings changes in their place among the bytes; without
+  // it they are polled, and read before each read of the terminal.
+  bool polls_settings() const {
+    return options_.mirror_settings && !(line_channel_ && line_channel_->has_clients());
+  }
+
+  // Client bytes in the terminal, not yet read by the bridge.
+  std::size_t client_bytes_in_terminal() const {
+    int waiting = 0;
+    if (::ioctl(pty_->native_handle(), FIONREAD, &waiting) != 0 || waiting < 0) return 0;
+    return static_cast<std::size_t>(waiting);
+  }
+
   void read_pty() {
-    if (options_.mirror_settings) check_settings();
+    if (polls_settings()) check_settings();
     std::array<char, kChunk + 1> buffer;
-    const std::size_t room = std::min(room_for_client_data(), kChunk);
+    std::size_t room = std::min(room_for_client_data(), kChunk);
+    if (line_channel_) {
+      // Up to the next held line change: a read never spans one, so that the
+      // change is applied once the read before it is passed on.
+      const std::uint64_t before_change =
+          line_channel_->bytes_before_next_change(read_from_client_);
+      room = static_cast<std::size_t>(std::min<std::uint64_t>(room, before_change));
+      if (room == 0) {
+        last_read_took_data_ = false;
+        line_channel_->apply_due(relayed_);
+        return;
+      }
+    }
     // One more for packet mode's control byte.
     const std::size_t got = pty_->read(buffer.data(), room + 1, std::chrono::nanoseconds(0));
     last_read_took_data_ = got > 0;
@@ -174,6 +220,7 @@ class PtyEndpoint final : public ClientEndpoint {
     if (n == 0) return;
     read_data_since_wrote_event_ = true;
     found_empty_since_data_ = false;
+    read_from_client_ += n;
     take_from_client(TIOCPKT_DATA, std::string_view(buffer.data() + 1, n));
   }
 
@@ -201,6 +248,7 @@ class PtyEndpoint final : public ClientEndpoint {
       client_flushed(control);
       return;
     }
+    relayed_ += data.size();
     if (!client_wrote_) {
       client_wrote_ = true;
       watch_reads_while_needed();
@@ -214,6 +262,7 @@ class PtyEndpoint final : public ClientEndpoint {
       return;
     }
     device_.send(data.data(), data.size());
+    if (line_channel_) line_channel_->apply_due(relayed_);
   }
 
   void write_pty() {
@@ -478,6 +527,13 @@ class PtyEndpoint final : public ClientEndpoint {
   // See retaining().
   std::string retained_;
   ByteQueue to_pty_{options_.buffer_limit};
+  // Client bytes read from the terminal, and passed on to the device (or
+  // dropped while it was away): the line channel holds a client's line
+  // change until the bytes it wrote before it are passed on, and no read
+  // spans one.
+  std::uint64_t read_from_client_ = 0;
+  std::uint64_t relayed_ = 0;
+  std::unique_ptr<LineChannel> line_channel_;
   SerialSettings last_settings_;
   Clock::time_point next_settings_check_;
   PollSet::Slot pty_slot_ = PollSet::none;

@@ -37,6 +37,7 @@
 #include <sys/types.h>
 #include <unistd.h>
 
+#include "serial_lines.h"
 #include "device_identity.h"
 
 static char redirect_from[PATH_MAX];
@@ -145,6 +146,16 @@ static const char *redirected(const char *path) {
     return (type)-1;                                                    \
   }
 
+/* A descriptor opened on the pty (through the redirection, or by its own
+ * name after realpath gave it) gets the emulated serial lines. */
+static int note_opened(const char *target, int fd) {
+  if (fd >= 0 && redirect_active && target != NULL &&
+      (target == redirect_to || strcmp(target, redirect_to) == 0)) {
+    wiretape_lines_opened(fd);
+  }
+  return fd;
+}
+
 /* open and friends take a mode only with O_CREAT or O_TMPFILE. */
 static mode_t mode_argument(int flags, va_list arguments) {
 #ifdef O_TMPFILE
@@ -162,7 +173,8 @@ static mode_t mode_argument(int flags, va_list arguments) {
     mode_t mode = mode_argument(flags, arguments);                      \
     va_end(arguments);                                                  \
     REAL(int, name, (const char *, int, ...))                           \
-    return real_##name(redirected(path), flags, mode);                  \
+    const char *target = redirected(path);                              \
+    return note_opened(target, real_##name(target, flags, mode));       \
   }
 
 #define DEFINE_OPENAT(name)                                             \
@@ -172,7 +184,8 @@ static mode_t mode_argument(int flags, va_list arguments) {
     mode_t mode = mode_argument(flags, arguments);                      \
     va_end(arguments);                                                  \
     REAL(int, name, (int, const char *, int, ...))                      \
-    return real_##name(directory, redirected(path), flags, mode);       \
+    const char *target = redirected(path);                              \
+    return note_opened(target, real_##name(directory, target, flags, mode)); \
   }
 
 DEFINE_OPEN(open)
@@ -183,19 +196,23 @@ DEFINE_OPENAT(openat64)
 /* The _FORTIFY_SOURCE entry points. */
 int __open_2(const char *path, int flags) {
   REAL(int, __open_2, (const char *, int))
-  return real___open_2(redirected(path), flags);
+  const char *target = redirected(path);
+  return note_opened(target, real___open_2(target, flags));
 }
 int __open64_2(const char *path, int flags) {
   REAL(int, __open64_2, (const char *, int))
-  return real___open64_2(redirected(path), flags);
+  const char *target = redirected(path);
+  return note_opened(target, real___open64_2(target, flags));
 }
 int __openat_2(int directory, const char *path, int flags) {
   REAL(int, __openat_2, (int, const char *, int))
-  return real___openat_2(directory, redirected(path), flags);
+  const char *target = redirected(path);
+  return note_opened(target, real___openat_2(directory, target, flags));
 }
 int __openat64_2(int directory, const char *path, int flags) {
   REAL(int, __openat64_2, (int, const char *, int))
-  return real___openat64_2(directory, redirected(path), flags);
+  const char *target = redirected(path);
+  return note_opened(target, real___openat64_2(directory, target, flags));
 }
 
 #define DEFINE_FOPEN(name)                                              \
@@ -206,7 +223,10 @@ int __openat64_2(int directory, const char *path, int flags) {
       errno = ENOSYS;                                                   \
       return NULL;                                                      \
     }                                                                   \
-    return real(redirected(path), mode);                                \
+    const char *target = redirected(path);                              \
+    FILE *stream = real(target, mode);                                  \
+    if (stream != NULL) note_opened(target, fileno(stream));            \
+    return stream;                                                      \
   }
 
 DEFINE_FOPEN(fopen)
@@ -219,7 +239,10 @@ FILE *freopen(const char *path, const char *mode, FILE *stream) {
     errno = ENOSYS;
     return NULL;
   }
-  return real(redirected(path), mode, stream);
+  const char *target = redirected(path);
+  FILE *reopened = real(target, mode, stream);
+  if (reopened != NULL) note_opened(target, fileno(reopened));
+  return reopened;
 }
 
 /* stat and its relatives: a program that checks the device exists before
