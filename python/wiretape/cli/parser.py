@@ -309,7 +309,9 @@ def build_parser() -> argparse.ArgumentParser:
         "CMD with the device's path (or --as PATH) redirected to its pty and ends "
         "when CMD does. Ctrl-C ends cleanly. On a pty the "
         "terminal settings the driver sets (baud, parity, stop bits) are applied to "
-        "the device and recorded; a pty has no modem lines.")
+        "the device and recorded. A pty has no modem lines: with -- CMD the preload "
+        "shim emulates DTR/RTS, CTS/DSR/RI/CD, break and custom baud for CMD, applied "
+        "to the device and recorded.")
     record.add_argument("--device", required=True, metavar="OPTS",
                         help="the real device: a port option string or a serial device path")
     _add_client_side(record, "the driver connects")
