@@ -18,7 +18,7 @@ import sys
 import tempfile
 from typing import Optional, Sequence, Tuple
 
-from . import _core
+from . import _core, scaled_clock
 from .children import Child, CommandNotStarted, SanitizerWatch, sanitizer_report
 
 SHIM_NAME = "_redirect_device.so"
@@ -116,14 +116,15 @@ class RedirectedCommand:
     stdout and stderr, and CMD reads this process's stdin."""
 
     def __init__(self, argv: Sequence[str], device_path: str, pty_path: str,
-                 relay: bool = False):
+                 relay: bool = False, speed: float = 1.0):
         self.argv = list(argv)
         self.device_path = device_path
         self._watches: Tuple[SanitizerWatch, ...] = ()
         # Each process of CMD that uses the path appends a line here.
         hits_fd, self._hits_file = tempfile.mkstemp(prefix="wiretape-redirect-")
         os.close(hits_fd)
-        env = dict(os.environ)
+        # --speed K: CMD's clock runs K times faster (wiretape.scaled_clock).
+        env = scaled_clock.environment(speed)
         preload = env.get("LD_PRELOAD", "").strip()
         env["LD_PRELOAD"] = shim_path() + (" " + preload if preload else "")
         env[ENV_FROM] = device_path

@@ -79,7 +79,7 @@ def replay_with_command(args, out: Output) -> int:
     return _run_bridge_with_command(
         handle, out, "replay", args.command_argv, path,
         lambda: announce_clients(handle, out, f"replaying {args.file}", link), must_serve=True,
-        outlive_injected_loss=True)
+        outlive_injected_loss=True, speed=args.speed or 1.0)
 
 
 def _check_redirect_path(path: str) -> None:
@@ -106,7 +106,7 @@ def _client_connected(handle) -> bool:
 def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str],
                              device_path: str, announce: Callable[[], None],
                              must_serve: bool = False, must_use_path: bool = False,
-                             outlive_injected_loss: bool = False) -> int:
+                             outlive_injected_loss: bool = False, speed: float = 1.0) -> int:
     """Runs CMD with `device_path` redirected to the bridge's pty; the bridge
     ends when CMD exits. The exit status is CMD's when it failed, else the
     bridge's (docs/cli.md); a bridge that ends first (a mismatch, --duration)
@@ -114,13 +114,14 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
     injected device loss: CMD is left to react to it and exit by itself.
     CMD's output is captured and relayed; a sanitizer report in it fails a
     CMD that exits 0. `must_use_path`: a CMD that never opened the path
-    fails (a replay fails anyway: its client never came)."""
+    fails (a replay fails anyway: its client never came). At `speed` K,
+    CMD's clock runs K times faster (replay --speed K -- CMD)."""
     from ..redirect import RedirectedCommand
 
     try:
         announce()
         out.note(f"{what}: running {' '.join(argv)} with {device_path} -> {handle.pty_path}")
-        command = RedirectedCommand(argv, device_path, handle.pty_path, relay=True)
+        command = RedirectedCommand(argv, device_path, handle.pty_path, relay=True, speed=speed)
     except BaseException:
         handle.stop()
         handle.wait()
