@@ -365,7 +365,7 @@ def run_case(session: str, case: Optional[FaultCase], argv: Sequence[str], timeo
     left holding the output is not waited for. At `speed` K, CMD's clock
     and the replay run K times faster, and `timeout` is on CMD's clock."""
     started = time.monotonic()
-    real_timeout = scaled_clock.real_seconds(timeout, speed)
+    real_timeout = min(scaled_clock.real_seconds(timeout, speed), MAX_TIMEOUT_S)
     with faulty_device(session, case, replay_options, listen, speed) as port:
         command = [arg.replace(PORT_PLACEHOLDER, port) for arg in argv]
         if as_path is not None:
