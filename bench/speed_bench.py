@@ -41,7 +41,14 @@ def main() -> int:
         started = time.perf_counter()
         with faults._quiet_stderr(True):
             for session, argv, kinds in plan:
-                result = faults.campaign(session, argv, kinds=kinds, timeout=30, speed=speed)
+                try:
+                    result = faults.campaign(session, argv, kinds=kinds, timeout=30,
+                                             speed=speed)
+                except faults.CleanRunFailed:
+                    # A loaded machine can make hokuyo-scan miss a reply by its
+                    # timeout (0.2 s of slack at K=10): an outcome that differs.
+                    outcomes += [("clean", session.rsplit("/", 1)[-1], "error")]
+                    continue
                 outcomes += [(run.kind, run.where, run.outcome) for run in result.runs]
         return time.perf_counter() - started, outcomes
 
