@@ -352,6 +352,31 @@ class Bench:
             f"exchange loops only; whole pytest runs took {result['wiretape_wall']:.2f} s "
             f"(wiretape) and {result['reserial_wall']:.2f} s (reserial)")
 
+    # --- --speed K: the Hokuyo campaign on a scaled clock ----------------
+    def speed(self) -> None:
+        """The Hokuyo campaign at --speed 10 against --speed 1 (hokuyo-scan's
+        own 2 s timeouts, causal timing): time and outcomes."""
+        program = self.build / "bin" / "hokuyo-scan"
+        if not program.exists():
+            raise Skip(f"{program} not built")
+        runs = 40 if self.quick else 200
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "speed_bench.py"),
+                               str(program), str(runs)], capture_output=True, text=True,
+                              timeout=3600, env=self.env)
+        if proc.returncode != 0:
+            raise Skip("speed_bench.py: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        self.results["speed_campaign_speedup"] = round(
+            figures["speed1_s"] / figures["speed10_s"], 3)
+        self.results["speed_campaign_same_outcomes"] = int(figures["same_outcomes"])
+        differing = "; ".join(f"{a[0]}@{a[1]}: {a[2]} at K=1, {b[2]} at K=10"
+                              for a, b in figures["differing"])
+        self.notes["speed"] = (
+            f"{figures['runs']} runs over {figures['sessions']} recordings: --speed 1 "
+            f"{figures['speed1_s']:.1f} s, --speed 10 {figures['speed10_s']:.1f} s"
+            + (f"; outcomes differ: {differing}" if differing else "; same outcomes")
+            + f"; {os.cpu_count()} CPUs, shared")
+
     # --- fault campaigns ---------------------------------------------------
     def faults(self) -> None:
         """200 runs of hokuyo-scan against faulty replays: the campaign vs the
@@ -381,30 +406,6 @@ class Bench:
             f"{figures['clean_s']:.1f} s, with faults= firing none {figures['inert_s']:.1f} s; "
             f"faulty runs wait for the driver's timeouts, clean ones do not; "
             f"{os.cpu_count()} CPUs, shared")
-
-    def speed(self) -> None:
-        """The Hokuyo campaign at --speed 10 against --speed 1 (hokuyo-scan's
-        own 2 s timeouts, causal timing): time and outcomes."""
-        program = self.build / "bin" / "hokuyo-scan"
-        if not program.exists():
-            raise Skip(f"{program} not built")
-        runs = 40 if self.quick else 200
-        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "speed_bench.py"),
-                               str(program), str(runs)], capture_output=True, text=True,
-                              timeout=3600, env=self.env)
-        if proc.returncode != 0:
-            raise Skip("speed_bench.py: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
-        figures = json.loads(proc.stdout.strip().splitlines()[-1])
-        self.results["speed_campaign_speedup"] = round(
-            figures["speed1_s"] / figures["speed10_s"], 3)
-        self.results["speed_campaign_same_outcomes"] = int(figures["same_outcomes"])
-        differing = "; ".join(f"{a[0]}@{a[1]}: {a[2]} at K=1, {b[2]} at K=10"
-                              for a, b in figures["differing"])
-        self.notes["speed"] = (
-            f"{figures['runs']} runs over {figures['sessions']} recordings: --speed 1 "
-            f"{figures['speed1_s']:.1f} s, --speed 10 {figures['speed10_s']:.1f} s"
-            + (f"; outcomes differ: {differing}" if differing else "; same outcomes")
-            + f"; {os.cpu_count()} CPUs, shared")
 
     def gbench(self) -> None:
         """The Google Benchmark program: the per-call view, and the request
