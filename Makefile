@@ -97,6 +97,7 @@ wheel-smoke: wheel
 BENCH_TOOLS   := clang-14 libclang-rt-14-dev socat libbenchmark-dev tshark
 FUZZ_SECONDS  ?= 300
 SOAK_MINUTES  ?= 30
+SOAK_GPSD_REPEAT ?= 100
 
 # README's benchmark table is rewritten from the run's results, never by hand.
 bench: python
@@ -127,9 +128,13 @@ fuzz: python $(VENV)/.atheris
 	cmake --build $(BUILD)/fuzz
 	bench/fuzz.sh $(BUILD)/fuzz $(FUZZ_SECONDS) $(PYTHON)
 
-# Record+replay loop for SOAK_MINUTES; fails if RSS or open fds grow.
+# Record+replay loop for SOAK_MINUTES; fails if RSS or open fds grow. Then
+# SOAK_GPSD_REPEAT sequence replays to gpsd, each of which must deliver every
+# recorded fix (DESIGN.md section 12; make test runs one).
 soak: python
 	$(PYTHON) bench/soak.py --minutes $(SOAK_MINUTES) --build $(BUILD) --work $(BUILD)/soak
+	WIRETAPE_GPSD_REPEAT=$(SOAK_GPSD_REPEAT) $(PYTHON) -m pytest -q \
+	  tests/python/clients/test_gpsd.py -k test_gpsd_gets_every_recorded_fix_whatever_it_flushed
 
 clean:
 	rm -rf $(BUILD)

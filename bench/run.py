@@ -80,6 +80,10 @@ TARGETS = {
     "modbus_reordering_vs_sequence_time_ratio": (2.0, "lower",
                                                  "profile=modbus-tcp reordering / sequence"),
     "request_rss_MB_1GiB": (64, "lower", "MiB peak RSS, match=request, 1 GiB session"),
+    # --- wiretape view (docs/view.md) ---
+    "view_first_paint_ms_100k": (2000, "lower", "ms to first paint, 100,000 records, Chromium"),
+    "view_write_s_100k": (None, "info", "s to write that page"),
+    "view_page_MB_100k": (None, "info", "MB, that page"),
 }
 
 # Google Benchmark counters that are figures of the table: benchmark name ->
@@ -407,6 +411,25 @@ class Bench:
             f"faulty runs wait for the driver's timeouts, clean ones do not; "
             f"{os.cpu_count()} CPUs, shared")
 
+    # --- wiretape view ------------------------------------------------------
+    def view(self) -> None:
+        """100,000 records as a view page, opened in headless Chromium."""
+        if not (shutil.which("chromium") or shutil.which("chromium-browser")):
+            raise Skip("chromium is not installed")
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "view_bench.py"),
+                               "100000"], capture_output=True, text=True, timeout=1800,
+                              env=self.env)
+        if proc.returncode != 0:
+            raise Skip("view_bench.py: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        self.results["view_first_paint_ms_100k"] = figures["first_paint_ms"]
+        self.results["view_write_s_100k"] = figures["write_s"]
+        self.results["view_page_MB_100k"] = figures["page_MB"]
+        self.notes["view"] = (
+            f"{figures['records']} records, first paint in "
+            + ", ".join(f"{ms:.0f}" for ms in figures["paints_ms"])
+            + " ms (three loads, median kept)")
+
     def gbench(self) -> None:
         """The Google Benchmark program: the per-call view, and the request
         mode figures (GBENCH_FIGURES)."""
@@ -435,7 +458,7 @@ class Bench:
 
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
-           "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "speed"]
+           "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "speed", "view"]
 
 
 def machine_note() -> dict:

@@ -228,6 +228,15 @@ def record(device: str, output, *, pty=None, listen=None, udp=None,
                   duration=duration, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group)
 
 
+def proxy(device: str, *, pty=None, listen=None, udp=None, quiet: bool = True,
+          pty_mode: Optional[int] = None, pty_group: PtyGroup = None) -> BridgeHandle:
+    """``record`` without a file: the client side (``pty``, ``listen`` or
+    ``udp``) forwards to ``device`` and nothing is recorded (the pytest
+    plugin's ``--wiretape-live``)."""
+    return _start(device_options(device), pty=pty, listen=listen, udp=udp, quiet=quiet,
+                  pty_mode=pty_mode, pty_group=pty_group)
+
+
 DEFAULT_MAX_MONITORS = 16
 
 
@@ -257,8 +266,10 @@ def serve_replay(file, *, pty=None, listen=None, udp=None, peer=None,
                  pty_group: PtyGroup = None) -> BridgeHandle:
     """``wiretape replay --pty/--listen``: the recording ``file`` becomes a
     virtual device. ``replay_options`` are replay keys (``"timing=none,
-    check=data"``). A client that reconnects continues the session;
-    ``restart`` starts it over for each new client (TCP, or pty on Linux). The result is ok,
+    check=data"``). Each connection is a client session (DESIGN §12:
+    in match=sequence the k-th starts at the recording's k-th client_connect,
+    in match=request connection order is free); ``restart`` starts the
+    recording over for each new client (TCP, or pty on Linux). The result is ok,
     or ``outcome == "mismatch"`` with the report in ``message``; a recording
     with rx that no client was served leaves the reason in
     ``nothing_served``. ``pty_mode``/``pty_group`` set who may open the pty

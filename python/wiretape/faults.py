@@ -369,9 +369,10 @@ def run_case(session: str, case: Optional[FaultCase], argv: Sequence[str], timeo
     with faulty_device(session, case, replay_options, listen, speed) as port:
         command = [arg.replace(PORT_PLACEHOLDER, port) for arg in argv]
         if as_path is not None:
-            from .redirect import RedirectedCommand
+            from .redirect import RedirectedCommand, recorded_identity
 
-            redirected = RedirectedCommand(command, as_path, os.path.realpath(port), speed=speed)
+            redirected = RedirectedCommand(command, as_path, os.path.realpath(port),
+                                           identity=recorded_identity(session), speed=speed)
             try:
                 outcome = redirected.child.run(real_timeout, stop)
             finally:

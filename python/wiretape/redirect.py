@@ -8,15 +8,21 @@ reaches dynamically linked programs. Where the shim cannot reach (static
 programs, programs that scan /dev), CMD also runs in a private mount
 namespace with the pty bind-mounted over the path, when wiretape runs as
 root and the path exists (a bind mount needs something to cover).
+
+Under ``replay``, the recording's device identity (DESIGN §20, "Identity")
+is presented too: the shim redirects its ``/dev/serial/by-id`` name and
+answers pyserial's ``list_ports`` lookups from a small sysfs tree written
+to a temporary folder (``_core.present_device_identity``).
 """
 
 from __future__ import annotations
 
 import ctypes
 import os
+import shutil
 import sys
 import tempfile
-from typing import Optional, Sequence, Tuple
+from typing import Dict, Optional, Sequence, Tuple
 
 from . import _core, scaled_clock
 from .children import Child, CommandNotStarted, SanitizerWatch, sanitizer_report
@@ -26,6 +32,10 @@ SHIM_NAME = "_redirect_device.so"
 ENV_FROM = "WIRETAPE_REDIRECT_FROM"
 ENV_TO = "WIRETAPE_REDIRECT_TO"
 ENV_HITS = "WIRETAPE_REDIRECT_HITS"
+# The presented identity's (src/shim/device_identity.c).
+ENV_IDENTITY_TTY = "WIRETAPE_IDENTITY_TTY"
+ENV_IDENTITY_SYSFS = "WIRETAPE_IDENTITY_SYSFS"
+ENV_IDENTITY_BY_ID = "WIRETAPE_IDENTITY_BY_ID"
 
 
 def shim_path() -> str:
@@ -49,6 +59,13 @@ def recorded_device_path(session_file: str) -> Optional[str]:
     or None (a TCP or UDP device, a flexiport log without one)."""
     with _core.SessionReader(session_file) as reader:
         return device_path_of(reader.header.port_options)
+
+
+def recorded_identity(session_file: str) -> Dict[str, str]:
+    """The device identity a recording holds (its header's
+    ``device_identity``; {} when it has none)."""
+    with _core.SessionReader(session_file) as reader:
+        return dict(reader.header.device_identity)
 
 
 # <sched.h> and <sys/mount.h>: Python 3.11 has no os.unshare or os.mount.
@@ -113,13 +130,18 @@ class RedirectedCommand:
     :class:`~wiretape.children.Child`: its output captured (stderr with
     stdout), ended with its whole group. With ``relay``, stdout and stderr
     are captured apart and relayed as they come to this process's own
-    stdout and stderr, and CMD reads this process's stdin."""
+    stdout and stderr, and CMD reads this process's stdin. A recorded
+    device ``identity`` (SessionHeader.device_identity) is presented to CMD:
+    its by-id name is redirected too, and pyserial's ``list_ports`` finds
+    the device by its USB ids."""
 
     def __init__(self, argv: Sequence[str], device_path: str, pty_path: str,
-                 relay: bool = False, speed: float = 1.0):
+                 relay: bool = False, identity: Optional[Dict[str, str]] = None,
+                 speed: float = 1.0):
         self.argv = list(argv)
         self.device_path = device_path
         self._watches: Tuple[SanitizerWatch, ...] = ()
+        self._identity_tree: Optional[str] = None
         # Each process of CMD that uses the path appends a line here.
         hits_fd, self._hits_file = tempfile.mkstemp(prefix="wiretape-redirect-")
         os.close(hits_fd)
@@ -130,6 +152,12 @@ class RedirectedCommand:
         env[ENV_FROM] = device_path
         env[ENV_TO] = pty_path
         env[ENV_HITS] = self._hits_file
+        try:
+            if identity:
+                env.update(self._present(identity))
+        except BaseException:
+            self._remove_files()
+            raise
         self.bind_mounted = can_bind_mount(device_path)
         preexec = (_bind_mount_in_private_namespace(pty_path, device_path)
                    if self.bind_mounted else None)
@@ -144,8 +172,18 @@ class RedirectedCommand:
             else:
                 self.child = Child(self.argv, env=env, preexec_fn=preexec)
         except CommandNotStarted:
-            self._remove_hits_file()
+            self._remove_files()
             raise
+
+    def _present(self, identity: Dict[str, str]) -> Dict[str, str]:
+        """The shim's variables that present `identity`, its tree written."""
+        self._identity_tree = tempfile.mkdtemp(prefix="wiretape-identity-")
+        tty_name, folder, by_id = _core.present_device_identity(
+            identity, self._identity_tree, self.device_path)
+        env = {ENV_IDENTITY_TTY: tty_name, ENV_IDENTITY_SYSFS: folder} if tty_name else {}
+        if by_id:
+            env[ENV_IDENTITY_BY_ID] = by_id
+        return env
 
     @property
     def name(self) -> str:
@@ -181,10 +219,13 @@ class RedirectedCommand:
             return False
 
     def close(self) -> None:
-        self._remove_hits_file()
+        self._remove_files()
 
-    def _remove_hits_file(self) -> None:
+    def _remove_files(self) -> None:
         try:
             os.unlink(self._hits_file)
         except OSError:
             pass
+        if self._identity_tree is not None:
+            shutil.rmtree(self._identity_tree, ignore_errors=True)
+            self._identity_tree = None

@@ -4,10 +4,12 @@
 #include <cerrno>
 #include <cstdio>
 
+#include "posix/device_identity.hpp"
 #include "posix/transports.hpp"
 #include "replay/replay_port.hpp"
 #include "session/record_kinds.hpp"
 #include "wiretape/errors.hpp"
+#include "wiretape/options.hpp"
 
 namespace wiretape::detail::bridge {
 
@@ -69,6 +71,10 @@ void DeviceSide::open_session_file() {
   header.port_options = options_.device;
   header.port_type = device_->type();
   header.user_metadata = options_.metadata;
+  // A serial device's identity (DESIGN §20); a pty or a network device has none.
+  for (const auto& entry : parse_options(options_.device)) {
+    if (entry.key == "device") header.device_identity = read_device_identity(entry.value);
+  }
   writer_ = std::make_unique<SessionWriter>(
       options_.output, header, FlushPolicy{std::chrono::milliseconds(options_.flush_ms)});
   // Time zero is the device's open, which came just before the file.

@@ -7,11 +7,14 @@
 #include <sys/ioctl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
 #include <cstring>
 #include <optional>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "bridge/endpoint.hpp"
 #include "posix/platform.hpp"
@@ -67,8 +70,22 @@ class PtyEndpoint final : public ClientEndpoint {
   }
 
   void handle_events(const PollSet& poll_set) override {
-    if (poll_set.ready(watch_slot_).any()) watch_clients();
-    if (poll_set.ready(pty_slot_).readable) read_pty();
+    const bool pty_readable = poll_set.ready(pty_slot_).readable;
+    if (!opens_and_closes_) {
+      if (pty_readable) read_pty();
+    } else if (pty_readable || unread_write_ || poll_set.ready(watch_slot_).any()) {
+      // What the client wrote is read (until the terminal is empty, so that
+      // what it holds at the client's close is newer than this look) and
+      // held until the watch is read again: every open and close before
+      // those bytes were written is in the watch by then (an open is
+      // reported before it returns), so each byte goes to the client session
+      // it was written in (DESIGN.md section 12: a close and a reopen at
+      // once are two client sessions).
+      holding_ = true;
+      if (pty_readable || unread_write_) drain_pty();
+      holding_ = false;
+      watch_clients();  // passes on what it held
+    }
     if (!to_pty_.empty()) write_pty();
   }
 
@@ -130,21 +147,60 @@ class PtyEndpoint final : public ClientEndpoint {
   }
 
  private:
+  // Room for the client's bytes: the device's, less what is held.
+  std::size_t room_for_client_data() const {
+    const std::size_t room = device_.room_for_client_data();
+    return room > held_bytes_ ? room - held_bytes_ : 0;
+  }
+
   void read_pty() {
     if (options_.mirror_settings) check_settings();
     std::array<char, kChunk + 1> buffer;
-    const std::size_t room = std::min(device_.room_for_client_data(), kChunk);
+    const std::size_t room = std::min(room_for_client_data(), kChunk);
     // One more for packet mode's control byte.
     const std::size_t got = pty_->read(buffer.data(), room + 1, std::chrono::nanoseconds(0));
     last_read_took_data_ = got > 0;
-    if (got == 0) return;
+    if (got == 0) {
+      // The terminal is empty: every write so far was read.
+      unread_write_ = false;
+      found_empty_since_data_ = true;
+      return;
+    }
     if (buffer[0] != TIOCPKT_DATA) {
-      client_flushed(static_cast<unsigned char>(buffer[0]));
+      take_from_client(static_cast<unsigned char>(buffer[0]), {});
       return;
     }
     const std::size_t n = got - 1;
     if (n == 0) return;
-    std::memmove(buffer.data(), buffer.data() + 1, n);
+    read_data_since_wrote_event_ = true;
+    found_empty_since_data_ = false;
+    take_from_client(TIOCPKT_DATA, std::string_view(buffer.data() + 1, n));
+  }
+
+  // What a read of the terminal brought: a packet mode control byte (a
+  // flush) or the client's bytes. Held while handle_events() holds them.
+  void take_from_client(unsigned control, std::string_view data) {
+    if (holding_) {
+      held_.push_back({control, std::string(data)});
+      held_bytes_ += data.size();
+      return;
+    }
+    pass_on(control, data);
+  }
+
+  // The held reads, for the client session they belong to.
+  void pass_on_held() {
+    std::vector<HeldRead> held;
+    held.swap(held_);
+    held_bytes_ = 0;
+    for (const HeldRead& read : held) pass_on(read.control, read.data);
+  }
+
+  void pass_on(unsigned control, std::string_view data) {
+    if (control != TIOCPKT_DATA) {
+      client_flushed(control);
+      return;
+    }
     if (!client_wrote_) {
       client_wrote_ = true;
       watch_reads_while_needed();
@@ -157,7 +213,7 @@ class PtyEndpoint final : public ClientEndpoint {
       }
       return;
     }
-    device_.send(buffer.data(), n);
+    device_.send(data.data(), data.size());
   }
 
   void write_pty() {
@@ -260,7 +316,7 @@ class PtyEndpoint final : public ClientEndpoint {
   void drain_pty() {
     do {
       read_pty();
-    } while (last_read_took_data_ && device_.room_for_client_data() > 0);
+    } while (last_read_took_data_ && room_for_client_data() > 0);
   }
 
   void grant_access() {
@@ -289,14 +345,40 @@ class PtyEndpoint final : public ClientEndpoint {
     set_terminal_access(*pty_, mode, ::getegid());
   }
 
-  // The first opener of the terminal is a client arriving, the last close
-  // its leaving (a program may open the terminal more than once, and tools
-  // such as stty open and close it too).
-  void watch_clients() {
+  // Whether the client's last close (at `closed` in `events`) was followed
+  // by an open already: reads from the watch until now, so that the answer is
+  // as late as can be.
+  bool reopened_after(std::vector<platform::TerminalEvent>& events, std::size_t closed) {
     for (const platform::TerminalEvent event :
          platform::read_opens_and_closes(opens_and_closes_.get())) {
+      events.push_back(event);
+    }
+    return std::find(events.begin() + static_cast<std::ptrdiff_t>(closed) + 1, events.end(),
+                     platform::TerminalEvent::opened) != events.end();
+  }
+
+  // The first opener of the terminal is a client arriving, the last close
+  // its leaving (a program may open the terminal more than once, and tools
+  // such as stty open and close it too). A close and a reopen at once
+  // (pyserial's close() then Serial(), to change the baud rate) are two
+  // client sessions: every byte written after the reopen belongs to the
+  // second (DESIGN.md section 12).
+  void watch_clients() {
+    std::vector<platform::TerminalEvent> events =
+        platform::read_opens_and_closes(opens_and_closes_.get());
+    for (std::size_t i = 0; i < events.size(); ++i) {
+      const platform::TerminalEvent event = events[i];
       if (event == platform::TerminalEvent::read) {
         client_read();
+        continue;
+      }
+      if (event == platform::TerminalEvent::wrote) {
+        // A write is reported after it returned, so its bytes may have been
+        // read (and the terminal found empty) before the report: then the
+        // report is stale. Else its bytes wait in the terminal still.
+        const bool stale = read_data_since_wrote_event_ && found_empty_since_data_;
+        if (openers_ > 0 && !stale) unread_write_ = true;
+        read_data_since_wrote_event_ = false;
         continue;
       }
       if (event == platform::TerminalEvent::opened) {
@@ -318,11 +400,26 @@ class PtyEndpoint final : public ClientEndpoint {
         }
         status_.message("client connected to " + pty_->description());
       } else if (openers_ > 0 && --openers_ == 0) {
+        // What the terminal holds is the leaving client's when the watch
+        // saw it write since the terminal was last found empty, or when
+        // nobody opened the terminal since; else it was written after a
+        // reopen, for the next session. (Both wrote before the bridge
+        // looked: the bytes cannot be told apart, and go to the first.)
+        // The terminal is read first, then the watch: a reopen the watch
+        // does not show yet came after every byte read. Held bytes were
+        // read before this look too.
+        const bool leaving_client_wrote = unread_write_;
+        const bool was_holding = holding_;
+        holding_ = true;
         drain_pty();
+        holding_ = was_holding;
+        if (leaving_client_wrote || !reopened_after(events, i)) pass_on_held();
         device_.client_disconnected("pty", "closed the terminal");
         status_.message("client closed " + pty_->description());
       }
     }
+    // Bytes kept for the session after a close belong to it now.
+    if (!holding_) pass_on_held();
   }
 
   void check_settings() {
@@ -364,6 +461,20 @@ class PtyEndpoint final : public ClientEndpoint {
   bool client_read_ = false;
   // The current client has written to the terminal.
   bool client_wrote_ = false;
+  // Reads of the terminal held by handle_events() (see there).
+  struct HeldRead {
+    unsigned control = TIOCPKT_DATA;
+    std::string data;
+  };
+  bool holding_ = false;
+  std::vector<HeldRead> held_;
+  std::size_t held_bytes_ = 0;
+  // The watch saw the client write since a read found the terminal empty.
+  bool unread_write_ = false;
+  // Bytes were read since the watch last reported a write, and a read found
+  // the terminal empty after them: the next report may be of those bytes.
+  bool read_data_since_wrote_event_ = false;
+  bool found_empty_since_data_ = true;
   // See retaining().
   std::string retained_;
   ByteQueue to_pty_{options_.buffer_limit};

@@ -99,7 +99,8 @@ class ReplayPort : public Port {
     }
     // Faults (delay, stall, trickle, reconnect) make data due later even
     // under timing=none: someone must raise the pipe then.
-    if (engine_->config().timing != ReplayTiming::none || !engine_->config().faults.empty()) {
+    if ((engine_->config().timing != ReplayTiming::none || !engine_->config().faults.empty()) &&
+        !scheduler_.joinable()) {
       scheduler_ = std::thread([this] { schedule(); });
     }
   }
@@ -137,13 +138,24 @@ class ReplayPort : public Port {
     const int k = client_sessions_ + 1;
     std::optional<std::uint64_t> connect_t_ns;
     std::uint64_t first_exchange = 0;  // exchanges are numbered per file (exchanges.hpp)
+    // match=request: connection order is free; the k-th connection is
+    // greeted as the k-th recorded one (the last, past them) and matches
+    // every recorded session's exchanges, its own first (DESIGN.md 12).
+    int served_session = k;
     {
       const std::unique_ptr<RecordSource> source = sources_();
       connect_t_ns = find_client_connect(*source, k);
+      if (!connect_t_ns && config_.match == ReplayMatch::request && k > 1) {
+        source->rewind();
+        served_session = count_client_sessions(*source);
+        source->rewind();
+        if (served_session > 0) connect_t_ns = find_client_connect(*source, served_session);
+      }
       if (connect_t_ns) {
         source->rewind();
         first_exchange = first_exchange_of_client_session(
-            *source, Segmentation{config_.profile, config_.datagrams, config_.match}, k);
+            *source, Segmentation{config_.profile, config_.datagrams, config_.match},
+            served_session);
       }
     }
     std::lock_guard<std::mutex> lock(mutex_);
@@ -153,10 +165,14 @@ class ReplayPort : public Port {
     const auto now = ReplayClock::now();
     const bool afresh = connect_t_ns || k == 1;
     if (afresh) {
+      const bool by_request = connect_t_ns && config_.match == ReplayMatch::request;
       RecordSourceFactory sources =
-          connect_t_ns ? client_session_sources(sources_, k) : sources_;
+          by_request    ? sessions_first_sources(sources_, served_session)
+          : connect_t_ns ? client_session_sources(sources_, k)
+                         : sources_;
       ReplayConfig config = config_;
       config.first_exchange = first_exchange;
+      if (by_request) config.client_session = served_session;
       engine_ = std::make_unique<ReplayEngine>(std::move(config), std::move(sources), now,
                                                connect_t_ns.value_or(0), fault_memory_);
       engine_->on_fault(fault_reporter_);  // each session's fault stage reports here
@@ -448,6 +464,11 @@ class ReplayPort : public Port {
   // only reads and writes (pyserial through wiretape://) waits for.
   ReplayEngine::Outlook update_signal(ReplayTime now) {
     const ReplayEngine::Outlook outlook = outlook_at(now);
+    // Under timing=none, nothing is timed but a strategy's wait (a flush
+    // gate's flush_wait): the scheduler starts when one first waits.
+    if (outlook.wake && !scheduler_.joinable() && !closed_) {
+      scheduler_ = std::thread([this] { schedule(); });
+    }
     if (!handle_handed_out_) return outlook;
     const bool readable =
         outlook.state == ReplayEngine::ReadState::readable ||
@@ -558,8 +579,10 @@ class ReplayPort : public Port {
       signal_read_.reset();
       signal_write_.reset();
       const ReplayUnused policy = engine_->config().unused;
-      if (policy != ReplayUnused::ignore) unused = engine_->unused_report();
-      if (unused.empty()) return;
+      // Asked whatever the policy: rx a flush gate held from a client that
+      // wrote past it raises here (sequence.cpp).
+      unused = engine_->unused_report();
+      if (unused.empty() || policy == ReplayUnused::ignore) return;
       if (policy == ReplayUnused::warn || !may_throw) {
         std::fprintf(stderr, "wiretape: %s\n", unused.c_str());
         return;

@@ -32,7 +32,8 @@ SequenceStrategy::SequenceStrategy(const ReplayConfig& config,
 
 // --- the read cursor -----------------------------------------------------------
 
-void SequenceStrategy::release(ReplayTime) {
+void SequenceStrategy::release(ReplayTime now) {
+  now_ = std::max(now_, now);
   const bool nothing_ahead = released_.empty() && ahead_.empty();
   if (nothing_ahead || released_.bytes() + ahead_bytes_ < kLookaheadBytes / 2) {
     fill();
@@ -123,18 +124,12 @@ void SequenceStrategy::entitle() {
     Ahead& ahead = ahead_.front();
     // timing=session: time alone decides, writes do not gate.
     // A client flush recorded before it (pyserial's, gpsd's on open) would
-    // have discarded it had it come earlier: it waits for the client's.
+    // have discarded it had it come earlier: it waits for the client's, for
+    // flush_wait at most.
     const bool entitled = config_.timing == ReplayTiming::session ||
-                          (tx_progress() >= ahead.tx_before &&
-                           client_flushes_ >= ahead.flushes_before);
+                          (tx_progress() >= ahead.tx_before && !held_by_flush_gate());
     if (!entitled) break;  // later records need at least as many tx bytes
-    std::optional<ReplayTimeline::Anchor> anchor;
-    if (ahead.anchor_t_ns) {
-      if (const auto finished = finish_of(ahead.tx_before)) {
-        anchor = ReplayTimeline::Anchor{*finished, *ahead.anchor_t_ns};
-      }
-    }
-    ahead.item.due = timeline_.due(ahead.item.t_ns, anchor);
+    ahead.item.due = due_of(ahead);
     ahead_bytes_ -= ahead.item.payload().size();
     release_item(std::move(ahead.item), ahead.tx_before);
     ahead_.pop_front();
@@ -151,6 +146,39 @@ void SequenceStrategy::entitle() {
   while (tx_ends_.size() > 1 && tx_ends_.front().end_offset < still_needed) {
     tx_ends_.pop_front();
   }
+}
+
+// When an entitled record is due: anchored on the client's write that the
+// recording shows before it, once the client finished it.
+ReplayTime SequenceStrategy::due_of(const Ahead& ahead) const {
+  std::optional<ReplayTimeline::Anchor> anchor;
+  if (ahead.anchor_t_ns) {
+    if (const auto finished = finish_of(ahead.tx_before)) {
+      anchor = ReplayTimeline::Anchor{*finished, *ahead.anchor_t_ns};
+    }
+  }
+  return timeline_.due(ahead.item.t_ns, anchor);
+}
+
+// A recorded flush gates rx only as long as the client could still make it
+// (DESIGN.md section 12): flushes made back to back may reach the bridge as
+// one (TIOCPKT), and a probing client (gpsd) flushes a number of times that
+// depends on timing. So the gate holds the record for flush_wait after it
+// would otherwise be due, then counts the missing flushes as made.
+bool SequenceStrategy::held_by_flush_gate() {
+  const Ahead& ahead = ahead_.front();
+  if (client_flushes_ + flushes_forgiven_ >= ahead.flushes_before) {
+    flush_gate_ends_.reset();
+    return false;
+  }
+  if (!flush_gate_ends_) {
+    flush_gate_ends_ = std::max(due_of(ahead), now_) +
+                       std::chrono::duration_cast<ReplayClock::duration>(config_.flush_wait);
+  }
+  if (now_ < *flush_gate_ends_) return true;
+  flushes_forgiven_ = ahead.flushes_before - client_flushes_;
+  flush_gate_ends_.reset();
+  return false;
 }
 
 void SequenceStrategy::release_item(RxItem&& item, std::uint64_t tx_before) {
@@ -290,6 +318,7 @@ void SequenceStrategy::write_frames(const char* data, std::size_t size, ReplayTi
 }
 
 void SequenceStrategy::write(const char* data, std::size_t size, ReplayTime now) {
+  now_ = std::max(now_, now);
   try {
     if (config_.profile && config_.check != ReplayCheck::off) {
       write_frames(data, size, now);
@@ -493,6 +522,32 @@ std::uint64_t SequenceStrategy::tx_consumed() const {
 
 std::string SequenceStrategy::unused_report(std::uint64_t queued_rx_bytes,
                                             std::uint64_t queued_rx_records) {
+  // Rx held at the end for a flush the client did not make, though the
+  // client wrote what the recording shows after it: the client was denied
+  // what it was entitled to, which is no success (DESIGN.md section 12). Rx
+  // recorded after its last write is only unused.
+  if (!ahead_.empty() && ahead_.front().item.kind == RecordKind::rx &&
+      config_.timing != ReplayTiming::session && tx_progress() > ahead_.front().tx_before &&
+      client_flushes_ + flushes_forgiven_ < ahead_.front().flushes_before) {
+    const Ahead& held = ahead_.front();
+    std::uint64_t held_bytes = 0;
+    for (const Ahead& later : ahead_) {
+      if (later.tx_before > held.tx_before) break;
+      held_bytes += later.item.payload().size();
+    }
+    report_.raise("the client was entitled to rx that a recorded client flush still held "
+                  "at the end: the recording shows " +
+                      std::to_string(held.flushes_before) + " client flushes before it, the " +
+                      "client made " + std::to_string(client_flushes_ + flushes_forgiven_) +
+                      " and the replay ended within flush_wait (" +
+                      std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                         config_.flush_wait)
+                                         .count()) +
+                      " ms) of it being due",
+                  tx_consumed(), held.item.payload().substr(0, kReplayContext), {},
+                  held.item.t_ns, static_cast<std::int64_t>(held.item.exchange),
+                  "  held:     " + std::to_string(held_bytes) + " rx bytes\n");
+  }
   std::uint64_t rx_bytes = queued_rx_bytes;
   std::uint64_t rx_records = queued_rx_records;
   if (fixer_) {  // held back for the rest of a response frame

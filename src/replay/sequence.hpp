@@ -28,6 +28,8 @@ class SequenceStrategy final : public ReplayStrategy {
 
   void release(ReplayTime now) override;
   bool more_to_release() const override;
+  // The end of a flush gate's flush_wait.
+  std::optional<ReplayTime> wake() const override { return flush_gate_ends_; }
   void client_flushed() override;
   void write(const char* data, std::size_t size, ReplayTime now) override;
   void client_event(RecordKind kind,
@@ -93,6 +95,17 @@ class SequenceStrategy final : public ReplayStrategy {
   std::uint64_t rx_flushes_seen_ = 0;
   ExchangeCursor rx_exchanges_;  // numbers what the read cursor reads
   std::uint64_t client_flushes_ = 0;  // the client made
+  // Recorded client flushes the client did not make within flush_wait:
+  // counted as made, so that later gates wait only for later flushes.
+  std::uint64_t flushes_forgiven_ = 0;
+  // When the front record, entitled but for a recorded flush, stops waiting
+  // for it (none: no record waits for a flush).
+  std::optional<ReplayTime> flush_gate_ends_;
+  ReplayTime now_{};  // of the last release() or write()
+  // Whether the front record waits for a flush alone (the client wrote what
+  // the recording shows before it); sets flush_gate_ends_.
+  bool held_by_flush_gate();
+  ReplayTime due_of(const Ahead& ahead) const;
   std::deque<Ahead> ahead_;
   std::size_t ahead_bytes_ = 0;
   std::deque<TxEnd> tx_ends_;

@@ -37,6 +37,8 @@
 #include <sys/types.h>
 #include <unistd.h>
 
+#include "device_identity.h"
+
 static char redirect_from[PATH_MAX];
 static char redirect_from_resolved[PATH_MAX]; /* empty: FROM does not exist */
 static char redirect_to[PATH_MAX];
@@ -110,10 +112,12 @@ static int is_symbolic_link(const char *path) {
  * else `path` itself. */
 static const char *redirected(const char *path) {
   if (!redirect_active || path == NULL || path[0] != '/') return path;
-  if (strcmp(path, redirect_from) == 0) {
+  if (strcmp(path, redirect_from) == 0 || wiretape_identity_names_device(path)) {
     note_hit();
     return redirect_to;
   }
+  const char *presented = wiretape_identity_sysfs_path(path);
+  if (presented != NULL) return presented;
   /* By-id links and other names of the real device: resolving costs system
    * calls, so only paths under /dev and symbolic links (a by-id style link
    * made elsewhere) are resolved. */

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import os
 import time
-from typing import Callable, Optional, Sequence, Tuple
+from typing import Callable, Dict, Optional, Sequence, Tuple
 
 from .console import Output, describe
 from .errors import CheckFailed, RuntimeFailure, UsageError, exit_code_for
@@ -56,7 +56,7 @@ def record_with_command(args, out: Output) -> int:
 
 def replay_with_command(args, out: Output) -> int:
     from .. import bridge
-    from ..redirect import recorded_device_path
+    from ..redirect import recorded_device_path, recorded_identity
     from ..session import refuse_same_file, session_files
 
     from .run import check_fault_places
@@ -79,7 +79,8 @@ def replay_with_command(args, out: Output) -> int:
     return _run_bridge_with_command(
         handle, out, "replay", args.command_argv, path,
         lambda: announce_clients(handle, out, f"replaying {args.file}", link), must_serve=True,
-        outlive_injected_loss=True, speed=args.speed or 1.0)
+        outlive_injected_loss=True, identity=recorded_identity(args.file),
+        speed=args.speed or 1.0)
 
 
 def _check_redirect_path(path: str) -> None:
@@ -106,7 +107,9 @@ def _client_connected(handle) -> bool:
 def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str],
                              device_path: str, announce: Callable[[], None],
                              must_serve: bool = False, must_use_path: bool = False,
-                             outlive_injected_loss: bool = False, speed: float = 1.0) -> int:
+                             outlive_injected_loss: bool = False,
+                             identity: Optional[Dict[str, str]] = None,
+                             speed: float = 1.0) -> int:
     """Runs CMD with `device_path` redirected to the bridge's pty; the bridge
     ends when CMD exits. The exit status is CMD's when it failed, else the
     bridge's (docs/cli.md); a bridge that ends first (a mismatch, --duration)
@@ -121,7 +124,8 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
     try:
         announce()
         out.note(f"{what}: running {' '.join(argv)} with {device_path} -> {handle.pty_path}")
-        command = RedirectedCommand(argv, device_path, handle.pty_path, relay=True, speed=speed)
+        command = RedirectedCommand(argv, device_path, handle.pty_path, relay=True,
+                                    identity=identity, speed=speed)
     except BaseException:
         handle.stop()
         handle.wait()

@@ -1,5 +1,5 @@
-"""The commands on session files: show, stats, verify, convert, diff, edit
-(the work is in wiretape.tools)."""
+"""The commands on session files: show, stats, verify, convert, diff, edit,
+view (the work is in wiretape.tools)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ import json
 import os
 import sys
 
+from .. import SessionError
 from .console import Output, silence_stdout
 from .errors import EXIT_CHECK_FAILED, EXIT_OK, RuntimeFailure, UsageError
 
@@ -148,4 +149,25 @@ def cmd_edit(args, out: Output) -> int:
             out.note(f"{result.unsealed_frames} {result.profile} frames keep part of their "
                      "recorded checksums: the records holding them were written before the "
                      "frame was complete (more than 8 MiB waited behind them)")
+    return EXIT_OK
+
+
+def cmd_view(args, out: Output) -> int:
+    from ..tools.view import default_output, view
+
+    require_input(args.file)
+    if args.campaign is not None:
+        require_input(args.campaign)
+    if args.output == "":
+        raise UsageError("-o needs a file name (FILE.html)")
+    output = args.output if args.output is not None else default_output(args.file)
+    default = "" if args.output is not None else " (the default: SESSION with .html; -o to choose)"
+    try:
+        view(args.file, output, profile=args.profile, campaign=args.campaign)
+    except SessionError:  # the page shows what came before the damage
+        if not args.quiet:
+            out.note(f"wrote {output}{default}, up to the damage:")
+        raise
+    if not args.quiet:
+        out.note(f"wrote {output}{default}: open it in a browser")
     return EXIT_OK

@@ -46,7 +46,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 # Commands that are batch work whatever their arguments; any command with
 # -- CMD is too.
 _BATCH_COMMANDS = frozenset({"convert", "edit", "faults", "faults merge", "diff", "show", "stats",
-                             "verify"})
+                             "verify", "view"})
 
 
 def is_batch_work(args) -> bool:

@@ -10,7 +10,7 @@ from typing import Callable, List, Optional, Sequence, Tuple
 
 from .. import __version__, _core
 from ..options import option_keys
-from .files import cmd_convert, cmd_diff, cmd_edit, cmd_show, cmd_stats, cmd_verify
+from .files import cmd_convert, cmd_diff, cmd_edit, cmd_show, cmd_stats, cmd_verify, cmd_view
 from .ports import cmd_ports
 from .run import cmd_demo, cmd_faults, cmd_faults_merge, cmd_record, cmd_replay, cmd_serve
 
@@ -293,9 +293,11 @@ def build_parser() -> argparse.ArgumentParser:
         "replay", cmd_replay, "replay a recording as a virtual device (pty, TCP or UDP)",
         "The recording becomes a virtual device any program can open: a "
         "pseudo-terminal (--pty PATH), a TCP server (--listen HOST:PORT) or a UDP "
-        "socket (--udp HOST:PORT; one datagram per recorded record). A "
-        "client that closes and reopens continues the session (--restart starts it "
-        "over). With --as PATH -- CMD ARG... it runs CMD with PATH redirected to its "
+        "socket (--udp HOST:PORT; one datagram per recorded record). Each "
+        "connection (an open of the pty) is a client session: with --match sequence the "
+        "k-th continues at the recording's k-th client connect, with --match request "
+        "connection order is free; a close and reopen at once is two sessions "
+        "(--restart starts the whole recording over for each client). With --as PATH -- CMD ARG... it runs CMD with PATH redirected to its "
         "pty and ends when CMD does (exit: CMD's status when it failed, else the "
         "replay's). The replay keys are those of type=replay (docs/options.md). Exit 1 on a "
         "mismatch, and when the recording has rx but no client was served any of it "
@@ -412,6 +414,23 @@ def build_parser() -> argparse.ArgumentParser:
     stats = command("stats", cmd_stats, "figures of a session (exit 1 if damaged)")
     stats.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
     stats.add_argument("--json", action="store_true", help="print JSON")
+
+    view = command(
+        "view", cmd_view, "a session as a timeline in one HTML page, for a browser",
+        "Writes one self-contained HTML page (no network access: script, styles and data "
+        "inline) with a zoomable timeline of the session: tx, rx and events lanes, the "
+        "exchanges, a profile's frames, faults, a replay's mismatch, and a hex/ASCII pane. "
+        "Open it in any browser.")
+    view.add_argument("file", metavar="SESSION", help="the session (.wtape or flexiport name.log)")
+    view.add_argument("-o", "--output", metavar="FILE.html",
+                      help="the page to write (default: SESSION with .html for its suffix)")
+    view.add_argument("--campaign", metavar="FILE.json",
+                      help="a `wiretape faults --json` file of this session: its runs on the "
+                           "exchanges they faulted")
+    view.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
+                      help="name the frames by a protocol profile (default: the session's "
+                           "--meta profile=NAME): " + ", ".join(_core.profile_names()))
+    view.add_argument("-q", "--quiet", action="store_true", help="no summary")
 
     edit = command(
         "edit", cmd_edit, "cut a session down and scrub it before sharing it",

@@ -44,6 +44,12 @@ def _header_lines(reader: _core.SessionReader, path: SessionPath) -> Iterator[st
         yield f"  port         {header_text(header.port_type or '?')}: {header_text(header.port_options)}"
     if header.device_address:
         yield f"  device       {header_text(header.device_address)}"
+    # The members as the header names them, in its order; those not known
+    # left out.
+    identity = ", ".join(f"{name}={header_text(value)}"
+                         for name, value in header.device_identity.items() if value)
+    if identity:
+        yield f"  identity     {identity}"
     yield f"  capture      {header_text(header.capture)}"
     started = header_text(header.start_utc) if header.start_utc else "at a time not recorded"
     host = f" on {header_text(header.host)}" if header.host else ""

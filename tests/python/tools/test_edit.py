@@ -323,3 +323,34 @@ def test_redacted_bytes_are_wildcards_when_the_client_writes_them(tmp_path, matc
         client(original, b"s3cret!!")
     with pytest.raises(wt.ReplayMismatch):
         client(scrubbed, b"hunter22", user=b"alicE")
+
+
+ARDUINO = {
+    "kernel_name": "ttyACM0", "subsystem": "usb", "vendor_id": "2341", "product_id": "0043",
+    "serial_number": "85736323838351F0B1C1", "manufacturer": "Arduino (www.arduino.cc)",
+    "product": "Arduino Uno", "interface": "", "location": "1-2:1.0",
+    "by_id": "/dev/serial/by-id/usb-Arduino__www.arduino.cc__0043_85736323838351F0B1C1-if00",
+}
+
+
+def test_redaction_always_clears_the_device_serial_number_and_its_by_id_part(tmp_path):
+    # DESIGN §20: whatever the patterns, the identity's serial number goes,
+    # in the by-id name too; the rest of the identity stays for replay.
+    src = tmp_path / "in.wtape"
+    with _core.SessionWriter(src, capture="wire", port_type="serial",
+                             port_options="type=serial,device=/dev/ttyACM0",
+                             device_identity=ARDUINO) as writer:
+        writer.write("open", 0, b"{}")
+        writer.write("tx", 10, b"Arduino Uno says hi\n")
+    edit(src, tmp_path / "out.wtape", redact=[parse_redaction("Uno")])
+    identity = _core.SessionReader(tmp_path / "out.wtape").header.device_identity
+    assert identity["serial_number"] == ""
+    assert identity["by_id"] == (
+        "/dev/serial/by-id/usb-Arduino__www.arduino.cc__0043_redacted-if00")
+    # The patterns apply to the identity's text as to the rest of the header.
+    assert identity["product"] == "Arduino ***"
+    assert (identity["vendor_id"], identity["product_id"]) == ("2341", "0043")
+    assert b"85736323838351F0B1C1" not in (tmp_path / "out.wtape").read_bytes()
+    # Cutting alone keeps it.
+    edit(src, tmp_path / "cut.wtape", cut=parse_cut("0:1"))
+    assert _core.SessionReader(tmp_path / "cut.wtape").header.device_identity == ARDUINO

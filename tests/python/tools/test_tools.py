@@ -179,6 +179,29 @@ def test_format_1_1_header_members_survive_conversion_through_jsonl(tmp_path):
     assert "edited       cut 0.5:2 s" in text
 
 
+def test_the_device_identity_is_shown_and_kept_by_stats_and_jsonl(tmp_path):
+    # Format 1.2's device_identity (DESIGN §20): show prints it, stats and a
+    # round trip through jsonl keep it.
+    identity = {"kernel_name": "ttyACM0", "subsystem": "usb", "vendor_id": "2341",
+                "product_id": "0043", "serial_number": "8573", "manufacturer": "Arduino",
+                "product": "Uno", "interface": "", "location": "1-2:1.0",
+                "by_id": "/dev/serial/by-id/usb-Arduino_Uno_8573-if00"}
+    source = tmp_path / "id.wtape"
+    with _core.SessionWriter(source, port_type="serial", device_identity=identity) as writer:
+        writer.write("rx", 1, b"x")
+    assert ("identity     kernel_name=ttyACM0, subsystem=usb, vendor_id=2341, "
+            "product_id=0043, serial_number=8573, manufacturer=Arduino, product=Uno, "
+            "location=1-2:1.0, by_id=/dev/serial/by-id/usb-Arduino_Uno_8573-if00"
+            in _show_text(source))
+    assert session_stats(source).to_json()["device_identity"] == identity
+    jsonl = tmp_path / "id.jsonl"
+    convert_module.convert(source, jsonl)
+    assert json.loads(jsonl.read_text().splitlines()[0])["header"]["device_identity"] == identity
+    back = tmp_path / "back.wtape"
+    convert_module.convert(jsonl, back)
+    assert _core.SessionReader(back).header.device_identity == identity
+
+
 def test_convert_keeps_events_and_header_through_jsonl(tmp_path):
     jsonl = tmp_path / "g.jsonl"
     convert_module.convert(GOLDEN / "all_kinds.wtape", jsonl)
