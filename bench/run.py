@@ -76,6 +76,9 @@ TARGETS = {
     "faults_campaign_vs_clean_ratio": (None, "info", "campaign / as many clean replays"),
     "faults_jobs2_speedup": (1.6, "higher", "campaign --jobs 1 time / --jobs 2 time"),
     "faults_inert_vs_clean_ratio": (1.3, "lower", "replays with faults= firing none / clean"),
+    # --- --speed K (docs/replay.md, "Faster than real time") ---
+    "speed_campaign_speedup": (5.0, "higher", "Hokuyo campaign --speed 1 time / --speed 10"),
+    "speed_campaign_same_outcomes": (1, "higher", "1: --speed 10 gives --speed 1's outcomes"),
     "request_vs_sequence_time_ratio": (1.5, "lower",
                                        "match=request / match=sequence, 100,000 exchanges"),
     "modbus_reordering_vs_sequence_time_ratio": (2.0, "lower",
@@ -365,6 +368,31 @@ class Bench:
             f"exchange loops only; whole pytest runs took {result['wiretape_wall']:.2f} s "
             f"(wiretape) and {result['reserial_wall']:.2f} s (reserial)")
 
+    # --- --speed K: the Hokuyo campaign on a scaled clock ----------------
+    def speed(self) -> None:
+        """The Hokuyo campaign at --speed 10 against --speed 1 (hokuyo-scan's
+        own 2 s timeouts, causal timing): time and outcomes."""
+        program = self.build / "bin" / "hokuyo-scan"
+        if not program.exists():
+            raise Skip(f"{program} not built")
+        runs = 40 if self.quick else 200
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "speed_bench.py"),
+                               str(program), str(runs)], capture_output=True, text=True,
+                              timeout=3600, env=self.env)
+        if proc.returncode != 0:
+            raise Skip("speed_bench.py: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        self.results["speed_campaign_speedup"] = round(
+            figures["speed1_s"] / figures["speed10_s"], 3)
+        self.results["speed_campaign_same_outcomes"] = int(figures["same_outcomes"])
+        differing = "; ".join(f"{a[0]}@{a[1]}: {a[2]} at K=1, {b[2]} at K=10"
+                              for a, b in figures["differing"])
+        self.notes["speed"] = (
+            f"{figures['runs']} runs over {figures['sessions']} recordings: --speed 1 "
+            f"{figures['speed1_s']:.1f} s, --speed 10 {figures['speed10_s']:.1f} s"
+            + (f"; outcomes differ: {differing}" if differing else "; same outcomes")
+            + f"; {os.cpu_count()} CPUs, shared")
+
     # --- fault campaigns ---------------------------------------------------
     def faults(self) -> None:
         """200 runs of hokuyo-scan against faulty replays: the campaign vs the
@@ -511,7 +539,8 @@ class Bench:
 
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
-           "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "view", "show", "shim"]
+           "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "speed", "view", "show",
+           "shim"]
 
 
 def machine_note() -> dict:

@@ -28,7 +28,7 @@ import sys
 import tempfile
 from typing import Dict, Optional, Sequence, Tuple
 
-from . import _core
+from . import _core, scaled_clock
 from .children import Child, CommandNotStarted, SanitizerWatch, sanitizer_report
 
 SHIM_NAME = "_redirect_device.so"
@@ -167,7 +167,7 @@ class RedirectedCommand:
 
     def __init__(self, argv: Sequence[str], device_path: str, pty_path: str,
                  relay: bool = False, identity: Optional[Dict[str, str]] = None,
-                 line_channel: Optional[str] = None):
+                 line_channel: Optional[str] = None, speed: float = 1.0):
         self.argv = list(argv)
         self.device_path = device_path
         self._watches: Tuple[SanitizerWatch, ...] = ()
@@ -175,7 +175,8 @@ class RedirectedCommand:
         # Each process of CMD that uses the path appends a line here.
         hits_fd, self._hits_file = tempfile.mkstemp(prefix="wiretape-redirect-")
         os.close(hits_fd)
-        env = dict(os.environ)
+        # --speed K: CMD's clock runs K times faster (wiretape.scaled_clock).
+        env = scaled_clock.environment(speed)
         preload = env.get("LD_PRELOAD", "").strip()
         env["LD_PRELOAD"] = shim_path() + (" " + preload if preload else "")
         env[ENV_FROM] = device_path

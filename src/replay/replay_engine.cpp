@@ -39,7 +39,8 @@ ReplayEngine::ReplayEngine(ReplayConfig config, RecordSourceFactory sources,
       timeline_(config_, open_time, origin_ns),
       released_(/*recycle_payloads=*/true),
       report_(config_.file, config_.match),
-      stage_(config_.faults, config_.datagrams, released_, std::move(fault_memory)),
+      stage_(config_.faults, config_.datagrams, released_, std::move(fault_memory),
+             config_.speed),
       strategy_(make_strategy(config_, timeline_, released_, report_, sources)) {}
 
 ReplayEngine::~ReplayEngine() = default;

@@ -86,7 +86,7 @@ def replay_with_command(args, out: Output) -> int:
             lambda: announce_clients(handle, out, f"wiretape replay: replaying {args.file}",
                                      link),
             must_serve=True, outlive_injected_loss=True, identity=recorded_identity(args.file),
-            line_channel=lines.path)
+            line_channel=lines.path, speed=args.speed or 1.0)
 
 
 def _check_redirect_path(path: str) -> None:
@@ -115,7 +115,7 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
                              must_serve: bool = False, must_use_path: bool = False,
                              outlive_injected_loss: bool = False,
                              identity: Optional[Dict[str, str]] = None,
-                             line_channel: Optional[str] = None) -> int:
+                             line_channel: Optional[str] = None, speed: float = 1.0) -> int:
     """Runs CMD with `device_path` redirected to the bridge's pty; the bridge
     ends when CMD exits. The exit status is CMD's when it failed, else the
     bridge's (docs/cli.md); a bridge that ends first (a mismatch, --duration)
@@ -124,7 +124,8 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
     CMD's output is captured and relayed; a sanitizer report in it fails a
     CMD that exits 0. `must_use_path`: a CMD that never opened the path
     fails (a replay fails anyway: its client never came). `line_channel`:
-    the bridge's socket for the shim's serial lines."""
+    the bridge's socket for the shim's serial lines. At `speed` K, CMD's
+    clock runs K times faster (replay --speed K -- CMD)."""
     from ..redirect import RedirectedCommand
 
     try:
@@ -132,7 +133,8 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
         out.note(f"wiretape {what}: running {' '.join(argv)} with {device_path} -> "
                  f"{handle.pty_path}")
         command = RedirectedCommand(argv, device_path, handle.pty_path, relay=True,
-                                    identity=identity, line_channel=line_channel)
+                                    identity=identity, line_channel=line_channel,
+                                    speed=speed)
     except BaseException:
         handle.stop()
         handle.wait()

@@ -111,6 +111,13 @@ def _seconds_of_session(text: str) -> float:
     return value
 
 
+def _speed(text: str) -> float:
+    """An argparse type: --speed K of faults, checked as the replay key
+    ``speed`` is (a finite number above 0)."""
+    key = next(key for key in option_keys("replay") if key.name == "speed")
+    return float(_key_value(key)(text))  # type: ignore[arg-type]
+
+
 def _positive_int(text: str) -> int:
     value = _non_negative_int(text)
     if value == 0:
@@ -392,6 +399,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="CMD opens PATH itself: redirect it to the virtual device")
     faults.add_argument("--options", metavar="KEYS", default="",
                         help="replay keys for every run (e.g. timing=none,match=request)")
+    faults.add_argument("--speed", type=_speed, default=1.0, metavar="K",
+                        help="run CMD on a clock K times faster, and the replays with it "
+                             "(--timeout is on CMD's clock; default 1)")
     faults.add_argument("--shard", metavar="K/N",
                         help="run only shard K of N: the cases whose index is K-1 modulo N "
                              "(merge the shards' --json with 'wiretape faults merge')")

@@ -242,7 +242,7 @@ def cmd_faults(args, out: Output) -> int:
         result = faults.campaign(args.file, args.command_argv, kinds=kinds, budget=args.budget,
                                  seed=args.seed, timeout=args.timeout, jobs=args.jobs,
                                  replay_options=args.options, listen=args.listen,
-                                 as_path=args.redirect_path, shard=shard,
+                                 as_path=args.redirect_path, shard=shard, speed=args.speed,
                                  progress=sys.stderr,
                                  progress_every=None if sys.stderr.isatty() else
                                  FAULTS_PROGRESS_EVERY_S)

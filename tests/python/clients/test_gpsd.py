@@ -14,7 +14,7 @@ import time
 
 import pytest
 
-from wiretape import _core, bridge
+from wiretape import _core, bridge, scaled_clock
 
 from devices import wait_until
 
@@ -59,12 +59,16 @@ def free_port():
         return probe.getsockname()[1]
 
 
-def test_gpsd_reads_the_recorded_fixes_from_a_replayed_pty(tmp_path):
+# --speed K (DESIGN §22): gpsd on a clock K times faster and the replay's
+# timing with it read the same fixes.
+@pytest.mark.parametrize("speed", [1.0, 10.0], ids=["speed1", "speed10"])
+def test_gpsd_reads_the_recorded_fixes_from_a_replayed_pty(tmp_path, speed):
     recording = write_nmea_recording(tmp_path / "nmea.wtape")
     link = str(tmp_path / "ttyGPS")
     port = free_port()
     handle = bridge.serve_replay(recording, pty=link,
-                                 replay_options="timing=session,check=off,unused=ignore",
+                                 replay_options="timing=session,check=off,unused=ignore,"
+                                                f"speed={speed!r}",
                                  quiet=True)
     gpsd = gpspipe = None
     try:
@@ -72,7 +76,8 @@ def test_gpsd_reads_the_recorded_fixes_from_a_replayed_pty(tmp_path):
         # -b: read-only (no probing writes); -n: open the device at once.
         gpsd = subprocess.Popen(["gpsd", "-N", "-n", "-b", "-S", str(port),
                                  "-F", str(tmp_path / "gpsd.sock"), pty],
-                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                env=scaled_clock.environment(speed))
         wait_until(lambda: gpsd.poll() is not None or _listening(port), DEADLINE,
                    "gpsd to listen")
         assert gpsd.poll() is None, gpsd.stderr.read().decode(errors="replace")
