@@ -1,0 +1,236 @@
+"""Every fenced code block of README.md, docs/*.md and examples/hokuyo/README.md
+either runs here or is listed, with its reason, in examples.toml.
+
+Blocks run in a sandbox: a temporary working directory holding what the
+examples name (SANDBOX_FILES), with the devices they name played by the
+Hokuyo simulator on a pty (SUBSTITUTIONS). Both are declared once, here."""
+
+import configparser
+import json
+import os
+import pathlib
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from devices import wait_until
+from doc_examples import REPO, all_blocks, load_manifest, masked
+
+BUILD_BIN = REPO / "build" / "bin"
+VENV_BIN = pathlib.Path(sys.executable).parent
+RECORDING = "examples/hokuyo/recordings/urg04lx_gd.wtape"
+
+# Files the examples name, copied from the repository under the names the
+# docs use (sandbox name: repository path).
+SANDBOX_FILES = {
+    "scan.wtape": RECORDING,
+    "run.wtape": RECORDING,
+    "tests/recordings/scan.wtape": RECORDING,
+    "plc.pcapng": "tests/data/pcap/tcp.pcap",
+    "tests/test_sensor.jsonl": "tests/data/reserial/test_device_talk.jsonl",
+}
+
+# Stand-ins declared once: (text in the docs, text in the sandbox). A device
+# path becomes the pty of a Hokuyo simulator ({scanner}); the reader's own
+# driver becomes hokuyo-scan on the port it is given.
+SUBSTITUTIONS = [
+    ("/dev/ttyACM0", "{scanner}"),
+    ("/dev/ttyUSB0", "{scanner}"),
+    ("--test test_id", "--test test_text"),
+]
+
+DRIVER = """#!/bin/sh
+# The docs' ./driver [PORT] [--OPTIONS]: hokuyo-scan reads one scan from PORT,
+# else from the device the docs name ({scanner}); options are ignored.
+port={scanner}
+case "${1:-}" in ""|-*) ;; *) port=$1 ;; esac
+exec hokuyo-scan --port "type=serial,device=$port,timeout=1" --json >/dev/null
+"""
+
+SHELL_LANGS = {"sh", "bash", "console", "shell"}
+TIMEOUT_S = 60
+
+
+def blocks_to_run():
+    listed = load_manifest()
+    return [block for block in all_blocks() if block.key not in listed]
+
+
+def test_every_block_is_run_or_listed():
+    unrunnable = [f"{block.id} ({block.lang or 'no language'}): {block.first_line!r}"
+                  for block in blocks_to_run() if runner_for(block) is None]
+    assert not unrunnable, (
+        "these blocks can neither run here nor are listed in "
+        "tests/python/docs/examples.toml (add a line under the file's table: "
+        "the block's first line = the reason):\n" + "\n".join(unrunnable))
+
+
+def test_every_listed_block_exists():
+    present = {block.key for block in all_blocks()}
+    stale = [f"[{file}] {first_line!r}" for file, first_line in load_manifest()
+             if (file, first_line) not in present]
+    assert not stale, ("tests/python/docs/examples.toml lists blocks that no "
+                       "longer exist (remove or update them):\n" + "\n".join(stale))
+
+
+def runner_for(block):
+    if block.lang in SHELL_LANGS:
+        return run_shell
+    if block.lang == "python":
+        return run_python
+    if block.lang == "cpp" and re.search(r"^int main\(", block.text, re.M):
+        return run_cpp_program
+    if block.lang in ("json", "jsonl"):
+        return check_json
+    if block.lang == "yaml":
+        return check_yaml
+    if block.lang == "ini":
+        return check_ini
+    return None
+
+
+@pytest.mark.parametrize("block", [pytest.param(b, id=b.id) for b in blocks_to_run()])
+def test_example(block, sandbox):
+    runner = runner_for(block)
+    if runner is None:
+        pytest.fail(f"{block.id}: cannot run; see test_every_block_is_run_or_listed")
+    runner(block, sandbox)
+
+
+class Sandbox:
+    def __init__(self, root: pathlib.Path):
+        self.root = root
+        self.scanner = root / "ttySCANNER"
+        self._simulator = None
+        for name, source in SANDBOX_FILES.items():
+            (root / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(REPO / source, root / name)
+        for name in ("examples", "build"):
+            (root / name).symlink_to(REPO / name)
+        driver = root / "driver"
+        driver.write_text(DRIVER.replace("{scanner}", str(self.scanner)))
+        driver.chmod(0o755)
+        self.env = dict(os.environ,
+                        PATH=os.pathsep.join([str(VENV_BIN), str(BUILD_BIN),
+                                              os.environ.get("PATH", "")]),
+                        PYTHONDONTWRITEBYTECODE="1")
+
+    def substitute(self, text: str) -> str:
+        for documented, here in SUBSTITUTIONS:
+            text = text.replace(documented, here)
+        if "{scanner}" in text:
+            self.start_scanner()
+            text = text.replace("{scanner}", str(self.scanner))
+        return text
+
+    def start_scanner(self):
+        if self._simulator is not None:
+            return
+        self._simulator = subprocess.Popen(
+            [sys.executable, str(REPO / "examples" / "hokuyo" / "sim"),
+             "--model", "urg04lx", "--pty", str(self.scanner)],
+            cwd=self.root, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+            start_new_session=True)
+        wait_until(lambda: self.scanner.exists() or self._simulator.poll() is not None,
+                   what="the simulator's pty")
+        if not self.scanner.exists():
+            pytest.fail("the Hokuyo simulator did not start: "
+                        + self._simulator.stderr.read().decode(errors="replace"))
+
+    def run(self, argv, stdin=None):
+        return subprocess.run(argv, cwd=self.root, env=self.env, input=stdin,
+                              capture_output=True, text=True, timeout=TIMEOUT_S)
+
+    def close(self):
+        if self._simulator is not None:
+            os.killpg(self._simulator.pid, signal.SIGTERM)
+            self._simulator.wait(timeout=TIMEOUT_S)
+            self._simulator.stderr.close()
+
+
+@pytest.fixture
+def sandbox(tmp_path):
+    box = Sandbox(tmp_path)
+    yield box
+    box.close()
+
+
+def explain(block, result):
+    return (f"{block.id} failed (exit {result.returncode}):\n{block.text}\n"
+            f"--- stdout\n{result.stdout}\n--- stderr\n{result.stderr}")
+
+
+def shell_script(text):
+    """The commands of a shell block (prompts stripped) and the output it
+    shows (the lines after a `$ ` command that are not commands)."""
+    lines = text.splitlines()
+    if not any(line.startswith("$ ") for line in lines):
+        return text, None
+    commands, shown, continued = [], [], False
+    for line in lines:
+        if line.startswith("$ ") or continued:
+            command = line[2:] if line.startswith("$ ") else line
+            commands.append(command)
+            continued = command.rstrip().endswith("\\")
+        else:
+            shown.append(line)
+    return "\n".join(commands) + "\n", "\n".join(shown)
+
+
+def run_shell(block, sandbox):
+    if "git " in block.text:
+        sandbox.run(["git", "init", "-q"])
+    script, shown = shell_script(block.text)
+    result = sandbox.run(["bash", "-euo", "pipefail", "-c", sandbox.substitute(script)])
+    assert result.returncode == 0, explain(block, result)
+    if shown:
+        assert masked(shown) in masked(result.stdout + result.stderr), explain(block, result)
+
+
+def run_python(block, sandbox):
+    code = sandbox.substitute(block.text)
+    if re.search(r"^def test_", code, re.M):
+        (sandbox.root / "test_doc_block.py").write_text(code)
+        argv = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
+                "test_doc_block.py"]
+    else:
+        (sandbox.root / "doc_block.py").write_text(code)
+        argv = [sys.executable, "doc_block.py"]
+    result = sandbox.run(argv)
+    assert result.returncode == 0, explain(block, result)
+
+
+def run_cpp_program(block, sandbox):
+    compiler = shutil.which(os.environ.get("CXX", "c++"))
+    library = REPO / "build" / "libwiretape.a"
+    if compiler is None or not library.exists():
+        pytest.skip(f"C++ examples need a C++ compiler and {library} (make)")
+    (sandbox.root / "example.cpp").write_text(block.text)
+    compiled = sandbox.run([compiler, "-std=c++17", f"-I{REPO / 'include'}",
+                            "example.cpp", str(library), "-pthread", "-o", "example"])
+    assert compiled.returncode == 0, explain(block, compiled)
+    result = sandbox.run([str(sandbox.root / "example")])
+    assert result.returncode == 0, explain(block, result)
+
+
+def check_json(block, sandbox):
+    from wiretape import _core
+    for document in json.loads(f"[{block.text}]") if block.lang == "json" else \
+            [json.loads(line) for line in block.text.splitlines() if line.strip()]:
+        assert isinstance(document, dict), f"{block.id}: not a JSON object"
+
+
+def check_yaml(block, sandbox):
+    yaml = pytest.importorskip("yaml", reason="PyYAML (pip install pyyaml) checks YAML blocks")
+    assert yaml.safe_load(block.text) is not None, f"{block.id}: empty YAML"
+
+
+def check_ini(block, sandbox):
+    parser = configparser.ConfigParser()
+    parser.read_string(block.text, source=block.id)
+    assert parser.sections(), f"{block.id}: no section"
