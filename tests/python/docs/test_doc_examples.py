@@ -19,7 +19,7 @@ import textwrap
 import pytest
 
 from devices import wait_until
-from doc_examples import REPO, all_blocks, load_manifest, masked
+from doc_examples import REPO, Block, all_blocks, load_manifest, masked
 
 BUILD_BIN = REPO / "build" / "bin"
 VENV_BIN = pathlib.Path(sys.executable).parent
@@ -218,19 +218,45 @@ def run_cpp_program(block, sandbox):
     assert result.returncode == 0, explain(block, result)
 
 
+# JSON blocks that show an event's payload, by file and the start of the
+# block: checked against the record-kind table the readers use.
+EVENT_PAYLOADS = {
+    ("docs/recording.md", '{"baud":115200'): "settings",
+}
+
+
 def check_json(block, sandbox):
     from wiretape import _core
-    for document in json.loads(f"[{block.text}]") if block.lang == "json" else \
-            [json.loads(line) for line in block.text.splitlines() if line.strip()]:
-        assert isinstance(document, dict), f"{block.id}: not a JSON object"
+    documents = json.loads(f"[{block.text}]") if block.lang == "json" else \
+        [json.loads(line) for line in block.text.splitlines() if line.strip()]
+    assert documents and all(isinstance(d, dict) for d in documents), \
+        f"{block.id}: not JSON objects"
+    for (file, start), kind in EVENT_PAYLOADS.items():
+        if block.file == file and block.first_line.startswith(start):
+            for document in documents:
+                written = json.loads(_core.event_payload(kind, document))
+                assert written == document, f"{block.id}: not a {kind} event as written"
 
 
 def check_yaml(block, sandbox):
     yaml = pytest.importorskip("yaml", reason="PyYAML (pip install pyyaml) checks YAML blocks")
-    assert yaml.safe_load(block.text) is not None, f"{block.id}: empty YAML"
+    document = yaml.safe_load(block.text)
+    assert document is not None, f"{block.id}: empty YAML"
+    # A CI job runs in this repository: the files its commands name exist.
+    missing = [path for path in re.findall(r"(?<![\w/.-])((?:tests|examples|docs|python)/[\w./-]+)",
+                                           block.text)
+               if not (REPO / path).exists()]
+    assert not missing, f"{block.id}: names files the repository does not have: {missing}"
 
 
 def check_ini(block, sandbox):
     parser = configparser.ConfigParser()
     parser.read_string(block.text, source=block.id)
     assert parser.sections(), f"{block.id}: no section"
+
+
+def test_a_console_block_is_held_to_the_output_it_shows(sandbox):
+    run_shell(Block("x.md", 1, "console", "$ echo 'took 1.25 s' \\\n    /tmp/a\ntook 0.5 s /tmp/b\n"),
+              sandbox)
+    with pytest.raises(AssertionError, match="x.md:1 failed"):
+        run_shell(Block("x.md", 1, "console", "$ echo hello\nbye\n"), sandbox)

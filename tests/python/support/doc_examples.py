@@ -59,7 +59,7 @@ def blocks_of(path: pathlib.Path):
             end += 1
         if end == len(lines):
             raise ValueError(f"{relative}:{index + 1}: code block never closed")
-        body = [line[indent:] if line[:indent].isspace() else line.lstrip()
+        body = [line[indent:] if not line[:indent].strip() else line.lstrip()
                 for line in lines[index + 1:end]]
         yield Block(relative, index + 1, opening["lang"].lower(), "\n".join(body) + "\n")
         index = end + 1
