@@ -15,6 +15,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import threading
 
 import pytest
 
@@ -42,6 +43,7 @@ SUBSTITUTIONS = [
     ("/dev/ttyACM0", "{scanner}"),
     ("/dev/ttyUSB0", "{scanner}"),
     ("--test test_id", "--test test_text"),
+    ("/tmp/", "{root}/"),
     # 5 cases of the same campaign instead of 20: seconds, not half a minute.
     ("budget=20,", "budget=5,"),
 ]
@@ -65,6 +67,9 @@ int main() {
 BODY
 }
 """
+
+# A command that serves until Ctrl-C: record or replay on a pty, no -- CMD.
+SERVICE = re.compile(r"^wiretape (record|replay) (?!.* -- ).*--pty (?P<pty>\S+)", re.M)
 
 SHELL_LANGS = {"sh", "bash", "console", "shell"}
 TIMEOUT_S = 60
@@ -137,6 +142,7 @@ class Sandbox:
     def substitute(self, text: str) -> str:
         for documented, here in SUBSTITUTIONS:
             text = text.replace(documented, here)
+        text = text.replace("{root}", str(self.root))
         if "{scanner}" in text:
             self.start_scanner()
             text = text.replace("{scanner}", str(self.scanner))
@@ -159,6 +165,39 @@ class Sandbox:
     def run(self, argv, stdin=None):
         return subprocess.run(argv, cwd=self.root, env=self.env, input=stdin,
                               capture_output=True, text=True, timeout=TIMEOUT_S)
+
+    def start_service(self, block, command, pty):
+        """Starts COMMAND and returns once it announces its pty to clients
+        (its link existing is not enough: the bridge may not watch it yet)."""
+        child = subprocess.Popen(["bash", "-c", command], cwd=self.root, env=self.env,
+                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                 text=True, start_new_session=True)
+        child.output, child.ready = [], threading.Event()
+
+        def read_output():
+            for line in child.stdout:
+                child.output.append(line)
+                if "clients use pty" in line:
+                    child.ready.set()
+
+        child.reader = threading.Thread(target=read_output, daemon=True)
+        child.reader.start()
+        wait_until(lambda: child.ready.is_set() or child.poll() is not None,
+                   deadline_s=TIMEOUT_S, what=f"{block.id}: the pty of {command!r}")
+        if not child.ready.is_set():
+            child.reader.join(TIMEOUT_S)
+            pytest.fail(f"{block.id}: {command!r} ended (exit {child.wait()}) without "
+                        f"serving {pty}:\n{''.join(child.output)}")
+        return child
+
+    def stop_service(self, block, child):
+        if child is None:
+            return
+        os.killpg(child.pid, signal.SIGINT)  # the Ctrl-C the docs ask for
+        child.wait(timeout=TIMEOUT_S)
+        child.reader.join(TIMEOUT_S)
+        assert child.returncode == 0, \
+            f"{block.id}: {child.args[-1]!r} ended with {child.returncode}:\n{''.join(child.output)}"
 
     def close(self):
         if self._simulator is not None:
@@ -196,14 +235,53 @@ def shell_script(text):
     return "\n".join(commands) + "\n", "\n".join(shown)
 
 
+def commands_of(script):
+    """The commands of a shell script, continuation lines joined, comments
+    and blank lines left out."""
+    commands, pending = [], ""
+    for line in script.splitlines():
+        pending += line
+        if pending.rstrip().endswith("\\"):
+            pending = pending.rstrip()[:-1] + " "
+            continue
+        if pending.strip() and not pending.lstrip().startswith("#"):
+            commands.append(pending.strip())
+        pending = ""
+    return commands
+
+
 def run_shell(block, sandbox):
     if "git " in block.text:
         sandbox.run(["git", "init", "-q"])
-    script, shown = shell_script(block.text)
-    result = sandbox.run(["bash", "-euo", "pipefail", "-c", sandbox.substitute(script)])
-    assert result.returncode == 0, explain(block, result)
-    if shown:
-        assert masked(shown) in masked(result.stdout + result.stderr), explain(block, result)
+    script, shown = shell_script(sandbox.substitute(block.text))
+    if not any(SERVICE.search(command) for command in commands_of(script)):
+        result = sandbox.run(["bash", "-euo", "pipefail", "-c", script])
+        assert result.returncode == 0, explain(block, result)
+        if shown:
+            assert masked(shown) in masked(result.stdout + result.stderr), explain(block, result)
+        return
+    # A block with a service (record or replay on a pty, until Ctrl-C): each
+    # command in turn; a service runs until the next one starts or the block
+    # ends, then gets its Ctrl-C. The driver the docs leave to the reader is
+    # hokuyo-scan on the service's pty, unless the block names a client.
+    commands, service = commands_of(script), None
+    try:
+        for index, command in enumerate(commands):
+            started = SERVICE.search(command)
+            if not started:
+                result = sandbox.run(["bash", "-euo", "pipefail", "-c", command])
+                assert result.returncode == 0, explain(block, result)
+                continue
+            sandbox.stop_service(block, service)
+            service = sandbox.start_service(block, command, pathlib.Path(started["pty"]))
+            pty = started["pty"]
+            if not any(pty in later for later in commands[index + 1:]
+                       if not SERVICE.search(later)):
+                result = sandbox.run(["hokuyo-scan", "--port",
+                                      f"type=serial,device={pty},timeout=10", "--json"])
+                assert result.returncode == 0, explain(block, result)
+    finally:
+        sandbox.stop_service(block, service)
 
 
 def run_python(block, sandbox):
