@@ -72,6 +72,9 @@ BODY
 # A command that serves until Ctrl-C: record or replay on a pty, no -- CMD.
 SERVICE = re.compile(r"^wiretape (record|replay) (?!.* -- ).*--pty (?P<pty>\S+)", re.M)
 
+# A block that is one option string (type=KIND,KEY=VALUE,...).
+OPTION_STRING = re.compile(r"type=\w+(,[\w.]+=[^,\s]*)*")
+
 SHELL_LANGS = {"sh", "bash", "console", "shell"}
 TIMEOUT_S = 60
 
@@ -111,6 +114,9 @@ def runner_for(block):
         return check_yaml
     if block.lang == "ini":
         return check_ini
+    if not block.lang and all(OPTION_STRING.fullmatch(line.strip())
+                              for line in block.text.strip().splitlines()):
+        return check_option_strings
     return None
 
 
@@ -322,6 +328,20 @@ def run_cpp_program(block, sandbox):
 EVENT_PAYLOADS = {
     ("docs/recording.md", '{"baud":115200'): "settings",
 }
+
+
+def check_option_strings(block, sandbox):
+    """Each line is an option string: a replay's checked as open_port would,
+    any other's keys known to its port type (the key table)."""
+    from wiretape import _core
+    for line in block.text.strip().splitlines():
+        options = dict(_core.parse_options(line))
+        if options["type"] == "replay":
+            _core.check_replay_options(line)
+            continue
+        known = {key.name for key in _core.option_keys() if options["type"] in key.port_types}
+        unknown = sorted(set(options) - known - {"type"})
+        assert not unknown, f"{block.id}: {line!r}: keys unknown to {options['type']}: {unknown}"
 
 
 def check_json(block, sandbox):
