@@ -128,6 +128,11 @@ def test_example(block, sandbox):
     runner(block, sandbox)
 
 
+def require_hokuyo_scan():
+    if not (BUILD_BIN / "hokuyo-scan").exists():
+        pytest.skip(f"hokuyo-scan is not built ({BUILD_BIN}): it plays the docs' driver")
+
+
 class Sandbox:
     def __init__(self, root: pathlib.Path):
         self.root = root
@@ -158,6 +163,7 @@ class Sandbox:
     def start_scanner(self):
         if self._simulator is not None:
             return
+        require_hokuyo_scan()
         self._simulator = subprocess.Popen(
             [sys.executable, str(REPO / "examples" / "hokuyo" / "sim"),
              "--model", "urg04lx", "--pty", str(self.scanner)],
@@ -261,6 +267,8 @@ def run_shell(block, sandbox):
     if "git " in block.text:
         sandbox.run(["git", "init", "-q"])
     script, shown = shell_script(sandbox.substitute(block.text))
+    if "./driver" in script or "hokuyo-scan" in script:
+        require_hokuyo_scan()
     if not any(SERVICE.search(command) for command in commands_of(script)):
         result = sandbox.run(["bash", "-euo", "pipefail", "-c", script])
         if shown:  # the output shown is the check: it may be an error's
@@ -285,6 +293,7 @@ def run_shell(block, sandbox):
             pty = started["pty"]
             if not any(pty in later for later in commands[index + 1:]
                        if not SERVICE.search(later)):
+                require_hokuyo_scan()
                 result = sandbox.run(["hokuyo-scan", "--port",
                                       f"type=serial,device={pty},timeout=10", "--json"])
                 assert result.returncode == 0, explain(block, result)
@@ -294,6 +303,8 @@ def run_shell(block, sandbox):
 
 def run_python(block, sandbox):
     code = sandbox.substitute(block.text)
+    if "./driver" in code:
+        require_hokuyo_scan()
     if re.search(r"^def test_", code, re.M):
         (sandbox.root / "test_doc_block.py").write_text(code)
         argv = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider",
