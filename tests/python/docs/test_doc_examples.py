@@ -87,6 +87,10 @@ STORIES = {
         ("docs/testing.md", "tests/recordings/test_scanner/test_reads_version.wtape"),
         ("docs/testing.md", "pytest                                    # replays: no device needed"),
     ],
+    "hokuyo.md: record your scanner for a bug report, then replay it": [
+        ("docs/hokuyo.md", "wiretape record --device type=serial,device=/dev/ttyACM0,baud=115200 \\"),
+        ("docs/hokuyo.md", 'hokuyo-scan --port "type=replay,file=my-urg.wtape" --json --scans 10'),
+    ],
 }
 
 # The reader's own driver in testing.md (from mydriver import Scanner).
