@@ -3,7 +3,12 @@ either runs here or is listed, with its reason, in examples.toml.
 
 Blocks run in a sandbox: a temporary working directory holding what the
 examples name (SANDBOX_FILES), with the devices they name played by the
-Hokuyo simulator on a pty (SUBSTITUTIONS). Both are declared once, here."""
+Hokuyo simulator on a pty and the reader's driver by hokuyo-scan
+(SUBSTITUTIONS, DRIVER, MYDRIVER). A `record`/`replay --pty` service runs
+until the block's next service or its end, then gets its Ctrl-C; blocks that
+only make sense in turn run as STORIES. All of it is declared once, here.
+
+A new block needs nothing when it runs; else one line in examples.toml."""
 
 import configparser
 import json
