@@ -219,9 +219,13 @@ class Sandbox:
                         PYTHONDONTWRITEBYTECODE="1", PYTHONPATH=str(root))
 
     def substitute(self, text: str) -> str:
-        for name in ("examples", "build"):  # only then: `pytest` would collect them
-            if f"{name}/" in text and not (self.root / name).exists():
-                (self.root / name).symlink_to(REPO / name)
+        # Only when named (`pytest` in the sandbox would collect them). The
+        # examples are a copy, so that no block writes into the repository.
+        if "examples/" in text and not (self.root / "examples").exists():
+            shutil.copytree(REPO / "examples", self.root / "examples",
+                            ignore=shutil.ignore_patterns("__pycache__"))
+        if "build/" in text and not (self.root / "build").exists():
+            (self.root / "build").symlink_to(REPO / "build")
         for documented, here in SUBSTITUTIONS:
             text = text.replace(documented, here)
         text = text.replace("{root}", str(self.root))
