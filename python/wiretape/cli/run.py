@@ -81,6 +81,8 @@ _SUMMARY = (
     ("device_losses", lambda n: "the device lost " + plural(n, "time")),
     ("device_reopens", lambda n: "reopened " + plural(n, "time")),
     ("bytes_dropped", lambda n: plural(n, "byte") + " dropped"),
+    ("datagrams_refused", lambda n: plural(n, "datagram") + " refused by the peer"),
+    ("datagrams_from_others", lambda n: plural(n, "datagram") + " from others dropped"),
 )
 
 

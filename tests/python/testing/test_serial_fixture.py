@@ -291,7 +291,9 @@ def test_recording_from_a_device_that_is_not_there_is_pyserials_error_naming_it(
                 Gadget()
     """)
     result = pytester.runpytest("--wiretape-record=once")
-    result.assert_outcomes(passed=1, warnings=1)
+    # (Counted by kind, not in all: an editable install adds pytest's own
+    # warning about its import hook to the inner run's count.)
+    result.assert_outcomes(passed=1)
     result.stdout.fnmatch_lines(["*test_absent passed while recording but opened no port "
                                  "from wiretape_serial: nothing was written to*"])
     assert not cassette_of(pytester, "test_absent").exists()
