@@ -64,8 +64,14 @@ def replay_with_command(args, out: Output) -> int:
 
     from .run import check_fault_places
 
+    from .channels import refuse_unnamed_on_several
+    from .endpoints import Endpoint
+
     pty, link = _command_client_side(args)
     require_input(args.file)
+    given = {dest: getattr(args, dest) for dest in ("pty", "redirect_path")
+             if getattr(args, dest) is not None}
+    refuse_unnamed_on_several(args, [Endpoint("", given)] if given else [])
     # A --fault past the session's end is a usage error before CMD starts.
     check_fault_places(args)
     if args.output:
