@@ -225,4 +225,8 @@ def single(args, endpoints: List[Endpoint]) -> None:
 
 
 def is_single(endpoints: List[Endpoint]) -> bool:
+    """The single-port form: at most one endpoint set, unnamed. Its one
+    client side is checked here (argparse's "not allowed with" of old)."""
+    if len(endpoints) == 1 and not endpoints[0].name:
+        _check_one_client_side(endpoints[0], required=False)
     return len(endpoints) <= 1 and all(not endpoint.name for endpoint in endpoints)
