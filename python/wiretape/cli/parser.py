@@ -218,6 +218,16 @@ _COMMAND_USAGE = {
 }
 
 
+# The form of several channels, a second usage line (docs/cli.md).
+_CHANNELS_USAGE = {
+    "record": "wiretape record -o FILE (--device NAME=OPTS (--pty NAME=PATH | "
+              "--listen NAME=HOST:PORT | --udp NAME=HOST:PORT [--peer NAME=HOST:PORT]))... "
+              "[--duration S] [--meta KEY=VALUE] [-q]",
+    "replay": "wiretape replay FILE (--pty NAME=PATH | --listen NAME=HOST:PORT | "
+              "--udp NAME=HOST:PORT [--peer NAME=HOST:PORT])... [replay keys...]",
+}
+
+
 def _finish_help(name: str, sub: argparse.ArgumentParser) -> None:
     """The usage line shows the CMD after ``--`` (argparse never sees it),
     and the note on --device is only where there is a --device."""
@@ -226,6 +236,8 @@ def _finish_help(name: str, sub: argparse.ArgumentParser) -> None:
     if name in _COMMAND_USAGE:
         usage = sub.format_usage().rstrip()
         sub.usage = usage[len("usage: "):] + " " + _COMMAND_USAGE[name]
+    if name in _CHANNELS_USAGE:
+        sub.usage += "\n       " + _CHANNELS_USAGE[name]
 
 
 class _Parser(argparse.ArgumentParser):
