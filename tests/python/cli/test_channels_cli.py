@@ -276,3 +276,75 @@ def test_record_of_two_tcp_devices_writes_one_file_of_two_channels(tmp_path):
             tx.setdefault(names[record.channel], b"")
             tx[names[record.channel]] += record.data
     assert tx == {"one": b"hello\n", "two": b"world\n"}
+
+
+# --- the outcome of several channels: the worst, naming its channel --------
+
+
+class FinishedBridge:
+    """A bridge that has ended with `outcome` (what the runner of several
+    channels reads of a BridgeHandle)."""
+
+    def __init__(self, outcome, message="", nothing_served=""):
+        self.pty_path = None
+        self.address = "127.0.0.1:1"
+        self.device_description = "replay"
+        self.stopped = False
+        self._result = type("Result", (), {
+            "outcome": outcome, "ok": outcome not in ("mismatch", "failed"),
+            "message": message, "nothing_served": nothing_served,
+            "stats": type("Stats", (), {"items": lambda self: [("records_written", 2)]})()})()
+
+    def wait(self, timeout=None):
+        return True
+
+    def stop(self):
+        self.stopped = True
+
+    def result(self):
+        return self._result
+
+
+def run_channels(*outcomes):
+    from wiretape.cli.channels import _run_channels
+    from wiretape.cli.console import Output
+    from wiretape.cli.endpoints import Endpoint
+
+    handles = [(Endpoint(name, {"listen": "127.0.0.1:0"}), bridge)
+               for name, bridge in outcomes]
+    return _run_channels(handles, Output(), "replay", lambda endpoint: "replaying f",
+                         must_serve=True)
+
+
+def test_channels_that_all_finished_well_exit_0(capsys):
+    assert run_channels(("gps", FinishedBridge("finished")),
+                        ("rtk", FinishedBridge("finished"))) == 0
+    err = capsys.readouterr().err
+    assert "wiretape replay: gps: finished: 2 records written" in err
+    assert "wiretape replay: rtk: finished" in err
+
+
+def test_a_mismatch_on_one_channel_fails_naming_the_channel():
+    from wiretape.cli.errors import CheckFailed
+
+    with pytest.raises(CheckFailed, match=r"^channel rtk: replay mismatch: byte 3"):
+        run_channels(("gps", FinishedBridge("finished")),
+                     ("rtk", FinishedBridge("mismatch", "byte 3 differs")))
+
+
+def test_the_worst_outcome_of_the_channels_is_the_commands():
+    from wiretape.cli.errors import RuntimeFailure
+
+    with pytest.raises(RuntimeFailure, match=r"^channel imu: device gone"):
+        run_channels(("gps", FinishedBridge("mismatch", "replay mismatch: x")),
+                     ("imu", FinishedBridge("failed", "device gone")),
+                     ("rtk", FinishedBridge("finished", nothing_served="no client")))
+
+
+def test_a_channel_that_served_nothing_fails_the_replay():
+    from wiretape.cli.errors import CheckFailed
+
+    with pytest.raises(CheckFailed, match=r"^channel rtk: no client connected"):
+        run_channels(("gps", FinishedBridge("finished")),
+                     ("rtk", FinishedBridge("finished",
+                                            nothing_served="no client connected before the end")))
