@@ -99,9 +99,10 @@ def record_channels(args, endpoints: List[Endpoint], out: Output) -> int:
     try:
         for endpoint in endpoints:
             sides = _client_sides(endpoint, args)
-            device = endpoint.device
             if endpoint.streams_to_peer:
                 device, sides["udp"] = stream_device(endpoint)
+            else:
+                device = endpoint.device or ""  # check_record saw it given
             handles.append((endpoint, bridge.record(
                 device, args.output, recorder=recorder, channel=endpoint.name,
                 duration=args.duration, quiet=args.quiet, **sides)))
