@@ -78,9 +78,8 @@ def _check_shared_flags(args, endpoints: Sequence[Endpoint]) -> None:
 
 def record_channels(args, endpoints: List[Endpoint], out: Output) -> int:
     """``wiretape record`` with named endpoints: every channel into one file."""
-    from .. import _core, bridge
+    from .. import _core
     from .. import Recorder  # type: ignore[attr-defined]
-    from ..session import refuse_same_file
     from .run import meta_pairs
 
     if args.command_argv is not None:
@@ -90,11 +89,18 @@ def record_channels(args, endpoints: List[Endpoint], out: Output) -> int:
         raise UsageError("--as NAME=PATH names the device path of a command: give the "
                          "command after --")
     _check_shared_flags(args, endpoints)
-    devices = [e.device for e in endpoints if e.device]
-    refuse_same_file(devices, [args.output])
     header = _core.SessionHeader.starting_now()
     header.metadata = meta_pairs(args.meta)
     recorder = Recorder(args.output, header)
+    try:
+        return _record_into(recorder, args, endpoints, out)
+    finally:
+        recorder.close()
+
+
+def _record_into(recorder, args, endpoints: List[Endpoint], out: Output) -> int:
+    from .. import bridge
+
     handles: List[Tuple[Endpoint, object]] = []
     try:
         for endpoint in endpoints:
