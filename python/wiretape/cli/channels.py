@@ -20,8 +20,6 @@ def channel_names(file: str) -> List[str]:
     from ..session import open_session
 
     with open_session(file) as reader:
-        if not hasattr(reader.header, "channel_list"):  # TEMPORARY: until part A is on main
-            return [""]
         return [channel.name for channel in reader.header.channel_list()]
 
 

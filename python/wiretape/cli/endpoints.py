@@ -34,20 +34,7 @@ CLIENT_SIDES = ("pty", "listen", "udp")
 def _name_problem(name: str) -> Optional[str]:
     from .. import _core
 
-    problem = getattr(_core, "channel_name_problem", None)
-    if problem is not None:
-        return problem(name)
-    # TEMPORARY until the lead's part A (channel_name_problem bound) is on
-    # main: the contract's rule, so the CLI can be tested before it lands.
-    import re
-
-    from ..options import option_keys
-
-    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_-]{0,63}", name):
-        return "not a channel name"
-    if name in {key.name for key in option_keys()}:
-        return "an option key"
-    return None
+    return _core.channel_name_problem(name)
 
 
 def split_name(value: str) -> Tuple[str, str]:

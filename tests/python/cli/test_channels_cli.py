@@ -16,8 +16,6 @@ from devices import TcpDevice, announced_address, interrupt, start_cli, wait_unt
 
 DEADLINE_S = 10.0
 
-has_channels = pytest.mark.skipif(not hasattr(_core, "Channel"),
-                                  reason="needs the header's channels (format 1.2, part A)")
 has_recorder = pytest.mark.skipif(not hasattr(wiretape, "Recorder"),
                                   reason="needs wiretape.Recorder (part B)")
 
@@ -152,7 +150,6 @@ def one_channel_session(path):
     return path
 
 
-@has_channels
 def test_replay_refuses_a_channel_the_file_does_not_have(capsys, tmp_path):
     session = two_channel_session(tmp_path / "two.wtape")
     err = usage_error(capsys, "replay", str(session), "--pty", "gps=/tmp/gps",
@@ -163,7 +160,6 @@ def test_replay_refuses_a_channel_the_file_does_not_have(capsys, tmp_path):
     assert "gps, rtk" in err
 
 
-@has_channels
 def test_replay_of_several_channels_refuses_an_unnamed_endpoint(capsys, tmp_path):
     session = two_channel_session(tmp_path / "two.wtape")
     err = usage_error(capsys, "replay", str(session), "--pty", str(tmp_path / "gps"))
@@ -171,7 +167,6 @@ def test_replay_of_several_channels_refuses_an_unnamed_endpoint(capsys, tmp_path
     assert "--pty" in err and "gps=" in err
 
 
-@has_channels
 def test_replay_refuses_a_named_endpoint_on_a_file_of_one_unnamed_channel(capsys, tmp_path):
     session = one_channel_session(tmp_path / "one.wtape")
     err = usage_error(capsys, "replay", str(session), "--pty", f"gps={tmp_path / 'gps'}")
@@ -179,7 +174,6 @@ def test_replay_refuses_a_named_endpoint_on_a_file_of_one_unnamed_channel(capsys
     assert "one unnamed channel" in err
 
 
-@has_channels
 def test_replay_refuses_two_endpoints_of_one_name(capsys, tmp_path):
     session = one_channel_session(tmp_path / "one.wtape")
     err = usage_error(capsys, "replay", str(session), "--pty", "gps=/tmp/a",
@@ -187,7 +181,6 @@ def test_replay_refuses_two_endpoints_of_one_name(capsys, tmp_path):
     assert "--listen is given twice for channel 'rtk'" in err
 
 
-@has_channels
 def test_replay_refuses_mixing_named_and_unnamed(capsys, tmp_path):
     session = one_channel_session(tmp_path / "one.wtape")
     err = usage_error(capsys, "replay", str(session), "--pty", "gps=/tmp/a",
