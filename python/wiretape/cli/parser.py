@@ -236,8 +236,8 @@ def _finish_help(name: str, sub: argparse.ArgumentParser) -> None:
     if name in _COMMAND_USAGE:
         usage = sub.format_usage().rstrip()
         sub.usage = usage[len("usage: "):] + " " + _COMMAND_USAGE[name]
-    if name in _CHANNELS_USAGE:
-        sub.usage += "\n       " + _CHANNELS_USAGE[name]
+    if name in _CHANNELS_USAGE:  # first, so that the usage still ends with CMD
+        sub.usage = _CHANNELS_USAGE[name] + "\n       " + sub.usage
 
 
 class _Parser(argparse.ArgumentParser):
