@@ -341,3 +341,29 @@ def test_a_channel_that_served_nothing_fails_the_replay():
         run_channels(("gps", FinishedBridge("finished")),
                      ("rtk", FinishedBridge("finished",
                                             nothing_served="no client connected before the end")))
+
+
+def test_the_unnamed_form_records_a_file_of_one_unnamed_channel(tmp_path):
+    """The single-port form is today's: no `channels` in the header, every
+    record on channel 0."""
+    output = tmp_path / "one.wtape"
+    with TcpDevice() as device:
+        child = start_cli("record", "--device", device.options, "--listen", "127.0.0.1:0",
+                          "-o", str(output))
+        try:
+            with socket.create_connection(announced_address(child, "tcp"),
+                                          timeout=DEADLINE_S) as client:
+                client.sendall(b"ping\n")
+                answer = b""
+                while len(answer) < 5:
+                    answer += client.recv(64)
+        finally:
+            status, _, err = interrupt(child)
+    assert status == 0, err
+    assert answer == b"PING\n"
+    assert "wiretape record: stopped" in err
+    with wiretape.SessionReader(str(output)) as reader:
+        assert reader.header.channels == []
+        assert [c.name for c in reader.header.channel_list()] == [""]
+        assert {record.channel for record in reader} == {0}
+        assert '"channels"' not in reader.header.metadata_json
