@@ -445,21 +445,21 @@ class Bench:
             f"{figures['records']} records, first paint in "
             + ", ".join(f"{ms:.0f}" for ms in figures["paints_ms"])
             + " ms (three loads, median kept)")
-    def channels(self) -> None:
+    def record_channels(self) -> None:
         """One `wiretape record` of 4 TCP channels vs 4 single-port records
         of the same streams: CPU per MB while the traffic flows."""
         size_mib = 16 if self.quick else 64
-        need_disk(self.work, 2 * 4 * size_mib * MiB, "record of 4 channels")
-        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "channels_bench.py"),
+        need_disk(self.work, 2 * 4 * size_mib * MiB, "record_channels")
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "record_channels_bench.py"),
                                str(size_mib), "3" if self.quick else "5"],
                               capture_output=True, text=True, timeout=1800,
                               env=dict(self.env, TMPDIR=str(self.work)))
         if proc.returncode != 0:
-            raise Skip("channels_bench.py: "
+            raise Skip("record_channels_bench.py: "
                        + (proc.stderr.strip().splitlines() or ["failed"])[-1])
         figures = json.loads(proc.stdout.strip().splitlines()[-1])
         self.results["record_4_channels_vs_4_single_cpu_ratio"] = round(figures["ratio"], 3)
-        self.notes["channels"] = (
+        self.notes["record_channels"] = (
             f"{figures['MB']:.0f} MB a round; 4 channels {figures['multi_ms_per_MB']:.2f} ms "
             f"CPU/MB, 4 single ports {figures['single_ms_per_MB']:.2f} ms CPU/MB (medians; "
             f"ratio {self.spread(figures['ratios'])})")
@@ -563,7 +563,7 @@ class Bench:
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
            "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "speed", "view", "show",
-           "shim", "channels"]
+           "shim", "record_channels"]
 
 
 def machine_note() -> dict:

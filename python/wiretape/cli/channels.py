@@ -77,7 +77,7 @@ def _check_shared_flags(args, endpoints: Sequence[Endpoint]) -> None:
 def record_channels(args, endpoints: List[Endpoint], out: Output) -> int:
     """``wiretape record`` with named endpoints: every channel into one file."""
     from .. import _core
-    from .. import Recorder  # type: ignore[attr-defined]
+    from .._core import Recorder  # type: ignore[attr-defined]
     from .run import meta_pairs
 
     if args.command_argv is not None:

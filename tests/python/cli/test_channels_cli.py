@@ -16,7 +16,7 @@ from devices import TcpDevice, announced_address, interrupt, start_cli, wait_unt
 
 DEADLINE_S = 10.0
 
-has_recorder = pytest.mark.skipif(not hasattr(wiretape, "Recorder"),
+has_recorder = pytest.mark.skipif(not hasattr(_core, "Recorder"),
                                   reason="needs wiretape.Recorder (part B)")
 
 

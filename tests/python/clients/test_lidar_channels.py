@@ -19,7 +19,7 @@ DEADLINE_S = 20.0
 SCANS = 10
 
 pytestmark = pytest.mark.skipif(
-    not hasattr(wiretape, "Recorder") or not hasattr(_core, "Channel"),
+    not hasattr(_core, "Recorder") or not hasattr(_core, "Channel"),
     reason="needs wiretape.Recorder and channels (issue 25 parts A, B)")
 
 

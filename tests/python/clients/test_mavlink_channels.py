@@ -25,7 +25,7 @@ GIMBAL = 154  # MAV_COMP_ID_GIMBAL
 PEERS = str(Path(__file__).resolve().parents[1] / "support" / "mavlink_peers.py")
 
 pytestmark = pytest.mark.skipif(
-    not hasattr(wiretape, "Recorder") or not hasattr(_core, "Channel"),
+    not hasattr(_core, "Recorder") or not hasattr(_core, "Channel"),
     reason="needs wiretape.Recorder and channels (issue 25 parts A, B)")
 
 

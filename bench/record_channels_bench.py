@@ -8,7 +8,7 @@ interpreter import cost nothing), 4 channels / 4 single ports.
 Prints one JSON line: {"ratio": median, "ratios": [...], "multi_ms_per_MB":
 ..., "single_ms_per_MB": ..., "MB": ...}.
 
-Usage: python channels_bench.py MIB_PER_CHANNEL ROUNDS
+Usage: python record_channels_bench.py MIB_PER_CHANNEL ROUNDS
 """
 
 from __future__ import annotations
