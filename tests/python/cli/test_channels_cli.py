@@ -367,3 +367,11 @@ def test_the_unnamed_form_records_a_file_of_one_unnamed_channel(tmp_path):
         assert [c.name for c in reader.header.channel_list()] == [""]
         assert {record.channel for record in reader} == {0}
         assert '"channels"' not in reader.header.metadata_json
+
+
+def test_replay_of_several_channels_with_a_command_and_no_names_is_refused(capsys, tmp_path):
+    session = two_channel_session(tmp_path / "two.wtape")
+    status = cli.main(["replay", str(session), "--", "true"])
+    err = capsys.readouterr().err
+    assert status == 2, err
+    assert "has 2 channels (gps, rtk)" in err
