@@ -54,11 +54,24 @@ def _jsonl():
     return ("".join(json.dumps(line) + "\n" for line in lines)).encode()
 
 
+def _jsonl_of_channels():
+    """A session of two named channels (DESIGN §19): records name theirs."""
+    lines = [{"header": {"port_type": "serial", "channels": [
+                 {"id": 0, "name": "gps", "port_type": "serial"},
+                 {"id": 1, "name": "rtk", "port_type": "tcp",
+                  "port_options": "type=tcp,host=127.0.0.1,port=2101"}]}},
+             {"t_ns": 0, "kind": "tx", "data_hex": "49440a", "channel": "gps"},
+             {"t_ns": 500, "kind": "tx", "data_hex": "474554", "channel": "rtk"},
+             {"t_ns": 1000, "kind": "rx", "data_hex": "4f4b0a", "channel": "gps"},
+             {"t_ns": 2000, "kind": "rx", "data_hex": "d30013", "channel": "rtk"}]
+    return ("".join(json.dumps(line) + "\n" for line in lines)).encode()
+
+
 EXCHANGES = [("tx", b"ID;"), ("rx", b"OK;"), ("tx", b"GET;"), ("rx", b"42;")]
 INPUTS = {
     "umockdev": [("talk", b"d 0 /dev/ttyUSB0\nw 5 ID^J\nr 10 OK ^`^[x\nf 5 -\nw 3 GET^@\nr 1 42\n")],
     "reserial": [("two-tests", _reserial())],
-    "jsonl": [("session", _jsonl())],
+    "jsonl": [("session", _jsonl()), ("channels", _jsonl_of_channels())],
     "pcap": [("tcp.pcap", pcap(tcp_conversation(EXCHANGES))),
              ("tcp.pcapng", pcapng(tcp_conversation(EXCHANGES)))],
 }
