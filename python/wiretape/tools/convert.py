@@ -4,13 +4,16 @@ Formats:
   ``wiretape``  a ``.wtape`` file (docs/session-format.md);
   ``flexiport`` flexiport's two-file log: ``name.log`` stands for
                 ``name.logr`` + ``name.logw`` (read: both of its formats;
-                written: the new format, events dropped);
+                written: the new format, events dropped; one port, so a
+                session of several channels is refused);
   ``jsonl``     one JSON object per line: first ``{"header": {...}}``, then
                 one record per line as ``wiretape show --format jsonl``
-                prints it (``t_ns``, ``kind``, ``data_hex``, ``event``...);
+                prints it (``t_ns``, ``kind``, ``data_hex``, ``event``...;
+                in a session of named channels ``channel``, the name);
   ``pcapng``, ``mcap``  exports for Wireshark and Foxglove (written only);
   ``pcap``      a packet capture (pcap or pcapng; read only): one TCP
-                conversation or UDP flow becomes a session (pcap_import).
+                conversation or UDP flow becomes a session, or several
+                named ones its channels (pcap_import).
   ``reserial``, ``umockdev``  pytest-reserial cassettes (one test of one:
                 ``test``) and umockdev tty scripts (read only; importers.py).
 
