@@ -514,13 +514,15 @@ def _start_utc(path: str, conversation: Conversation, start_ns: int) -> str:
 
 
 def _import_conversation(path: str, conversation: Conversation, device: Tuple[str, int],
-                         allow_gaps: bool, start_ns: int
+                         allow_gaps: bool, start_ns: int, channel: Optional[str] = None
                          ) -> Tuple[_core.SessionHeader, List[Tuple[int, int, str, bytes]]]:
     """The header of one conversation's session and its records
     (t_ns, order, kind, data) in time order, on a clock whose zero is
     `start_ns` (epoch ns): its first packet's, or the first of several
-    conversations imported into one session."""
+    conversations imported into one session, the `channel` named in the
+    errors."""
     first = conversation.packets[0]
+    label = conversation.name if channel is None else f"{conversation.name} (channel {channel})"
     start_utc = _start_utc(path, conversation, start_ns)
     device_host, device_port = device
     header = _core.SessionHeader(
@@ -537,7 +539,7 @@ def _import_conversation(path: str, conversation: Conversation, device: Tuple[st
     try:
         header.to_json()  # what the session writer would refuse, refused here
     except _core.OptionError as error:
-        raise CaptureError(f"{path}: {conversation.name}: no session can start as its first "
+        raise CaptureError(f"{path}: {label}: no session can start as its first "
                            f"packet ({first.number}) says: {error}", 0) from None
     records: List[Tuple[int, int, str, bytes]] = []  # (t_ns, order, kind, data)
 
@@ -566,7 +568,7 @@ def _import_conversation(path: str, conversation: Conversation, device: Tuple[st
 
     def gap(epoch_ns: int, found: CaptureGap) -> None:
         if not allow_gaps:
-            raise CaptureError(f"{path}: {found.describe(conversation.name)}: the capture lost "
+            raise CaptureError(f"{path}: {found.describe(label)}: the capture lost "
                                f"them, and an import never invents bytes; --allow-gaps imports "
                                f"the rest with a capture_gap event there", 0)
         add(epoch_ns, "capture_gap", _core.event_payload(
@@ -685,7 +687,8 @@ def read_capture_channels(path: str, streams: Sequence[Tuple[str, str]],
     channels = []
     merged: List[Tuple[int, int, int, str, bytes]] = []  # (t_ns, channel, order, kind, data)
     for channel_id, (name, _, conversation, device) in enumerate(chosen):
-        part, records = _import_conversation(path, conversation, device, allow_gaps, start_ns)
+        part, records = _import_conversation(path, conversation, device, allow_gaps, start_ns,
+                                             channel=name)
         channels.append(_core.Channel(id=channel_id, name=name,
                                       port_options=part.port_options,
                                       port_type=part.port_type, capture=part.capture,
@@ -705,5 +708,9 @@ def read_capture_channels(path: str, streams: Sequence[Tuple[str, str]],
         device_address=first.device_address,
     )
     header.channels = channels
+    try:
+        header.to_json()  # what the session writer would refuse, refused here
+    except _core.OptionError as error:
+        raise CaptureError(f"{path}: no session can hold these channels: {error}", 0) from None
     merged.sort()
     return header, [(kind, t_ns, data, channel) for t_ns, channel, _, kind, data in merged]

@@ -207,3 +207,35 @@ def test_bad_named_streams_are_errors_naming_the_flag(capsys, tmp_path, multi_pc
     assert not out.exists()
     if code == 1 and "its conversations" in expected:
         assert "tcp:0" in err and "tcp:1" in err and "udp:0" in err
+
+
+def test_a_channel_whose_capture_lost_bytes_is_refused_or_marked_as_a_gap(tmp_path,
+                                                                         multi_pcap):
+    from captures import pcap, tcp_conversation, udp_frame
+
+    exchanges = [("tx", b"ID;"), ("rx", b"OK;"), ("tx", b"GET;"), ("rx", b"42;")]
+    sensor, driver = ("10.0.0.3", 2368), ("10.0.0.1", 50000)
+    frames = [udp_frame(sensor, driver, b"SCAN1")]
+    frames += tcp_conversation(exchanges, lose=[2])  # GET; lost
+    frames += [udp_frame(sensor, driver, b"SCAN2")]
+    capture = tmp_path / "lost.pcap"
+    capture.write_bytes(pcap(frames))
+    out = tmp_path / "run.wtape"
+    streams = ["cmd=tcp:0", "scan=udp:0"]
+    with pytest.raises(wiretape.SessionError) as error:
+        convert(capture, out, from_format="pcap", stream=streams)
+    assert ("tcp:0 (channel cmd): 4 bytes missing from the client to device (tx) stream at "
+            "offset 3") in str(error.value)
+    assert not out.exists()
+
+    convert(capture, out, from_format="pcap", stream=streams, allow_gaps=True)
+    records = records_with_channels(out)
+    cmd = [(k, d) for _, k, d, c in records if c == 0]
+    assert [d for k, d in cmd if k in ("rx", "tx")] == [b"ID;", b"OK;", b"42;"]
+    assert [json.loads(d) for k, d in cmd if k == "capture_gap"] == \
+        [{"direction": "tx", "offset": 3, "length": 4}]
+    assert [d for _, k, d, c in records if c == 1 and k == "rx"] == [b"SCAN1", b"SCAN2"]
+    # On the capture's clock: the first datagram is time 0, the SYN 1 ms later.
+    assert records[0] == (0, "rx", b"SCAN1", 1)
+    assert records[1][1:2] + records[1][3:] == ("client_connect", 0)
+    assert records[1][0] == 1_000_000
