@@ -734,7 +734,9 @@ def _convert(src: str, dst: str, source_format: str, target_format: str, progres
             header, records, raise_source_damage = _records_of(src, source_format, choice)
             _refuse_several_channels(src, header)
             written = _write_wiretape(session, header, records, report)
-            _core.export_flexiport(session, prefix, flexiport_format)
+            exported = _core.export_flexiport(session, prefix, flexiport_format)
+            if source_format == "wiretape":
+                written = exported  # what the same file gives when not a stream
             raise_source_damage()
         else:
             if source_format == "wiretape":

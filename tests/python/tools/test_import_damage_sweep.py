@@ -115,6 +115,29 @@ def test_damaged_imports_convert_honestly_or_fail_cleanly(tmp_path, fmt, name, d
     assert outcomes["refused"] > 0
 
 
+def test_a_damaged_capture_of_named_streams_converts_honestly_or_fails_cleanly(tmp_path):
+    """Several conversations into channels (--stream NAME=FILTER) keep the
+    contract of one: no byte that is not in the capture."""
+    if shutil.which("tshark") is None:
+        pytest.skip("SKIPPED LOUDLY: tshark is not installed")
+    from captures import udp_frame
+
+    sensor, driver = ("10.0.0.3", 2368), ("10.0.0.1", 50000)
+    frames = [udp_frame(sensor, driver, b"SCAN1")] + tcp_conversation(EXCHANGES) + \
+        [udp_frame(sensor, driver, b"SCAN2")]
+    data = pcap(frames)
+    check = _checker()
+    options = {"stream": ["cmd=tcp:0", "scan=udp:0"]}
+    assert check.check_input("pcap", data, str(tmp_path), **options) == "ok"
+    outcomes = {"ok": 0, "refused": 0}
+    for what, variant in damaged(data, 0 if FULL else PCAP_SAMPLES):
+        try:
+            outcomes[check.check_input("pcap", variant, str(tmp_path), **options)] += 1
+        except AssertionError as error:
+            raise AssertionError(f"pcap of named streams, {what}: {error}") from error
+    assert outcomes["refused"] > 0
+
+
 CORPUS = [(fmt, path) for fmt in ("pcap", "umockdev")
           for path in sorted((ROOT / "fuzz" / "corpus" / f"{fmt}_import_fuzz").iterdir())]
 
