@@ -9,6 +9,10 @@ the packets of every conversation (``-T fields``), a second follows the one
 chosen (``-z follow,tcp,yaml,N``), which gives each reassembled chunk with
 its side, its packet number and its time. Nothing here reassembles.
 
+Several conversations, each chosen by a named ``--stream NAME=FILTER``,
+become the channels of one session on the capture's clock
+(read_capture_channels; DESIGN §19).
+
 Which side is the device (docs/cli.md, "convert --from pcap"):
 ``--device-addr IP:PORT`` when given; otherwise for TCP the side that
 answered the SYN (the listening side), and when the handshake is not in the
