@@ -5,10 +5,9 @@ from __future__ import annotations
 
 import base64
 import json
-import os
 from typing import Any, Dict
 
-from .._core import SessionError, __version__
+from .._core import __version__
 from ..session import (DIRECTIONS, SessionPath, escape_bytes, header_fields, open_session,
                        raise_damage, refuse_same_file, session_files)
 from ._common import event_json, replacing, start_epoch_ns
@@ -128,9 +127,6 @@ def write_mcap(src: SessionPath, dst: SessionPath) -> Dict[str, int]:
             message = _message(t_ns, kind, data)
             counts[kind if kind in DIRECTIONS else "events"] += 1
             if header.get("channels"):
-                if record.channel not in by_channel:
-                    raise SessionError(f"{os.fspath(src)}: a record of channel "
-                                       f"{record.channel}, which the header does not list", 0)
                 name, mcap_channel = by_channel[record.channel]
                 message["channel"] = name
             else:

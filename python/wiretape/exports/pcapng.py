@@ -13,11 +13,10 @@ are made up around the recorded bytes (network.py).
 from __future__ import annotations
 
 import json
-import os
 import struct
 from typing import Any, Dict, Iterable, Optional, Tuple
 
-from .._core import SessionError, __version__
+from .._core import __version__
 from ..session import (SessionPath, header_fields, open_session, raise_damage,
                        refuse_same_file, session_files)
 from ._common import event_json, replacing, start_epoch_ns
@@ -160,7 +159,7 @@ def _event_packet(interface: int, stamp: int, kind: str, data: bytes) -> bytes:
 
 
 def _write_records_by_channel(out, reader, header: Dict[str, Any], start_ns: int,
-                              counts: Dict[str, int], src: SessionPath) -> None:
+                              counts: Dict[str, int]) -> None:
     """A session of named channels (DESIGN §19): one interface per channel,
     named after it, carrying its rx (inbound) and tx (outbound) and its
     events; a TCP or UDP channel's interface carries IP packets, which an
@@ -186,9 +185,6 @@ def _write_records_by_channel(out, reader, header: Dict[str, Any], start_ns: int
     for record in reader:
         t_ns, kind, data = record.t_ns, record.kind, record.data
         stamp = start_ns + t_ns
-        if record.channel not in interface_of:
-            raise SessionError(f"{os.fspath(src)}: a record of channel {record.channel}, which the header does "
-                               f"not list (it lists {len(interface_of)})", 0)
         interface, network, event_interface = interface_of[record.channel]
         if network is not None:
             for to_device, packet in network.packets(kind, data):
@@ -218,7 +214,7 @@ def write_pcapng(src: SessionPath, dst: SessionPath) -> Dict[str, int]:
     with replacing(dst) as out:
         out.write(_section_header(json.dumps(header, sort_keys=True, default=str)))
         if header.get("channels"):
-            _write_records_by_channel(out, reader, header, start_ns, counts, src)
+            _write_records_by_channel(out, reader, header, start_ns, counts)
         else:
             _write_records_by_direction(out, reader, header, start_ns, counts)
     raise_damage(reader)  # after the rename: the export keeps what came before

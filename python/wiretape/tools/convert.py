@@ -34,7 +34,7 @@ import shlex
 import sys
 import tempfile
 import time
-from typing import Dict, Iterator, List, NamedTuple, Optional, Sequence, Tuple, Union
+from typing import Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 from .. import _core, exports
 from ..exports import jsonl
@@ -438,21 +438,11 @@ def _write_wiretape(dst: str, header: _core.SessionHeader, records, progress: _P
 def _write_jsonl(dst: str, header: _core.SessionHeader, records, progress: _Progress) -> int:
     def counted():
         for kind, t_ns, data, channel in records:
-            record = _core.Record(t_ns, kind, data)  # the kind as the writer names it
-            yield _Record(record.t_ns, record.kind, record.data, channel)
+            yield _core.Record(t_ns, kind, data, channel)
             progress.step(len(data))
 
     jsonl.write_records(dst, header.to_dict(), counted())
     return progress.records
-
-
-class _Record(NamedTuple):
-    """A record as jsonl.write_records reads one (_core.Record's members)."""
-
-    t_ns: int
-    kind: str
-    data: bytes
-    channel: int
 
 
 @dataclasses.dataclass(frozen=True)
