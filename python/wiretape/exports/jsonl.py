@@ -13,6 +13,7 @@ from typing import Any, Dict, Iterable, Mapping, Optional
 
 from .. import _core
 from ..session import SessionPath, event_of, open_output
+from ._common import exported_header
 
 __all__ = ["write_records", "record_to_json", "channel_names"]
 
@@ -54,6 +55,7 @@ def write_records(dst: SessionPath, header: Dict[str, Any],
     """Writes `header` and `records` to `dst`; returns the number of records.
     The file is written as it goes: what came before a failure stays."""
     count = 0
+    header = exported_header(header)
     names = channel_names(header)
     with open_output(dst, text=True) as out:
         out.write(json_line({"header": header}))

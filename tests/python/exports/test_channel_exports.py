@@ -75,7 +75,7 @@ def test_tshark_reads_each_channel_on_its_interface(session, tmp_path):
     out = tmp_path / "run.pcapng"
     exports.write_pcapng(session, out)
     serial = tshark_rows(out, ["frame.p2p_dir", "data.data"],
-                         "-Y", 'frame.interface_name == "gps" && data')
+                         "-Y", 'frame.interface_name == "gps" && frame.p2p_dir')
     assert [(row[0], bytes.fromhex(row[1])) for row in serial] == \
         [("1" if k == "rx" else "0", d) for _, k, d in of_channel(GPS)]
     tcp = tshark_rows(out, ["ip.src", "tcp.srcport", "tcp.payload"],
