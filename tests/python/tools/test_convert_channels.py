@@ -49,6 +49,10 @@ def test_jsonl_round_trip_keeps_every_record_its_channel_and_the_channel_list(tm
     assert wiretape.SessionReader(str(back)).header.to_dict() == original
     # One channel read alone, as replay reads it.
     assert records_with_channels(back, 1) == [r for r in RECORDS if r[3] == 1]
+    # And .wtape to .wtape: a copy with its channels.
+    copy = tmp_path / "copy.wtape"
+    convert(source, copy)
+    assert records_with_channels(copy) == RECORDS and channel_list(copy) == channel_list(source)
 
 
 def test_a_session_without_channels_gives_the_jsonl_of_before(tmp_path, session_file):
