@@ -7,7 +7,8 @@ The C++ core (``wiretape._core``) does the work; this package re-exports it:
 * the exceptions :class:`OptionError`, :class:`PortError`, :class:`PortClosed`,
   :class:`ReplayMismatch`, :class:`SessionError`;
 * session files: :class:`SessionReader`, :class:`SessionWriter`, :class:`SessionHeader`,
-  :class:`Record`, and the flexiport export :func:`export_flexiport`.
+  :class:`Record`, and the flexiport export :func:`export_flexiport`;
+* :class:`Recorder` -- several ports recorded into one session file.
 
 The commands that read session files are in :mod:`wiretape.tools`, the
 exports in :mod:`wiretape.exports`, the pytest plugin in
@@ -23,6 +24,7 @@ from ._core import (
     PortClosed,
     PortError,
     Record,
+    Recorder,
     ReplayMismatch,
     SessionError,
     SessionHeader,
@@ -47,6 +49,7 @@ __all__ = [
     "SessionReader",
     "SessionWriter",
     "Record",
+    "Recorder",
     "export_flexiport",
 ]
 

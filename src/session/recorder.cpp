@@ -111,7 +111,8 @@ std::unique_ptr<Port> Recorder::open_port(std::string_view options) {
 }
 
 std::unique_ptr<Port> Recorder::open_port(Options options) {
-  const std::optional<std::string> name = options.take("name");
+  const std::optional<std::string> name = options.peek("name");
+  options.erase("name");
   if (!name) {
     throw OptionError("name", "missing option 'name': a recorder's port records into a "
                               "channel of " + path() +
