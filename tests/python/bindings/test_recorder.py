@@ -66,12 +66,12 @@ def test_a_name_taken_twice_is_refused(tmp_path):
 
 def test_header_members_and_room_are_given_at_construction(tmp_path):
     path = tmp_path / "meta.wtape"
-    with wiretape.Recorder(path, user_metadata={"robot": "r2"}, header_room=64) as recorder:
+    with wiretape.Recorder(path, metadata={"robot": "r2"}, header_room=170) as recorder:
         recorder.open_port("name=a,type=loopback")
         with pytest.raises(wiretape.SessionError, match="fit 1 channel"):
             recorder.open_port("name=b,type=loopback")
     header, _ = read_all(path)
-    assert header.user_metadata == {"robot": "r2"}
+    assert header.metadata == {"robot": "r2"}
     assert [c.name for c in header.channels] == ["a"]
 
 
