@@ -77,6 +77,16 @@ void DeviceSide::open_session_file() {
     if (entry.key == "device") channel.device_identity = read_device_identity(entry.value);
   }
   if (options_.recorder) {
+    // A network device's address, for the exports (docs/session-format.md).
+    std::string host, port;
+    for (const auto& entry : parse_options(options_.device)) {
+      if (entry.key == "host") host = entry.value;
+      if (entry.key == "port") port = entry.value;
+    }
+    if (!host.empty() && !port.empty()) {
+      channel.device_address =
+          (host.find(':') != std::string::npos ? "[" + host + "]" : host) + ":" + port;
+    }
     recording_ = options_.recorder->add_channel(channel);
     owns_file_ = false;
     record(RecordKind::open,

@@ -124,6 +124,13 @@ std::unique_ptr<Port> Recorder::open_port(Options options) {
                              "into " + path() + " (channel \"" + *name +
                              "\"); open it with wiretape::open_port to record it alone");
   }
+  // flexiport's logging types record into their own file= (log= by another name).
+  if (const auto type = options.peek("type");
+      type && (*type == "seriallog" || *type == "tcplog" || *type == "udplog")) {
+    throw OptionError("type", "type=" + *type + " records into its own file, and a "
+                              "recorder's port records into " + path() + ": use type=" +
+                              type->substr(0, type->size() - 3));
+  }
   reserve_name(*file_, *name);
   try {
     // The channel's options as the port was opened with them, without the

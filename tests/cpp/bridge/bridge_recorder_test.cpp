@@ -134,4 +134,35 @@ TEST(BridgeRecorder, AChannelNameTakenTwiceFailsTheSecondBridgeAtStart) {
   EXPECT_TRUE(first.result().ok()) << first.result().message;
 }
 
+TEST(BridgeRecorder, ANetworkDeviceChannelHoldsTheDeviceAddress) {
+  wiretape::test::TempDir dir;
+  const std::string path = dir.file("net.wtape");
+  // The device: a loopback behind another bridge's TCP listener.
+  BridgeOptions device_options;
+  device_options.device = "type=loopback";
+  device_options.client_side = BridgeClientSide::tcp;
+  device_options.quiet = true;
+  Bridge device(device_options);
+  device.start();
+  const std::string address = device.listen_address();
+  const std::string port = address.substr(address.rfind(':') + 1);
+
+  auto recorder = std::make_shared<Recorder>(path);
+  Bridge proxy(recording_bridge(recorder, "net", "type=tcp,host=127.0.0.1,port=" + port));
+  proxy.start();
+  echo_through(proxy, "ping");
+  proxy.stop();
+  ASSERT_TRUE(proxy.wait(kDeadline));
+  EXPECT_TRUE(proxy.result().ok()) << proxy.result().message;
+  device.stop();
+  ASSERT_TRUE(device.wait(kDeadline));
+  recorder->close();
+
+  SessionReader reader(path);
+  const auto channel = reader.header().find_channel("net");
+  ASSERT_TRUE(channel);
+  EXPECT_EQ(channel->device_address, "127.0.0.1:" + port);
+  EXPECT_EQ(channel->port_type, "tcp");
+}
+
 }  // namespace

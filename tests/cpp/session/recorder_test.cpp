@@ -246,6 +246,8 @@ TEST(Recorder, PortOptionsAreCheckedNamingTheKey) {
   expect_refused("name=9x,type=loopback", "name", "9x");
   expect_refused("name=file,type=loopback", "name", "file");
   expect_refused("name=gps,type=loopback,log=" + dir.file("other.wtape"), "log", "records into");
+  expect_refused("name=gps,type=seriallog,device=/dev/null,file=" + dir.file("other.wtape"),
+                 "type", "type=serial");
   auto gps = recorder.open_port("name=gps,type=loopback");
   expect_refused("name=gps,type=loopback", "name", "already has a channel named \"gps\"");
   // A port that fails to open takes no channel: its name stays free.
