@@ -112,3 +112,41 @@ def test_bridges_record_into_channels_of_one_recorder(tmp_path):
     header, records = read_all(path)
     assert [(c.name, c.capture) for c in header.channels] == [("cmd", "wire"), ("data", "wire")]
     assert [(r.channel, r.data) for r in records if r.kind == "tx"] == [(0, b"cmd"), (1, b"data")]
+
+
+GOLDEN = __import__("pathlib").Path(__file__).resolve().parents[3] / "tests" / "data" / "golden"
+
+
+def golden_channels():
+    import json
+
+    lines = [json.loads(line) for line in (GOLDEN / "v1_2_channels.jsonl").read_text().splitlines()]
+    return lines[0], [line for line in lines[1:] if "t_ns" in line]
+
+
+def test_golden_file_of_two_channels_reads_as_its_jsonl_says():
+    first, records = golden_channels()
+    header, read = read_all(GOLDEN / "v1_2_channels.wtape")
+    want = first["header"]["channels"]
+    assert [(c.id, c.name, c.port_options, c.port_type, c.capture, c.device_address)
+            for c in header.channels] == [
+        (c["id"], c["name"], c["port_options"], c["port_type"], c["capture"],
+         c.get("device_address", "")) for c in want]
+    assert header.port_options == want[0]["port_options"]
+    assert header.metadata_json.endswith("}")  # the header room's spaces are not in it
+    assert [(r.t_ns, r.kind, r.data.hex(), r.channel) for r in read] == [
+        (r["t_ns"], r["kind"], r["data_hex"], r.get("channel", 0)) for r in records]
+
+
+def test_writer_recreates_the_golden_file_of_two_channels(tmp_path):
+    first, records = golden_channels()
+    header = dict(first["header"])
+    channels = header.pop("channels")
+    path = tmp_path / "out.wtape"
+    with _core.SessionWriter(path, header_room=first["header_room"], **header) as writer:
+        for channel in channels:
+            writer.add_channel(_core.Channel(**channel))
+        for r in records:
+            writer.write(r["kind"], r["t_ns"], bytes.fromhex(r["data_hex"]),
+                         channel=r.get("channel", 0))
+    assert path.read_bytes() == (GOLDEN / "v1_2_channels.wtape").read_bytes()
