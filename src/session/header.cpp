@@ -302,19 +302,6 @@ void parse_header_json(const std::string& text, const std::string& path,
       read.*member.value = identity->string_member(member.name).value_or("");
     }
   }
-  header.channels.clear();
-  if (const json::Value* channels = root.find("channels")) {
-    for (const json::Value& item : channels->items) {
-      Channel channel;
-      if (const json::Value* id = item.find("id")) channel.id = static_cast<std::uint16_t>(id->number);
-      channel.name = item.string_member("name").value_or("");
-      channel.port_options = item.string_member("port_options").value_or("");
-      channel.port_type = item.string_member("port_type").value_or("");
-      channel.capture = item.string_member("capture").value_or("client") == "wire" ? Capture::wire : Capture::client;
-      channel.device_address = item.string_member("device_address").value_or("");
-      header.channels.push_back(channel);
-    }
-  }
   header.user_metadata.clear();
   if (const json::Value* metadata = root.find(field::metadata);
       metadata != nullptr && metadata->is_object()) {
