@@ -82,20 +82,6 @@ struct DeviceIdentity {
   bool operator!=(const DeviceIdentity& other) const { return !(*this == other); }
 };
 
-// One port of a session of several ports (format 1.2, DESIGN §19).
-struct Channel {
-  std::uint16_t id = 0;
-  std::string name;  // "" only for the one channel of a file without `channels`
-  std::string port_options;
-  std::string port_type;
-  Capture capture = Capture::client;
-  std::string device_address;
-  std::optional<DeviceIdentity> device_identity;
-};
-
-// nullopt: a good channel name.
-std::optional<std::string> channel_name_problem(std::string_view name);
-
 // A session's header: what was recorded, where, when and how. The one type
 // for reading (SessionReader::header) and writing (SessionWriter): what a
 // writer is given is what the file says, nothing is filled in behind it.
@@ -126,10 +112,6 @@ struct SessionHeader {
   // has it (none for a pty, a network device, an import).
   std::optional<DeviceIdentity> device_identity;
   std::map<std::string, std::string> user_metadata;  // free user metadata (--meta)
-  // Format 1.2: the session's channels; empty: one unnamed channel 0.
-  std::vector<Channel> channels;
-  std::vector<Channel> channel_list() const;
-  std::optional<Channel> find_channel(std::string_view name) const;
 
   // A header for a session that starts now on this machine: start_utc is
   // now and host this machine's name (what recorders write).
@@ -148,8 +130,7 @@ class SessionReader {
   // denied) or is not a regular file (a FIFO or a device is refused at once,
   // never waited on); SessionError (with the byte offset) when it is not a
   // usable session: empty, wrong magic, newer major version, bad header.
-  explicit SessionReader(const std::string& path,
-                         std::optional<std::uint16_t> channel = std::nullopt);
+  explicit SessionReader(const std::string& path);
   ~SessionReader();
   SessionReader(SessionReader&&) noexcept;
   SessionReader& operator=(SessionReader&&) noexcept;

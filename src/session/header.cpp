@@ -126,17 +126,8 @@ bool recorded_by_wiretape(const SessionHeader& header) {
 
 }  // namespace
 
-std::string header_json(const SessionHeader& given) {
+std::string header_json(const SessionHeader& header) {
   namespace field = header_field;
-  SessionHeader header = given;
-  if (!header.channels.empty()) {
-    const Channel& first = header.channels.front();
-    header.port_options = first.port_options;
-    header.port_type = first.port_type;
-    header.capture = first.capture;
-    header.device_address = first.device_address;
-    header.device_identity = first.device_identity;
-  }
   // What is written here must read back: the reader refuses a header that
   // is not UTF-8 or has a start time out of range.
   require_utf8(field::port_options, header.port_options);
@@ -210,20 +201,6 @@ std::string header_json(const SessionHeader& given) {
       if (!value.empty()) identity.add(member.name, value);
     }
     object.add_raw(field::device_identity, identity.str());
-  }
-  if (!header.channels.empty()) {
-    std::string list = "[";
-    for (const Channel& channel : header.channels) {
-      if (list.size() > 1) list += ",";
-      json::ObjectWriter entry;
-      entry.add("id", std::uint64_t{channel.id}).add("name", channel.name);
-      if (!channel.port_options.empty()) entry.add("port_options", channel.port_options);
-      if (!channel.port_type.empty()) entry.add("port_type", channel.port_type);
-      entry.add("capture", capture_name(channel.capture));
-      if (!channel.device_address.empty()) entry.add("device_address", channel.device_address);
-      list += entry.str();
-    }
-    object.add_raw("channels", list + "]");
   }
   return object.str();
 }
@@ -360,40 +337,6 @@ SessionHeader SessionHeader::starting_now() {
   header.start_utc = detail::utc_now_iso8601();
   header.host = detail::host_name();
   return header;
-}
-
-std::vector<Channel> SessionHeader::channel_list() const {
-  if (!channels.empty()) return channels;
-  Channel only;
-  only.port_options = port_options;
-  only.port_type = port_type;
-  only.capture = capture;
-  only.device_address = device_address;
-  only.device_identity = device_identity;
-  return {only};
-}
-
-std::optional<Channel> SessionHeader::find_channel(std::string_view name) const {
-  for (const Channel& channel : channel_list()) {
-    if (channel.name == name) return channel;
-  }
-  return std::nullopt;
-}
-
-std::optional<std::string> channel_name_problem(std::string_view name) {
-  if (name.empty()) return std::string("a channel name cannot be empty");
-  if (name.size() > 64) return std::string("a channel name has at most 64 characters");
-  auto letter = [](char c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_'; };
-  if (!letter(name[0])) return "channel name \"" + std::string(name) + "\" does not start with a letter or _";
-  for (char c : name) {
-    if (!letter(c) && !(c >= '0' && c <= '9') && c != '-') {
-      return "channel name \"" + std::string(name) + "\" has a character other than A-Z a-z 0-9 _ -";
-    }
-  }
-  for (const char* key : {"type", "file", "device", "log", "name", "channel", "host", "port"}) {
-    if (name == key) return "\"" + std::string(name) + "\" is an option key, not a channel name";
-  }
-  return std::nullopt;
 }
 
 std::string SessionHeader::to_json() const { return detail::header_json(*this); }

@@ -133,7 +133,8 @@ class WtapeSource final : public RecordSource {
       if (find_record_kind(static_cast<RecordKind>(kind_byte)) == nullptr) {
         continue;  // a newer kind: skipped
       }
-      record.channel = get_u16le(head + 6);
+      // Another port of a session of several ports (reserved): skipped.
+      if (get_u16le(head + 6) != 0) continue;
       record.kind = static_cast<RecordKind>(kind_byte);
       record.t_ns = get_u64le(head + 8);
       if (const auto problem =
@@ -256,7 +257,7 @@ struct SessionReader::Impl {
   std::unique_ptr<detail::RecordSource> source;
 };
 
-SessionReader::SessionReader(const std::string& path, std::optional<std::uint16_t>) : impl_(std::make_unique<Impl>()) {
+SessionReader::SessionReader(const std::string& path) : impl_(std::make_unique<Impl>()) {
   impl_->path = path;
   // The commands that read sessions read pipes and FIFOs too (DESIGN §6).
   impl_->source = detail::open_session_source(path, impl_->header, detail::Streams::read);
