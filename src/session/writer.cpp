@@ -367,10 +367,6 @@ std::uint16_t SessionWriter::add_channel(Channel channel) {
                                     channel.name + "\"; channel names are unique");
     }
   }
-  if (header.channels.size() > 0xFFFF) {
-    throw SessionError(impl_->path + ": a session holds at most 65536 channels",
-                       detail::file_header_fixed_size);
-  }
   {
     std::lock_guard<std::mutex> lock(impl_->mutex);
     if (impl_->failure) throw *impl_->failure;
