@@ -45,8 +45,5 @@ std::unique_ptr<Port> record_port(std::unique_ptr<Port> inner,
 // file of its own).
 std::unique_ptr<Port> record_port_into(std::unique_ptr<Port> inner, RecordingChannel channel,
                                        RecordingTarget target);
-// Records an event (JSON payload) into `port` if it is a recorder made by
-// record_port(); a replay's injected faults reach its log= this way.
-void record_port_event(Port& port, RecordKind kind, std::string_view payload);
 
 }  // namespace wiretape::detail

@@ -378,8 +378,4 @@ std::unique_ptr<Port> record_port(std::unique_ptr<Port> inner, RecordingConfig c
                                           /*opens_the_clock=*/true});
 }
 
-void record_port_event(Port& port, RecordKind kind, std::string_view payload) {
-  if (auto* recorder = dynamic_cast<RecordingPort*>(&port)) recorder->record_event(kind, payload);
-}
-
 }  // namespace wiretape::detail
