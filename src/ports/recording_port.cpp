@@ -1,5 +1,5 @@
-// The recording port (`log=FILE`, and each port of a Recorder): a decorator that forwards every call to
-// the port under it unchanged and records what crossed it into a session
+// The recording port (`log=FILE`, and each port of a Recorder): a decorator
+// that forwards every call to the port under it unchanged and records what crossed it into a session
 // file (capture=client): each successful read's bytes as one rx when the
 // read returned (a compound read is one read, however many reads of the port
 // under it it took), each write's bytes as tx stamped when the write call entered,

@@ -279,7 +279,8 @@ SessionWriter::SessionWriter(const std::string& path, const SessionHeader& heade
   impl_->header.version_minor = detail::session_version_minor;
   impl_->header.metadata_json = json;
   if (impl_->header.source_format.empty()) impl_->header.source_format = "wiretape";
-  if (header_room > detail::max_header_json - std::min<std::size_t>(json.size(), detail::max_header_json)) {
+  const std::size_t json_size = std::min<std::size_t>(json.size(), detail::max_header_json);
+  if (header_room > detail::max_header_json - json_size) {
     throw OptionError("header_room", "a header room of " + std::to_string(header_room) +
                                          " bytes makes the header longer than the " +
                                          std::to_string(detail::max_header_json) +
@@ -396,13 +397,13 @@ std::uint16_t SessionWriter::add_channel(Channel channel) {
   const std::size_t at = detail::file_header_fixed_size;
   std::size_t written = 0;
   while (written < bytes.size() - at) {
-    const ssize_t n = ::pwrite(impl_->fd, bytes.data() + at + written, bytes.size() - at - written,
-                               static_cast<off_t>(at + written));
+    const ssize_t n = ::pwrite(impl_->fd, bytes.data() + at + written,
+                               bytes.size() - at - written, static_cast<off_t>(at + written));
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {
       const int error = n < 0 ? errno : ENOSPC;
-      throw PortError(error, impl_->path + ": cannot rewrite the session header to add channel \"" +
-                                 channel.name + "\"");
+      throw PortError(error, impl_->path + ": cannot rewrite the session header to add "
+                                 "channel \"" + channel.name + "\"");
     }
     written += static_cast<std::size_t>(n);
   }
