@@ -107,8 +107,9 @@ struct BridgeOptions {
   // Sessions of several ports (DESIGN §19): record into the channel named
   // `channel` (capture=wire, the device's options, identity and address in
   // its entry) of this recorder's file, on its clock, instead of opening
-  // `output` (which must then be ""). The file is the recorder's: the bridge
-  // neither closes nor removes it.
+  // `output` (which must then be "", and `metadata` empty: it belongs in the
+  // recorder's header; the recorder's flush policy applies, not flush_ms).
+  // The file is the recorder's: the bridge neither closes nor removes it.
   std::shared_ptr<Recorder> recorder;
   std::string channel;
 

@@ -390,6 +390,11 @@ Bridge::Bridge(BridgeOptions options) : impl_(std::make_unique<Impl>(std::move(o
     throw OptionError("output", "the bridge records either into its own file (output) or into "
                                 "a recorder's channel (recorder), not both");
   }
+  if (o.recorder && !o.metadata.empty()) {
+    throw OptionError("metadata", "metadata goes into the header of the recorder's file (" +
+                                      o.recorder->path() + "), which the recorder was made "
+                                      "with, not into one of its channels");
+  }
   if (o.recorder) {
     if (const auto problem = channel_name_problem(o.channel)) {
       throw OptionError("channel", "the bridge's channel in " + o.recorder->path() + ": " +

@@ -120,6 +120,9 @@ TEST(BridgeRecorder, OptionsAreCheckedNamingTheKey) {
   expect_key(recording_bridge(recorder, "", "type=loopback"), "channel");
   expect_key(recording_bridge(recorder, "not a name", "type=loopback"), "channel");
   expect_key(recording_bridge(nullptr, "gps", "type=loopback"), "channel");
+  BridgeOptions with_metadata = recording_bridge(recorder, "gps", "type=loopback");
+  with_metadata.metadata = {{"robot", "r2"}};
+  expect_key(with_metadata, "metadata");
 }
 
 TEST(BridgeRecorder, AChannelNameTakenTwiceFailsTheSecondBridgeAtStart) {
