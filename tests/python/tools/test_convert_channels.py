@@ -243,3 +243,26 @@ def test_a_channel_whose_capture_lost_bytes_is_refused_or_marked_as_a_gap(tmp_pa
     assert records[0] == (0, "rx", b"SCAN1", 1)
     assert records[1][1:2] + records[1][3:] == ("client_connect", 0)
     assert records[1][0] == 1_000_000
+
+
+def test_a_recorders_session_round_trips_through_jsonl_and_exports_by_channel(tmp_path):
+    path = tmp_path / "run.wtape"
+    recorder = wiretape.Recorder(str(path))
+    ports = [recorder.open_port(f"name={name},type=loopback") for name in ("cmd", "data")]
+    for port, payload in zip(ports, (b"START\n", b"\x00\x01scan")):
+        port.write(payload)
+        assert port.read(len(payload)) == payload
+    for port in ports:
+        port.close()
+    recorder.close()
+
+    convert(path, tmp_path / "run.jsonl")
+    convert(tmp_path / "run.jsonl", tmp_path / "back.wtape")
+    assert records_with_channels(tmp_path / "back.wtape") == records_with_channels(path)
+    assert channel_list(tmp_path / "back.wtape") == channel_list(path)
+    assert {record[3] for record in records_with_channels(path)} == {0, 1}
+    convert(path, tmp_path / "run.mcap")
+    from mcap.reader import make_reader
+    with open(tmp_path / "run.mcap", "rb") as stream:
+        topics = {c.topic for c in make_reader(stream).get_summary().channels.values()}
+    assert topics == {"/wiretape/cmd", "/wiretape/data"}
