@@ -83,15 +83,39 @@ $(VENV)/.wheel-tools: $(VENV)/.deps
 	$(PYTHON) -m pip install -q $(WHEEL_TOOLS)
 	touch $@
 
+#
+# One wheel per CPython of WHEEL_PYTHONS: 3.10 and 3.11 get their own
+# (cp310, cp311); 3.12 builds against the stable ABI (cp312-abi3), which
+# serves 3.12, 3.13 and later (nanobind's stable ABI needs 3.12). Each
+# version builds in its own venv and tree ($(BUILD)/wheel-X.Y); a version
+# that is not installed (python3.X on PATH, or pyenv's) is skipped, loudly.
+WHEEL_PYTHONS ?= 3.10 3.11 3.12
+SMOKE_PYTHONS ?= 3.10 3.11 3.12 3.13
+
 wheel: $(VENV)/.deps $(VENV)/.wheel-tools
 	rm -rf dist/raw && rm -f dist/wiretape-*.whl
-	$(PYTHON) -m pip wheel . --no-build-isolation --no-deps -w dist/raw \
-	  -C build-dir=$(abspath $(BUILD))/wheel
+	set -e; for version in $(WHEEL_PYTHONS); do \
+	  if ! python=$$(tests/find_python.sh $$version); then \
+	    echo "wheel: SKIPPED Python $$version: not installed (python$$version or pyenv)" >&2; \
+	    continue; fi; \
+	  venv=$(BUILD)/wheel-venv-$$version; \
+	  test -x $$venv/bin/python || $$python -m venv $$venv; \
+	  $$venv/bin/python -m pip install -q "scikit-build-core>=0.10" "nanobind==3.1.0"; \
+	  $$venv/bin/python -m pip wheel . --no-build-isolation --no-deps -w dist/raw \
+	    -C build-dir=$(abspath $(BUILD))/wheel-$$version; \
+	done
 	$(VENV)/bin/auditwheel repair -w dist dist/raw/wiretape-*.whl
 	rm -rf dist/raw
 
+# Each Python of SMOKE_PYTHONS installs the wheel pip picks for it, in a
+# fresh venv away from the checkout.
 wheel-smoke: wheel
-	tests/wheel_smoke.sh dist
+	set -e; for version in $(SMOKE_PYTHONS); do \
+	  if ! python=$$(tests/find_python.sh $$version); then \
+	    echo "wheel-smoke: SKIPPED Python $$version: not installed (python$$version or pyenv)" >&2; \
+	    continue; fi; \
+	  tests/wheel_smoke.sh dist $$python; \
+	done
 
 # Benchmarks, sanitizers, fuzzing and soak (docs/benchmarks.md).
 BENCH_TOOLS   := clang-14 libclang-rt-14-dev socat libbenchmark-dev tshark
