@@ -21,7 +21,7 @@ $(VENV)/.deps: pyproject.toml
 	$(PYTHON) -m pip install -q --upgrade pip
 	$(PYTHON) -m pip install -q "scikit-build-core>=0.10" "nanobind==3.1.0" \
 	  "pyserial>=3.5" "rich>=13" "mcap>=1.1" "pytest>=7" "hypothesis>=6" "mypy==2.4.1" \
-	  "pymodbus>=3" "pytest-reserial>=0.4" "pymavlink>=2.4" "pytest-xdist>=3"
+	  "pymodbus>=3" "pytest-reserial>=0.4" "pymavlink>=2.4" "pytest-xdist>=3" "pyyaml>=6"
 	touch $@
 
 $(BUILD)/build.ninja: $(VENV)/.deps CMakeLists.txt
@@ -121,6 +121,7 @@ wheel-smoke: wheel
 BENCH_TOOLS   := clang-14 libclang-rt-14-dev socat libbenchmark-dev tshark
 FUZZ_SECONDS  ?= 300
 SOAK_MINUTES  ?= 30
+SOAK_GPSD_REPEAT ?= 100
 
 # README's benchmark table is rewritten from the run's results, never by hand.
 bench: python
@@ -151,9 +152,13 @@ fuzz: python $(VENV)/.atheris
 	cmake --build $(BUILD)/fuzz
 	bench/fuzz.sh $(BUILD)/fuzz $(FUZZ_SECONDS) $(PYTHON)
 
-# Record+replay loop for SOAK_MINUTES; fails if RSS or open fds grow.
+# Record+replay loop for SOAK_MINUTES; fails if RSS or open fds grow. Then
+# SOAK_GPSD_REPEAT sequence replays to gpsd, each of which must deliver every
+# recorded fix (DESIGN.md section 12; make test runs one).
 soak: python
 	$(PYTHON) bench/soak.py --minutes $(SOAK_MINUTES) --build $(BUILD) --work $(BUILD)/soak
+	WIRETAPE_GPSD_REPEAT=$(SOAK_GPSD_REPEAT) $(PYTHON) -m pytest -q \
+	  tests/python/clients/test_gpsd.py -k test_gpsd_gets_every_recorded_fix_whatever_it_flushed
 
 clean:
 	rm -rf $(BUILD)

@@ -66,17 +66,36 @@ TARGETS = {
     "reserial_replay_s": (None, "info", "s, 10,000 exchanges, pytest-reserial"),
     "wiretape_pyserial_replay_s": (None, "info", "s, same, wiretape:// URL"),
     "wiretape_vs_reserial_time_ratio": (0.5, "lower", "wiretape time / reserial"),
+    # --- show (issue 26): 10 MB shown with colour and Δt, vs show's loop before ---
+    "show_sensor_s": (0.5, "lower", "show, colour, 10 MB of 13 B requests + 1 KiB replies"),
+    "show_bulk_s": (0.5, "lower", "show, colour, 10 MB of 4 KiB rx records"),
+    "show_vs_anchor_ratio": (None, "info", "show now / show before issue 26, sensor session"),
     # --- fault campaigns (docs/faults.md) ---
     "faults_campaign_vs_loop_ratio": (1.3, "lower", "campaign / same faulty replays in a loop"),
     # Info: faulty runs also wait for what the driver does about each fault.
     "faults_campaign_vs_clean_ratio": (None, "info", "campaign / as many clean replays"),
     "faults_jobs2_speedup": (1.6, "higher", "campaign --jobs 1 time / --jobs 2 time"),
     "faults_inert_vs_clean_ratio": (1.3, "lower", "replays with faults= firing none / clean"),
+    # --- --speed K (docs/replay.md, "Faster than real time") ---
+    "speed_campaign_speedup": (5.0, "higher", "Hokuyo campaign --speed 1 time / --speed 10"),
+    "speed_campaign_same_outcomes": (1, "higher", "1: --speed 10 gives --speed 1's outcomes"),
     "request_vs_sequence_time_ratio": (1.5, "lower",
                                        "match=request / match=sequence, 100,000 exchanges"),
     "modbus_reordering_vs_sequence_time_ratio": (2.0, "lower",
                                                  "profile=modbus-tcp reordering / sequence"),
     "request_rss_MB_1GiB": (64, "lower", "MiB peak RSS, match=request, 1 GiB session"),
+    # --- wiretape view (docs/view.md) ---
+    "view_first_paint_ms_100k": (2000, "lower", "ms to first paint, 100,000 records, Chromium"),
+    "view_write_s_100k": (None, "info", "s to write that page"),
+    "view_page_MB_100k": (None, "info", "MB, that page"),
+    # --- the --as shim (docs/replay.md, "Serial lines under --as") ---
+    "shim_redirected_write_added_ns": (2000, "lower",
+                                       "ns a 1-byte write to the redirected pty gains"),
+    "shim_redirected_read_added_ns": (2000, "lower",
+                                      "ns a 1-byte read of the redirected pty gains"),
+    "shim_unrelated_call_added_ns": (100, "lower",
+                                     "ns an unrelated write/dup/close gains (worst)"),
+    "shim_redirected_write_ratio": (None, "info", "with the shim / without, redirected write"),
 }
 
 # Google Benchmark counters that are figures of the table: benchmark name ->
@@ -285,7 +304,7 @@ class Bench:
         latency = self.pair_ratios(figures, "one_way_p99_us")
         self.results[f"{prefix}_vs_socat_cpu_ratio"] = round(statistics.median(cpu), 3)
         self.results[f"{prefix}_vs_socat_latency_p99_ratio"] = round(statistics.median(latency), 3)
-        median = {kind: {key: statistics.median(f[key] for f in runs)
+        best = {kind: {key: statistics.median(f[key] for f in runs)
                          for key in ("bytes_per_s", "cpu_s_per_MB", "one_way_p50_us",
                                      "one_way_p99_us")}
                   for kind, runs in figures.items()}
@@ -349,6 +368,31 @@ class Bench:
             f"exchange loops only; whole pytest runs took {result['wiretape_wall']:.2f} s "
             f"(wiretape) and {result['reserial_wall']:.2f} s (reserial)")
 
+    # --- --speed K: the Hokuyo campaign on a scaled clock ----------------
+    def speed(self) -> None:
+        """The Hokuyo campaign at --speed 10 against --speed 1 (hokuyo-scan's
+        own 2 s timeouts, causal timing): time and outcomes."""
+        program = self.build / "bin" / "hokuyo-scan"
+        if not program.exists():
+            raise Skip(f"{program} not built")
+        runs = 40 if self.quick else 200
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "speed_bench.py"),
+                               str(program), str(runs)], capture_output=True, text=True,
+                              timeout=3600, env=self.env)
+        if proc.returncode != 0:
+            raise Skip("speed_bench.py: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        self.results["speed_campaign_speedup"] = round(
+            figures["speed1_s"] / figures["speed10_s"], 3)
+        self.results["speed_campaign_same_outcomes"] = int(figures["same_outcomes"])
+        differing = "; ".join(f"{a[0]}@{a[1]}: {a[2]} at K=1, {b[2]} at K=10"
+                              for a, b in figures["differing"])
+        self.notes["speed"] = (
+            f"{figures['runs']} runs over {figures['sessions']} recordings: --speed 1 "
+            f"{figures['speed1_s']:.1f} s, --speed 10 {figures['speed10_s']:.1f} s"
+            + (f"; outcomes differ: {differing}" if differing else "; same outcomes")
+            + f"; {os.cpu_count()} CPUs, shared")
+
     # --- fault campaigns ---------------------------------------------------
     def faults(self) -> None:
         """200 runs of hokuyo-scan against faulty replays: the campaign vs the
@@ -379,6 +423,94 @@ class Bench:
             f"faulty runs wait for the driver's timeouts, clean ones do not; "
             f"{os.cpu_count()} CPUs, shared")
 
+    # --- wiretape view ------------------------------------------------------
+    def view(self) -> None:
+        """100,000 records as a view page, opened in headless Chromium."""
+        if not (shutil.which("chromium") or shutil.which("chromium-browser")):
+            raise Skip("chromium is not installed")
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "view_bench.py"),
+                               "100000"], capture_output=True, text=True, timeout=1800,
+                              env=self.env)
+        if proc.returncode != 0:
+            raise Skip("view_bench.py: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        self.results["view_first_paint_ms_100k"] = figures["first_paint_ms"]
+        self.results["view_write_s_100k"] = figures["write_s"]
+        self.results["view_page_MB_100k"] = figures["page_MB"]
+        self.notes["view"] = (
+            f"{figures['records']} records, first paint in "
+            + ", ".join(f"{ms:.0f}" for ms in figures["paints_ms"])
+            + " ms (three loads, median kept)")
+    # --- the --as shim -------------------------------------------------------
+    def shim(self) -> None:
+        """The shim's added cost per call: bench/shim_bench.c run with and
+        without it, interleaved, each on a pty of its own; the best of the
+        rounds (a shared machine only ever adds time)."""
+        program = self.build / "bin" / "wiretape_shim_bench"
+        if not program.exists():
+            raise Skip(f"{program} not built")
+        located = subprocess.run([str(self.python), "-c",
+                                  "from wiretape import redirect; print(redirect.shim_path())"],
+                                 capture_output=True, text=True, env=self.env)
+        if located.returncode != 0:
+            raise Skip("the shim: " + (located.stderr.strip().splitlines() or ["missing"])[-1])
+        shim = located.stdout.strip()
+        calls = 20_000 if self.quick else 200_000
+        runs: dict[str, list[dict]] = {"with": [], "without": []}
+        for _ in range(3 if self.quick else 7):
+            for kind in ("without", "with"):
+                master, terminal = os.openpty()
+                try:
+                    env = dict(self.env)
+                    path = os.ttyname(terminal)
+                    if kind == "with":
+                        env.update(LD_PRELOAD=shim, WIRETAPE_REDIRECT_FROM="/dev/ttyBENCH0",
+                                   WIRETAPE_REDIRECT_TO=path)
+                        env.pop("WIRETAPE_LINE_CHANNEL", None)
+                        path = "/dev/ttyBENCH0"
+                    proc = subprocess.run([str(program), path, str(master), str(calls)],
+                                          capture_output=True, text=True, timeout=600,
+                                          env=env, pass_fds=(master,))
+                finally:
+                    os.close(master)
+                    os.close(terminal)
+                if proc.returncode != 0:
+                    raise Skip("shim_bench: " + (proc.stderr.strip() or "failed"))
+                runs[kind].append(json.loads(proc.stdout))
+        best = {kind: {key: min(run[key] for run in runs[kind])
+                         for key in runs[kind][0]} for kind in runs}
+        added = {key: best["with"][key] - best["without"][key] for key in best["with"]}
+        self.results["shim_redirected_write_added_ns"] = round(added["redirected_write"], 1)
+        self.results["shim_redirected_read_added_ns"] = round(added["redirected_read"], 1)
+        self.results["shim_unrelated_call_added_ns"] = round(
+            max(added["unrelated_write"], added["unrelated_close"] / 2), 1)
+        self.results["shim_redirected_write_ratio"] = round(
+            best["with"]["redirected_write"] / best["without"]["redirected_write"], 3)
+        self.notes["shim"] = ", ".join(
+            f"{key} {best['without'][key]:.0f} -> {best['with'][key]:.0f} ns"
+            for key in best["with"]) + (" (unrelated_close is a dup and a close: two "
+                                          "wrapped calls)")
+
+    # --- show ----------------------------------------------------------------
+    def show(self) -> None:
+        """`wiretape show` of 10 MB sessions with colour (bench/show_bench.py),
+        one run each, against show's loop before issue 26."""
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "show_bench.py"),
+                               str(self.work)], capture_output=True, text=True,
+                              timeout=600, env=self.env)
+        if proc.returncode != 0:
+            raise Skip("show_bench.py: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        self.results["show_sensor_s"] = figures["sensor_show_s"]
+        self.results["show_bulk_s"] = figures["bulk_show_s"]
+        self.results["show_vs_anchor_ratio"] = round(
+            figures["sensor_show_s"] / figures["sensor_anchor_s"], 3)
+        self.notes["show"] = (
+            f"one run each: sensor session ({figures['sensor_records']} records) "
+            f"{figures['sensor_show_s']:.3f} s, before issue 26 {figures['sensor_anchor_s']:.3f} s; "
+            f"bulk ({figures['bulk_records']} records) {figures['bulk_show_s']:.3f} s, before "
+            f"{figures['bulk_anchor_s']:.3f} s")
+
     def gbench(self) -> None:
         """The Google Benchmark program: the per-call view, and the request
         mode figures (GBENCH_FIGURES)."""
@@ -407,7 +539,8 @@ class Bench:
 
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
-           "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults"]
+           "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "speed", "view", "show",
+           "shim"]
 
 
 def machine_note() -> dict:
@@ -433,7 +566,7 @@ def machine_note() -> dict:
 def build_programs(build: Path) -> None:
     subprocess.run(["cmake", "-S", str(ROOT), "-B", str(build), "-DWIRETAPE_BENCH=ON"],
                    check=True, stdout=subprocess.DEVNULL)
-    targets = ["wiretape_bench_tool", "wiretape_relay_bench"]
+    targets = ["wiretape_bench_tool", "wiretape_relay_bench", "wiretape_shim_bench"]
     # wiretape_bench exists only when Google Benchmark was found.
     listing = subprocess.run(["cmake", "--build", str(build), "--target", "help"],
                              capture_output=True, text=True).stdout

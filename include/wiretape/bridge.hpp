@@ -93,6 +93,12 @@ struct BridgeOptions {
   // refused with a message. Each may hold buffer_limit bytes the device sent.
   std::size_t max_monitors = 16;
 
+  // pty: a Unix socket to create at this path ("" for none), where the
+  // `--as` shim (WIRETAPE_LINE_CHANNEL) tells what its program does to the
+  // serial lines a pty lacks: DTR/RTS, break, custom baud; and asks for the
+  // device's CTS/DSR/RI/CD (DESIGN.md section 20). The path must not exist.
+  std::string line_channel;
+
   // Session file to record into ("" records nothing), with free metadata.
   std::string output;
   std::map<std::string, std::string> metadata;

@@ -59,6 +59,29 @@ enum class Capture {
   wire,    // proxy: every byte, stamped on arrival
 };
 
+// A serial device's identity as its machine knew it when it was recorded
+// (DESIGN §20, "Identity"; read from sysfs and the /dev/serial/by-id links):
+// what a driver that looks for its device by USB ids finds. Empty: not known
+// (a device that is not on USB has no ids, a device udev made no by-id link
+// for has no by_id).
+struct DeviceIdentity {
+  std::string kernel_name;  // ttyUSB0, ttyACM0
+  // The kernel's bus of the tty's device: "usb" (CDC ACM), "usb-serial"
+  // (FTDI, CP210x, ...: a converter driver), "pnp", "platform", ...
+  std::string subsystem;
+  std::string vendor_id;   // USB idVendor as sysfs writes it: 4 hex digits, 2341
+  std::string product_id;  // USB idProduct: 0043
+  std::string serial_number;
+  std::string manufacturer;
+  std::string product;
+  std::string interface;  // the USB interface's own name, when it has one
+  std::string location;   // the USB interface's sysfs name: 1-1.2:1.0
+  std::string by_id;      // /dev/serial/by-id/usb-..., when udev made one
+
+  bool operator==(const DeviceIdentity& other) const;
+  bool operator!=(const DeviceIdentity& other) const { return !(*this == other); }
+};
+
 // A session's header: what was recorded, where, when and how. The one type
 // for reading (SessionReader::header) and writing (SessionWriter): what a
 // writer is given is what the file says, nothing is filled in behind it.
@@ -85,6 +108,9 @@ struct SessionHeader {
   std::map<std::string, std::string> source_details;
   std::string device_address;  // host:port of a network device, when known
   std::vector<std::string> edits;  // what `wiretape edit` changed, in order
+  // Format 1.2: the serial device's identity, when `record` opened one that
+  // has it (none for a pty, a network device, an import).
+  std::optional<DeviceIdentity> device_identity;
   std::map<std::string, std::string> user_metadata;  // free user metadata (--meta)
 
   // A header for a session that starts now on this machine: start_utc is

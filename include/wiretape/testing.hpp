@@ -34,6 +34,7 @@
 #include <gtest/gtest.h>
 
 #include <cctype>
+#include <cerrno>  // program_invocation_name (glibc)
 #include <cstdlib>
 #include <exception>
 #include <filesystem>
@@ -134,14 +135,29 @@ class Cassette {
       return text;
     }
     if (!std::filesystem::exists(path_)) {
-      throw std::runtime_error(
-          "wiretape: no recording " + path_ + "; record it from the device with\n"
-          "    WIRETAPE_RECORD=once WIRETAPE_DEVICE='OPTS' <this test program>" +
-          (test_name_.empty() ? std::string() : " --gtest_filter='" + test_name_ + "'"));
+      throw std::runtime_error("wiretape: no recording " + path_ +
+                               "; record it from the device with\n    " +
+                               record_command("once"));
     }
     std::string text = "type=replay,file=" + quote_option_value(path_);
     if (!Options::parse(replay_keys_).has("timing")) text += ",timing=none";
     if (!replay_keys_.empty()) text += "," + replay_keys_;
+    return text;
+  }
+
+  // The shell command that records this cassette from the device again
+  // (`mode`: once or rewrite), for messages.
+  std::string record_command(const char* mode) const {
+    std::string program = "<this test program>";
+#ifdef __GLIBC__
+    if (program_invocation_name != nullptr && *program_invocation_name != '\0') {
+      program = program_invocation_name;
+    }
+#endif
+    std::string text = std::string("WIRETAPE_RECORD=") + mode + " WIRETAPE_DEVICE='" +
+                       (settings_.device.empty() ? std::string("OPTS") : settings_.device) +
+                       "' " + program;
+    if (!test_name_.empty()) text += " --gtest_filter='" + test_name_ + "'";
     return text;
   }
 
@@ -197,8 +213,12 @@ class CassetteTest : public ::testing::Test {
   // unless they say otherwise. `source_file` locates the cassette: the
   // default is the file of the calling test (GCC, Clang and MSVC support
   // __builtin_FILE()).
+  //
+  // Every failure of the test from then on (a replay mismatch that escapes
+  // the test body, unused data at the end) carries the file and line of
+  // this call, the cassette and the command that records it again.
   Port& port(std::string_view replay_keys = {},
-             const char* source_file = __builtin_FILE()) {
+             const char* source_file = __builtin_FILE(), int source_line = __builtin_LINE()) {
     if (!cassette_) {
       const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
       const std::string suite = info->test_suite_name();
@@ -210,6 +230,16 @@ class CassetteTest : public ::testing::Test {
       }
       cassette_ = std::make_unique<Cassette>(std::move(path), std::move(settings),
                                              std::string(replay_keys), suite + "." + test);
+      // GoogleTest reports an exception that escapes the test body at
+      // "unknown file"; a trace alive until TearDown ends gives that failure
+      // (and any other) this test's line and the way out.
+      trace_ = std::make_unique<::testing::ScopedTrace>(
+          source_file, source_line,
+          cassette_->recording()
+              ? "recording cassette " + cassette_->path()
+              : "replaying cassette " + cassette_->path() +
+                    "; if the driver changed on purpose, record it again with\n    " +
+                    cassette_->record_command("rewrite"));
     }
     return cassette_->port();
   }
@@ -219,16 +249,23 @@ class CassetteTest : public ::testing::Test {
 
   void TearDown() override {
     if (!cassette_) return;
+    const bool failed = HasFailure();
     try {
-      cassette_->finish(!HasFailure());
+      cassette_->finish(!failed);
     } catch (const std::exception& error) {
-      ADD_FAILURE() << "closing the port of cassette " << cassette_->path()
-                    << " failed: " << error.what();
+      // A test that failed already (a mismatch) leaves recorded data unused
+      // and the replay says so at close: one cause, reported once.
+      if (!failed) {
+        ADD_FAILURE() << "closing the port of cassette " << cassette_->path()
+                      << " failed: " << error.what();
+      }
     }
+    trace_.reset();
   }
 
  private:
   std::unique_ptr<Cassette> cassette_;
+  std::unique_ptr<::testing::ScopedTrace> trace_;
 };
 
 }  // namespace wiretape::testing

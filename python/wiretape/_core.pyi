@@ -451,6 +451,20 @@ class SessionHeader:
     def metadata(self, arg: Mapping[str, str], /) -> None: ...
 
     @property
+    def device_identity(self) -> dict:
+        """
+        the serial device's identity (format 1.2; docs/session-format.md): a dict of kernel_name, subsystem, vendor_id, product_id, serial_number, manufacturer, product, interface, location, by_id ('' when not known); {} when the recording has none (a pty, a network device)
+        """
+
+    @device_identity.setter
+    def device_identity(self, arg: dict, /) -> None: ...
+
+    def clear_device_serial(self) -> None:
+        """
+        Clears the device identity's serial number and its part of the by-id name (what edit --redact does).
+        """
+
+    @property
     def metadata_json(self) -> str:
         """the header's JSON as stored (read) or written; to_json() makes it anew"""
 
@@ -474,6 +488,16 @@ class SessionHeader:
     def __eq__(self, arg: SessionHeader, /) -> bool: ...
 
     def __repr__(self) -> str: ...
+
+def read_device_identity(device: str, sysfs_root: str = '/sys', dev_root: str = '/dev') -> dict:
+    """
+    The identity of the serial device at `device` as record stores it (a dict as SessionHeader.device_identity; {} for a pty or a path with no device in sysfs).
+    """
+
+def present_device_identity(identity: dict, root: str, device_path: str) -> tuple:
+    """
+    Writes under `root` the sysfs folders that present `identity` (as SessionHeader.device_identity) to a command that opens `device_path`: returns (tty_name, folder, by_id), the kernel name presented (device_path's own name when it is directly under /dev, else the recorded one), the folder that stands for /sys/class/tty/TTY_NAME (tty_name and folder '' when no name can be presented) and the by-id name to redirect ('' when none).
+    """
 
 def event_payload(kind: object, fields: dict) -> bytes:
     """
@@ -654,7 +678,7 @@ class Bridge:
     Forwards bytes between a device port and a pty, TCP clients or UDP clients, optionally recording them (see wiretape.bridge).
     """
 
-    def __init__(self, device: str, *, client_side: str = 'pty', pty_link: str = '', pty_mode: int = 432, pty_group: str = '', listen_host: str = '127.0.0.1', listen_port: int = 0, listen_backlog: int = 4096, udp_peer_host: str = '', udp_peer_port: int = 0, protocol: str = 'raw', shared: bool = False, max_monitors: int = 16, output: str = '', metadata: Mapping[str, str] = {}, flush_ms: int = 100, mirror_settings: bool = True, reopen: bool = False, restart: bool = False, duration: object | None = None, buffer_limit: int = 1048576, quiet: bool = False) -> None: ...
+    def __init__(self, device: str, *, client_side: str = 'pty', pty_link: str = '', pty_mode: int = 432, pty_group: str = '', listen_host: str = '127.0.0.1', listen_port: int = 0, listen_backlog: int = 4096, udp_peer_host: str = '', udp_peer_port: int = 0, protocol: str = 'raw', shared: bool = False, max_monitors: int = 16, output: str = '', metadata: Mapping[str, str] = {}, flush_ms: int = 100, mirror_settings: bool = True, reopen: bool = False, restart: bool = False, duration: object | None = None, buffer_limit: int = 1048576, quiet: bool = False, line_channel: str = '') -> None: ...
 
     def start(self) -> None:
         """

@@ -211,7 +211,7 @@ def record(device: str, output, *, pty=None, listen=None, udp=None,
            backlog: Optional[int] = None, duration: Optional[float] = None,
            meta: Optional[Mapping[str, str]] = None,
            quiet: bool = False, pty_mode: Optional[int] = None,
-           pty_group: PtyGroup = None) -> BridgeHandle:
+           pty_group: PtyGroup = None, line_channel: str = "") -> BridgeHandle:
     """``wiretape record``: a transparent proxy between ``device`` and a pty
     at ``pty`` (a symlink path; True for none) or a TCP listener at
     ``listen`` or a UDP socket at ``udp`` (a datagram proxy: replies go to
@@ -219,13 +219,24 @@ def record(device: str, output, *, pty=None, listen=None, udp=None,
     (capture=wire). On a pty, the terminal settings the client sets are
     applied to the device; ``pty_mode``/``pty_group`` set who may open it
     (default 0o660, group dialout). ``backlog``: the TCP listen queue (see
-    ``serve``)."""
+    ``serve``). ``line_channel``: the socket the ``--as`` shim tells the
+    client's serial lines through (``wiretape.redirect``)."""
     path = os.fspath(output)
     if not path.strip():
         raise ValueError("output: the file name is empty; give the session file to record to")
     return _start(device_options(device), pty=pty, listen=listen, udp=udp, backlog=backlog,
                   output=path, metadata=dict(meta or {}),
-                  duration=duration, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group)
+                  duration=duration, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group,
+                  line_channel=line_channel)
+
+
+def proxy(device: str, *, pty=None, listen=None, udp=None, quiet: bool = True,
+          pty_mode: Optional[int] = None, pty_group: PtyGroup = None) -> BridgeHandle:
+    """``record`` without a file: the client side (``pty``, ``listen`` or
+    ``udp``) forwards to ``device`` and nothing is recorded (the pytest
+    plugin's ``--wiretape-live``)."""
+    return _start(device_options(device), pty=pty, listen=listen, udp=udp, quiet=quiet,
+                  pty_mode=pty_mode, pty_group=pty_group)
 
 
 DEFAULT_MAX_MONITORS = 16
@@ -252,19 +263,26 @@ def serve(device: str, listen, *, output=None, protocol: str = "raw",
 
 def serve_replay(file, *, pty=None, listen=None, udp=None, peer=None,
                  replay_options: str = "", backlog: Optional[int] = None,
+                 protocol: str = "raw",
                  restart: bool = False, output=None,
                  quiet: bool = False, pty_mode: Optional[int] = None,
-                 pty_group: PtyGroup = None) -> BridgeHandle:
+                 pty_group: PtyGroup = None, line_channel: str = "") -> BridgeHandle:
     """``wiretape replay --pty/--listen``: the recording ``file`` becomes a
     virtual device. ``replay_options`` are replay keys (``"timing=none,
-    check=data"``). A client that reconnects continues the session;
-    ``restart`` starts it over for each new client (TCP, or pty on Linux). The result is ok,
+    check=data"``). Each connection is a client session (DESIGN §12:
+    in match=sequence the k-th starts at the recording's k-th client_connect,
+    in match=request connection order is free); ``restart`` starts the
+    recording over for each new client (TCP, or pty on Linux). The result is ok,
     or ``outcome == "mismatch"`` with the report in ``message``; a recording
     with rx that no client was served leaves the reason in
     ``nothing_served``. ``pty_mode``/``pty_group`` set who may open the pty
     (default 0o660, group dialout). ``udp="HOST:PORT"`` answers request
     datagrams there with the recorded rx datagrams and sends unprompted ones
-    to the last sender, or from the start to ``peer="HOST:PORT"``."""
+    to the last sender, or from the start to ``peer="HOST:PORT"``.
+    ``protocol="rfc2217"`` (with ``listen``) serves pyserial's ``rfc2217://``
+    clients: the recorded modem lines, and their line changes checked."""
+    if protocol != "raw" and listen is None:
+        raise ValueError(f"protocol {protocol!r} is spoken over TCP: give listen=HOST:PORT")
     options = "type=replay,file=" + _quote(os.fspath(file))
     if replay_options.strip():
         options += "," + replay_options.strip()
@@ -273,6 +291,7 @@ def serve_replay(file, *, pty=None, listen=None, udp=None, peer=None,
     _core.check_replay_options(options)
     # The terminal settings of a replayed device are not applied anywhere.
     return _start(options, pty=pty, listen=listen, udp=udp, peer=peer, backlog=backlog,
-                  restart=restart,
+                  restart=restart, protocol=protocol,
                   output=os.fspath(output) if output else "",
-                  mirror_settings=False, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group)
+                  mirror_settings=False, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group,
+                  line_channel=line_channel)

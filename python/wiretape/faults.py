@@ -34,7 +34,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Dict, Iterator, List, Optional, Sequence, TextIO
 
-from . import _core, bridge
+from . import _core, bridge, scaled_clock
 from .children import Child, sanitizer_report
 from .session import open_session, session_files
 
@@ -223,12 +223,15 @@ def _all_cases(session: str, kinds: Optional[Sequence[str]], budget: Optional[in
 
 @contextlib.contextmanager
 def faulty_device(session: str, case: Optional[FaultCase] = None, replay_options: str = "",
-                  listen: bool = False) -> Iterator[str]:
+                  listen: bool = False, speed: float = 1.0) -> Iterator[str]:
     """A virtual device replaying ``session`` with ``case``'s fault: yields
     the path of a pty (a symbolic link in a private directory), or with
-    ``listen`` a ``HOST:PORT``. Stopped on leaving."""
-    keys = ",".join(part for part in (replay_options.strip(), case.options if case else "")
-                    if part)
+    ``listen`` a ``HOST:PORT``. Stopped on leaving. ``speed`` K: the
+    replay's timing K times faster (the replay key ``speed``), for a
+    client whose clock runs at K (wiretape.scaled_clock)."""
+    speed_key = f"speed={speed!r}" if speed != 1.0 else ""
+    keys = ",".join(part for part in (replay_options.strip(), speed_key,
+                                      case.options if case else "") if part)
     with tempfile.TemporaryDirectory(prefix="wiretape-faults-") as directory:
         link = os.path.join(directory, "port")
         handle = bridge.serve_replay(session, pty=None if listen else link,
@@ -286,6 +289,8 @@ class Campaign:
     #: The campaign's cases in all shards, and this one's shard (None: all).
     cases: int = 0
     shard: Optional[Shard] = None
+    #: --speed: CMD's clock ran this many times faster than real time.
+    speed: float = 1.0
 
     @property
     def summary(self) -> Dict[str, int]:
@@ -303,7 +308,7 @@ class Campaign:
         return {"session": self.session, "session_sha256": self.session_sha256,
                 "seed": self.seed, "kinds": self.kinds, "budget": self.budget,
                 "options": self.options, "cases": self.cases,
-                "shard": str(self.shard) if self.shard else None,
+                "shard": str(self.shard) if self.shard else None, "speed": self.speed,
                 "runs": [run.as_json() for run in self.runs], "summary": self.summary,
                 "interrupted": self.interrupted}
 
@@ -350,26 +355,30 @@ def _classify(returncode: Optional[int], output: str, timed_out: bool) -> str:
 
 def run_case(session: str, case: Optional[FaultCase], argv: Sequence[str], timeout: float,
              replay_options: str = "", listen: bool = False,
-             as_path: Optional[str] = None, stop: Optional[threading.Event] = None) -> Run:
+             as_path: Optional[str] = None, stop: Optional[threading.Event] = None,
+             speed: float = 1.0) -> Run:
     """Runs CMD once against a fresh virtual device with ``case``'s fault
     (None: clean); a CMD past `timeout` is ended with everything it
     started (its process group), and so is one running when `stop` is set
     (then this raises _Stopped: the run has no outcome). The outcome is
     decided by CMD's own exit, not by the end of its output: a daemon it
-    left holding the output is not waited for."""
+    left holding the output is not waited for. At `speed` K, CMD's clock
+    and the replay run K times faster, and `timeout` is on CMD's clock."""
     started = time.monotonic()
-    with faulty_device(session, case, replay_options, listen) as port:
+    real_timeout = min(scaled_clock.real_seconds(timeout, speed), MAX_TIMEOUT_S)
+    with faulty_device(session, case, replay_options, listen, speed) as port:
         command = [arg.replace(PORT_PLACEHOLDER, port) for arg in argv]
         if as_path is not None:
-            from .redirect import RedirectedCommand
+            from .redirect import RedirectedCommand, recorded_identity
 
-            redirected = RedirectedCommand(command, as_path, os.path.realpath(port))
+            redirected = RedirectedCommand(command, as_path, os.path.realpath(port),
+                                           identity=recorded_identity(session), speed=speed)
             try:
-                outcome = redirected.child.run(timeout, stop)
+                outcome = redirected.child.run(real_timeout, stop)
             finally:
                 redirected.close()
         else:
-            outcome = Child(command).run(timeout, stop)
+            outcome = Child(command, env=scaled_clock.environment(speed)).run(real_timeout, stop)
     if outcome.stopped:
         raise _Stopped()
     text = outcome.text
@@ -387,20 +396,28 @@ REPRO_ADDRESS = "127.0.0.1:5020"
 
 def reproduction(session: str, case: FaultCase, argv: Sequence[str], replay_options: str,
                  as_path: Optional[str], listen: bool = False,
-                 timeout: Optional[float] = None) -> str:
+                 timeout: Optional[float] = None, speed: float = 1.0) -> str:
     """One line for a shell that replays the fault, runs the command
     against it and exits with the command's status, as the campaign's run
-    did (with `timeout`, a hang ends as `timeout` ends it: status 124)."""
+    did (with `timeout`, a hang ends as `timeout` ends it: status 124; at
+    `speed` K, the replay runs with --speed K and CMD on the scaled clock)."""
     replay = ["wiretape", "replay", session, "--fault", case.spec, "--seed", str(case.seed)]
+    if speed != 1.0:
+        replay += ["--speed", _seconds_text(speed)]
     if replay_options:
         replay += ["--options", replay_options]
-    limit = [] if timeout is None else ["timeout", "-k", "5", _seconds_text(timeout)]
+    limit = [] if timeout is None else ["timeout", "-k", "5",
+                                        _seconds_text(scaled_clock.real_seconds(timeout, speed))]
     if as_path is not None:
         # replay -- CMD keeps CMD running under an injected loss, and exits
         # with CMD's status when CMD failed: the run's own.
         return shlex.join(limit + replay + ["-q", "--as", as_path, "--"] + list(argv))
     port = REPRO_ADDRESS if listen else REPRO_PORT
     command = [arg.replace(PORT_PLACEHOLDER, port) for arg in argv]
+    if speed != 1.0:
+        # CMD on the scaled clock, as replay --speed K -- CMD would run it.
+        command = (["env", "LD_PRELOAD=" + scaled_clock.shim_path(),
+                    f"{scaled_clock.ENV_SPEED}={speed!r}"] + command)
     replay += ["--listen", port] if listen else ["--pty", port]
     # CMD starts once the device is there: its link appears (a TCP
     # listener is given a second: a probe would be a client of the replay).
@@ -454,17 +471,29 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
              budget: Optional[int] = None, seed: int = 0, timeout: float = 10.0, jobs: int = 1,
              replay_options: str = "", listen: bool = False, as_path: Optional[str] = None,
              progress: Optional[TextIO] = None, quiet_replays: bool = True,
-             shard: Optional[Shard] = None) -> Campaign:
+             shard: Optional[Shard] = None, speed: float = 1.0,
+             progress_every: Optional[float] = None) -> Campaign:
     """Runs the campaign (with ``shard``, that shard's cases and a clean
-    run); raises FaultInputError (bad input), CleanRunFailed, or
-    CampaignInterrupted (SIGINT/SIGTERM as a KeyboardInterrupt: the runs so
-    far are in it)."""
+    run; at ``speed`` K, CMD's clock and the replays K times faster, and
+    ``timeout`` on CMD's clock); raises FaultInputError (bad input),
+    CleanRunFailed, or CampaignInterrupted (SIGINT/SIGTERM as a
+    KeyboardInterrupt: the runs so far are in it). Progress goes to
+    ``progress``: one line rewritten in place (a terminal), or with
+    ``progress_every`` a line every that many seconds and one at the end (a
+    log)."""
     check_command(argv, as_path)
     if jobs < 1:
         raise FaultInputError(f"--jobs {jobs}: give 1 or more")
     _check_timeout(timeout)
+    try:
+        speed = scaled_clock.check_speed(speed)
+    except ValueError as error:
+        raise FaultInputError(str(error)) from None
     if replay_options:
         _core.check_replay_options("type=replay,file=x," + replay_options)
+        if speed != 1.0 and "speed" in dict(_core.parse_options(replay_options)):
+            raise FaultInputError("--options holds speed= and --speed is given: give --speed "
+                                  "only (it sets the replay's speed and CMD's clock)")
     everything = _all_cases(session, kinds, budget, seed, None, None, replay_options)
     indices = [index for index in range(len(everything)) if shard is None or shard.owns(index)]
     selected = [everything[index] for index in indices]
@@ -476,7 +505,7 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
                         kinds=[kind.strip() for kind in kinds] if kinds else None,
                         budget=budget, options=replay_options,
                         session_sha256=session_digest(session), cases=len(everything),
-                        shard=shard)
+                        shard=shard, speed=speed)
     # Set when the campaign must end: each running case ends its CMD.
     stop = threading.Event()
     with _quiet_stderr(quiet_replays) as real_stderr:
@@ -491,6 +520,20 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
 
         done = [0]
         lock = threading.Lock()
+        started = time.monotonic()
+        counted = {outcome: 0 for outcome in OUTCOMES}
+        last_line = [started]
+
+        def report() -> None:
+            elapsed = time.monotonic() - started
+            problems = ", ".join(f"{counted[o]} {o}" for o in OUTCOMES if o != "ok" and counted[o])
+            text = (f"wiretape faults: {done[0]}/{len(selected)} runs"
+                    + (f" ({problems})" if problems else "") + f", {elapsed:.0f} s")
+            if progress_every is None:
+                note(f"\r{text}\x1b[K")
+            elif done[0] == len(selected) or time.monotonic() - last_line[0] >= progress_every:
+                last_line[0] = time.monotonic()
+                note(text + "\n")
 
         def one(index: int) -> None:
             if stop.is_set():
@@ -498,25 +541,28 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
             case = selected[index]
             try:
                 run = run_case(session, case, argv, timeout, replay_options, listen, as_path,
-                               stop)
+                               stop, speed)
             except _Stopped:
                 return
             if run.outcome in ("crash", "hang"):
                 run.repro = reproduction(session, case, argv, replay_options, as_path, listen,
-                                         timeout if run.outcome == "hang" else None)
+                                         timeout if run.outcome == "hang" else None, speed)
             run.case = indices[index]
             runs[index] = run
             with lock:
                 done[0] += 1
-                note(f"\r{done[0]}/{len(selected)} runs")
+                counted[run.outcome] = counted.get(run.outcome, 0) + 1
+                report()
 
         # The runs go on in worker threads (the clean one too): the main
         # thread only waits, so SIGINT/SIGTERM reach it there, and it tells
         # the workers to stop.
         pool = ThreadPoolExecutor(max_workers=jobs)
+        if progress_every is not None:
+            note(f"wiretape faults: a clean run, then {len(selected)} runs with faults\n")
         try:
             clean = pool.submit(run_case, session, None, argv, timeout, replay_options,
-                                listen, as_path, stop).result()
+                                listen, as_path, stop, speed).result()
             if clean.outcome != "ok":
                 raise CleanRunFailed(clean)
             for future in [pool.submit(one, i) for i in range(len(selected))]:
@@ -524,7 +570,7 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
         except KeyboardInterrupt as interruption:
             stop.set()
             _end_pool(pool)
-            if selected:
+            if selected and progress_every is None:
                 note("\n")
             result = finished(interrupted=True)
             signum = getattr(interruption, "signum", signal.SIGINT)
@@ -534,7 +580,7 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
             raise
         finally:
             _end_pool(pool)
-        if selected:
+        if selected and progress_every is None:
             note("\n")
     return finished(interrupted=False)
 
@@ -582,9 +628,23 @@ def table(result: Campaign) -> str:
     for run in others:
         lines.append(f"{run.kind}@{run.where}: {run.outcome}")
     summary = result.summary
+    blank = any(n not in outcomes for outcomes in by_kind.values() for n in range(width))
     lines.append(f"{len(result.runs)} runs: " + ", ".join(f"{summary[o]} {o}" for o in OUTCOMES)
-                 + "  (. ok  E error  C crash  H hang)")
+                 + "  (. ok  E error  C crash  H hang" + (f"  blank: {_not_run(result)}"
+                                                          if blank else "") + ")")
     return "\n".join(lines)
+
+
+def _not_run(result: Campaign) -> str:
+    """Why a cell of the table is blank: the case was not run, because..."""
+    reasons = []
+    if result.interrupted:
+        reasons.append("the campaign was interrupted")
+    if result.shard is not None:
+        reasons.append(f"another shard's (this is {result.shard})")
+    if result.budget is not None and result.budget < result.cases:
+        reasons.append(f"left out by --budget {result.budget} (sampled by --seed {result.seed})")
+    return "not run: " + ("; or ".join(reasons) if reasons else "no such fault there")
 
 
 def write_json(result: Campaign, path: str) -> None:
@@ -675,13 +735,23 @@ def read_json(path: str) -> Campaign:
                     options=_member(document, "options", str, path),
                     session_sha256=_member(document, "session_sha256", str, path),
                     cases=_member(document, "cases", int, path), shard=shard,
-                    planned=len(runs))
+                    planned=len(runs), speed=_speed_member(document, path))
+
+
+def _speed_member(document: Dict[str, object], path: str) -> float:
+    """``speed`` (written since --speed: 1 when absent)."""
+    value = document.get("speed", 1.0)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+            math.isfinite(value) and value > 0):
+        raise FaultInputError(f"{path}: 'speed' is {json.dumps(value)[:60]}: not what a "
+                              "campaign writes")
+    return float(value)
 
 
 # What shards of one campaign agree on, and the flag that sets each.
 _CAMPAIGN_IDENTITY = (("session_sha256", "SESSION (its bytes differ)"), ("seed", "--seed"),
                       ("kinds", "--kinds"), ("budget", "--budget"), ("options", "--options"),
-                      ("cases", "the cases (a different wiretape?)"))
+                      ("speed", "--speed"), ("cases", "the cases (a different wiretape?)"))
 
 
 def merge(paths: Sequence[str]) -> Campaign:

@@ -8,17 +8,27 @@ reaches dynamically linked programs. Where the shim cannot reach (static
 programs, programs that scan /dev), CMD also runs in a private mount
 namespace with the pty bind-mounted over the path, when wiretape runs as
 root and the path exists (a bind mount needs something to cover).
+
+Under ``replay``, the recording's device identity (DESIGN §20, "Identity")
+is presented too: the shim redirects its ``/dev/serial/by-id`` name and
+answers pyserial's ``list_ports`` lookups from a small sysfs tree written
+to a temporary folder (``_core.present_device_identity``).
+
+A pty has no modem lines, break or custom baud: the shim emulates them on
+the redirected descriptor and tells the bridge through a side channel, a
+Unix socket made by :class:`LineChannelPath` (DESIGN §20).
 """
 
 from __future__ import annotations
 
 import ctypes
 import os
+import shutil
 import sys
 import tempfile
-from typing import Optional, Sequence, Tuple
+from typing import Dict, Optional, Sequence, Tuple
 
-from . import _core
+from . import _core, scaled_clock
 from .children import Child, CommandNotStarted, SanitizerWatch, sanitizer_report
 
 SHIM_NAME = "_redirect_device.so"
@@ -26,6 +36,34 @@ SHIM_NAME = "_redirect_device.so"
 ENV_FROM = "WIRETAPE_REDIRECT_FROM"
 ENV_TO = "WIRETAPE_REDIRECT_TO"
 ENV_HITS = "WIRETAPE_REDIRECT_HITS"
+# The side channel's socket (src/shim/line_protocol.h, WT_LINE_ENV).
+ENV_LINE_CHANNEL = "WIRETAPE_LINE_CHANNEL"
+
+
+class LineChannelPath:
+    """A path for the side channel's socket, in a private directory of its
+    own (the bridge creates the socket there); removed by :meth:`close`."""
+
+    def __init__(self) -> None:
+        self._directory = tempfile.mkdtemp(prefix="wiretape-lines-")
+        self.path = os.path.join(self._directory, "lines")
+
+    def close(self) -> None:
+        for remove in (lambda: os.unlink(self.path), lambda: os.rmdir(self._directory)):
+            try:
+                remove()
+            except OSError:
+                pass
+
+    def __enter__(self) -> "LineChannelPath":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+# The presented identity's (src/shim/device_identity.c).
+ENV_IDENTITY_TTY = "WIRETAPE_IDENTITY_TTY"
+ENV_IDENTITY_SYSFS = "WIRETAPE_IDENTITY_SYSFS"
+ENV_IDENTITY_BY_ID = "WIRETAPE_IDENTITY_BY_ID"
 
 
 def shim_path() -> str:
@@ -49,6 +87,13 @@ def recorded_device_path(session_file: str) -> Optional[str]:
     or None (a TCP or UDP device, a flexiport log without one)."""
     with _core.SessionReader(session_file) as reader:
         return device_path_of(reader.header.port_options)
+
+
+def recorded_identity(session_file: str) -> Dict[str, str]:
+    """The device identity a recording holds (its header's
+    ``device_identity``; {} when it has none)."""
+    with _core.SessionReader(session_file) as reader:
+        return dict(reader.header.device_identity)
 
 
 # <sched.h> and <sys/mount.h>: Python 3.11 has no os.unshare or os.mount.
@@ -113,22 +158,40 @@ class RedirectedCommand:
     :class:`~wiretape.children.Child`: its output captured (stderr with
     stdout), ended with its whole group. With ``relay``, stdout and stderr
     are captured apart and relayed as they come to this process's own
-    stdout and stderr, and CMD reads this process's stdin."""
+    stdout and stderr, and CMD reads this process's stdin. A recorded
+    device ``identity`` (SessionHeader.device_identity) is presented to CMD:
+    its by-id name is redirected too, and pyserial's ``list_ports`` finds
+    the device by its USB ids. ``line_channel``: the bridge's side-channel
+    socket for the serial lines (without it the shim emulates them in CMD
+    alone)."""
 
     def __init__(self, argv: Sequence[str], device_path: str, pty_path: str,
-                 relay: bool = False):
+                 relay: bool = False, identity: Optional[Dict[str, str]] = None,
+                 line_channel: Optional[str] = None, speed: float = 1.0):
         self.argv = list(argv)
         self.device_path = device_path
         self._watches: Tuple[SanitizerWatch, ...] = ()
+        self._identity_tree: Optional[str] = None
         # Each process of CMD that uses the path appends a line here.
         hits_fd, self._hits_file = tempfile.mkstemp(prefix="wiretape-redirect-")
         os.close(hits_fd)
-        env = dict(os.environ)
+        # --speed K: CMD's clock runs K times faster (wiretape.scaled_clock).
+        env = scaled_clock.environment(speed)
         preload = env.get("LD_PRELOAD", "").strip()
         env["LD_PRELOAD"] = shim_path() + (" " + preload if preload else "")
         env[ENV_FROM] = device_path
         env[ENV_TO] = pty_path
         env[ENV_HITS] = self._hits_file
+        if line_channel:
+            env[ENV_LINE_CHANNEL] = line_channel
+        else:
+            env.pop(ENV_LINE_CHANNEL, None)
+        try:
+            if identity:
+                env.update(self._present(identity))
+        except BaseException:
+            self._remove_files()
+            raise
         self.bind_mounted = can_bind_mount(device_path)
         preexec = (_bind_mount_in_private_namespace(pty_path, device_path)
                    if self.bind_mounted else None)
@@ -143,8 +206,18 @@ class RedirectedCommand:
             else:
                 self.child = Child(self.argv, env=env, preexec_fn=preexec)
         except CommandNotStarted:
-            self._remove_hits_file()
+            self._remove_files()
             raise
+
+    def _present(self, identity: Dict[str, str]) -> Dict[str, str]:
+        """The shim's variables that present `identity`, its tree written."""
+        self._identity_tree = tempfile.mkdtemp(prefix="wiretape-identity-")
+        tty_name, folder, by_id = _core.present_device_identity(
+            identity, self._identity_tree, self.device_path)
+        env = {ENV_IDENTITY_TTY: tty_name, ENV_IDENTITY_SYSFS: folder} if tty_name else {}
+        if by_id:
+            env[ENV_IDENTITY_BY_ID] = by_id
+        return env
 
     @property
     def name(self) -> str:
@@ -180,10 +253,13 @@ class RedirectedCommand:
             return False
 
     def close(self) -> None:
-        self._remove_hits_file()
+        self._remove_files()
 
-    def _remove_hits_file(self) -> None:
+    def _remove_files(self) -> None:
         try:
             os.unlink(self._hits_file)
         except OSError:
             pass
+        if self._identity_tree is not None:
+            shutil.rmtree(self._identity_tree, ignore_errors=True)
+            self._identity_tree = None

@@ -62,7 +62,7 @@ constexpr std::size_t kLineDisciplineBuffer = 4095;
 // A device whose descriptor cannot tell when it takes data again is retried
 // this often while data waits for it.
 constexpr auto kWriteRetryInterval = std::chrono::milliseconds(2);
-constexpr auto kModemPollInterval = std::chrono::milliseconds(250);
+constexpr auto kModemPollInterval = std::chrono::milliseconds(10);
 constexpr auto kLongestSleep = std::chrono::milliseconds(60'000);
 
 std::string octal(unsigned value) {
@@ -185,8 +185,9 @@ void Bridge::Impl::loop() {
     auto wake_at = endpoint_->next_timer();
     if (end_at_) wake_at = std::min(wake_at, *end_at_);
     if (!device_.is_open() && options_.reopen) wake_at = std::min(wake_at, next_reopen_);
-    const bool watch_modem = options_.protocol == BridgeProtocol::rfc2217 &&
-                             endpoint_->has_clients() && device_.modem_inputs_watchable();
+    // Watched (and recorded) for every client, often enough to catch the
+    // answer to a reset pulse (DESIGN.md section 20).
+    const bool watch_modem = endpoint_->has_clients() && device_.modem_inputs_watchable();
     if (watch_modem) wake_at = std::min(wake_at, next_modem_poll_);
     if (device_.is_open() && device_.has_data_for_device() && !output_pollable) {
       wake_at = std::min(wake_at, now + kWriteRetryInterval);

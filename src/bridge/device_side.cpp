@@ -4,10 +4,12 @@
 #include <cerrno>
 #include <cstdio>
 
+#include "posix/device_identity.hpp"
 #include "posix/transports.hpp"
 #include "replay/replay_port.hpp"
 #include "session/record_kinds.hpp"
 #include "wiretape/errors.hpp"
+#include "wiretape/options.hpp"
 
 namespace wiretape::detail::bridge {
 
@@ -69,6 +71,10 @@ void DeviceSide::open_session_file() {
   header.port_options = options_.device;
   header.port_type = device_->type();
   header.user_metadata = options_.metadata;
+  // A serial device's identity (DESIGN §20); a pty or a network device has none.
+  for (const auto& entry : parse_options(options_.device)) {
+    if (entry.key == "device") header.device_identity = read_device_identity(entry.value);
+  }
   writer_ = std::make_unique<SessionWriter>(
       options_.output, header, FlushPolicy{std::chrono::milliseconds(options_.flush_ms)});
   // Time zero is the device's open, which came just before the file.
@@ -203,7 +209,19 @@ bool DeviceSide::client_connected(const std::string& peer, const char* role) {
   status_.update_stats([](BridgeStats& s) { ++s.clients_accepted; });
   if (session_peer_ || std::string_view(role) == "monitor") return false;
   session_peer_ = peer;
-  return device_ && replay_begin_client_session(*device_);
+  const bool fresh = device_ && replay_begin_client_session(*device_);
+  // The device's lines as this client finds them, recorded before anything
+  // the client does: a replay checks the client's lines only where the
+  // recording holds the device's.
+  if (modem_inputs_watchable()) {
+    last_modem_inputs_.reset();
+    try {
+      if (const auto inputs = modem_inputs()) record_modem_inputs(*inputs);
+    } catch (const PortClosed&) {
+      // The loop's poll notices the loss.
+    }
+  }
+  return fresh;
 }
 
 void DeviceSide::client_disconnected(const std::string& peer, const std::string& reason) {
@@ -336,6 +354,8 @@ bool DeviceSide::apply_settings(const SerialSettings& target, const char* source
 }
 
 void DeviceSide::set_output_level(ModemOutput line, bool level) {
+  // The bytes the client sent before the change reach the device before it.
+  flush();
   bool applied = false;
   if (capabilities().modem_lines) {
     try {
@@ -365,6 +385,11 @@ void DeviceSide::end_break() {
   auto on = std::chrono::duration_cast<std::chrono::milliseconds>(Clock::now() - *break_since_);
   on = std::clamp(on, std::chrono::milliseconds(1), std::chrono::milliseconds(2000));
   break_since_.reset();
+  send_break_for(on);
+}
+
+void DeviceSide::send_break_for(std::chrono::milliseconds on) {
+  flush();
   bool applied = false;
   if (capabilities().send_break) {
     try {
@@ -428,8 +453,13 @@ bool DeviceSide::modem_inputs_changed() {
     return false;
   }
   if (last_modem_inputs_ == inputs) return false;
-  last_modem_inputs_ = inputs;
+  record_modem_inputs(*inputs);
   return true;
+}
+
+void DeviceSide::record_modem_inputs(const ModemInputs& inputs) {
+  last_modem_inputs_ = inputs;
+  record(RecordKind::modem_lines, modem_inputs_payload(inputs));
 }
 
 }  // namespace wiretape::detail::bridge

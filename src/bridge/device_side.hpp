@@ -16,6 +16,7 @@
 #include "bridge/byte_queue.hpp"
 #include "bridge/status.hpp"
 #include "posix/poll_set.hpp"
+#include "session/record_kinds.hpp"
 #include "wiretape/bridge.hpp"
 #include "wiretape/port.hpp"
 #include "wiretape/session.hpp"
@@ -24,17 +25,8 @@ namespace wiretape::detail::bridge {
 
 using Clock = std::chrono::steady_clock;
 
-// The device's modem inputs.
-struct ModemInputs {
-  bool cts = false;
-  bool dsr = false;
-  bool ri = false;
-  bool cd = false;
-  bool operator==(const ModemInputs& other) const {
-    return cts == other.cts && dsr == other.dsr && ri == other.ri && cd == other.cd;
-  }
-  bool operator!=(const ModemInputs& other) const { return !(*this == other); }
-};
+// The device's modem inputs (record_kinds.hpp: they are recorded).
+using detail::ModemInputs;
 
 enum class ModemOutput { dtr, rts };
 
@@ -126,12 +118,15 @@ class DeviceSide {
   void start_break();
   // Sends a break as long as it was on, and records it.
   void end_break();
+  // Sends a break of `on` and records it (a timed break: tcsendbreak).
+  void send_break_for(std::chrono::milliseconds on);
   void purge(bool from_device, bool for_device);
   // The device's modem inputs; nothing where it has none.
   std::optional<ModemInputs> modem_inputs();
   // Whether watching the modem inputs for changes makes sense.
   bool modem_inputs_watchable() const;
-  // True when the modem inputs changed since the last call.
+  // True when the modem inputs changed since the last call; a change is
+  // recorded (DESIGN.md section 20), the first reading too.
   bool modem_inputs_changed();
 
  private:
@@ -157,6 +152,7 @@ class DeviceSide {
   std::optional<std::string> session_peer_;
 
   void recording_stopped(const PortError& error);
+  void record_modem_inputs(const ModemInputs& inputs);
   // Adds what the device's port dropped (a udp device side: datagrams from
   // other senders) to the stats; call before the port closes.
   void count_what_the_port_dropped();

@@ -7,13 +7,17 @@
 #include <sys/ioctl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cerrno>
 #include <cstring>
 #include <optional>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "bridge/endpoint.hpp"
+#include "bridge/line_channel.hpp"
 #include "posix/platform.hpp"
 #include "posix/pty_terminal.hpp"
 #include "posix/syscalls.hpp"
@@ -57,27 +61,61 @@ class PtyEndpoint final : public ClientEndpoint {
     } catch (const PortError&) {
     }
     next_settings_check_ = Clock::now() + kSettingsPollInterval;
+    if (!options_.line_channel.empty()) {
+      line_channel_ = std::make_unique<LineChannel>(
+          options_.line_channel, device_, status_,
+          [this] {
+            if (options_.mirror_settings) check_settings();
+          },
+          // Bytes written before a hello: held here, or still in the terminal.
+          [this] { return static_cast<std::uint64_t>(held_bytes_ + client_bytes_in_terminal()); });
+    }
   }
 
   void add_to_poll(PollSet& poll_set) override {
-    pty_slot_ = poll_set.add(pty_->native_handle(), device_.room_for_client_data() > 0,
-                             !to_pty_.empty());
+    // A line change due before the next byte is applied before it is read.
+    const bool change_due =
+        line_channel_ && line_channel_->bytes_before_next_change(read_from_client_) == 0;
+    pty_slot_ = poll_set.add(pty_->native_handle(),
+                             device_.room_for_client_data() > 0 && !change_due, !to_pty_.empty());
+    if (line_channel_) line_channel_->add_to_poll(poll_set);
     watch_slot_ = opens_and_closes_ ? poll_set.add(opens_and_closes_.get(), true, false)
                                     : PollSet::none;
   }
 
   void handle_events(const PollSet& poll_set) override {
-    if (poll_set.ready(watch_slot_).any()) watch_clients();
-    if (poll_set.ready(pty_slot_).readable) read_pty();
+    // A line change the shim made before bytes now in the terminal is in
+    // the channel already: taken first, it holds those bytes back.
+    if (line_channel_) line_channel_->handle_events(poll_set, relayed_);
+    const bool pty_readable = poll_set.ready(pty_slot_).readable;
+    if (!opens_and_closes_) {
+      if (pty_readable) read_pty();
+    } else if (pty_readable || unread_write_ || poll_set.ready(watch_slot_).any()) {
+      // What the client wrote is read (until the terminal is empty, so that
+      // what it holds at the client's close is newer than this look) and
+      // held until the watch is read again: every open and close before
+      // those bytes were written is in the watch by then (an open is
+      // reported before it returns), so each byte goes to the client session
+      // it was written in (DESIGN.md section 12: a close and a reopen at
+      // once are two client sessions).
+      holding_ = true;
+      if (pty_readable || unread_write_) drain_pty();
+      holding_ = false;
+      watch_clients();  // passes on what it held
+    }
     if (!to_pty_.empty()) write_pty();
   }
 
   Clock::time_point next_timer() const override {
-    return options_.mirror_settings ? next_settings_check_ : Clock::time_point::max();
+    Clock::time_point next =
+        polls_settings() ? next_settings_check_ : Clock::time_point::max();
+    if (line_channel_) next = std::min(next, line_channel_->next_timer());
+    return next;
   }
 
   void run_timers(Clock::time_point now) override {
-    if (options_.mirror_settings && now >= next_settings_check_) {
+    if (line_channel_) line_channel_->run_timers(now);
+    if (polls_settings() && now >= next_settings_check_) {
       check_settings();
       next_settings_check_ = Clock::now() + kSettingsPollInterval;
     }
@@ -130,21 +168,87 @@ class PtyEndpoint final : public ClientEndpoint {
   }
 
  private:
+  // Room for the client's bytes: the device's, less what is held.
+  std::size_t room_for_client_data() const {
+    const std::size_t room = device_.room_for_client_data();
+    return room > held_bytes_ ? room - held_bytes_ : 0;
+  }
+
+  // The shim tells settings changes in their place among the bytes; without
+  // it they are polled, and read before each read of the terminal.
+  bool polls_settings() const {
+    return options_.mirror_settings && !(line_channel_ && line_channel_->has_clients());
+  }
+
+  // Client bytes in the terminal, not yet read by the bridge.
+  std::size_t client_bytes_in_terminal() const {
+    int waiting = 0;
+    if (::ioctl(pty_->native_handle(), FIONREAD, &waiting) != 0 || waiting < 0) return 0;
+    return static_cast<std::size_t>(waiting);
+  }
+
   void read_pty() {
-    if (options_.mirror_settings) check_settings();
+    if (polls_settings()) check_settings();
     std::array<char, kChunk + 1> buffer;
-    const std::size_t room = std::min(device_.room_for_client_data(), kChunk);
+    std::size_t room = std::min(room_for_client_data(), kChunk);
+    if (line_channel_) {
+      // Up to the next held line change: a read never spans one, so that the
+      // change is applied once the read before it is passed on.
+      const std::uint64_t before_change =
+          line_channel_->bytes_before_next_change(read_from_client_);
+      room = static_cast<std::size_t>(std::min<std::uint64_t>(room, before_change));
+      if (room == 0) {
+        last_read_took_data_ = false;
+        line_channel_->apply_due(relayed_);
+        return;
+      }
+    }
     // One more for packet mode's control byte.
     const std::size_t got = pty_->read(buffer.data(), room + 1, std::chrono::nanoseconds(0));
     last_read_took_data_ = got > 0;
-    if (got == 0) return;
+    if (got == 0) {
+      // The terminal is empty: every write so far was read.
+      unread_write_ = false;
+      found_empty_since_data_ = true;
+      return;
+    }
     if (buffer[0] != TIOCPKT_DATA) {
-      client_flushed(static_cast<unsigned char>(buffer[0]));
+      take_from_client(static_cast<unsigned char>(buffer[0]), {});
       return;
     }
     const std::size_t n = got - 1;
     if (n == 0) return;
-    std::memmove(buffer.data(), buffer.data() + 1, n);
+    read_data_since_wrote_event_ = true;
+    found_empty_since_data_ = false;
+    read_from_client_ += n;
+    take_from_client(TIOCPKT_DATA, std::string_view(buffer.data() + 1, n));
+  }
+
+  // What a read of the terminal brought: a packet mode control byte (a
+  // flush) or the client's bytes. Held while handle_events() holds them.
+  void take_from_client(unsigned control, std::string_view data) {
+    if (holding_) {
+      held_.push_back({control, std::string(data)});
+      held_bytes_ += data.size();
+      return;
+    }
+    pass_on(control, data);
+  }
+
+  // The held reads, for the client session they belong to.
+  void pass_on_held() {
+    std::vector<HeldRead> held;
+    held.swap(held_);
+    held_bytes_ = 0;
+    for (const HeldRead& read : held) pass_on(read.control, read.data);
+  }
+
+  void pass_on(unsigned control, std::string_view data) {
+    if (control != TIOCPKT_DATA) {
+      client_flushed(control);
+      return;
+    }
+    relayed_ += data.size();
     if (!client_wrote_) {
       client_wrote_ = true;
       watch_reads_while_needed();
@@ -157,7 +261,8 @@ class PtyEndpoint final : public ClientEndpoint {
       }
       return;
     }
-    device_.send(buffer.data(), n);
+    device_.send(data.data(), data.size());
+    if (line_channel_) line_channel_->apply_due(relayed_);
   }
 
   void write_pty() {
@@ -260,7 +365,7 @@ class PtyEndpoint final : public ClientEndpoint {
   void drain_pty() {
     do {
       read_pty();
-    } while (last_read_took_data_ && device_.room_for_client_data() > 0);
+    } while (last_read_took_data_ && room_for_client_data() > 0);
   }
 
   void grant_access() {
@@ -289,14 +394,40 @@ class PtyEndpoint final : public ClientEndpoint {
     set_terminal_access(*pty_, mode, ::getegid());
   }
 
-  // The first opener of the terminal is a client arriving, the last close
-  // its leaving (a program may open the terminal more than once, and tools
-  // such as stty open and close it too).
-  void watch_clients() {
+  // Whether the client's last close (at `closed` in `events`) was followed
+  // by an open already: reads from the watch until now, so that the answer is
+  // as late as can be.
+  bool reopened_after(std::vector<platform::TerminalEvent>& events, std::size_t closed) {
     for (const platform::TerminalEvent event :
          platform::read_opens_and_closes(opens_and_closes_.get())) {
+      events.push_back(event);
+    }
+    return std::find(events.begin() + static_cast<std::ptrdiff_t>(closed) + 1, events.end(),
+                     platform::TerminalEvent::opened) != events.end();
+  }
+
+  // The first opener of the terminal is a client arriving, the last close
+  // its leaving (a program may open the terminal more than once, and tools
+  // such as stty open and close it too). A close and a reopen at once
+  // (pyserial's close() then Serial(), to change the baud rate) are two
+  // client sessions: every byte written after the reopen belongs to the
+  // second (DESIGN.md section 12).
+  void watch_clients() {
+    std::vector<platform::TerminalEvent> events =
+        platform::read_opens_and_closes(opens_and_closes_.get());
+    for (std::size_t i = 0; i < events.size(); ++i) {
+      const platform::TerminalEvent event = events[i];
       if (event == platform::TerminalEvent::read) {
         client_read();
+        continue;
+      }
+      if (event == platform::TerminalEvent::wrote) {
+        // A write is reported after it returned, so its bytes may have been
+        // read (and the terminal found empty) before the report: then the
+        // report is stale. Else its bytes wait in the terminal still.
+        const bool stale = read_data_since_wrote_event_ && found_empty_since_data_;
+        if (openers_ > 0 && !stale) unread_write_ = true;
+        read_data_since_wrote_event_ = false;
         continue;
       }
       if (event == platform::TerminalEvent::opened) {
@@ -318,11 +449,26 @@ class PtyEndpoint final : public ClientEndpoint {
         }
         status_.message("client connected to " + pty_->description());
       } else if (openers_ > 0 && --openers_ == 0) {
+        // What the terminal holds is the leaving client's when the watch
+        // saw it write since the terminal was last found empty, or when
+        // nobody opened the terminal since; else it was written after a
+        // reopen, for the next session. (Both wrote before the bridge
+        // looked: the bytes cannot be told apart, and go to the first.)
+        // The terminal is read first, then the watch: a reopen the watch
+        // does not show yet came after every byte read. Held bytes were
+        // read before this look too.
+        const bool leaving_client_wrote = unread_write_;
+        const bool was_holding = holding_;
+        holding_ = true;
         drain_pty();
+        holding_ = was_holding;
+        if (leaving_client_wrote || !reopened_after(events, i)) pass_on_held();
         device_.client_disconnected("pty", "closed the terminal");
         status_.message("client closed " + pty_->description());
       }
     }
+    // Bytes kept for the session after a close belong to it now.
+    if (!holding_) pass_on_held();
   }
 
   void check_settings() {
@@ -364,9 +510,30 @@ class PtyEndpoint final : public ClientEndpoint {
   bool client_read_ = false;
   // The current client has written to the terminal.
   bool client_wrote_ = false;
+  // Reads of the terminal held by handle_events() (see there).
+  struct HeldRead {
+    unsigned control = TIOCPKT_DATA;
+    std::string data;
+  };
+  bool holding_ = false;
+  std::vector<HeldRead> held_;
+  std::size_t held_bytes_ = 0;
+  // The watch saw the client write since a read found the terminal empty.
+  bool unread_write_ = false;
+  // Bytes were read since the watch last reported a write, and a read found
+  // the terminal empty after them: the next report may be of those bytes.
+  bool read_data_since_wrote_event_ = false;
+  bool found_empty_since_data_ = true;
   // See retaining().
   std::string retained_;
   ByteQueue to_pty_{options_.buffer_limit};
+  // Client bytes read from the terminal, and passed on to the device (or
+  // dropped while it was away): the line channel holds a client's line
+  // change until the bytes it wrote before it are passed on, and no read
+  // spans one.
+  std::uint64_t read_from_client_ = 0;
+  std::uint64_t relayed_ = 0;
+  std::unique_ptr<LineChannel> line_channel_;
   SerialSettings last_settings_;
   Clock::time_point next_settings_check_;
   PollSet::Slot pty_slot_ = PollSet::none;

@@ -208,6 +208,12 @@ std::vector<OptionKey> build_table() {
           .fallback("50")
           .numbers(0, 1e9)
           .flag("--gap"),
+      Row("flush_wait", replay, number,
+          "with match=sequence: ms a recorded client flush the client has not made may hold rx "
+          "it is entitled to")
+          .fallback("200")
+          .numbers(0, 1e9)
+          .flag("--flush-wait"),
       Row("unused", replay, choice, "recorded data never consumed at close")
           .fallback("warn")
           .choices({"ignore", "warn", "error"})

@@ -394,17 +394,18 @@ void Options::finish(std::string_view type) const {
                                       key.name
                             : entry.key == key.name;
         });
-    std::string message;
     if (elsewhere) {
-      message = "option '" + entry.key + "' does not apply to type=" + std::string(type);
-    } else {
-      message = "unknown option " + shown(entry.key);
-      if (const auto near = suggest_key(entry.key, type)) {
-        message += "; did you mean '" + *near + "'?";
-      }
+      throw OptionError(entry.key, "option '" + entry.key + "' does not apply to type=" +
+                                       std::string(type) + "; valid keys for type=" +
+                                       std::string(type) + ": " + join(valid));
     }
-    throw OptionError(entry.key, message + "; valid keys for type=" + std::string(type) +
-                                     ": " + join(valid));
+    // A typo gets the key it was meant to be, not a list of 30 to read through.
+    if (const auto near = suggest_key(entry.key, type)) {
+      throw OptionError(entry.key, "unknown option " + shown(entry.key) + " for type=" +
+                                       std::string(type) + "; did you mean '" + *near + "'?");
+    }
+    throw OptionError(entry.key, "unknown option " + shown(entry.key) + "; valid keys for type=" +
+                                     std::string(type) + ": " + join(valid));
   }
 }
 

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cstdio>
 #include <mutex>
+#include <optional>
 #include <string>
 
 #include "ports/ports.hpp"
@@ -32,6 +33,9 @@ class RecordingPort final : public Port {
     set_access(inner_->access());
     record(RecordKind::open, 0,
            event_payload(RecordKind::open, {{event_field::description, inner_->description()}}));
+    // The device's lines as they were at open: a replay checks the client's
+    // lines only in recordings that hold the device's (DESIGN.md section 20).
+    if (inner_->capabilities().modem_lines) read_modem_inputs();
   }
 
   ~RecordingPort() override {
@@ -127,10 +131,12 @@ class RecordingPort final : public Port {
     record(RecordKind::modem_lines, now_ns(), event_payload(RecordKind::modem_lines, {{event_field::rts, level}}));
   }
 
-  bool cts() override { return inner_->cts(); }
-  bool dsr() override { return inner_->dsr(); }
-  bool ri() override { return inner_->ri(); }
-  bool cd() override { return inner_->cd(); }
+  // Reading one input reads all four, and a change is recorded as it was
+  // seen: the client saw the device's lines only when it asked.
+  bool cts() override { return input(&ModemInputs::cts, &Port::cts); }
+  bool dsr() override { return input(&ModemInputs::dsr, &Port::dsr); }
+  bool ri() override { return input(&ModemInputs::ri, &Port::ri); }
+  bool cd() override { return input(&ModemInputs::cd, &Port::cd); }
 
   void send_break(std::chrono::milliseconds duration) override {
     report_failure();
@@ -229,6 +235,36 @@ class RecordingPort final : public Port {
                           {event_field::error_number, std::int64_t{error.code().value()}}}));
   }
 
+  // The device's four inputs, recorded when they differ from the last ones
+  // recorded; nothing where the device cannot tell them (a pty).
+  std::optional<ModemInputs> read_modem_inputs() {
+    ModemInputs inputs;
+    try {
+      inputs.cts = inner_->cts();
+      inputs.dsr = inner_->dsr();
+      inputs.ri = inner_->ri();
+      inputs.cd = inner_->cd();
+    } catch (const PortClosed&) {
+      throw;
+    } catch (const PortError&) {
+      return std::nullopt;
+    }
+    std::lock_guard<std::mutex> lock(inputs_mutex_);
+    if (recorded_inputs_ != inputs) {
+      recorded_inputs_ = inputs;
+      record(RecordKind::modem_lines, now_ns(), modem_inputs_payload(inputs));
+    }
+    return inputs;
+  }
+
+  bool input(bool ModemInputs::*level, bool (Port::*read_one)()) {
+    report_failure();
+    if (inner_->capabilities().modem_lines) {
+      if (const auto inputs = read_modem_inputs()) return (*inputs).*level;
+    }
+    return ((*inner_).*read_one)();  // says why it has none, or answers unrecorded
+  }
+
   // rx is stamped when the read returned (capture=client).
   void record_pending_rx() {
     if (pending_rx_.empty()) return;
@@ -314,6 +350,8 @@ class RecordingPort final : public Port {
   std::mutex finish_mutex_;
   bool closed_recorded_ = false;
   std::atomic<bool> finished_{false};
+  std::mutex inputs_mutex_;
+  std::optional<ModemInputs> recorded_inputs_;
   // Touched by the reading thread only (one reader at a time).
   std::string pending_rx_;
 };

@@ -71,7 +71,7 @@ void precise_timers_for_this_thread() {
 int watch_opens_and_closes(const std::string& path) {
   const int fd = ::inotify_init1(IN_NONBLOCK | IN_CLOEXEC);
   if (fd < 0) return -1;
-  if (::inotify_add_watch(fd, path.c_str(), IN_OPEN | IN_ACCESS | IN_CLOSE) < 0) {
+  if (::inotify_add_watch(fd, path.c_str(), IN_OPEN | IN_ACCESS | IN_MODIFY | IN_CLOSE) < 0) {
     const int error = errno;
     ::close(fd);
     errno = error;
@@ -82,7 +82,7 @@ int watch_opens_and_closes(const std::string& path) {
 
 bool watch_reads(int watch_fd, const std::string& path, bool reads) {
   // The same inode's watch, given a new mask.
-  const std::uint32_t mask = IN_OPEN | IN_CLOSE | (reads ? IN_ACCESS : 0u);
+  const std::uint32_t mask = IN_OPEN | IN_MODIFY | IN_CLOSE | (reads ? IN_ACCESS : 0u);
   return ::inotify_add_watch(watch_fd, path.c_str(), mask) >= 0;
 }
 
@@ -98,6 +98,7 @@ std::vector<TerminalEvent> read_opens_and_closes(int watch_fd) {
       // One event carries one of these; in this order should it carry more.
       if (event->mask & IN_OPEN) events.push_back(TerminalEvent::opened);
       if (event->mask & IN_ACCESS) events.push_back(TerminalEvent::read);
+      if (event->mask & IN_MODIFY) events.push_back(TerminalEvent::wrote);
       if (event->mask & IN_CLOSE) events.push_back(TerminalEvent::closed);
       at += static_cast<ssize_t>(sizeof(inotify_event) + event->len);
     }

@@ -35,8 +35,11 @@ void prevent_sigpipe(int socket_fd);
 void precise_timers_for_this_thread();
 
 // Watches the file at `path` (a pseudo-terminal's terminal side) being opened,
-// read and closed by any process, so that a pty's client can be seen to
-// arrive, take data and leave (Linux: inotify). Returns a descriptor that
+// read, written and closed by any process, so that a pty's client can be seen
+// to arrive, take data, send data and leave, in that order (Linux: inotify).
+// An open is reported before the open returns and a write after it returned,
+// so a reopen and the writes after it are never reported before the close
+// that came first. Returns a descriptor that
 // polls readable when something happened, or -1 with errno set where the
 // system cannot do it.
 int watch_opens_and_closes(const std::string& path);
@@ -44,7 +47,7 @@ int watch_opens_and_closes(const std::string& path);
 // client, so a caller that has learnt what it needed from them stops them.
 // Best effort: false where the system cannot change the watch.
 bool watch_reads(int watch_fd, const std::string& path, bool reads);
-enum class TerminalEvent { opened, read, closed };
+enum class TerminalEvent { opened, read, wrote, closed };
 // What happened since the last call, in order. Empty when nothing did.
 std::vector<TerminalEvent> read_opens_and_closes(int watch_fd);
 

@@ -116,7 +116,8 @@ BridgeOptions make_options(const std::string& device, const std::string& client_
                            std::size_t max_monitors, const std::string& output,
                            const std::map<std::string, std::string>& metadata,
                            int flush_ms, bool mirror_settings, bool reopen, bool restart,
-                           nb::handle duration, std::size_t buffer_limit, bool quiet) {
+                           nb::handle duration, std::size_t buffer_limit, bool quiet,
+                           const std::string& line_channel) {
   BridgeOptions o;
   o.device = device;
   o.client_side = one_of<BridgeClientSide>("client_side", client_side,
@@ -150,6 +151,7 @@ BridgeOptions make_options(const std::string& device, const std::string& client_
   o.duration = timeout_from_python(duration);
   o.buffer_limit = buffer_limit;
   o.quiet = quiet;
+  o.line_channel = line_channel;
   return o;
 }
 
@@ -169,7 +171,7 @@ void bind_bridge(nb::module_& m) {
              const std::string& output,
              const std::map<std::string, std::string>& metadata, int flush_ms,
              bool mirror_settings, bool reopen, bool restart, nb::handle duration,
-             std::size_t buffer_limit, bool quiet) {
+             std::size_t buffer_limit, bool quiet, const std::string& line_channel) {
             new (self) Bridge(make_options(device, client_side, pty_link, pty_mode,
                                            pty_group, listen_host,
                                            listen_port, listen_backlog, udp_peer_host,
@@ -177,7 +179,7 @@ void bind_bridge(nb::module_& m) {
                                            protocol, shared, max_monitors,
                                            output, metadata,
                                            flush_ms, mirror_settings, reopen, restart,
-                                           duration, buffer_limit, quiet));
+                                           duration, buffer_limit, quiet, line_channel));
           },
           "device"_a, nb::kw_only(), "client_side"_a = "pty", "pty_link"_a = "",
           "pty_mode"_a = 0660LL, "pty_group"_a = "",
@@ -188,7 +190,7 @@ void bind_bridge(nb::module_& m) {
           "metadata"_a = std::map<std::string, std::string>{}, "flush_ms"_a = 100,
           "mirror_settings"_a = true, "reopen"_a = false, "restart"_a = false,
           "duration"_a = nb::none(), "buffer_limit"_a = std::size_t{1} << 20,
-          "quiet"_a = false)
+          "quiet"_a = false, "line_channel"_a = "")
       .def("start", &Bridge::start, nb::call_guard<nb::gil_scoped_release>(),
            "Opens the device, the client side and the session file and starts forwarding.")
       .def("stop", &Bridge::stop, nb::call_guard<nb::gil_scoped_release>(),

@@ -1,6 +1,7 @@
 // wiretape.SessionReader, SessionWriter, Record and export_flexiport: session
 // files from Python. Records carry bytes; kinds are their names ("rx", "tx",
 // "open", ... "break"); times are integer nanoseconds since the open.
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <map>
@@ -14,6 +15,7 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/string_view.h>
 
+#include "posix/device_identity.hpp"
 #include "posix/file_checks.hpp"
 #include "util/hex.hpp"
 #include "python/bindings.hpp"
@@ -107,6 +109,45 @@ struct PyWriter {
   }
 };
 
+// A device identity as Python sees it: a dict of its members (all of them,
+// '' when not known), {} for none.
+nb::dict identity_dict(const std::optional<DeviceIdentity>& identity) {
+  nb::dict out;
+  if (!identity) return out;
+  for (const auto& member : detail::device_identity_members) {
+    out[member.name] = (*identity).*member.value;
+  }
+  return out;
+}
+
+// The identity a dict of members names ({}: none); a member it does not
+// have raises ValueError naming it, a value that is not a str TypeError.
+std::optional<DeviceIdentity> identity_from_python(nb::dict members) {
+  if (members.size() == 0) return std::nullopt;
+  DeviceIdentity identity;
+  for (auto [key, value] : members) {
+    const std::string name = nb::cast<std::string>(nb::str(key));
+    const auto* member = std::find_if(
+        std::begin(detail::device_identity_members), std::end(detail::device_identity_members),
+        [&](const detail::DeviceIdentityMember& m) { return name == m.name; });
+    if (member == std::end(detail::device_identity_members)) {
+      std::string names;
+      for (const auto& known : detail::device_identity_members) {
+        names += names.empty() ? "" : ", ";
+        names += known.name;
+      }
+      throw nb::value_error(("device_identity has no member '" + detail::escape_bytes(name, 200) +
+                             "' (its members: " + names + ")")
+                                .c_str());
+    }
+    if (!nb::isinstance<nb::str>(value)) {
+      throw nb::type_error(("device_identity member '" + name + "' must be a str").c_str());
+    }
+    identity.*member->value = nb::cast<std::string>(value);
+  }
+  return identity;
+}
+
 // The header's fields by name, as show, stats and convert lay them out.
 nb::dict header_dict(const SessionHeader& header) {
   nb::dict out;
@@ -132,6 +173,7 @@ nb::dict header_dict(const SessionHeader& header) {
   nb::dict metadata;
   for (const auto& [key, value] : header.user_metadata) metadata[key.c_str()] = value;
   out["metadata"] = metadata;
+  out["device_identity"] = identity_dict(header.device_identity);
   return out;
 }
 
@@ -405,6 +447,23 @@ void bind_session(nb::module_& m) {
               "host:port of a network device, when known")
       .def_rw("edits", &SessionHeader::edits, "what wiretape edit changed, in order")
       .def_rw("metadata", &SessionHeader::user_metadata, "the free user metadata (--meta)")
+      .def_prop_rw(
+          "device_identity",
+          [](const SessionHeader& h) { return identity_dict(h.device_identity); },
+          [](SessionHeader& h, nb::dict members) {
+            h.device_identity = identity_from_python(members);
+          },
+          "the serial device's identity (format 1.2; docs/session-format.md): a dict of "
+          "kernel_name, subsystem, vendor_id, product_id, serial_number, manufacturer, "
+          "product, interface, location, by_id ('' when not known); {} when the "
+          "recording has none (a pty, a network device)")
+      .def(
+          "clear_device_serial",
+          [](SessionHeader& h) {
+            if (h.device_identity) detail::clear_device_serial(*h.device_identity);
+          },
+          "Clears the device identity's serial number and its part of the by-id name "
+          "(what edit --redact does).")
       .def_rw("metadata_json", &SessionHeader::metadata_json,
               "the header's JSON as stored (read) or written; to_json() makes it anew")
       .def("to_json", &SessionHeader::to_json,
@@ -429,6 +488,31 @@ void bind_session(nb::module_& m) {
         }
         return text + ")";
       });
+
+  m.def(
+      "read_device_identity",
+      [](const std::string& device, const std::string& sysfs_root, const std::string& dev_root) {
+        return identity_dict(detail::read_device_identity(device, sysfs_root, dev_root));
+      },
+      "device"_a, "sysfs_root"_a = "/sys", "dev_root"_a = "/dev",
+      "The identity of the serial device at `device` as record stores it (a dict as "
+      "SessionHeader.device_identity; {} for a pty or a path with no device in sysfs).");
+  m.def(
+      "present_device_identity",
+      [](nb::dict identity, const std::string& root, const std::string& device_path) {
+        const DeviceIdentity known = identity_from_python(identity).value_or(DeviceIdentity{});
+        const std::string tty_name = detail::presented_tty_name(known, device_path);
+        if (tty_name.empty()) return nb::make_tuple(tty_name, std::string(), known.by_id);
+        return nb::make_tuple(tty_name, detail::write_device_tree(known, root, tty_name),
+                              known.by_id);
+      },
+      "identity"_a, "root"_a, "device_path"_a,
+      "Writes under `root` the sysfs folders that present `identity` (as "
+      "SessionHeader.device_identity) to a command that opens `device_path`: returns "
+      "(tty_name, folder, by_id), the kernel name presented (device_path's own name when "
+      "it is directly under /dev, else the recorded one), the folder that stands for "
+      "/sys/class/tty/TTY_NAME (tty_name and folder '' when no name can be presented) "
+      "and the by-id name to redirect ('' when none).");
 
   m.def(
       "event_payload",

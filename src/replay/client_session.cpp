@@ -110,6 +110,75 @@ std::optional<std::uint64_t> find_client_connect(RecordSource& source, int k) {
   return std::nullopt;
 }
 
+namespace {
+
+class SessionsFirstSource final : public RecordSource {
+ public:
+  SessionsFirstSource(RecordSourceFactory sources, int k) : sources_(std::move(sources)), k_(k) {}
+
+  bool next(Record& record) override { return next_record(record, nullptr); }
+  bool next(Record& record, PayloadView& view) override { return next_record(record, &view); }
+  void rewind() override {
+    source_.reset();
+    others_ = false;
+  }
+  const std::optional<SessionError>& damage() const override {
+    static const std::optional<SessionError> none;
+    return source_ ? source_->damage() : none;
+  }
+
+ private:
+  // Two passes over the recording: session k's records, then the other
+  // sessions'; each session from the client_connect that began it to the
+  // client_disconnect that ended it.
+  bool next_record(Record& record, PayloadView* view) {
+    for (;;) {
+      if (!source_) {
+        source_ = sources_();
+        tracker_ = ClientSessionTracker();
+        session_ = 0;
+      }
+      if (!(view ? source_->next(record, *view) : source_->next(record))) {
+        if (others_) return false;
+        others_ = true;
+        source_.reset();
+        continue;
+      }
+      const std::string_view payload =
+          view && *view ? view->bytes : std::string_view(record.data);
+      const ClientSessionTracker::Change change = tracker_.feed(record.kind, payload);
+      if (change == ClientSessionTracker::Change::began) ++session_;
+      const bool in_session = tracker_.open() || change == ClientSessionTracker::Change::ended;
+      if (in_session && (session_ == k_) != others_) return true;
+    }
+  }
+
+  const RecordSourceFactory sources_;
+  const int k_;
+  std::unique_ptr<RecordSource> source_;
+  bool others_ = false;  // the second pass
+  ClientSessionTracker tracker_;
+  int session_ = 0;
+};
+
+}  // namespace
+
+int count_client_sessions(RecordSource& source) {
+  Record record;
+  ClientSessionTracker tracker;
+  int seen = 0;
+  while (source.next(record)) {
+    if (tracker.feed(record.kind, record.data) == ClientSessionTracker::Change::began) ++seen;
+  }
+  return seen;
+}
+
+RecordSourceFactory sessions_first_sources(RecordSourceFactory sources, int k) {
+  return [sources = std::move(sources), k] {
+    return std::make_unique<SessionsFirstSource>(sources, k);
+  };
+}
+
 RecordSourceFactory client_session_sources(RecordSourceFactory sources, int k) {
   return [sources = std::move(sources), k] {
     return std::make_unique<ClientSessionSource>(sources(), k);

@@ -37,4 +37,15 @@ std::optional<std::uint64_t> find_client_connect(RecordSource& source, int k);
 // (what comes after was said to nobody, or to the next client).
 RecordSourceFactory client_session_sources(RecordSourceFactory sources, int k);
 
+// The number of client sessions the recording holds.
+int count_client_sessions(RecordSource& source);
+
+// match=request (DESIGN.md section 12: connection order is free): sources
+// over client session `k`'s records, then over every other client
+// session's, in recorded order, each from the `client_connect` record that
+// began it to the `client_disconnect` that ended it; what was said to
+// nobody is left out. The records are numbered in
+// that order by whoever reads them, the same each time.
+RecordSourceFactory sessions_first_sources(RecordSourceFactory sources, int k);
+
 }  // namespace wiretape::detail

@@ -1,6 +1,7 @@
 #include "replay/fault_stage.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <string_view>
 
@@ -35,11 +36,12 @@ void set_bytes(RxItem& item, std::string bytes) {
 }  // namespace
 
 FaultInjector::FaultInjector(FaultPlan plan, bool datagrams, Reporter reporter,
-                             std::shared_ptr<FaultMemory> memory)
+                             std::shared_ptr<FaultMemory> memory, double speed)
     : plan_(std::move(plan)),
       datagrams_(datagrams),
       reporter_(std::move(reporter)),
-      memory_(memory ? std::move(memory) : std::make_shared<FaultMemory>()) {
+      memory_(memory ? std::move(memory) : std::make_shared<FaultMemory>()),
+      speed_(speed) {
   memory_->once_fired.resize(plan_.faults.size(), false);
 }
 
@@ -216,13 +218,13 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
         break;
       }
       case FaultKind::delay:
-        shift_ += std::chrono::milliseconds(*spec.amount);
+        shift_ += wait_of(*spec.amount);
         report(spec, exchange, "delayed the response by " + std::to_string(*spec.amount) +
                                    " ms" + where_in(first));
         break;
       case FaultKind::stall: {
         if (!is_rx || datagrams_ || first.payload().size() < 2) {
-          shift_ += std::chrono::milliseconds(*spec.amount);
+          shift_ += wait_of(*spec.amount);
           report(spec, exchange, "stalled " + std::to_string(*spec.amount) +
                                      " ms before the record" + where_in(first));
           break;
@@ -236,8 +238,8 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
                                    std::to_string(offset + half) + where_in(first));
         // Every piece is shifted below; the head only by the shift before
         // the stall.
-        head.due -= std::chrono::milliseconds(*spec.amount);
-        shift_ += std::chrono::milliseconds(*spec.amount);
+        head.due -= wait_of(*spec.amount);
+        shift_ += wait_of(*spec.amount);
         pieces.insert(pieces.begin(), std::move(head));
         break;
       }
@@ -259,7 +261,7 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
         if (spec.kind == FaultKind::disconnect) {
           memory_->lost = text;
         } else {
-          back_at = first.due + shift_ + std::chrono::milliseconds(*spec.amount);
+          back_at = first.due + shift_ + wait_of(*spec.amount);
           drop_rest_ = true;
           text = "the device went away for " + std::to_string(*spec.amount) + " ms (fault " +
                  spec.kind_text + "@" + spec.where_text + ")";
@@ -284,7 +286,7 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
       const auto shift_before = shift_;
       for (const char byte : bytes) {
         RxItem one = made_like(piece, RecordKind::rx, std::string(1, byte));
-        if (trickled_) shift_ += std::chrono::milliseconds(*trickle_ms_);
+        if (trickled_) shift_ += wait_of(*trickle_ms_);
         trickled_ = true;
         one.due += shift_ - shift_before;
         out.push_back(FaultedRx{std::move(one), std::nullopt});
@@ -292,7 +294,7 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
       continue;
     }
     if (trickle_ms_ && datagrams_ && piece.kind == RecordKind::rx) {
-      shift_ += std::chrono::milliseconds(*trickle_ms_);
+      shift_ += wait_of(*trickle_ms_);
     }
     const bool is_loss = piece.kind == RecordKind::device_lost && lost;
     out.push_back(FaultedRx{std::move(piece), is_loss ? back_at : std::nullopt});
@@ -302,8 +304,13 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
 
 // --- the stage ------------------------------------------------------------------
 
+std::chrono::nanoseconds FaultInjector::wait_of(std::uint64_t ms) const {
+  return std::chrono::nanoseconds(
+      std::llround(static_cast<double>(ms) * 1e6 / speed_));
+}
+
 FaultStage::FaultStage(const FaultPlan& plan, bool datagrams, ReleasedRx& released,
-                       std::shared_ptr<FaultMemory> memory)
+                       std::shared_ptr<FaultMemory> memory, double speed)
     : released_(released) {
   if (plan.empty()) return;
   if (memory && memory->lost) {
@@ -315,7 +322,8 @@ FaultStage::FaultStage(const FaultPlan& plan, bool datagrams, ReleasedRx& releas
     faulted_.push_back(FaultedRx{std::move(loss), std::nullopt});
   }
   injector_ = std::make_unique<FaultInjector>(
-      plan, datagrams, [this](const FaultEvent& event) { report(event); }, std::move(memory));
+      plan, datagrams, [this](const FaultEvent& event) { report(event); }, std::move(memory),
+      speed);
 }
 
 void FaultStage::report(const FaultEvent& event) const {

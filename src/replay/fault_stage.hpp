@@ -52,9 +52,11 @@ class FaultInjector {
   using Reporter = std::function<void(const FaultEvent&)>;
 
   // `memory`: what earlier client sessions' faults left behind (shared with
-  // the later ones); nullptr: a memory of this injector's own.
+  // the later ones); nullptr: a memory of this injector's own. `speed`: the
+  // replay's `speed` key, which scales the faults' waits (delay, stall,
+  // trickle, reconnect) as it scales the recorded ones (DESIGN §14, §22).
   FaultInjector(FaultPlan plan, bool datagrams, Reporter reporter,
-                std::shared_ptr<FaultMemory> memory = nullptr);
+                std::shared_ptr<FaultMemory> memory = nullptr, double speed = 1.0);
 
   // Passes one released record (rx, or a recorded close or loss) of
   // exchange `item.exchange` through the plan, appending what the client
@@ -83,6 +85,9 @@ class FaultInjector {
   bool datagrams_;
   Reporter reporter_;
   std::shared_ptr<FaultMemory> memory_;  // never null
+  double speed_ = 1.0;
+  // A fault's wait of `ms` milliseconds on the replay's clock.
+  std::chrono::nanoseconds wait_of(std::uint64_t ms) const;
   std::optional<std::uint64_t> current_exchange_;
   // Per exchange, what goes on for its later records.
   bool drop_rest_ = false;
@@ -103,7 +108,7 @@ class FaultStage {
   // behind (see FaultMemory); nullptr: the stage starts afresh. A device a
   // fault made lost is lost from the start.
   FaultStage(const FaultPlan& plan, bool datagrams, ReleasedRx& released,
-             std::shared_ptr<FaultMemory> memory = nullptr);
+             std::shared_ptr<FaultMemory> memory = nullptr, double speed = 1.0);
   FaultStage(const FaultStage&) = delete;
   FaultStage& operator=(const FaultStage&) = delete;
 

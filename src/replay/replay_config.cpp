@@ -94,6 +94,9 @@ ReplayConfig take_replay_config(Options& options) {
        {"cycle", ReplayRepeat::cycle}});
   const double gap_ms = options.take_double("gap");
   config.gap = std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(gap_ms * 1e6)));
+  const double flush_wait_ms = options.take_double("flush_wait");
+  config.flush_wait =
+      std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(flush_wait_ms * 1e6)));
   if (const auto name = options.peek("profile")) {
     if (options.has("framing")) {
       throw OptionError("framing",

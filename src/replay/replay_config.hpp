@@ -33,6 +33,15 @@ struct ReplayConfig {
   // request recorded earlier before it takes a shorter one that is complete
   // (DESIGN.md section 13).
   std::chrono::nanoseconds gap = std::chrono::milliseconds(50);
+  // match=sequence: how long rx recorded after a client flush waits for the
+  // client's own once it is otherwise due; the client may flush fewer times
+  // (TIOCPKT merges flushes made back to back; probes vary) (DESIGN.md
+  // section 12).
+  std::chrono::nanoseconds flush_wait = std::chrono::milliseconds(200);
+  // match=request with a recording of several client sessions: the
+  // recorded session whose greeting this client session gets and whose
+  // exchanges it matches first (1-based; 0: the recording has none).
+  int client_session = 0;
   ReplayUnused unused = ReplayUnused::warn;
   ReplayAtEnd at_end = ReplayAtEnd::silent;
   // profile=NAME: exchanges are request frames matched by their keys, and

@@ -39,7 +39,8 @@ ReplayEngine::ReplayEngine(ReplayConfig config, RecordSourceFactory sources,
       timeline_(config_, open_time, origin_ns),
       released_(/*recycle_payloads=*/true),
       report_(config_.file, config_.match),
-      stage_(config_.faults, config_.datagrams, released_, std::move(fault_memory)),
+      stage_(config_.faults, config_.datagrams, released_, std::move(fault_memory),
+             config_.speed),
       strategy_(make_strategy(config_, timeline_, released_, report_, sources)) {}
 
 ReplayEngine::~ReplayEngine() = default;
@@ -163,6 +164,12 @@ void ReplayEngine::flush_input(ReplayTime now) {
 }
 
 void ReplayEngine::client_flushed() { strategy_->client_flushed(); }
+
+ModemInputs ReplayEngine::device_lines(ReplayTime now) {
+  // Released rx is left where it is: the fault stage takes it as reads do.
+  strategy_->release(now);
+  return released_.device_lines(now);
+}
 
 void ReplayEngine::write(const char* data, std::size_t size, ReplayTime now) {
   if (size == 0 && !replays_empty_datagrams(config_)) return;

@@ -71,11 +71,16 @@ class ReplayEngine {
   void write(const char* data, std::size_t size, ReplayTime now);
   // The client changed line settings, a modem line or sent a break: under
   // check=timing (match=sequence) it must match the next recorded event of
-  // that kind, in order with the writes. `fields` are the event's JSON
-  // members as text (baud -> "115200", dtr -> "true").
+  // that kind, in order with the writes; a modem line or break also under
+  // check=data where the recording holds the device's lines (DESIGN.md
+  // section 20). `fields` are the event's JSON members as text (baud ->
+  // "115200", dtr -> "true").
   void client_event(RecordKind kind,
                     const std::map<std::string, std::string>& fields,
                     ReplayTime now);
+  // The device's modem inputs released and due by `now` (DESIGN.md section
+  // 20): CTS, DSR and CD up and RI down until the recording says otherwise.
+  ModemInputs device_lines(ReplayTime now);
   // Drops rx that was released and is due but not yet read; a client flush.
   void flush_input(ReplayTime now);
   // The client flushed without dropping released rx (its output, or its

@@ -99,7 +99,8 @@ class ReplayPort : public Port {
     }
     // Faults (delay, stall, trickle, reconnect) make data due later even
     // under timing=none: someone must raise the pipe then.
-    if (engine_->config().timing != ReplayTiming::none || !engine_->config().faults.empty()) {
+    if ((engine_->config().timing != ReplayTiming::none || !engine_->config().faults.empty()) &&
+        !scheduler_.joinable()) {
       scheduler_ = std::thread([this] { schedule(); });
     }
   }
@@ -137,13 +138,24 @@ class ReplayPort : public Port {
     const int k = client_sessions_ + 1;
     std::optional<std::uint64_t> connect_t_ns;
     std::uint64_t first_exchange = 0;  // exchanges are numbered per file (exchanges.hpp)
+    // match=request: connection order is free; the k-th connection is
+    // greeted as the k-th recorded one (the last, past them) and matches
+    // every recorded session's exchanges, its own first (DESIGN.md 12).
+    int served_session = k;
     {
       const std::unique_ptr<RecordSource> source = sources_();
       connect_t_ns = find_client_connect(*source, k);
+      if (!connect_t_ns && config_.match == ReplayMatch::request && k > 1) {
+        source->rewind();
+        served_session = count_client_sessions(*source);
+        source->rewind();
+        if (served_session > 0) connect_t_ns = find_client_connect(*source, served_session);
+      }
       if (connect_t_ns) {
         source->rewind();
         first_exchange = first_exchange_of_client_session(
-            *source, Segmentation{config_.profile, config_.datagrams, config_.match}, k);
+            *source, Segmentation{config_.profile, config_.datagrams, config_.match},
+            served_session);
       }
     }
     std::lock_guard<std::mutex> lock(mutex_);
@@ -153,10 +165,14 @@ class ReplayPort : public Port {
     const auto now = ReplayClock::now();
     const bool afresh = connect_t_ns || k == 1;
     if (afresh) {
+      const bool by_request = connect_t_ns && config_.match == ReplayMatch::request;
       RecordSourceFactory sources =
-          connect_t_ns ? client_session_sources(sources_, k) : sources_;
+          by_request    ? sessions_first_sources(sources_, served_session)
+          : connect_t_ns ? client_session_sources(sources_, k)
+                         : sources_;
       ReplayConfig config = config_;
       config.first_exchange = first_exchange;
+      if (by_request) config.client_session = served_session;
       engine_ = std::make_unique<ReplayEngine>(std::move(config), std::move(sources), now,
                                                connect_t_ns.value_or(0), fault_memory_);
       engine_->on_fault(fault_reporter_);  // each session's fault stage reports here
@@ -283,10 +299,12 @@ class ReplayPort : public Port {
   }
   void set_dtr(bool level) override { modem_line(event_field::dtr, level); }
   void set_rts(bool level) override { modem_line(event_field::rts, level); }
-  bool cts() override { return true; }
-  bool dsr() override { return true; }
-  bool ri() override { return false; }
-  bool cd() override { return true; }
+  // The device's lines as the recording released them so far (a modem with
+  // the line up where it holds none).
+  bool cts() override { return device_lines().cts; }
+  bool dsr() override { return device_lines().dsr; }
+  bool ri() override { return device_lines().ri; }
+  bool cd() override { return device_lines().cd; }
   void send_break(std::chrono::milliseconds duration) override {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
@@ -353,6 +371,11 @@ class ReplayPort : public Port {
     const auto now = ReplayClock::now();
     try {
       engine_->write(static_cast<const char*>(data), size, now);
+    } catch (const ReplayMismatch&) {
+      mismatched_ = true;
+      update_signal(now);
+      changed_.notify_all();
+      throw;
     } catch (...) {
       update_signal(now);
       changed_.notify_all();
@@ -403,6 +426,14 @@ class ReplayPort : public Port {
     if (closed_) throw PortClosed(description_ + " is closed");
   }
 
+  ModemInputs device_lines() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    check_open();
+    if (awaiting_client_) return lines_before_client_;
+    lines_before_client_ = engine_->device_lines(ReplayClock::now());
+    return lines_before_client_;
+  }
+
   void modem_line(const char* line, bool level) {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
@@ -448,6 +479,11 @@ class ReplayPort : public Port {
   // only reads and writes (pyserial through wiretape://) waits for.
   ReplayEngine::Outlook update_signal(ReplayTime now) {
     const ReplayEngine::Outlook outlook = outlook_at(now);
+    // Under timing=none, nothing is timed but a strategy's wait (a flush
+    // gate's flush_wait): the scheduler starts when one first waits.
+    if (outlook.wake && !scheduler_.joinable() && !closed_) {
+      scheduler_ = std::thread([this] { schedule(); });
+    }
     if (!handle_handed_out_) return outlook;
     const bool readable =
         outlook.state == ReplayEngine::ReadState::readable ||
@@ -558,9 +594,14 @@ class ReplayPort : public Port {
       signal_read_.reset();
       signal_write_.reset();
       const ReplayUnused policy = engine_->config().unused;
-      if (policy != ReplayUnused::ignore) unused = engine_->unused_report();
-      if (unused.empty()) return;
+      // Asked whatever the policy: rx a flush gate held from a client that
+      // wrote past it raises here (sequence.cpp).
+      unused = engine_->unused_report();
+      if (unused.empty() || policy == ReplayUnused::ignore) return;
       if (policy == ReplayUnused::warn || !may_throw) {
+        // After a mismatch what the client left unused follows from it: the
+        // mismatch was said, a warning about its consequence is noise.
+        if (mismatched_) return;
         std::fprintf(stderr, "wiretape: %s\n", unused.c_str());
         return;
       }
@@ -573,6 +614,8 @@ class ReplayPort : public Port {
   // client goes).
   const RecordSourceFactory sources_;
   mutable std::mutex mutex_;
+  // A write did not match the recording (ReplayMismatch was raised).
+  bool mismatched_ = false;
   std::condition_variable changed_;
   const ReplayConfig config_;  // for the engine of each client session
   // What faults left behind, for every client session's engine: a silenced
@@ -583,6 +626,8 @@ class ReplayPort : public Port {
   // A virtual device between client sessions: nothing is released to
   // nobody (see await_client()).
   bool awaiting_client_ = false;
+  // The lines the last client session left, seen until the next begins.
+  ModemInputs lines_before_client_;
   int client_sessions_ = 0;
   SerialSettings settings_;
   std::function<void(const FaultEvent&)> fault_reporter_;  // empty: stderr

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <sstream>
 
+#include "replay/client_session.hpp"
 #include "replay/exchanges.hpp"
 #include "replay/profile.hpp"
 #include "util/hex.hpp"
@@ -137,9 +138,14 @@ void RequestStrategy::load_exchanges(RecordSource& source) {
     const std::uint64_t ordinal = records_read++;
     const std::string_view payload = view ? view.bytes : std::string_view(record.data);
     cursor.feed(record.kind, record.t_ns, payload);
+    if (another_client_session(record.kind, payload)) {
+      if (in_request) close_request();
+      continue;
+    }
     switch (record.kind) {
       case RecordKind::tx: {
         if (payload.empty()) break;
+        greeting_of_another_ = false;
         if (cursor.began()) {
           if (in_request) close_request();
           exchanges_.emplace_back();
@@ -159,6 +165,7 @@ void RequestStrategy::load_exchanges(RecordSource& source) {
       case RecordKind::device_lost: {
         if (record.kind == RecordKind::rx && payload.empty()) break;
         next_record_wildcards.clear();  // the redaction was of this rx record
+        if (greeting_of_another_) break;
         device_gone = record.kind != RecordKind::rx;
         if (record.kind == RecordKind::close && !session_goes_on(source)) break;
         if (in_request) close_request();
@@ -168,11 +175,31 @@ void RequestStrategy::load_exchanges(RecordSource& source) {
       case RecordKind::redaction:
         next_record_wildcards.add_event(payload);
         break;
+      case RecordKind::modem_lines:
+        if (!greeting_of_another_) serve_greeting_lines(payload);
+        break;
       default:
         break;
     }
   }
   if (in_request) close_request();
+}
+
+// With sessions_first_sources (client_session.hpp): the recording's other
+// client sessions follow this one's, each opened by its client_connect.
+// Their exchanges are matched after this session's; their greetings were
+// for their own clients and are not served.
+bool RequestStrategy::another_client_session(RecordKind kind, std::string_view payload) {
+  if (config_.client_session == 0) return false;
+  if (kind != RecordKind::client_connect && kind != RecordKind::client_disconnect) return false;
+  // The first session begun is this one's.
+  if (sessions_.feed(kind, payload) != ClientSessionTracker::Change::began ||
+      ++sessions_begun_ < 2) {
+    return false;
+  }
+  if (own_exchanges_ == kAllExchanges) own_exchanges_ = exchanges_.size();
+  greeting_of_another_ = true;
+  return true;
 }
 
 void RequestStrategy::add_wildcards(std::uint32_t group, const Wildcards& wildcards) {
@@ -270,7 +297,10 @@ void RequestStrategy::load_frames(RecordSource& source) {
     if (record.kind == RecordKind::tx && !payload.empty()) last_tx_t_ns = record.t_ns;
     for (const TimedFramer::TimedFrame& timed : cursor.frames_completed()) {
       add_frame(timed.frame, timed.t_ns, last_tx_t_ns);
+      greeting_of_another_ = false;
     }
+    if (another_client_session(record.kind, payload) || greeting_of_another_) continue;
+    if (record.kind == RecordKind::modem_lines) serve_greeting_lines(payload);
     if (record.kind != RecordKind::rx && record.kind != RecordKind::close &&
         record.kind != RecordKind::device_lost) {
       continue;
@@ -279,6 +309,16 @@ void RequestStrategy::load_frames(RecordSource& source) {
     device_gone = record.kind != RecordKind::rx;
     if (record.kind == RecordKind::close && !session_goes_on(source)) break;
     add_response(record.kind, record.t_ns, payload, ordinal);
+  }
+}
+
+// Served, not checked (docs/replay.md): the device's lines as the recording
+// shows them before the first request, from open on.
+void RequestStrategy::serve_greeting_lines(std::string_view payload) {
+  if (!exchanges_.empty()) return;
+  if (const auto inputs = modem_inputs_of(payload, greeting_lines_)) {
+    greeting_lines_ = *inputs;
+    released_.push_lines(ReplayTime::min(), *inputs);
   }
 }
 
@@ -687,7 +727,10 @@ std::string RequestStrategy::unused_report(std::uint64_t queued_rx_bytes,
                                            std::uint64_t) {
   std::size_t unused = 0;
   std::ostringstream first;
-  for (std::size_t i = 0; i < exchanges_.size(); ++i) {
+  // Other client sessions' exchanges are for other connections: this one
+  // answers for its own (DESIGN.md section 12).
+  const std::size_t own = std::min(own_exchanges_, exchanges_.size());
+  for (std::size_t i = 0; i < own; ++i) {
     if (exchanges_[i].used) continue;
     if (unused < 3) {
       first << "\n  exchange " << i << ": "
@@ -701,8 +744,9 @@ std::string RequestStrategy::unused_report(std::uint64_t queued_rx_bytes,
   }
   if (unused > 0) {
     if (queued_rx_bytes > 0) report << "; ";
-    report << unused << " of " << exchanges_.size()
-           << " recorded exchanges were never requested" << first.str();
+    report << unused << " of " << own << " recorded exchanges"
+           << (own < exchanges_.size() ? " of this client session" : "")
+           << " were never requested" << first.str();
   }
   return report.str();
 }

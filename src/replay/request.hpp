@@ -20,6 +20,7 @@
 #include <string_view>
 #include <vector>
 
+#include "replay/client_session.hpp"
 #include "replay/response_fixer.hpp"
 #include "replay/strategy.hpp"
 
@@ -48,6 +49,8 @@ class RequestStrategy final : public ReplayStrategy {
 
  private:
   static constexpr std::uint32_t kNone = UINT32_MAX;
+  ModemInputs greeting_lines_;  // the device's lines before the first request
+  void serve_greeting_lines(std::string_view payload);
   struct Exchange {
     std::uint32_t group = 0;               // its request
     std::uint32_t next_in_group = kNone;   // the group's next exchange
@@ -157,6 +160,18 @@ class RequestStrategy final : public ReplayStrategy {
   void read_from_session(const Exchange& exchange,
                          const ReplayTimeline::Anchor& matched);
   [[noreturn]] void raise_unmatched();
+  // Whether a record read by the loaders opens another client session's
+  // records (see the definition); notes where this session's end.
+  bool another_client_session(RecordKind kind, std::string_view payload);
+  ClientSessionTracker sessions_;  // of the records the loaders read
+  int sessions_begun_ = 0;
+  static constexpr std::size_t kAllExchanges = SIZE_MAX;
+  // The exchanges of this client session (the first ones): all of them
+  // unless the recording's other sessions follow.
+  std::size_t own_exchanges_ = kAllExchanges;
+  // The loaders are past another session's client_connect and before its
+  // first request: its rx was a greeting for its own client.
+  bool greeting_of_another_ = false;
 
   const ReplayConfig& config_;
   const ReplayTimeline& timeline_;

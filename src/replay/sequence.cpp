@@ -7,6 +7,15 @@
 
 namespace wiretape::detail {
 
+namespace {
+
+std::string recorded_event_text(const Record& record);
+std::string event_levels_text(
+    const std::optional<Record>& recorded,
+    const std::optional<std::pair<RecordKind, std::map<std::string, std::string>>>& made);
+
+}  // namespace
+
 SequenceStrategy::SequenceStrategy(const ReplayConfig& config,
                                    const ReplayTimeline& timeline,
                                    ReleasedRx& released, MismatchReport& report,
@@ -32,7 +41,8 @@ SequenceStrategy::SequenceStrategy(const ReplayConfig& config,
 
 // --- the read cursor -----------------------------------------------------------
 
-void SequenceStrategy::release(ReplayTime) {
+void SequenceStrategy::release(ReplayTime now) {
+  now_ = std::max(now_, now);
   const bool nothing_ahead = released_.empty() && ahead_.empty();
   if (nothing_ahead || released_.bytes() + ahead_bytes_ < kLookaheadBytes / 2) {
     fill();
@@ -74,6 +84,25 @@ void SequenceStrategy::fill() {
       case RecordKind::flush_output:
         ++rx_flushes_seen_;
         break;
+      case RecordKind::modem_lines: {
+        // The device's lines are released like rx; the host's are checked
+        // by the write cursor.
+        const std::string_view payload = view ? view.bytes : std::string_view(record.data);
+        const std::optional<ModemInputs> inputs = modem_inputs_of(payload, rx_device_lines_);
+        if (!inputs) break;
+        rx_device_lines_ = *inputs;
+        Ahead ahead;
+        ahead.item.kind = RecordKind::modem_lines;
+        ahead.item.t_ns = record.t_ns;
+        ahead.item.exchange = exchange;
+        ahead.item.data = modem_inputs_payload(*inputs);  // all four: read back alone
+        ahead.tx_before = rx_tx_progress();
+        ahead.anchor_t_ns = rx_last_tx_t_ns_;
+        ahead.flushes_before = rx_flushes_seen_;
+        ahead_bytes_ += ahead.item.data.size();
+        ahead_.push_back(std::move(ahead));
+        break;
+      }
       case RecordKind::rx:
       case RecordKind::close:
       case RecordKind::device_lost: {
@@ -123,18 +152,12 @@ void SequenceStrategy::entitle() {
     Ahead& ahead = ahead_.front();
     // timing=session: time alone decides, writes do not gate.
     // A client flush recorded before it (pyserial's, gpsd's on open) would
-    // have discarded it had it come earlier: it waits for the client's.
+    // have discarded it had it come earlier: it waits for the client's, for
+    // flush_wait at most.
     const bool entitled = config_.timing == ReplayTiming::session ||
-                          (tx_progress() >= ahead.tx_before &&
-                           client_flushes_ >= ahead.flushes_before);
+                          (tx_progress() >= ahead.tx_before && !held_by_flush_gate());
     if (!entitled) break;  // later records need at least as many tx bytes
-    std::optional<ReplayTimeline::Anchor> anchor;
-    if (ahead.anchor_t_ns) {
-      if (const auto finished = finish_of(ahead.tx_before)) {
-        anchor = ReplayTimeline::Anchor{*finished, *ahead.anchor_t_ns};
-      }
-    }
-    ahead.item.due = timeline_.due(ahead.item.t_ns, anchor);
+    ahead.item.due = due_of(ahead);
     ahead_bytes_ -= ahead.item.payload().size();
     release_item(std::move(ahead.item), ahead.tx_before);
     ahead_.pop_front();
@@ -153,7 +176,44 @@ void SequenceStrategy::entitle() {
   }
 }
 
+// When an entitled record is due: anchored on the client's write that the
+// recording shows before it, once the client finished it.
+ReplayTime SequenceStrategy::due_of(const Ahead& ahead) const {
+  std::optional<ReplayTimeline::Anchor> anchor;
+  if (ahead.anchor_t_ns) {
+    if (const auto finished = finish_of(ahead.tx_before)) {
+      anchor = ReplayTimeline::Anchor{*finished, *ahead.anchor_t_ns};
+    }
+  }
+  return timeline_.due(ahead.item.t_ns, anchor);
+}
+
+// A recorded flush gates rx only as long as the client could still make it
+// (DESIGN.md section 12): flushes made back to back may reach the bridge as
+// one (TIOCPKT), and a probing client (gpsd) flushes a number of times that
+// depends on timing. So the gate holds the record for flush_wait after it
+// would otherwise be due, then counts the missing flushes as made.
+bool SequenceStrategy::held_by_flush_gate() {
+  const Ahead& ahead = ahead_.front();
+  if (client_flushes_ + flushes_forgiven_ >= ahead.flushes_before) {
+    flush_gate_ends_.reset();
+    return false;
+  }
+  if (!flush_gate_ends_) {
+    flush_gate_ends_ = std::max(due_of(ahead), now_) +
+                       std::chrono::duration_cast<ReplayClock::duration>(config_.flush_wait);
+  }
+  if (now_ < *flush_gate_ends_) return true;
+  flushes_forgiven_ = ahead.flushes_before - client_flushes_;
+  flush_gate_ends_.reset();
+  return false;
+}
+
 void SequenceStrategy::release_item(RxItem&& item, std::uint64_t tx_before) {
+  if (item.kind == RecordKind::modem_lines) {
+    released_.push_lines(item.due, modem_inputs_of(item.data, {}).value_or(ModemInputs{}));
+    return;
+  }
   if (!fixer_) {
     released_.push(std::move(item));
     return;
@@ -195,9 +255,18 @@ bool SequenceStrategy::next_tx_record() {
         pending_wildcards_.add_event(record.data);
         break;
       case RecordKind::settings:
-      case RecordKind::modem_lines:
-      case RecordKind::line_break:
         if (checks_events()) expected_events_.push_back(std::move(record));
+        break;
+      case RecordKind::modem_lines:
+        // The device's lines recorded: this recording's client lines are
+        // checked from here on (the recorders write them first).
+        if (modem_inputs_of(record.data, {})) lines_recorded_ = true;
+        if (records_host_lines(record.data) && checks_lines()) {
+          expected_events_.push_back(std::move(record));
+        }
+        break;
+      case RecordKind::line_break:
+        if (checks_lines()) expected_events_.push_back(std::move(record));
         break;
       case RecordKind::close:
       case RecordKind::device_lost:
@@ -290,6 +359,7 @@ void SequenceStrategy::write_frames(const char* data, std::size_t size, ReplayTi
 }
 
 void SequenceStrategy::write(const char* data, std::size_t size, ReplayTime now) {
+  now_ = std::max(now_, now);
   try {
     if (config_.profile && config_.check != ReplayCheck::off) {
       write_frames(data, size, now);
@@ -330,12 +400,14 @@ void SequenceStrategy::write_records(const char* data, std::size_t size,
     const std::string& expected = tx_record_.data;
     if (tx_position_ == 0 && !expected_events_.empty()) {
       const Record& missing = expected_events_.front();
-      report_.raise("the recording has a " + std::string(to_string(missing.kind)) +
-                        " event " + missing.data +
+      report_.raise("the recording has " + recorded_event_text(missing) +
                         " before these bytes, and the client did not make it",
                     tx_written_,
                     std::string_view(expected).substr(0, kReplayContext),
-                    rest.substr(0, kReplayContext), missing.t_ns, tx_exchange_);
+                    rest.substr(0, kReplayContext), missing.t_ns, tx_exchange_,
+                    missing.kind == RecordKind::settings
+                        ? std::string()
+                        : event_levels_text(missing, std::nullopt));
     }
     if (tx_position_ == 0 && config_.check == ReplayCheck::timing) {
       if (const auto miss = timeline_.check_write(tx_record_.t_ns, previous_tx_finished_,
@@ -406,6 +478,10 @@ bool SequenceStrategy::checks_events() const {
   return config_.check == ReplayCheck::timing;
 }
 
+bool SequenceStrategy::checks_lines() const {
+  return checks_events() || (config_.check == ReplayCheck::data && lines_recorded_);
+}
+
 namespace {
 
 std::string member_text(const json::Value& value) {
@@ -432,36 +508,104 @@ std::string fields_json(const std::map<std::string, std::string>& fields) {
   return text + "}";
 }
 
+// A line change in words: "DTR low", "RTS high", "a break"; other events as
+// their kind and members.
+std::string line_change_text(RecordKind kind, const std::map<std::string, std::string>& fields) {
+  if (kind == RecordKind::line_break) return "a break";
+  if (kind == RecordKind::modem_lines) {
+    std::string text;
+    for (const char* line : {event_field::dtr, event_field::rts}) {
+      const auto level = fields.find(line);
+      if (level == fields.end()) continue;
+      if (!text.empty()) text += ", ";
+      for (const char* c = line; *c != '\0'; ++c) text += static_cast<char>(*c - 'a' + 'A');
+      text += level->second == "true" ? " high" : " low";
+    }
+    if (!text.empty()) return text;
+  }
+  return std::string(to_string(kind)) + " " + fields_json(fields);
+}
+
+std::map<std::string, std::string> recorded_fields(const Record& record) {
+  std::map<std::string, std::string> fields;
+  try {
+    const json::Value value = json::parse(record.data.empty() ? "{}" : record.data);
+    for (const auto& [key, member] : value.members) {
+      if (key == event_field::applied) continue;  // the proxy's note, not the client's doing
+      fields[key] = member_text(member);
+    }
+  } catch (const json::ParseError&) {
+  }
+  return fields;
+}
+
+std::string recorded_event_text(const Record& record) {
+  if (record.kind == RecordKind::modem_lines || record.kind == RecordKind::line_break) {
+    return line_change_text(record.kind, recorded_fields(record));
+  }
+  return "a " + std::string(to_string(record.kind)) + " event " + record.data;
+}
+
+// The report's lines for a line change: what the recording has there and
+// what the client did (nothing: it made none).
+std::string event_levels_text(
+    const std::optional<Record>& recorded,
+    const std::optional<std::pair<RecordKind, std::map<std::string, std::string>>>& made) {
+  return "  expected line change: " +
+         (recorded ? line_change_text(recorded->kind, recorded_fields(*recorded))
+                   : std::string("(none)")) +
+         "\n  actual line change:   " +
+         (made ? line_change_text(made->first, made->second) : std::string("(none)")) + "\n";
+}
+
 }  // namespace
 
 void SequenceStrategy::client_event(RecordKind kind,
                                     const std::map<std::string, std::string>& fields) {
-  if (!checks_events()) return;
+  const bool line = kind == RecordKind::modem_lines || kind == RecordKind::line_break;
+  // Settings are checked under check=timing; the client's lines also under
+  // check=data, where the recording holds the device's lines.
+  if (!checks_events() && !(line && config_.check == ReplayCheck::data)) return;
   if (!have_tx_record_ || tx_position_ == 0) next_tx_record();
-  const std::string made = std::string(to_string(kind)) + " " + fields_json(fields);
+  if (line && !checks_lines()) return;
+  const std::string made = line ? line_change_text(kind, fields)
+                                : "a " + std::string(to_string(kind)) + " " + fields_json(fields) +
+                                      " event";
+  const auto made_event = std::make_pair(kind, fields);
   if (expected_events_.empty()) {
-    report_.raise("the client made a " + made +
-                      " event where the recording has none",
-                  tx_written_, {}, {}, previous_tx_t_ns_, tx_exchange_);
+    report_.raise("the client made " + made + " where the recording has none",
+                  tx_written_, {}, {}, previous_tx_t_ns_, tx_exchange_,
+                  line ? event_levels_text(std::nullopt, made_event) : std::string());
   }
   const Record& recorded = expected_events_.front();
   bool same = recorded.kind == kind;
   if (same) {
-    try {
-      const json::Value value = json::parse(recorded.data.empty() ? "{}" : recorded.data);
-      // Only what both say is compared (set_baud against a full configure).
-      for (const auto& [key, text] : fields) {
-        const json::Value* member = value.find(key);
-        if (member != nullptr && member_text(*member) != text) same = false;
+    const std::map<std::string, std::string> recorded_members = recorded_fields(recorded);
+    // Only what both say is compared (set_baud against a full configure); a
+    // break's length is the client's timing, compared only under
+    // check=timing.
+    for (const auto& [key, text] : fields) {
+      if (key == event_field::duration_ms && !checks_events()) continue;
+      const auto member = recorded_members.find(key);
+      if (member != recorded_members.end() && member->second != text) same = false;
+    }
+    // A line the recording changed that the client did not.
+    if (kind == RecordKind::modem_lines) {
+      for (const char* name : {event_field::dtr, event_field::rts}) {
+        if (recorded_members.count(name) != fields.count(name)) same = false;
       }
-    } catch (const json::ParseError&) {
-      same = false;
     }
   }
   if (!same) {
-    report_.raise("the client made a " + made + " event; the recording has " +
-                      std::string(to_string(recorded.kind)) + " " + recorded.data,
-                  tx_written_, {}, {}, recorded.t_ns, tx_exchange_);
+    const bool recorded_line =
+        recorded.kind == RecordKind::modem_lines || recorded.kind == RecordKind::line_break;
+    report_.raise("the client made " + made + "; the recording has " +
+                      (recorded_line ? recorded_event_text(recorded)
+                                     : std::string(to_string(recorded.kind)) + " " + recorded.data),
+                  tx_written_, {}, {}, recorded.t_ns, tx_exchange_,
+                  line || recorded.kind != RecordKind::settings
+                      ? event_levels_text(recorded, made_event)
+                      : std::string());
   }
   expected_events_.pop_front();
 }
@@ -476,6 +620,11 @@ namespace {
 // a long session the client left early.
 constexpr std::uint64_t kUnusedScanBytes = 1 << 20;
 constexpr std::uint64_t kUnusedScanRecords = 4096;
+
+// "1 record", "3 records": a count and its noun agreeing.
+std::string counted(std::uint64_t count, const std::string& noun) {
+  return std::to_string(count) + " " + noun + (count == 1 ? "" : "s");
+}
 
 }  // namespace
 
@@ -493,6 +642,49 @@ std::uint64_t SequenceStrategy::tx_consumed() const {
 
 std::string SequenceStrategy::unused_report(std::uint64_t queued_rx_bytes,
                                             std::uint64_t queued_rx_records) {
+  // Rx held at the end for a flush the client did not make, though the
+  // client wrote what the recording shows after it: the client was denied
+  // what it was entitled to, which is no success (DESIGN.md section 12). Rx
+  // recorded after its last write is only unused.
+  if (!ahead_.empty() && ahead_.front().item.kind == RecordKind::rx &&
+      config_.timing != ReplayTiming::session && tx_progress() > ahead_.front().tx_before &&
+      client_flushes_ + flushes_forgiven_ < ahead_.front().flushes_before) {
+    const Ahead& held = ahead_.front();
+    std::uint64_t held_bytes = 0;
+    for (const Ahead& later : ahead_) {
+      if (later.tx_before > held.tx_before) break;
+      held_bytes += later.item.payload().size();
+    }
+    report_.raise("the client was entitled to rx that a recorded client flush still held "
+                  "at the end: the recording shows " +
+                      std::to_string(held.flushes_before) + " client flushes before it, the " +
+                      "client made " + std::to_string(client_flushes_ + flushes_forgiven_) +
+                      " and the replay ended within flush_wait (" +
+                      std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                         config_.flush_wait)
+                                         .count()) +
+                      " ms) of it being due",
+                  tx_consumed(), held.item.payload().substr(0, kReplayContext), {},
+                  held.item.t_ns, static_cast<std::int64_t>(held.item.exchange),
+                  "  held:     " + std::to_string(held_bytes) + " rx bytes\n");
+  }
+  // Line changes the recording has after the client's last write, which
+  // the client never made (those before a write it made were a mismatch).
+  if (!have_tx_record_) next_tx_record();
+  std::string lines_never_made;
+  std::size_t line_changes = 0;
+  const Record* first_line_change = nullptr;
+  for (const Record& event : expected_events_) {
+    if (event.kind != RecordKind::modem_lines && event.kind != RecordKind::line_break) continue;
+    if (line_changes++ == 0) first_line_change = &event;
+  }
+  if (first_line_change != nullptr) {
+    lines_never_made = std::to_string(line_changes) +
+                       " recorded line changes of the client were never made (the first: " +
+                       recorded_event_text(*first_line_change) + " at session time " +
+                       session_seconds(first_line_change->t_ns) + " s)";
+  }
+  expected_events_.clear();
   std::uint64_t rx_bytes = queued_rx_bytes;
   std::uint64_t rx_records = queued_rx_records;
   if (fixer_) {  // held back for the rest of a response frame
@@ -557,17 +749,22 @@ std::string SequenceStrategy::unused_report(std::uint64_t queued_rx_bytes,
   const std::string at_least = more ? "at least " : "";
   std::string report;
   if (rx_unused()) {
-    report = at_least + std::to_string(rx_bytes) + " recorded rx bytes (" +
-             at_least + std::to_string(rx_records) + " records) were never read";
+    report = at_least + counted(rx_bytes, "recorded rx byte") + " (" + at_least +
+             counted(rx_records, "record") + ") " + (rx_bytes == 1 && !more ? "was" : "were") +
+             " never read";
   }
   if (tx_bytes > 0 || tx_datagrams > 0) {
     if (!report.empty()) report += "; ";
-    report += at_least + std::to_string(tx_bytes) + " recorded tx bytes " +
-              (empty_datagrams_ ? "(" + at_least + std::to_string(tx_datagrams) + " datagrams) "
+    report += at_least + counted(tx_bytes, "recorded tx byte") + " " +
+              (empty_datagrams_ ? "(" + at_least + counted(tx_datagrams, "datagram") + ") "
                                 : std::string()) +
-              "were never written";
+              (tx_bytes == 1 && !more ? "was" : "were") + " never written";
   }
   if (more) report += " (the rest of the recording was not counted)";
+  if (!lines_never_made.empty()) {
+    if (!report.empty()) report += "; ";
+    report += lines_never_made;
+  }
   return report;
 }
 

@@ -28,6 +28,8 @@ class SequenceStrategy final : public ReplayStrategy {
 
   void release(ReplayTime now) override;
   bool more_to_release() const override;
+  // The end of a flush gate's flush_wait.
+  std::optional<ReplayTime> wake() const override { return flush_gate_ends_; }
   void client_flushed() override;
   void write(const char* data, std::size_t size, ReplayTime now) override;
   void client_event(RecordKind kind,
@@ -70,6 +72,10 @@ class SequenceStrategy final : public ReplayStrategy {
   bool next_tx_record();
   void write_records(const char* data, std::size_t size, ReplayTime now);
   bool checks_events() const;
+  // Whether the client's line changes (DTR, RTS, break) are checked: under
+  // check=timing always, under check=data once the recording showed it
+  // holds the device's lines (DESIGN.md section 20).
+  bool checks_lines() const;
   // Recorded tx bytes the write cursor has passed (the client wrote them).
   std::uint64_t tx_consumed() const;
   // How far the recorded tx is, for what entitles rx: in bytes, or where
@@ -91,8 +97,20 @@ class SequenceStrategy final : public ReplayStrategy {
   std::uint64_t rx_tx_datagrams_seen_ = 0;
   std::optional<std::uint64_t> rx_last_tx_t_ns_;
   std::uint64_t rx_flushes_seen_ = 0;
+  ModemInputs rx_device_lines_;  // as the read cursor's last line event left them
   ExchangeCursor rx_exchanges_;  // numbers what the read cursor reads
   std::uint64_t client_flushes_ = 0;  // the client made
+  // Recorded client flushes the client did not make within flush_wait:
+  // counted as made, so that later gates wait only for later flushes.
+  std::uint64_t flushes_forgiven_ = 0;
+  // When the front record, entitled but for a recorded flush, stops waiting
+  // for it (none: no record waits for a flush).
+  std::optional<ReplayTime> flush_gate_ends_;
+  ReplayTime now_{};  // of the last release() or write()
+  // Whether the front record waits for a flush alone (the client wrote what
+  // the recording shows before it); sets flush_gate_ends_.
+  bool held_by_flush_gate();
+  ReplayTime due_of(const Ahead& ahead) const;
   std::deque<Ahead> ahead_;
   std::size_t ahead_bytes_ = 0;
   std::deque<TxEnd> tx_ends_;
@@ -110,6 +128,7 @@ class SequenceStrategy final : public ReplayStrategy {
   ExchangeCursor tx_exchanges_;  // numbers what the write cursor reads
   std::int64_t tx_exchange_ = -1;  // of tx_record_; -1 before the first
   std::deque<Record> expected_events_;  // recorded before the next tx record
+  bool lines_recorded_ = false;  // the write cursor passed a record of the device's lines
   std::optional<ReplayTime> previous_tx_finished_;
   std::uint64_t previous_tx_t_ns_ = 0;
   std::uint64_t tx_written_ = 0;  // bytes the client wrote

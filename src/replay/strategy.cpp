@@ -16,6 +16,14 @@ void ReleasedRx::push(RxItem&& item) {
   items_.push_back(std::move(item));
 }
 
+ModemInputs ReleasedRx::device_lines(ReplayTime now) {
+  while (!lines_.empty() && lines_.front().due <= now) {
+    device_lines_ = lines_.front().inputs;
+    lines_.pop_front();
+  }
+  return device_lines_;
+}
+
 void ReleasedRx::pop_front() {
   bytes_ -= items_.front().payload().size();
   recycle_payload(std::move(items_.front().data));

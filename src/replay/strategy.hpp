@@ -15,6 +15,7 @@
 
 #include "replay/replay_config.hpp"
 #include "replay/timing.hpp"
+#include "session/record_kinds.hpp"
 #include "session/record_source.hpp"
 #include "wiretape/session.hpp"
 
@@ -65,7 +66,22 @@ class ReleasedRx {
   std::string spare_payload();
   void recycle_payload(std::string&& buffer);
 
+  // The device's modem inputs, released like rx (DESIGN.md section 20):
+  // each recorded change is seen from its due time on, in recorded order,
+  // whether or not the client read the rx before it.
+  void push_lines(ReplayTime due, const ModemInputs& inputs) {
+    lines_.push_back({due, inputs});
+  }
+  // The levels released and due by `now`.
+  ModemInputs device_lines(ReplayTime now);
+
  private:
+  struct LineChange {
+    ReplayTime due;
+    ModemInputs inputs;
+  };
+  std::deque<LineChange> lines_;
+  ModemInputs device_lines_;  // the last change applied; a modem's line-up levels before any
   std::deque<RxItem> items_;
   std::size_t bytes_ = 0;
   bool recycle_;

@@ -150,6 +150,12 @@ std::string header_json(const SessionHeader& header) {
   }
   require_utf8(field::device_address, header.device_address);
   for (const auto& edit : header.edits) require_utf8(field::edits, edit);
+  if (header.device_identity) {
+    for (const auto& member : device_identity_members) {
+      require_utf8(std::string(field::device_identity) + "." + member.name,
+                   (*header.device_identity).*member.value);
+    }
+  }
   if (const auto problem = start_utc_problem(header.start_utc)) {
     throw OptionError(field::start_utc, "the session header's " + *problem);
   }
@@ -185,6 +191,16 @@ std::string header_json(const SessionHeader& header) {
       json::append_string(edits, edit);
     }
     object.add_raw(field::edits, edits + "]");
+  }
+  // Format 1.2. Members not known are left out, so that the header says
+  // only what the machine knew.
+  if (header.device_identity) {
+    json::ObjectWriter identity;
+    for (const auto& member : device_identity_members) {
+      const std::string& value = (*header.device_identity).*member.value;
+      if (!value.empty()) identity.add(member.name, value);
+    }
+    object.add_raw(field::device_identity, identity.str());
   }
   return object.str();
 }
@@ -253,6 +269,15 @@ void parse_header_json(const std::string& text, const std::string& path,
       if (item.is_string()) header.edits.push_back(item.text);
     }
   }
+  // Like provenance: members of another type are ignored.
+  header.device_identity.reset();
+  if (const json::Value* identity = root.find(field::device_identity);
+      identity != nullptr && identity->is_object()) {
+    DeviceIdentity& read = header.device_identity.emplace();
+    for (const auto& member : device_identity_members) {
+      read.*member.value = identity->string_member(member.name).value_or("");
+    }
+  }
   header.user_metadata.clear();
   if (const json::Value* metadata = root.find(field::metadata);
       metadata != nullptr && metadata->is_object()) {
@@ -261,6 +286,45 @@ void parse_header_json(const std::string& text, const std::string& path,
           value.is_string() ? value.text : json::serialize(value);
     }
   }
+}
+
+namespace {
+
+// A string as udev writes it into a by-id name: white space as `_`, and
+// every byte but ASCII letters, digits, "#+-.:=@_" and UTF-8 as `_`.
+std::string udev_name_part(std::string_view text) {
+  std::string out;
+  for (const char c : text) {
+    const auto byte = static_cast<unsigned char>(c);
+    const bool kept = (byte >= '0' && byte <= '9') || (byte >= 'a' && byte <= 'z') ||
+                      (byte >= 'A' && byte <= 'Z') || byte >= 0x80 ||
+                      std::string_view("#+-.:=@_").find(c) != std::string_view::npos;
+    out += kept ? c : '_';
+  }
+  return out;
+}
+
+constexpr std::string_view redacted_text = "redacted";
+
+}  // namespace
+
+void clear_device_serial(DeviceIdentity& identity) {
+  const std::string serial = std::move(identity.serial_number);
+  identity.serial_number.clear();
+  if (serial.empty() || identity.by_id.empty()) return;
+  const std::size_t name_start = identity.by_id.rfind('/') + 1;  // npos + 1: all of it
+  std::string name = identity.by_id.substr(name_start);
+  // udev names a USB device usb-VENDOR_MODEL_SERIAL-ifNN: the serial is the
+  // last place it appears.
+  bool replaced = false;
+  for (const std::string& spelling : {udev_name_part(serial), serial}) {
+    if (const std::size_t at = name.rfind(spelling); !replaced && at != std::string::npos) {
+      name.replace(at, spelling.size(), redacted_text);
+      replaced = true;
+    }
+  }
+  identity.by_id = identity.by_id.substr(0, name_start) +
+                   (replaced ? name : std::string(redacted_text));
 }
 
 }  // namespace wiretape::detail
@@ -275,5 +339,12 @@ SessionHeader SessionHeader::starting_now() {
 }
 
 std::string SessionHeader::to_json() const { return detail::header_json(*this); }
+
+bool DeviceIdentity::operator==(const DeviceIdentity& other) const {
+  for (const auto& member : detail::device_identity_members) {
+    if (this->*member.value != other.*member.value) return false;
+  }
+  return true;
+}
 
 }  // namespace wiretape

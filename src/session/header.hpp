@@ -27,7 +27,34 @@ inline constexpr char source_format[] = "format";
 inline constexpr char source_files[] = "files";
 inline constexpr char device_address[] = "device_address";
 inline constexpr char edits[] = "edits";
+// Format 1.2: the serial device's identity, an object of strings.
+inline constexpr char device_identity[] = "device_identity";
 }  // namespace header_field
+
+// The members of a DeviceIdentity, by the name the header JSON and Python
+// give them (docs/session-format.md, "device_identity"), spelled here once.
+struct DeviceIdentityMember {
+  const char* name;
+  std::string DeviceIdentity::*value;
+};
+inline constexpr DeviceIdentityMember device_identity_members[] = {
+    {"kernel_name", &DeviceIdentity::kernel_name},
+    {"subsystem", &DeviceIdentity::subsystem},
+    {"vendor_id", &DeviceIdentity::vendor_id},
+    {"product_id", &DeviceIdentity::product_id},
+    {"serial_number", &DeviceIdentity::serial_number},
+    {"manufacturer", &DeviceIdentity::manufacturer},
+    {"product", &DeviceIdentity::product},
+    {"interface", &DeviceIdentity::interface},
+    {"location", &DeviceIdentity::location},
+    {"by_id", &DeviceIdentity::by_id},
+};
+
+// `identity` without its serial number, as `edit --redact` leaves it
+// (DESIGN §20): the serial number cleared, and its part of the by-id name
+// (as udev spells it there) replaced by "redacted"; a by-id name that holds
+// the serial number in another spelling becomes /dev/serial/by-id/redacted.
+void clear_device_serial(DeviceIdentity& identity);
 
 // The years a header's start_utc may name: the session's start in ns since
 // the epoch then fits a signed 64-bit count, and start + t_ns (at most

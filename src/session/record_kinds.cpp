@@ -38,9 +38,14 @@ constexpr EventFieldSpec settings_fields[] = {
      "proxy: who asked, rfc2217 or client's terminal settings"},
 };
 constexpr EventFieldSpec modem_lines_fields[] = {
-    {f::dtr, boolean, optional, "the level DTR was set to (one of dtr, rts is present)"},
-    {f::rts, boolean, optional, "the level RTS was set to (one of dtr, rts is present)"},
+    {f::dtr, boolean, optional, "the host's output: the level DTR was set to"},
+    {f::rts, boolean, optional, "the host's output: the level RTS was set to"},
     {f::applied, boolean, optional, "proxy: false when the device has no modem lines"},
+    {f::cts, boolean, optional,
+     "the device's input CTS as read (1.2; cts, dsr, ri, cd come together)"},
+    {f::dsr, boolean, optional, "the device's input DSR as read (1.2)"},
+    {f::ri, boolean, optional, "the device's input RI as read (1.2)"},
+    {f::cd, boolean, optional, "the device's input CD (DCD) as read (1.2)"},
 };
 constexpr EventFieldSpec break_fields[] = {
     {f::duration_ms, integer, required, "how long the break lasted, in milliseconds"},
@@ -100,7 +105,8 @@ constexpr RecordKindSpec kinds[] = {
     event(RecordKind::settings, "settings",
           "the line settings changed: set_baud gives baud alone, configure all of them",
           settings_fields),
-    event(RecordKind::modem_lines, "modem_lines", "the host set a modem line",
+    event(RecordKind::modem_lines, "modem_lines",
+          "the host set a modem line (dtr or rts), or the device's lines changed (cts, dsr, ri, cd)",
           modem_lines_fields),
     event(RecordKind::line_break, "break", "the host sent a break", break_fields),
     event(RecordKind::client_connect, "client_connect",
@@ -283,6 +289,50 @@ std::string event_payload(RecordKind kind, const EventMembers& members) {
     }
   }
   return object.str();
+}
+
+std::string modem_inputs_payload(const ModemInputs& inputs) {
+  return event_payload(RecordKind::modem_lines, {{event_field::cts, inputs.cts},
+                                                 {event_field::dsr, inputs.dsr},
+                                                 {event_field::ri, inputs.ri},
+                                                 {event_field::cd, inputs.cd}});
+}
+
+namespace {
+
+std::optional<json::Value> payload_object(std::string_view payload) {
+  try {
+    json::Value root = json::parse(payload.empty() ? std::string_view("{}") : payload);
+    if (root.is_object()) return root;
+  } catch (const json::ParseError&) {
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
+std::optional<ModemInputs> modem_inputs_of(std::string_view payload, const ModemInputs& before) {
+  const std::optional<json::Value> root = payload_object(payload);
+  if (!root) return std::nullopt;
+  ModemInputs inputs = before;
+  bool any = false;
+  const auto take = [&](const char* name, bool& level) {
+    const json::Value* member = root->find(name);
+    if (member == nullptr || member->type != json::Value::Type::boolean) return;
+    level = member->boolean;
+    any = true;
+  };
+  take(event_field::cts, inputs.cts);
+  take(event_field::dsr, inputs.dsr);
+  take(event_field::ri, inputs.ri);
+  take(event_field::cd, inputs.cd);
+  if (!any) return std::nullopt;
+  return inputs;
+}
+
+bool records_host_lines(std::string_view payload) {
+  const std::optional<json::Value> root = payload_object(payload);
+  return root && (root->find(event_field::dtr) != nullptr || root->find(event_field::rts) != nullptr);
 }
 
 }  // namespace detail

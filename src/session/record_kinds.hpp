@@ -31,6 +31,10 @@ inline constexpr char applied[] = "applied";
 inline constexpr char source[] = "source";
 inline constexpr char dtr[] = "dtr";
 inline constexpr char rts[] = "rts";
+inline constexpr char cts[] = "cts";
+inline constexpr char dsr[] = "dsr";
+inline constexpr char ri[] = "ri";
+inline constexpr char cd[] = "cd";
 inline constexpr char duration_ms[] = "duration_ms";
 inline constexpr char peer[] = "peer";
 inline constexpr char role[] = "role";
@@ -105,5 +109,27 @@ using EventMembers = std::vector<std::pair<std::string, EventValue>>;
 // in the table, has the wrong type, is given twice or a required one is
 // missing, or when `kind` is not an event.
 std::string event_payload(RecordKind kind, const EventMembers& members);
+
+// The device's modem inputs (DESIGN.md section 20), as a modem_lines event
+// records them: all four together, read at one moment. A device whose lines
+// were never recorded reads as a modem with the line up: CTS, DSR and CD
+// asserted, RI not.
+struct ModemInputs {
+  bool cts = true;
+  bool dsr = true;
+  bool ri = false;
+  bool cd = true;
+  bool operator==(const ModemInputs& other) const {
+    return cts == other.cts && dsr == other.dsr && ri == other.ri && cd == other.cd;
+  }
+  bool operator!=(const ModemInputs& other) const { return !(*this == other); }
+};
+std::string modem_inputs_payload(const ModemInputs& inputs);
+// The device's inputs a modem_lines payload records, or nothing when it
+// records only the host's outputs (dtr, rts). A member it lacks keeps the
+// level of `before`.
+std::optional<ModemInputs> modem_inputs_of(std::string_view payload, const ModemInputs& before);
+// Whether a modem_lines payload records a change the host made (dtr, rts).
+bool records_host_lines(std::string_view payload);
 
 }  // namespace wiretape::detail

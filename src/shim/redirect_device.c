@@ -37,6 +37,9 @@
 #include <sys/types.h>
 #include <unistd.h>
 
+#include "serial_lines.h"
+#include "device_identity.h"
+
 static char redirect_from[PATH_MAX];
 static char redirect_from_resolved[PATH_MAX]; /* empty: FROM does not exist */
 static char redirect_to[PATH_MAX];
@@ -110,10 +113,12 @@ static int is_symbolic_link(const char *path) {
  * else `path` itself. */
 static const char *redirected(const char *path) {
   if (!redirect_active || path == NULL || path[0] != '/') return path;
-  if (strcmp(path, redirect_from) == 0) {
+  if (strcmp(path, redirect_from) == 0 || wiretape_identity_names_device(path)) {
     note_hit();
     return redirect_to;
   }
+  const char *presented = wiretape_identity_sysfs_path(path);
+  if (presented != NULL) return presented;
   /* By-id links and other names of the real device: resolving costs system
    * calls, so only paths under /dev and symbolic links (a by-id style link
    * made elsewhere) are resolved. */
@@ -141,6 +146,16 @@ static const char *redirected(const char *path) {
     return (type)-1;                                                    \
   }
 
+/* A descriptor opened on the pty (through the redirection, or by its own
+ * name after realpath gave it) gets the emulated serial lines. */
+static int note_opened(const char *target, int fd) {
+  if (fd >= 0 && redirect_active && target != NULL &&
+      (target == redirect_to || strcmp(target, redirect_to) == 0)) {
+    wiretape_lines_opened(fd);
+  }
+  return fd;
+}
+
 /* open and friends take a mode only with O_CREAT or O_TMPFILE. */
 static mode_t mode_argument(int flags, va_list arguments) {
 #ifdef O_TMPFILE
@@ -158,7 +173,8 @@ static mode_t mode_argument(int flags, va_list arguments) {
     mode_t mode = mode_argument(flags, arguments);                      \
     va_end(arguments);                                                  \
     REAL(int, name, (const char *, int, ...))                           \
-    return real_##name(redirected(path), flags, mode);                  \
+    const char *target = redirected(path);                              \
+    return note_opened(target, real_##name(target, flags, mode));       \
   }
 
 #define DEFINE_OPENAT(name)                                             \
@@ -168,7 +184,8 @@ static mode_t mode_argument(int flags, va_list arguments) {
     mode_t mode = mode_argument(flags, arguments);                      \
     va_end(arguments);                                                  \
     REAL(int, name, (int, const char *, int, ...))                      \
-    return real_##name(directory, redirected(path), flags, mode);       \
+    const char *target = redirected(path);                              \
+    return note_opened(target, real_##name(directory, target, flags, mode)); \
   }
 
 DEFINE_OPEN(open)
@@ -179,19 +196,23 @@ DEFINE_OPENAT(openat64)
 /* The _FORTIFY_SOURCE entry points. */
 int __open_2(const char *path, int flags) {
   REAL(int, __open_2, (const char *, int))
-  return real___open_2(redirected(path), flags);
+  const char *target = redirected(path);
+  return note_opened(target, real___open_2(target, flags));
 }
 int __open64_2(const char *path, int flags) {
   REAL(int, __open64_2, (const char *, int))
-  return real___open64_2(redirected(path), flags);
+  const char *target = redirected(path);
+  return note_opened(target, real___open64_2(target, flags));
 }
 int __openat_2(int directory, const char *path, int flags) {
   REAL(int, __openat_2, (int, const char *, int))
-  return real___openat_2(directory, redirected(path), flags);
+  const char *target = redirected(path);
+  return note_opened(target, real___openat_2(directory, target, flags));
 }
 int __openat64_2(int directory, const char *path, int flags) {
   REAL(int, __openat64_2, (int, const char *, int))
-  return real___openat64_2(directory, redirected(path), flags);
+  const char *target = redirected(path);
+  return note_opened(target, real___openat64_2(directory, target, flags));
 }
 
 #define DEFINE_FOPEN(name)                                              \
@@ -202,7 +223,10 @@ int __openat64_2(int directory, const char *path, int flags) {
       errno = ENOSYS;                                                   \
       return NULL;                                                      \
     }                                                                   \
-    return real(redirected(path), mode);                                \
+    const char *target = redirected(path);                              \
+    FILE *stream = real(target, mode);                                  \
+    if (stream != NULL) note_opened(target, fileno(stream));            \
+    return stream;                                                      \
   }
 
 DEFINE_FOPEN(fopen)
@@ -215,7 +239,10 @@ FILE *freopen(const char *path, const char *mode, FILE *stream) {
     errno = ENOSYS;
     return NULL;
   }
-  return real(redirected(path), mode, stream);
+  const char *target = redirected(path);
+  FILE *reopened = real(target, mode, stream);
+  if (reopened != NULL) note_opened(target, fileno(reopened));
+  return reopened;
 }
 
 /* stat and its relatives: a program that checks the device exists before

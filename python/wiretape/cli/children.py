@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import os
 import time
-from typing import Callable, Optional, Sequence, Tuple
+from typing import Callable, Dict, Optional, Sequence, Tuple
 
 from .console import Output, describe
 from .errors import CheckFailed, RuntimeFailure, UsageError, exit_code_for
@@ -36,7 +36,7 @@ def _command_client_side(args) -> Tuple[object, Optional[str]]:
 
 def record_with_command(args, out: Output) -> int:
     from .. import bridge
-    from ..redirect import device_path_of
+    from ..redirect import LineChannelPath, device_path_of
 
     pty, link = _command_client_side(args)
     options = bridge.device_options(args.device)
@@ -45,18 +45,21 @@ def record_with_command(args, out: Output) -> int:
         raise UsageError(f"--device {args.device!r} has no device path to redirect: give "
                          "the path the command opens with --as PATH")
     _check_redirect_path(path)
-    handle = bridge.record(args.device, args.output, pty=pty, duration=args.duration,
-                           meta=meta_pairs(args.meta), quiet=args.quiet,
-                           pty_mode=args.pty_mode, pty_group=args.pty_group)
-    return _run_bridge_with_command(
-        handle, out, "record", args.command_argv, path,
-        lambda: announce_clients(handle, out, f"recording to {args.output}", link),
-        must_use_path=True)
+    with LineChannelPath() as lines:
+        handle = bridge.record(args.device, args.output, pty=pty, duration=args.duration,
+                               meta=meta_pairs(args.meta), quiet=args.quiet,
+                               pty_mode=args.pty_mode, pty_group=args.pty_group,
+                               line_channel=lines.path)
+        return _run_bridge_with_command(
+            handle, out, "record", args.command_argv, path,
+            lambda: announce_clients(handle, out,
+                                     f"wiretape record: recording to {args.output}", link),
+            must_use_path=True, line_channel=lines.path)
 
 
 def replay_with_command(args, out: Output) -> int:
     from .. import bridge
-    from ..redirect import recorded_device_path
+    from ..redirect import LineChannelPath, recorded_device_path, recorded_identity
     from ..session import refuse_same_file, session_files
 
     from .run import check_fault_places
@@ -72,14 +75,18 @@ def replay_with_command(args, out: Output) -> int:
         raise UsageError(f"{args.file}: the recording names no device path: give the "
                          "path the command opens with --as PATH")
     _check_redirect_path(path)
-    handle = bridge.serve_replay(args.file, pty=pty, replay_options=replay_options_of(args),
-                                 restart=args.restart, output=args.output,
-                                 quiet=args.quiet, pty_mode=args.pty_mode,
-                                 pty_group=args.pty_group)
-    return _run_bridge_with_command(
-        handle, out, "replay", args.command_argv, path,
-        lambda: announce_clients(handle, out, f"replaying {args.file}", link), must_serve=True,
-        outlive_injected_loss=True)
+    with LineChannelPath() as lines:
+        handle = bridge.serve_replay(args.file, pty=pty,
+                                     replay_options=replay_options_of(args),
+                                     restart=args.restart, output=args.output,
+                                     quiet=args.quiet, pty_mode=args.pty_mode,
+                                     pty_group=args.pty_group, line_channel=lines.path)
+        return _run_bridge_with_command(
+            handle, out, "replay", args.command_argv, path,
+            lambda: announce_clients(handle, out, f"wiretape replay: replaying {args.file}",
+                                     link),
+            must_serve=True, outlive_injected_loss=True, identity=recorded_identity(args.file),
+            line_channel=lines.path, speed=args.speed or 1.0)
 
 
 def _check_redirect_path(path: str) -> None:
@@ -106,7 +113,9 @@ def _client_connected(handle) -> bool:
 def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str],
                              device_path: str, announce: Callable[[], None],
                              must_serve: bool = False, must_use_path: bool = False,
-                             outlive_injected_loss: bool = False) -> int:
+                             outlive_injected_loss: bool = False,
+                             identity: Optional[Dict[str, str]] = None,
+                             line_channel: Optional[str] = None, speed: float = 1.0) -> int:
     """Runs CMD with `device_path` redirected to the bridge's pty; the bridge
     ends when CMD exits. The exit status is CMD's when it failed, else the
     bridge's (docs/cli.md); a bridge that ends first (a mismatch, --duration)
@@ -114,13 +123,18 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
     injected device loss: CMD is left to react to it and exit by itself.
     CMD's output is captured and relayed; a sanitizer report in it fails a
     CMD that exits 0. `must_use_path`: a CMD that never opened the path
-    fails (a replay fails anyway: its client never came)."""
+    fails (a replay fails anyway: its client never came). `line_channel`:
+    the bridge's socket for the shim's serial lines. At `speed` K, CMD's
+    clock runs K times faster (replay --speed K -- CMD)."""
     from ..redirect import RedirectedCommand
 
     try:
         announce()
-        out.note(f"{what}: running {' '.join(argv)} with {device_path} -> {handle.pty_path}")
-        command = RedirectedCommand(argv, device_path, handle.pty_path, relay=True)
+        out.note(f"wiretape {what}: running {' '.join(argv)} with {device_path} -> "
+                 f"{handle.pty_path}")
+        command = RedirectedCommand(argv, device_path, handle.pty_path, relay=True,
+                                    identity=identity, line_channel=line_channel,
+                                    speed=speed)
     except BaseException:
         handle.stop()
         handle.wait()
@@ -136,10 +150,10 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
             elif handle.wait(POLL_S):
                 bridge_ended = True
                 if outlive_injected_loss and handle.result().ended_by_fault:
-                    out.note(f"{what}: an injected fault lost the device; {command.name} "
+                    out.note(f"wiretape {what}: an injected fault lost the device; {command.name} "
                              "goes on until it exits")
                     continue
-                out.note(f"{what}: ended before {command.name}; ending it")
+                out.note(f"wiretape {what}: ended before {command.name}; ending it")
                 ended_by_us = True
                 break
         # What CMD left running in its group ends with it; its output is
@@ -150,7 +164,7 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
         _wait_for_client_close(handle)
     except KeyboardInterrupt:
         ended_by_us = True
-        out.note(f"{what}: stopping")
+        out.note(f"wiretape {what}: stopping")
         command.end()
     finally:
         handle.stop()
@@ -162,7 +176,7 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
     sanitizer = command.sanitizer_report()
     command.close()
     if not used:
-        out.note(f"{what}: {command.name} never opened {device_path} (the shim reaches "
+        out.note(f"wiretape {what}: {command.name} never opened {device_path} (the shim reaches "
                  "dynamically linked programs; a static one is reached as root, through a "
                  "bind mount, only where the path exists)")
     try:
@@ -179,7 +193,7 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
         raise CheckFailed(f"{command.name} exited 0 but printed a sanitizer report: {sanitizer}")
     if ended_by_us or status == 0:
         return verdict
-    out.note(f"{what}: {command.name} exited with status {status}")
+    out.note(f"wiretape {what}: {command.name} exited with status {status}")
     return status
 
 

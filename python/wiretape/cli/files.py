@@ -1,5 +1,5 @@
-"""The commands on session files: show, stats, verify, convert, diff, edit
-(the work is in wiretape.tools)."""
+"""The commands on session files: show, stats, verify, convert, diff, edit,
+view (the work is in wiretape.tools)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,9 @@ import json
 import os
 import sys
 
+from .. import SessionError
 from .console import Output, silence_stdout
-from .errors import EXIT_CHECK_FAILED, EXIT_OK, RuntimeFailure, UsageError
+from .errors import EXIT_CHECK_FAILED, EXIT_OK, CheckFailed, RuntimeFailure, UsageError
 
 
 def require_input(path: str) -> None:
@@ -23,10 +24,24 @@ def require_input(path: str) -> None:
     raise RuntimeFailure(f"{path}: no such file")
 
 
-def cmd_show(args, out: Output) -> int:
-    from ..tools.show import show_reporting_damage
+def require_session(path: str) -> None:
+    """require_input(), and a file wiretape imports but does not read as it
+    is (a capture, a pytest-reserial cassette) named with the command that
+    converts it (exit 1, as any file that is not a session)."""
+    from ..tools.convert import unconverted_format
 
-    require_input(args.file)
+    require_input(path)
+    found = unconverted_format(path)
+    if found is not None:
+        what, command = found
+        raise CheckFailed(f"{path}: not a wiretape session but {what}: convert it first: "
+                          f"{command}")
+
+
+def cmd_show(args, out: Output) -> int:
+    from ..tools.show import Selection, color_wanted, show_reporting_damage
+
+    require_session(args.file)
     if args.textconv or args.no_start or args.no_times:
         return _show_textconv(args)
     profile = args.profile or args.decode
@@ -36,7 +51,16 @@ def cmd_show(args, out: Output) -> int:
         option = "--profile" if args.profile else "--decode"
         raise UsageError(f"{option} works with --format text only")
     try:
-        _, damage = show_reporting_damage(args.file, fmt=args.format, profile=profile)
+        select = Selection(kinds=frozenset(args.kind) if args.kind else None,
+                           start_s=args.start_s, end_s=args.end_s,
+                           grep=args.grep.encode("utf-8", "surrogateescape")
+                           if args.grep is not None else None)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    try:
+        _, damage = show_reporting_damage(args.file, fmt=args.format, profile=profile,
+                                          select=select, full=args.full,
+                                          color=color_wanted(args.color, sys.stdout))
     except BrokenPipeError:  # `wiretape show big.wtape | head`
         silence_stdout()
         return EXIT_OK
@@ -51,6 +75,13 @@ def _show_textconv(args) -> int:
     if args.format == "jsonl" or args.profile or args.decode:
         raise UsageError("--textconv, --no-start and --no-times work with --format text or "
                          "hex, without --profile")
+    chosen = [flag for flag, given in (("--kind", args.kind), ("--from", args.start_s is not None),
+                                       ("--to", args.end_s is not None),
+                                       ("--grep", args.grep is not None), ("--full", args.full))
+              if given]
+    if chosen:
+        raise UsageError(f"{chosen[0]} does not go with --textconv (which shows every record "
+                         "and every byte)")
     try:
         textconv(args.file, fmt=args.format, start=not args.no_start, times=not args.no_times)
     except BrokenPipeError:
@@ -61,7 +92,8 @@ def _show_textconv(args) -> int:
 
 def _print_stats(stats, out: Output) -> None:
     rows = stats.text_rows()
-    width = max([len("wiretape_version")] + [len(name) for name, _ in rows])
+    width = max([len("wiretape_version")] + [len(name) for name, _ in rows
+                                             if not name.startswith("latency ")])
     for name, value in rows:
         out.print(f"{name:<{width}}  {value}", style="bold red" if name == "damaged" else None)
 
@@ -69,8 +101,8 @@ def _print_stats(stats, out: Output) -> None:
 def cmd_stats(args, out: Output) -> int:
     from ..tools.stats import stats as session_stats
 
-    require_input(args.file)
-    result = session_stats(args.file)
+    require_session(args.file)
+    result = session_stats(args.file, profile=args.profile)
     if args.json:
         print(json.dumps(result.to_json(), indent=2, sort_keys=True, default=str))
     else:
@@ -81,7 +113,7 @@ def cmd_stats(args, out: Output) -> int:
 def cmd_verify(args, out: Output) -> int:
     from ..tools.verify import verify
 
-    require_input(args.file)
+    require_session(args.file)
     result = verify(args.file)
     if args.json:
         print(json.dumps(result.to_json(), indent=2, sort_keys=True, default=str))
@@ -112,9 +144,9 @@ def cmd_convert(args, out: Output) -> int:
 def cmd_diff(args, out: Output) -> int:
     from ..tools.diff import diff
 
-    require_input(args.a)
-    require_input(args.b)
-    result = diff(args.a, args.b, profile=args.profile)
+    require_session(args.a)
+    require_session(args.b)
+    result = diff(args.a, args.b, profile=args.profile, max_divergences=args.max_divergences)
     for line in result.report().splitlines():
         style = None
         if line == "sessions are identical":
@@ -148,4 +180,25 @@ def cmd_edit(args, out: Output) -> int:
             out.note(f"{result.unsealed_frames} {result.profile} frames keep part of their "
                      "recorded checksums: the records holding them were written before the "
                      "frame was complete (more than 8 MiB waited behind them)")
+    return EXIT_OK
+
+
+def cmd_view(args, out: Output) -> int:
+    from ..tools.view import default_output, view
+
+    require_input(args.file)
+    if args.campaign is not None:
+        require_input(args.campaign)
+    if args.output == "":
+        raise UsageError("-o needs a file name (FILE.html)")
+    output = args.output if args.output is not None else default_output(args.file)
+    default = "" if args.output is not None else " (the default: SESSION with .html; -o to choose)"
+    try:
+        view(args.file, output, profile=args.profile, campaign=args.campaign)
+    except SessionError:  # the page shows what came before the damage
+        if not args.quiet:
+            out.note(f"wrote {output}{default}, up to the damage:")
+        raise
+    if not args.quiet:
+        out.note(f"wrote {output}{default}: open it in a browser")
     return EXIT_OK

@@ -4,6 +4,8 @@ command, prints a failure as one line and returns its exit code
 
 from __future__ import annotations
 
+import argparse
+import difflib
 import os
 import signal
 import sys
@@ -22,8 +24,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     try:
         args = parser.parse_args(own_arguments)
     except ParserError as error:
-        error.parser.print_usage(sys.stderr)
-        out.error(error.parser.prog, str(error))
+        where, message = unknown_option_message(parser, own_arguments, str(error))
+        where = where or error.parser
+        where.print_usage(sys.stderr)
+        out.error(where.prog, message or str(error))
         return EXIT_USAGE
     except ParserExit as done:
         return int(done.status or 0)
@@ -43,10 +47,55 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     return status
 
 
+def unknown_option_message(parser, arguments: Sequence[str], message: str):
+    """For argparse's "unrecognized arguments": (the parser of the command
+    they were given to, one line naming the first and the option it was
+    probably meant to be); (None, None) for any other error."""
+    prefix = "unrecognized arguments: "
+    if not message.startswith(prefix):
+        return None, None
+    unknown = message[len(prefix):].split()[0]
+    flag = unknown.split("=", 1)[0]
+    commands = _subcommands(parser)
+    named = next((a for a in arguments if not a.startswith("-")), None)
+    if named in commands:
+        sub = commands[named]
+        known = _option_strings(sub)
+        close = difflib.get_close_matches(flag, known, n=1, cutoff=0.6)
+        hint = f" (did you mean {close[0]}?)" if close else f" (see {sub.prog} --help)"
+        what = "unknown option" if flag.startswith("-") else "unexpected argument"
+        return sub, f"{what} {unknown!r}{hint}"
+    own = _option_strings(parser)
+    close = difflib.get_close_matches(flag, own, n=1, cutoff=0.6)
+    if close:
+        return parser, f"unknown option {unknown!r} (did you mean {close[0]}?)"
+    elsewhere = []
+    for name, sub in sorted(commands.items()):
+        near = difflib.get_close_matches(flag, _option_strings(sub), n=1, cutoff=0.8)
+        if near:
+            elsewhere.append(f"wiretape {name} {near[0]}")
+    hint = f"; did you mean {' or '.join(elsewhere[:3])}?" if elsewhere else ""
+    return parser, (f"unknown option {unknown!r}: wiretape's own options are --help and "
+                    f"--version; a command's options go after it (wiretape COMMAND --help)"
+                    + hint)
+
+
+def _subcommands(parser) -> dict:
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return dict(action.choices)
+    return {}
+
+
+def _option_strings(parser) -> list:
+    return [option for action in parser._actions for option in action.option_strings
+            if option.startswith("--")]
+
+
 # Commands that are batch work whatever their arguments; any command with
 # -- CMD is too.
 _BATCH_COMMANDS = frozenset({"convert", "edit", "faults", "faults merge", "diff", "show", "stats",
-                             "verify"})
+                             "verify", "view"})
 
 
 def is_batch_work(args) -> bool:

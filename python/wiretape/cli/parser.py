@@ -10,7 +10,7 @@ from typing import Callable, List, Optional, Sequence, Tuple
 
 from .. import __version__, _core
 from ..options import option_keys
-from .files import cmd_convert, cmd_diff, cmd_edit, cmd_show, cmd_stats, cmd_verify
+from .files import cmd_convert, cmd_diff, cmd_edit, cmd_show, cmd_stats, cmd_verify, cmd_view
 from .ports import cmd_ports
 from .run import cmd_demo, cmd_faults, cmd_faults_merge, cmd_record, cmd_replay, cmd_serve
 
@@ -89,6 +89,34 @@ def _add_replay_keys(parser: argparse.ArgumentParser) -> None:
         else:
             parser.add_argument(key.flag, dest=key.name, type=_key_value(key),
                                 metavar=key.name.upper(), help=help_text)
+
+def _kind_list(text: str) -> Tuple[str, ...]:
+    from ..tools.show import check_kinds
+
+    kinds = tuple(kind.strip() for kind in text.split(",") if kind.strip())
+    try:
+        check_kinds(kinds)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+    return kinds
+
+
+def _seconds_of_session(text: str) -> float:
+    try:
+        value = float(text.strip().rstrip("s"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if value != value or value in (float("inf"), float("-inf")):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds")
+    return value
+
+
+def _speed(text: str) -> float:
+    """An argparse type: --speed K of faults, checked as the replay key
+    ``speed`` is (a finite number above 0)."""
+    key = next(key for key in option_keys("replay") if key.name == "speed")
+    return float(_key_value(key)(text))  # type: ignore[arg-type]
+
 
 def _positive_int(text: str) -> int:
     value = _non_negative_int(text)
@@ -173,11 +201,31 @@ def _udp_address(what: str, minimum_port: int):
 
 _DESCRIPTION = "Record and replay the wire-level session between a driver and its device."
 
-_EPILOG = """exit codes: 0 ok (Ctrl-C included); 1 the checked thing failed (replay
+_EXIT_CODES = """exit codes: 0 ok (Ctrl-C included); 1 the checked thing failed (replay
 mismatch, damaged file, diff found a difference, unused data under
-unused=error); 2 usage error; 3 runtime error (device or file I/O).
---device takes a port option string (type=tcp,host=10.0.0.5,port=10940) or a
+unused=error); 2 usage error; 3 runtime error (device or file I/O)."""
+
+_DEVICE_NOTE = """--device takes a port option string (type=tcp,host=10.0.0.5,port=10940) or a
 bare path, which means type=serial,device=PATH."""
+
+_EPILOG = _EXIT_CODES + "\n" + _DEVICE_NOTE
+
+# What follows `--` on the usage line of the commands that run a program.
+_COMMAND_USAGE = {
+    "record": "[-- CMD [ARG...]]",
+    "replay": "[-- CMD [ARG...]]",
+    "faults": "-- CMD [ARG...] {port} [ARG...]",
+}
+
+
+def _finish_help(name: str, sub: argparse.ArgumentParser) -> None:
+    """The usage line shows the CMD after ``--`` (argparse never sees it),
+    and the note on --device is only where there is a --device."""
+    has_device = any("--device" in action.option_strings for action in sub._actions)
+    sub.epilog = _EPILOG if has_device else _EXIT_CODES
+    if name in _COMMAND_USAGE:
+        usage = sub.format_usage().rstrip()
+        sub.usage = usage[len("usage: "):] + " " + _COMMAND_USAGE[name]
 
 
 class _Parser(argparse.ArgumentParser):
@@ -268,7 +316,9 @@ def build_parser() -> argparse.ArgumentParser:
         "CMD with the device's path (or --as PATH) redirected to its pty and ends "
         "when CMD does. Ctrl-C ends cleanly. On a pty the "
         "terminal settings the driver sets (baud, parity, stop bits) are applied to "
-        "the device and recorded; a pty has no modem lines.")
+        "the device and recorded. A pty has no modem lines: with -- CMD the preload "
+        "shim emulates DTR/RTS, CTS/DSR/RI/CD, break and custom baud for CMD, applied "
+        "to the device and recorded.")
     record.add_argument("--device", required=True, metavar="OPTS",
                         help="the real device: a port option string or a serial device path")
     _add_client_side(record, "the driver connects")
@@ -286,9 +336,11 @@ def build_parser() -> argparse.ArgumentParser:
         "replay", cmd_replay, "replay a recording as a virtual device (pty, TCP or UDP)",
         "The recording becomes a virtual device any program can open: a "
         "pseudo-terminal (--pty PATH), a TCP server (--listen HOST:PORT) or a UDP "
-        "socket (--udp HOST:PORT; one datagram per recorded record). A "
-        "client that closes and reopens continues the session (--restart starts it "
-        "over). With --as PATH -- CMD ARG... it runs CMD with PATH redirected to its "
+        "socket (--udp HOST:PORT; one datagram per recorded record). Each "
+        "connection (an open of the pty) is a client session: with --match sequence the "
+        "k-th continues at the recording's k-th client connect, with --match request "
+        "connection order is free; a close and reopen at once is two sessions "
+        "(--restart starts the whole recording over for each client). With --as PATH -- CMD ARG... it runs CMD with PATH redirected to its "
         "pty and ends when CMD does (exit: CMD's status when it failed, else the "
         "replay's). The replay keys are those of type=replay (docs/options.md). Exit 1 on a "
         "mismatch, and when the recording has rx but no client was served any of it "
@@ -302,6 +354,10 @@ def build_parser() -> argparse.ArgumentParser:
     replay.add_argument("--peer", metavar="HOST:PORT", type=_udp_address("peer", 1),
                         help="with --udp: send the device's datagrams to HOST:PORT from "
                              "the start (default: to the last sender, once one has sent)")
+    replay.add_argument("--protocol", choices=("raw", "rfc2217"), default="raw",
+                        help="with --listen: raw bytes or RFC 2217, for pyserial's "
+                             "rfc2217:// (the client sets the line and reads the recorded "
+                             "modem lines; default raw)")
     replay.add_argument("--restart", action="store_true",
                         help="each new client starts the session over")
     replay.add_argument("-o", "--output", metavar="FILE", type=_session_output,
@@ -343,6 +399,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help="CMD opens PATH itself: redirect it to the virtual device")
     faults.add_argument("--options", metavar="KEYS", default="",
                         help="replay keys for every run (e.g. timing=none,match=request)")
+    faults.add_argument("--speed", type=_speed, default=1.0, metavar="K",
+                        help="run CMD on a clock K times faster, and the replays with it "
+                             "(--timeout is on CMD's clock; default 1)")
     faults.add_argument("--shard", metavar="K/N",
                         help="run only shard K of N: the cases whose index is K-1 modulo N "
                              "(merge the shards' --json with 'wiretape faults merge')")
@@ -398,10 +457,44 @@ def build_parser() -> argparse.ArgumentParser:
                       help="with --textconv (implies it): leave out the start time and host")
     show.add_argument("--no-times", dest="no_times", action="store_true",
                       help="with --textconv (implies it): leave out each record's time")
+    show.add_argument("--color", choices=("auto", "always", "never"), default="auto",
+                      help="colour: auto (default) on a terminal unless NO_COLOR is set")
+    show.add_argument("--kind", type=_kind_list, metavar="K[,K]",
+                      help="only records of these kinds (tx, rx, settings, ...)")
+    show.add_argument("--from", dest="start_s", type=_seconds_of_session, metavar="S",
+                      help="only records at or after S seconds of session time (the first "
+                           "column)")
+    show.add_argument("--to", dest="end_s", type=_seconds_of_session, metavar="S",
+                      help="only records at or before S seconds of session time")
+    show.add_argument("--grep", metavar="PATTERN",
+                      help="only tx and rx records whose bytes match PATTERN (a Python bytes "
+                           "regular expression; \\x00 escapes work)")
+    show.add_argument("--full", action="store_true",
+                      help="every byte of each payload (not the first 64)")
 
     stats = command("stats", cmd_stats, "figures of a session (exit 1 if damaged)")
     stats.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
     stats.add_argument("--json", action="store_true", help="print JSON")
+    stats.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
+                       help="latency per request frame name of a protocol: "
+                            + ", ".join(_core.profile_names()))
+
+    view = command(
+        "view", cmd_view, "a session as a timeline in one HTML page, for a browser",
+        "Writes one self-contained HTML page (no network access: script, styles and data "
+        "inline) with a zoomable timeline of the session: tx, rx and events lanes, the "
+        "exchanges, a profile's frames, faults, a replay's mismatch, and a hex/ASCII pane. "
+        "Open it in any browser.")
+    view.add_argument("file", metavar="SESSION", help="the session (.wtape or flexiport name.log)")
+    view.add_argument("-o", "--output", metavar="FILE.html",
+                      help="the page to write (default: SESSION with .html for its suffix)")
+    view.add_argument("--campaign", metavar="FILE.json",
+                      help="a `wiretape faults --json` file of this session: its runs on the "
+                           "exchanges they faulted")
+    view.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
+                      help="name the frames by a protocol profile (default: the session's "
+                           "--meta profile=NAME): " + ", ".join(_core.profile_names()))
+    view.add_argument("-q", "--quiet", action="store_true", help="no summary")
 
     edit = command(
         "edit", cmd_edit, "cut a session down and scrub it before sharing it",
@@ -467,13 +560,19 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
 
     diff = command("diff", cmd_diff,
-                   "first divergence of two sessions, per direction (exit 1 if they differ)")
+                   "where two sessions differ: the first difference per direction, then "
+                   "every divergence by exchange (exit 1 if they differ)")
     diff.add_argument("a", metavar="A", help="a session")
     diff.add_argument("b", metavar="B", help="another session")
     diff.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
                       help="compare frame by frame by the profile's match key (fields it "
                            "leaves out do not differ): " + ", ".join(_core.profile_names()))
+    diff.add_argument("--max", dest="max_divergences", type=_non_negative_int, default=10,
+                      metavar="N", help="show the first N divergences by exchange (default "
+                                        "10; all are counted)")
 
     command("demo", cmd_demo,
             "record a simulated Hokuyo scanner, replay it without it, compare (make demo)")
+    for name, sub in commands.choices.items():
+        _finish_help(name, sub)
     return parser

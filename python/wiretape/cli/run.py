@@ -13,6 +13,8 @@ from .files import require_input
 
 # How often a waiting command wakes up to notice Ctrl-C (seconds).
 POLL_S = 0.2
+# How often a campaign writing to a log (not a terminal) says how far it is.
+FAULTS_PROGRESS_EVERY_S = 5.0
 
 
 def meta_pairs(items: Optional[List[str]]) -> Dict[str, str]:
@@ -44,12 +46,12 @@ def run_bridge(handle, out: Output, what: str, announce: Callable[[], None],
         while not handle.wait(POLL_S):
             pass
     except KeyboardInterrupt:
-        out.note(f"{what}: stopping")
+        out.note(f"wiretape {what}: stopping")
         handle.stop()
         handle.wait()
     result = handle.result()
-    figures = ", ".join(f"{key}={value}" for key, value in result.stats.items() if value)
-    out.note(f"{what}: {result.outcome}" + (f" ({figures})" if figures else ""))
+    summary = bridge_summary(result.stats)
+    out.note(f"wiretape {what}: {result.outcome}" + (f": {summary}" if summary else ""))
     if result.ok:
         if must_serve and result.nothing_served:
             raise CheckFailed(result.nothing_served)
@@ -60,6 +62,37 @@ def run_bridge(handle, out: Output, what: str, announce: Callable[[], None],
             message = f"replay mismatch: {message}"
         raise CheckFailed(message)
     raise RuntimeFailure(message)
+
+
+def plural(count: int, one: str, many: str = "") -> str:
+    """``1 record``, ``2 records``: the count and the word agreeing with it."""
+    return f"{count} {one if count == 1 else (many or one + 's')}"
+
+
+# How a bridge's counters read in its last line, in this order; a counter
+# not named here reads as its name.
+_SUMMARY = (
+    ("records_written", lambda n: plural(n, "record") + " written"),
+    ("bytes_to_device", lambda n: plural(n, "byte") + " to the device"),
+    ("bytes_from_device", lambda n: plural(n, "byte") + " from it"),
+    ("clients_accepted", lambda n: plural(n, "client")),
+    ("clients_refused", lambda n: plural(n, "client") + " refused"),
+    ("settings_changes", lambda n: plural(n, "settings change")),
+    ("device_losses", lambda n: "the device lost " + plural(n, "time")),
+    ("device_reopens", lambda n: "reopened " + plural(n, "time")),
+    ("bytes_dropped", lambda n: plural(n, "byte") + " dropped"),
+    ("datagrams_refused", lambda n: plural(n, "datagram") + " refused by the peer"),
+    ("datagrams_from_others", lambda n: plural(n, "datagram") + " from others dropped"),
+)
+
+
+def bridge_summary(stats) -> str:
+    """A bridge's counters for people: ``12 records written, 340 bytes to
+    the device, 1 client`` (the counters at zero left out)."""
+    counts = dict(stats.items())
+    parts = [say(counts.pop(key)) for key, say in _SUMMARY if counts.get(key)]
+    parts += [f"{key.replace('_', ' ')} {value}" for key, value in counts.items() if value]
+    return ", ".join(parts)
 
 
 def _client_side(args) -> Tuple[Optional[str], Optional[str]]:
@@ -101,8 +134,9 @@ def cmd_record(args, out: Output) -> int:
                            quiet=args.quiet, pty_mode=args.pty_mode,
                            pty_group=args.pty_group)
     return run_bridge(handle, out, "record",
-                      lambda: announce_clients(handle, out, f"recording to {args.output}", pty,
-                                         udp=args.udp is not None))
+                      lambda: announce_clients(handle, out,
+                                               f"wiretape record: recording to {args.output}", pty,
+                                               udp=args.udp is not None))
 
 
 def replay_options_of(args) -> str:
@@ -139,19 +173,23 @@ def cmd_replay(args, out: Output) -> int:
         return replay_with_command(args, out)
     refuse_as_without_command(args)
     pty, listen = _client_side(args)
+    if args.protocol != "raw" and listen is None:
+        raise UsageError(f"--protocol {args.protocol} is spoken over TCP: give --listen HOST:PORT")
     require_input(args.file)
     check_fault_places(args)
     if args.output:
         refuse_same_file(session_files(args.file), [args.output])
     handle = bridge.serve_replay(args.file, pty=pty, listen=listen, udp=args.udp,
                                  peer=args.peer, backlog=args.backlog,
+                                 protocol=args.protocol,
                                  replay_options=replay_options_of(args),
                                  restart=args.restart, output=args.output,
                                  quiet=args.quiet, pty_mode=args.pty_mode,
                                  pty_group=args.pty_group)
     return run_bridge(handle, out, "replay",
-                      lambda: announce_clients(handle, out, f"replaying {args.file}", pty,
-                                         udp=args.udp is not None),
+                      lambda: announce_clients(handle, out,
+                                               f"wiretape replay: replaying {args.file}", pty,
+                                               udp=args.udp is not None),
                       must_serve=True)
 
 
@@ -182,7 +220,8 @@ def cmd_serve(args, out: Output) -> int:
                           protocol=args.protocol, shared=args.shared,
                           max_monitors=max_monitors, reopen=args.reopen,
                           backlog=args.backlog, quiet=args.quiet)
-    return run_bridge(handle, out, "serve", lambda: announce_clients(handle, out, "serving"))
+    return run_bridge(handle, out, "serve",
+                      lambda: announce_clients(handle, out, "wiretape serve: serving"))
 
 
 # --------------------------------------------------------------------------
@@ -205,8 +244,10 @@ def cmd_faults(args, out: Output) -> int:
         result = faults.campaign(args.file, args.command_argv, kinds=kinds, budget=args.budget,
                                  seed=args.seed, timeout=args.timeout, jobs=args.jobs,
                                  replay_options=args.options, listen=args.listen,
-                                 as_path=args.redirect_path, shard=shard,
-                                 progress=sys.stderr if sys.stderr.isatty() else None)
+                                 as_path=args.redirect_path, shard=shard, speed=args.speed,
+                                 progress=sys.stderr,
+                                 progress_every=None if sys.stderr.isatty() else
+                                 FAULTS_PROGRESS_EVERY_S)
     except faults.FaultInputError as error:
         raise UsageError(str(error)) from None
     except faults.CleanRunFailed as failure:

@@ -90,7 +90,14 @@ def replacing(dst: SessionPath) -> Iterator[IO[bytes]]:
     target = os.path.realpath(dst)
     temporary = target + ".partial"
     try:
-        with open_regular_output(temporary) as out:
+        handle = open_regular_output(temporary)
+    except OSError as error:
+        if error.errno is None or error.filename != temporary:
+            raise
+        # The user never typed the .partial name: theirs is the one to name.
+        raise OSError(error.errno, error.strerror, dst) from None
+    try:
+        with handle as out:
             yield out
         check_regular_output(target)  # nothing else appeared there meanwhile
         os.replace(temporary, target)

@@ -23,7 +23,9 @@ import wiretape
 from wiretape import _core
 from wiretape._core import device_options
 
-RECORD_MODES = ("none", "once", "rewrite")
+RECORD_MODES = ("none", "once", "rewrite", "all")
+#: VCR's names for ours.
+RECORD_MODE_ALIASES = {"all": "rewrite"}
 DEFAULT_REPLAY_KEYS = {"timing": "none"}
 MAX_NAME_LENGTH = _core.MAX_CASSETTE_NAME_LENGTH
 
@@ -124,6 +126,23 @@ def _first_given(*values):
     return None
 
 
+def _ini_flag(config, name: str) -> bool:
+    return str(config.getini(name)).strip().lower() in ("1", "true", "yes", "on")
+
+
+def _live_url(device: str, nodeid: str) -> str:
+    """pyserial's own URL for a device wiretape_url opens live."""
+    options = dict(_core.parse_options(device))
+    kind = options.get("type")
+    if kind == "serial" and options.get("device"):
+        return options["device"]
+    if kind == "tcp" and options.get("host") and options.get("port"):
+        return f"socket://{options['host']}:{options['port']}"
+    pytest.fail(f"{nodeid}: wiretape_url under --wiretape-live opens serial and TCP devices "
+                f"(pyserial's own URLs); {device!r} is neither: use wiretape_port",
+                pytrace=False)
+
+
 class WiretapeCassette:
     """What the plugin decided for one test, and the cleanup it owes.
 
@@ -151,11 +170,17 @@ class WiretapeCassette:
             pytest.fail(
                 f"{item.nodeid}: wiretape record mode {record!r} (from the {source}) "
                 f"is not one of {', '.join(RECORD_MODES)}", pytrace=False)
-        self.record_mode = record
+        self.record_mode = RECORD_MODE_ALIASES.get(record, record)
+        # Hardware in the loop: the real device, nothing recorded or replayed.
+        self.live = bool(config.getoption("wiretape_live")) or _ini_flag(config, "wiretape_live")
         self.device = _first_given(config.getoption("wiretape_device"),
                                    marker.pop("device", None),
                                    defaults.pop("device", None),
                                    config.getini("wiretape_device"))
+
+        # The paths wiretape_serial serves (serial_patch); not a replay key.
+        self.serial_port = _first_given(marker.pop("serial_port", None),
+                                        defaults.pop("serial_port", None))
 
         cassette = _first_given(marker.pop("cassette", None), defaults.pop("cassette", None))
         if cassette is None:
@@ -177,8 +202,11 @@ class WiretapeCassette:
                             "profile= (the profile whose framing they go with)", pytrace=False)
             self.replay_keys["profile"] = callable_profile(str(base), **callables)
 
-        self.recording = record == "rewrite" or (record == "once" and not self.path.exists())
+        self.recording = not self.live and (
+            self.record_mode == "rewrite" or (self.record_mode == "once" and not self.path.exists()))
         self.partial_path = self.path.with_name(f"{self.path.name}.recording-{os.getpid()}")
+        self.device_from_driver = False
+        self.opened_device = None  # what open_port(device) was given
         self._ports: List[wiretape.Port] = []
         self._cleanups: List[Callable[[], None]] = []
 
@@ -186,8 +214,23 @@ class WiretapeCassette:
     @property
     def options(self) -> str:
         """The option string that opens the device (recording) or the replay."""
+        return self.options_for(self.opened_device or self.device)
+
+    @property
+    def mode(self) -> str:
+        """What the test does with its cassette: live, recording or replay."""
+        return "live" if self.live else "recording" if self.recording else "replay"
+
+    def options_for(self, device: Any) -> str:
+        """`options`, recording from `device` (an option string or a path)."""
+        if self.live:
+            if not device:
+                return "(none yet: the device is the path the driver opens)"
+            return device_options(device)
         if self.recording:
-            return (device_options(self.device) + ",log=" + quote_option(str(self.partial_path))
+            if not device:
+                return "(none yet: the device is the path the driver opens)"
+            return (device_options(device) + ",log=" + quote_option(str(self.partial_path))
                     + ",meta_pytest_node=" + quote_option(self.item.nodeid))
         return "type=replay,file=" + quote_option(str(self.path)) + "," + self.replay_options
 
@@ -198,6 +241,8 @@ class WiretapeCassette:
 
     @property
     def url(self) -> str:
+        if self.live:
+            return _live_url(device_options(self.device), self.item.nodeid)
         if self.recording:
             query = urllib.parse.urlencode({"options": device_options(self.device)})
             return f"wiretape+record://{urllib.parse.quote(str(self.partial_path))}?{query}"
@@ -206,15 +251,28 @@ class WiretapeCassette:
         return f"wiretape://{urllib.parse.quote(str(self.path))}?{query}"
 
     def record_command(self) -> str:
+        if self.device_from_driver and not self.device:
+            # wiretape_serial records from the path the driver opens.
+            return f"pytest --wiretape-record=once {self.item.nodeid!r}"
         device = self.device or "OPTS"
         return (f"pytest --wiretape-record=once --wiretape-device={device!r} "
                 f"{self.item.nodeid!r}")
 
-    def prepare(self) -> None:
+    def prepare(self, device_from_driver: bool = False) -> None:
         """Checks that the test can run: a cassette to replay, or a device to
-        record from; makes the cassette's directory when recording."""
+        record from (`device_from_driver`: the driver names it when it opens
+        it, as wiretape_serial's do); makes the cassette's directory when
+        recording."""
+        self.device_from_driver = device_from_driver
+        if self.live:
+            if not self.device and not device_from_driver:
+                pytest.fail(
+                    f"wiretape: {self.item.nodeid} runs live (--wiretape-live) but no device "
+                    "is given: pass --wiretape-device=OPTS, the marker's device=, or set "
+                    "wiretape_device in the ini file", pytrace=False)
+            return
         if self.recording:
-            if not self.device:
+            if not self.device and not device_from_driver:
                 pytest.fail(
                     f"wiretape: cassette {self.path} must be recorded "
                     f"(--wiretape-record={self.record_mode}) but no device is given: "
@@ -229,13 +287,18 @@ class WiretapeCassette:
                 f"Record it from the device with:\n    {self.record_command()}",
                 pytrace=False)
 
-    def open_port(self) -> wiretape.Port:
+    def open_port(self, device: Any = None) -> wiretape.Port:
+        """Opens the replay, or the device recording to the cassette: `device`,
+        or else the device setting."""
+        if device:
+            self.opened_device = device
+        options = self.options
         try:
-            port = wiretape.open_port(self.options)
+            port = wiretape.open_port(options)
         except wiretape.OptionError as error:
             source = "the device setting" if self.recording else "the marker's replay keys"
             pytest.fail(f"{self.item.nodeid}: bad wiretape options (check {source}): "
-                        f"{error}\n    options: {self.options}", pytrace=False)
+                        f"{error}\n    options: {options}", pytrace=False)
         self._ports.append(port)
         return port
 
@@ -280,14 +343,16 @@ class WiretapeCassette:
         if not self.partial_path.exists():
             warnings.warn(WiretapeWarning(
                 f"{self.item.nodeid} passed while recording but opened no port from "
-                f"wiretape_options: nothing was written to {self.path}"))
+                f"{'wiretape_serial' if self.device_from_driver else 'wiretape_options'}: "
+                f"nothing was written to {self.path}"))
             return
         publish_recording(self.partial_path, self.path)
 
     def describe(self) -> str:
+        if self.live:
+            return f"live (--wiretape-live): nothing recorded\noptions: {self.options}"
         lines = [f"cassette: {self.path}",
-                 f"mode: {'recording' if self.recording else 'replay'} "
-                 f"(--wiretape-record={self.record_mode})",
+                 f"mode: {self.mode} (--wiretape-record={self.record_mode})",
                  f"options: {self.options}"]
         if not self.recording:
             lines.append(f"to record it again: {self.record_command().replace('=once', '=rewrite')}")

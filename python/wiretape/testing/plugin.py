@@ -10,9 +10,18 @@ it from the real device or replays it:
     command that records it.
 ``--wiretape-record=once``
     record when the cassette is missing, else replay.
-``--wiretape-record=rewrite``
+``--wiretape-record=rewrite`` (or ``all``, VCR's name)
     always record anew; a test that fails while recording leaves the previous
     cassette as it was.
+``--wiretape-live``
+    hardware in the loop: every test talks to the real device
+    (``--wiretape-device``, or the path a ``wiretape_serial`` driver opens);
+    nothing is replayed or recorded, cassettes are neither needed nor touched.
+
+The run ends with a summary: cassettes replayed, recorded (and those not
+kept because the test failed), run live, and the cassettes in the test
+files' recording folders that no collected test names (left by a renamed or
+removed test).
 
 Recording needs the device: ``--wiretape-device=OPTS`` (a wiretape option
 string; a bare path means ``type=serial,device=PATH``). Both settings can
@@ -22,9 +31,11 @@ command line beats the marker, which beats ``wiretape_config``, which beats
 the ini file.
 
 Marker: ``@pytest.mark.wiretape(cassette=None, device=None, record=None,
-**replay_keys)``. ``cassette`` is a path relative to the test file's directory
-(or absolute); the replay keys are those of ``type=replay`` (``timing``,
-``match``, ``check``, ``unused``, ...). Replays default to ``timing=none``.
+serial_port=None, **replay_keys)``. ``cassette`` is a path relative to the
+test file's directory (or absolute); ``serial_port`` the path (or list of
+paths of one device) that ``wiretape_serial`` serves; the replay keys are
+those of ``type=replay`` (``timing``, ``match``, ``check``, ``unused``, ...).
+Replays default to ``timing=none``.
 
 Fixtures a conftest overrides to change what the plugin does:
 ``wiretape_config``       a dict of settings for the test, with the marker's
@@ -45,6 +56,13 @@ Fixtures tests use:
 ``wiretape_udp``      ``HOST:PORT`` of a UDP virtual device serving the replay
                       (or proxying the device while recording): a driver
                       sends its datagrams there and gets the answers back.
+``wiretape_serial``   pyserial's ``serial.Serial`` patched for the test, so a
+                      driver that builds ``serial.Serial("/dev/ttyUSB0", ...)``
+                      itself is served by the cassette (recording: the real
+                      device at the path the driver opens, or
+                      ``--wiretape-device``). The marker's ``serial_port=``
+                      names the path (or paths) served; by default the first
+                      path the test opens. Gives the patch (serial_patch).
 ``wiretape_cassette`` what the plugin decided: ``path``, ``recording``,
                       ``options``...
 
@@ -64,9 +82,18 @@ from wiretape import bridge, urlhandler
 
 from .._core import device_options
 from .cassette import RECORD_MODES, WiretapeCassette, default_cassette_dir
+from .summary import CassetteSummary
+from .serial_patch import SerialPatch, fail_test, served_paths
 
 _CASSETTE_KEY = pytest.StashKey[WiretapeCassette]()
 _REPORTS_KEY = pytest.StashKey[Dict[str, pytest.TestReport]]()
+_SUMMARY_KEY = pytest.StashKey[CassetteSummary]()
+
+
+def _summary(config) -> CassetteSummary:
+    if _SUMMARY_KEY not in config.stash:
+        config.stash[_SUMMARY_KEY] = CassetteSummary()
+    return config.stash[_SUMMARY_KEY]
 
 
 # --------------------------------------------------------------------------
@@ -78,22 +105,46 @@ def pytest_addoption(parser):
     group.addoption(
         "--wiretape-record", dest="wiretape_record", default=None, choices=RECORD_MODES,
         help="none: replay only (default); once: record missing cassettes; "
-             "rewrite: record every cassette anew")
+             "rewrite (or all): record every cassette anew")
+    group.addoption(
+        "--wiretape-live", dest="wiretape_live", action="store_true", default=False,
+        help="hardware in the loop: every test talks to the real device "
+             "(--wiretape-device); nothing is replayed or recorded")
     group.addoption(
         "--wiretape-device", dest="wiretape_device", default=None, metavar="OPTS",
         help="the device to record from: a wiretape option string "
              "(e.g. type=serial,device=/dev/ttyACM0,baud=115200) or a serial device path")
-    parser.addini("wiretape_record", "wiretape record mode: none, once or rewrite", default="")
+    parser.addini("wiretape_record", "wiretape record mode: none, once, rewrite or all",
+                  default="")
+    parser.addini("wiretape_live", "true: run against the real device, record nothing",
+                  default="")
     parser.addini("wiretape_device", "wiretape device option string to record from", default="")
 
 
 def pytest_configure(config):
     config.addinivalue_line(
         "markers",
-        "wiretape(cassette=None, device=None, record=None, **replay_keys): "
-        "the wiretape cassette, device and record mode of a test, and replay keys "
-        "(timing, match, check, unused...) for its replay")
+        "wiretape(cassette=None, device=None, record=None, serial_port=None, **replay_keys): "
+        "the wiretape cassette, device and record mode of a test, the path(s) "
+        "wiretape_serial serves, and replay keys (timing, match, check, unused...) "
+        "for its replay")
     urlhandler.register()
+
+
+def pytest_collection_modifyitems(session, config, items):
+    # Before deselection (-k, -m): every test the files hold names its
+    # cassette, so a cassette no test names is an orphan, whatever ran.
+    summary = _summary(config)
+    for item in items:
+        summary.note_collected(item)
+
+
+def pytest_terminal_summary(terminalreporter, exitstatus, config):
+    lines = _summary(config).lines()
+    if lines:
+        terminalreporter.write_sep("-", "wiretape")
+        for line in lines:
+            terminalreporter.write_line(line)
 
 
 # --------------------------------------------------------------------------
@@ -156,10 +207,13 @@ def wiretape_cassette(request: pytest.FixtureRequest, wiretape_config: Dict[str,
                       wiretape_cassette_dir: Path) -> Iterator[WiretapeCassette]:
     """The cassette of this test: path, recording or replay, option string."""
     cassette = WiretapeCassette(request.node, wiretape_config, Path(wiretape_cassette_dir))
-    cassette.prepare()
+    # wiretape_serial records from the path the driver opens: no device needed.
+    cassette.prepare(device_from_driver="wiretape_serial" in request.fixturenames)
     request.node.stash[_CASSETTE_KEY] = cassette
     yield cassette
-    cassette.finish(_test_passed(request.node))
+    passed = _test_passed(request.node)
+    cassette.finish(passed)
+    _summary(request.config).note(cassette, passed)
 
 
 @pytest.fixture
@@ -188,6 +242,39 @@ def wiretape_url(wiretape_cassette: WiretapeCassette) -> str:
 
 
 @pytest.fixture
+def wiretape_serial(wiretape_cassette: WiretapeCassette) -> Iterator[SerialPatch]:
+    """pyserial's ``serial.Serial`` (the class, whatever name a driver bound
+    it to) served by the cassette for this test: the replay, or, while
+    recording, the real device at the path the driver opens (or the device
+    setting) recording to the cassette. Undone when the test ends."""
+    try:
+        import serial  # noqa: F401
+    except ImportError:
+        pytest.skip("wiretape_serial needs pyserial (pip install pyserial)")
+    cassette = wiretape_cassette
+    try:
+        paths = served_paths(cassette.serial_port)
+    except ValueError as error:
+        fail_test(f"{cassette.item.nodeid}: wiretape marker: {error}")
+
+    def open_port(path, baud):
+        if not cassette.recording and not cassette.live:
+            return cassette.open_port()
+        device = device_options(cassette.device or path)
+        if baud and device.startswith("type=serial,") and ",baud=" not in device:
+            # The rate the driver opens at, not a settings change after open.
+            device += f",baud={int(baud)}"
+        return cassette.open_port(device)
+
+    patch = SerialPatch(open_port, fail_test, paths)
+    patch.install()
+    try:
+        yield patch
+    finally:
+        patch.uninstall()
+
+
+@pytest.fixture
 def wiretape_pty(wiretape_cassette: WiretapeCassette, tmp_path_factory) -> str:
     """The path of a pseudo-terminal serving the replay, or, while recording,
     proxying the device; for drivers that open a device path themselves."""
@@ -208,7 +295,9 @@ def wiretape_udp(wiretape_cassette: WiretapeCassette) -> str:
 def _virtual_device(cassette: WiretapeCassette, fixture: str, **client_side):
     """A bridge serving the cassette's replay, or recording its device, on
     `client_side`; stopped, and its verdict checked, when the test ends."""
-    if cassette.recording:
+    if cassette.live:
+        handle = bridge.proxy(device_options(cassette.device), **client_side)
+    elif cassette.recording:
         handle = bridge.record(device_options(cassette.device), str(cassette.partial_path),
                                **client_side)
     else:

@@ -27,10 +27,11 @@ from __future__ import annotations
 import dataclasses
 import json
 import os
+import shlex
 import sys
 import tempfile
 import time
-from typing import Iterator, List, Optional
+from typing import Iterator, List, Optional, Tuple
 
 from .. import _core, exports
 from ..exports import jsonl
@@ -91,6 +92,43 @@ def detect_format(path, reading: bool) -> str:
     )
 
 
+def _looks_like_reserial(item: object) -> bool:
+    """A line of a pytest-reserial cassette: {"TEST": {"rx": ..., "tx": ...}}."""
+    return (isinstance(item, dict) and len(item) == 1
+            and isinstance(next(iter(item.values())), dict)
+            and {"rx", "tx"} & set(next(iter(item.values()))))
+
+
+def unconverted_format(path) -> Optional[Tuple[str, str]]:
+    """What a file that is not a session is, when wiretape can import it:
+    (what it is, the convert command), or None. Reads only the start of a
+    regular file (a pipe is left alone: reading would consume it)."""
+    path = os.fspath(path)
+    try:
+        if not os.path.isfile(path):
+            return None
+        with open(path, "rb") as handle:
+            start = handle.read(4096)
+    except OSError:
+        return None
+    if start.startswith(_core.SESSION_MAGIC):
+        return None
+    quoted = shlex.quote(path)
+    output = shlex.quote(os.path.splitext(os.path.basename(path))[0] + ".wtape")
+    if pcap_import.is_capture(path):
+        return ("a packet capture (pcap/pcapng)",
+                f"wiretape convert --from pcap {quoted} {output}")
+    first = start.split(b"\n", 1)[0]
+    try:
+        item = json.loads(first)
+    except ValueError:
+        return None
+    if _looks_like_reserial(item):
+        return ("a pytest-reserial cassette",
+                f"wiretape convert --from reserial {quoted} {output} (--test NAME picks a test)")
+    return None
+
+
 def _check_format(name: str, allowed) -> str:
     if name not in allowed:
         raise ValueError(f"unknown format {name!r}: one of {', '.join(allowed)}")
@@ -142,6 +180,9 @@ def _jsonl_header(value) -> _core.SessionHeader:
 
 def _jsonl_t_ns(item: dict) -> int:
     if "t_ns" not in item:
+        if _looks_like_reserial(item):
+            raise _BadLine("this is a pytest-reserial cassette, not wiretape's jsonl: "
+                           "convert it with --from reserial")
         raise _BadLine("t_ns: missing (every record needs t_ns, kind and data_hex)")
     t_ns = item["t_ns"]
     if isinstance(t_ns, bool) or not isinstance(t_ns, int):

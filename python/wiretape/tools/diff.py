@@ -14,6 +14,13 @@ profile's match key: fields the profile leaves out of the key (a Modbus TCP
 transaction id, a MAVLink sequence number and CRC) do not make a
 difference, and the first differing frame is named.
 
+Besides the first difference of each direction's stream, every divergence
+is listed (``max_divergences`` of them shown; all counted), aligned by
+exchange as a replay numbers them (``_core.session_exchanges``, so that
+``exchange N`` is what ``faults=…@exchange:N`` means): exchange N of A
+against exchange N of B, request and response, each pointing at its first
+differing byte.
+
 ``a`` and ``b`` are paths of session files (``.wtape`` or a flexiport
 ``name.log``) or iterables of records (objects with ``t_ns``, ``kind`` and
 ``data``, such as ``wiretape.Record``).
@@ -75,6 +82,22 @@ class _Records:
             if reader.damage is not None:
                 self.damage = reader.damage.message
         return copy
+
+    def file(self) -> str:
+        """A session file of these records: the file itself, or a copy of a
+        stream or of records given as a list."""
+        if isinstance(self._source, (str, os.PathLike)):
+            if self._scratch is None and is_stream(self._source):
+                self._source = self._copy_of_stream(self._source)
+            return os.fspath(self._source)
+        if self._scratch is None:
+            self._scratch = tempfile.TemporaryDirectory(prefix="wiretape-diff-")
+            copy = os.path.join(self._scratch.name, "records.wtape")
+            with _core.SessionWriter(copy) as writer:
+                for record in self._source:
+                    writer.write(_kind_name(record.kind), record.t_ns, record.data)
+            self._source_file = copy
+        return self._source_file
 
     def close(self) -> None:
         if self._scratch is not None:
@@ -168,6 +191,187 @@ class DirectionDiff:
         )
 
 
+#: Bytes shown each side of a divergence's first differing byte.
+_WINDOW = 8
+
+
+def pointed(a: Optional[bytes], b: Optional[bytes], at: int) -> List[str]:
+    """Lines showing A and B around byte `at`, and a caret under the byte
+    where they differ (hex, then the printable text)."""
+    start = max(0, at - _WINDOW)
+    lines = []
+    for name, data in (("A", a), ("B", b)):
+        if data is None:
+            lines.append(f"      {name}: (nothing)")
+            continue
+        window = data[start:at + _WINDOW]
+        hex_part = " ".join(f"{byte:02x}" for byte in window)
+        text = "".join(chr(byte) if 0x20 <= byte < 0x7F else "." for byte in window)
+        lead = "…" if start else " "
+        tail = "…" if len(data) > at + _WINDOW else " "
+        lines.append(f"      {name}: {lead}{hex_part:<{3 * 2 * _WINDOW - 1}}{tail} |{text}|")
+    column = at - start
+    hex_caret = " " * (3 * column) + "^^"
+    text_caret = " " * column + "^"
+    lines.append(f"          {hex_caret:<{3 * 2 * _WINDOW - 1}}   {text_caret}")
+    return lines
+
+
+def _first_difference(a: bytes, b: bytes) -> int:
+    same = 0
+    for byte_a, byte_b in zip(a, b):
+        if byte_a != byte_b:
+            break
+        same += 1
+    return same
+
+
+@dataclass
+class Divergence:
+    """Exchange `exchange` differs in `direction` ("tx": the request, "rx":
+    the response) from byte `offset` of that part of the exchange; bytes
+    None: the session has no such exchange."""
+
+    exchange: int
+    direction: str
+    offset: int
+    time_a_ns: Optional[int]
+    time_b_ns: Optional[int]
+    bytes_a: Optional[bytes]
+    bytes_b: Optional[bytes]
+    frame_a: str = ""  # with a profile: the frames' descriptions
+    frame_b: str = ""
+
+    def report(self) -> List[str]:
+        part = "request" if self.direction == "tx" else "response"
+        if self.bytes_a is None or self.bytes_b is None:
+            missing = "A" if self.bytes_a is None else "B"
+            head = f"  exchange {self.exchange} {part} ({self.direction}): {missing} has none"
+        else:
+            head = (f"  exchange {self.exchange} {part} ({self.direction}) differs at byte "
+                    f"{self.offset} (A at {_seconds(self.time_a_ns)}, "
+                    f"B at {_seconds(self.time_b_ns)})")
+        lines = [head]
+        for name, frame in (("A", self.frame_a), ("B", self.frame_b)):
+            if frame:
+                lines.append(f"      {name} is {frame}")
+        return lines + pointed(self.bytes_a, self.bytes_b, self.offset)
+
+
+class _ExchangeParts:
+    """The exchanges of a session file with their bytes, one at a time:
+    (request pieces, response pieces, request time, response time), a piece
+    being a frame with a profile, else all of that direction's bytes."""
+
+    def __init__(self, path: str, profile: Optional[str]):
+        self._path = path
+        self._profile = profile
+
+    def __iter__(self):
+        exchanges = _core.session_exchanges(self._path, self._profile)
+        if self._profile is not None:
+            for exchange in exchanges:
+                yield ([bytes(f) for f in exchange.request_frames],
+                       [bytes(f) for f in exchange.response_frames],
+                       exchange.request_first_t_ns, exchange.response_first_t_ns)
+            return
+        ends = iter([(exchange.end_record, exchange) for exchange in exchanges])
+        end, exchange = next(ends, (None, None))
+        parts = {"tx": bytearray(), "rx": bytearray()}
+        with open_session(self._path) as reader:
+            for index, record in enumerate(reader):
+                while end is not None and index >= end:
+                    yield (_pieces(parts["tx"]), _pieces(parts["rx"]),
+                           exchange.request_first_t_ns, exchange.response_first_t_ns)
+                    parts = {"tx": bytearray(), "rx": bytearray()}
+                    end, exchange = next(ends, (None, None))
+                if end is None:
+                    break
+                if record.kind in parts:
+                    parts[record.kind] += record.data
+        if end is not None:
+            yield (_pieces(parts["tx"]), _pieces(parts["rx"]),
+                   exchange.request_first_t_ns, exchange.response_first_t_ns)
+
+
+def _pieces(data: bytearray) -> List[bytes]:
+    return [bytes(data)] if data else []
+
+
+def _first_key_difference(a: bytes, b: bytes, key) -> int:
+    """The first byte where A and B differ that the key compares: B's byte
+    put in A changes A's key (a Modbus TCP transaction id differs first, but
+    it is not what differs by key). The first difference when none alone does."""
+    key_a = key(a)
+    for at in range(min(len(a), len(b))):
+        if a[at] != b[at] and key(a[:at] + b[at:at + 1] + a[at + 1:]) != key_a:
+            return at
+    return _first_difference(a, b)
+
+
+def _differs_at(pieces_a: List[bytes], pieces_b: List[bytes], key) -> Optional[int]:
+    """The offset (in the pieces joined) of the first byte of the first
+    piece whose key differs, None when every key is the same."""
+    offset = 0
+    for at in range(max(len(pieces_a), len(pieces_b))):
+        if at >= len(pieces_a) or at >= len(pieces_b):
+            return offset
+        piece_a, piece_b = pieces_a[at], pieces_b[at]
+        if key(piece_a) != key(piece_b):
+            return offset + _first_key_difference(piece_a, piece_b, key)
+        offset += len(piece_a)
+    return None
+
+
+def _request_name(framing, direction: str, pieces: Optional[List[bytes]]) -> str:
+    """A request's description under a profile (it is one frame): which
+    command differs."""
+    if framing is None or direction != "tx" or not pieces:
+        return ""
+    return framing.describe("tx", pieces[0])
+
+
+def _divergences(path_a: str, path_b: str, profile: Optional[str], keep: int
+                 ) -> "tuple[List[Divergence], int]":
+    """The first `keep` divergences by exchange, and how many there are."""
+    framing = _core.find_profile(profile) if profile is not None else None
+    key = framing.match_key if framing is not None else (lambda piece: piece)
+    found: List[Divergence] = []
+    total = 0
+    exchanges_a = iter(_ExchangeParts(path_a, profile))
+    exchanges_b = iter(_ExchangeParts(path_b, profile))
+    index = 0
+    while True:
+        part_a, part_b = next(exchanges_a, None), next(exchanges_b, None)
+        if part_a is None and part_b is None:
+            break
+        for direction, slot, time_slot in (("tx", 0, 2), ("rx", 1, 3)):
+            pieces_a = part_a[slot] if part_a is not None else None
+            pieces_b = part_b[slot] if part_b is not None else None
+            if not pieces_a and not pieces_b:
+                continue
+            if pieces_a is not None and pieces_b is not None:
+                # with a profile, what its match key leaves out does not differ
+                offset = _differs_at(pieces_a, pieces_b, key)
+                if offset is None:
+                    continue
+            else:
+                offset = 0
+            data_a = b"".join(pieces_a) if pieces_a is not None else None
+            data_b = b"".join(pieces_b) if pieces_b is not None else None
+            total += 1
+            if len(found) >= keep:
+                continue
+            found.append(Divergence(
+                index, direction, offset,
+                part_a[time_slot] if part_a is not None else None,
+                part_b[time_slot] if part_b is not None else None,
+                data_a, data_b, _request_name(framing, direction, pieces_a),
+                _request_name(framing, direction, pieces_b)))
+        index += 1
+    return found, total
+
+
 @dataclass
 class DiffResult:
     """The outcome of diff(): identical, per-direction details, report()."""
@@ -177,6 +381,9 @@ class DiffResult:
     directions: List[Union[DirectionDiff, "FrameDiff"]] = field(default_factory=list)
     damage_a: Optional[str] = None
     damage_b: Optional[str] = None
+    # every divergence aligned by exchange: the first ones, and how many
+    divergences: List[Divergence] = field(default_factory=list)
+    divergence_count: int = 0
 
     @property
     def identical(self) -> bool:
@@ -200,6 +407,15 @@ class DiffResult:
     def report(self) -> str:
         lines = [f"A: {self.a}", f"B: {self.b}"]
         lines += [d.report() for d in self.directions]
+        if self.divergence_count:
+            shown = len(self.divergences)
+            more = (f" (the first {shown} of {self.divergence_count}; --max shows more)"
+                    if shown < self.divergence_count else "")
+            lines.append(f"{self.divergence_count} "
+                         f"{'divergence' if self.divergence_count == 1 else 'divergences'}"
+                         f" by exchange{more}:")
+            for divergence in self.divergences:
+                lines += divergence.report()
         for name, damage in (("A", self.damage_a), ("B", self.damage_b)):
             if damage:
                 lines.append(f"{name} is damaged; compared up to the damage: {damage}")
@@ -260,6 +476,7 @@ class FrameDiff:
     describe_b: str = ""
     time_a_ns: Optional[int] = None
     time_b_ns: Optional[int] = None
+    byte: int = 0  # the first differing byte of the frames that the key compares
 
     def report(self) -> str:
         counts = f"A: {self.frames_a} frames, B: {self.frames_b} frames"
@@ -273,7 +490,8 @@ class FrameDiff:
                 lines.append(f"  {name}:      (no more frames)")
             else:
                 lines.append(f"  {name}:      {description}")
-                lines.append(f"          {_core.hex_ascii(frame[:2 * _CONTEXT])}")
+        lines.append(f"  at byte {self.byte} of the frame:")
+        lines += pointed(self.frame_a, self.frame_b, self.byte)
         lines.append(f"  {counts}")
         return "\n".join(lines)
 
@@ -307,11 +525,16 @@ def _compare_frames(profile, a, b, direction: str) -> FrameDiff:
             result.time_a_ns, result.frame_a, result.describe_a = next_a
         if next_b is not None:
             result.time_b_ns, result.frame_b, result.describe_b = next_b
+        if next_a is not None and next_b is not None:
+            result.byte = _first_key_difference(next_a[1], next_b[1], profile.match_key)
     return result
 
 
-def diff(a: SessionLike, b: SessionLike, profile: Optional[str] = None) -> DiffResult:
-    """Compares sessions ``a`` and ``b``: the first divergence per direction.
+def diff(a: SessionLike, b: SessionLike, profile: Optional[str] = None,
+         max_divergences: int = 10) -> DiffResult:
+    """Compares sessions ``a`` and ``b``: the first divergence per direction,
+    and every divergence by exchange (the first `max_divergences` kept in
+    ``divergences``, all counted in ``divergence_count``).
 
     Raises wiretape.PortError if a file cannot be opened, SessionError if
     it is not a session; a damaged file is compared up to its damage, which
@@ -328,12 +551,21 @@ def diff(a: SessionLike, b: SessionLike, profile: Optional[str] = None) -> DiffR
         for direction in DIRECTIONS:
             sources = [os.fspath(x) if isinstance(x, (str, os.PathLike)) else x for x in (a, b)]
             result.directions.append(_compare_frames(framing, sources[0], sources[1], direction))
+        if not result.identical:
+            records_a, records_b = _Records(a), _Records(b)
+            try:
+                _add_divergences(result, records_a, records_b, profile, max_divergences)
+            finally:
+                records_a.close()
+                records_b.close()
         return result
     records_a, records_b = _Records(a), _Records(b)
     result = DiffResult(records_a.name, records_b.name)
     try:
         for direction in DIRECTIONS:
             result.directions.append(_compare(records_a, records_b, direction))
+        if not result.identical:
+            _add_divergences(result, records_a, records_b, None, max_divergences)
     finally:
         records_a.close()
         records_b.close()
@@ -341,4 +573,16 @@ def diff(a: SessionLike, b: SessionLike, profile: Optional[str] = None) -> DiffR
     return result
 
 
-__all__ = ["diff", "DiffResult", "DirectionDiff", "FrameDiff"]
+def _add_divergences(result: DiffResult, a: _Records, b: _Records, profile: Optional[str],
+                     keep: int) -> None:
+    """Every divergence by exchange, from files (a damaged one has no
+    exchanges to align: the first differences above are all there is)."""
+    try:
+        path_a, path_b = a.file(), b.file()
+        result.divergences, result.divergence_count = _divergences(path_a, path_b, profile,
+                                                                   keep)
+    except _core.SessionError:
+        pass
+
+
+__all__ = ["diff", "DiffResult", "DirectionDiff", "Divergence", "FrameDiff"]

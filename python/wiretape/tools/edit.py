@@ -12,8 +12,9 @@ shared (DESIGN §15, docs/cli.md "edit").
   so lengths and framing stay) and marked by a ``redaction`` event, which
   replay treats as wildcards. A match may span records, up to ``MAX_SPAN``
   bytes. Redacting scrubs every place a value appears (DESIGN §23): it also
-  clears the header's host and the serial numbers of ``/dev/serial/by-id``
-  paths, and applies the patterns to the header's text (port options,
+  clears the header's host, the device identity's serial number (and its
+  part of the identity's by-id name) and the serial numbers of
+  ``/dev/serial/by-id`` paths, and applies the patterns to the header's text (port options,
   device address, metadata values, import source) and to every string of
   every event (an open's description, a client's peer...). With a protocol
   profile, the checksums of each frame holding scrubbed bytes are
@@ -451,6 +452,9 @@ def _cut_window(path: str, cut: Cut) -> Tuple[Optional[int], Optional[int]]:
 
 
 _STATE_EVENTS = ("settings", "modem_lines")
+# The lines the host sets (a modem_lines event's dtr, rts); the device's
+# inputs (cts, dsr, ri, cd) are served, and held over a cut.
+_HOST_LINES = {"dtr", "rts"}
 
 
 class _Cutter:
@@ -492,7 +496,12 @@ class _Cutter:
         if kind in _STATE_EVENTS:
             key = kind
             if kind == "modem_lines":
-                key += ":" + ",".join(sorted((event_payload(data) or {}).keys()))
+                members = sorted((event_payload(data) or {}).keys())
+                if set(members) & _HOST_LINES:
+                    # The client's own line changes are checked on replay:
+                    # held over the cut they would be changes it never made.
+                    return
+                key += ":" + ",".join(members)
             self.state[key] = (kind, t_ns, data)
         elif kind in ("client_connect", "client_disconnect"):
             change = self.sessions.feed(kind, data)
@@ -519,7 +528,10 @@ class _Cutter:
 
 
 def _scrub_text(text: str, redactions: Sequence[Redaction]) -> str:
-    text = _BY_ID.sub(_BY_ID_REPLACEMENT, text)
+    return _apply_patterns(_BY_ID.sub(_BY_ID_REPLACEMENT, text), redactions)
+
+
+def _apply_patterns(text: str, redactions: Sequence[Redaction]) -> str:
     data = text.encode("utf-8", "surrogatepass")
     for redaction in redactions:
         data = redaction.pattern.sub(lambda m: redaction.scrub(len(m.group(0))), data)
@@ -539,9 +551,16 @@ def _scrub_value(value, redactions: Sequence[Redaction]):
 
 def _scrub_header(header, redactions: Sequence[Redaction]) -> None:
     """Every header field that can name the device, the machine or a user:
-    the host is cleared; the port options, the device's address, metadata
-    values and where an import came from are scrubbed."""
+    the host is cleared, and so is the device identity's serial number
+    with its part of the by-id name (DESIGN §20); the port options, the
+    device's address, metadata values, the rest of the device identity and
+    where an import came from are scrubbed."""
     header.host = ""
+    header.clear_device_serial()
+    # The by-id name keeps what is not the serial number (vendor, model,
+    # interface), so that replay still presents it: only the patterns apply.
+    header.device_identity = {key: _apply_patterns(value, redactions)
+                              for key, value in header.device_identity.items()}
     header.port_options = _scrub_text(header.port_options, redactions)
     header.device_address = _scrub_text(header.device_address, redactions)
     header.metadata = {key: _scrub_text(value, redactions)

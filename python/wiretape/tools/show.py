@@ -7,10 +7,13 @@ does not grow with the file's size.
 
 from __future__ import annotations
 
+import dataclasses
+import difflib
 import json
 import os
+import re
 import sys
-from typing import IO, Iterator, Optional, Tuple
+from typing import IO, Callable, FrozenSet, Iterable, Iterator, Optional, Tuple
 
 from .. import _core
 from ..exports.jsonl import json_line, record_to_json
@@ -18,7 +21,8 @@ from ..session import DIRECTIONS as _DIRECTIONS
 from ..session import SessionPath, event_of, event_payload, header_text, open_session
 from ..session import printable as _printable
 
-__all__ = ["show", "show_reporting_damage"]
+__all__ = ["show", "show_reporting_damage", "Selection", "check_kinds", "record_kinds",
+           "color_wanted"]
 
 
 def _seconds(t_ns: int) -> str:
@@ -44,6 +48,12 @@ def _header_lines(reader: _core.SessionReader, path: SessionPath) -> Iterator[st
         yield f"  port         {header_text(header.port_type or '?')}: {header_text(header.port_options)}"
     if header.device_address:
         yield f"  device       {header_text(header.device_address)}"
+    # The members as the header names them, in its order; those not known
+    # left out.
+    identity = ", ".join(f"{name}={header_text(value)}"
+                         for name, value in header.device_identity.items() if value)
+    if identity:
+        yield f"  identity     {identity}"
     yield f"  capture      {header_text(header.capture)}"
     started = header_text(header.start_utc) if header.start_utc else "at a time not recorded"
     host = f" on {header_text(header.host)}" if header.host else ""
@@ -64,8 +74,88 @@ def _hexdump(data: bytes) -> Iterator[str]:
         yield f"    {offset:08x}  {hex_part:<47}  |{text}|"
 
 
+#: ANSI colours of show's text on a terminal (rich's per-line rendering
+#: would cost ten times the time of show itself on a big session).
+_RESET = "\x1b[0m"
+_STYLES = {"time": "\x1b[2m", "tx": "\x1b[36m", "rx": "\x1b[32m", "event": "\x1b[33m",
+           "problem": "\x1b[1;31m", "heading": "\x1b[1m"}
+#: Event kinds that mean something was lost or broken: shown in red.
+_PROBLEM_KINDS = frozenset({"capture_gap", "device_lost", "fault"})
+
+
+def record_kinds() -> Tuple[str, ...]:
+    """Every record kind a session may hold (what ``--kind`` accepts)."""
+    return tuple(kind["name"] for kind in _core.RECORD_KINDS)
+
+
+def check_kinds(kinds: Iterable[str]) -> None:
+    """Raises ValueError naming the first unknown kind and the closest known one."""
+    known = record_kinds()
+    kinds = list(kinds)
+    if not kinds:
+        raise ValueError("no record kind given: use " + ", ".join(known))
+    for kind in kinds:
+        if kind not in known:
+            close = difflib.get_close_matches(kind, known, n=1)
+            hint = f" (did you mean {close[0]}?)" if close else ""
+            raise ValueError(f"unknown record kind {kind!r}{hint}: use " + ", ".join(known))
+
+
+@dataclasses.dataclass(frozen=True)
+class Selection:
+    """Which records show prints: all of them by default.
+
+    ``kinds``: record kinds (``record_kinds()``), None for every kind.
+    ``start_s``/``end_s``: seconds of session time (the first column), both
+    ends included. ``grep``: a bytes regular expression searched in the
+    payloads of tx and rx records (events have none, so they are left out).
+    """
+
+    kinds: Optional[FrozenSet[str]] = None
+    start_s: Optional[float] = None
+    end_s: Optional[float] = None
+    grep: Optional[bytes] = None
+
+    def __post_init__(self) -> None:
+        if self.kinds is not None:
+            check_kinds(self.kinds)
+        if self.start_s is not None and self.end_s is not None and self.start_s > self.end_s:
+            raise ValueError(f"the time range ends ({self.end_s} s) before it starts "
+                             f"({self.start_s} s)")
+        if self.grep is not None:
+            try:
+                re.compile(self.grep)
+            except re.error as error:
+                raise ValueError(f"bad --grep pattern {self.grep!r}: {error}") from None
+
+    @property
+    def everything(self) -> bool:
+        return self == Selection()
+
+    def matcher(self) -> Callable[[int, str, bytes], bool]:
+        """A test of (t_ns, kind, payload) for the records to show."""
+        kinds = self.kinds
+        start = None if self.start_s is None else round(self.start_s * 1e9)
+        end = None if self.end_s is None else round(self.end_s * 1e9)
+        search = re.compile(self.grep).search if self.grep is not None else None
+
+        def wanted(t_ns: int, kind: str, data: bytes) -> bool:
+            if kinds is not None and kind not in kinds:
+                return False
+            if start is not None and t_ns < start:
+                return False
+            if end is not None and t_ns > end:
+                return False
+            if search is not None:
+                return kind in _DIRECTIONS and search(data) is not None
+            return True
+
+        return wanted
+
+
 def show(path: SessionPath, fmt: str = "text", profile: Optional[str] = None,
-         out: Optional[IO[str]] = None, decode: Optional[str] = None) -> int:
+         out: Optional[IO[str]] = None, decode: Optional[str] = None,
+         select: Optional[Selection] = None, full: bool = False, color: bool = False) -> int:
     """Prints the session's timeline to ``out`` (default stdout).
 
     ``fmt``: ``text`` (one line per record), ``hex`` (a hex dump of each
@@ -74,22 +164,28 @@ def show(path: SessionPath, fmt: str = "text", profile: Optional[str] = None,
     format) names a protocol profile (``_core.profile_names()``; ``scip`` for
     Hokuyo SCIP 2.0): the byte streams are cut into the protocol's frames,
     however the recording split them, and each frame is named. ``decode`` is
-    the older name of ``profile``. Returns the number of records shown; a
-    damaged file is reported at the end (on stderr for jsonl) and everything
-    before the damage is shown.
+    the older name of ``profile``. ``select`` picks records (kinds, a time
+    range, a pattern); ``full`` shows every byte of each payload instead of
+    its first 64; ``color`` writes ANSI colours. Text and hex have a Δt
+    column: the time since the previous record shown. Returns the number of
+    records shown; a damaged file is reported at the end (on stderr for
+    jsonl) and everything before the damage is shown.
     """
-    return show_reporting_damage(path, fmt, profile, out, decode)[0]
+    return show_reporting_damage(path, fmt, profile, out, decode, select=select, full=full,
+                                 color=color)[0]
 
 
 def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optional[str] = None,
                           out: Optional[IO[str]] = None, decode: Optional[str] = None,
-                          wrap: Optional[int] = None
+                          wrap: Optional[int] = None, select: Optional[Selection] = None,
+                          full: bool = False, color: bool = False
                           ) -> Tuple[int, Optional[_core.SessionError]]:
     """show(), and the damage reading stopped at (None for an intact
     session): what the command line's exit code needs, without a second
     reading, which a pipe or FIFO would not allow. With `wrap` (text format,
     for textconv), every byte of a payload is shown, `wrap` bytes a line,
-    the lines after the first indented under it."""
+    the lines after the first indented under it, and there is no Δt column
+    (a changed time would show as two changed lines in a diff)."""
     if fmt not in ("text", "hex", "jsonl"):
         raise ValueError(f"unknown format {fmt!r}: use text, hex or jsonl")
     if profile is not None and decode is not None and profile != decode:
@@ -97,54 +193,147 @@ def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optiona
     profile = profile if profile is not None else decode
     framing = _core.find_profile(profile) if profile is not None else None
     out = out if out is not None else sys.stdout
+    select = select if select is not None else Selection()
+    wanted = None if select.everything else select.matcher()
     reader = open_session(path)
-    count = 0
+    shown = 0
     if fmt == "jsonl":
         for record in reader:
-            out.write(json_line(record_to_json(record)))
-            count += 1
+            if wanted is None or wanted(record.t_ns, record.kind, record.data):
+                out.write(json_line(record_to_json(record)))
+                shown += 1
         if reader.damage is not None:
-            print(f"wiretape: damaged: {header_text(reader.damage.message)}", file=sys.stderr)
-        return count, reader.damage
+            print(f"wiretape show: damaged: {header_text(reader.damage.message)}",
+                  file=sys.stderr)
+        return shown, reader.damage
+    paint = _painter(color)
     for line in _header_lines(reader, path):
         out.write(line + "\n")
     out.write("\n")
+    delta = wrap is None
+    limit = 64 if not full else None
+    if delta:
+        out.write(paint("heading", f"{'time':<10}  {'Δt':>10}  {'kind':<17} "
+                                   f"{'size':>8}  data") + "\n")
+    previous: Optional[int] = None
     if framing is not None and fmt == "text":
         records = _counting(reader)
         for t_ns, kind, data, description in framing.decode_session(records):
+            if wanted is not None and not wanted(t_ns, kind, data):
+                continue
+            shown += 1
             if description is None:
                 event = event_payload(data)
-                description = json.dumps(event) if event else ""
-            out.write(f"{_seconds(t_ns)}  {kind}  {description}\n")
+                description = json.dumps(event, separators=(",", ":")) if event else ""
+            # Frames and events line up with the plain timeline's columns.
+            size = f"{len(data):>6} B" if kind in _DIRECTIONS else ""
+            line = _stamp(paint, t_ns, previous if delta else None, delta)
+            style = kind if kind in _DIRECTIONS else _event_style(kind)
+            out.write(f"{line}{paint(style, f'{kind:<17}')} {size:>8}  {description}"
+                      .rstrip() + "\n")
+            previous = t_ns
         count = records.count
     else:
+        count = 0
+        columns: dict = {}
+
+        def kind_column(kind: str) -> str:
+            # painted once per kind: a big session has millions of lines, few kinds
+            if kind not in columns:
+                style = kind if kind in _DIRECTIONS else _event_style(kind)
+                columns[kind] = paint(style, f"{kind:<17}")
+            return columns[kind]
+
         for record in reader:
             count += 1
-            size = f"{len(record.data):>6} B"
-            if record.kind in _DIRECTIONS:
-                arrow = "<-" if record.kind == "rx" else "->"
-                text = (_printable(record.data) if wrap is None
-                        else _printable(record.data[:wrap], wrap))
+            t_ns, kind, data = record.t_ns, record.kind, record.data
+            if wanted is not None and not wanted(t_ns, kind, data):
+                continue
+            shown += 1
+            line = _stamp(paint, t_ns, previous, delta)
+            previous = t_ns
+            if kind in _DIRECTIONS:
+                size = f"{len(data):>6} B"
+                arrow = "<-" if kind == "rx" else "->"
+                if wrap is not None:
+                    text = _printable(data[:wrap], wrap)
+                else:
+                    text = _printable(data, len(data) if full else limit)
                 summary = f"{arrow} {text}" if fmt == "text" else ""
-                line = f"{_seconds(record.t_ns)}  {record.kind:<17} {size}  "
-                out.write(f"{line}{summary}\n".rstrip() + "\n")
+                head = f"{line}{kind_column(kind)} {size}  "
+                out.write(f"{head}{summary}\n".rstrip() + "\n")
                 if fmt == "text" and wrap is not None:
-                    for at in range(wrap, len(record.data), wrap):
-                        more = record.data[at:at + wrap]
-                        out.write(" " * (len(line) + 3) + _printable(more, len(more)) + "\n")
+                    indent = " " * (len(_stamp(_plain, t_ns, None, False)) + 17 + 1 + 8 + 2 + 3)
+                    for at in range(wrap, len(data), wrap):
+                        more = data[at:at + wrap]
+                        out.write(indent + _printable(more, len(more)) + "\n")
                 if fmt == "hex":
-                    for line in _hexdump(record.data):
-                        out.write(line + "\n")
+                    for dump in _hexdump(data):
+                        out.write(dump + "\n")
             else:
                 event = event_of(record)
-                text = json.dumps(event, separators=(",", ":")) if event is not None else _printable(record.data)
-                out.write(f"{_seconds(record.t_ns)}  {record.kind:<17} {'':>8}  {text}\n".rstrip() + "\n")
+                text = (json.dumps(event, separators=(",", ":")) if event is not None
+                        else _printable(data, len(data) if full else limit))
+                out.write(f"{line}{kind_column(kind)} {'':>8}  {text}"
+                          .rstrip() + "\n")
     if reader.damage is not None:
-        out.write(f"\nDAMAGED at byte {reader.damage.offset}: "
-                  f"{header_text(reader.damage.message)}\n")
+        out.write("\n" + paint("problem", f"DAMAGED at byte {reader.damage.offset}: "
+                                           f"{header_text(reader.damage.message)}") + "\n")
+    elif shown == count:
+        out.write(f"\n{count} {_plural(count, 'record')}\n")
     else:
-        out.write(f"\n{count} records\n")
-    return count, reader.damage
+        out.write(f"\n{shown} of {count} {_plural(count, 'record')} shown\n")
+    return shown, reader.damage
+
+
+def _plural(count: int, word: str) -> str:
+    return word if count == 1 else word + "s"
+
+
+def _event_style(kind: str) -> str:
+    return "problem" if kind in _PROBLEM_KINDS else "event"
+
+
+def _plain(style: str, text: str) -> str:
+    return text
+
+
+def _painter(color: bool) -> Callable[[str, str], str]:
+    if not color:
+        return _plain
+
+    def paint(style: str, text: str) -> str:
+        return f"{_STYLES[style]}{text}{_RESET}"
+
+    return paint
+
+
+def _stamp(paint: Callable[[str, str], str], t_ns: int, previous: Optional[int],
+           delta: bool) -> str:
+    """The time column and, with `delta`, the Δt column (blank on the first
+    line shown)."""
+    time = paint("time", _seconds(t_ns))
+    if not delta:
+        return f"{time}  "
+    step = "" if previous is None else f"{(t_ns - previous) / 1e9:.6f}s"
+    return f"{time}  {paint('time', f'{step:>10}')}  "
+
+
+def color_wanted(choice: str, stream: IO[str]) -> bool:
+    """``--color auto|always|never``: auto is colour on a terminal, unless
+    NO_COLOR is set (https://no-color.org) or TERM is dumb."""
+    if choice == "always":
+        return True
+    if choice == "never":
+        return False
+    if os.environ.get("NO_COLOR"):
+        return False
+    if os.environ.get("TERM") == "dumb":
+        return False
+    try:
+        return stream.isatty()
+    except (AttributeError, ValueError):
+        return False
 
 
 class _counting:

@@ -1,16 +1,107 @@
 """``wiretape stats``: the figures of a session (records, bytes, duration,
-events, header), streamed: memory does not grow with the file's size."""
+events, header), streamed: memory does not grow with the file's size; and
+the latency from each request to the first byte of its response, over the
+records in order, per request frame name with a profile."""
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from typing import Any, Dict, List, Optional, Tuple
 
 from .. import _core
 from ..session import DIRECTIONS, SessionPath, header_text, open_session
 
-__all__ = ["stats", "SessionStats"]
+__all__ = ["stats", "SessionStats", "Latency"]
+
+#: The percentiles stats gives of latencies.
+PERCENTILES = (50, 90, 99)
+
+
+@dataclasses.dataclass(frozen=True)
+class Latency:
+    """How long a device took to answer: from the time the request's last
+    byte was written (the tx record that completed it) to the time of its
+    response's first rx record, over the requests that were answered. ``name``: the
+    request frame's name under a profile (``VV``, ``GD`` for SCIP), or
+    ``all``. Percentiles by nearest rank."""
+
+    name: str
+    requests: int
+    p50_s: float
+    p90_s: float
+    p99_s: float
+    max_s: float
+
+    def text(self) -> str:
+        return (f"{self.requests} {'request' if self.requests == 1 else 'requests'}: "
+                f"p50 {_ms(self.p50_s)}, p90 {_ms(self.p90_s)}, p99 {_ms(self.p99_s)}, "
+                f"max {_ms(self.max_s)}")
+
+
+def _ms(seconds: float) -> str:
+    return f"{seconds * 1e3:.3f} ms"
+
+
+def _percentile(ordered: List[int], percent: int) -> int:
+    return ordered[max(0, math.ceil(percent / 100 * len(ordered)) - 1)]
+
+
+def _latency(name: str, waits_ns: List[int]) -> Latency:
+    ordered = sorted(waits_ns)
+    p50, p90, p99 = (_percentile(ordered, p) / 1e9 for p in PERCENTILES)
+    return Latency(name, len(ordered), p50, p90, p99, ordered[-1] / 1e9)
+
+
+# Events after which an answer cannot be to the request before them.
+_NEW_CONVERSATION = frozenset({"open", "close", "client_connect", "client_disconnect",
+                               "device_lost"})
+
+
+class _LatencyMeter:
+    """Request to first response byte, from the records in order: a request
+    is complete at the tx record that writes its last byte (without a
+    profile, the last tx record before an rx; with one, the tx record that
+    completes a request frame, cut by the profile's framer); the next rx
+    record is the first byte of its response."""
+
+    def __init__(self, profile: Optional[str]):
+        self._profile = _core.find_profile(profile) if profile is not None else None
+        self._framer = self._profile.framer("tx") if self._profile is not None else None
+        self._sent: Optional[int] = None  # when the waiting request was complete
+        self._name = ""
+        self.waits: Dict[str, List[int]] = {}
+        self.every: List[int] = []
+
+    def feed(self, kind: str, t_ns: int, data: bytes) -> None:
+        if kind == "tx":
+            if self._framer is None:
+                self._sent = t_ns
+                return
+            frames = self._framer.feed(data, t_ns)
+            if frames:
+                self._sent = t_ns
+                self._name = self._profile.frame_name("tx", frames[-1][0]) or "?"
+        elif kind == "rx":
+            if self._sent is not None:
+                self.every.append(t_ns - self._sent)
+                if self._framer is not None:
+                    self.waits.setdefault(self._name, []).append(t_ns - self._sent)
+                self._sent = None
+        elif kind in _NEW_CONVERSATION:
+            self._sent = None
+            if self._profile is not None:
+                self._framer = self._profile.framer("tx")
+
+    def result(self) -> List[Latency]:
+        """One Latency over every request (``all``), and with a profile one
+        per request frame name, most frequent first; empty when no request
+        was answered."""
+        if not self.every:
+            return []
+        named = sorted(self.waits.items(), key=lambda item: (-len(item[1]), item[0]))
+        return [_latency("all", self.every)] + [_latency(name, values) for name, values in named]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -33,6 +124,9 @@ class SessionStats:
     damaged: bool
     damage_offset: Optional[int]
     damage_message: Optional[str]
+    # request to first response byte (see Latency); why it is missing, if it is
+    latency: Tuple[Latency, ...] = ()
+    latency_note: Optional[str] = None
 
     def __getattr__(self, name: str) -> Any:
         # The header's members read as the result's own (stats.port_type).
@@ -44,7 +138,8 @@ class SessionStats:
         """The counts and the header's members (as SessionHeader.to_dict
         names them) in one object."""
         out = {field.name: getattr(self, field.name) for field in dataclasses.fields(self)
-               if field.name != "header"}
+               if field.name not in ("header", "latency")}
+        out["latency"] = [dataclasses.asdict(latency) for latency in self.latency]
         return {**out, **self.header.to_dict()}
 
     def text_rows(self) -> List[Tuple[str, str]]:
@@ -68,6 +163,11 @@ class SessionStats:
         if self.events:
             rows.append(("events", ", ".join(f"{kind} {count}"
                                              for kind, count in sorted(self.events.items()))))
+        for latency in self.latency:
+            label = "latency" if latency.name == "all" else f"latency {header_text(latency.name)}"
+            rows.append((label, latency.text()))
+        if self.latency_note:
+            rows.append(("latency", self.latency_note))
         if self.metadata:
             rows.append(("metadata", ", ".join(f"{header_text(key)}={header_text(value)}"
                                                for key, value in sorted(self.metadata.items()))))
@@ -77,9 +177,12 @@ class SessionStats:
         return rows
 
 
-def stats(path: SessionPath) -> SessionStats:
+def stats(path: SessionPath, profile: Optional[str] = None) -> SessionStats:
     """Counts the records and bytes of each direction and the events of each
-    kind; a damaged file is counted up to the damage, which the result names."""
+    kind, and the latency of each answered request (see Latency; named by
+    `profile`'s frame names when given); a damaged file is counted up to
+    the damage, which the result names."""
+    meter = _LatencyMeter(profile)
     reader = open_session(path)
     count = {"rx": 0, "tx": 0}
     size = {"rx": 0, "tx": 0}
@@ -91,6 +194,7 @@ def stats(path: SessionPath) -> SessionStats:
         records += 1
         first = record.t_ns if first is None else min(first, record.t_ns)
         last = record.t_ns if last is None else max(last, record.t_ns)
+        meter.feed(record.kind, record.t_ns, record.data)
         if record.kind in DIRECTIONS:
             count[record.kind] += 1
             size[record.kind] += len(record.data)
@@ -98,6 +202,9 @@ def stats(path: SessionPath) -> SessionStats:
             events[record.kind] = events.get(record.kind, 0) + 1
     header = reader.header
     damage = reader.damage
+    measured = meter.result()
+    note = ("not measured: no request is followed by a response"
+            if not measured and count["tx"] and count["rx"] else None)
     return SessionStats(
         path=os.fspath(path),
         records=records,
@@ -114,4 +221,6 @@ def stats(path: SessionPath) -> SessionStats:
         damaged=damage is not None,
         damage_offset=damage.offset if damage is not None else None,
         damage_message=damage.message if damage is not None else None,
+        latency=tuple(measured),
+        latency_note=note,
     )

@@ -89,6 +89,12 @@ class PortSerial(SerialBase):
         self.is_open = True
         try:
             self._reconfigure_port()
+            # The OS raises DTR and RTS at open: only a level lowered before
+            # open() (an Arduino not to reset) is news, as in pyserial's open.
+            if not self._dsrdtr and not self._dtr_state:
+                self._update_dtr_state()
+            if not self._rtscts and not self._rts_state:
+                self._update_rts_state()
         except BaseException:
             self.close()
             raise

@@ -87,8 +87,12 @@ class _RecordingSerial(PortSerial):
             self._baudrate = request.baud  # the port opens at that rate
 
     def _open_wiretape_port(self, url):
+        import pathlib
+
         from .. import _core
 
+        # As a cassette does: recordings/x.wtape in a fresh project records.
+        pathlib.Path(self._request.path).parent.mkdir(parents=True, exist_ok=True)
         return _core.open_port(self._request.port_options(self._request.baud))
 
 

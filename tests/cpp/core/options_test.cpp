@@ -83,13 +83,13 @@ TEST(OptionsTake, BadValueNamesKeyAndValid) {
 }
 
 TEST(OptionsFinish, UnknownAndInapplicableKeysAreErrors) {
-  auto unknown = Options::parse("bod=9600");
+  auto unknown = Options::parse("zzzz=9600");  // near no key: the valid ones are listed
   unknown.take("device");
   try {
     unknown.finish("serial");
     FAIL();
   } catch (const OptionError& e) {
-    EXPECT_EQ(e.key(), "bod");
+    EXPECT_EQ(e.key(), "zzzz");
     EXPECT_NE(std::string(e.what()).find("unknown option"), std::string::npos);
     EXPECT_NE(std::string(e.what()).find("device"), std::string::npos);
   }
@@ -406,7 +406,8 @@ TEST(OptionsFinish, AnUnknownKeyNearAValidOneSaysDidYouMean) {
   } catch (const OptionError& e) {
     EXPECT_EQ(e.key(), "bud");
     EXPECT_NE(std::string(e.what()).find("did you mean 'baud'?"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("valid keys for type=serial"), std::string::npos);
+    // the suggestion alone: no list of every key to read through
+    EXPECT_EQ(std::string(e.what()).find("valid keys"), std::string::npos) << e.what();
   }
 }
 

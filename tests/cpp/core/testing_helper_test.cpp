@@ -337,6 +337,20 @@ TEST_F(CassetteFixture, EchoesThroughTheCassette) {
   EXPECT_EQ(fs::path(cassette()->path()).parent_path().filename(), "testing_helper_test");
 }
 
+// Run by CassetteFixtureProgram below only, on copies of the cassette above:
+// the driver writes what the cassette does not hold (a mismatch escapes the
+// test body), or leaves recorded data unused.
+TEST_F(CassetteFixture, DISABLED_WritesWhatTheCassetteDoesNotHold) {
+  wiretape::Port& device = port("unused=error");  // kPortCallLine
+  echo(device, "PING\r");
+  device.write_all("XX\n");
+}
+
+TEST_F(CassetteFixture, DISABLED_LeavesRecordedDataUnused) {
+  wiretape::Port& device = port("unused=error");  // kPortCallLine
+  echo(device, "PING\r");
+}
+
 // The fixture's two paths through the environment, as a developer runs them:
 // this program runs its own CassetteFixture test, first recording from
 // type=loopback, then replaying what it recorded.
@@ -367,6 +381,85 @@ TEST(CassetteFixtureProgram, RecordsWithTheEnvironmentThenReplays) {
   EXPECT_NE(run_fixture_test("env -u WIRETAPE_DEVICE WIRETAPE_RECORD=1 " + where), 0)
       << "recording without WIRETAPE_DEVICE must fail";
   EXPECT_EQ(file_bytes(cassette), recorded);
+}
+
+// What a failing CassetteTest prints: the output of one test of this program
+// run on its own, with cassettes under `directory`.
+std::string fixture_test_output(const std::string& test, const fs::path& directory) {
+  const std::string program = std::string(WIRETAPE_BIN_DIR) + "/testing_helper_test";
+  const std::string command = "env -u WIRETAPE_RECORD -u WIRETAPE_DEVICE WIRETAPE_CASSETTE_DIR='" +
+                              directory.string() + "' '" + program + "' --gtest_filter='" + test +
+                              "' --gtest_also_run_disabled_tests 2>&1";
+  std::string output;
+  FILE* pipe = ::popen(command.c_str(), "r");
+  if (pipe == nullptr) return output;
+  char buffer[4096];
+  for (std::size_t n; (n = std::fread(buffer, 1, sizeof buffer, pipe)) > 0;) output.append(buffer, n);
+  ::pclose(pipe);
+  return output;
+}
+
+std::size_t occurrences(const std::string& text, const std::string& word) {
+  std::size_t count = 0;
+  for (auto at = text.find(word); at != std::string::npos; at = text.find(word, at + 1)) ++count;
+  return count;
+}
+
+// A failure names the line of the test's port() call: this file's line
+// that holds the marker, within `test`'s body.
+std::string port_call_location(const std::string& test) {
+  // This file, found from the test data folder: __FILE__ may be relative to
+  // a build folder (a compiler cache's base directory).
+  std::ifstream source(fs::path(WIRETAPE_TEST_DATA_DIR).parent_path() / "cpp" / "core" /
+                       fs::path(__FILE__).filename());
+  std::string line;
+  bool in_test = false;
+  for (int number = 1; std::getline(source, line); ++number) {
+    if (line.find(test) != std::string::npos) in_test = true;
+    if (in_test && line.find("// kPortCallLine") != std::string::npos) {
+      return fs::path(__FILE__).filename().string() + ":" + std::to_string(number) + ": ";
+    }
+  }
+  return {};
+}
+
+class FailingFixtureTests : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_EQ(run_fixture_test("env WIRETAPE_RECORD=1 WIRETAPE_DEVICE=type=loopback "
+                               "WIRETAPE_CASSETTE_DIR='" + directory_.path().string() + "'"),
+              0);
+    const fs::path folder = directory_.path() / "testing_helper_test";
+    for (const char* test : {"WritesWhatTheCassetteDoesNotHold", "LeavesRecordedDataUnused"}) {
+      fs::copy_file(folder / "CassetteFixture.EchoesThroughTheCassette.wtape",
+                    folder / ("CassetteFixture.DISABLED_" + std::string(test) + ".wtape"));
+    }
+  }
+  TemporaryDirectory directory_;
+};
+
+TEST_F(FailingFixtureTests, AMismatchFailsOnceAtThePortCallWithTheWayOut) {
+  const std::string test = "CassetteFixture.DISABLED_WritesWhatTheCassetteDoesNotHold";
+  const std::string output = fixture_test_output(test, directory_.path());
+  EXPECT_EQ(occurrences(output, "Failure"), 1u) << output;
+  EXPECT_NE(output.find("mismatch"), std::string::npos) << output;
+  const std::string location = port_call_location("DISABLED_WritesWhatTheCassetteDoesNotHold");
+  ASSERT_FALSE(location.empty()) << "the test's source is not in " << WIRETAPE_TEST_DATA_DIR;
+  EXPECT_NE(output.find(location + "replaying cassette "), std::string::npos) << output;
+  EXPECT_NE(output.find("WIRETAPE_RECORD=rewrite WIRETAPE_DEVICE='OPTS' "), std::string::npos)
+      << output;
+  EXPECT_NE(output.find("--gtest_filter='" + test + "'"), std::string::npos) << output;
+  EXPECT_NE(output.find("[  FAILED  ] " + test), std::string::npos) << output;
+}
+
+TEST_F(FailingFixtureTests, UnusedDataFailsOnceAtThePortCall) {
+  const std::string test = "CassetteFixture.DISABLED_LeavesRecordedDataUnused";
+  const std::string output = fixture_test_output(test, directory_.path());
+  EXPECT_EQ(occurrences(output, "Failure"), 1u) << output;
+  EXPECT_NE(output.find("unused"), std::string::npos) << output;
+  const std::string location = port_call_location("DISABLED_LeavesRecordedDataUnused");
+  ASSERT_FALSE(location.empty()) << "the test's source is not in " << WIRETAPE_TEST_DATA_DIR;
+  EXPECT_NE(output.find(location + "replaying cassette "), std::string::npos) << output;
 }
 
 }  // namespace

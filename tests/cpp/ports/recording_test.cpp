@@ -49,6 +49,14 @@ class FakePort final : public Port {
   bool lost = false;
   std::vector<std::string> calls;
   bool open = true;
+  bool has_modem_lines = false;  // what capabilities() says
+  bool cts_level = true;
+
+  PortCapabilities capabilities() const override {
+    PortCapabilities c;
+    c.modem_lines = has_modem_lines;
+    return c;
+  }
 
   std::size_t available() override {
     calls.push_back("available");
@@ -73,7 +81,7 @@ class FakePort final : public Port {
   }
   void set_dtr(bool level) override { calls.push_back(std::string("dtr ") + (level ? "1" : "0")); }
   void set_rts(bool level) override { calls.push_back(std::string("rts ") + (level ? "1" : "0")); }
-  bool cts() override { return true; }
+  bool cts() override { return cts_level; }
   bool dsr() override { return false; }
   bool ri() override { return true; }
   bool cd() override { return false; }
@@ -187,6 +195,39 @@ TEST(RecordingPort, RecordsReadsWritesAndEventsInOrder) {
   EXPECT_EQ(reader.header().port_options, "type=fake,log=" + path);
   EXPECT_EQ(reader.header().capture, Capture::client);
   EXPECT_EQ(reader.header().user_metadata.at("who"), "test");
+}
+
+TEST(RecordingPort, RecordsTheDeviceLinesAtOpenAndWhenAReadFindsThemChanged) {
+  TempDir dir;
+  const std::string path = dir.file("lines.wtape");
+  auto fake_owner = std::make_unique<FakePort>();
+  FakePort* fake = fake_owner.get();
+  fake->has_modem_lines = true;
+  fake->cts_level = false;
+  auto port = detail::record_port(std::move(fake_owner), config_for(path));
+  port->set_dtr(false);
+  EXPECT_FALSE(port->cts());  // unchanged: not recorded again
+  fake->cts_level = true;
+  EXPECT_TRUE(port->dsr() == false && port->cts());  // a read of any line sees the change
+  port->close();
+  const auto records = read_all(path);
+  std::vector<std::string> lines;
+  for (const Record& record : records) {
+    if (record.kind == RecordKind::modem_lines) lines.push_back(record.data);
+  }
+  EXPECT_EQ(lines, (std::vector<std::string>{
+                       R"({"cts":false,"dsr":false,"ri":true,"cd":false})",
+                       R"({"dtr":false})",
+                       R"({"cts":true,"dsr":false,"ri":true,"cd":false})"}));
+}
+
+TEST(RecordingPort, ADeviceWithoutLinesGetsNoLineEvents) {
+  TempDir dir;
+  const std::string path = dir.file("nolines.wtape");
+  auto port = detail::record_port(std::make_unique<FakePort>(), config_for(path));
+  EXPECT_TRUE(port->cts());  // answered by the port, not recorded
+  port->close();
+  for (const Record& record : read_all(path)) EXPECT_NE(record.kind, RecordKind::modem_lines);
 }
 
 TEST(RecordingPort, TimedOutReadsAreNotRecorded) {

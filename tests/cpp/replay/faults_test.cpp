@@ -202,6 +202,22 @@ TEST_P(FaultKinds, DelayIsARealWait) {
   EXPECT_GE(std::chrono::steady_clock::now() - start, 200ms);
 }
 
+// speed=K scales a fault's waits as it scales the recorded ones (DESIGN §14,
+// §22): a driver on a clock K times faster sees the delay it would at K=1.
+TEST_P(FaultKinds, SpeedScalesADelay) {
+  auto port = replay("timing=" + GetParam() +
+                     ",speed=10,faults=\"delay:3000@exchange:1\",seed=5,unused=error");
+  answer(*port, "Q0\n");
+  const auto start = std::chrono::steady_clock::now();
+  port->write("Q1\n", 3);
+  EXPECT_EQ(port->read_line(), "R1-ghijkl\n");
+  const auto waited = std::chrono::steady_clock::now() - start;
+  // timing=session counts it from the recorded (scaled) due time, which
+  // the write may come after.
+  if (GetParam() != "session") EXPECT_GE(waited, 290ms);
+  EXPECT_LT(waited, 2000ms);  // unscaled: 3 s
+}
+
 TEST_P(FaultKinds, StallIsAGapInsideTheResponse) {
   auto port = faulty("stall:200@exchange:1");
   answer(*port, "Q0\n");

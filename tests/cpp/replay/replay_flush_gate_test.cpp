@@ -85,3 +85,69 @@ TEST(ReplayFlushGate, SessionTimingIsDecidedByTimeAlone) {
   EXPECT_EQ(got, "bootHELLOAGAIN");
   port->close();
 }
+
+// DESIGN.md section 12: a recorded flush gates rx only as long as the client
+// could still make it. Flushes made back to back can reach the bridge as one
+// (TIOCPKT), so a client may flush fewer times than recorded: the gate gives
+// up flush_wait after the rx would be due.
+TEST(ReplayFlushGate, AGateTheClientNeverOpensGivesUpAfterFlushWait) {
+  auto port = replay(flushed_greeting(), "timing=none,unused=ignore,flush_wait=50");
+  port->set_timeout(10s);
+  EXPECT_EQ(read_now(*port), "boot");
+  const auto start = std::chrono::steady_clock::now();
+  std::string got;
+  while (got.size() < 10) got += port->read_exactly(10 - got.size());
+  EXPECT_EQ(got, "HELLOAGAIN");
+  EXPECT_GE(std::chrono::steady_clock::now() - start, 50ms);
+  port->close();
+}
+
+TEST(ReplayFlushGate, FewerFlushesThanRecordedStillServeEverything) {
+  // connect, flush, rx $A, flush, rx $B, rx $C (the repro): the
+  // client's two flushes arrived as one.
+  std::vector<Record> records = {record(0, RecordKind::open, "{}"),
+                                 record(1'000, RecordKind::flush_input, "{}"),
+                                 record(2'000, RecordKind::rx, "$A"),
+                                 record(3'000, RecordKind::flush_input, "{}"),
+                                 record(4'000, RecordKind::rx, "$B"),
+                                 record(5'000, RecordKind::rx, "$C")};
+  auto port = replay(records, "timing=none");
+  port->set_timeout(10s);
+  detail::replay_client_flushed(*port);
+  EXPECT_EQ(port->read_exactly(6), "$A$B$C");
+  port->close();
+}
+
+TEST(ReplayFlushGate, RxAGateHeldFromAClientThatWrotePastItFailsTheReplay) {
+  std::vector<Record> records = {record(0, RecordKind::open, "{}"),
+                                 record(1'000, RecordKind::flush_input, "{}"),
+                                 record(2'000, RecordKind::rx, "GREETING"),
+                                 record(3'000, RecordKind::tx, "CMD"),
+                                 record(4'000, RecordKind::rx, "RESP")};
+  auto port = replay(records, "timing=none,unused=ignore,flush_wait=60000");
+  port->write_all("CMD");
+  try {
+    port->close();
+    FAIL() << "the held rx must fail the replay";
+  } catch (const ReplayMismatch& mismatch) {
+    EXPECT_NE(std::string(mismatch.what())
+                  .find("the client was entitled to rx that a recorded client flush still held "
+                        "at the end"),
+              std::string::npos)
+        << mismatch.what();
+    EXPECT_NE(std::string(mismatch.what()).find("GREETING"), std::string::npos);
+  }
+}
+
+TEST(ReplayFlushGate, RxHeldAfterTheClientsLastWriteIsOnlyUnused) {
+  auto port = replay(flushed_greeting(), "timing=none,unused=error,flush_wait=60000");
+  EXPECT_EQ(read_now(*port), "boot");
+  try {
+    port->close();
+    FAIL() << "unused=error must report the unread rx";
+  } catch (const ReplayMismatch& mismatch) {
+    EXPECT_NE(std::string(mismatch.what()).find("were never read"), std::string::npos)
+        << mismatch.what();
+    EXPECT_EQ(std::string(mismatch.what()).find("entitled"), std::string::npos);
+  }
+}

@@ -552,8 +552,8 @@ TEST(ReplayEnd, UnusedEmptyDatagramsAreReported) {
     FAIL() << "the unused empty datagrams were not reported";
   } catch (const ReplayMismatch& mismatch) {
     const std::string report = mismatch.what();
-    EXPECT_NE(report.find(": 0 recorded rx bytes (1 records) were never read; "
-                          "0 recorded tx bytes (1 datagrams) were never written"),
+    EXPECT_NE(report.find(": 0 recorded rx bytes (1 record) were never read; "
+                          "0 recorded tx bytes (1 datagram) were never written"),
               std::string::npos)
         << report;
   }
@@ -575,7 +575,7 @@ TEST(ReplayEnd, UnwrittenTxAfterALongStreamIsCountedExactly) {
     FAIL() << "unused data not reported";
   } catch (const ReplayMismatch& mismatch) {
     const std::string report = mismatch.what();
-    EXPECT_NE(report.find(": 2 recorded rx bytes (1 records) were never read; "
+    EXPECT_NE(report.find(": 2 recorded rx bytes (1 record) were never read; "
                           "3 recorded tx bytes were never written"),
               std::string::npos)
         << report;

@@ -269,3 +269,102 @@ TEST(RequestIndex, ResponsesPastTheKeptBytesAreReadFromTheSession) {
     ASSERT_EQ(drive.read_all(), exchanges[static_cast<std::size_t>(i)].response) << i;
   }
 }
+
+// DESIGN.md section 12: in match=request connection order is free. The k-th
+// connection gets the k-th recorded connection's greeting (the last one's
+// past them) and matches every recorded connection's exchanges, its own
+// first; a greeting recorded for another connection is not served.
+namespace {
+
+Record client_event(std::uint64_t t, RecordKind kind, const std::string& peer) {
+  return {t, kind, "{\"peer\":\"" + peer + "\",\"role\":\"control\"}"};
+}
+
+std::vector<Record> two_connections() {
+  return {{0, RecordKind::open, "{}"},
+          {ms(1), RecordKind::rx, "said to nobody\n"},
+          client_event(ms(2), RecordKind::client_connect, "a"),
+          {ms(3), RecordKind::rx, "hello a\n"},
+          {ms(4), RecordKind::tx, "A1\n"},
+          {ms(5), RecordKind::rx, "a1\n"},
+          client_event(ms(6), RecordKind::client_disconnect, "a"),
+          {ms(7), RecordKind::rx, "between\n"},
+          client_event(ms(8), RecordKind::client_connect, "b"),
+          {ms(9), RecordKind::rx, "hello b\n"},
+          {ms(10), RecordKind::tx, "B1\n"},
+          {ms(11), RecordKind::rx, "b1\n"},
+          {ms(12), RecordKind::tx, "A1\n"},
+          {ms(13), RecordKind::rx, "a1 again\n"},
+          client_event(ms(14), RecordKind::client_disconnect, "b")};
+}
+
+std::unique_ptr<Port> replay_of(const std::vector<Record>& records) {
+  Options options = Options::parse("file=synthetic.wtape,match=request,timing=none,gap=0");
+  auto port = detail::open_replay_session(detail::take_replay_config(options),
+                                          detail::vector_source_factory(records));
+  port->set_timeout(test::kEventDeadline);
+  return port;
+}
+
+std::string read_now(Port& port) {
+  std::string buffer(256, '\0');
+  buffer.resize(port.read(buffer.data(), buffer.size(), std::chrono::nanoseconds(0)));
+  return buffer;
+}
+
+}  // namespace
+
+TEST(RequestConnectionOrder, TheFirstConnectionIsServedTheSecondRecordedConnectionsRequests) {
+  auto port = replay_of(two_connections());
+  ASSERT_TRUE(detail::replay_begin_client_session(*port));
+  EXPECT_EQ(port->read_exactly(8), "hello a\n");
+  port->write_all("B1\n");  // recorded in connection b only
+  EXPECT_EQ(port->read_exactly(3), "b1\n");
+  EXPECT_EQ(read_now(*port), "");  // b's greeting and the rx between are nobody's
+  detail::replay_await_client(*port);
+  ASSERT_TRUE(detail::replay_begin_client_session(*port));
+  EXPECT_EQ(port->read_exactly(8), "hello b\n");
+  port->write_all("A1\n");  // its own exchange first
+  EXPECT_EQ(port->read_exactly(9), "a1 again\n");
+  port->write_all("A1\n");  // then connection a's
+  EXPECT_EQ(port->read_exactly(3), "a1\n");
+  port->close();
+}
+
+TEST(RequestConnectionOrder, ConnectionsPastTheRecordedOnesGetTheLastGreeting) {
+  auto port = replay_of(two_connections());
+  for (int k = 1; k <= 3; ++k) {
+    ASSERT_TRUE(detail::replay_begin_client_session(*port)) << k;
+    EXPECT_EQ(port->read_exactly(8), k == 1 ? "hello a\n" : "hello b\n") << k;
+    port->write_all("A1\n");
+    EXPECT_EQ(port->read_exactly(3).substr(0, 2), "a1") << k;
+    detail::replay_await_client(*port);
+  }
+  port->close();
+}
+
+TEST(RequestConnectionOrder, TheUnusedReportCountsTheConnectionsOwnExchanges) {
+  auto port = replay_of(two_connections());
+  ASSERT_TRUE(detail::replay_begin_client_session(*port));
+  EXPECT_EQ(port->read_exactly(8), "hello a\n");
+  port->write_all("A1\n");
+  EXPECT_EQ(port->read_exactly(3), "a1\n");
+  ::testing::internal::CaptureStderr();
+  port->close();
+  EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
+}
+
+TEST(RequestConnectionOrder, AMonitorJoiningIsNoConnectionOfItsOwn) {
+  std::vector<Record> records = two_connections();
+  records.insert(records.begin() + 4,
+                 {ms(3), RecordKind::client_connect, "{\"peer\":\"m\",\"role\":\"monitor\"}"});
+  auto port = replay_of(records);
+  ASSERT_TRUE(detail::replay_begin_client_session(*port));
+  EXPECT_EQ(port->read_exactly(8), "hello a\n");
+  port->write_all("A1\n");
+  EXPECT_EQ(port->read_exactly(3), "a1\n");
+  port->write_all("B1\n");
+  EXPECT_EQ(port->read_exactly(3), "b1\n");
+  EXPECT_EQ(read_now(*port), "");
+  port->close();
+}

@@ -32,6 +32,14 @@ SessionHeader full_header() {
   header.device_address = "10.0.0.5:502";
   header.edits = {"cut 2e..5e", "dropped meta note"};
   header.user_metadata = {{"robot", "r2"}, {"note", "a \"quoted\" word"}};
+  DeviceIdentity& identity = header.device_identity.emplace();
+  identity.kernel_name = "ttyACM0";
+  identity.subsystem = "usb";
+  identity.vendor_id = "2341";
+  identity.product_id = "0043";
+  identity.serial_number = "85736323838351F0B1C1";
+  identity.product = "Arduino Uno";
+  identity.by_id = "/dev/serial/by-id/usb-Arduino_Uno_85736323838351F0B1C1-if00";
   return header;
 }
 
@@ -49,6 +57,7 @@ void expect_same_members(const SessionHeader& a, const SessionHeader& b) {
   EXPECT_EQ(a.device_address, b.device_address);
   EXPECT_EQ(a.edits, b.edits);
   EXPECT_EQ(a.user_metadata, b.user_metadata);
+  EXPECT_EQ(a.device_identity, b.device_identity);
 }
 
 }  // namespace
@@ -141,4 +150,43 @@ TEST(EventPayload, RefusesWhatTheTableDoesNotSayNamingKindAndMember) {
                     {{"duration_ms", std::int64_t{1}}, {"duration_ms", std::int64_t{2}}}),
             "break event: member \"duration_ms\" given twice");
   EXPECT_EQ(refusal(RecordKind::rx, {}), "rx is a direction, not an event: its payload is bytes");
+}
+
+// Format 1.2's device_identity: written only when known, only its known
+// members; read back; of another shape, ignored as provenance is.
+TEST(SessionHeader, DeviceIdentityIsAnObjectOfTheMembersKnown) {
+  const SessionHeader header = full_header();
+  const std::string json = header.to_json();
+  EXPECT_NE(json.find("\"device_identity\":{\"kernel_name\":\"ttyACM0\",\"subsystem\":\"usb\","
+                      "\"vendor_id\":\"2341\""),
+            std::string::npos)
+      << json;
+  EXPECT_EQ(json.find("\"manufacturer\""), std::string::npos) << "not known, not written";
+  EXPECT_EQ(SessionHeader{}.to_json().find("device_identity"), std::string::npos);
+
+  SessionHeader read;
+  detail::parse_header_json(R"({"device_identity":"ttyACM0","capture":"wire"})", "f", 16, read);
+  EXPECT_FALSE(read.device_identity.has_value());
+  detail::parse_header_json(R"({"device_identity":{"vendor_id":"0403","future":"x","product":7}})",
+                            "f", 16, read);
+  ASSERT_TRUE(read.device_identity.has_value());
+  EXPECT_EQ(read.device_identity->vendor_id, "0403");
+  EXPECT_EQ(read.device_identity->product, "");
+
+  SessionHeader bad;
+  bad.device_identity.emplace().product = std::string("Uno\xff", 4);
+  try {
+    (void)bad.to_json();
+    FAIL();
+  } catch (const OptionError& e) {
+    EXPECT_EQ(e.key(), "device_identity.product");
+  }
+}
+
+TEST(SessionHeader, ClearingTheDeviceSerialClearsItsPartOfTheByIdName) {
+  DeviceIdentity identity = *full_header().device_identity;
+  detail::clear_device_serial(identity);
+  EXPECT_EQ(identity.serial_number, "");
+  EXPECT_EQ(identity.by_id, "/dev/serial/by-id/usb-Arduino_Uno_redacted-if00");
+  EXPECT_EQ(identity.vendor_id, "2341");
 }

@@ -799,8 +799,8 @@ TEST(RecordKindTable, PayloadCheckNamesTheProblem) {
             "break payload lacks \"duration_ms\"");
   EXPECT_EQ(event_payload_problem(RecordKind::line_break, R"({"duration_ms":2.5})"),
             "break payload member \"duration_ms\" is not a integer: 2.5");
-  EXPECT_EQ(event_payload_problem(RecordKind::modem_lines, R"({"dsr":true})"),
-            "modem_lines payload member \"dsr\" is not in the table");
+  EXPECT_EQ(event_payload_problem(RecordKind::modem_lines, R"({"dcd":true})"),
+            "modem_lines payload member \"dcd\" is not in the table");
   EXPECT_EQ(event_payload_problem(RecordKind::drain, "[]"), "drain payload is not a JSON object");
   EXPECT_TRUE(event_payload_problem(RecordKind::rx, "{}"));
 }

@@ -401,7 +401,9 @@ def test_modem_line_changes_are_recorded(session_file, tmp_path):
         port.rts = True
         assert port.dtr is False
     events = [bytes(r.data) for r in wiretape.SessionReader(str(log)) if r.kind == "modem_lines"]
-    assert events == [b'{"dtr":false}', b'{"rts":true}']
+    # The device's lines at open first (a replay has lines: a modem's, up).
+    assert events == [b'{"cts":true,"dsr":true,"ri":false,"cd":true}',
+                      b'{"dtr":false}', b'{"rts":true}']
 
 
 def test_send_break_duration_is_validated(loopback):

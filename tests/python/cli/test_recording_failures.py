@@ -157,7 +157,7 @@ def test_the_summary_counts_the_records_in_the_file_not_those_lost_with_the_fail
             child.process.kill()
     err = child.stderr()
     assert code == cli.EXIT_RUNTIME, err
-    counts = re.findall(r"records_written=(\d+)", err)
+    counts = re.findall(r"(\d+) records? written", err)
     assert len(counts) == 1, err
     reader = wiretape.SessionReader(str(output))
     in_file = len(list(reader))

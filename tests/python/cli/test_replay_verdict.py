@@ -40,12 +40,12 @@ class Replay:
     """`wiretape replay FILE --pty LINK --timing none` as a child process,
     its diagnostics collected as they come."""
 
-    def __init__(self, recording, link):
+    def __init__(self, recording, link, *options):
         self.link = str(link)
         self.lines = []
         self._child = subprocess.Popen(
             [sys.executable, "-m", "wiretape.cli", "replay", str(recording), "--pty", self.link,
-             "--timing", "none"],
+             "--timing", "none", *options],
             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         self._reader = threading.Thread(target=self._collect, daemon=True)
         self._reader.start()
@@ -120,6 +120,51 @@ def test_a_recording_without_rx_and_a_silent_client_exits_0(no_rx, tmp_path):
     replay = Replay(no_rx, tmp_path / "tty")
     try:
         serial.Serial(replay.link, 115200, timeout=DEADLINE).close()
+        replay.wait_for("client closed")
+    finally:
+        code, said = replay.stop()
+    assert code == 0, said
+
+
+@pytest.fixture
+def flushed_greeting(device_recording):
+    """A proxy recording whose client flushed five times before the device
+    greeted it and answered its PING."""
+    client = b'{"peer":"pty","role":"control"}'
+    return device_recording(name="flushed.wtape", records=[
+        ("client_connect", 1_000_000, client),
+        *[("flush_input", 2_000_000 + i, b"{}") for i in range(5)],
+        ("rx", 3_000_000, b"HELLO\n"), ("tx", 4_000_000, b"PING\n"),
+        ("rx", 4_500_000, b"PONG\n")])
+
+
+def test_rx_a_flush_gate_held_from_a_client_that_wrote_past_it_exits_1(flushed_greeting,
+                                                                       tmp_path):
+    # DESIGN §12: the client wrote what the recording shows after the
+    # greeting, but flushed fewer times than recorded and left before
+    # flush_wait ended: it was denied rx it was entitled to.
+    replay = Replay(flushed_greeting, tmp_path / "tty", "--flush-wait", "600000")
+    try:
+        with serial.Serial(replay.link, 115200, timeout=DEADLINE) as client:
+            client.write(b"PING\n")
+            client.flush()
+        replay.wait_for("client closed")
+    finally:
+        code, said = replay.stop()
+    assert code == 1, said
+    assert "the client was entitled to rx that a recorded client flush still held" in said, said
+    assert "HELLO" in said  # the held rx
+    assert "were never read" not in said
+
+
+def test_a_client_that_flushed_fewer_times_is_served_after_flush_wait_and_exits_0(
+        flushed_greeting, tmp_path):
+    replay = Replay(flushed_greeting, tmp_path / "tty", "--flush-wait", "100")
+    try:
+        with serial.Serial(replay.link, 115200, timeout=DEADLINE) as client:
+            assert client.read_until(b"\n") == b"HELLO\n"
+            client.write(b"PING\n")
+            assert client.read_until(b"\n") == b"PONG\n"
         replay.wait_for("client closed")
     finally:
         code, said = replay.stop()

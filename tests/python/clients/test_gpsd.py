@@ -14,7 +14,7 @@ import time
 
 import pytest
 
-from wiretape import _core, bridge
+from wiretape import _core, bridge, scaled_clock
 
 from devices import wait_until
 
@@ -59,12 +59,16 @@ def free_port():
         return probe.getsockname()[1]
 
 
-def test_gpsd_reads_the_recorded_fixes_from_a_replayed_pty(tmp_path):
+# --speed K (DESIGN §22): gpsd on a clock K times faster and the replay's
+# timing with it read the same fixes.
+@pytest.mark.parametrize("speed", [1.0, 10.0], ids=["speed1", "speed10"])
+def test_gpsd_reads_the_recorded_fixes_from_a_replayed_pty(tmp_path, speed):
     recording = write_nmea_recording(tmp_path / "nmea.wtape")
     link = str(tmp_path / "ttyGPS")
     port = free_port()
     handle = bridge.serve_replay(recording, pty=link,
-                                 replay_options="timing=session,check=off,unused=ignore",
+                                 replay_options="timing=session,check=off,unused=ignore,"
+                                                f"speed={speed!r}",
                                  quiet=True)
     gpsd = gpspipe = None
     try:
@@ -72,7 +76,8 @@ def test_gpsd_reads_the_recorded_fixes_from_a_replayed_pty(tmp_path):
         # -b: read-only (no probing writes); -n: open the device at once.
         gpsd = subprocess.Popen(["gpsd", "-N", "-n", "-b", "-S", str(port),
                                  "-F", str(tmp_path / "gpsd.sock"), pty],
-                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                env=scaled_clock.environment(speed))
         wait_until(lambda: gpsd.poll() is not None or _listening(port), DEADLINE,
                    "gpsd to listen")
         assert gpsd.poll() is None, gpsd.stderr.read().decode(errors="replace")
@@ -121,3 +126,98 @@ def _listening(port):
             return True
     except OSError:
         return False
+
+
+# Every fix delivered (DESIGN §12): a proxy recording of gpsd holds the
+# flushes gpsd made on open and while it hunted for the speed, and how many
+# it makes depends on timing (two made back to back also reach the pty as
+# one). The replay must not hold the fixes for good on a flush gpsd does not
+# make again: each recorded fix must reach gpspipe. `make soak` runs this
+# WIRETAPE_GPSD_REPEAT times (default once).
+FIXES = 10
+RECORDED_FLUSHES = 40  # a gpsd that hunted longer than this one will: more than it makes
+GPSD_CLIENT = b'{"peer":"pty","role":"control"}'
+
+
+def fix_time(index):
+    return f"12:35:{index:02d}"
+
+
+def write_gpsd_proxy_recording(path):
+    writer = _core.SessionWriter(str(path), capture="wire",
+                                 port_options="type=serial,device=/dev/ttyGPS", port_type="serial")
+    writer.write("open", 0, b"{}")
+    writer.write("client_connect", 1_000_000, GPSD_CLIENT)
+    for flush in range(RECORDED_FLUSHES):
+        writer.write("flush_input", 2_000_000 + flush * 1_000, b"{}")
+    # One fix a second apart in NMEA time, 200 ms apart on the wire, and a
+    # last one whose arrival ends the cycle before it (gpsd reports a cycle
+    # when the next begins).
+    for index in range(FIXES + 1):
+        writer.write("rx", 100_000_000 + index * 200_000_000, nmea_fix(index))
+    writer.close()
+    return path
+
+
+def fix_times_reported(port, expected):
+    """The fix times gpspipe -w reports until `expected` are all seen or the
+    deadline passes."""
+    gpspipe = subprocess.Popen(["gpspipe", "-w", f"127.0.0.1:{port}"],
+                               stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+    seen = set()
+    try:
+        end = time.monotonic() + DEADLINE
+        buffered = b""
+        while not expected <= seen and time.monotonic() < end:
+            ready, _, _ = select.select([gpspipe.stdout], [], [], end - time.monotonic())
+            if not ready:
+                break
+            chunk = os.read(gpspipe.stdout.fileno(), 65536)
+            if not chunk:
+                break
+            buffered += chunk
+            *complete, buffered = buffered.split(b"\n")
+            for line in complete:
+                try:
+                    report = json.loads(line)
+                except ValueError:
+                    continue
+                if report.get("class") == "TPV" and "lat" in report and "time" in report:
+                    # "2094-03-23T12:35:07.000Z" (gpsd's century guess aside)
+                    seen.add(report["time"].split("T")[1][:8])
+    finally:
+        gpspipe.terminate()
+        gpspipe.wait(timeout=DEADLINE)
+    return seen
+
+
+@pytest.mark.parametrize("repetition", range(int(os.environ.get("WIRETAPE_GPSD_REPEAT", "1"))))
+def test_gpsd_gets_every_recorded_fix_whatever_it_flushed(tmp_path, repetition):
+    recording = write_gpsd_proxy_recording(tmp_path / "gpsd.wtape")
+    link = str(tmp_path / "ttyGPS")
+    port = free_port()
+    handle = bridge.serve_replay(recording, pty=link, replay_options="timing=causal,check=data",
+                                 quiet=True)
+    gpsd = None
+    try:
+        # Without -n gpsd opens the device when gpspipe asks for reports: the
+        # client session, and the fixes, begin while gpspipe is watching.
+        gpsd = subprocess.Popen(["gpsd", "-N", "-b", "-S", str(port),
+                                 "-F", str(tmp_path / "gpsd.sock"), handle.pty_path],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+        wait_until(lambda: gpsd.poll() is not None or _listening(port), DEADLINE,
+                   "gpsd to listen")
+        assert gpsd.poll() is None, gpsd.stderr.read().decode(errors="replace")
+        expected = {fix_time(index) for index in range(FIXES)}
+        seen = fix_times_reported(port, expected)
+        assert expected <= seen, f"missing fixes: {sorted(expected - seen)}"
+    finally:
+        if gpsd is not None and gpsd.poll() is None:
+            gpsd.terminate()
+            try:
+                gpsd.wait(timeout=DEADLINE)
+            except subprocess.TimeoutExpired:
+                gpsd.kill()
+                gpsd.wait()
+        handle.stop()
+        assert handle.wait(DEADLINE)

@@ -182,6 +182,34 @@ def test_cut_keeps_the_settings_and_client_in_force(tmp_path):
     ]
 
 
+def test_cut_holds_the_devices_lines_not_the_clients(tmp_path):
+    """The device's inputs in force are served after the cut; the client's
+    DTR/RTS changes before it are not put back, since replay checks them as
+    changes the client makes."""
+    inputs = b'{"cts":true,"dsr":true,"ri":false,"cd":false}'
+    src = write_session(tmp_path / "in.wtape", [
+        (0, "open", b"{}"),
+        (1, "modem_lines", b'{"cts":true,"dsr":true,"ri":false,"cd":true}'),
+        (5, "rx", b"HELLO\n"),
+        (10, "tx", b"a\n"), (11, "rx", b"A\n"),
+        (20, "modem_lines", b'{"dtr":false}'),
+        (22, "modem_lines", inputs),
+        (25, "modem_lines", b'{"dtr":true}'),
+        (40, "tx", b"b\n"), (41, "rx", b"B\n"),
+        (60, "close", b"{}"),
+    ])
+    edit(src, tmp_path / "out.wtape", cut=parse_cut("0.00000004:0.00000005"))
+    kept = records(tmp_path / "out.wtape")
+    assert kept == [
+        (0, "open", b"{}"),
+        (1, "modem_lines", b'{"cts":true,"dsr":true,"ri":false,"cd":true}'),
+        (5, "rx", b"HELLO\n"),
+        (10, "modem_lines", inputs),
+        (10, "tx", b"b\n"), (11, "rx", b"B\n"),
+        (20, "close", b"{}"),
+    ]
+
+
 def test_drop_meta_and_unknown_key(tmp_path):
     src = write_session(tmp_path / "in.wtape", [(0, "open", b"{}")],
                         metadata={"robot": "r2", "site": "lab"})
@@ -323,3 +351,34 @@ def test_redacted_bytes_are_wildcards_when_the_client_writes_them(tmp_path, matc
         client(original, b"s3cret!!")
     with pytest.raises(wt.ReplayMismatch):
         client(scrubbed, b"hunter22", user=b"alicE")
+
+
+ARDUINO = {
+    "kernel_name": "ttyACM0", "subsystem": "usb", "vendor_id": "2341", "product_id": "0043",
+    "serial_number": "85736323838351F0B1C1", "manufacturer": "Arduino (www.arduino.cc)",
+    "product": "Arduino Uno", "interface": "", "location": "1-2:1.0",
+    "by_id": "/dev/serial/by-id/usb-Arduino__www.arduino.cc__0043_85736323838351F0B1C1-if00",
+}
+
+
+def test_redaction_always_clears_the_device_serial_number_and_its_by_id_part(tmp_path):
+    # DESIGN §20: whatever the patterns, the identity's serial number goes,
+    # in the by-id name too; the rest of the identity stays for replay.
+    src = tmp_path / "in.wtape"
+    with _core.SessionWriter(src, capture="wire", port_type="serial",
+                             port_options="type=serial,device=/dev/ttyACM0",
+                             device_identity=ARDUINO) as writer:
+        writer.write("open", 0, b"{}")
+        writer.write("tx", 10, b"Arduino Uno says hi\n")
+    edit(src, tmp_path / "out.wtape", redact=[parse_redaction("Uno")])
+    identity = _core.SessionReader(tmp_path / "out.wtape").header.device_identity
+    assert identity["serial_number"] == ""
+    assert identity["by_id"] == (
+        "/dev/serial/by-id/usb-Arduino__www.arduino.cc__0043_redacted-if00")
+    # The patterns apply to the identity's text as to the rest of the header.
+    assert identity["product"] == "Arduino ***"
+    assert (identity["vendor_id"], identity["product_id"]) == ("2341", "0043")
+    assert b"85736323838351F0B1C1" not in (tmp_path / "out.wtape").read_bytes()
+    # Cutting alone keeps it.
+    edit(src, tmp_path / "cut.wtape", cut=parse_cut("0:1"))
+    assert _core.SessionReader(tmp_path / "cut.wtape").header.device_identity == ARDUINO

@@ -74,7 +74,8 @@ def test_show_scip_reassembles_commands_and_replies():
     out = io.StringIO()
     show(flexiport_log("urg04lx_2011"), decode="scip", out=out)
     lines = [line for line in out.getvalue().splitlines() if "  tx  " in line or "  rx  " in line]
-    commands = [line.split("  tx  ")[1].split()[0] for line in lines if "  tx  " in line]
+    # time, Δt, kind, size ("3 B"), then the frame's name
+    commands = [line.split("  tx  ")[1].split()[2] for line in lines if "  tx  " in line]
     assert commands == ["VV", "VV", "PP", "II", "BM", "CR00", "VV", "PP", "II", "GD0044072501"]
     replies = [line for line in lines if "  rx  " in line]
     assert len(replies) == 10
@@ -177,6 +178,29 @@ def test_format_1_1_header_members_survive_conversion_through_jsonl(tmp_path):
     assert "imported     from pcap (plc.pcapng); stream: tcp.stream eq 0" in text
     assert "device       192.0.2.7:502" in text
     assert "edited       cut 0.5:2 s" in text
+
+
+def test_the_device_identity_is_shown_and_kept_by_stats_and_jsonl(tmp_path):
+    # Format 1.2's device_identity (DESIGN §20): show prints it, stats and a
+    # round trip through jsonl keep it.
+    identity = {"kernel_name": "ttyACM0", "subsystem": "usb", "vendor_id": "2341",
+                "product_id": "0043", "serial_number": "8573", "manufacturer": "Arduino",
+                "product": "Uno", "interface": "", "location": "1-2:1.0",
+                "by_id": "/dev/serial/by-id/usb-Arduino_Uno_8573-if00"}
+    source = tmp_path / "id.wtape"
+    with _core.SessionWriter(source, port_type="serial", device_identity=identity) as writer:
+        writer.write("rx", 1, b"x")
+    assert ("identity     kernel_name=ttyACM0, subsystem=usb, vendor_id=2341, "
+            "product_id=0043, serial_number=8573, manufacturer=Arduino, product=Uno, "
+            "location=1-2:1.0, by_id=/dev/serial/by-id/usb-Arduino_Uno_8573-if00"
+            in _show_text(source))
+    assert session_stats(source).to_json()["device_identity"] == identity
+    jsonl = tmp_path / "id.jsonl"
+    convert_module.convert(source, jsonl)
+    assert json.loads(jsonl.read_text().splitlines()[0])["header"]["device_identity"] == identity
+    back = tmp_path / "back.wtape"
+    convert_module.convert(jsonl, back)
+    assert _core.SessionReader(back).header.device_identity == identity
 
 
 def test_convert_keeps_events_and_header_through_jsonl(tmp_path):

@@ -1,0 +1,274 @@
+"""``wiretape view``: a session as one self-contained HTML page (DESIGN §21).
+
+The page holds everything it shows (no network access: the script, the
+styles and the data are inline) and draws a zoomable, pannable timeline on
+a canvas: per channel a tx, an rx and an events lane, the exchanges above
+them (the one segmentation, ``_core.session_exchanges``, numbered as replay
+numbers them), the frames of a protocol profile, and a hex/ASCII pane for
+the record under the cursor or selected. A campaign's ``--json`` adds its
+runs to the exchanges they faulted.
+
+The data travels as one JSON object (``page_data``): per record its time,
+kind and size in columns, and every payload's bytes in one base64 string,
+so 100,000 records load in well under the 2 s first-paint budget
+(bench/view_bench.py measures it). Only this module knows the layout; the
+page's script (view_page/view.js) reads it.
+"""
+
+from __future__ import annotations
+
+import base64
+import contextlib
+import json
+import os
+import re
+import tempfile
+from pathlib import Path
+from typing import Any, Dict, Iterable, Iterator, List, Optional, Tuple, cast
+
+from .. import _core
+from ..exports._common import replacing
+from ..faults import Campaign, read_json
+from ..session import (FileRefused, SessionPath, header_fields, is_stream, open_session,
+                       refuse_same_file, session_files)
+
+__all__ = ["view", "page_data", "default_output", "render_page", "PAGE_FORMAT",
+           "MAX_RECORD_BYTES"]
+
+#: The version of page_data's layout, which view.js checks.
+PAGE_FORMAT = 1
+
+#: The bytes of one record the page holds: enough for any request and most
+#: responses; the hex pane says when a record holds more.
+MAX_RECORD_BYTES = 16384
+
+_PAGE_DIR = Path(__file__).with_name("view_page")
+
+
+def default_output(session: SessionPath) -> str:
+    """The page's path when -o is not given: the session's path with
+    ``.html`` for its suffix (``scan.wtape`` -> ``scan.html``; a flexiport
+    ``name.log`` -> ``name.html``)."""
+    root, _ = os.path.splitext(os.fspath(session))
+    return root + ".html"
+
+
+def _exchanges(path: str, profile: Optional[str], options: str) -> List[List[Any]]:
+    rows = []
+    for exchange in _core.session_exchanges(path, profile=profile, options=options):
+        rows.append([exchange.index, exchange.first_record, exchange.end_record,
+                     exchange.request_first_t_ns, exchange.request_last_t_ns,
+                     exchange.response_first_t_ns, exchange.response_last_t_ns,
+                     exchange.request_bytes, exchange.response_bytes,
+                     exchange.client_session])
+    return rows
+
+
+def _frames(path: str, profile: str) -> List[List[Any]]:
+    """The profile's frames: [t_ns, direction, size, name]."""
+    framing = _core.find_profile(profile)
+    frames = []
+    # The stub says object: its items are (t_ns, kind, bytes, description).
+    decoded = cast(Iterable[Tuple[int, str, bytes, Optional[str]]], framing.decode_session(path))
+    for t_ns, kind, data, description in decoded:
+        if description is None:  # an event
+            continue
+        frames.append([t_ns, kind, len(data), description])
+    return frames
+
+
+def _campaign(path: str, result: Campaign, session: str,
+              exchanges: List[List[Any]]) -> Dict[str, Any]:
+    """The campaign read from `path` (its --json), its runs placed on the
+    exchange (exchange:N) or the time (t:SECONDS) they faulted; the others
+    (rx:N, every:K, p:P) are listed without a place."""
+    from ..faults import FaultInputError, session_digest
+
+    count = len(exchanges)
+    runs = []
+    for run in result.runs:
+        place: Dict[str, Any] = {}
+        match = re.fullmatch(r"exchange:(\d+)", run.where)
+        if match:
+            index = int(match.group(1))
+            if index >= count:
+                raise FaultInputError(
+                    f"{path}: run {run.case} ({run.spec}) is at exchange {index}, but the "
+                    f"session has {count} exchanges: the campaign ran on another session")
+            place["exchange"] = index
+        match = re.fullmatch(r"t:([0-9.]+)", run.where)
+        if match:
+            place["t_ns"] = int(float(match.group(1)) * 1e9)
+        runs.append({"case": run.case, "kind": run.kind, "where": run.where,
+                     "outcome": run.outcome, "exit": run.exit, "seconds": run.seconds,
+                     "repro": run.repro, **place})
+    same = not result.session_sha256 or result.session_sha256 == session_digest(session)
+    return {"path": os.fspath(path), "session": result.session, "seed": result.seed,
+            "options": result.options, "same_session": same, "runs": runs,
+            "summary": result.summary, "interrupted": result.interrupted}
+
+
+def page_data(session: SessionPath, profile: Optional[str] = None,
+              campaign: Optional[str] = None) -> Dict[str, Any]:
+    """Everything the page shows, as one JSON-able object (see _page_data)."""
+    return _page_data(os.fspath(session), profile, campaign)[0]
+
+
+def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
+               ) -> Tuple[Dict[str, Any], Optional[_core.SessionError]]:
+    """Everything the page shows, as one JSON-able object. ``profile``
+    (default: the session's ``profile`` metadata) names the frames; a
+    ``campaign`` (a ``wiretape faults --json`` file) adds its runs. A
+    damaged session is shown up to the damage, which the page names; the
+    damage is returned with the data."""
+    reader = open_session(path)
+    header = header_fields(reader)
+    if profile is None:
+        profile = reader.header.metadata.get("profile") or None
+    if profile is not None:
+        _core.find_profile(profile)  # an unknown name is an OptionError, before any work
+    kinds = [kind["name"] for kind in _core.RECORD_KINDS]
+    kind_code = {name: code for code, name in enumerate(kinds)}
+    times: List[int] = []
+    kind_of: List[int] = []
+    sizes: List[int] = []
+    kept: List[int] = []
+    channels: List[int] = []
+    payload = bytearray()
+    for record in reader:
+        content = record.data
+        channels.append(getattr(record, "channel", 0))
+        times.append(record.t_ns)
+        kind_of.append(kind_code.setdefault(record.kind, len(kinds)))
+        if kind_of[-1] == len(kinds):
+            kinds.append(record.kind)
+        sizes.append(len(content))
+        piece = content[:MAX_RECORD_BYTES]
+        kept.append(len(piece))
+        payload += piece
+    damage = reader.damage.message if reader.damage is not None else None
+    # A campaign's exchanges are numbered under its replay keys.
+    campaign_runs = read_json(campaign) if campaign is not None else None
+    options = campaign_runs.options if campaign_runs is not None else ""
+    with _intact_part(path, reader) as intact:
+        exchanges = _exchanges(intact, profile, options)
+        frames = _frames(intact, profile) if profile is not None else []
+    campaign_data = None
+    if campaign is not None and campaign_runs is not None:
+        campaign_data = _campaign(campaign, campaign_runs, path, exchanges)
+    data = {
+        "format": PAGE_FORMAT,
+        "session": {"path": path, "name": os.path.basename(path), "header": header,
+                    "damage": damage, "profile": profile},
+        # A group of lanes per channel: one today; a session of several
+        # ports (DESIGN §19) has one per port, and "channel" is then a
+        # column, one number per record, rather than one number for all.
+        "channels": [{"id": channel, "name": header.get("port_type") or "port"}
+                     for channel in sorted(set(channels) | {0})],
+        "kinds": kinds,
+        "records": {"t_ns": times, "kind": kind_of, "size": sizes, "kept": kept,
+                    "channel": channels if any(channels) else 0,
+                    "bytes": base64.b64encode(bytes(payload)).decode("ascii")},
+        "exchanges": exchanges,
+        "frames": frames,
+        "campaign": campaign_data,
+        "mismatch": _mismatch(header, path),
+    }
+    return data, reader.damage
+
+
+@contextlib.contextmanager
+def _intact_part(path: str, read: _core.SessionReader) -> Iterator[str]:
+    """`path`, or for a damaged session a temporary copy of the records
+    before the damage: exchanges are found in what can be shown."""
+    if read.damage is None:
+        yield path
+        return
+    with tempfile.TemporaryDirectory(prefix="wiretape-view-") as directory:
+        copy = os.path.join(directory, "intact.wtape")
+        reader = open_session(path)
+        with _core.SessionWriter(copy, reader.header) as writer:
+            for record in reader:
+                writer.write(record.kind, record.t_ns, record.data)
+        yield copy
+
+
+def _script_json(value: Any) -> str:
+    """JSON that cannot end the <script> element holding it."""
+    text = json.dumps(value, separators=(",", ":"), default=str)
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
+
+
+def render_page(data: Dict[str, Any]) -> str:
+    """The HTML page of ``page_data``: the template with its style, script
+    and data inline."""
+    template = (_PAGE_DIR / "view.html").read_text(encoding="utf-8")
+    style = (_PAGE_DIR / "view.css").read_text(encoding="utf-8")
+    script = (_PAGE_DIR / "view.js").read_text(encoding="utf-8")
+    title = data["session"]["name"]
+    pieces = {"@TITLE@": _html_text(title), "@STYLE@": style,
+              "@DATA@": _script_json(data), "@SCRIPT@": script}
+    return re.sub("@(TITLE|STYLE|DATA|SCRIPT)@", lambda match: pieces[match.group(0)], template)
+
+
+def _html_text(text: str) -> str:
+    return (text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+            .replace('"', "&quot;"))
+
+
+def _replayed_session(header: Dict[str, Any], path: str) -> Optional[Dict[str, str]]:
+    """A replay's ``-o`` recording names the session it replayed in its
+    port options (``type=replay,file=...``): that file and the replay's
+    match key, when the file is still there."""
+    if header.get("port_type") != "replay":
+        return None
+    options = dict(_core.parse_options(header.get("port_options") or ""))
+    original = options.get("file")
+    if not original:
+        return None
+    if not os.path.isabs(original) and not os.path.exists(original):
+        original = os.path.join(os.path.dirname(path), original)
+    if not os.path.isfile(original):
+        return None
+    return {"path": original, "match": options.get("match", "sequence")}
+
+
+def _mismatch(header: Dict[str, Any], path: str) -> Optional[Dict[str, Any]]:
+    """Where the client of a replay's ``-o`` recording wrote bytes the
+    replayed session does not hold (replay's mismatch, under match=sequence:
+    its tx stream compared with the session's, as ``wiretape diff`` compares
+    them). None when the client kept to the session, stopped early, or the
+    replay matched requests in any order (match=request)."""
+    from .diff import DirectionDiff, diff
+
+    original = _replayed_session(header, path)
+    if original is None or original["match"] != "sequence":
+        return None
+    tx = diff(original["path"], path)["tx"]
+    if not isinstance(tx, DirectionDiff) or tx.identical or tx.offset is None or not tx.at_b:
+        return None
+    return {"original": original["path"], "tx_offset": tx.offset,
+            "expected": _core.hex_ascii(bytes(tx.at_a)), "actual": _core.hex_ascii(bytes(tx.at_b))}
+
+
+def view(session: SessionPath, output: Optional[SessionPath] = None,
+         profile: Optional[str] = None, campaign: Optional[str] = None) -> str:
+    """Writes the page of ``session`` to ``output`` (default:
+    default_output(session)) and returns its path. Nothing is written over
+    the session or the campaign's file; the page appears whole or not at all
+    (an interrupted view leaves nothing). A damaged session is shown up to
+    the damage, then its SessionError is raised."""
+    path = os.fspath(session)
+    output = os.fspath(output) if output is not None else default_output(path)
+    if is_stream(path):
+        raise FileRefused(f"{path}: a pipe or FIFO: view reads the session more than once "
+                          "(records, exchanges, frames); give it a file")
+    inputs = session_files(path) + ([campaign] if campaign is not None else [])
+    refuse_same_file(inputs, [output])
+    data, damage = _page_data(path, profile, campaign)
+    page = render_page(data).encode("utf-8")
+    with replacing(output) as out:
+        out.write(page)
+    if damage is not None:
+        raise damage
+    return output
