@@ -6,27 +6,15 @@ import json
 import socket
 
 import wiretape
-from wiretape import _core, bridge
+from wiretape import bridge
+
+from line_devices import AFTER, BEFORE, line_device_session
 
 DEADLINE = 10.0
-MS = 1_000_000
-
-BEFORE = {"cts": False, "dsr": True, "ri": False, "cd": False}
-AFTER = {"cts": True, "dsr": True, "ri": True, "cd": True}
 
 
 def device_session(path):
-    """A device (played by a replay, which has lines) whose CTS and RI come
-    up when the client says PING, before it answers."""
-    with wiretape.SessionWriter(str(path), capture="wire", port_type="serial",
-                                port_options="type=serial") as writer:
-        writer.write("open", 0, b"{}")
-        writer.write("modem_lines", 0, _core.event_payload("modem_lines", BEFORE))
-        writer.write("tx", 5 * MS, b"PING\n")
-        writer.write("modem_lines", 6 * MS, _core.event_payload("modem_lines", AFTER))
-        writer.write("rx", 300 * MS, b"PONG\n")
-        writer.write("close", 400 * MS, b"{}")
-    return str(path)
+    return line_device_session(path, answer_ms=300, close_ms=400)
 
 
 def test_a_raw_tcp_client_gets_the_device_lines_recorded(tmp_path):

@@ -10,33 +10,21 @@ import time
 import pytest
 
 import wiretape
-from wiretape import _core, bridge
+from wiretape import bridge
 
 from devices import announced_address, interrupt, start_cli, wait_until
+from line_devices import AFTER, BEFORE, line_device_session
 
 serial = pytest.importorskip("serial", reason="pyserial is not installed")
 
 DEADLINE = 10.0
-MS = 1_000_000
 
 # pyserial's rfc2217 client uses threading names deprecated in Python 3.10.
 pytestmark = pytest.mark.filterwarnings("ignore:set.*is deprecated:DeprecationWarning")
 
-# The device: CTS down until the client's PING, then CTS and RI up.
-BEFORE = {"cts": False, "dsr": True, "ri": False, "cd": False}
-AFTER = {"cts": True, "dsr": True, "ri": True, "cd": True}
-
 
 def device_session(path):
-    with wiretape.SessionWriter(str(path), capture="wire", port_type="serial",
-                                port_options="type=serial") as writer:
-        writer.write("open", 0, b"{}")
-        writer.write("modem_lines", 0, _core.event_payload("modem_lines", BEFORE))
-        writer.write("tx", 5 * MS, b"PING\n")
-        writer.write("modem_lines", 6 * MS, _core.event_payload("modem_lines", AFTER))
-        writer.write("rx", 7 * MS, b"PONG\n")
-        writer.write("close", 10 * MS, b"{}")
-    return str(path)
+    return line_device_session(path, answer_ms=7, close_ms=10)
 
 
 def lines(client):
