@@ -68,6 +68,11 @@ class Output:
         else:
             print(line, file=sys.stderr, flush=True)
 
+    def live(self) -> "LiveLine":
+        """A status line redrawn in place on stderr while work goes on: on a
+        terminal only (nothing at all otherwise)."""
+        return LiveLine(self._error_console)
+
     def table(self, columns: Sequence[str], rows: Sequence[Sequence[str]]) -> None:
         if self._console is not None:
             import rich.table
@@ -80,6 +85,41 @@ class Output:
         widths = [max([len(c)] + [len(r[i]) for r in rows]) for i, c in enumerate(columns)]
         for row in [list(columns)] + [list(r) for r in rows]:
             print("  ".join(cell.ljust(width) for cell, width in zip(row, widths)).rstrip())
+
+
+class LiveLine:
+    """One line on a terminal's stderr, redrawn in place (rich.live) and
+    gone when the work ends; notes printed meanwhile go above it. With no
+    terminal (`console` None) it does nothing."""
+
+    # The line is redrawn when update() says so, not by a thread of rich's.
+    def __init__(self, console) -> None:
+        self._live = None
+        if console is not None:
+            import rich.live
+
+            self._live = rich.live.Live(console=console, transient=True, auto_refresh=False,
+                                        redirect_stdout=False, redirect_stderr=False)
+
+    @property
+    def shown(self) -> bool:
+        return self._live is not None
+
+    def __enter__(self) -> "LiveLine":
+        if self._live is not None:
+            self._live.start()
+        return self
+
+    def update(self, text: str) -> None:
+        if self._live is not None:
+            import rich.text
+
+            self._live.update(rich.text.Text(text, style="cyan", no_wrap=True,
+                                             overflow="ellipsis"), refresh=True)
+
+    def __exit__(self, *exc) -> None:
+        if self._live is not None:
+            self._live.stop()
 
 
 def silence_stdout() -> None:
