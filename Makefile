@@ -93,9 +93,10 @@ $(VENV)/.wheel-tools: $(VENV)/.deps
 WHEEL_PYTHONS ?= 3.10 3.11 3.12+
 SMOKE_PYTHONS ?= 3.10 3.11 3.12 3.13
 # The library's objects do not depend on the Python: with ccache, the
-# versions after the first compile only the extension.
-WHEEL_CCACHE := $(if $(shell command -v ccache),-C cmake.define.CMAKE_CXX_COMPILER_LAUNCHER=ccache \
-  -C cmake.define.CMAKE_C_COMPILER_LAUNCHER=ccache)
+# versions after the first compile only the extension. (--config-settings,
+# not -C: the pip of a 3.10 venv, 23.0, has no -C.)
+WHEEL_CCACHE := $(if $(shell command -v ccache),--config-settings=cmake.define.CMAKE_CXX_COMPILER_LAUNCHER=ccache \
+  --config-settings=cmake.define.CMAKE_C_COMPILER_LAUNCHER=ccache)
 
 wheel: $(VENV)/.deps $(VENV)/.wheel-tools
 	rm -rf dist/raw && rm -f dist/wiretape-*.whl
@@ -108,7 +109,7 @@ wheel: $(VENV)/.deps $(VENV)/.wheel-tools
 	  test -x $$venv/bin/python || $$python -m venv $$venv; \
 	  $$venv/bin/python -m pip install -q "scikit-build-core>=0.10" "nanobind==3.1.0"; \
 	  $$venv/bin/python -m pip wheel . --no-build-isolation --no-deps -w dist/raw \
-	    -C build-dir=$(abspath $(BUILD))/wheel-$$tree $(WHEEL_CCACHE); \
+	    --config-settings=build-dir=$(abspath $(BUILD))/wheel-$$tree $(WHEEL_CCACHE); \
 	done; \
 	ls dist/raw/wiretape-*.whl >/dev/null 2>&1 || { \
 	  echo "wheel: no Python of $(WHEEL_PYTHONS) is installed: no wheel built" >&2; exit 1; }
