@@ -33,20 +33,36 @@ def describe(error: BaseException) -> str:
 
 
 class Output:
-    """stdout and stderr, with colour (rich) when they are terminals."""
+    """stdout and stderr, with colour (rich) when they are terminals.
+
+    rich is imported when a line in colour is first printed, not before: a
+    command that prints nothing through it (show writes its own colours)
+    does not pay for rich's import, a quarter of show's time."""
 
     def __init__(self) -> None:
-        self._console = None
-        self._error_console = None
-        try:
-            import rich.console
+        self._consoles: dict = {}
 
-            if sys.stdout.isatty():
-                self._console = rich.console.Console(highlight=False)
-            if sys.stderr.isatty():
-                self._error_console = rich.console.Console(stderr=True, highlight=False)
-        except ImportError:  # colour is a nicety
-            pass
+    def _terminal(self, stderr: bool):
+        """rich's console of stdout or stderr when that is a terminal, else None."""
+        if stderr not in self._consoles:
+            console = None
+            try:
+                if (sys.stderr if stderr else sys.stdout).isatty():
+                    import rich.console
+
+                    console = rich.console.Console(stderr=stderr, highlight=False)
+            except (ImportError, ValueError):  # colour is a nicety; a closed stream has none
+                pass
+            self._consoles[stderr] = console
+        return self._consoles[stderr]
+
+    @property
+    def _console(self):
+        return self._terminal(stderr=False)
+
+    @property
+    def _error_console(self):
+        return self._terminal(stderr=True)
 
     def print(self, text: str = "", style: Optional[str] = None) -> None:
         if self._console is not None and style:
