@@ -323,7 +323,8 @@ class _Progress:
 
             self._bar = rich.progress.Progress(
                 rich.progress.TextColumn("converting"), rich.progress.BarColumn(),
-                rich.progress.TaskProgressColumn(), rich.progress.TextColumn("{task.fields[records]}"),
+                rich.progress.TaskProgressColumn(),
+                rich.progress.TextColumn("{task.fields[records]}"),
                 rich.progress.TimeRemainingColumn(),
                 console=rich.console.Console(stderr=True), transient=True)
             self._task = self._bar.add_task("convert", total=self.total, records="")
