@@ -208,7 +208,8 @@ def cmd_record(args, out: Output) -> int:
                       lambda: announce_clients(handle, out,
                                                f"wiretape record: recording to {args.output}", pty,
                                                udp=args.udp is not None),
-                      relay=MessageRelay(handle, out, "record", args.quiet), live=True)
+                      relay=MessageRelay(handle, out, "record", args.quiet),
+                      live=not args.quiet)
 
 
 def replay_options_of(args) -> str:
