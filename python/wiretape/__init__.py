@@ -7,7 +7,9 @@ The C++ core (``wiretape._core``) does the work; this package re-exports it:
 * the exceptions :class:`OptionError`, :class:`PortError`, :class:`PortClosed`,
   :class:`ReplayMismatch`, :class:`SessionError`;
 * session files: :class:`SessionReader`, :class:`SessionWriter`, :class:`SessionHeader`,
-  :class:`Record`, and the flexiport export :func:`export_flexiport`.
+  :class:`Channel` (one port of a session of several), :class:`Record`, and the
+  flexiport export :func:`export_flexiport`;
+* :class:`Recorder` -- several ports recorded into one session file.
 
 The commands that read session files are in :mod:`wiretape.tools`, the
 exports in :mod:`wiretape.exports`, the pytest plugin in
@@ -18,11 +20,13 @@ exports in :mod:`wiretape.exports`, the pytest plugin in
 """
 
 from ._core import (
+    Channel,
     OptionError,
     Port,
     PortClosed,
     PortError,
     Record,
+    Recorder,
     ReplayMismatch,
     SessionError,
     SessionHeader,
@@ -44,9 +48,11 @@ __all__ = [
     "ReplayMismatch",
     "SessionError",
     "SessionHeader",
+    "Channel",
     "SessionReader",
     "SessionWriter",
     "Record",
+    "Recorder",
     "export_flexiport",
 ]
 

@@ -275,7 +275,7 @@ def device_options(device: str) -> str:
 
 SESSION_MAGIC: bytes = ...
 
-SESSION_VERSION: tuple = (1, 1)
+SESSION_VERSION: tuple = (1, 2)
 
 FILE_HEADER_FIXED_SIZE: int = 16
 
@@ -311,7 +311,7 @@ def flexiport_prefix(path: object) -> str | None:
 class Record:
     """One record of a session: t_ns, kind, data."""
 
-    def __init__(self, t_ns: int, kind: object, data: bytes = ...) -> None: ...
+    def __init__(self, t_ns: int, kind: object, data: bytes = ..., channel: int = 0) -> None: ...
 
     @property
     def t_ns(self) -> int:
@@ -325,12 +325,89 @@ class Record:
     def kind_code(self) -> int: ...
 
     @property
+    def channel(self) -> int:
+        """
+        the id of the record's channel (SessionHeader.channels); 0 in a session of one port
+        """
+
+    @property
     def data(self) -> bytes:
         """the bytes (rx, tx) or the event's JSON object as bytes"""
 
     def __eq__(self, arg: Record, /) -> bool: ...
 
     def __repr__(self) -> str: ...
+
+class Channel:
+    """
+    One port of a session of several ports (format 1.2, docs/session-format.md, "channels"): its id (what its records carry), name and what the header says of a port. Channel(**members) with the members to_dict() names.
+    """
+
+    def __init__(self, **members: object) -> None: ...
+
+    @property
+    def id(self) -> int:
+        """what the channel's records carry in Record.channel"""
+
+    @id.setter
+    def id(self, arg: int, /) -> None: ...
+
+    @property
+    def name(self) -> str:
+        """
+        the channel's name ('' only for the one channel of a session without named channels)
+        """
+
+    @name.setter
+    def name(self, arg: str, /) -> None: ...
+
+    @property
+    def port_options(self) -> str: ...
+
+    @port_options.setter
+    def port_options(self, arg: str, /) -> None: ...
+
+    @property
+    def port_type(self) -> str: ...
+
+    @port_type.setter
+    def port_type(self, arg: str, /) -> None: ...
+
+    @property
+    def capture(self) -> str:
+        """'client' or 'wire'"""
+
+    @capture.setter
+    def capture(self, arg: str, /) -> None: ...
+
+    @property
+    def device_address(self) -> str: ...
+
+    @device_address.setter
+    def device_address(self, arg: str, /) -> None: ...
+
+    @property
+    def device_identity(self) -> dict:
+        """the serial device's identity, as SessionHeader.device_identity"""
+
+    @device_identity.setter
+    def device_identity(self, arg: dict, /) -> None: ...
+
+    def to_dict(self) -> dict:
+        """the members as a dict"""
+
+    def __eq__(self, arg: Channel, /) -> bool: ...
+
+    def __copy__(self) -> Channel: ...
+
+    def __deepcopy__(self, memo: object) -> Channel: ...
+
+    def __repr__(self) -> str: ...
+
+def channel_name_problem(name: str) -> str | None:
+    """
+    Why NAME cannot name a channel (not an identifier of at most 64 characters of letters, digits, '_' and '-'; or an option key), or None when it can.
+    """
 
 class SessionHeader:
     """
@@ -465,6 +542,23 @@ class SessionHeader:
         """
 
     @property
+    def channels(self, /) -> list[Channel]:
+        """
+        format 1.2: the session's ports (Channel objects, or dicts of their members when set), ids 0..n-1 in order; [] for a session of one unnamed port, which the port members describe. With channels, the port members are channel 0's.
+        """
+
+    @channels.setter
+    def channels(self, value: list[Channel] | list[dict[str, object]], /) -> None: ...
+
+    def channel_list(self) -> list[Channel]:
+        """
+        Every channel: channels, or the one unnamed channel 0 the port members describe.
+        """
+
+    def find_channel(self, name: str) -> Channel | None:
+        """The channel named NAME, or None."""
+
+    @property
     def metadata_json(self) -> str:
         """the header's JSON as stored (read) or written; to_json() makes it anew"""
 
@@ -509,7 +603,10 @@ class SessionReader:
     Reads a .wtape file or a flexiport log (name.log) record by record, with memory independent of its size; a pipe or FIFO is read once, as a stream, waiting for its writer (Ctrl-C ends the wait). Iterating yields Record objects; at a damaged record iteration ends and .damage says where.
     """
 
-    def __init__(self, path: object) -> None: ...
+    def __init__(self, path: object, channel: int | None = None) -> None:
+        """
+        CHANNEL: only that channel's records (its id); None: every channel's, in recorded order (Record.channel says which).
+        """
 
     def __iter__(self) -> SessionReader: ...
 
@@ -542,9 +639,9 @@ class SessionWriter:
     Writes a new .wtape file (truncating PATH). Buffered; buffered records reach the OS at most flush_ms after they were written. A full disk or file-size limit raises PortError; what was written before stays readable.
     """
 
-    def __init__(self, path: str | os.PathLike[str] | bytes, header: SessionHeader | None = None, *, flush_ms: int = 100, fsync: bool = False, **members: object) -> None:
+    def __init__(self, path: str | os.PathLike[str] | bytes, header: SessionHeader | None = None, *, flush_ms: int = 100, fsync: bool = False, header_room: int = 0, **members: object) -> None:
         """
-        HEADER (default: SessionHeader.starting_now()) with MEMBERS (keyword arguments named as SessionHeader's members) set on it is what the file's header says.
+        HEADER (default: SessionHeader.starting_now()) with MEMBERS (keyword arguments named as SessionHeader's members) set on it is what the file's header says. header_room: spare header bytes (spaces) kept so that add_channel() can rewrite the header in place; 0 writes it exactly as long as its JSON.
         """
 
     @property
@@ -556,6 +653,11 @@ class SessionWriter:
         Appends a record: kind is a name ('rx', 'tx', 'open', ...) or a code. channel is reserved for sessions of several ports: 0, the session's port.
         """
 
+    def add_channel(self, channel: Channel) -> int:
+        """
+        Adds CHANNEL (its id is ignored) to the header's channels, rewriting the header in place within the header_room reserved; returns its id. Raises OptionError naming 'name' (a bad or taken name), SessionError when the header has no room left.
+        """
+
     def flush(self) -> None: ...
 
     def close(self) -> None: ...
@@ -564,6 +666,38 @@ class SessionWriter:
     def path(self) -> str: ...
 
     def __enter__(self) -> SessionWriter: ...
+
+    def __exit__(self, *args) -> None: ...
+
+class Recorder:
+    """
+    Records several ports into one session file, one channel each, on one clock (time 0: the first channel's open). Its ports keep the file open; it is closed at close() (or leaving a with block), or when the recorder and its ports are gone.
+    """
+
+    def __init__(self, path: str | os.PathLike[str] | bytes, header: SessionHeader | None = None, *, flush_ms: int = 100, fsync: bool = False, header_room: int = 32768, **members: object) -> None:
+        """
+        Creates the session file. HEADER (default: SessionHeader.starting_now()) with MEMBERS set on it is its header; each port adds its channel to it. header_room: the bytes kept for the channels' entries.
+        """
+
+    def open_port(self, options: str) -> Port:
+        """
+        Opens the port OPTIONS describe (as open_port() does) recording into a new channel named by its name=NAME: 'name=gps,type=serial,device=/dev/ttyUSB0'. Raises OptionError naming the key (a missing, bad or taken name; log=).
+        """
+
+    def close(self) -> None:
+        """Flushes and closes the file; its ports go on, unrecorded."""
+
+    def now_ns(self) -> int:
+        """The recorder's clock: ns since its first channel's open (0 before)."""
+
+    @property
+    def path(self) -> str: ...
+
+    @property
+    def header(self) -> SessionHeader:
+        """the header as written so far"""
+
+    def __enter__(self) -> Recorder: ...
 
     def __exit__(self, *args) -> None: ...
 
@@ -678,7 +812,10 @@ class Bridge:
     Forwards bytes between a device port and a pty, TCP clients or UDP clients, optionally recording them (see wiretape.bridge).
     """
 
-    def __init__(self, device: str, *, client_side: str = 'pty', pty_link: str = '', pty_mode: int = 432, pty_group: str = '', listen_host: str = '127.0.0.1', listen_port: int = 0, listen_backlog: int = 4096, udp_peer_host: str = '', udp_peer_port: int = 0, protocol: str = 'raw', shared: bool = False, max_monitors: int = 16, output: str = '', metadata: Mapping[str, str] = {}, flush_ms: int = 100, mirror_settings: bool = True, reopen: bool = False, restart: bool = False, duration: object | None = None, buffer_limit: int = 1048576, quiet: bool = False, line_channel: str = '') -> None: ...
+    def __init__(self, device: str, *, client_side: str = 'pty', pty_link: str = '', pty_mode: int = 432, pty_group: str = '', listen_host: str = '127.0.0.1', listen_port: int = 0, listen_backlog: int = 4096, udp_peer_host: str = '', udp_peer_port: int = 0, protocol: str = 'raw', shared: bool = False, max_monitors: int = 16, output: str = '', metadata: Mapping[str, str] = {}, flush_ms: int = 100, mirror_settings: bool = True, reopen: bool = False, restart: bool = False, duration: object | None = None, buffer_limit: int = 1048576, quiet: bool = False, line_channel: str = '', recorder: Recorder | None = None, channel: str = '') -> None:
+        """
+        recorder: a Recorder whose channel named `channel` the bridge records into (capture=wire) instead of opening `output`.
+        """
 
     def start(self) -> None:
         """

@@ -10,6 +10,8 @@
 #include <string>
 
 #include <nanobind/stl/map.h>
+#include <nanobind/stl/shared_ptr.h>
+#include <nanobind/stl/unique_ptr.h>
 #include <nanobind/stl/vector.h>
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
@@ -26,6 +28,8 @@
 #include "session/record_kinds.hpp"
 #include "wiretape/cassette_names.hpp"
 #include "wiretape/errors.hpp"
+#include "wiretape/port.hpp"
+#include "wiretape/recorder.hpp"
 #include "wiretape/session.hpp"
 
 namespace nb = nanobind;
@@ -149,6 +153,70 @@ std::optional<DeviceIdentity> identity_from_python(nb::dict members) {
   return identity;
 }
 
+// A channel's fields by name, as the header JSON names them.
+nb::dict channel_dict(const Channel& channel) {
+  nb::dict out;
+  out["id"] = channel.id;
+  out["name"] = channel.name;
+  out["port_options"] = channel.port_options;
+  out["port_type"] = channel.port_type;
+  out["capture"] = detail::capture_name(channel.capture);
+  out["device_address"] = channel.device_address;
+  out["device_identity"] = identity_dict(channel.device_identity);
+  return out;
+}
+
+// A Channel from a Channel or a dict of its members (as channel_dict names
+// them); an unknown member raises ValueError naming it, a wrong type TypeError.
+Channel channel_from_python(nb::handle value) {
+  if (nb::isinstance<Channel>(value)) return nb::cast<Channel>(value);
+  if (!nb::isinstance<nb::dict>(value)) {
+    throw nb::type_error("a channel must be a Channel or a dict of its members");
+  }
+  Channel channel;
+  for (auto [key, member] : nb::borrow<nb::dict>(value)) {
+    const std::string name = nb::cast<std::string>(nb::str(key));
+    const auto text = [&]() {
+      if (!nb::isinstance<nb::str>(member)) {
+        throw nb::type_error(("channel member '" + name + "' must be a str").c_str());
+      }
+      return nb::cast<std::string>(member);
+    };
+    if (name == "id") {
+      if (!PyLong_Check(member.ptr()) || PyBool_Check(member.ptr())) {
+        throw nb::type_error("channel member 'id' must be an int");
+      }
+      const long long id = PyLong_AsLongLong(member.ptr());
+      if (id < 0 || id > 0xffff) {
+        PyErr_Clear();
+        throw nb::value_error("channel member 'id' must be within 0..65535");
+      }
+      channel.id = static_cast<std::uint16_t>(id);
+    } else if (name == "name") {
+      channel.name = text();
+    } else if (name == "port_options") {
+      channel.port_options = text();
+    } else if (name == "port_type") {
+      channel.port_type = text();
+    } else if (name == "capture") {
+      channel.capture = capture_from_python(text());
+    } else if (name == "device_address") {
+      channel.device_address = text();
+    } else if (name == "device_identity") {
+      if (!nb::isinstance<nb::dict>(member)) {
+        throw nb::type_error("channel member 'device_identity' must be a dict");
+      }
+      channel.device_identity = identity_from_python(nb::borrow<nb::dict>(member));
+    } else {
+      throw nb::value_error(("Channel has no member '" + detail::escape_bytes(name, 200) +
+                             "' (its members: id, name, port_options, port_type, capture, "
+                             "device_address, device_identity)")
+                                .c_str());
+    }
+  }
+  return channel;
+}
+
 // The header's fields by name, as show, stats and convert lay them out.
 nb::dict header_dict(const SessionHeader& header) {
   nb::dict out;
@@ -175,6 +243,9 @@ nb::dict header_dict(const SessionHeader& header) {
   for (const auto& [key, value] : header.user_metadata) metadata[key.c_str()] = value;
   out["metadata"] = metadata;
   out["device_identity"] = identity_dict(header.device_identity);
+  nb::list channels;
+  for (const Channel& channel : header.channels) channels.append(channel_dict(channel));
+  out["channels"] = channels;
   return out;
 }
 
@@ -246,6 +317,10 @@ void set_header_members(nb::handle header, nb::handle fields) {
                                 .c_str());
     }
     if (value.is_none()) continue;
+    if (name == "channels") {  // its setter checks each channel
+      nb::setattr(header, key, value);
+      continue;
+    }
     if (!has_member_shape(value, known[key])) {
       const std::string expected = python_type_name(known[key]);
       throw nb::type_error(("SessionHeader member '" + name + "' must be a " +
@@ -365,31 +440,80 @@ void bind_session(nb::module_& m) {
   nb::class_<PyRecord>(m, "Record", "One record of a session: t_ns, kind, data.")
       .def(
           "__init__",
-          [](PyRecord* self, std::uint64_t t_ns, nb::handle kind, nb::bytes data) {
+          [](PyRecord* self, std::uint64_t t_ns, nb::handle kind, nb::bytes data,
+             std::uint16_t channel) {
             new (self) PyRecord{};
             self->record.t_ns = t_ns;
             self->record.kind = kind_from_python(kind);
             self->record.data.assign(data.c_str(), data.size());
+            self->record.channel = channel;
           },
-          "t_ns"_a, "kind"_a, "data"_a = nb::bytes("", 0))
+          "t_ns"_a, "kind"_a, "data"_a = nb::bytes("", 0), "channel"_a = 0)
       .def_prop_ro("t_ns", [](const PyRecord& r) { return r.record.t_ns; },
                    "nanoseconds since the device was opened")
       .def_prop_ro("kind", [](const PyRecord& r) { return std::string(to_string(r.record.kind)); },
                    "'rx' (device to host), 'tx' (host to device), or an event name")
       .def_prop_ro("kind_code", [](const PyRecord& r) { return static_cast<int>(r.record.kind); })
+      .def_prop_ro("channel", [](const PyRecord& r) { return r.record.channel; },
+                   "the id of the record's channel (SessionHeader.channels); 0 in a session "
+                   "of one port")
       .def_prop_ro("data", [](const PyRecord& r) { return to_bytes(r.record.data); },
                    "the bytes (rx, tx) or the event's JSON object as bytes")
       .def("__eq__",
            [](const PyRecord& a, const PyRecord& b) {
              return a.record.t_ns == b.record.t_ns && a.record.kind == b.record.kind &&
-                    a.record.data == b.record.data;
+                    a.record.data == b.record.data && a.record.channel == b.record.channel;
            })
       .def("__repr__", [](const PyRecord& r) {
         nb::object data = to_bytes(r.record.data);
         return "Record(t_ns=" + std::to_string(r.record.t_ns) + ", kind='" +
                std::string(to_string(r.record.kind)) + "', data=" +
-               std::string(nb::repr(data).c_str()) + ")";
+               std::string(nb::repr(data).c_str()) +
+               (r.record.channel != 0 ? ", channel=" + std::to_string(r.record.channel) : "") +
+               ")";
       });
+
+  nb::class_<Channel>(
+      m, "Channel",
+      "One port of a session of several ports (format 1.2, docs/session-format.md, "
+      "\"channels\"): its id (what its records carry), name and what the header says of "
+      "a port. Channel(**members) with the members to_dict() names.")
+      .def(
+          "__init__",
+          [](Channel* self, nb::kwargs members) { new (self) Channel(channel_from_python(members)); },
+          nb::sig("def __init__(self, **members: object) -> None"))
+      .def_rw("id", &Channel::id, "what the channel's records carry in Record.channel")
+      .def_rw("name", &Channel::name, "the channel's name ('' only for the one channel of a "
+                                      "session without named channels)")
+      .def_rw("port_options", &Channel::port_options)
+      .def_rw("port_type", &Channel::port_type)
+      .def_prop_rw(
+          "capture",
+          [](const Channel& c) { return std::string(detail::capture_name(c.capture)); },
+          [](Channel& c, const std::string& capture) { c.capture = capture_from_python(capture); },
+          "'client' or 'wire'")
+      .def_rw("device_address", &Channel::device_address)
+      .def_prop_rw(
+          "device_identity",
+          [](const Channel& c) { return identity_dict(c.device_identity); },
+          [](Channel& c, nb::dict members) { c.device_identity = identity_from_python(members); },
+          "the serial device's identity, as SessionHeader.device_identity")
+      .def("to_dict", &channel_dict, "the members as a dict")
+      .def("__eq__", [](const Channel& a, const Channel& b) { return a == b; })
+      .def("__copy__", [](const Channel& c) { return c; })
+      .def("__deepcopy__", [](const Channel& c, nb::handle) { return c; }, "memo"_a)
+      .def("__repr__", [](const Channel& c) {
+        return "Channel(id=" + std::to_string(c.id) + ", name=" +
+               std::string(nb::repr(nb::str(c.name.c_str(), c.name.size())).c_str()) +
+               ", port_type=" +
+               std::string(nb::repr(nb::str(c.port_type.c_str(), c.port_type.size())).c_str()) +
+               ")";
+      });
+  m.def(
+      "channel_name_problem",
+      [](const std::string& name) { return channel_name_problem(name); }, "name"_a,
+      "Why NAME cannot name a channel (not an identifier of at most 64 characters of "
+      "letters, digits, '_' and '-'; or an option key), or None when it can.");
 
   nb::class_<SessionHeader>(
       m, "SessionHeader",
@@ -465,6 +589,29 @@ void bind_session(nb::module_& m) {
           },
           "Clears the device identity's serial number and its part of the by-id name "
           "(what edit --redact does).")
+      .def_prop_rw(
+          "channels",
+          [](const SessionHeader& h) { return h.channels; },
+          [](SessionHeader& h, nb::handle channels) {
+            if (!nb::isinstance<nb::list>(channels) && !nb::isinstance<nb::tuple>(channels)) {
+              throw nb::type_error("SessionHeader member 'channels' must be a list of Channel");
+            }
+            std::vector<Channel> read;
+            for (nb::handle channel : channels) read.push_back(channel_from_python(channel));
+            h.channels = std::move(read);
+          },
+          nb::for_getter(nb::sig("def channels(self, /) -> list[Channel]")),
+          nb::for_setter(nb::sig(
+              "def channels(self, value: list[Channel] | list[dict[str, object]], /) -> None")),
+          "format 1.2: the session's ports (Channel objects, or dicts of their members "
+          "when set), ids 0..n-1 in order; [] for a session of one unnamed port, which the "
+          "port members describe. With channels, the port members are channel 0's.")
+      .def("channel_list", &SessionHeader::channel_list,
+           "Every channel: channels, or the one unnamed channel 0 the port members describe.")
+      .def(
+          "find_channel",
+          [](const SessionHeader& h, const std::string& name) { return h.find_channel(name); },
+          "name"_a, "The channel named NAME, or None.")
       .def_rw("metadata_json", &SessionHeader::metadata_json,
               "the header's JSON as stored (read) or written; to_json() makes it anew")
       .def("to_json", &SessionHeader::to_json,
@@ -535,13 +682,15 @@ void bind_session(nb::module_& m) {
                        "at a damaged record iteration ends and .damage says where.")
       .def(
           "__init__",
-          [](PyReader* self, nb::handle path) {
+          [](PyReader* self, nb::handle path, std::optional<std::uint16_t> channel) {
             const std::string p = path_from_python(path);
             new (self) PyReader{};
             nb::gil_scoped_release release;
-            self->reader = std::make_unique<SessionReader>(p);
+            self->reader = std::make_unique<SessionReader>(p, channel);
           },
-          "path"_a)
+          "path"_a, "channel"_a = nb::none(),
+          "CHANNEL: only that channel's records (its id); None: every channel's, in "
+          "recorded order (Record.channel says which).")
       .def("__iter__", [](nb::handle self) { return self; },
            nb::sig("def __iter__(self) -> SessionReader"))
       .def("__next__",
@@ -587,7 +736,7 @@ void bind_session(nb::module_& m) {
       .def(
           "__init__",
           [](PyWriter* self, nb::handle path, std::optional<SessionHeader> header,
-             int flush_ms, bool fsync, nb::kwargs members) {
+             int flush_ms, bool fsync, std::size_t header_room, nb::kwargs members) {
             if (flush_ms < 0) throw nb::value_error("flush_ms must be >= 0");
             // No header: a session recorded now, on this machine.
             nb::object chosen = nb::cast(header ? *header : SessionHeader::starting_now());
@@ -598,15 +747,17 @@ void bind_session(nb::module_& m) {
             self->path = p;
             nb::gil_scoped_release release;
             self->writer = std::make_unique<SessionWriter>(
-                p, written, FlushPolicy{std::chrono::milliseconds(flush_ms), fsync});
+                p, written, FlushPolicy{std::chrono::milliseconds(flush_ms), fsync}, header_room);
           },
           "path"_a, "header"_a = nb::none(), nb::kw_only(), "flush_ms"_a = 100,
-          "fsync"_a = false, "members"_a,
+          "fsync"_a = false, "header_room"_a = std::size_t{0}, "members"_a,
           nb::sig("def __init__(self, path: str | os.PathLike[str] | bytes, "
                   "header: SessionHeader | None = None, *, flush_ms: int = 100, "
-                  "fsync: bool = False, **members: object) -> None"),
+                  "fsync: bool = False, header_room: int = 0, **members: object) -> None"),
           "HEADER (default: SessionHeader.starting_now()) with MEMBERS (keyword arguments "
-          "named as SessionHeader's members) set on it is what the file's header says.")
+          "named as SessionHeader's members) set on it is what the file's header says. "
+          "header_room: spare header bytes (spaces) kept so that add_channel() can rewrite "
+          "the header in place; 0 writes it exactly as long as its JSON.")
       .def_prop_ro("header", [](PyWriter& self) { return self.get().header(); },
                    "the header as written (this library's format version, metadata_json)")
       .def(
@@ -620,6 +771,17 @@ void bind_session(nb::module_& m) {
           "kind"_a, "t_ns"_a, "data"_a = nb::bytes("", 0), "channel"_a = 0,
           "Appends a record: kind is a name ('rx', 'tx', 'open', ...) or a code. channel is "
           "reserved for sessions of several ports: 0, the session's port.")
+      .def(
+          "add_channel",
+          [](PyWriter& self, const Channel& channel) {
+            SessionWriter& writer = self.get();
+            nb::gil_scoped_release release;
+            return writer.add_channel(channel);
+          },
+          "channel"_a,
+          "Adds CHANNEL (its id is ignored) to the header's channels, rewriting the header in "
+          "place within the header_room reserved; returns its id. Raises OptionError naming "
+          "'name' (a bad or taken name), SessionError when the header has no room left.")
       .def("flush",
            [](PyWriter& self) {
              SessionWriter& writer = self.get();
@@ -631,6 +793,58 @@ void bind_session(nb::module_& m) {
       .def("__enter__", [](nb::handle self) { return self; },
            nb::sig("def __enter__(self) -> SessionWriter"))
       .def("__exit__", [](PyWriter& self, nb::args) { self.close(); });
+
+  // Held by shared_ptr: a Bridge records into it (Bridge(recorder=...)).
+  nb::class_<Recorder>(m, "Recorder",
+                       "Records several ports into one session file, one channel each, on one "
+                       "clock (time 0: the first channel's open). Its ports keep the file "
+                       "open; it is closed at close() (or leaving a with block), or when the "
+                       "recorder and its ports are gone.")
+      .def(
+          "__init__",
+          [](Recorder* self, nb::handle path, std::optional<SessionHeader> header,
+             int flush_ms, bool fsync, std::size_t header_room, nb::kwargs members) {
+            if (flush_ms < 0) throw nb::value_error("flush_ms must be >= 0");
+            nb::object chosen = nb::cast(header ? *header : SessionHeader::starting_now());
+            set_header_members(chosen, members);
+            const SessionHeader written = nb::cast<SessionHeader>(chosen);
+            const std::string p = path_from_python(path);
+            nb::gil_scoped_release release;
+            new (self) Recorder(p, written, FlushPolicy{std::chrono::milliseconds(flush_ms), fsync},
+                                header_room);
+          },
+          "path"_a, "header"_a = nb::none(), nb::kw_only(), "flush_ms"_a = 100,
+          "fsync"_a = false, "header_room"_a = Recorder::default_header_room, "members"_a,
+          nb::sig("def __init__(self, path: str | os.PathLike[str] | bytes, "
+                  "header: SessionHeader | None = None, *, flush_ms: int = 100, "
+                  "fsync: bool = False, header_room: int = 32768, "
+                  "**members: object) -> None"),
+          "Creates the session file. HEADER (default: SessionHeader.starting_now()) with "
+          "MEMBERS set on it is its header; each port adds its channel to it. header_room: "
+          "the bytes kept for the channels' entries.")
+      .def(
+          "open_port",
+          [](Recorder& self, const std::string& options) {
+            nb::gil_scoped_release release;
+            return self.open_port(std::string_view(options));
+          },
+          "options"_a,
+          "Opens the port OPTIONS describe (as open_port() does) recording into a new "
+          "channel named by its name=NAME: 'name=gps,type=serial,device=/dev/ttyUSB0'. "
+          "Raises OptionError naming the key (a missing, bad or taken name; log=).")
+      .def("close", &Recorder::close, nb::call_guard<nb::gil_scoped_release>(),
+           "Flushes and closes the file; its ports go on, unrecorded.")
+      .def("now_ns", &Recorder::now_ns,
+           "The recorder's clock: ns since its first channel's open (0 before).")
+      .def_prop_ro("path", &Recorder::path)
+      .def_prop_ro("header", &Recorder::header, "the header as written so far")
+      .def("__enter__", [](nb::handle self) { return self; },
+           nb::sig("def __enter__(self) -> Recorder"))
+      .def("__exit__",
+           [](Recorder& self, nb::args) {
+             nb::gil_scoped_release release;
+             self.close();
+           });
 
   m.def(
       "export_flexiport",
