@@ -53,8 +53,9 @@ std::string path_from_python(nb::handle value) {
   if (fspath == nullptr) throw nb::python_error();
   nb::object path = nb::steal(fspath);
   if (PyBytes_Check(path.ptr())) {
-    return std::string(PyBytes_AS_STRING(path.ptr()),
-                       static_cast<std::size_t>(PyBytes_GET_SIZE(path.ptr())));
+    // The stable ABI's calls, not the macros: one abi3 wheel for 3.12 on.
+    return std::string(PyBytes_AsString(path.ptr()),
+                       static_cast<std::size_t>(PyBytes_Size(path.ptr())));
   }
   return nb::cast<std::string>(path);
 }

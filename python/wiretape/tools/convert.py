@@ -339,27 +339,48 @@ def _jsonl_records(path: str) -> Iterator[tuple]:
 # --- progress ----------------------------------------------------------------
 
 class _Progress:
-    """A one-line progress report on stderr: records and bytes so far, and
-    the share of the source read (estimated from record sizes)."""
+    """Progress on a terminal's stderr (rich): a bar of the source's share
+    read (estimated from record sizes), records so far, time left. Shown
+    from the start, so that a capture's reading before its first record
+    shows too; gone when the conversion ends. Disabled: nothing at all."""
 
     def __init__(self, enabled: bool, total_bytes: int):
-        self.enabled = enabled
         self.total = max(total_bytes, 1)
         self.done = 0
         self.records = 0
         self.last = 0.0
+        self._bar = None
+        if enabled:
+            import rich.console
+            import rich.progress
+
+            self._bar = rich.progress.Progress(
+                rich.progress.TextColumn("converting"), rich.progress.BarColumn(),
+                rich.progress.TaskProgressColumn(),
+                rich.progress.TextColumn("{task.fields[records]}"),
+                rich.progress.TimeRemainingColumn(),
+                console=rich.console.Console(stderr=True), transient=True)
+            self._task = self._bar.add_task("convert", total=self.total, records="")
+            self._bar.start()
 
     def step(self, size: int) -> None:
         self.records += 1
         self.done += size + 20  # a record's header and CRC
-        if self.enabled and time.monotonic() - self.last > 0.2:
+        if self._bar is not None and time.monotonic() - self.last > 0.1:
             self.last = time.monotonic()
-            share = min(100.0, 100.0 * self.done / self.total)
-            print(f"\r{self.records} records, {share:5.1f}%", end="", file=sys.stderr, flush=True)
+            self._bar.update(self._task, completed=min(self.done, self.total),
+                             records=f"{self.records} records")
 
     def finish(self) -> None:
-        if self.enabled:
-            print(f"\r{self.records} records, 100.0%", file=sys.stderr, flush=True)
+        if self._bar is not None:
+            self._bar.stop()
+            self._bar = None
+
+    def __enter__(self) -> "_Progress":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.finish()
 
 
 def _source_size(path: str, fmt: str) -> int:
@@ -700,7 +721,14 @@ def _refuse_several_channels(src: str, header: _core.SessionHeader) -> None:
 
 def _convert(src: str, dst: str, source_format: str, target_format: str, progress: bool,
              flexiport_format: str, choice: dict, scratch: str) -> ConvertResult:
-    report = _Progress(progress, _source_size(src, source_format))
+    with _Progress(progress, _source_size(src, source_format)) as report:
+        return _convert_reporting(src, dst, source_format, target_format, report,
+                                  flexiport_format, choice, scratch)
+
+
+def _convert_reporting(src: str, dst: str, source_format: str, target_format: str,
+                       report: _Progress, flexiport_format: str, choice: dict,
+                       scratch: str) -> ConvertResult:
     if target_format in ("pcapng", "mcap"):
         session = src
         if source_format in _RECORD_SOURCES:
