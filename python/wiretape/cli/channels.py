@@ -109,11 +109,12 @@ def _record_into(recorder, args, endpoints: List[Endpoint], out: Output) -> int:
                 device = endpoint.device or ""  # check_record saw it given
             handles.append((endpoint, bridge.record(
                 device, args.output, recorder=recorder, channel=endpoint.name,
-                duration=args.duration, quiet=args.quiet, **sides)))
+                duration=args.duration, quiet=True, **sides)))
     except BaseException:
         _stop_all(handles)
         raise
-    return _run_channels(handles, out, "record", lambda endpoint: f"recording to {args.output}")
+    return _run_channels(handles, out, "record", lambda endpoint: f"recording to {args.output}",
+                         quiet=args.quiet)
 
 
 def replay_channels(args, endpoints: List[Endpoint], out: Output) -> int:
@@ -144,12 +145,12 @@ def replay_channels(args, endpoints: List[Endpoint], out: Output) -> int:
                                        if part)
             handles.append((endpoint, bridge.serve_replay(
                 args.file, replay_options=channel_options, protocol=args.protocol,
-                restart=args.restart, quiet=args.quiet, **_client_sides(endpoint, args))))
+                restart=args.restart, quiet=True, **_client_sides(endpoint, args))))
     except BaseException:
         _stop_all(handles)
         raise
     return _run_channels(handles, out, "replay", lambda endpoint: f"replaying {args.file}",
-                         must_serve=True)
+                         must_serve=True, quiet=args.quiet)
 
 
 def _stop_all(handles) -> None:
@@ -160,12 +161,15 @@ def _stop_all(handles) -> None:
 
 
 def _run_channels(handles, out: Output, what: str, doing: Callable[[Endpoint], str],
-                  must_serve: bool = False) -> int:
+                  must_serve: bool = False, quiet: bool = True) -> int:
     """Announces each channel's bridge, waits until every one has ended
     (a failed or mismatched one ends the others: the session is one) or
-    Ctrl-C; prints each channel's outcome; raises the worst."""
-    from .run import POLL_S, announce_clients, bridge_summary
+    Ctrl-C, relaying each one's messages with its name; prints each
+    channel's outcome; raises the worst."""
+    from .run import POLL_S, MessageRelay, announce_clients, bridge_summary
 
+    relays = [MessageRelay(handle, out, f"{what}: {endpoint.name}", quiet)
+              for endpoint, handle in handles]
     try:
         for endpoint, handle in handles:
             announce_clients(handle, out, f"wiretape {what}: {endpoint.name}: "
@@ -178,9 +182,13 @@ def _run_channels(handles, out: Output, what: str, doing: Callable[[Endpoint], s
             if any(not handle.result().ok for _, handle in handles if handle not in running):
                 break
             running[0].wait(POLL_S)
+            for relay in relays:
+                relay.poll()
     except KeyboardInterrupt:
         out.note(f"wiretape {what}: stopping")
     _stop_all(handles)
+    for relay in relays:
+        relay.poll()
     failures: List[Tuple[int, str]] = []
     for endpoint, handle in handles:
         result = handle.result()

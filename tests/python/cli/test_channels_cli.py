@@ -291,6 +291,9 @@ class FinishedBridge:
     def wait(self, timeout=None):
         return True
 
+    def messages(self):
+        return ["client 127.0.0.1:9 connected"]
+
     def stop(self):
         self.stopped = True
 
@@ -306,7 +309,7 @@ def run_channels(*outcomes):
     handles = [(Endpoint(name, {"listen": "127.0.0.1:0"}), bridge)
                for name, bridge in outcomes]
     return _run_channels(handles, Output(), "replay", lambda endpoint: "replaying f",
-                         must_serve=True)
+                         must_serve=True, quiet=False)
 
 
 def test_channels_that_all_finished_well_exit_0(capsys):
@@ -315,6 +318,8 @@ def test_channels_that_all_finished_well_exit_0(capsys):
     err = capsys.readouterr().err
     assert "wiretape replay: gps: finished: 2 records written" in err
     assert "wiretape replay: rtk: finished" in err
+    # each channel's messages relayed under its name
+    assert "wiretape replay: gps: client 127.0.0.1:9 connected" in err
 
 
 def test_a_mismatch_on_one_channel_fails_naming_the_channel():
