@@ -16,8 +16,6 @@ from devices import TcpDevice, announced_address, interrupt, start_cli, wait_unt
 
 DEADLINE_S = 10.0
 
-has_recorder = pytest.mark.skipif(not hasattr(_core, "Recorder"),
-                                  reason="needs wiretape.Recorder (part B)")
 
 
 def usage_error(capsys, *argv):
@@ -238,7 +236,6 @@ def test_record_forwards_a_streaming_device_to_the_peer_and_records_it_as_rx(tmp
 # --- several channels, end to end ------------------------------------------
 
 
-@has_recorder
 def test_record_of_two_tcp_devices_writes_one_file_of_two_channels(tmp_path):
     output = tmp_path / "two.wtape"
     with TcpDevice() as first, TcpDevice(respond=lambda chunk: chunk[::-1]) as second:

@@ -13,7 +13,6 @@ import sys
 import pytest
 
 import wiretape
-from wiretape import _core
 
 from devices import interrupt, start_cli, wait_until
 from nmea_sources import (PtyNmeaSource, TcpNmeaSource, UdpNmeaSource, fixes_by_device,
@@ -99,8 +98,6 @@ def test_gpsd_reads_a_udp_source_recorded_between_it_and_the_receiver(tmp_path):
     assert_fixes(fixes, {device: LATITUDES["gps3"]})
 
 
-@pytest.mark.skipif(not hasattr(_core, "Recorder") or not hasattr(_core, "Channel"),
-                    reason="needs wiretape.Recorder and channels (issue 25 parts A, B)")
 def test_gpsd_of_three_sources_recorded_in_one_file_and_replayed(tmp_path):
     recording = tmp_path / "three.wtape"
     pty_link = str(tmp_path / "gps1")

@@ -9,7 +9,6 @@ import socket
 import pytest
 
 import wiretape
-from wiretape import _core
 
 from devices import announced_address, interrupt, start_cli
 from lidar_sim import Lidar, LidarDriver
@@ -17,10 +16,6 @@ from nmea_sources import free_port
 
 DEADLINE_S = 20.0
 SCANS = 10
-
-pytestmark = pytest.mark.skipif(
-    not hasattr(_core, "Recorder") or not hasattr(_core, "Channel"),
-    reason="needs wiretape.Recorder and channels (issue 25 parts A, B)")
 
 
 def record_lidar(tmp_path):

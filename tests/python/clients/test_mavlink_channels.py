@@ -12,7 +12,6 @@ from pathlib import Path
 import pytest
 
 import wiretape
-from wiretape import _core
 
 pytest.importorskip("pymavlink", reason="SKIPPED LOUDLY: pymavlink is not installed "
                     "(pip install pymavlink; make installs it): MAVLink is not tested")
@@ -23,11 +22,6 @@ from mavlink_peers import PARAMETERS, VEHICLE_SYSTEM, Vehicle  # noqa: E402
 DEADLINE_S = 20.0
 GIMBAL = 154  # MAV_COMP_ID_GIMBAL
 PEERS = str(Path(__file__).resolve().parents[1] / "support" / "mavlink_peers.py")
-
-pytestmark = pytest.mark.skipif(
-    not hasattr(_core, "Recorder") or not hasattr(_core, "Channel"),
-    reason="needs wiretape.Recorder and channels (issue 25 parts A, B)")
-
 
 def ground_station(connection):
     run = subprocess.run([sys.executable, PEERS, connection, "--timeout", str(DEADLINE_S)],
