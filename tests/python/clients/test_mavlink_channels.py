@@ -23,6 +23,7 @@ DEADLINE_S = 20.0
 GIMBAL = 154  # MAV_COMP_ID_GIMBAL
 PEERS = str(Path(__file__).resolve().parents[1] / "support" / "mavlink_peers.py")
 
+
 def ground_station(connection):
     run = subprocess.run([sys.executable, PEERS, connection, "--timeout", str(DEADLINE_S)],
                          capture_output=True, text=True, timeout=DEADLINE_S * 2)
