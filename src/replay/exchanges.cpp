@@ -1,5 +1,7 @@
 #include "replay/exchanges.hpp"
 
+#include "replay/replay_port.hpp"
+
 #include <utility>
 
 #include "replay/client_session.hpp"
@@ -209,9 +211,13 @@ SessionSegments segment_session_file(const std::string& path, const std::string&
   parsed.set("file", path);
   const ReplayConfig config = take_replay_config(parsed);
   SessionHeader header;
-  const std::unique_ptr<RecordSource> source = open_session_source(config.file, header);
+  open_session_source(config.file, header);
+  // Exchanges are numbered per channel (DESIGN.md section 19).
+  const Channel channel = choose_channel(config, header);
+  const std::unique_ptr<RecordSource> source =
+      session_source_factory(config.file, channel.id)();
   SessionSegments segments = segment_session(
-      *source, Segmentation{config.profile, header.port_type == "udp", config.match});
+      *source, Segmentation{config.profile, channel.port_type == "udp", config.match});
   if (source->damage()) throw *source->damage();
   return segments;
 }

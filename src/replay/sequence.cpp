@@ -1,5 +1,7 @@
 #include "replay/sequence.hpp"
 
+#include "replay/channel_hub.hpp"
+
 #include <algorithm>
 
 #include "util/json.hpp"
@@ -158,6 +160,16 @@ void SequenceStrategy::entitle() {
                           (tx_progress() >= ahead.tx_before && !held_by_flush_gate());
     if (!entitled) break;  // later records need at least as many tx bytes
     ahead.item.due = due_of(ahead);
+    // Across channels (DESIGN.md section 19): the client's tx recorded
+    // before it on the other channels come first, and the latest of them
+    // anchors it as the write before it on this channel does.
+    if (config_.member && config_.timing == ReplayTiming::causal) {
+      const ChannelMember::Gate gate = config_.member->gate(ahead.item.t_ns);
+      if (!gate.open) break;  // another channel's write wakes this replay
+      if (gate.anchor) {
+        ahead.item.due = std::max(ahead.item.due, timeline_.due(ahead.item.t_ns, gate.anchor));
+      }
+    }
     ahead_bytes_ -= ahead.item.payload().size();
     release_item(std::move(ahead.item), ahead.tx_before);
     ahead_.pop_front();
