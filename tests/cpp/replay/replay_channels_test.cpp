@@ -258,15 +258,15 @@ TEST(ReplayChannels, AFaultOfAnotherChannelIsNotInjectedHere) {
   const std::string path = gps_and_rtk(dir);
   // Dropping the GPS's first sentence leaves the caster's answer alone.
   auto rtk = open_port("type=replay,timing=none,file=" + path +
-                       ",channel=rtk,faults=drop@exchange:0@channel:gps");
+                       ",channel=rtk,faults=drop@rx:0@channel:gps");
   rtk->write(std::string("LOGIN\n"));
   EXPECT_EQ(read_text(*rtk, 11), "ICY 200 OK\n");
   auto gps = open_port("type=replay,timing=none,unused=ignore,file=" + path +
-                       ",channel=gps,faults=drop@exchange:0@channel:gps");
+                       ",channel=gps,faults=drop@rx:0@channel:gps");
   EXPECT_EQ(read_text(*gps, 9), "$GPGGA,2\n");
   std::string key;
   const std::string unknown = open_error(
-      "type=replay,file=" + path + ",channel=gps,faults=drop@exchange:0@channel:imu", &key);
+      "type=replay,file=" + path + ",channel=gps,faults=drop@rx:0@channel:imu", &key);
   EXPECT_EQ(key, "faults");
   EXPECT_NE(unknown.find("imu"), std::string::npos) << unknown;
 }
