@@ -262,7 +262,7 @@ TEST(ReplayChannels, AFaultOfAnotherChannelIsNotInjectedHere) {
   rtk->write(std::string("LOGIN\n"));
   EXPECT_EQ(read_text(*rtk, 11), "ICY 200 OK\n");
   auto gps = open_port("type=replay,timing=none,unused=ignore,file=" + path +
-                       ",channel=gps,faults=drop@rx:0@channel:gps");
+                       ",channel=gps,faults=drop:9@rx:0@channel:gps");
   EXPECT_EQ(read_text(*gps, 9), "$GPGGA,2\n");
   std::string key;
   const std::string unknown = open_error(
