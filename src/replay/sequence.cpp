@@ -1,9 +1,8 @@
 #include "replay/sequence.hpp"
 
-#include "replay/channel_hub.hpp"
-
 #include <algorithm>
 
+#include "replay/channel_hub.hpp"
 #include "util/json.hpp"
 #include "wiretape/errors.hpp"
 
@@ -167,7 +166,11 @@ void SequenceStrategy::entitle() {
       const ChannelMember::Gate gate = config_.member->gate(ahead.item.t_ns);
       if (!gate.open) break;  // another channel's write wakes this replay
       if (gate.anchor) {
-        ahead.item.due = std::max(ahead.item.due, timeline_.due(ahead.item.t_ns, gate.anchor));
+        // With no write before it on its own channel, the other channel's
+        // is its anchor (not the open); else the later of the two.
+        const ReplayTime across = timeline_.due(ahead.item.t_ns, gate.anchor);
+        const bool anchored_here = ahead.anchor_t_ns && finish_of(ahead.tx_before);
+        ahead.item.due = anchored_here ? std::max(ahead.item.due, across) : across;
       }
     }
     ahead_bytes_ -= ahead.item.payload().size();
