@@ -34,7 +34,7 @@ class SessionRecordSource final : public RecordSource {
   SessionRecordSource(const std::string& path, std::uint16_t channel,
                       std::shared_ptr<bool> warned)
       : path_(path), channel_(channel), source_(open_session_source(path, header_)),
-        warned_(std::move(warned)) {}
+        several_channels_(header_.channel_list().size() > 1), warned_(std::move(warned)) {}
   bool next(Record& record) override {
     while (source_->next(record)) {
       if (record.channel == channel_) return true;
@@ -44,7 +44,21 @@ class SessionRecordSource final : public RecordSource {
   }
   bool next(Record& record, PayloadView& view) override {
     while (source_->next(record, view)) {
-      if (record.channel == channel_) return true;
+      if (record.channel == channel_) {
+        // In a file of several channels a read buffer holds mostly other
+        // channels' records: a view would pin a whole buffer for the few
+        // bytes of this channel's, so the look-ahead's memory would grow
+        // with the number of channels. A copy of this record's bytes costs
+        // less than the buffers it would pin.
+        if (view && several_channels_) {
+          record.data.assign(view.bytes.data(), view.bytes.size());
+          view = PayloadView{};
+        }
+        return true;
+      }
+      // Let go of another channel's payload before reading on, so that the
+      // reader reuses its buffer instead of starting a fresh one.
+      view = PayloadView{};
     }
     warn_of_damage();
     return false;
@@ -69,6 +83,7 @@ class SessionRecordSource final : public RecordSource {
   std::uint16_t channel_;
   SessionHeader header_;
   std::unique_ptr<RecordSource> source_;
+  bool several_channels_;
   std::shared_ptr<bool> warned_;
 };
 
