@@ -94,9 +94,9 @@ std::string describe(const ReplayConfig& config) {
   const char* match =
       config.match == ReplayMatch::sequence ? "sequence" : "request";
   const std::string channel =
-      config.several_channels ? ", channel=" + config.channel : std::string();
-  return "replay " + config.file + " (" + channel.substr(channel.empty() ? 0 : 2) +
-         (channel.empty() ? "" : ", ") + "timing=" + timing + ", match=" + match + ")";
+      config.several_channels ? "channel=" + config.channel + ", " : std::string();
+  return "replay " + config.file + " (" + channel + "timing=" + timing + ", match=" + match +
+         ")";
 }
 
 // When a replay opening now starts its clock: now, or the first open of a
