@@ -82,17 +82,6 @@ struct DeviceIdentity {
   bool operator!=(const DeviceIdentity& other) const { return !(*this == other); }
 };
 
-// TEMPORARY stand-in for part A (lead), reverted at merge.
-struct Channel {
-  std::uint16_t id = 0;
-  std::string name;
-  std::string port_options;
-  std::string port_type;
-  Capture capture = Capture::client;
-  std::string device_address;
-  std::optional<DeviceIdentity> device_identity;
-};
-
 // A session's header: what was recorded, where, when and how. The one type
 // for reading (SessionReader::header) and writing (SessionWriter): what a
 // writer is given is what the file says, nothing is filled in behind it.
@@ -123,9 +112,6 @@ struct SessionHeader {
   // has it (none for a pty, a network device, an import).
   std::optional<DeviceIdentity> device_identity;
   std::map<std::string, std::string> user_metadata;  // free user metadata (--meta)
-  std::vector<Channel> channels;
-  std::vector<Channel> channel_list() const;
-  std::optional<Channel> find_channel(std::string_view name) const;
 
   // A header for a session that starts now on this machine: start_utc is
   // now and host this machine's name (what recorders write).

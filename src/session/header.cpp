@@ -202,18 +202,6 @@ std::string header_json(const SessionHeader& header) {
     }
     object.add_raw(field::device_identity, identity.str());
   }
-  if (!header.channels.empty()) {
-    std::string list = "[";
-    for (const Channel& channel : header.channels) {
-      if (list.size() > 1) list += ",";
-      json::ObjectWriter item;
-      item.add_raw("id", std::to_string(channel.id)).add("name", channel.name)
-          .add("port_options", channel.port_options).add("port_type", channel.port_type)
-          .add("capture", capture_name(channel.capture));
-      list += item.str();
-    }
-    object.add_raw("channels", list + "]");
-  }
   return object.str();
 }
 
@@ -290,19 +278,6 @@ void parse_header_json(const std::string& text, const std::string& path,
       read.*member.value = identity->string_member(member.name).value_or("");
     }
   }
-  header.channels.clear();
-  if (const json::Value* channels = root.find("channels")) {
-    for (const json::Value& item : channels->items) {
-      Channel channel;
-      channel.id = static_cast<std::uint16_t>(header.channels.size());
-      channel.name = item.string_member("name").value_or("");
-      channel.port_options = item.string_member("port_options").value_or("");
-      channel.port_type = item.string_member("port_type").value_or("");
-      channel.capture = capture_from_name(item.string_member("capture").value_or("client"))
-                            .value_or(Capture::client);
-      header.channels.push_back(channel);
-    }
-  }
   header.user_metadata.clear();
   if (const json::Value* metadata = root.find(field::metadata);
       metadata != nullptr && metadata->is_object()) {
@@ -370,28 +345,6 @@ bool DeviceIdentity::operator==(const DeviceIdentity& other) const {
     if (this->*member.value != other.*member.value) return false;
   }
   return true;
-}
-
-}  // namespace wiretape
-
-namespace wiretape {
-
-std::vector<Channel> SessionHeader::channel_list() const {
-  if (!channels.empty()) return channels;
-  Channel only;
-  only.port_options = port_options;
-  only.port_type = port_type;
-  only.capture = capture;
-  only.device_address = device_address;
-  only.device_identity = device_identity;
-  return {only};
-}
-
-std::optional<Channel> SessionHeader::find_channel(std::string_view name) const {
-  for (const Channel& channel : channels) {
-    if (channel.name == name) return channel;
-  }
-  return std::nullopt;
 }
 
 }  // namespace wiretape

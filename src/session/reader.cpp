@@ -133,7 +133,8 @@ class WtapeSource final : public RecordSource {
       if (find_record_kind(static_cast<RecordKind>(kind_byte)) == nullptr) {
         continue;  // a newer kind: skipped
       }
-      record.channel = get_u16le(head + 6);
+      // Another port of a session of several ports (reserved): skipped.
+      if (get_u16le(head + 6) != 0) continue;
       record.kind = static_cast<RecordKind>(kind_byte);
       record.t_ns = get_u64le(head + 8);
       if (const auto problem =
