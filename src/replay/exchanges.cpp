@@ -211,7 +211,7 @@ SessionSegments segment_session_file(const std::string& path, const std::string&
   parsed.set("file", path);
   const ReplayConfig config = take_replay_config(parsed);
   SessionHeader header;
-  open_session_source(config.file, header);
+  open_session_source(config.file, header, Streams::refused);
   // Exchanges are numbered per channel (DESIGN.md section 19).
   const Channel channel = choose_channel(config, header);
   const std::unique_ptr<RecordSource> source =

@@ -33,32 +33,25 @@ class SessionRecordSource final : public RecordSource {
  public:
   SessionRecordSource(const std::string& path, std::uint16_t channel,
                       std::shared_ptr<bool> warned)
-      : path_(path), channel_(channel), source_(open_session_source(path, header_)),
+      : path_(path), source_(open_session_source(path, header_, Streams::refused, channel)),
         several_channels_(header_.channel_list().size() > 1), warned_(std::move(warned)) {}
   bool next(Record& record) override {
-    while (source_->next(record)) {
-      if (record.channel == channel_) return true;
-    }
+    if (source_->next(record)) return true;
     warn_of_damage();
     return false;
   }
   bool next(Record& record, PayloadView& view) override {
-    while (source_->next(record, view)) {
-      if (record.channel == channel_) {
-        // In a file of several channels a read buffer holds mostly other
-        // channels' records: a view would pin a whole buffer for the few
-        // bytes of this channel's, so the look-ahead's memory would grow
-        // with the number of channels. A copy of this record's bytes costs
-        // less than the buffers it would pin.
-        if (view && several_channels_) {
-          record.data.assign(view.bytes.data(), view.bytes.size());
-          view = PayloadView{};
-        }
-        return true;
+    if (source_->next(record, view)) {
+      // In a file of several channels a read buffer holds mostly other
+      // channels' records: a view would pin a whole buffer for the few
+      // bytes of this channel's, so the look-ahead's memory would grow
+      // with the number of channels. A copy of this record's bytes costs
+      // less than the buffers it would pin.
+      if (view && several_channels_) {
+        record.data.assign(view.bytes.data(), view.bytes.size());
+        view = PayloadView{};
       }
-      // Let go of another channel's payload before reading on, so that the
-      // reader reuses its buffer instead of starting a fresh one.
-      view = PayloadView{};
+      return true;
     }
     warn_of_damage();
     return false;
@@ -80,7 +73,6 @@ class SessionRecordSource final : public RecordSource {
   }
 
   std::string path_;
-  std::uint16_t channel_;
   SessionHeader header_;
   std::unique_ptr<RecordSource> source_;
   bool several_channels_;
@@ -151,12 +143,13 @@ namespace {
 std::vector<ChannelHub::TxMark> recorded_tx(const std::string& path, std::uint16_t channel) {
   std::vector<ChannelHub::TxMark> marks;
   SessionHeader header;
-  const std::unique_ptr<RecordSource> source = open_session_source(path, header);
+  const std::unique_ptr<RecordSource> source =
+      open_session_source(path, header, Streams::refused, channel);
   Record record;
   PayloadView view;
   std::uint64_t offset = 0;
   while (source->next(record, view)) {
-    if (record.channel != channel || record.kind != RecordKind::tx) continue;
+    if (record.kind != RecordKind::tx) continue;
     const std::size_t size = view ? view.bytes.size() : record.data.size();
     if (size == 0) continue;  // an empty datagram moves no byte count
     offset += size;
@@ -841,7 +834,7 @@ std::unique_ptr<Port> open_replay(Options& options) {
   // refused at once.
   {
     SessionHeader header;
-    open_session_source(config.file, header);
+    open_session_source(config.file, header, Streams::refused);
     const Channel channel = choose_channel(config, header);
     config.channel_id = channel.id;
     config.channel = channel.name;
