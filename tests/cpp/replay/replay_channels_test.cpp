@@ -1,6 +1,8 @@
 // type=replay on sessions of several ports (DESIGN.md section 19): channel=,
 // one clock per file, timing=causal across channels, reports and faults that
 // name the channel.
+#include <poll.h>
+
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -12,6 +14,7 @@
 #include <vector>
 
 #include "replay/faults.hpp"
+#include "replay/replay_port.hpp"
 #include "support/port_test_support.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/options.hpp"
@@ -159,6 +162,27 @@ TEST(ReplayChannels, ChannelsOfOneFileShareOneClockFromTheFirstOpen) {
   EXPECT_EQ(read_text(*a, 1), "A");
 }
 
+TEST(ReplayChannels, VirtualDevicesOfOneFileStartAtTheFirstClientSession) {
+  TempDir dir;
+  const std::string path =
+      write_channels(dir, {channel(0, "a", "serial"), channel(1, "b", "serial")},
+                     {{0, ms(300), RecordKind::rx, "A"}, {1, ms(300), RecordKind::rx, "B"}});
+  // Bridges' replays: opened, then holding everything until a client comes.
+  auto a = open_port("type=replay,timing=session,file=" + path + ",channel=a");
+  auto b = open_port("type=replay,timing=session,file=" + path + ",channel=b");
+  ASSERT_TRUE(detail::replay_await_client(*a));
+  ASSERT_TRUE(detail::replay_await_client(*b));
+  const auto first_client = std::chrono::steady_clock::now();
+  detail::replay_begin_client_session(*a);
+  std::this_thread::sleep_for(200ms);  // b's client comes later
+  detail::replay_begin_client_session(*b);
+  EXPECT_EQ(read_text(*b, 1), "B");
+  const auto b_read = std::chrono::steady_clock::now() - first_client;
+  EXPECT_GE(b_read, 300ms);
+  if (!under_thread_sanitizer()) EXPECT_LT(b_read, 450ms);
+  EXPECT_EQ(read_text(*a, 1), "A");
+}
+
 // The LiDAR: a start command on TCP, then the data stream on UDP.
 std::string lidar(const TempDir& dir) {
   return write_channels(dir, {channel(0, "cmd", "tcp"), channel(1, "data", "udp")},
@@ -187,6 +211,19 @@ TEST(ReplayChannels, CausalDataWaitsForTheStartCommandOnAnotherChannel) {
   reader.join();
   EXPECT_EQ(got, "D1D2");
   EXPECT_FALSE(early.load());
+  EXPECT_EQ(read_text(*cmd, 3), "OK\n");
+}
+
+TEST(ReplayChannels, TheOtherChannelsWriteRaisesThePollableHandle) {
+  TempDir dir;
+  const std::string path = lidar(dir);
+  auto cmd = open_port("type=replay,timing=causal,file=" + path + ",channel=cmd");
+  auto data = open_port("type=replay,timing=causal,file=" + path + ",channel=data");
+  pollfd readable{data->native_handle(), POLLIN, 0};
+  EXPECT_EQ(::poll(&readable, 1, 300), 0);
+  cmd->write(std::string("START\n"));
+  EXPECT_EQ(::poll(&readable, 1, 10'000), 1);
+  EXPECT_EQ(read_text(*data, 4), "D1D2");
   EXPECT_EQ(read_text(*cmd, 3), "OK\n");
 }
 
