@@ -1,10 +1,9 @@
 #include "replay/exchanges.hpp"
 
-#include "replay/replay_port.hpp"
-
 #include <utility>
 
 #include "replay/client_session.hpp"
+#include "replay/replay_port.hpp"
 #include "session/reader.hpp"
 #include "wiretape/options.hpp"
 
