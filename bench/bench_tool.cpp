@@ -9,6 +9,10 @@
 //   record-rss BYTES FILE             peak RSS while recording BYTES
 //   make-exchanges FILE COUNT         COUNT request/response pairs (below)
 //   soak SECONDS DIR                  record+replay loop; one JSON line a second
+//   make-channels FILE BYTES          4 channels c0..c3 of BYTES each, interleaved
+//   replay-c1 FILE BYTES              replay (as above) of channel c1 of that file
+//   causal-latency ROUNDS CHANNELS    timing=causal: write on one port -> rx
+//                                     released on (CHANNELS=1) the same, (2) another
 //
 // Errors go to stderr with exit status 1 (run.py reports the figure as
 // missing with that message).
@@ -16,6 +20,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -30,6 +36,7 @@
 #include "bench_support.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/port.hpp"
+#include "wiretape/session.hpp"
 
 namespace wb = wiretape::bench;
 using wb::Clock;
@@ -42,10 +49,10 @@ std::string temp_path(const std::string& stem) {
 }
 
 // Reads `expected` bytes from a timing=none replay of `path` in 64 KiB calls.
-int replay(const std::string& path, std::uint64_t expected) {
+int replay(const std::string& path, std::uint64_t expected, const std::string& extra_keys = "") {
   const auto start = Clock::now();
   auto port = wiretape::open_port("type=replay,file=" + path +
-                                  ",timing=none,unused=ignore,timeout=10");
+                                  ",timing=none,unused=ignore,timeout=10" + extra_keys);
   std::vector<char> buffer(64 * 1024);
   std::uint64_t total = 0;
   while (total < expected) {
@@ -371,11 +378,106 @@ int soak(std::uint64_t seconds, const std::string& dir) {
   return 0;
 }
 
+// Four channels c0..c3 with BYTES each in 4 KiB rx records, interleaved in
+// time as a recording of four devices streaming at once would be.
+int make_channels(const std::string& path, std::uint64_t bytes_per_channel) {
+  constexpr std::uint16_t channels = 4;
+  constexpr std::size_t record_bytes = 4096;
+  wiretape::SessionHeader header;
+  for (std::uint16_t id = 0; id < channels; ++id) {
+    wiretape::Channel channel;
+    channel.id = id;
+    channel.name = "c" + std::to_string(id);
+    channel.port_type = "serial";
+    channel.port_options = "type=serial,device=/dev/bench" + std::to_string(id);
+    header.channels.push_back(channel);
+  }
+  header.port_type = "serial";
+  header.port_options = header.channels.front().port_options;
+  wiretape::SessionWriter writer(path, header);
+  std::string payload(record_bytes, '\0');
+  for (std::size_t i = 0; i < payload.size(); ++i) payload[i] = static_cast<char>('A' + i % 26);
+  std::uint64_t t_ns = 1000;
+  for (std::uint64_t written = 0; written < bytes_per_channel; written += record_bytes) {
+    const auto size = static_cast<std::size_t>(
+        std::min<std::uint64_t>(record_bytes, bytes_per_channel - written));
+    for (std::uint16_t id = 0; id < channels; ++id) {
+      writer.write(wiretape::RecordKind::rx, t_ns, std::string_view(payload.data(), size), id);
+      t_ns += 250;
+    }
+  }
+  writer.close();
+  std::printf("{\"path\": \"%s\"}\n", path.c_str());
+  return 0;
+}
+
+// timing=causal: how long after the client's write the rx it releases is
+// read by a reader blocked on (channels=1) the same port, (channels=2) the
+// port of another channel of the file. One write and one rx per round, the
+// rx recorded right after the write.
+int causal_latency(std::uint64_t rounds, std::uint64_t channels) {
+  if (channels != 1 && channels != 2) throw std::runtime_error("CHANNELS is 1 or 2");
+  const std::string path = temp_path("wiretape-bench-causal");
+  {
+    wiretape::SessionHeader header;
+    header.port_type = "serial";
+    if (channels == 2) {
+      for (std::uint16_t id = 0; id < 2; ++id) {
+        wiretape::Channel channel;
+        channel.id = id;
+        channel.name = id == 0 ? "cmd" : "data";
+        channel.port_type = "serial";
+        header.channels.push_back(channel);
+      }
+    }
+    wiretape::SessionWriter writer(path, header);
+    const std::uint16_t rx_channel = channels == 2 ? 1 : 0;
+    for (std::uint64_t i = 0; i < rounds; ++i) {
+      const std::uint64_t t_ns = 1'000'000 + i * 1'000'000;
+      writer.write(wiretape::RecordKind::tx, t_ns, "G", 0);
+      writer.write(wiretape::RecordKind::rx, t_ns + 1, "X", rx_channel);
+    }
+  }
+  const std::string keys = "type=replay,timing=causal,unused=ignore,timeout=10,file=" + path;
+  auto writer = wiretape::open_port(channels == 2 ? keys + ",channel=cmd" : keys);
+  std::unique_ptr<wiretape::Port> other;
+  if (channels == 2) other = wiretape::open_port(keys + ",channel=data");
+  wiretape::Port& reader_port = channels == 2 ? *other : *writer;
+  std::vector<double> latency_us;
+  latency_us.reserve(rounds);
+  std::atomic<std::int64_t> written_at{0};
+  std::atomic<std::uint64_t> reads{0};
+  std::thread reader([&] {
+    char byte = 0;
+    for (std::uint64_t i = 0; i < rounds; ++i) {
+      if (reader_port.read(&byte, 1) != 1) throw std::runtime_error("causal: read timed out");
+      const auto now = Clock::now().time_since_epoch().count();
+      latency_us.push_back(static_cast<double>(now - written_at.load()) / 1e3);
+      reads = i + 1;
+    }
+  });
+  for (std::uint64_t i = 0; i < rounds; ++i) {
+    // The reader blocks first: the write is what wakes it.
+    while (reads.load() < i) std::this_thread::yield();
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+    written_at = Clock::now().time_since_epoch().count();
+    writer->write("G", 1);
+  }
+  reader.join();
+  std::remove(path.c_str());
+  std::printf("{\"rounds\": %llu, \"p50_us\": %.3f, \"p99_us\": %.3f}\n",
+              static_cast<unsigned long long>(rounds), wb::percentile(latency_us, 0.5),
+              wb::percentile(latency_us, 0.99));
+  return 0;
+}
+
 int usage() {
   std::cerr << "usage: wiretape_bench_tool make-session FILE BYTES | replay FILE BYTES |\n"
                "       timing RECORDS PERIOD_US | record-throughput BYTES ROUNDS |\n"
                "       record-latency ROUNDTRIPS ROUNDS | record-rss BYTES FILE |\n"
-               "       make-exchanges FILE COUNT | soak SECONDS DIR\n";
+               "       make-exchanges FILE COUNT | soak SECONDS DIR |\n"
+               "       make-channels FILE BYTES | replay-c1 FILE BYTES |\n"
+               "       causal-latency ROUNDS CHANNELS\n";
   return 2;
 }
 
@@ -391,6 +493,15 @@ int main(int argc, char** argv) {
       return 0;
     }
     if (command == "replay") return replay(argv[2], wb::parse_count(argv[3], "BYTES"));
+    if (command == "replay-c1") {
+      return replay(argv[2], wb::parse_count(argv[3], "BYTES"), ",channel=c1");
+    }
+    if (command == "make-channels") {
+      return make_channels(argv[2], wb::parse_count(argv[3], "BYTES"));
+    }
+    if (command == "causal-latency") {
+      return causal_latency(wb::parse_count(argv[2], "ROUNDS"), wb::parse_count(argv[3], "CHANNELS"));
+    }
     if (command == "timing") return timing(wb::parse_count(argv[2], "RECORDS"), wb::parse_count(argv[3], "PERIOD_US"));
     if (command == "record-throughput") {
       return record_throughput(wb::parse_count(argv[2], "BYTES"), wb::parse_count(argv[3], "ROUNDS"));

@@ -96,11 +96,20 @@ TARGETS = {
     "shim_unrelated_call_added_ns": (100, "lower",
                                      "ns an unrelated write/dup/close gains (worst)"),
     "shim_redirected_write_ratio": (None, "info", "with the shim / without, redirected write"),
-    # --- sessions of several ports (issue 25) ---
+    # --- sessions of several ports (issue 25, docs/replay.md "Several channels") ---
+    "channel_replay_time_ratio": (2.0, "lower",
+                                  "1 channel of a 4-channel file / same data alone, time"),
+    "channel_replay_rss_ratio": (1.1, "lower", "same, peak RSS"),
+    "causal_cross_channel_p99_extra_us": (50, "lower",
+                                          "µs p99 write->rx across channels minus on one"),
     "record_4_channels_vs_4_single_cpu_ratio": (1.1, "lower",
                                                 "record of 4 channels CPU s/MB / 4 single-port "
                                                 "records of the same traffic"),
 }
+
+# The 4-channel file of `channels`: 1 GiB (256 MiB a channel), smaller with
+# --quick or WIRETAPE_BENCH_CHANNELS_MIB (the whole file's MiB).
+CHANNELS_FILE_MIB = int(os.environ.get("WIRETAPE_BENCH_CHANNELS_MIB", "1024"))
 
 # Google Benchmark counters that are figures of the table: benchmark name ->
 # ((counter, results key), ...). The benchmarks run both sides in one process,
@@ -231,6 +240,46 @@ class Bench:
             self.notes["replay_1GiB_MBps"] = f"{result['MBps']:.0f} MB/s"
         finally:
             path.unlink(missing_ok=True)  # a GiB is too much to leave behind
+
+    def channels(self) -> None:
+        """One channel of a 4-channel file vs its data alone; causal latency
+        across channels vs on one."""
+        file_size = (100 if self.quick else CHANNELS_FILE_MIB) * MiB
+        channel_size = file_size // 4
+        need_disk(self.work, file_size + channel_size + 256 * MiB, "channels")
+        mixed = self.work / f"channels-{file_size // MiB}MiB.wtape"
+        alone = self.work / f"channel-alone-{channel_size // MiB}MiB.wtape"
+        try:
+            self.run_tool("make-channels", str(mixed), str(channel_size))
+            self.run_tool("make-session", str(alone), str(channel_size))
+            rounds = 3 if self.quick else 5
+            mixed_runs, alone_runs = [], []
+            for _ in range(rounds):  # interleaved, so both see the same machine
+                mixed_runs.append(self.run_tool("replay-c1", str(mixed), str(channel_size)))
+                alone_runs.append(self.run_tool("replay", str(alone), str(channel_size)))
+            mixed_s = statistics.median(r["seconds"] for r in mixed_runs)
+            alone_s = statistics.median(r["seconds"] for r in alone_runs)
+            mixed_rss = max(r["peak_rss_MB"] for r in mixed_runs)
+            alone_rss = max(r["peak_rss_MB"] for r in alone_runs)
+            self.results["channel_replay_time_ratio"] = round(mixed_s / alone_s, 3)
+            self.results["channel_replay_rss_ratio"] = round(mixed_rss / alone_rss, 3)
+            self.notes["channel_replay"] = (
+                f"{file_size // MiB} MiB file of 4 channels: channel c1 in {mixed_s:.2f} s, "
+                f"{mixed_rss:.0f} MiB; alone {alone_s:.2f} s, {alone_rss:.0f} MiB")
+        finally:
+            mixed.unlink(missing_ok=True)
+            alone.unlink(missing_ok=True)
+        rounds = "500" if self.quick else "2000"
+        ones, twos = [], []
+        for _ in range(3):  # interleaved; the median run of each, as a p99 is noisy
+            ones.append(self.run_tool("causal-latency", rounds, "1", timeout=120))
+            twos.append(self.run_tool("causal-latency", rounds, "2", timeout=120))
+        one = sorted(ones, key=lambda r: r["p99_us"])[1]
+        two = sorted(twos, key=lambda r: r["p99_us"])[1]
+        self.results["causal_cross_channel_p99_extra_us"] = round(two["p99_us"] - one["p99_us"], 2)
+        self.notes["causal_latency"] = (
+            f"write->rx p50/p99: one channel {one['p50_us']:.1f}/{one['p99_us']:.1f} µs, "
+            f"across channels {two['p50_us']:.1f}/{two['p99_us']:.1f} µs")
 
     def timing(self) -> None:
         """timing=session lateness of 10,000 records 1 ms apart; naive player."""
@@ -565,7 +614,7 @@ class Bench:
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
            "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "speed", "view", "show",
-           "shim", "record_channels"]
+           "shim", "channels", "record_channels"]
 
 
 def machine_note() -> dict:

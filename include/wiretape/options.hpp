@@ -73,6 +73,10 @@ const OptionKey* find_option_key(std::string_view name, std::string_view port_ty
 // The key valid for `port_type` nearest to the unknown `name` (a typo: a
 // few letters added, missing, changed or swapped), or nothing.
 std::optional<std::string> suggest_key(std::string_view name, std::string_view port_type);
+// The one of `candidates` nearest to `name` by the same rule (a channel's
+// name for a misspelt channel=), or nothing.
+std::optional<std::string> nearest_name(std::string_view name,
+                                        const std::vector<std::string>& candidates);
 
 // The one reading of a boolean and of a parity or flow-control name; nothing
 // for a spelling that is not one.

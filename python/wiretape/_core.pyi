@@ -1097,7 +1097,11 @@ class FaultSpec:
 
     @property
     def where_text(self) -> str:
-        """WHERE in its normal spelling (exchange:3)."""
+        """WHERE in its normal spelling (exchange:3; exchange:3@channel:gps)."""
+
+    @property
+    def channel(self) -> str:
+        """The channel of @channel:NAME; "" for a fault of every channel."""
 
     @property
     def text(self) -> str:

@@ -222,6 +222,8 @@ std::vector<OptionKey> build_table() {
           .fallback("silent")
           .choices({"silent", "closed"})
           .flag("--at-end"),
+      Row("channel", replay, text,
+          "the channel to replay, in a session of several ports (required there)"),
       Row("faults", replay, text, "injected faults, KIND@WHERE[;...]").flag("--fault"),
       Row("seed", replay, integer, "with faults: seeds their random choices")
           .fallback("0")
@@ -293,30 +295,45 @@ const OptionKey* find_option_key(std::string_view name, std::string_view port_ty
 }
 
 std::optional<std::string> suggest_key(std::string_view name, std::string_view port_type) {
+  std::vector<std::string> candidates;
+  for (const OptionKey& key : option_keys()) {
+    if (key.prefix || !key.applies_to(port_type) || key.name == name) continue;
+    candidates.emplace_back(key.name);
+  }
+  return nearest_name(name, candidates);
+}
+
+std::optional<std::string> nearest_name(std::string_view name,
+                                        const std::vector<std::string>& candidates) {
   // Two edits ("bod" for "baud"), one for a name of two letters, which two
-  // edits would turn into any other. Keys are lower case: BAUD is baud.
+  // edits would turn into any other. Case is ignored: BAUD is baud.
   const std::size_t allowed = name.size() <= 2 ? 1 : 2;
-  std::string folded(name);
-  std::transform(folded.begin(), folded.end(), folded.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  // Of equally near keys, the one that starts as the name does ("bod" is
+  const auto folded_text = [](std::string_view text) {
+    std::string folded(text);
+    std::transform(folded.begin(), folded.end(), folded.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return folded;
+  };
+  const std::string folded = folded_text(name);
+  // Of equally near names, the one that starts as the name does ("bod" is
   // two edits from both "baud" and "log").
-  auto common_start = [&](std::string_view key) {
+  auto common_start = [&](std::string_view candidate) {
     std::size_t n = 0;
-    while (n < key.size() && n < folded.size() && key[n] == folded[n]) ++n;
+    while (n < candidate.size() && n < folded.size() && candidate[n] == folded[n]) ++n;
     return n;
   };
   std::optional<std::string> best;
   std::size_t best_distance = allowed + 1;
   std::size_t best_start = 0;
-  for (const OptionKey& key : option_keys()) {
-    if (key.prefix || !key.applies_to(port_type) || key.name == name) continue;
-    const std::size_t distance = edit_distance(folded, key.name);
-    const std::size_t start = common_start(key.name);
+  for (const std::string& candidate : candidates) {
+    if (candidate == name) continue;
+    const std::string folded_candidate = folded_text(candidate);
+    const std::size_t distance = edit_distance(folded, folded_candidate);
+    const std::size_t start = common_start(folded_candidate);
     if (distance < best_distance || (distance == best_distance && start > best_start)) {
       best_distance = distance;
       best_start = start;
-      best = std::string(key.name);
+      best = candidate;
     }
   }
   return best;

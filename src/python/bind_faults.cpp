@@ -79,7 +79,10 @@ void bind_faults(nb::module_& m) {
           },
           "The seconds of t: or the probability of p:; None for the others.")
       .def_ro("kind_text", &FaultSpec::kind_text, "KIND in its normal spelling (corrupt:4).")
-      .def_ro("where_text", &FaultSpec::where_text, "WHERE in its normal spelling (exchange:3).")
+      .def_ro("where_text", &FaultSpec::where_text,
+              "WHERE in its normal spelling (exchange:3; exchange:3@channel:gps).")
+      .def_ro("channel", &FaultSpec::channel,
+              "The channel of @channel:NAME; \"\" for a fault of every channel.")
       .def_ro("text", &FaultSpec::text, "The item as written (without surrounding spaces).")
       .def("__repr__", &spec_repr);
 

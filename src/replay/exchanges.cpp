@@ -3,6 +3,7 @@
 #include <utility>
 
 #include "replay/client_session.hpp"
+#include "replay/replay_port.hpp"
 #include "session/reader.hpp"
 #include "wiretape/options.hpp"
 
@@ -209,10 +210,13 @@ SessionSegments segment_session_file(const std::string& path, const std::string&
   parsed.set("file", path);
   const ReplayConfig config = take_replay_config(parsed);
   SessionHeader header;
+  open_session_source(config.file, header, Streams::refused);
+  // Exchanges are numbered per channel (DESIGN.md section 19).
+  const Channel channel = choose_channel(config, header);
   const std::unique_ptr<RecordSource> source =
-      open_session_source(config.file, header, Streams::refused, 0);
+      session_source_factory(config.file, channel.id)();
   SessionSegments segments = segment_session(
-      *source, Segmentation{config.profile, header.port_type == "udp", config.match});
+      *source, Segmentation{config.profile, channel.port_type == "udp", config.match});
   if (source->damage()) throw *source->damage();
   return segments;
 }

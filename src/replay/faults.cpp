@@ -13,7 +13,8 @@ const char* const kFaultGrammar =
     "faults=KIND@WHERE[;KIND@WHERE...] with KIND one of drop[:N], corrupt[:N], "
     "garbage[:N], truncate[:N], duplicate, delay:MS, stall:MS, trickle[:MS], "
     "silence, disconnect, reconnect:MS and WHERE one of exchange:N, rx:N, "
-    "t:SECONDS, every:K, p:P (0..1, with seed=)";
+    "t:SECONDS, every:K, p:P (0..1, with seed=), optionally followed by "
+    "@channel:NAME (that channel's replay only)";
 
 namespace {
 
@@ -142,7 +143,20 @@ FaultSpec parse_item(std::string_view item) {
   FaultSpec spec;
   spec.text = std::string(item);
   parse_kind(trim(item.substr(0, at)), item, spec);
-  parse_where(trim(item.substr(at + 1)), item, spec);
+  std::string_view where = trim(item.substr(at + 1));
+  // WHERE@channel:NAME: the fault belongs to one channel of the session.
+  if (const std::size_t channel_at = where.find('@'); channel_at != std::string_view::npos) {
+    const std::string_view channel = trim(where.substr(channel_at + 1));
+    constexpr std::string_view prefix = "channel:";
+    if (channel.substr(0, prefix.size()) != prefix) {
+      bad_item(item, "after WHERE only '@channel:NAME' may follow");
+    }
+    spec.channel = std::string(trim(channel.substr(prefix.size())));
+    if (spec.channel.empty()) bad_item(item, "'@channel:' needs the channel's name");
+    where = trim(where.substr(0, channel_at));
+  }
+  parse_where(where, item, spec);
+  if (!spec.channel.empty()) spec.where_text += "@channel:" + spec.channel;
   return spec;
 }
 
@@ -175,6 +189,30 @@ std::string normal_fault_kind(std::string_view kind) {
   FaultSpec spec;
   parse_kind(trimmed, trimmed, spec);
   return spec.kind_text;
+}
+
+FaultPlan faults_for_channel(const FaultPlan& plan, const std::string& channel,
+                             const std::vector<std::string>& names,
+                             const std::string& file) {
+  FaultPlan chosen;
+  chosen.seed = plan.seed;
+  for (const FaultSpec& spec : plan.faults) {
+    if (!spec.channel.empty() &&
+        std::find(names.begin(), names.end(), spec.channel) == names.end()) {
+      std::string known;
+      for (const std::string& name : names) {
+        if (name.empty()) continue;
+        known += (known.empty() ? "" : ", ") + name;
+      }
+      throw OptionError("faults", "option 'faults': '" + spec.text + "' names channel '" +
+                                      spec.channel + "', which " + file + " does not have (" +
+                                      (known.empty() ? "it has no named channels"
+                                                     : "its channels: " + known) +
+                                      ")");
+    }
+    if (spec.channel.empty() || spec.channel == channel) chosen.faults.push_back(spec);
+  }
+  return chosen;
 }
 
 std::uint64_t splitmix64(std::uint64_t x) {

@@ -91,7 +91,10 @@ struct FaultSpec {
   std::uint64_t where_number = 0;  // exchange:N, rx:N, every:K
   double where_value = 0;          // t:SECONDS, p:P
   std::string kind_text;           // normalised (corrupt:4), for reports
-  std::string where_text;          // normalised (exchange:3, p:0.25)
+  std::string where_text;          // normalised (exchange:3, p:0.25; exchange:3@channel:gps)
+  // `@channel:NAME`: only the replay of that channel injects it; empty: every
+  // replay it is given to.
+  std::string channel;
   std::string text;                // the item as written (trimmed), for errors
 };
 
@@ -107,6 +110,15 @@ extern const char* const kFaultGrammar;
 // Parses `faults=` (a `;`-separated list of KIND@WHERE). Throws OptionError
 // naming the key `faults`, the item and the grammar.
 FaultPlan parse_faults(std::string_view text, std::uint64_t seed);
+
+// The faults of `plan` for the replay of channel `channel` of a session whose
+// channels are `names` (their names; empty for a file of one unnamed
+// channel): those without `@channel:` and those naming it. Throws
+// OptionError naming `faults` for a fault naming a channel the file does not
+// have.
+FaultPlan faults_for_channel(const FaultPlan& plan, const std::string& channel,
+                             const std::vector<std::string>& names,
+                             const std::string& file);
 
 // Parses one KIND (drop, corrupt:4, delay:500) into its normal spelling;
 // throws OptionError naming the key `faults`, the kind and the grammar.

@@ -123,6 +123,7 @@ ReplayConfig take_replay_config(Options& options) {
       {{"silent", ReplayAtEnd::silent}, {"closed", ReplayAtEnd::closed}});
 
   // Fault injection: parsed once, here, so that a bad plan fails at open.
+  config.channel = options.take_string("channel");
   const std::string faults = options.take_string("faults");
   const auto seed = static_cast<std::uint64_t>(options.take_int("seed"));
   config.faults = parse_faults(faults, seed);

@@ -20,8 +20,24 @@ enum class ReplayRepeat { none, last, cycle };
 enum class ReplayUnused { ignore, warn, error };
 enum class ReplayAtEnd { silent, closed };
 
+class ChannelHub;
+class ChannelMember;
+
 struct ReplayConfig {
   std::string file;
+  // channel=NAME as given: which channel of a session of several ports
+  // (DESIGN.md section 19); empty: not given.
+  std::string channel;
+  // The channel replayed (open_replay resolves `channel`): its records only.
+  std::uint16_t channel_id = 0;
+  // Whether the file has several channels: reports then name the channel.
+  bool several_channels = false;
+  // What the replays of this file's channels in this process share (one
+  // clock, causal order across channels); nullptr for a file of one channel.
+  std::shared_ptr<ChannelHub> hub;
+  // timing=causal on a file of several channels: this replay's place in the
+  // order across channels (match=sequence gates its rx on it); else nullptr.
+  std::shared_ptr<ChannelMember> member;
   ReplayTiming timing = ReplayTiming::causal;
   double speed = 1.0;
   ReplayCheck check = ReplayCheck::data;

@@ -38,7 +38,7 @@ ReplayEngine::ReplayEngine(ReplayConfig config, RecordSourceFactory sources,
     : config_(std::move(config)),
       timeline_(config_, open_time, origin_ns),
       released_(/*recycle_payloads=*/true),
-      report_(config_.file, config_.match),
+      report_(config_.file, config_.match, config_.several_channels ? config_.channel : ""),
       stage_(config_.faults, config_.datagrams, released_, std::move(fault_memory),
              config_.speed),
       strategy_(make_strategy(config_, timeline_, released_, report_, sources)) {}
@@ -191,7 +191,9 @@ std::string ReplayEngine::unused_report() {
   if (!unread) return {};
   const std::string text = strategy_->unused_report(unread->bytes, unread->records);
   if (text.empty()) return text;
-  return "replay of " + config_.file + ": " + text;
+  const std::string channel =
+      config_.several_channels ? "channel " + config_.channel + ": " : "";
+  return "replay of " + config_.file + ": " + channel + text;
 }
 
 }  // namespace wiretape::detail

@@ -13,6 +13,7 @@
 #include "posix/platform.hpp"
 #include "posix/syscalls.hpp"
 #include "posix/transports.hpp"
+#include "replay/channel_hub.hpp"
 #include "replay/client_session.hpp"
 #include "replay/exchanges.hpp"
 #include "replay/replay_engine.hpp"
@@ -26,20 +27,32 @@ namespace wiretape::detail {
 
 namespace {
 
-// A session file's records; damage ends them with one warning on stderr
-// (shared by the sources of one replay).
+// A session file's records of one channel; damage ends them with one
+// warning on stderr (shared by the sources of one replay).
 class SessionRecordSource final : public RecordSource {
  public:
-  SessionRecordSource(const std::string& path, std::shared_ptr<bool> warned)
-      : path_(path), source_(open_session_source(path, header_, Streams::refused, 0)),
-        warned_(std::move(warned)) {}
+  SessionRecordSource(const std::string& path, std::uint16_t channel,
+                      std::shared_ptr<bool> warned)
+      : path_(path), source_(open_session_source(path, header_, Streams::refused, channel)),
+        several_channels_(header_.channel_list().size() > 1), warned_(std::move(warned)) {}
   bool next(Record& record) override {
     if (source_->next(record)) return true;
     warn_of_damage();
     return false;
   }
   bool next(Record& record, PayloadView& view) override {
-    if (source_->next(record, view)) return true;
+    if (source_->next(record, view)) {
+      // In a file of several channels a read buffer holds mostly other
+      // channels' records: a view would pin a whole buffer for the few
+      // bytes of this channel's, so the look-ahead's memory would grow
+      // with the number of channels. A copy of this record's bytes costs
+      // less than the buffers it would pin.
+      if (view && several_channels_) {
+        record.data.assign(view.bytes.data(), view.bytes.size());
+        view = PayloadView{};
+      }
+      return true;
+    }
     warn_of_damage();
     return false;
   }
@@ -62,6 +75,7 @@ class SessionRecordSource final : public RecordSource {
   std::string path_;
   SessionHeader header_;
   std::unique_ptr<RecordSource> source_;
+  bool several_channels_;
   std::shared_ptr<bool> warned_;
 };
 
@@ -71,8 +85,77 @@ std::string describe(const ReplayConfig& config) {
                                                                 : "causal";
   const char* match =
       config.match == ReplayMatch::sequence ? "sequence" : "request";
-  return "replay " + config.file + " (timing=" + timing + ", match=" + match +
+  const std::string channel =
+      config.several_channels ? "channel=" + config.channel + ", " : std::string();
+  return "replay " + config.file + " (" + channel + "timing=" + timing + ", match=" + match +
          ")";
+}
+
+// When a replay opening now starts its clock: now, or the first open of a
+// channel of its file in this process.
+ReplayTime open_time(const ReplayConfig& config) {
+  const ReplayTime now = ReplayClock::now();
+  return config.hub ? config.hub->open_time(now) : now;
+}
+
+// The names of `channels`, for messages: "gps, rtk".
+std::string channel_names(const std::vector<Channel>& channels) {
+  std::string names;
+  for (const Channel& channel : channels) {
+    names += (names.empty() ? "" : ", ") + channel.name;
+  }
+  return names;
+}
+
+}  // namespace
+
+Channel choose_channel(const ReplayConfig& config, const SessionHeader& header) {
+  const std::vector<Channel> channels = header.channel_list();
+  const bool named = !header.channels.empty();
+  if (config.channel.empty()) {
+    if (channels.size() > 1) {
+      throw OptionError("channel", "option 'channel' is required: " + config.file +
+                                       " is a session of several ports (channels: " +
+                                       channel_names(channels) +
+                                       "); give channel=NAME");
+    }
+    return channels.front();
+  }
+  if (!named) {
+    throw OptionError("channel", "option 'channel=" + config.channel + "': " + config.file +
+                                     " has one channel and it is not named (none named); "
+                                     "leave channel= out");
+  }
+  if (const std::optional<Channel> found = header.find_channel(config.channel)) return *found;
+  std::vector<std::string> names;
+  for (const Channel& channel : channels) names.push_back(channel.name);
+  const std::optional<std::string> near = nearest_name(config.channel, names);
+  throw OptionError("channel", "option 'channel': " + config.file + " has no channel '" +
+                                   config.channel + "'" +
+                                   (near ? "; did you mean '" + *near + "'?" : std::string()) +
+                                   " (channels: " + channel_names(channels) + ")");
+}
+
+namespace {
+
+// The client's tx recorded on `channel` of the file at `path`, for the
+// causal order across channels.
+std::vector<ChannelHub::TxMark> recorded_tx(const std::string& path, std::uint16_t channel) {
+  std::vector<ChannelHub::TxMark> marks;
+  SessionHeader header;
+  const std::unique_ptr<RecordSource> source =
+      open_session_source(path, header, Streams::refused, channel);
+  Record record;
+  PayloadView view;
+  std::uint64_t offset = 0;
+  while (source->next(record, view)) {
+    if (record.kind != RecordKind::tx) continue;
+    const std::size_t size = view ? view.bytes.size() : record.data.size();
+    if (size == 0) continue;  // an empty datagram moves no byte count
+    offset += size;
+    marks.push_back({offset, record.t_ns});
+  }
+  return marks;
 }
 
 class ReplayPort : public Port {
@@ -82,7 +165,7 @@ class ReplayPort : public Port {
         sources_(sources),
         config_(config),
         engine_(std::make_unique<ReplayEngine>(std::move(config), std::move(sources),
-                                               ReplayClock::now())) {
+                                               open_time(config_))) {
     int fds[2];
     if (sys::pipe(fds) != 0) {
       throw PortError(errno, description_ + ": creating the readiness pipe");
@@ -102,6 +185,16 @@ class ReplayPort : public Port {
     if ((engine_->config().timing != ReplayTiming::none || !engine_->config().faults.empty()) &&
         !scheduler_.joinable()) {
       scheduler_ = std::thread([this] { schedule(); });
+    }
+    // Another channel's write may release rx here (timing=causal across
+    // channels): the blocked reader and the pollable handle learn it.
+    if (config_.member) {
+      config_.member->set_waker([this] {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (closed_) return;
+        update_signal(ReplayClock::now());
+        changed_.notify_all();
+      });
     }
   }
 
@@ -164,6 +257,10 @@ class ReplayPort : public Port {
     awaiting_client_ = false;
     const auto now = ReplayClock::now();
     const bool afresh = connect_t_ns || k == 1;
+    // The channels of one file start on one clock: the first client
+    // session of any of them (DESIGN.md section 19).
+    const ReplayTime start =
+        config_.hub && !connect_t_ns && k == 1 ? config_.hub->first_client_time(now) : now;
     if (afresh) {
       const bool by_request = connect_t_ns && config_.match == ReplayMatch::request;
       RecordSourceFactory sources =
@@ -173,7 +270,7 @@ class ReplayPort : public Port {
       ReplayConfig config = config_;
       config.first_exchange = first_exchange;
       if (by_request) config.client_session = served_session;
-      engine_ = std::make_unique<ReplayEngine>(std::move(config), std::move(sources), now,
+      engine_ = std::make_unique<ReplayEngine>(std::move(config), std::move(sources), start,
                                                connect_t_ns.value_or(0), fault_memory_);
       engine_->on_fault(fault_reporter_);  // each session's fault stage reports here
     }
@@ -365,7 +462,15 @@ class ReplayPort : public Port {
   }
 
   std::size_t write_some(const void* data, std::size_t size,
-                         Deadline) override {
+                         Deadline deadline) override {
+    write_locked(data, size, deadline);
+    // After this port's lock is let go: the replays of the other channels
+    // take theirs when woken.
+    if (config_.member) config_.member->wrote(size, ReplayClock::now());
+    return size;
+  }
+
+  std::size_t write_locked(const void* data, std::size_t size, Deadline) {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
     const auto now = ReplayClock::now();
@@ -588,6 +693,8 @@ class ReplayPort : public Port {
       closed_ = true;
       changed_.notify_all();
     }
+    // Not woken any more, and no longer holding the other channels back.
+    if (config_.member) config_.member->leave();
     if (scheduler_.joinable()) scheduler_.join();
     {
       std::lock_guard<std::mutex> lock(mutex_);
@@ -661,10 +768,10 @@ class DatagramReplayPort final : public ReplayPort, public DatagramPort {
 
 }  // namespace
 
-RecordSourceFactory session_source_factory(const std::string& path) {
+RecordSourceFactory session_source_factory(const std::string& path, std::uint16_t channel) {
   auto warned = std::make_shared<bool>(false);
-  return [path, warned] {
-    return std::make_unique<SessionRecordSource>(path, warned);
+  return [path, channel, warned] {
+    return std::make_unique<SessionRecordSource>(path, channel, warned);
   };
 }
 
@@ -727,10 +834,23 @@ std::unique_ptr<Port> open_replay(Options& options) {
   // refused at once.
   {
     SessionHeader header;
-    open_session_source(config.file, header, Streams::refused, 0);
-    config.datagrams = header.port_type == "udp";
+    open_session_source(config.file, header, Streams::refused);
+    const Channel channel = choose_channel(config, header);
+    config.channel_id = channel.id;
+    config.channel = channel.name;
+    config.datagrams = channel.port_type == "udp";
+    std::vector<std::string> names;
+    for (const Channel& each : header.channel_list()) names.push_back(each.name);
+    config.faults = faults_for_channel(config.faults, channel.name, names, config.file);
+    config.several_channels = header.channel_list().size() > 1;
+    if (config.several_channels) {
+      config.hub = ChannelHub::of_file(config.file);
+      if (config.timing == ReplayTiming::causal) {
+        config.member = config.hub->join(channel.id, recorded_tx(config.file, channel.id));
+      }
+    }
   }
-  RecordSourceFactory sources = session_source_factory(config.file);
+  RecordSourceFactory sources = session_source_factory(config.file, config.channel_id);
   return open_replay_session(std::move(config), std::move(sources));
 }
 

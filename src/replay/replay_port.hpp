@@ -8,14 +8,20 @@
 
 #include "replay/faults.hpp"
 #include "session/record_source.hpp"
-#include "replay/faults.hpp"
 #include "replay/replay_config.hpp"
 #include "wiretape/port.hpp"
 
 namespace wiretape::detail {
 
-// Sources over the session file at `path` (.wtape or flexiport log pair).
-RecordSourceFactory session_source_factory(const std::string& path);
+// Sources over the records of channel `channel` of the session file at
+// `path` (.wtape or flexiport log pair).
+RecordSourceFactory session_source_factory(const std::string& path,
+                                           std::uint16_t channel = 0);
+
+// The channel of `header` that `config` replays (channel=, DESIGN.md section
+// 19). Throws OptionError naming `channel` when it is missing on a file of
+// several channels, or names none of the file's.
+Channel choose_channel(const ReplayConfig& config, const SessionHeader& header);
 
 std::unique_ptr<Port> open_replay_session(ReplayConfig config,
                                           RecordSourceFactory sources);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "replay/channel_hub.hpp"
 #include "util/json.hpp"
 #include "wiretape/errors.hpp"
 
@@ -158,6 +159,20 @@ void SequenceStrategy::entitle() {
                           (tx_progress() >= ahead.tx_before && !held_by_flush_gate());
     if (!entitled) break;  // later records need at least as many tx bytes
     ahead.item.due = due_of(ahead);
+    // Across channels (DESIGN.md section 19): the client's tx recorded
+    // before it on the other channels come first, and the latest of them
+    // anchors it as the write before it on this channel does.
+    if (config_.member && config_.timing == ReplayTiming::causal) {
+      const ChannelMember::Gate gate = config_.member->gate(ahead.item.t_ns);
+      if (!gate.open) break;  // another channel's write wakes this replay
+      if (gate.anchor) {
+        // With no write before it on its own channel, the other channel's
+        // is its anchor (not the open); else the later of the two.
+        const ReplayTime across = timeline_.due(ahead.item.t_ns, gate.anchor);
+        const bool anchored_here = ahead.anchor_t_ns && finish_of(ahead.tx_before);
+        ahead.item.due = anchored_here ? std::max(ahead.item.due, across) : across;
+      }
+    }
     ahead_bytes_ -= ahead.item.payload().size();
     release_item(std::move(ahead.item), ahead.tx_before);
     ahead_.pop_front();

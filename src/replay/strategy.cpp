@@ -66,7 +66,8 @@ void MismatchReport::raise(const std::string& title, std::uint64_t offset,
                            std::uint64_t session_t_ns, std::int64_t exchange,
                            const std::string& extra, bool expected_is_datagram) const {
   std::ostringstream report;
-  report << "replay mismatch in " << file_ << ": " << title << "\n"
+  report << "replay mismatch in " << file_ << ": "
+         << (channel_.empty() ? "" : "channel " + channel_ + ": ") << title << "\n"
          << "  at tx byte offset " << offset << ", session time "
          << session_seconds(session_t_ns) << " s, exchange ";
   if (exchange >= 0) {

@@ -99,8 +99,10 @@ inline constexpr std::size_t kLookaheadBytes = 1 << 20;
 // last bytes the client wrote for its "before" line.
 class MismatchReport {
  public:
-  MismatchReport(std::string file, ReplayMatch match)
-      : file_(std::move(file)), match_(match) {}
+  // `channel`: the channel's name, said in reports of a file of several
+  // channels; empty otherwise.
+  MismatchReport(std::string file, ReplayMatch match, std::string channel = {})
+      : file_(std::move(file)), match_(match), channel_(std::move(channel)) {}
 
   // The client wrote these bytes and they were accepted.
   void accepted(std::string_view bytes);
@@ -116,6 +118,7 @@ class MismatchReport {
  private:
   std::string file_;
   ReplayMatch match_;
+  std::string channel_;
   std::string history_;  // the last kReplayContext accepted bytes
 };
 

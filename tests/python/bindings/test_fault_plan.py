@@ -98,3 +98,11 @@ def test_campaign_places_are_checked_by_the_replays_parser():
         faults.check_where("never-read.wtape", "drop@exchange:x")
     with pytest.raises(faults.FaultInputError, match="unknown fault kind 'boom'"):
         faults.check_where("never-read.wtape", "silence@t:1;boom@exchange:0")
+
+
+def test_a_fault_may_name_its_channel():
+    plan = _core.parse_faults("drop@exchange:3@channel:gps;corrupt@rx:1")
+    assert (plan[0].where_text, plan[0].channel) == ("exchange:3@channel:gps", "gps")
+    assert (plan[1].where_text, plan[1].channel) == ("rx:1", "")
+    with pytest.raises(wiretape.OptionError, match="@channel:NAME"):
+        _core.parse_faults("drop@exchange:3@chan:gps")
