@@ -102,6 +102,9 @@ TARGETS = {
     "channel_replay_rss_ratio": (1.1, "lower", "same, peak RSS"),
     "causal_cross_channel_p99_extra_us": (50, "lower",
                                           "µs p99 write->rx across channels minus on one"),
+    "record_4_channels_vs_4_single_cpu_ratio": (1.1, "lower",
+                                                "record of 4 channels CPU s/MB / 4 single-port "
+                                                "records of the same traffic"),
 }
 
 # The 4-channel file of `channels`: 1 GiB (256 MiB a channel), smaller with
@@ -491,6 +494,25 @@ class Bench:
             f"{figures['records']} records, first paint in "
             + ", ".join(f"{ms:.0f}" for ms in figures["paints_ms"])
             + " ms (three loads, median kept)")
+    def record_channels(self) -> None:
+        """One `wiretape record` of 4 TCP channels vs 4 single-port records
+        of the same streams: CPU per MB while the traffic flows."""
+        size_mib = 16 if self.quick else 64
+        need_disk(self.work, 2 * 4 * size_mib * MiB, "record_channels")
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "record_channels_bench.py"),
+                               str(size_mib), "3" if self.quick else "5"],
+                              capture_output=True, text=True, timeout=1800,
+                              env=dict(self.env, TMPDIR=str(self.work)))
+        if proc.returncode != 0:
+            raise Skip("record_channels_bench.py: "
+                       + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        self.results["record_4_channels_vs_4_single_cpu_ratio"] = round(figures["ratio"], 3)
+        self.notes["record_channels"] = (
+            f"{figures['MB']:.0f} MB a round; 4 channels {figures['multi_ms_per_MB']:.2f} ms "
+            f"CPU/MB, 4 single ports {figures['single_ms_per_MB']:.2f} ms CPU/MB (medians; "
+            f"ratio {self.spread(figures['ratios'])})")
+
     # --- the --as shim -------------------------------------------------------
     def shim(self) -> None:
         """The shim's added cost per call: bench/shim_bench.c run with and
@@ -592,7 +614,7 @@ class Bench:
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
            "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "speed", "view", "show",
-           "shim", "channels"]
+           "shim", "channels", "record_channels"]
 
 
 def machine_note() -> dict:

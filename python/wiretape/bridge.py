@@ -211,7 +211,8 @@ def record(device: str, output, *, pty=None, listen=None, udp=None,
            backlog: Optional[int] = None, duration: Optional[float] = None,
            meta: Optional[Mapping[str, str]] = None,
            quiet: bool = False, pty_mode: Optional[int] = None,
-           pty_group: PtyGroup = None, line_channel: str = "") -> BridgeHandle:
+           pty_group: PtyGroup = None, line_channel: str = "", peer=None,
+           recorder=None, channel: str = "") -> BridgeHandle:
     """``wiretape record``: a transparent proxy between ``device`` and a pty
     at ``pty`` (a symlink path; True for none) or a TCP listener at
     ``listen`` or a UDP socket at ``udp`` (a datagram proxy: replies go to
@@ -220,12 +221,21 @@ def record(device: str, output, *, pty=None, listen=None, udp=None,
     applied to the device; ``pty_mode``/``pty_group`` set who may open it
     (default 0o660, group dialout). ``backlog``: the TCP listen queue (see
     ``serve``). ``line_channel``: the socket the ``--as`` shim tells the
-    client's serial lines through (``wiretape.redirect``)."""
+    client's serial lines through (``wiretape.redirect``). ``peer``: with
+    ``udp``, where the device's datagrams go from the start. ``recorder``
+    (a ``wiretape.Recorder``) and ``channel`` (a name): record into that
+    channel of the recorder's file instead of opening ``output``."""
     path = os.fspath(output)
     if not path.strip():
         raise ValueError("output: the file name is empty; give the session file to record to")
-    return _start(device_options(device), pty=pty, listen=listen, udp=udp, backlog=backlog,
-                  output=path, metadata=dict(meta or {}),
+    if recorder is not None:
+        # One file for several bridges: the recorder's (DESIGN.md section 19).
+        return _start(device_options(device), pty=pty, listen=listen, udp=udp, peer=peer,
+                      backlog=backlog, recorder=recorder, channel=channel,
+                      duration=duration, quiet=quiet, pty_mode=pty_mode,
+                      pty_group=pty_group, line_channel=line_channel)
+    return _start(device_options(device), pty=pty, listen=listen, udp=udp, peer=peer,
+                  backlog=backlog, output=path, metadata=dict(meta or {}),
                   duration=duration, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group,
                   line_channel=line_channel)
 

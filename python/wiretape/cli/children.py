@@ -63,10 +63,17 @@ def replay_with_command(args, out: Output) -> int:
     from ..redirect import LineChannelPath, recorded_device_path, recorded_identity
     from ..session import refuse_same_file, session_files
 
+    from .channels import refuse_unnamed_on_several
+    from .endpoints import Endpoint
     from .run import check_fault_places
 
     pty, link = _command_client_side(args)
     require_input(args.file)
+    # A file of several channels: each needs its NAME= (and -- CMD of
+    # several is not supported yet).
+    given = {dest: getattr(args, dest) for dest in ("pty", "redirect_path")
+             if getattr(args, dest) is not None}
+    refuse_unnamed_on_several(args, [Endpoint("", given)] if given else [])
     # A --fault past the session's end is a usage error before CMD starts.
     check_fault_places(args)
     if args.output:

@@ -218,6 +218,16 @@ _COMMAND_USAGE = {
 }
 
 
+# The form of several channels, a second usage line (docs/cli.md).
+_CHANNELS_USAGE = {
+    "record": "wiretape record -o FILE (--device NAME=OPTS (--pty NAME=PATH | "
+              "--listen NAME=HOST:PORT | --udp NAME=HOST:PORT [--peer NAME=HOST:PORT]))... "
+              "[--duration S] [--meta KEY=VALUE] [-q]",
+    "replay": "wiretape replay FILE (--pty NAME=PATH | --listen NAME=HOST:PORT | "
+              "--udp NAME=HOST:PORT [--peer NAME=HOST:PORT])... [replay keys...]",
+}
+
+
 def _finish_help(name: str, sub: argparse.ArgumentParser) -> None:
     """The usage line shows the CMD after ``--`` (argparse never sees it),
     and the note on --device is only where there is a --device."""
@@ -226,6 +236,8 @@ def _finish_help(name: str, sub: argparse.ArgumentParser) -> None:
     if name in _COMMAND_USAGE:
         usage = sub.format_usage().rstrip()
         sub.usage = usage[len("usage: "):] + " " + _COMMAND_USAGE[name]
+    if name in _CHANNELS_USAGE:  # first, so that the usage still ends with CMD
+        sub.usage = _CHANNELS_USAGE[name] + "\n       " + sub.usage
 
 
 class _Parser(argparse.ArgumentParser):
@@ -252,18 +264,37 @@ class ParserExit(Exception):
         self.status = status
 
 
+def _named(check: Callable[[str], str]) -> Callable[[str], str]:
+    """An argparse type for an endpoint flag: its value after an optional
+    ``NAME=`` prefix (cli/endpoints.py) checked by `check`; the text is
+    kept whole, for endpoints.collect() to split."""
+    def check_value(text: str) -> str:
+        from .endpoints import split_name
+
+        check(split_name(text)[1])
+        return text
+    return check_value
+
+
+# The NAME= prefix every endpoint flag takes (DESIGN.md section 19).
+_NAMED = ("; NAME=... names its channel (repeatable, one per channel: "
+          "a session of several ports)")
+
+
 def _add_client_side(parser, verb: str) -> None:
-    side = parser.add_mutually_exclusive_group()
-    side.add_argument("--pty", metavar="PATH",
+    # One client side per channel: endpoints.py checks it, per NAME.
+    side = parser
+    side.add_argument("--pty", metavar="[NAME=]PATH", action="append",
                       help=f"{verb} on a new pseudo-terminal, linked at PATH (the "
-                           "client opens PATH as if it were the device)")
-    side.add_argument("--listen", metavar="HOST:PORT",
+                           "client opens PATH as if it were the device)" + _NAMED)
+    side.add_argument("--listen", metavar="[NAME=]HOST:PORT", action="append",
                       help=f"{verb} on TCP: the client connects to HOST:PORT "
-                           "(PORT alone means 127.0.0.1:PORT; 0 picks a free port)")
-    side.add_argument("--udp", metavar="HOST:PORT", type=_udp_address("udp", 0),
+                           "(PORT alone means 127.0.0.1:PORT; 0 picks a free port)" + _NAMED)
+    side.add_argument("--udp", metavar="[NAME=]HOST:PORT", action="append",
+                      type=_named(_udp_address("udp", 0)),
                       help=f"{verb} over UDP: the client sends datagrams to HOST:PORT "
                            "and gets the device's back, one datagram per record "
-                           "(0 picks a free port)")
+                           "(0 picks a free port)" + _NAMED)
     parser.add_argument("--pty-mode", dest="pty_mode", type=_pty_mode, metavar="MODE",
                         help="with --pty: the terminal's permission bits, octal "
                              "(default 0660, as a serial device)")
@@ -273,9 +304,9 @@ def _add_client_side(parser, verb: str) -> None:
 
 
 def _add_redirect(parser, default: str) -> None:
-    parser.add_argument("--as", dest="redirect_path", metavar="PATH",
+    parser.add_argument("--as", dest="redirect_path", metavar="[NAME=]PATH", action="append",
                         help="with -- CMD: the device path CMD opens, redirected to the "
-                             f"pty ({default})")
+                             f"pty ({default})" + _NAMED)
 
 
 _COMMANDS_WITH_CMD = ("record", "replay", "faults")
@@ -319,9 +350,16 @@ def build_parser() -> argparse.ArgumentParser:
         "the device and recorded. A pty has no modem lines: with -- CMD the preload "
         "shim emulates DTR/RTS, CTS/DSR/RI/CD, break and custom baud for CMD, applied "
         "to the device and recorded.")
-    record.add_argument("--device", required=True, metavar="OPTS",
-                        help="the real device: a port option string or a serial device path")
+    record.add_argument("--device", metavar="[NAME=]OPTS", action="append",
+                        help="the real device: a port option string or a serial device path"
+                             + _NAMED)
     _add_client_side(record, "the driver connects")
+    record.add_argument("--peer", metavar="[NAME=]HOST:PORT", action="append",
+                        type=_named(_udp_address("peer", 1)),
+                        help="with --udp: send the device's datagrams to HOST:PORT from "
+                             "the start; without a --device of its name, the device "
+                             "streams datagrams to --udp and each is forwarded to "
+                             "HOST:PORT and recorded as rx" + _NAMED)
     _add_backlog(record)
     record.add_argument("-o", "--output", required=True, metavar="FILE", type=_session_output,
                         help="the session file to write (.wtape)")
@@ -351,9 +389,11 @@ def build_parser() -> argparse.ArgumentParser:
     _add_replay_keys(replay)
     replay.add_argument("--options", metavar="KEYS",
                         help="further replay keys as an option string (k=v,k=v)")
-    replay.add_argument("--peer", metavar="HOST:PORT", type=_udp_address("peer", 1),
+    replay.add_argument("--peer", metavar="[NAME=]HOST:PORT", action="append",
+                        type=_named(_udp_address("peer", 1)),
                         help="with --udp: send the device's datagrams to HOST:PORT from "
-                             "the start (default: to the last sender, once one has sent)")
+                             "the start (default: to the last sender, once one has sent)"
+                             + _NAMED)
     replay.add_argument("--protocol", choices=("raw", "rfc2217"), default="raw",
                         help="with --listen: raw bytes or RFC 2217, for pyserial's "
                              "rfc2217:// (the client sets the line and reads the recorded "

@@ -194,13 +194,27 @@ def announce_clients(handle, out: Output, what: str, link: Optional[str] = None,
 
 def cmd_record(args, out: Output) -> int:
     from .. import bridge
+    from .channels import record_channels, stream_device
     from .children import record_with_command, refuse_as_without_command
+    from .endpoints import check_record, collect, is_single, single
 
+    endpoints = collect(args, ("device", "pty", "listen", "udp", "peer", "redirect_path"))
+    if not is_single(endpoints):
+        check_record(endpoints, with_command=args.command_argv is not None)
+        return record_channels(args, endpoints, out)
+    single(args, endpoints)
+    streams_to_peer = bool(endpoints) and endpoints[0].streams_to_peer
+    if args.device is None and not streams_to_peer:
+        raise UsageError("the following arguments are required: --device")
     if getattr(args, "command_argv", None) is not None:
         return record_with_command(args, out)
     refuse_as_without_command(args)
     pty, listen = _client_side(args)
-    handle = bridge.record(args.device, args.output, pty=pty, listen=listen, udp=args.udp,
+    device, udp = args.device, args.udp
+    if streams_to_peer:
+        device, udp = stream_device(endpoints[0])
+    handle = bridge.record(device, args.output, pty=pty, listen=listen, udp=udp,
+                           peer=args.peer,
                            backlog=args.backlog, duration=args.duration, meta=meta_pairs(args.meta),
                            quiet=True, pty_mode=args.pty_mode,
                            pty_group=args.pty_group)
@@ -240,8 +254,17 @@ def replay_options_of(args) -> str:
 def cmd_replay(args, out: Output) -> int:
     from .. import bridge
     from ..session import refuse_same_file, session_files
+    from .channels import channel_names, refuse_unnamed_on_several, replay_channels
     from .children import refuse_as_without_command, replay_with_command
+    from .endpoints import check_replay, collect, is_single, single
 
+    endpoints = collect(args, ("pty", "listen", "udp", "peer", "redirect_path"))
+    if not is_single(endpoints):
+        require_input(args.file)
+        check_replay(endpoints, args.command_argv is not None, channel_names(args.file),
+                     args.file)
+        return replay_channels(args, endpoints, out)
+    single(args, endpoints)
     if getattr(args, "command_argv", None) is not None:
         return replay_with_command(args, out)
     refuse_as_without_command(args)
@@ -249,6 +272,7 @@ def cmd_replay(args, out: Output) -> int:
     if args.protocol != "raw" and listen is None:
         raise UsageError(f"--protocol {args.protocol} is spoken over TCP: give --listen HOST:PORT")
     require_input(args.file)
+    refuse_unnamed_on_several(args, endpoints)
     check_fault_places(args)
     if args.output:
         refuse_same_file(session_files(args.file), [args.output])

@@ -2,7 +2,7 @@
 tests/python/clients/test_mavlink.py.
 
 ``Vehicle`` is the device: a small MAVLink 2 autopilot (dialect ``common``)
-on TCP or UDP that sends a HEARTBEAT every second to whoever it talks to,
+on TCP or UDP, or a component of it on a serial line (a pty), that sends a HEARTBEAT every second to whoever it talks to,
 answers each HEARTBEAT of a ground station with one of its own, and
 answers PARAM_REQUEST_LIST with one PARAM_VALUE per parameter of
 ``PARAMETERS``. It runs in a thread of the test.
@@ -10,7 +10,7 @@ answers PARAM_REQUEST_LIST with one PARAM_VALUE per parameter of
 Run as a script, this file is the ground station (a separate process, so
 that pymavlink's MAVLINK20/dialect choice, made at import, is its own):
 
-    python mavlink_peers.py CONNECTION     # tcp:HOST:PORT or udpout:HOST:PORT
+    python mavlink_peers.py CONNECTION     # tcp:HOST:PORT, udpout:HOST:PORT or a pty
 
 It connects with ``mavutil.mavlink_connection``, sends a HEARTBEAT (a GCS
 announces itself; on UDP that is how the vehicle learns its address), waits
@@ -49,13 +49,27 @@ class Vehicle:
     ``options`` is the wiretape option string that reaches it.
     ``param_requests`` counts the PARAM_REQUEST_LISTs it answered."""
 
-    def __init__(self, transport):
+    def __init__(self, transport, component=VEHICLE_COMPONENT):
         from pymavlink.dialects.v20 import common as mavlink2
 
         self._mavlink = mavlink2
-        self._mav = mavlink2.MAVLink(None, srcSystem=VEHICLE_SYSTEM,
-                                     srcComponent=VEHICLE_COMPONENT)
+        self._mav = mavlink2.MAVLink(None, srcSystem=VEHICLE_SYSTEM, srcComponent=component)
         self.transport = transport
+        self.param_requests = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        if transport == "pty":
+            # A component on a serial line: the device end is the terminal
+            # (``path``); the component reads and writes its master.
+            import tty
+
+            self._master, self._terminal = os.openpty()
+            tty.setraw(self._terminal)
+            self.path = os.ttyname(self._terminal)
+            self.options = f"type=serial,device={self.path}"
+            self._socket = None
+            self._thread.start()
+            return
         kind = socket.SOCK_STREAM if transport == "tcp" else socket.SOCK_DGRAM
         self._socket = socket.socket(socket.AF_INET, kind)
         self._socket.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
@@ -64,9 +78,6 @@ class Vehicle:
             self._socket.listen(1)
         self.port = self._socket.getsockname()[1]
         self.options = f"type={transport},host=127.0.0.1,port={self.port}"
-        self.param_requests = 0
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
         self._thread.start()
 
     def __enter__(self):
@@ -78,7 +89,11 @@ class Vehicle:
     def close(self):
         self._stop.set()
         self._thread.join(10.0)
-        self._socket.close()
+        if self._socket is None:
+            os.close(self._master)
+            os.close(self._terminal)
+        else:
+            self._socket.close()
 
     # --- MAVLink -------------------------------------------------------------------
 
@@ -111,8 +126,27 @@ class Vehicle:
     def _run(self):
         if self.transport == "tcp":
             self._run_tcp()
+        elif self.transport == "pty":
+            self._run_pty()
         else:
             self._run_udp()
+
+    def _run_pty(self):
+        parser = self._mavlink.MAVLink(None)
+        next_beat = time.monotonic()
+        while not self._stop.is_set():
+            if time.monotonic() >= next_beat:
+                next_beat += HEARTBEAT_PERIOD_S
+                os.write(self._master, self._heartbeat())
+            ready, _, _ = select.select([self._master], [], [], _POLL_S)
+            if not ready:
+                continue
+            try:
+                data = os.read(self._master, 65536)
+            except OSError:  # EIO: nobody has the terminal open (yet)
+                continue
+            for packet in self._answers(parser, data):
+                os.write(self._master, packet)
 
     def _run_tcp(self):
         while not self._stop.is_set():
