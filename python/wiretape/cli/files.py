@@ -39,6 +39,7 @@ def require_session(path: str) -> None:
 
 
 def cmd_show(args, out: Output) -> int:
+    from ..tools.channels import UnknownChannel
     from ..tools.show import Selection, color_wanted, show_reporting_damage
 
     require_session(args.file)
@@ -54,13 +55,16 @@ def cmd_show(args, out: Output) -> int:
         select = Selection(kinds=frozenset(args.kind) if args.kind else None,
                            start_s=args.start_s, end_s=args.end_s,
                            grep=args.grep.encode("utf-8", "surrogateescape")
-                           if args.grep is not None else None)
+                           if args.grep is not None else None,
+                           channels=frozenset(args.channel) if args.channel else None)
     except ValueError as error:
         raise UsageError(str(error)) from None
     try:
         _, damage = show_reporting_damage(args.file, fmt=args.format, profile=profile,
                                           select=select, full=args.full,
                                           color=color_wanted(args.color, sys.stdout))
+    except UnknownChannel as error:
+        raise UsageError(f"--channel: {error}") from None
     except BrokenPipeError:  # `wiretape show big.wtape | head`
         silence_stdout()
         return EXIT_OK
@@ -77,7 +81,8 @@ def _show_textconv(args) -> int:
                          "hex, without --profile")
     chosen = [flag for flag, given in (("--kind", args.kind), ("--from", args.start_s is not None),
                                        ("--to", args.end_s is not None),
-                                       ("--grep", args.grep is not None), ("--full", args.full))
+                                       ("--grep", args.grep is not None), ("--full", args.full),
+                                       ("--channel", args.channel))
               if given]
     if chosen:
         raise UsageError(f"{chosen[0]} does not go with --textconv (which shows every record "
