@@ -123,11 +123,25 @@ def cmd_verify(args, out: Output) -> int:
     if args.json:
         print(json.dumps(result.to_json(), indent=2, sort_keys=True, default=str))
     elif result.ok:
-        out.print(f"{args.file}: ok, {result.records} records", style="green")
+        out.print(f"{args.file}: ok, {result.records} records{_per_channel(result)}",
+                  style="green")
+    elif result.unlisted_channel is not None:
+        out.print(f"{args.file}: BAD {result.message}{_per_channel(result)}", style="bold red")
     else:
         out.print(f"{args.file}: DAMAGED at byte {result.offset} after "
-                  f"{result.records} good records: {result.message}", style="bold red")
+                  f"{result.records} good records: {result.message}{_per_channel(result)}",
+                  style="bold red")
     return EXIT_OK if result.ok else EXIT_CHECK_FAILED
+
+
+def _per_channel(result) -> str:
+    """`` (gps 4, rtk 6)``: the records of each channel of a session of several."""
+    from ..session import header_text
+
+    if not result.channel_records:
+        return ""
+    return " (" + ", ".join(f"{header_text(name)} {count}"
+                            for name, count in result.channel_records.items()) + ")"
 
 
 def cmd_convert(args, out: Output) -> int:
@@ -171,7 +185,7 @@ def cmd_edit(args, out: Output) -> int:
     profile = {None: "", "none": None}.get(args.profile, args.profile)
     # In a child process: a signal ends a catastrophic pattern's matching too.
     result = edit_in_child(args.input, args.output, cut=cut, redact=redactions,
-                           drop_meta=args.drop_meta, profile=profile)
+                           drop_meta=args.drop_meta, profile=profile, channels=args.channel)
     if not args.quiet:
         done = "; ".join(result.edits)
         matches = (f", {result.matches} matches redacted in {result.redacted_records} records"
