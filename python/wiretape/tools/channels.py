@@ -17,7 +17,7 @@ from .. import _core
 from ..session import SessionPath, header_text
 
 __all__ = ["channel_names", "several_channels", "choose_channels", "channel_label",
-           "open_channel", "UnknownChannel"]
+           "open_channel", "capture_text", "UnknownChannel"]
 
 
 class UnknownChannel(ValueError):
@@ -34,6 +34,12 @@ def several_channels(header: _core.SessionHeader) -> bool:
     """Whether the file holds more than one channel: then the tools name
     the channel of each record."""
     return len(header.channel_list()) > 1
+
+
+def capture_text(capture) -> str:
+    """A capture kind as the header's JSON names it (``client``, ``wire``),
+    whether it comes as that text or as the enum."""
+    return capture if isinstance(capture, str) else str(getattr(capture, "name", capture))
 
 
 def channel_label(names: Dict[int, str], channel: int) -> str:

@@ -41,7 +41,7 @@ from typing import Dict, Iterable, Iterator, List, Optional, Union
 
 from .. import _core
 from ..session import DIRECTIONS, header_text, is_stream, open_session
-from .channels import several_channels
+from .channels import capture_text, several_channels
 
 _CONTEXT = 16
 
@@ -656,7 +656,8 @@ def _channel_copy(path: str, header: _core.SessionHeader, name: str, copy: str
     own = _core.SessionHeader.from_dict(header.to_dict())
     own.channels = []
     own.port_options, own.port_type = channel.port_options, channel.port_type
-    own.capture, own.device_address = channel.capture, channel.device_address
+    own.capture = capture_text(channel.capture)
+    own.device_address = channel.device_address
     with _core.SessionReader(path, channel=channel.id) as reader, \
             _core.SessionWriter(copy, own) as writer:
         for record in reader:

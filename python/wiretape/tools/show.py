@@ -21,7 +21,8 @@ from ..exports.jsonl import json_line, record_to_json
 from ..session import DIRECTIONS as _DIRECTIONS
 from ..session import SessionPath, event_of, event_payload, header_text, open_session
 from ..session import printable as _printable
-from .channels import channel_label, channel_names, choose_channels, several_channels
+from .channels import (capture_text, channel_label, channel_names, choose_channels,
+                       several_channels)
 
 __all__ = ["show", "show_reporting_damage", "Selection", "check_kinds", "record_kinds",
            "color_wanted"]
@@ -67,7 +68,7 @@ def _header_lines(reader: _core.SessionReader, path: SessionPath) -> Iterator[st
                 if channel.port_type or channel.port_options else "")
         device = f", device {header_text(channel.device_address)}" if channel.device_address else ""
         yield (f"  channel      {channel.id} {header_text(channel.name)}:{port} "
-               f"(capture {header_text(channel.capture)}{device})")
+               f"(capture {header_text(capture_text(channel.capture))}{device})")
     for edit in header.edits:
         yield f"  edited       {header_text(edit)}"
     for key, value in sorted(header.metadata.items()):
@@ -238,7 +239,8 @@ def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optiona
     delta = wrap is None
     limit = 64 if not full else None
     # Several channels: a column names each record's channel.
-    width = max(len(channel_label(names, id)) for id in names) if several else 0
+    width = max([len("channel")] + [len(channel_label(names, id)) for id in names]) \
+        if several else 0
     labels: dict = {}
 
     def channel_column(channel: int) -> str:
