@@ -290,3 +290,44 @@ def test_verify_command_exits_1_naming_the_stray_record(tmp_path, capsys):
     assert cli.main(["verify", session.path]) == 1
     out = capsys.readouterr().out
     assert "names channel 3, which the header does not list (its channels: gps, rtk)" in out
+
+
+# ---------------------------------------------------------------- combinations
+
+
+def _nmea(body: bytes) -> bytes:
+    checksum = 0
+    for byte in body:
+        checksum ^= byte
+    return b"$" + body + b"*%02X\r\n" % checksum
+
+
+def test_redact_with_a_profile_reseals_split_frames_of_one_channel_only(tmp_path):
+    # gps's sentences are split over records, with rtk's NMEA-looking bytes
+    # in between: framed together, rtk's bytes would break gps's frames.
+    sentences = [_nmea(b"GPGGA,123519,4807.038,N,01131.%03d,E" % n) for n in range(3)]
+    rtk_text = _nmea(b"GPTXT,01,01,02,SERIAL 4711")
+    records = [("gps", "tx", 0, b"POLL\r\n"), ("rtk", "tx", 100, b"GET\r\n")]
+    t = 1_000
+    for sentence in sentences:
+        records += [("gps", "rx", t, sentence[:20]), ("rtk", "rx", t + 1, rtk_text[:10]),
+                    ("gps", "rx", t + 2, sentence[20:]), ("rtk", "rx", t + 3, rtk_text[10:])]
+        t += 1_000
+    session = write_channel_session(tmp_path / "nmea.wtape", CHANNELS, records)
+    out = tmp_path / "scrubbed.wtape"
+    result = edit(session.path, out, redact=[parse_redaction(r"4807\.038")], profile="nmea",
+                  channels=["gps"])
+    assert result.matches == 3 and result.resealed_frames == 3
+    _, written = _read(out)
+    by_channel = {}
+    for channel, kind, _, data in written:
+        if kind == "rx":
+            by_channel.setdefault(session.names[channel], b"")
+            by_channel[session.names[channel]] += data
+    expected_gps = b"".join(_nmea(s[1:s.index(b"*")].replace(b"4807.038", b"********"))
+                            for s in sentences)
+    assert by_channel["gps"] == expected_gps
+    assert by_channel["rtk"] == rtk_text * 3  # not scrubbed, not resealed
+    # the records kept their sizes and places
+    assert [(c, k, t, len(d)) for c, k, t, d in written if k != "redaction"] == \
+        [(c, k, t, len(d)) for c, k, t, d in session.records]
