@@ -315,7 +315,7 @@ def test_redact_with_a_profile_reseals_split_frames_of_one_channel_only(tmp_path
         t += 1_000
     session = write_channel_session(tmp_path / "nmea.wtape", CHANNELS, records)
     out = tmp_path / "scrubbed.wtape"
-    result = edit(session.path, out, redact=[parse_redaction(r"4807\.038")], profile="nmea",
+    result = edit(session.path, out, redact=[parse_redaction(r"4807\.038=X")], profile="nmea",
                   channels=["gps"])
     assert result.matches == 3 and result.resealed_frames == 3
     _, written = _read(out)
@@ -324,7 +324,7 @@ def test_redact_with_a_profile_reseals_split_frames_of_one_channel_only(tmp_path
         if kind == "rx":
             by_channel.setdefault(session.names[channel], b"")
             by_channel[session.names[channel]] += data
-    expected_gps = b"".join(_nmea(s[1:s.index(b"*")].replace(b"4807.038", b"********"))
+    expected_gps = b"".join(_nmea(s[1:s.index(b"*")].replace(b"4807.038", b"XXXXXXXX"))
                             for s in sentences)
     assert by_channel["gps"] == expected_gps
     assert by_channel["rtk"] == rtk_text * 3  # not scrubbed, not resealed
