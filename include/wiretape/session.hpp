@@ -48,9 +48,8 @@ struct Record {
   std::uint64_t t_ns = 0;  // since the device was opened, monotonic
   RecordKind kind = RecordKind::rx;
   std::string data;
-  // Which port of a session the record belongs to. Reserved for sessions of
-  // several ports: 0, the session's port, in every file written today;
-  // readers skip records of other channels.
+  // Which port of the session the record belongs to (format 1.2: its id in
+  // SessionHeader::channels); 0 in a session of one port.
   std::uint16_t channel = 0;
 };
 
@@ -82,6 +81,29 @@ struct DeviceIdentity {
   bool operator!=(const DeviceIdentity& other) const { return !(*this == other); }
 };
 
+// One port of a session of several ports (format 1.2, DESIGN §19): what a
+// session header says of a single port, said of each of its channels.
+struct Channel {
+  std::uint16_t id = 0;  // what its records carry in Record::channel
+  // "" only for the one channel of a session without named channels; else
+  // unique in the session and a good name (channel_name_problem).
+  std::string name;
+  std::string port_options;
+  std::string port_type;
+  Capture capture = Capture::client;
+  std::string device_address;
+  std::optional<DeviceIdentity> device_identity;
+
+  bool operator==(const Channel& other) const;
+  bool operator!=(const Channel& other) const { return !(*this == other); }
+};
+
+// Why `name` cannot name a channel (not an identifier of at most 64
+// characters: letters, digits, '_' and '-', not starting with a digit or
+// '-'; or an option key, which would make `--device NAME=...` ambiguous),
+// or std::nullopt when it can.
+std::optional<std::string> channel_name_problem(std::string_view name);
+
 // A session's header: what was recorded, where, when and how. The one type
 // for reading (SessionReader::header) and writing (SessionWriter): what a
 // writer is given is what the file says, nothing is filled in behind it.
@@ -112,6 +134,18 @@ struct SessionHeader {
   // has it (none for a pty, a network device, an import).
   std::optional<DeviceIdentity> device_identity;
   std::map<std::string, std::string> user_metadata;  // free user metadata (--meta)
+  // Format 1.2: the session's ports, ids 0..n-1 in order. Empty: one
+  // unnamed channel, 0, which the port members above describe. With
+  // channels, the port members above are channel 0's: to_json writes them
+  // from channels[0], so that a reader of format 1.1 (which skips records of
+  // other channels) reads the session as its channel 0.
+  std::vector<Channel> channels;
+
+  // Every channel of the session: `channels`, or the one unnamed channel 0
+  // that the port members describe. Never empty.
+  std::vector<Channel> channel_list() const;
+  // The channel named `name`, if the session has one.
+  std::optional<Channel> find_channel(std::string_view name) const;
 
   // A header for a session that starts now on this machine: start_utc is
   // now and host this machine's name (what recorders write).
@@ -119,7 +153,8 @@ struct SessionHeader {
   // The header's JSON object, as a writer writes it (docs/session-format.md,
   // "Metadata"). Throws OptionError naming the member when the reader would
   // refuse it: a string that is not valid UTF-8, a start_utc that is not an
-  // ISO 8601 UTC time in range, a source detail named format or files.
+  // ISO 8601 UTC time in range, a source detail named format or files, a
+  // channel list with a bad or repeated name or ids out of order.
   std::string to_json() const;
 };
 
@@ -130,7 +165,10 @@ class SessionReader {
   // denied) or is not a regular file (a FIFO or a device is refused at once,
   // never waited on); SessionError (with the byte offset) when it is not a
   // usable session: empty, wrong magic, newer major version, bad header.
-  explicit SessionReader(const std::string& path);
+  // `channel`: read only that channel's records; std::nullopt: every
+  // channel's, in the order they were recorded (Record::channel says which).
+  explicit SessionReader(const std::string& path,
+                         std::optional<std::uint16_t> channel = std::nullopt);
   ~SessionReader();
   SessionReader(SessionReader&&) noexcept;
   SessionReader& operator=(SessionReader&&) noexcept;
@@ -176,8 +214,9 @@ class SessionWriter {
   SessionWriter& operator=(const SessionWriter&) = delete;
 
   // Throws PortError when the file cannot be written (full disk, file-size
-  // limit); what was written before stays readable.
-  // `channel` is reserved for sessions of several ports (see Record).
+  // limit); what was written before stays readable. `channel`: the id of
+  // the record's channel (SessionHeader::channels; 0 in a session of one
+  // port).
   void write(RecordKind kind, std::uint64_t t_ns, std::string_view data,
              std::uint16_t channel = 0);
   void write(const Record& record) {

@@ -7,7 +7,8 @@ The C++ core (``wiretape._core``) does the work; this package re-exports it:
 * the exceptions :class:`OptionError`, :class:`PortError`, :class:`PortClosed`,
   :class:`ReplayMismatch`, :class:`SessionError`;
 * session files: :class:`SessionReader`, :class:`SessionWriter`, :class:`SessionHeader`,
-  :class:`Record`, and the flexiport export :func:`export_flexiport`.
+  :class:`Channel` (one port of a session of several), :class:`Record`, and the
+  flexiport export :func:`export_flexiport`.
 
 The commands that read session files are in :mod:`wiretape.tools`, the
 exports in :mod:`wiretape.exports`, the pytest plugin in
@@ -18,6 +19,7 @@ exports in :mod:`wiretape.exports`, the pytest plugin in
 """
 
 from ._core import (
+    Channel,
     OptionError,
     Port,
     PortClosed,
@@ -44,6 +46,7 @@ __all__ = [
     "ReplayMismatch",
     "SessionError",
     "SessionHeader",
+    "Channel",
     "SessionReader",
     "SessionWriter",
     "Record",

@@ -275,7 +275,7 @@ def device_options(device: str) -> str:
 
 SESSION_MAGIC: bytes = ...
 
-SESSION_VERSION: tuple = (1, 1)
+SESSION_VERSION: tuple = (1, 2)
 
 FILE_HEADER_FIXED_SIZE: int = 16
 
@@ -311,7 +311,7 @@ def flexiport_prefix(path: object) -> str | None:
 class Record:
     """One record of a session: t_ns, kind, data."""
 
-    def __init__(self, t_ns: int, kind: object, data: bytes = ...) -> None: ...
+    def __init__(self, t_ns: int, kind: object, data: bytes = ..., channel: int = 0) -> None: ...
 
     @property
     def t_ns(self) -> int:
@@ -325,12 +325,89 @@ class Record:
     def kind_code(self) -> int: ...
 
     @property
+    def channel(self) -> int:
+        """
+        the id of the record's channel (SessionHeader.channels); 0 in a session of one port
+        """
+
+    @property
     def data(self) -> bytes:
         """the bytes (rx, tx) or the event's JSON object as bytes"""
 
     def __eq__(self, arg: Record, /) -> bool: ...
 
     def __repr__(self) -> str: ...
+
+class Channel:
+    """
+    One port of a session of several ports (format 1.2, docs/session-format.md, "channels"): its id (what its records carry), name and what the header says of a port. Channel(**members) with the members to_dict() names.
+    """
+
+    def __init__(self, **members: object) -> None: ...
+
+    @property
+    def id(self) -> int:
+        """what the channel's records carry in Record.channel"""
+
+    @id.setter
+    def id(self, arg: int, /) -> None: ...
+
+    @property
+    def name(self) -> str:
+        """
+        the channel's name ('' only for the one channel of a session without named channels)
+        """
+
+    @name.setter
+    def name(self, arg: str, /) -> None: ...
+
+    @property
+    def port_options(self) -> str: ...
+
+    @port_options.setter
+    def port_options(self, arg: str, /) -> None: ...
+
+    @property
+    def port_type(self) -> str: ...
+
+    @port_type.setter
+    def port_type(self, arg: str, /) -> None: ...
+
+    @property
+    def capture(self) -> str:
+        """'client' or 'wire'"""
+
+    @capture.setter
+    def capture(self, arg: str, /) -> None: ...
+
+    @property
+    def device_address(self) -> str: ...
+
+    @device_address.setter
+    def device_address(self, arg: str, /) -> None: ...
+
+    @property
+    def device_identity(self) -> dict:
+        """the serial device's identity, as SessionHeader.device_identity"""
+
+    @device_identity.setter
+    def device_identity(self, arg: dict, /) -> None: ...
+
+    def to_dict(self) -> dict:
+        """the members as a dict"""
+
+    def __eq__(self, arg: Channel, /) -> bool: ...
+
+    def __copy__(self) -> Channel: ...
+
+    def __deepcopy__(self, memo: object) -> Channel: ...
+
+    def __repr__(self) -> str: ...
+
+def channel_name_problem(name: str) -> str | None:
+    """
+    Why NAME cannot name a channel (not an identifier of at most 64 characters of letters, digits, '_' and '-'; or an option key), or None when it can.
+    """
 
 class SessionHeader:
     """
@@ -465,6 +542,23 @@ class SessionHeader:
         """
 
     @property
+    def channels(self, /) -> list[Channel]:
+        """
+        format 1.2: the session's ports (Channel objects, or dicts of their members when set), ids 0..n-1 in order; [] for a session of one unnamed port, which the port members describe. With channels, the port members are channel 0's.
+        """
+
+    @channels.setter
+    def channels(self, value: list[Channel] | list[dict[str, object]], /) -> None: ...
+
+    def channel_list(self) -> list[Channel]:
+        """
+        Every channel: channels, or the one unnamed channel 0 the port members describe.
+        """
+
+    def find_channel(self, name: str) -> Channel | None:
+        """The channel named NAME, or None."""
+
+    @property
     def metadata_json(self) -> str:
         """the header's JSON as stored (read) or written; to_json() makes it anew"""
 
@@ -509,7 +603,10 @@ class SessionReader:
     Reads a .wtape file or a flexiport log (name.log) record by record, with memory independent of its size; a pipe or FIFO is read once, as a stream, waiting for its writer (Ctrl-C ends the wait). Iterating yields Record objects; at a damaged record iteration ends and .damage says where.
     """
 
-    def __init__(self, path: object) -> None: ...
+    def __init__(self, path: object, channel: int | None = None) -> None:
+        """
+        CHANNEL: only that channel's records (its id); None: every channel's, in recorded order (Record.channel says which).
+        """
 
     def __iter__(self) -> SessionReader: ...
 

@@ -148,6 +148,70 @@ std::optional<DeviceIdentity> identity_from_python(nb::dict members) {
   return identity;
 }
 
+// A channel's fields by name, as the header JSON names them.
+nb::dict channel_dict(const Channel& channel) {
+  nb::dict out;
+  out["id"] = channel.id;
+  out["name"] = channel.name;
+  out["port_options"] = channel.port_options;
+  out["port_type"] = channel.port_type;
+  out["capture"] = detail::capture_name(channel.capture);
+  out["device_address"] = channel.device_address;
+  out["device_identity"] = identity_dict(channel.device_identity);
+  return out;
+}
+
+// A Channel from a Channel or a dict of its members (as channel_dict names
+// them); an unknown member raises ValueError naming it, a wrong type TypeError.
+Channel channel_from_python(nb::handle value) {
+  if (nb::isinstance<Channel>(value)) return nb::cast<Channel>(value);
+  if (!nb::isinstance<nb::dict>(value)) {
+    throw nb::type_error("a channel must be a Channel or a dict of its members");
+  }
+  Channel channel;
+  for (auto [key, member] : nb::borrow<nb::dict>(value)) {
+    const std::string name = nb::cast<std::string>(nb::str(key));
+    const auto text = [&]() {
+      if (!nb::isinstance<nb::str>(member)) {
+        throw nb::type_error(("channel member '" + name + "' must be a str").c_str());
+      }
+      return nb::cast<std::string>(member);
+    };
+    if (name == "id") {
+      if (!PyLong_Check(member.ptr()) || PyBool_Check(member.ptr())) {
+        throw nb::type_error("channel member 'id' must be an int");
+      }
+      const long long id = PyLong_AsLongLong(member.ptr());
+      if (id < 0 || id > 0xffff) {
+        PyErr_Clear();
+        throw nb::value_error("channel member 'id' must be within 0..65535");
+      }
+      channel.id = static_cast<std::uint16_t>(id);
+    } else if (name == "name") {
+      channel.name = text();
+    } else if (name == "port_options") {
+      channel.port_options = text();
+    } else if (name == "port_type") {
+      channel.port_type = text();
+    } else if (name == "capture") {
+      channel.capture = capture_from_python(text());
+    } else if (name == "device_address") {
+      channel.device_address = text();
+    } else if (name == "device_identity") {
+      if (!nb::isinstance<nb::dict>(member)) {
+        throw nb::type_error("channel member 'device_identity' must be a dict");
+      }
+      channel.device_identity = identity_from_python(nb::borrow<nb::dict>(member));
+    } else {
+      throw nb::value_error(("Channel has no member '" + detail::escape_bytes(name, 200) +
+                             "' (its members: id, name, port_options, port_type, capture, "
+                             "device_address, device_identity)")
+                                .c_str());
+    }
+  }
+  return channel;
+}
+
 // The header's fields by name, as show, stats and convert lay them out.
 nb::dict header_dict(const SessionHeader& header) {
   nb::dict out;
@@ -174,6 +238,9 @@ nb::dict header_dict(const SessionHeader& header) {
   for (const auto& [key, value] : header.user_metadata) metadata[key.c_str()] = value;
   out["metadata"] = metadata;
   out["device_identity"] = identity_dict(header.device_identity);
+  nb::list channels;
+  for (const Channel& channel : header.channels) channels.append(channel_dict(channel));
+  out["channels"] = channels;
   return out;
 }
 
@@ -245,6 +312,10 @@ void set_header_members(nb::handle header, nb::handle fields) {
                                 .c_str());
     }
     if (value.is_none()) continue;
+    if (name == "channels") {  // its setter checks each channel
+      nb::setattr(header, key, value);
+      continue;
+    }
     if (!has_member_shape(value, known[key])) {
       const std::string expected = python_type_name(known[key]);
       throw nb::type_error(("SessionHeader member '" + name + "' must be a " +
@@ -364,31 +435,80 @@ void bind_session(nb::module_& m) {
   nb::class_<PyRecord>(m, "Record", "One record of a session: t_ns, kind, data.")
       .def(
           "__init__",
-          [](PyRecord* self, std::uint64_t t_ns, nb::handle kind, nb::bytes data) {
+          [](PyRecord* self, std::uint64_t t_ns, nb::handle kind, nb::bytes data,
+             std::uint16_t channel) {
             new (self) PyRecord{};
             self->record.t_ns = t_ns;
             self->record.kind = kind_from_python(kind);
             self->record.data.assign(data.c_str(), data.size());
+            self->record.channel = channel;
           },
-          "t_ns"_a, "kind"_a, "data"_a = nb::bytes("", 0))
+          "t_ns"_a, "kind"_a, "data"_a = nb::bytes("", 0), "channel"_a = 0)
       .def_prop_ro("t_ns", [](const PyRecord& r) { return r.record.t_ns; },
                    "nanoseconds since the device was opened")
       .def_prop_ro("kind", [](const PyRecord& r) { return std::string(to_string(r.record.kind)); },
                    "'rx' (device to host), 'tx' (host to device), or an event name")
       .def_prop_ro("kind_code", [](const PyRecord& r) { return static_cast<int>(r.record.kind); })
+      .def_prop_ro("channel", [](const PyRecord& r) { return r.record.channel; },
+                   "the id of the record's channel (SessionHeader.channels); 0 in a session "
+                   "of one port")
       .def_prop_ro("data", [](const PyRecord& r) { return to_bytes(r.record.data); },
                    "the bytes (rx, tx) or the event's JSON object as bytes")
       .def("__eq__",
            [](const PyRecord& a, const PyRecord& b) {
              return a.record.t_ns == b.record.t_ns && a.record.kind == b.record.kind &&
-                    a.record.data == b.record.data;
+                    a.record.data == b.record.data && a.record.channel == b.record.channel;
            })
       .def("__repr__", [](const PyRecord& r) {
         nb::object data = to_bytes(r.record.data);
         return "Record(t_ns=" + std::to_string(r.record.t_ns) + ", kind='" +
                std::string(to_string(r.record.kind)) + "', data=" +
-               std::string(nb::repr(data).c_str()) + ")";
+               std::string(nb::repr(data).c_str()) +
+               (r.record.channel != 0 ? ", channel=" + std::to_string(r.record.channel) : "") +
+               ")";
       });
+
+  nb::class_<Channel>(
+      m, "Channel",
+      "One port of a session of several ports (format 1.2, docs/session-format.md, "
+      "\"channels\"): its id (what its records carry), name and what the header says of "
+      "a port. Channel(**members) with the members to_dict() names.")
+      .def(
+          "__init__",
+          [](Channel* self, nb::kwargs members) { new (self) Channel(channel_from_python(members)); },
+          nb::sig("def __init__(self, **members: object) -> None"))
+      .def_rw("id", &Channel::id, "what the channel's records carry in Record.channel")
+      .def_rw("name", &Channel::name, "the channel's name ('' only for the one channel of a "
+                                      "session without named channels)")
+      .def_rw("port_options", &Channel::port_options)
+      .def_rw("port_type", &Channel::port_type)
+      .def_prop_rw(
+          "capture",
+          [](const Channel& c) { return std::string(detail::capture_name(c.capture)); },
+          [](Channel& c, const std::string& capture) { c.capture = capture_from_python(capture); },
+          "'client' or 'wire'")
+      .def_rw("device_address", &Channel::device_address)
+      .def_prop_rw(
+          "device_identity",
+          [](const Channel& c) { return identity_dict(c.device_identity); },
+          [](Channel& c, nb::dict members) { c.device_identity = identity_from_python(members); },
+          "the serial device's identity, as SessionHeader.device_identity")
+      .def("to_dict", &channel_dict, "the members as a dict")
+      .def("__eq__", [](const Channel& a, const Channel& b) { return a == b; })
+      .def("__copy__", [](const Channel& c) { return c; })
+      .def("__deepcopy__", [](const Channel& c, nb::handle) { return c; }, "memo"_a)
+      .def("__repr__", [](const Channel& c) {
+        return "Channel(id=" + std::to_string(c.id) + ", name=" +
+               std::string(nb::repr(nb::str(c.name.c_str(), c.name.size())).c_str()) +
+               ", port_type=" +
+               std::string(nb::repr(nb::str(c.port_type.c_str(), c.port_type.size())).c_str()) +
+               ")";
+      });
+  m.def(
+      "channel_name_problem",
+      [](const std::string& name) { return channel_name_problem(name); }, "name"_a,
+      "Why NAME cannot name a channel (not an identifier of at most 64 characters of "
+      "letters, digits, '_' and '-'; or an option key), or None when it can.");
 
   nb::class_<SessionHeader>(
       m, "SessionHeader",
@@ -464,6 +584,29 @@ void bind_session(nb::module_& m) {
           },
           "Clears the device identity's serial number and its part of the by-id name "
           "(what edit --redact does).")
+      .def_prop_rw(
+          "channels",
+          [](const SessionHeader& h) { return h.channels; },
+          [](SessionHeader& h, nb::handle channels) {
+            if (!nb::isinstance<nb::list>(channels) && !nb::isinstance<nb::tuple>(channels)) {
+              throw nb::type_error("SessionHeader member 'channels' must be a list of Channel");
+            }
+            std::vector<Channel> read;
+            for (nb::handle channel : channels) read.push_back(channel_from_python(channel));
+            h.channels = std::move(read);
+          },
+          nb::for_getter(nb::sig("def channels(self, /) -> list[Channel]")),
+          nb::for_setter(nb::sig(
+              "def channels(self, value: list[Channel] | list[dict[str, object]], /) -> None")),
+          "format 1.2: the session's ports (Channel objects, or dicts of their members "
+          "when set), ids 0..n-1 in order; [] for a session of one unnamed port, which the "
+          "port members describe. With channels, the port members are channel 0's.")
+      .def("channel_list", &SessionHeader::channel_list,
+           "Every channel: channels, or the one unnamed channel 0 the port members describe.")
+      .def(
+          "find_channel",
+          [](const SessionHeader& h, const std::string& name) { return h.find_channel(name); },
+          "name"_a, "The channel named NAME, or None.")
       .def_rw("metadata_json", &SessionHeader::metadata_json,
               "the header's JSON as stored (read) or written; to_json() makes it anew")
       .def("to_json", &SessionHeader::to_json,
@@ -534,13 +677,15 @@ void bind_session(nb::module_& m) {
                        "at a damaged record iteration ends and .damage says where.")
       .def(
           "__init__",
-          [](PyReader* self, nb::handle path) {
+          [](PyReader* self, nb::handle path, std::optional<std::uint16_t> channel) {
             const std::string p = path_from_python(path);
             new (self) PyReader{};
             nb::gil_scoped_release release;
-            self->reader = std::make_unique<SessionReader>(p);
+            self->reader = std::make_unique<SessionReader>(p, channel);
           },
-          "path"_a)
+          "path"_a, "channel"_a = nb::none(),
+          "CHANNEL: only that channel's records (its id); None: every channel's, in "
+          "recorded order (Record.channel says which).")
       .def("__iter__", [](nb::handle self) { return self; },
            nb::sig("def __iter__(self) -> SessionReader"))
       .def("__next__",

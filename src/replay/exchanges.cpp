@@ -209,7 +209,8 @@ SessionSegments segment_session_file(const std::string& path, const std::string&
   parsed.set("file", path);
   const ReplayConfig config = take_replay_config(parsed);
   SessionHeader header;
-  const std::unique_ptr<RecordSource> source = open_session_source(config.file, header);
+  const std::unique_ptr<RecordSource> source =
+      open_session_source(config.file, header, Streams::refused, 0);
   SessionSegments segments = segment_session(
       *source, Segmentation{config.profile, header.port_type == "udp", config.match});
   if (source->damage()) throw *source->damage();

@@ -31,7 +31,7 @@ namespace {
 class SessionRecordSource final : public RecordSource {
  public:
   SessionRecordSource(const std::string& path, std::shared_ptr<bool> warned)
-      : path_(path), source_(open_session_source(path, header_)),
+      : path_(path), source_(open_session_source(path, header_, Streams::refused, 0)),
         warned_(std::move(warned)) {}
   bool next(Record& record) override {
     if (source_->next(record)) return true;
@@ -727,7 +727,7 @@ std::unique_ptr<Port> open_replay(Options& options) {
   // refused at once.
   {
     SessionHeader header;
-    open_session_source(config.file, header);
+    open_session_source(config.file, header, Streams::refused, 0);
     config.datagrams = header.port_type == "udp";
   }
   RecordSourceFactory sources = session_source_factory(config.file);

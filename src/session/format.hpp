@@ -12,7 +12,7 @@ namespace wiretape::detail {
 // newline translation.
 inline constexpr char session_magic[8] = {'\x89', 'W', 'T', 'A', 'P', 'E', '\r', '\n'};
 inline constexpr std::uint16_t session_version_major = 1;
-inline constexpr std::uint16_t session_version_minor = 1;
+inline constexpr std::uint16_t session_version_minor = 2;
 // magic, major, minor, JSON length
 inline constexpr std::size_t file_header_fixed_size = 16;
 // A header larger than this is corrupt, whatever the file holds.

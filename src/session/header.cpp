@@ -11,6 +11,7 @@
 #include "util/hex.hpp"
 #include "util/json.hpp"
 #include "wiretape/errors.hpp"
+#include "wiretape/options.hpp"
 #include "wiretape/version.hpp"
 
 namespace wiretape::detail {
@@ -126,8 +127,103 @@ bool recorded_by_wiretape(const SessionHeader& header) {
 
 }  // namespace
 
-std::string header_json(const SessionHeader& header) {
+namespace {
+
+void require_good_channels(const std::vector<Channel>& channels) {
   namespace field = header_field;
+  if (channels.size() > max_channels) {
+    throw OptionError(field::channels, "a session holds at most " +
+                                           std::to_string(max_channels) + " channels, not " +
+                                           std::to_string(channels.size()));
+  }
+  for (std::size_t i = 0; i < channels.size(); ++i) {
+    const Channel& channel = channels[i];
+    if (channel.id != i) {
+      throw OptionError(field::channels, "channel " + quoted(channel.name) + " has id " +
+                                             std::to_string(channel.id) +
+                                             "; channel ids are 0..n-1 in order, so it must be " +
+                                             std::to_string(i));
+    }
+    if (const auto problem = channel_name_problem(channel.name)) {
+      throw OptionError(field::channels, "channel " + std::to_string(i) + ": " + *problem);
+    }
+    for (std::size_t j = 0; j < i; ++j) {
+      if (channels[j].name == channel.name) {
+        throw OptionError(field::channels, "two channels are named " + quoted(channel.name) +
+                                               " (ids " + std::to_string(j) + " and " +
+                                               std::to_string(i) + ")");
+      }
+    }
+  }
+}
+
+// The members a port has in the header, written for the top level and for
+// each channel in the same order.
+void add_port_members(json::ObjectWriter& object, const std::string& port_options,
+                      const std::string& port_type) {
+  object.add(header_field::port_options, port_options).add(header_field::port_type, port_type);
+}
+
+std::string device_identity_json(const DeviceIdentity& identity) {
+  json::ObjectWriter object;
+  for (const auto& member : device_identity_members) {
+    const std::string& value = identity.*member.value;
+    if (!value.empty()) object.add(member.name, value);
+  }
+  return object.str();
+}
+
+void require_utf8_identity(const std::string& field, const DeviceIdentity& identity) {
+  for (const auto& member : device_identity_members) {
+    require_utf8(field + "." + member.name, identity.*member.value);
+  }
+}
+
+std::string channels_json(const std::vector<Channel>& channels) {
+  namespace field = header_field;
+  std::string out = "[";
+  for (const Channel& channel : channels) {
+    const std::string where = std::string(field::channels) + "[" + std::to_string(channel.id) + "]";
+    require_utf8(where + "." + field::port_options, channel.port_options);
+    require_utf8(where + "." + field::port_type, channel.port_type);
+    require_utf8(where + "." + field::device_address, channel.device_address);
+    if (channel.device_identity) {
+      require_utf8_identity(where + "." + field::device_identity, *channel.device_identity);
+    }
+    json::ObjectWriter object;
+    object.add(field::channel_id, static_cast<unsigned>(channel.id))
+        .add(field::channel_name, channel.name);
+    add_port_members(object, channel.port_options, channel.port_type);
+    object.add(field::capture, capture_name(channel.capture));
+    if (!channel.device_address.empty()) {
+      object.add(field::device_address, channel.device_address);
+    }
+    if (channel.device_identity) {
+      object.add_raw(field::device_identity, device_identity_json(*channel.device_identity));
+    }
+    if (out.size() > 1) out += ",";
+    out += object.str();
+  }
+  return out + "]";
+}
+
+}  // namespace
+
+std::string header_json(const SessionHeader& given) {
+  namespace field = header_field;
+  require_good_channels(given.channels);
+  // With channels, the port members are channel 0's (what a 1.1 reader reads).
+  SessionHeader with_channel_zero;
+  if (!given.channels.empty()) {
+    with_channel_zero = given;
+    const Channel& first = given.channels.front();
+    with_channel_zero.port_options = first.port_options;
+    with_channel_zero.port_type = first.port_type;
+    with_channel_zero.capture = first.capture;
+    with_channel_zero.device_address = first.device_address;
+    with_channel_zero.device_identity = first.device_identity;
+  }
+  const SessionHeader& header = given.channels.empty() ? given : with_channel_zero;
   // What is written here must read back: the reader refuses a header that
   // is not UTF-8 or has a start time out of range.
   require_utf8(field::port_options, header.port_options);
@@ -151,18 +247,14 @@ std::string header_json(const SessionHeader& header) {
   require_utf8(field::device_address, header.device_address);
   for (const auto& edit : header.edits) require_utf8(field::edits, edit);
   if (header.device_identity) {
-    for (const auto& member : device_identity_members) {
-      require_utf8(std::string(field::device_identity) + "." + member.name,
-                   (*header.device_identity).*member.value);
-    }
+    require_utf8_identity(field::device_identity, *header.device_identity);
   }
   if (const auto problem = start_utc_problem(header.start_utc)) {
     throw OptionError(field::start_utc, "the session header's " + *problem);
   }
   json::ObjectWriter object;
-  object.add(field::port_options, header.port_options)
-      .add(field::port_type, header.port_type)
-      .add(field::start_utc, header.start_utc)
+  add_port_members(object, header.port_options, header.port_type);
+  object.add(field::start_utc, header.start_utc)
       .add(field::wiretape_version, header.wiretape_version)
       .add(field::host, header.host)
       .add(field::capture, capture_name(header.capture))
@@ -195,15 +287,75 @@ std::string header_json(const SessionHeader& header) {
   // Format 1.2. Members not known are left out, so that the header says
   // only what the machine knew.
   if (header.device_identity) {
-    json::ObjectWriter identity;
-    for (const auto& member : device_identity_members) {
-      const std::string& value = (*header.device_identity).*member.value;
-      if (!value.empty()) identity.add(member.name, value);
-    }
-    object.add_raw(field::device_identity, identity.str());
+    object.add_raw(field::device_identity, device_identity_json(*header.device_identity));
   }
+  if (!header.channels.empty()) object.add_raw(field::channels, channels_json(header.channels));
   return object.str();
 }
+
+namespace {
+
+std::optional<DeviceIdentity> read_device_identity(const json::Value& port) {
+  const json::Value* identity = port.find(header_field::device_identity);
+  if (identity == nullptr || !identity->is_object()) return std::nullopt;
+  DeviceIdentity read;
+  for (const auto& member : device_identity_members) {
+    read.*member.value = identity->string_member(member.name).value_or("");
+  }
+  return read;
+}
+
+// Unlike the other members, channels that cannot be read make the file
+// unusable: every record would be attributed to a port it may not be of.
+std::vector<Channel> read_channels(const json::Value& root, const std::string& path,
+                                   std::uint64_t offset) {
+  namespace field = header_field;
+  std::vector<Channel> channels;
+  const json::Value* list = root.find(field::channels);
+  if (list == nullptr) return channels;
+  const auto refuse = [&](const std::string& why) -> SessionError {
+    return SessionError(path + ": the header at byte " + std::to_string(offset) +
+                            " has unusable channels: " + why,
+                        offset);
+  };
+  if (list->type != json::Value::Type::array) throw refuse("\"channels\" is not an array");
+  if (list->items.empty()) throw refuse("\"channels\" is empty (a session has a channel)");
+  if (list->items.size() > max_channels) {
+    throw refuse(std::to_string(list->items.size()) + " channels, more than " +
+                 std::to_string(max_channels));
+  }
+  for (const json::Value& item : list->items) {
+    const std::string where = "channel " + std::to_string(channels.size());
+    if (!item.is_object()) throw refuse(where + " is not an object");
+    const json::Value* id = item.find(field::channel_id);
+    if (id == nullptr || id->type != json::Value::Type::number ||
+        id->number != static_cast<double>(channels.size())) {
+      throw refuse(where + " has no id " + std::to_string(channels.size()) +
+                   " (ids are 0..n-1 in order)");
+    }
+    Channel& channel = channels.emplace_back();
+    channel.id = static_cast<std::uint16_t>(channels.size() - 1);
+    const auto name = item.string_member(field::channel_name);
+    if (!name) throw refuse(where + " has no name");
+    if (const auto problem = channel_name_problem(*name)) throw refuse(where + ": " + *problem);
+    for (std::size_t j = 0; j + 1 < channels.size(); ++j) {
+      if (channels[j].name == *name) throw refuse("two channels are named " + quoted(*name));
+    }
+    channel.name = *name;
+    channel.port_options = item.string_member(field::port_options).value_or("");
+    channel.port_type = item.string_member(field::port_type).value_or("");
+    const std::string capture =
+        item.string_member(field::capture).value_or(capture_name(Capture::client));
+    const auto known = capture_from_name(capture);
+    if (!known) throw refuse(where + " has an unknown capture " + quoted(capture));
+    channel.capture = *known;
+    channel.device_address = item.string_member(field::device_address).value_or("");
+    channel.device_identity = read_device_identity(item);
+  }
+  return channels;
+}
+
+}  // namespace
 
 void parse_header_json(const std::string& text, const std::string& path,
                        std::uint64_t offset, SessionHeader& header) {
@@ -270,14 +422,8 @@ void parse_header_json(const std::string& text, const std::string& path,
     }
   }
   // Like provenance: members of another type are ignored.
-  header.device_identity.reset();
-  if (const json::Value* identity = root.find(field::device_identity);
-      identity != nullptr && identity->is_object()) {
-    DeviceIdentity& read = header.device_identity.emplace();
-    for (const auto& member : device_identity_members) {
-      read.*member.value = identity->string_member(member.name).value_or("");
-    }
-  }
+  header.device_identity = read_device_identity(root);
+  header.channels = read_channels(root, path, offset);
   header.user_metadata.clear();
   if (const json::Value* metadata = root.find(field::metadata);
       metadata != nullptr && metadata->is_object()) {
@@ -339,6 +485,60 @@ SessionHeader SessionHeader::starting_now() {
 }
 
 std::string SessionHeader::to_json() const { return detail::header_json(*this); }
+
+std::vector<Channel> SessionHeader::channel_list() const {
+  if (!channels.empty()) return channels;
+  Channel only;
+  only.port_options = port_options;
+  only.port_type = port_type;
+  only.capture = capture;
+  only.device_address = device_address;
+  only.device_identity = device_identity;
+  return {only};
+}
+
+std::optional<Channel> SessionHeader::find_channel(std::string_view name) const {
+  for (const Channel& channel : channels) {
+    if (channel.name == name) return channel;
+  }
+  return std::nullopt;
+}
+
+bool Channel::operator==(const Channel& other) const {
+  return id == other.id && name == other.name && port_options == other.port_options &&
+         port_type == other.port_type && capture == other.capture &&
+         device_address == other.device_address && device_identity == other.device_identity;
+}
+
+std::optional<std::string> channel_name_problem(std::string_view name) {
+  const std::string shown = "\"" + detail::escape_bytes(name, name.size()) + "\"";
+  if (name.empty()) return std::string("a channel name is empty");
+  if (name.size() > detail::max_channel_name) {
+    return "the channel name " + shown + " is longer than " +
+           std::to_string(detail::max_channel_name) + " characters";
+  }
+  const auto letter = [](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_';
+  };
+  const auto digit = [](char c) { return c >= '0' && c <= '9'; };
+  if (!letter(name.front())) {
+    return "the channel name " + shown + " does not start with a letter or '_'";
+  }
+  for (const char c : name) {
+    if (!letter(c) && !digit(c) && c != '-') {
+      return "the channel name " + shown +
+             " holds a character other than letters, digits, '_' and '-'";
+    }
+  }
+  for (const std::string_view type : port_types()) {
+    if (find_option_key(name, type) != nullptr) {
+      return "\"" + std::string(name) +
+             "\" is an option key, so it cannot name a channel (NAME=... would read as "
+             "an option)";
+    }
+  }
+  return std::nullopt;
+}
 
 bool DeviceIdentity::operator==(const DeviceIdentity& other) const {
   for (const auto& member : detail::device_identity_members) {

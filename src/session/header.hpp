@@ -29,7 +29,16 @@ inline constexpr char device_address[] = "device_address";
 inline constexpr char edits[] = "edits";
 // Format 1.2: the serial device's identity, an object of strings.
 inline constexpr char device_identity[] = "device_identity";
+// Format 1.2: the ports of a session of several ports, an array of objects
+// with the port members above plus these.
+inline constexpr char channels[] = "channels";
+inline constexpr char channel_id[] = "id";
+inline constexpr char channel_name[] = "name";
 }  // namespace header_field
+
+// The most channels a session has: ids are u16, and a header lists them all.
+inline constexpr std::size_t max_channels = 1024;
+inline constexpr std::size_t max_channel_name = 64;
 
 // The members of a DeviceIdentity, by the name the header JSON and Python
 // give them (docs/session-format.md, "device_identity"), spelled here once.

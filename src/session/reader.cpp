@@ -54,9 +54,11 @@ std::string hex32(std::uint32_t value) {
 
 class WtapeSource final : public RecordSource {
  public:
-  WtapeSource(const std::string& path, SessionHeader& header, Streams streams)
-      : file_(path, streams) {
+  WtapeSource(const std::string& path, SessionHeader& header, Streams streams,
+              std::optional<std::uint16_t> channel)
+      : file_(path, streams), channel_(channel) {
     read_header(header);
+    channel_count_ = header.channels.empty() ? 1 : header.channels.size();
     first_record_ = file_.position();
   }
 
@@ -133,8 +135,11 @@ class WtapeSource final : public RecordSource {
       if (find_record_kind(static_cast<RecordKind>(kind_byte)) == nullptr) {
         continue;  // a newer kind: skipped
       }
-      // Another port of a session of several ports (reserved): skipped.
-      if (get_u16le(head + 6) != 0) continue;
+      // A channel not asked for, or one the header does not list (a newer
+      // writer's): skipped, as a kind not known is.
+      const std::uint16_t channel = get_u16le(head + 6);
+      if (channel >= channel_count_ || (channel_ && channel != *channel_)) continue;
+      record.channel = channel;
       record.kind = static_cast<RecordKind>(kind_byte);
       record.t_ns = get_u64le(head + 8);
       if (const auto problem =
@@ -215,6 +220,8 @@ class WtapeSource final : public RecordSource {
   }
 
   BufferedFile file_;
+  std::optional<std::uint16_t> channel_;  // std::nullopt: every channel
+  std::size_t channel_count_ = 1;
   std::uint64_t first_record_ = 0;
   std::uint64_t records_ = 0;
   std::optional<SessionError> damage_;
@@ -242,11 +249,20 @@ bool starts_with_magic(const std::string& path, Streams streams) {
 }  // namespace
 
 std::unique_ptr<RecordSource> open_session_source(const std::string& path,
-                                                  SessionHeader& header, Streams streams) {
+                                                  SessionHeader& header, Streams streams,
+                                                  std::optional<std::uint16_t> channel) {
   if (!starts_with_magic(path, streams)) {
-    if (auto prefix = flexiport_prefix(path)) return open_flexiport(*prefix, header);
+    // A flexiport log is one port: channel 0.
+    if (auto prefix = flexiport_prefix(path)) {
+      if (channel.value_or(0) != 0) {
+        throw SessionError(path + ": a flexiport log has one channel (0), not " +
+                               std::to_string(*channel),
+                           0);
+      }
+      return open_flexiport(*prefix, header);
+    }
   }
-  return std::make_unique<WtapeSource>(path, header, streams);
+  return std::make_unique<WtapeSource>(path, header, streams, channel);
 }
 
 }  // namespace detail
@@ -257,10 +273,12 @@ struct SessionReader::Impl {
   std::unique_ptr<detail::RecordSource> source;
 };
 
-SessionReader::SessionReader(const std::string& path) : impl_(std::make_unique<Impl>()) {
+SessionReader::SessionReader(const std::string& path, std::optional<std::uint16_t> channel)
+    : impl_(std::make_unique<Impl>()) {
   impl_->path = path;
   // The commands that read sessions read pipes and FIFOs too (DESIGN §6).
-  impl_->source = detail::open_session_source(path, impl_->header, detail::Streams::read);
+  impl_->source =
+      detail::open_session_source(path, impl_->header, detail::Streams::read, channel);
 }
 
 SessionReader::~SessionReader() = default;

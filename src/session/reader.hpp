@@ -20,10 +20,11 @@ namespace wiretape::detail {
 // not a regular file (a pipe or FIFO is read as a stream with Streams::read;
 // flexiport logs are always regular files), SessionError when it is not a
 // usable session; damage later on ends the records and is reported by
-// damage().
-std::unique_ptr<RecordSource> open_session_source(const std::string& path,
-                                                  SessionHeader& header,
-                                                  Streams streams = Streams::refused);
+// damage(). `channel`: only that channel's records; std::nullopt: every
+// channel's (records of a channel the header does not list are skipped).
+std::unique_ptr<RecordSource> open_session_source(
+    const std::string& path, SessionHeader& header, Streams streams = Streams::refused,
+    std::optional<std::uint16_t> channel = std::nullopt);
 
 // Why a record whose CRC is good still cannot be handed to the commands that
 // read it, or std::nullopt. What verify accepts, every consumer (Python's

@@ -183,14 +183,16 @@ void expect_reads_as_golden(const std::string& name, std::uint16_t version_minor
 
 }  // namespace
 
-TEST_P(GoldenFile, ReaderReturnsTheExpectedRecords) { expect_reads_as_golden(GetParam(), 1); }
+TEST_P(GoldenFile, ReaderReturnsTheExpectedRecords) { expect_reads_as_golden(GetParam(), 2); }
 
 // Files an older version of the format wrote: still read, no longer written.
+// Each is named v1_MINOR.
 TEST_P(ReadOnlyGoldenFile, ReaderReturnsTheExpectedRecords) {
-  expect_reads_as_golden(GetParam(), 0);
+  const std::string name = GetParam();
+  expect_reads_as_golden(name, static_cast<std::uint16_t>(std::stoi(name.substr(3))));
 }
 
 INSTANTIATE_TEST_SUITE_P(Golden, GoldenFile,
                          ::testing::Values("all_kinds", "wire", "unknown_kind", "damaged",
                                            "v1_1_additions"));
-INSTANTIATE_TEST_SUITE_P(Golden, ReadOnlyGoldenFile, ::testing::Values("v1_0"));
+INSTANTIATE_TEST_SUITE_P(Golden, ReadOnlyGoldenFile, ::testing::Values("v1_0", "v1_1"));

@@ -15,7 +15,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[3]
 GOLDEN = ROOT / "tests" / "data" / "golden"
 GOLDEN_NAMES = ["all_kinds", "wire", "unknown_kind", "damaged", "v1_1_additions"]
 # Written by an older format version: read, no longer written.
-READ_ONLY_GOLDEN = {"v1_0": 0}
+READ_ONLY_GOLDEN = {"v1_0": 0, "v1_1": 1}
 PROVENANCE = ("source_format", "source_files", "source_details", "device_address", "edits")
 
 
@@ -32,7 +32,7 @@ def test_golden_file_reads_as_its_jsonl_says(name):
     header, records, corrupt = load_jsonl(name)
     reader = _core.SessionReader(GOLDEN / f"{name}.wtape")
     got = reader.header.to_dict()
-    assert (got["version_major"], got["version_minor"]) == (1, READ_ONLY_GOLDEN.get(name, 1))
+    assert (got["version_major"], got["version_minor"]) == (1, READ_ONLY_GOLDEN.get(name, 2))
     for key in ("port_options", "port_type", "start_utc", "wiretape_version", "host", "capture"):
         assert got[key] == header[key], key
     assert got["metadata"] == header["metadata"]

@@ -159,7 +159,7 @@ def test_converted_flexiport_log_names_its_source_and_invents_no_time_or_host(tm
         assert "imported     from flexiport (urg04lx_2011.logr, urg04lx_2011.logw)" in text
         assert "started      at a time not recorded\n" in text
     assert "flexiport log (name.logr + name.logw)" in _show_text(source)
-    assert "format       wiretape 1.1" in _show_text(converted)
+    assert f"format       wiretape {_core.SESSION_VERSION[0]}.{_core.SESSION_VERSION[1]}" in _show_text(converted)
 
 
 def _show_text(path) -> str:
