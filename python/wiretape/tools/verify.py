@@ -8,7 +8,7 @@ import dataclasses
 import os
 import stat
 import struct
-from typing import Any, Dict, Iterator, List, Optional, Tuple
+from typing import Any, Dict, List, Optional, Tuple
 
 from .. import _core
 from ..session import SessionPath, open_session
@@ -48,28 +48,28 @@ def verify(path: SessionPath) -> VerifyResult:
                             message=str(error))
     names = channel_names(reader.header)
     counts: Dict[int, int] = {}
-    strays: List[Tuple[int, int]] = []  # (index of the record, its channel)
     records = 0
     for record in reader:
-        channel = record.channel
-        counts[channel] = counts.get(channel, 0) + 1
-        if channel not in names and len(strays) < 1:
-            strays.append((records, channel))
+        counts[record.channel] = counts.get(record.channel, 0) + 1
         records += 1
+    damage = reader.damage
+    # A reader passes over the records of channels the header does not
+    # list, as over kinds it does not know: their record headers say them.
+    strays = _unlisted(name, set(names), damage.offset if damage is not None else None)
+    for _, channel in strays:
+        counts[channel] = counts.get(channel, 0) + 1
     per_channel = ({channel_label(names, channel): counts.get(channel, 0)
                     for channel in sorted(set(names) | set(counts))}
                    if len(names) > 1 or set(counts) - set(names) else {})
-    damage = reader.damage
     if strays:
-        index, channel = strays[0]
-        offset = _record_offset(name, index)
+        offset, channel = strays[0]
         listed = ", ".join(channel_label(names, id) for id in sorted(names)) or "none"
-        where = f"record {index}" + (f" at byte {offset}" if offset is not None else "")
-        message = (f"{where} names channel {channel}, which the header does not list "
-                   f"(its channels: {listed})")
+        more = f" ({len(strays)} such records)" if len(strays) > 1 else ""
+        message = (f"record at byte {offset} names channel {channel}, which the header does "
+                   f"not list (its channels: {listed}){more}")
         if damage is not None:
             message += f"; and damaged at byte {damage.offset}: {damage.message}"
-        return VerifyResult(ok=False, path=name, records=records, offset=offset,
+        return VerifyResult(ok=False, path=name, records=records + len(strays), offset=offset,
                             message=message, channel_records=per_channel,
                             unlisted_channel=channel)
     if damage is not None:
@@ -79,36 +79,31 @@ def verify(path: SessionPath) -> VerifyResult:
                         channel_records=per_channel)
 
 
-def _record_offset(path: str, index: int) -> Optional[int]:
-    """The byte offset of the `index`-th record a reader yields, counted
-    from the record lengths (the records of kinds the reader skips are
-    passed over as it passes over them); None for a file that cannot be
-    read twice (a pipe)."""
+def _unlisted(path: str, listed: set, end: Optional[int]) -> List[Tuple[int, int]]:
+    """(offset, channel) of every record, up to `end` (the damage), whose
+    channel is not `listed`, read from the record headers (the records'
+    lengths and channels: the layout's constants are the library's). A
+    file that cannot be read twice (a pipe) or is not one file (a
+    flexiport log) is not walked."""
     try:
         if not stat.S_ISREG(os.stat(path).st_mode):
-            return None
+            return []
     except OSError:
-        return None
-    for number, offset in enumerate(_offsets_of_known_kinds(path)):
-        if number == index:
-            return offset
-    return None
-
-
-def _offsets_of_known_kinds(path: str) -> Iterator[int]:
-    known = {kind["code"] for kind in _core.RECORD_KINDS}
+        return []
+    found: List[Tuple[int, int]] = []
     with open(path, "rb") as file:
         fixed = file.read(_core.FILE_HEADER_FIXED_SIZE)
         if len(fixed) < _core.FILE_HEADER_FIXED_SIZE:
-            return
+            return []
         (json_length,) = struct.unpack_from("<I", fixed, 12)
         offset = _core.FILE_HEADER_OVERHEAD + json_length
-        while True:
+        while end is None or offset < end:
             file.seek(offset)
             head = file.read(_core.RECORD_HEADER_SIZE)
             if len(head) < _core.RECORD_HEADER_SIZE:
-                return
-            length, kind = struct.unpack_from("<IB", head, 0)
-            if kind in known:
-                yield offset
+                break
+            length, _, _, channel = struct.unpack_from("<IBBH", head, 0)
+            if channel not in listed:
+                found.append((offset, channel))
             offset += _core.RECORD_OVERHEAD + length
+    return found

@@ -280,8 +280,9 @@ def test_verify_reports_a_record_of_a_channel_the_header_does_not_list(tmp_path)
         _core.RECORD_OVERHEAD + len(d) for *_, d in session.records[:-2])
     assert struct.unpack_from("<H", raw, offset + 6)[0] == 7
     assert result.offset == offset
-    assert f"at byte {offset} names channel 7" in result.message
-    assert result.channel_records["#7"] == 1
+    assert f"record at byte {offset} names channel 7" in result.message
+    assert result.channel_records == {"gps": len(session.of("gps")),
+                                      "rtk": len(session.of("rtk")), "#7": 1}
 
 
 def test_verify_command_exits_1_naming_the_stray_record(tmp_path, capsys):
