@@ -188,6 +188,8 @@ def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
     with _intact_part(path, reader) as intact:
         exchanges = _exchanges(intact, profile, options, several)
         frames = _frames(intact, profile, several) if profile is not None else []
+    if several:
+        _to_page_records(exchanges, channels)
     campaign_data = None
     if campaign is not None and campaign_runs is not None:
         campaign_data = _campaign(campaign, campaign_runs, path, exchanges,
@@ -212,6 +214,19 @@ def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
         "mismatch": _mismatch(header, path),
     }
     return data, reader.damage
+
+
+def _to_page_records(exchanges: List[List[Any]], channels: List[int]) -> None:
+    """A channel's exchanges number its own records (first, end): made the
+    page's, which are every channel's in recorded order."""
+    positions: Dict[int, List[int]] = {}
+    for index, channel in enumerate(channels):
+        positions.setdefault(channel, []).append(index)
+    for row in exchanges:
+        own = positions.get(row[10], [])
+        first, end = row[1], row[2]
+        row[1] = own[first] if first < len(own) else len(channels)
+        row[2] = own[end - 1] + 1 if 0 < end <= len(own) else (row[1] if end <= 0 else len(channels))
 
 
 @contextlib.contextmanager

@@ -332,3 +332,14 @@ def test_redact_with_a_profile_reseals_split_frames_of_one_channel_only(tmp_path
     # the records kept their sizes and places
     assert [(c, k, t, len(d)) for c, k, t, d in written if k != "redaction"] == \
         [(c, k, t, len(d)) for c, k, t, d in session.records]
+
+
+# ---------------------------------------------------------------- view
+
+
+def test_view_has_a_lane_group_per_named_channel(gnss):
+    from wiretape.tools.view import page_data
+
+    data = page_data(gnss.path)
+    assert data["channels"] == [{"id": 0, "name": "gps"}, {"id": 1, "name": "rtk"}]
+    assert data["records"]["channel"] == [channel for channel, *_ in gnss.records]
