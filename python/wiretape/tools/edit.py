@@ -49,7 +49,7 @@ from typing import Callable, Deque, Dict, Iterable, List, Optional, Sequence, Tu
 from .. import _core
 from ..session import (DIRECTIONS, SessionPath, event_payload, is_stream, open_session,
                        raise_damage, refuse_same_file, session_files)
-from .channels import choose_channels, several_channels
+from .channels import UnknownChannel, choose_channels, several_channels
 from .convert import session_writer
 
 __all__ = ["edit", "edit_in_child", "default_profile", "EditResult", "Cut", "Redaction", "parse_cut", "parse_redaction", "MAX_SPAN"]
@@ -751,7 +751,10 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
     refuse_same_file(session_files(src), [dst])
     reader = open_session(src)
     header = reader.header
-    chosen = choose_channels(header, channels, src)
+    try:
+        chosen = choose_channels(header, channels, src)
+    except UnknownChannel as error:
+        raise UnknownChannel(f"--channel: {error}") from None
     if cut is not None and cut.exchanges and several_channels(header) and len(channels) != 1:
         raise ValueError(f"--cut {cut.spec}: exchanges are numbered per channel in a session "
                          "of several channels: give one --channel NAME to count them on")

@@ -343,3 +343,10 @@ def test_view_has_a_lane_group_per_named_channel(gnss):
     data = page_data(gnss.path)
     assert data["channels"] == [{"id": 0, "name": "gps"}, {"id": 1, "name": "rtk"}]
     assert data["records"]["channel"] == [channel for channel, *_ in gnss.records]
+
+
+def test_edit_command_names_the_flag_of_an_unknown_channel(gnss, tmp_path, capsys):
+    out = tmp_path / "x.wtape"
+    assert cli.main(["edit", gnss.path, str(out), "--redact", "x", "--channel", "gsp"]) == 2
+    assert "--channel: " in capsys.readouterr().err
+    assert not out.exists()
