@@ -208,21 +208,7 @@ std::unique_ptr<Port> open_port(Options options) {
     common.recording.path = *common.log;
     common.recording.options_text = given;
     common.recording.port_type = type;
-    Port* inner = port.get();
     port = detail::record_port(std::move(port), std::move(common.recording));
-    // A recorded faulty replay: each fault is also a `fault` event.
-    Port* recorder = port.get();
-    detail::replay_on_fault(*inner, [recorder](const detail::FaultEvent& event) {
-      std::fprintf(stderr, "wiretape: fault %s@%s: %s\n", event.kind.c_str(),
-                   event.where.c_str(), event.detail.c_str());
-      detail::record_port_event(
-          *recorder, RecordKind::fault,
-          detail::json::ObjectWriter()
-              .add(detail::event_field::fault_kind, event.kind)
-              .add(detail::event_field::where, event.where)
-              .add(detail::event_field::detail, event.detail)
-              .str());
-    });
   }
   return port;
 }

@@ -37,6 +37,7 @@
 #include <string>
 #include <vector>
 
+#include "wiretape/recorder.hpp"
 #include "wiretape/timeout.hpp"
 
 namespace wiretape {
@@ -103,6 +104,14 @@ struct BridgeOptions {
   std::string output;
   std::map<std::string, std::string> metadata;
   int flush_ms = 100;
+  // Sessions of several ports (DESIGN §19): record into the channel named
+  // `channel` (capture=wire, the device's options, identity and address in
+  // its entry) of this recorder's file, on its clock, instead of opening
+  // `output` (which must then be "", and `metadata` empty: it belongs in the
+  // recorder's header; the recorder's flush policy applies, not flush_ms).
+  // The file is the recorder's: the bridge neither closes nor removes it.
+  std::shared_ptr<Recorder> recorder;
+  std::string channel;
 
   // pty: apply the terminal settings the client sets (baud, stop bits...) to
   // the device, recording a settings event.

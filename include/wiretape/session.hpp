@@ -207,8 +207,11 @@ class SessionWriter {
   // session (same device and inode: links to it included).
   // Throws OptionError naming the member when `header` cannot be written
   // (SessionHeader::to_json), before the file is created.
+  // `header_room`: spare bytes reserved after the header JSON (written as
+  // spaces, which JSON ignores), so that add_channel() can rewrite the header
+  // in place; 0 writes the header exactly as long as its JSON.
   SessionWriter(const std::string& path, const SessionHeader& header,
-                FlushPolicy flush = FlushPolicy{});
+                FlushPolicy flush = FlushPolicy{}, std::size_t header_room = 0);
   ~SessionWriter();  // closes; never throws
   SessionWriter(const SessionWriter&) = delete;
   SessionWriter& operator=(const SessionWriter&) = delete;
@@ -222,13 +225,24 @@ class SessionWriter {
   void write(const Record& record) {
     write(record.kind, record.t_ns, record.data, record.channel);
   }
+  // Appends `channel` to the header's channels with the next id (returned;
+  // the given id is ignored) and rewrites the header in place, padded to the
+  // length reserved at construction (header_room). Thread-safe with write().
+  // Throws OptionError naming `name` for a bad or duplicate channel name,
+  // SessionError when the header would no longer fit its reserved room (the
+  // message says how many channels fit), PortError when the file cannot be
+  // written. A channel named "" is refused: the unnamed channel is the one
+  // of a file without `channels`.
+  std::uint16_t add_channel(Channel channel);
   // Hands everything buffered to the OS now (and fsyncs if asked).
   void flush();
   // Flushes and closes; throws PortError if the last data could not be
   // written. Further writes throw.
   void close();
   const std::string& path() const;
-  // The header as written: this library's format version and metadata_json.
+  // The header as written: this library's format version and metadata_json
+  // (its JSON without the padding). Not to be read while another thread
+  // calls add_channel().
   const SessionHeader& header() const;
   // The first write failure (full disk, file-size limit), if any. After a
   // failure the file holds every whole record written before it and nothing

@@ -29,6 +29,13 @@
 // WIRETAPE_CASSETTE_DIR=DIR puts cassettes under DIR instead of next to the
 // source (for sources compiled with relative __FILE__ paths, or read-only
 // trees).
+//
+// A test of a driver that talks to several devices gets one port per
+// channel of one cassette (DESIGN §19) with port_of("gps"), port_of("rtk"):
+// recorded through one wiretape::Recorder from WIRETAPE_DEVICE_gps=OPTS,
+// WIRETAPE_DEVICE_rtk=OPTS (the channel's name, a '-' in it spelled '_'), on
+// one clock; replayed with channel=NAME, the channels of the cassette on one
+// clock. A test uses either port() or port_of(), not both.
 #pragma once
 
 #include <gtest/gtest.h>
@@ -40,6 +47,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <map>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -51,6 +59,8 @@
 #include "wiretape/cassette_names.hpp"
 #include "wiretape/options.hpp"
 #include "wiretape/port.hpp"
+#include "wiretape/recorder.hpp"
+#include "wiretape/session.hpp"
 
 namespace wiretape::testing {
 
@@ -65,6 +75,19 @@ struct CassetteSettings {
   RecordMode record = RecordMode::none;
   std::string device;     // the device's option string, when recording
   std::string directory;  // replaces the directory of cassettes ("" = next to the source)
+  // The device of each channel when recording (WIRETAPE_DEVICE_<name>), by
+  // channel name; filled as channels are asked for (channel_device).
+  std::function<const char*(const char*)> lookup;
+
+  // The option string of channel `name`'s device, "" when none is given.
+  std::string channel_device(const std::string& name) const {
+    std::string variable = "WIRETAPE_DEVICE_" + name;
+    for (char& c : variable) {
+      if (c == '-') c = '_';
+    }
+    const char* value = lookup ? lookup(variable.c_str()) : std::getenv(variable.c_str());
+    return value ? value : "";
+  }
 
   // WIRETAPE_RECORD (unset/0/none, 1/rewrite, once), WIRETAPE_DEVICE,
   // WIRETAPE_CASSETTE_DIR. `lookup` is getenv unless a test gives another.
@@ -73,6 +96,7 @@ struct CassetteSettings {
         return std::getenv(name);
       }) {
     CassetteSettings settings;
+    settings.lookup = lookup;
     const char* record = lookup("WIRETAPE_RECORD");
     const std::string mode = record ? record : "";
     if (mode.empty() || mode == "0" || mode == "none") {
@@ -163,8 +187,64 @@ class Cassette {
 
   // The port (opened on first use).
   Port& port() {
+    if (!channel_ports_.empty()) {
+      throw std::logic_error("wiretape: cassette " + path_ + " has named ports already "
+                             "(port_of()); a test uses port() or port_of(NAME), not both");
+    }
     if (!port_) port_ = open_port(options());
     return *port_;
+  }
+
+  // The option string of channel `name` of a cassette of several channels:
+  // its device, recorded into the cassette's channel NAME, or its replay.
+  // Throws std::runtime_error as options() does, naming the channel.
+  std::string channel_options(const std::string& name) const {
+    if (recording_) {
+      const std::string device = settings_.channel_device(name);
+      if (device.empty()) {
+        std::string variable = "WIRETAPE_DEVICE_" + name;
+        for (char& c : variable) {
+          if (c == '-') c = '_';
+        }
+        throw std::runtime_error("wiretape: cassette " + path_ + " must be recorded "
+                                 "(WIRETAPE_RECORD is set) but " + variable +
+                                 " names no device for its channel \"" + name + "\"");
+      }
+      return "name=" + name + "," + device_options(device);
+    }
+    if (!std::filesystem::exists(path_)) {
+      throw std::runtime_error("wiretape: no recording " + path_ +
+                               "; record it from the devices with\n    " +
+                               record_command("once"));
+    }
+    std::string text = "type=replay,file=" + quote_option_value(path_) + ",channel=" + name;
+    if (!Options::parse(replay_keys_).has("timing")) text += ",timing=none";
+    if (!replay_keys_.empty()) text += "," + replay_keys_;
+    return text;
+  }
+
+  // The port of channel `name` (opened on first use): a cassette of several
+  // channels, recorded through one Recorder, replayed with channel=NAME.
+  Port& port_of(const std::string& name) {
+    if (port_) {
+      throw std::logic_error("wiretape: cassette " + path_ + " has one unnamed port already "
+                             "(port()); a test uses port() or port_of(NAME), not both");
+    }
+    const auto found = channel_ports_.find(name);
+    if (found != channel_ports_.end()) return *found->second;
+    std::unique_ptr<Port> opened;
+    if (recording_) {
+      const std::string options = channel_options(name);
+      if (!recorder_) {
+        SessionHeader header = SessionHeader::starting_now();
+        if (!test_name_.empty()) header.user_metadata["gtest"] = test_name_;
+        recorder_ = std::make_shared<Recorder>(partial_path_, header);
+      }
+      opened = recorder_->open_port(options);
+    } else {
+      opened = open_port(channel_options(name));
+    }
+    return *channel_ports_.emplace(name, std::move(opened)).first->second;
   }
 
   // Ends the test: closes the port, letting what close() raises through (a
@@ -181,6 +261,23 @@ class Cassette {
         close_error = std::current_exception();
       }
       port_.reset();
+    }
+    for (auto& [name, channel_port] : channel_ports_) {
+      try {
+        if (channel_port->is_open()) channel_port->close();
+      } catch (...) {
+        if (!close_error) close_error = std::current_exception();
+      }
+      channel_port.reset();
+    }
+    channel_ports_.clear();
+    if (recorder_) {
+      try {
+        recorder_->close();
+      } catch (...) {
+        if (!close_error) close_error = std::current_exception();
+      }
+      recorder_.reset();
     }
     if (recording_) {
       std::error_code ignored;
@@ -203,6 +300,8 @@ class Cassette {
   bool recording_ = false;
   bool finished_ = false;
   std::unique_ptr<Port> port_;
+  std::shared_ptr<Recorder> recorder_;
+  std::map<std::string, std::unique_ptr<Port>> channel_ports_;
 };
 
 // A GoogleTest fixture whose tests get a port from their cassette.
@@ -219,29 +318,16 @@ class CassetteTest : public ::testing::Test {
   // this call, the cassette and the command that records it again.
   Port& port(std::string_view replay_keys = {},
              const char* source_file = __builtin_FILE(), int source_line = __builtin_LINE()) {
-    if (!cassette_) {
-      const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-      const std::string suite = info->test_suite_name();
-      const std::string test = info->name();
-      CassetteSettings settings = CassetteSettings::from_environment();
-      std::string path = default_cassette_path(source_file, suite, test, settings.directory);
-      if (settings.record != RecordMode::none) {
-        std::filesystem::create_directories(std::filesystem::path(path).parent_path());
-      }
-      cassette_ = std::make_unique<Cassette>(std::move(path), std::move(settings),
-                                             std::string(replay_keys), suite + "." + test);
-      // GoogleTest reports an exception that escapes the test body at
-      // "unknown file"; a trace alive until TearDown ends gives that failure
-      // (and any other) this test's line and the way out.
-      trace_ = std::make_unique<::testing::ScopedTrace>(
-          source_file, source_line,
-          cassette_->recording()
-              ? "recording cassette " + cassette_->path()
-              : "replaying cassette " + cassette_->path() +
-                    "; if the driver changed on purpose, record it again with\n    " +
-                    cassette_->record_command("rewrite"));
-    }
-    return cassette_->port();
+    return start_cassette(replay_keys, source_file, source_line).port();
+  }
+
+  // The port of channel `name` of this test's cassette of several channels
+  // (DESIGN §19), opened on first call: recorded through one Recorder from
+  // WIRETAPE_DEVICE_<name>, replayed with channel=NAME. `replay_keys` apply
+  // to every channel; the first call's are kept.
+  Port& port_of(const std::string& name, std::string_view replay_keys = {},
+                const char* source_file = __builtin_FILE(), int source_line = __builtin_LINE()) {
+    return start_cassette(replay_keys, source_file, source_line).port_of(name);
   }
 
   // The cassette, once port() was called (nullptr before).
@@ -264,6 +350,33 @@ class CassetteTest : public ::testing::Test {
   }
 
  private:
+  Cassette& start_cassette(std::string_view replay_keys, const char* source_file,
+                           int source_line) {
+    if (!cassette_) {
+      const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+      const std::string suite = info->test_suite_name();
+      const std::string test = info->name();
+      CassetteSettings settings = CassetteSettings::from_environment();
+      std::string path = default_cassette_path(source_file, suite, test, settings.directory);
+      if (settings.record != RecordMode::none) {
+        std::filesystem::create_directories(std::filesystem::path(path).parent_path());
+      }
+      cassette_ = std::make_unique<Cassette>(std::move(path), std::move(settings),
+                                             std::string(replay_keys), suite + "." + test);
+      // GoogleTest reports an exception that escapes the test body at
+      // "unknown file"; a trace alive until TearDown ends gives that failure
+      // (and any other) this test's line and the way out.
+      trace_ = std::make_unique<::testing::ScopedTrace>(
+          source_file, source_line,
+          cassette_->recording()
+              ? "recording cassette " + cassette_->path()
+              : "replaying cassette " + cassette_->path() +
+                    "; if the driver changed on purpose, record it again with\n    " +
+                    cassette_->record_command("rewrite"));
+    }
+    return *cassette_;
+  }
+
   std::unique_ptr<Cassette> cassette_;
   std::unique_ptr<::testing::ScopedTrace> trace_;
 };

@@ -7,6 +7,7 @@
 #include "wiretape/options.hpp"
 #include "wiretape/port.hpp"
 #include "wiretape/profile.hpp"
+#include "wiretape/recorder.hpp"
 #include "wiretape/session.hpp"
 #include "wiretape/timeout.hpp"
 #include "wiretape/version.hpp"

@@ -8,7 +8,8 @@ The C++ core (``wiretape._core``) does the work; this package re-exports it:
   :class:`ReplayMismatch`, :class:`SessionError`;
 * session files: :class:`SessionReader`, :class:`SessionWriter`, :class:`SessionHeader`,
   :class:`Channel` (one port of a session of several), :class:`Record`, and the
-  flexiport export :func:`export_flexiport`.
+  flexiport export :func:`export_flexiport`;
+* :class:`Recorder` -- several ports recorded into one session file.
 
 The commands that read session files are in :mod:`wiretape.tools`, the
 exports in :mod:`wiretape.exports`, the pytest plugin in
@@ -25,6 +26,7 @@ from ._core import (
     PortClosed,
     PortError,
     Record,
+    Recorder,
     ReplayMismatch,
     SessionError,
     SessionHeader,
@@ -50,6 +52,7 @@ __all__ = [
     "SessionReader",
     "SessionWriter",
     "Record",
+    "Recorder",
     "export_flexiport",
 ]
 

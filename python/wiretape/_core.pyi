@@ -639,9 +639,9 @@ class SessionWriter:
     Writes a new .wtape file (truncating PATH). Buffered; buffered records reach the OS at most flush_ms after they were written. A full disk or file-size limit raises PortError; what was written before stays readable.
     """
 
-    def __init__(self, path: str | os.PathLike[str] | bytes, header: SessionHeader | None = None, *, flush_ms: int = 100, fsync: bool = False, **members: object) -> None:
+    def __init__(self, path: str | os.PathLike[str] | bytes, header: SessionHeader | None = None, *, flush_ms: int = 100, fsync: bool = False, header_room: int = 0, **members: object) -> None:
         """
-        HEADER (default: SessionHeader.starting_now()) with MEMBERS (keyword arguments named as SessionHeader's members) set on it is what the file's header says.
+        HEADER (default: SessionHeader.starting_now()) with MEMBERS (keyword arguments named as SessionHeader's members) set on it is what the file's header says. header_room: spare header bytes (spaces) kept so that add_channel() can rewrite the header in place; 0 writes it exactly as long as its JSON.
         """
 
     @property
@@ -653,6 +653,11 @@ class SessionWriter:
         Appends a record: kind is a name ('rx', 'tx', 'open', ...) or a code. channel is reserved for sessions of several ports: 0, the session's port.
         """
 
+    def add_channel(self, channel: Channel) -> int:
+        """
+        Adds CHANNEL (its id is ignored) to the header's channels, rewriting the header in place within the header_room reserved; returns its id. Raises OptionError naming 'name' (a bad or taken name), SessionError when the header has no room left.
+        """
+
     def flush(self) -> None: ...
 
     def close(self) -> None: ...
@@ -661,6 +666,38 @@ class SessionWriter:
     def path(self) -> str: ...
 
     def __enter__(self) -> SessionWriter: ...
+
+    def __exit__(self, *args) -> None: ...
+
+class Recorder:
+    """
+    Records several ports into one session file, one channel each, on one clock (time 0: the first channel's open). Its ports keep the file open; it is closed at close() (or leaving a with block), or when the recorder and its ports are gone.
+    """
+
+    def __init__(self, path: str | os.PathLike[str] | bytes, header: SessionHeader | None = None, *, flush_ms: int = 100, fsync: bool = False, header_room: int = 32768, **members: object) -> None:
+        """
+        Creates the session file. HEADER (default: SessionHeader.starting_now()) with MEMBERS set on it is its header; each port adds its channel to it. header_room: the bytes kept for the channels' entries.
+        """
+
+    def open_port(self, options: str) -> Port:
+        """
+        Opens the port OPTIONS describe (as open_port() does) recording into a new channel named by its name=NAME: 'name=gps,type=serial,device=/dev/ttyUSB0'. Raises OptionError naming the key (a missing, bad or taken name; log=).
+        """
+
+    def close(self) -> None:
+        """Flushes and closes the file; its ports go on, unrecorded."""
+
+    def now_ns(self) -> int:
+        """The recorder's clock: ns since its first channel's open (0 before)."""
+
+    @property
+    def path(self) -> str: ...
+
+    @property
+    def header(self) -> SessionHeader:
+        """the header as written so far"""
+
+    def __enter__(self) -> Recorder: ...
 
     def __exit__(self, *args) -> None: ...
 
@@ -775,7 +812,10 @@ class Bridge:
     Forwards bytes between a device port and a pty, TCP clients or UDP clients, optionally recording them (see wiretape.bridge).
     """
 
-    def __init__(self, device: str, *, client_side: str = 'pty', pty_link: str = '', pty_mode: int = 432, pty_group: str = '', listen_host: str = '127.0.0.1', listen_port: int = 0, listen_backlog: int = 4096, udp_peer_host: str = '', udp_peer_port: int = 0, protocol: str = 'raw', shared: bool = False, max_monitors: int = 16, output: str = '', metadata: Mapping[str, str] = {}, flush_ms: int = 100, mirror_settings: bool = True, reopen: bool = False, restart: bool = False, duration: object | None = None, buffer_limit: int = 1048576, quiet: bool = False, line_channel: str = '') -> None: ...
+    def __init__(self, device: str, *, client_side: str = 'pty', pty_link: str = '', pty_mode: int = 432, pty_group: str = '', listen_host: str = '127.0.0.1', listen_port: int = 0, listen_backlog: int = 4096, udp_peer_host: str = '', udp_peer_port: int = 0, protocol: str = 'raw', shared: bool = False, max_monitors: int = 16, output: str = '', metadata: Mapping[str, str] = {}, flush_ms: int = 100, mirror_settings: bool = True, reopen: bool = False, restart: bool = False, duration: object | None = None, buffer_limit: int = 1048576, quiet: bool = False, line_channel: str = '', recorder: Recorder | None = None, channel: str = '') -> None:
+        """
+        recorder: a Recorder whose channel named `channel` the bridge records into (capture=wire) instead of opening `output`.
+        """
 
     def start(self) -> None:
         """

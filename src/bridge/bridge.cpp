@@ -386,6 +386,24 @@ Bridge::Bridge(BridgeOptions options) : impl_(std::make_unique<Impl>(std::move(o
     throw OptionError("duration", "duration must be positive (seconds)");
   }
   if (o.flush_ms < 1) throw OptionError("flush_ms", "flush_ms must be at least 1");
+  if (o.recorder && !o.output.empty()) {
+    throw OptionError("output", "the bridge records either into its own file (output) or into "
+                                "a recorder's channel (recorder), not both");
+  }
+  if (o.recorder && !o.metadata.empty()) {
+    throw OptionError("metadata", "metadata goes into the header of the recorder's file (" +
+                                      o.recorder->path() + "), which the recorder was made "
+                                      "with, not into one of its channels");
+  }
+  if (o.recorder) {
+    if (const auto problem = channel_name_problem(o.channel)) {
+      throw OptionError("channel", "the bridge's channel in " + o.recorder->path() + ": " +
+                                       *problem);
+    }
+  } else if (!o.channel.empty()) {
+    throw OptionError("channel", "channel \"" + o.channel +
+                                     "\" names a channel of a recorder, and no recorder is given");
+  }
   if (o.pty_mode > 0777) {
     throw OptionError("pty_mode", "pty_mode " + octal(o.pty_mode) +
                                       " has bits beyond the permission bits 0777");

@@ -8,6 +8,7 @@
 #include "posix/transports.hpp"
 #include "replay/replay_port.hpp"
 #include "session/record_kinds.hpp"
+#include "session/recorder_file.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/options.hpp"
 
@@ -31,8 +32,8 @@ bool is_unsupported(const PortError& error) {
 
 // The count is the writer's: records in the file, not records buffered (a
 // write failure loses those), so the summary matches what verify finds.
-void count_records_written(Status& status, const SessionWriter& writer) {
-  const std::uint64_t in_file = writer.records_written();
+void count_records_written(Status& status, const RecordingChannel& recording) {
+  const std::uint64_t in_file = recording.records_written();
   status.update_stats([in_file](BridgeStats& s) { s.records_written = in_file; });
 }
 
@@ -65,18 +66,42 @@ void DeviceSide::open(bool first, const char* why) {
 }
 
 void DeviceSide::open_session_file() {
-  if (options_.output.empty()) return;
-  SessionHeader header = SessionHeader::starting_now();
-  header.capture = Capture::wire;
-  header.port_options = options_.device;
-  header.port_type = device_->type();
-  header.user_metadata = options_.metadata;
+  if (options_.output.empty() && !options_.recorder) return;
+  Channel channel;
+  channel.name = options_.channel;
+  channel.capture = Capture::wire;
+  channel.port_options = options_.device;
+  channel.port_type = device_->type();
   // A serial device's identity (DESIGN §20); a pty or a network device has none.
   for (const auto& entry : parse_options(options_.device)) {
-    if (entry.key == "device") header.device_identity = read_device_identity(entry.value);
+    if (entry.key == "device") channel.device_identity = read_device_identity(entry.value);
   }
-  writer_ = std::make_unique<SessionWriter>(
-      options_.output, header, FlushPolicy{std::chrono::milliseconds(options_.flush_ms)});
+  if (options_.recorder) {
+    // A network device's address, for the exports (docs/session-format.md).
+    std::string host, port;
+    for (const auto& entry : parse_options(options_.device)) {
+      if (entry.key == "host") host = entry.value;
+      if (entry.key == "port") port = entry.value;
+    }
+    if (!host.empty() && !port.empty()) {
+      channel.device_address =
+          (host.find(':') != std::string::npos ? "[" + host + "]" : host) + ":" + port;
+    }
+    recording_ = options_.recorder->add_channel(channel);
+    owns_file_ = false;
+    record(RecordKind::open,
+           event_payload(RecordKind::open, {{event_field::description, description_}}));
+    return;
+  }
+  SessionHeader header = SessionHeader::starting_now();
+  header.capture = channel.capture;
+  header.port_options = channel.port_options;
+  header.port_type = channel.port_type;
+  header.device_identity = channel.device_identity;
+  header.user_metadata = options_.metadata;
+  recording_ = single_channel_file(options_.output, header,
+                                   FlushPolicy{std::chrono::milliseconds(options_.flush_ms)});
+  owns_file_ = true;
   // Time zero is the device's open, which came just before the file.
   record_at(RecordKind::open, 0,
             event_payload(RecordKind::open, {{event_field::description, description_}}));
@@ -146,12 +171,17 @@ void DeviceSide::shut_down(BridgeOutcome& outcome, std::string& message) {
     }
     device_.reset();
   }
-  if (writer_) {
+  if (recording_ && !owns_file_) {
+    // The recorder's file stays open for its other channels.
+    count_records_written(status_, *recording_);
+    recording_.reset();
+  }
+  if (recording_) {
     try {
-      writer_->close();
-      count_records_written(status_, *writer_);
+      RecordingChannelAccess::file(*recording_).close();
+      count_records_written(status_, *recording_);
     } catch (const std::exception& error) {
-      count_records_written(status_, *writer_);
+      count_records_written(status_, *recording_);
       // The session file misses what came after the failure: that is the
       // bridge's result, whatever else ended it.
       if (outcome != BridgeOutcome::mismatch) {
@@ -161,39 +191,43 @@ void DeviceSide::shut_down(BridgeOutcome& outcome, std::string& message) {
                   error.what();
       }
     }
-    writer_.reset();
+    recording_.reset();
   }
 }
 
 void DeviceSide::abandon() {
   device_.reset();
-  if (writer_) {
+  if (recording_ && owns_file_) {
     try {
-      writer_->close();
+      RecordingChannelAccess::file(*recording_).close();
     } catch (...) {
     }
-    writer_.reset();
     std::remove(options_.output.c_str());
   }
+  recording_.reset();
 }
 
 // --- recording ---------------------------------------------------------------------------
 
 std::uint64_t DeviceSide::now_ns() const {
+  // A recorder's channels share its clock.
+  if (recording_ && !owns_file_) return recording_->now_ns();
   return static_cast<std::uint64_t>(
       std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - t0_).count());
 }
 
 void DeviceSide::record_at(RecordKind kind, std::uint64_t t_ns, std::string_view data) {
-  if (!writer_ || recording_failed_) return;
+  if (!recording_ || recording_failed_) return;
   try {
-    writer_->write(kind, t_ns, data);
+    recording_->write(kind, t_ns, data);
   } catch (const PortError& error) {
+    // The recorder was closed under the bridge: the session has ended.
+    if (recording_->file_closed() && !owns_file_) return;
     recording_stopped(error);
-    count_records_written(status_, *writer_);
+    count_records_written(status_, *recording_);
     return;
   }
-  count_records_written(status_, *writer_);
+  count_records_written(status_, *recording_);
 }
 
 void DeviceSide::recording_stopped(const PortError& error) {

@@ -135,7 +135,10 @@ class DeviceSide {
   std::unique_ptr<Port> device_;
   bool lost_by_fault_ = false;
   std::string description_;
-  std::unique_ptr<SessionWriter> writer_;
+  // What the bridge records into: a file of its own (output, one unnamed
+  // channel; owns_file_) or a channel of the options' recorder.
+  std::optional<RecordingChannel> recording_;
+  bool owns_file_ = false;
   bool recording_failed_ = false;
   Clock::time_point t0_;
   ByteQueue to_device_{options_.buffer_limit};

@@ -9,6 +9,7 @@
 
 #include "wiretape/options.hpp"
 #include "wiretape/port.hpp"
+#include "wiretape/recorder.hpp"
 #include "wiretape/session.hpp"
 
 namespace wiretape::detail {
@@ -26,11 +27,23 @@ struct RecordingConfig {
   std::map<std::string, std::string> metadata;  // meta_KEY=VALUE
 };
 
-// Wraps `inner` so that everything crossing it is recorded (capture=client).
+// How a recorded port treats the channel it records into.
+struct RecordingTarget {
+  // The port's close closes the file (log=): its errors are the port's.
+  bool owns_file = true;
+  bool raise_errors = true;  // log_errors=raise (else warn on stderr)
+  // This port's open is the recorder's time 0 (its first channel).
+  bool opens_the_clock = true;
+};
+
+// Wraps `inner` so that everything crossing it is recorded (capture=client)
+// into a new session file of one unnamed channel (log=FILE). A replay's
+// injected faults are recorded too, as `fault` events.
 std::unique_ptr<Port> record_port(std::unique_ptr<Port> inner,
                                   RecordingConfig config);
-// Records an event (JSON payload) into `port` if it is a recorder made by
-// record_port(); a replay's injected faults reach its log= this way.
-void record_port_event(Port& port, RecordKind kind, std::string_view payload);
+// The same into `channel` of a file (a Recorder's port; log= is this with a
+// file of its own).
+std::unique_ptr<Port> record_port_into(std::unique_ptr<Port> inner, RecordingChannel channel,
+                                       RecordingTarget target);
 
 }  // namespace wiretape::detail

@@ -1,10 +1,12 @@
-// The recording port (`log=FILE`): a decorator that forwards every call to
-// the port under it unchanged and records what crossed it into a session
+// The recording port (`log=FILE`, and each port of a Recorder): a decorator
+// that forwards every call to the port under it unchanged and records what crossed it into a session
 // file (capture=client): each successful read's bytes as one rx when the
 // read returned (a compound read is one read, however many reads of the port
 // under it it took), each write's bytes as tx stamped when the write call entered,
 // and the events (open, close, flushes, drain, settings, modem lines, break,
-// device loss). Reads that time out are not recorded.
+// device loss). Reads that time out are not recorded. It records into a
+// channel of a recorder's file; `log=FILE` is a file of one unnamed channel
+// that the port owns (its close closes the file).
 #include <atomic>
 #include <chrono>
 #include <cstdio>
@@ -13,6 +15,9 @@
 #include <string>
 
 #include "ports/ports.hpp"
+#include "replay/replay_port.hpp"
+#include "session/recorder_file.hpp"
+#include "util/json.hpp"
 #include "session/record_kinds.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
@@ -24,14 +29,11 @@ namespace {
 
 class RecordingPort final : public Port {
  public:
-  RecordingPort(std::unique_ptr<Port> inner, RecordingConfig config)
-      : inner_(std::move(inner)),
-        config_(std::move(config)),
-        writer_(config_.path, session_header(config_, *inner_), flush_policy(config_)),
-        opened_(std::chrono::steady_clock::now()) {
+  RecordingPort(std::unique_ptr<Port> inner, RecordingChannel channel, RecordingTarget target)
+      : inner_(std::move(inner)), target_(target), channel_(std::move(channel)) {
     set_timeout(inner_->timeout());
     set_access(inner_->access());
-    record(RecordKind::open, 0,
+    record(RecordKind::open, target_.opens_the_clock ? 0 : now_ns(),
            event_payload(RecordKind::open, {{event_field::description, inner_->description()}}));
     // The device's lines as they were at open: a replay checks the client's
     // lines only in recordings that hold the device's (DESIGN.md section 20).
@@ -204,24 +206,7 @@ class RecordingPort final : public Port {
   }
 
  private:
-  static SessionHeader session_header(const RecordingConfig& config, const Port& inner) {
-    SessionHeader header = SessionHeader::starting_now();
-    header.capture = Capture::client;
-    header.port_options = config.options_text;
-    header.port_type = config.port_type.empty() ? inner.type() : config.port_type;
-    header.user_metadata = config.metadata;
-    return header;
-  }
-
-  static FlushPolicy flush_policy(const RecordingConfig& config) {
-    return {std::chrono::milliseconds(config.flush_ms), config.fsync};
-  }
-
-  std::uint64_t now_ns() const {
-    return static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                          std::chrono::steady_clock::now() - opened_)
-                                          .count());
-  }
+  std::uint64_t now_ns() const { return channel_.now_ns(); }
 
   // A device that went away is recorded once (replays as PortClosed there);
   // a close() of ours is recorded as close instead.
@@ -275,11 +260,12 @@ class RecordingPort final : public Port {
   void record(RecordKind kind, std::uint64_t t_ns, std::string_view data) {
     if (!recording_.load(std::memory_order_acquire)) return;
     try {
-      writer_.write(kind, t_ns, data);
+      channel_.write(kind, t_ns, data);
     } catch (const PortError& e) {
       // A read or write racing with close() may come after the file was
-      // closed: that is the end of the session, not a recording failure.
-      if (finished_.load(std::memory_order_acquire)) return;
+      // closed (by this port, or by its Recorder): that is the end of the
+      // session, not a recording failure.
+      if (finished_.load(std::memory_order_acquire) || channel_.file_closed()) return;
       recording_failed(e);
     }
   }
@@ -289,7 +275,7 @@ class RecordingPort final : public Port {
   void recording_failed(const PortError& error) {
     std::lock_guard<std::mutex> lock(failure_mutex_);
     if (!recording_.exchange(false)) return;
-    if (config_.raise_errors) {
+    if (target_.raise_errors) {
       pending_failure_.emplace(error);
       has_pending_failure_.store(true, std::memory_order_release);
     } else {
@@ -303,7 +289,7 @@ class RecordingPort final : public Port {
   void report_failure() {
     if (recording_.load(std::memory_order_acquire)) {
       // A failure in the writer's background flush shows up here.
-      if (auto failure = writer_.failure()) recording_failed(*failure);
+      if (auto failure = channel_.failure()) recording_failed(*failure);
     }
     if (!has_pending_failure_.load(std::memory_order_acquire)) return;
     std::lock_guard<std::mutex> lock(failure_mutex_);
@@ -320,17 +306,20 @@ class RecordingPort final : public Port {
     closed_recorded_ = true;
     record(RecordKind::close, now_ns(), "{}");
     finished_.store(true, std::memory_order_release);
+    // A Recorder's file stays open for its other channels.
+    if (!target_.owns_file) return;
+    RecorderFile& file = RecordingChannelAccess::file(channel_);
     if (!recording_.load()) {
       // Recording stopped at a failure that was already reported: the file
       // is released all the same.
       try {
-        writer_.close();
+        file.close();
       } catch (const PortError&) {
       }
       return;
     }
     try {
-      writer_.close();
+      file.close();
     } catch (const PortError& e) {
       recording_failed(e);
       report_failure();
@@ -338,9 +327,8 @@ class RecordingPort final : public Port {
   }
 
   std::unique_ptr<Port> inner_;
-  RecordingConfig config_;
-  SessionWriter writer_;
-  std::chrono::steady_clock::time_point opened_;
+  RecordingTarget target_;
+  RecordingChannel channel_;
   std::atomic<bool> recording_{true};
   std::atomic<bool> closing_{false};
   std::atomic<bool> lost_{false};
@@ -358,12 +346,36 @@ class RecordingPort final : public Port {
 
 }  // namespace
 
-std::unique_ptr<Port> record_port(std::unique_ptr<Port> inner, RecordingConfig config) {
-  return std::make_unique<RecordingPort>(std::move(inner), std::move(config));
+std::unique_ptr<Port> record_port_into(std::unique_ptr<Port> inner, RecordingChannel channel,
+                                       RecordingTarget target) {
+  Port* replayed = inner.get();
+  auto port = std::make_unique<RecordingPort>(std::move(inner), std::move(channel), target);
+  // A recorded faulty replay: each fault is also a `fault` event.
+  RecordingPort* recorder = port.get();
+  replay_on_fault(*replayed, [recorder](const FaultEvent& event) {
+    std::fprintf(stderr, "wiretape: fault %s@%s: %s\n", event.kind.c_str(), event.where.c_str(),
+                 event.detail.c_str());
+    recorder->record_event(RecordKind::fault, json::ObjectWriter()
+                                                  .add(event_field::fault_kind, event.kind)
+                                                  .add(event_field::where, event.where)
+                                                  .add(event_field::detail, event.detail)
+                                                  .str());
+  });
+  return port;
 }
 
-void record_port_event(Port& port, RecordKind kind, std::string_view payload) {
-  if (auto* recorder = dynamic_cast<RecordingPort*>(&port)) recorder->record_event(kind, payload);
+std::unique_ptr<Port> record_port(std::unique_ptr<Port> inner, RecordingConfig config) {
+  SessionHeader header = SessionHeader::starting_now();
+  header.capture = Capture::client;
+  header.port_options = config.options_text;
+  header.port_type = config.port_type.empty() ? inner->type() : config.port_type;
+  header.user_metadata = config.metadata;
+  const FlushPolicy flush{std::chrono::milliseconds(config.flush_ms), config.fsync};
+  // The clock starts when the file is made, just after the port opened.
+  RecordingChannel channel = single_channel_file(config.path, header, flush);
+  return record_port_into(std::move(inner), std::move(channel),
+                          RecordingTarget{/*owns_file=*/true, config.raise_errors,
+                                          /*opens_the_clock=*/true});
 }
 
 }  // namespace wiretape::detail

@@ -13,6 +13,7 @@
 
 #include <nanobind/stl/map.h>
 #include <nanobind/stl/pair.h>
+#include <nanobind/stl/shared_ptr.h>
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
@@ -117,7 +118,8 @@ BridgeOptions make_options(const std::string& device, const std::string& client_
                            const std::map<std::string, std::string>& metadata,
                            int flush_ms, bool mirror_settings, bool reopen, bool restart,
                            nb::handle duration, std::size_t buffer_limit, bool quiet,
-                           const std::string& line_channel) {
+                           const std::string& line_channel, std::shared_ptr<Recorder> recorder,
+                           const std::string& channel) {
   BridgeOptions o;
   o.device = device;
   o.client_side = one_of<BridgeClientSide>("client_side", client_side,
@@ -152,6 +154,8 @@ BridgeOptions make_options(const std::string& device, const std::string& client_
   o.buffer_limit = buffer_limit;
   o.quiet = quiet;
   o.line_channel = line_channel;
+  o.recorder = std::move(recorder);
+  o.channel = channel;
   return o;
 }
 
@@ -171,7 +175,8 @@ void bind_bridge(nb::module_& m) {
              const std::string& output,
              const std::map<std::string, std::string>& metadata, int flush_ms,
              bool mirror_settings, bool reopen, bool restart, nb::handle duration,
-             std::size_t buffer_limit, bool quiet, const std::string& line_channel) {
+             std::size_t buffer_limit, bool quiet, const std::string& line_channel,
+             std::shared_ptr<Recorder> recorder, const std::string& channel) {
             new (self) Bridge(make_options(device, client_side, pty_link, pty_mode,
                                            pty_group, listen_host,
                                            listen_port, listen_backlog, udp_peer_host,
@@ -179,7 +184,8 @@ void bind_bridge(nb::module_& m) {
                                            protocol, shared, max_monitors,
                                            output, metadata,
                                            flush_ms, mirror_settings, reopen, restart,
-                                           duration, buffer_limit, quiet, line_channel));
+                                           duration, buffer_limit, quiet, line_channel,
+                                           std::move(recorder), channel));
           },
           "device"_a, nb::kw_only(), "client_side"_a = "pty", "pty_link"_a = "",
           "pty_mode"_a = 0660LL, "pty_group"_a = "",
@@ -190,7 +196,10 @@ void bind_bridge(nb::module_& m) {
           "metadata"_a = std::map<std::string, std::string>{}, "flush_ms"_a = 100,
           "mirror_settings"_a = true, "reopen"_a = false, "restart"_a = false,
           "duration"_a = nb::none(), "buffer_limit"_a = std::size_t{1} << 20,
-          "quiet"_a = false, "line_channel"_a = "")
+          "quiet"_a = false, "line_channel"_a = "", "recorder"_a.none() = nb::none(),
+          "channel"_a = "",
+          "recorder: a Recorder whose channel named `channel` the bridge records into "
+          "(capture=wire) instead of opening `output`.")
       .def("start", &Bridge::start, nb::call_guard<nb::gil_scoped_release>(),
            "Opens the device, the client side and the session file and starts forwarding.")
       .def("stop", &Bridge::stop, nb::call_guard<nb::gil_scoped_release>(),

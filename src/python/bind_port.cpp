@@ -47,7 +47,7 @@ Timeout timeout_from_python(nb::handle value) {
   } else {
     throw nb::type_error(
         ("timeout must be None (block) or a number of seconds, not " +
-         std::string(Py_TYPE(value.ptr())->tp_name))
+         nb::cast<std::string>(nb::type_name(value.type())))
             .c_str());
   }
   if (std::isnan(seconds) || seconds < 0.0) {
@@ -132,7 +132,7 @@ class ByteView {
     if (PyObject_GetBuffer(object.ptr(), &view_, PyBUF_SIMPLE) != 0) {
       PyErr_Clear();
       throw nb::type_error((std::string(what) + " must be bytes-like, not " +
-                            Py_TYPE(object.ptr())->tp_name)
+                            nb::cast<std::string>(nb::type_name(object.type())))
                                .c_str());
     }
   }

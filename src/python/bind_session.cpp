@@ -10,6 +10,8 @@
 #include <string>
 
 #include <nanobind/stl/map.h>
+#include <nanobind/stl/shared_ptr.h>
+#include <nanobind/stl/unique_ptr.h>
 #include <nanobind/stl/vector.h>
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/string.h>
@@ -26,6 +28,8 @@
 #include "session/record_kinds.hpp"
 #include "wiretape/cassette_names.hpp"
 #include "wiretape/errors.hpp"
+#include "wiretape/port.hpp"
+#include "wiretape/recorder.hpp"
 #include "wiretape/session.hpp"
 
 namespace nb = nanobind;
@@ -49,8 +53,9 @@ std::string path_from_python(nb::handle value) {
   if (fspath == nullptr) throw nb::python_error();
   nb::object path = nb::steal(fspath);
   if (PyBytes_Check(path.ptr())) {
-    return std::string(PyBytes_AS_STRING(path.ptr()),
-                       static_cast<std::size_t>(PyBytes_GET_SIZE(path.ptr())));
+    // The stable ABI's calls, not the macros: one abi3 wheel for 3.12 on.
+    return std::string(PyBytes_AsString(path.ptr()),
+                       static_cast<std::size_t>(PyBytes_Size(path.ptr())));
   }
   return nb::cast<std::string>(path);
 }
@@ -731,7 +736,7 @@ void bind_session(nb::module_& m) {
       .def(
           "__init__",
           [](PyWriter* self, nb::handle path, std::optional<SessionHeader> header,
-             int flush_ms, bool fsync, nb::kwargs members) {
+             int flush_ms, bool fsync, std::size_t header_room, nb::kwargs members) {
             if (flush_ms < 0) throw nb::value_error("flush_ms must be >= 0");
             // No header: a session recorded now, on this machine.
             nb::object chosen = nb::cast(header ? *header : SessionHeader::starting_now());
@@ -742,15 +747,17 @@ void bind_session(nb::module_& m) {
             self->path = p;
             nb::gil_scoped_release release;
             self->writer = std::make_unique<SessionWriter>(
-                p, written, FlushPolicy{std::chrono::milliseconds(flush_ms), fsync});
+                p, written, FlushPolicy{std::chrono::milliseconds(flush_ms), fsync}, header_room);
           },
           "path"_a, "header"_a = nb::none(), nb::kw_only(), "flush_ms"_a = 100,
-          "fsync"_a = false, "members"_a,
+          "fsync"_a = false, "header_room"_a = std::size_t{0}, "members"_a,
           nb::sig("def __init__(self, path: str | os.PathLike[str] | bytes, "
                   "header: SessionHeader | None = None, *, flush_ms: int = 100, "
-                  "fsync: bool = False, **members: object) -> None"),
+                  "fsync: bool = False, header_room: int = 0, **members: object) -> None"),
           "HEADER (default: SessionHeader.starting_now()) with MEMBERS (keyword arguments "
-          "named as SessionHeader's members) set on it is what the file's header says.")
+          "named as SessionHeader's members) set on it is what the file's header says. "
+          "header_room: spare header bytes (spaces) kept so that add_channel() can rewrite "
+          "the header in place; 0 writes it exactly as long as its JSON.")
       .def_prop_ro("header", [](PyWriter& self) { return self.get().header(); },
                    "the header as written (this library's format version, metadata_json)")
       .def(
@@ -764,6 +771,17 @@ void bind_session(nb::module_& m) {
           "kind"_a, "t_ns"_a, "data"_a = nb::bytes("", 0), "channel"_a = 0,
           "Appends a record: kind is a name ('rx', 'tx', 'open', ...) or a code. channel is "
           "reserved for sessions of several ports: 0, the session's port.")
+      .def(
+          "add_channel",
+          [](PyWriter& self, const Channel& channel) {
+            SessionWriter& writer = self.get();
+            nb::gil_scoped_release release;
+            return writer.add_channel(channel);
+          },
+          "channel"_a,
+          "Adds CHANNEL (its id is ignored) to the header's channels, rewriting the header in "
+          "place within the header_room reserved; returns its id. Raises OptionError naming "
+          "'name' (a bad or taken name), SessionError when the header has no room left.")
       .def("flush",
            [](PyWriter& self) {
              SessionWriter& writer = self.get();
@@ -775,6 +793,58 @@ void bind_session(nb::module_& m) {
       .def("__enter__", [](nb::handle self) { return self; },
            nb::sig("def __enter__(self) -> SessionWriter"))
       .def("__exit__", [](PyWriter& self, nb::args) { self.close(); });
+
+  // Held by shared_ptr: a Bridge records into it (Bridge(recorder=...)).
+  nb::class_<Recorder>(m, "Recorder",
+                       "Records several ports into one session file, one channel each, on one "
+                       "clock (time 0: the first channel's open). Its ports keep the file "
+                       "open; it is closed at close() (or leaving a with block), or when the "
+                       "recorder and its ports are gone.")
+      .def(
+          "__init__",
+          [](Recorder* self, nb::handle path, std::optional<SessionHeader> header,
+             int flush_ms, bool fsync, std::size_t header_room, nb::kwargs members) {
+            if (flush_ms < 0) throw nb::value_error("flush_ms must be >= 0");
+            nb::object chosen = nb::cast(header ? *header : SessionHeader::starting_now());
+            set_header_members(chosen, members);
+            const SessionHeader written = nb::cast<SessionHeader>(chosen);
+            const std::string p = path_from_python(path);
+            nb::gil_scoped_release release;
+            new (self) Recorder(p, written, FlushPolicy{std::chrono::milliseconds(flush_ms), fsync},
+                                header_room);
+          },
+          "path"_a, "header"_a = nb::none(), nb::kw_only(), "flush_ms"_a = 100,
+          "fsync"_a = false, "header_room"_a = Recorder::default_header_room, "members"_a,
+          nb::sig("def __init__(self, path: str | os.PathLike[str] | bytes, "
+                  "header: SessionHeader | None = None, *, flush_ms: int = 100, "
+                  "fsync: bool = False, header_room: int = 32768, "
+                  "**members: object) -> None"),
+          "Creates the session file. HEADER (default: SessionHeader.starting_now()) with "
+          "MEMBERS set on it is its header; each port adds its channel to it. header_room: "
+          "the bytes kept for the channels' entries.")
+      .def(
+          "open_port",
+          [](Recorder& self, const std::string& options) {
+            nb::gil_scoped_release release;
+            return self.open_port(std::string_view(options));
+          },
+          "options"_a,
+          "Opens the port OPTIONS describe (as open_port() does) recording into a new "
+          "channel named by its name=NAME: 'name=gps,type=serial,device=/dev/ttyUSB0'. "
+          "Raises OptionError naming the key (a missing, bad or taken name; log=).")
+      .def("close", &Recorder::close, nb::call_guard<nb::gil_scoped_release>(),
+           "Flushes and closes the file; its ports go on, unrecorded.")
+      .def("now_ns", &Recorder::now_ns,
+           "The recorder's clock: ns since its first channel's open (0 before).")
+      .def_prop_ro("path", &Recorder::path)
+      .def_prop_ro("header", &Recorder::header, "the header as written so far")
+      .def("__enter__", [](nb::handle self) { return self; },
+           nb::sig("def __enter__(self) -> Recorder"))
+      .def("__exit__",
+           [](Recorder& self, nb::args) {
+             nb::gil_scoped_release release;
+             self.close();
+           });
 
   m.def(
       "export_flexiport",

@@ -374,7 +374,8 @@ void parse_header_json(const std::string& text, const std::string& path,
                        offset);
   }
   namespace field = header_field;
-  header.metadata_json = text;
+  // Without the spaces a recorder reserved for channels (header room).
+  header.metadata_json = text.substr(0, text.find_last_not_of(' ') + 1);
   header.port_options = root.string_member(field::port_options).value_or("");
   header.port_type = root.string_member(field::port_type).value_or("");
   header.start_utc = root.string_member(field::start_utc).value_or("");

@@ -79,6 +79,9 @@ struct SessionWriter::Impl {
   bool closed = false;
   std::thread flusher;
 
+  // The header JSON's length in the file: the JSON, then spaces up to it.
+  std::size_t header_json_room = 0;
+
   // Held for the whole of close(), so that a second close() waits for the
   // first to finish instead of racing it.
   std::mutex close_mutex;
@@ -245,8 +248,26 @@ struct SessionWriter::Impl {
   }
 };
 
+namespace {
+
+// The fixed part of the file header and its JSON, padded with spaces to
+// `room` bytes, followed by a zeroed CRC slot.
+std::string file_header_bytes(const std::string& json, std::size_t room) {
+  std::string file_header(detail::file_header_fixed_size, '\0');
+  std::memcpy(&file_header[0], detail::session_magic, sizeof detail::session_magic);
+  detail::put_u16le(&file_header[8], detail::session_version_major);
+  detail::put_u16le(&file_header[10], detail::session_version_minor);
+  detail::put_u32le(&file_header[12], static_cast<std::uint32_t>(room));
+  file_header += json;
+  file_header.append(room - json.size(), ' ');
+  file_header.append(detail::crc_size, '\0');
+  return file_header;
+}
+
+}  // namespace
+
 SessionWriter::SessionWriter(const std::string& path, const SessionHeader& header,
-                             FlushPolicy flush)
+                             FlushPolicy flush, std::size_t header_room)
     : impl_(std::make_unique<Impl>()) {
   impl_->path = path;
   impl_->flush = flush;
@@ -258,14 +279,17 @@ SessionWriter::SessionWriter(const std::string& path, const SessionHeader& heade
   impl_->header.version_minor = detail::session_version_minor;
   impl_->header.metadata_json = json;
   if (impl_->header.source_format.empty()) impl_->header.source_format = "wiretape";
+  const std::size_t json_size = std::min<std::size_t>(json.size(), detail::max_header_json);
+  if (header_room > detail::max_header_json - json_size) {
+    throw OptionError("header_room", "a header room of " + std::to_string(header_room) +
+                                         " bytes makes the header longer than the " +
+                                         std::to_string(detail::max_header_json) +
+                                         " bytes a reader accepts");
+  }
+  impl_->header_json_room = json.size() + header_room;
   impl_->fd = detail::open_output_file(path).release();
-  std::string file_header(detail::file_header_fixed_size, '\0');
-  std::memcpy(&file_header[0], detail::session_magic, sizeof detail::session_magic);
-  detail::put_u16le(&file_header[8], detail::session_version_major);
-  detail::put_u16le(&file_header[10], detail::session_version_minor);
-  detail::put_u32le(&file_header[12], static_cast<std::uint32_t>(json.size()));
-  file_header += json;
-  file_header.append(detail::crc_size, '\0');  // sealed by the first flush
+  // The CRC slot is sealed by the first flush.
+  std::string file_header = file_header_bytes(json, impl_->header_json_room);
   // The header reaches the OS at once: a file that exists is readable.
   impl_->buffer = file_header;
   impl_->record_ends.push_back(file_header.size());
@@ -329,6 +353,64 @@ void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view 
     std::lock_guard<std::mutex> lock(impl_->mutex);
     if (impl_->failure) throw *impl_->failure;
   }
+}
+
+std::uint16_t SessionWriter::add_channel(Channel channel) {
+  if (const auto problem = channel_name_problem(channel.name)) {
+    throw OptionError("name", impl_->path + ": cannot add channel \"" + channel.name +
+                                  "\": " + *problem);
+  }
+  std::lock_guard<std::mutex> io(impl_->io_mutex);
+  SessionHeader& header = impl_->header;
+  for (const Channel& existing : header.channels) {
+    if (existing.name == channel.name) {
+      throw OptionError("name", impl_->path + ": the session already has a channel named \"" +
+                                    channel.name + "\"; channel names are unique");
+    }
+  }
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    if (impl_->failure) throw *impl_->failure;
+    if (impl_->closed) {
+      throw PortError(EBADF, impl_->path + ": the session writer is closed; channel \"" +
+                                 channel.name + "\" was not added");
+    }
+  }
+  SessionHeader updated = header;
+  channel.id = static_cast<std::uint16_t>(header.channels.size());
+  updated.channels.push_back(channel);
+  const std::string json = detail::header_json(updated);  // OptionError names the member
+  if (json.size() > impl_->header_json_room) {
+    const std::size_t count = header.channels.size();
+    throw SessionError(impl_->path + ": the header has no room for channel \"" + channel.name +
+                           "\": its JSON would take " + std::to_string(json.size()) +
+                           " bytes of the " + std::to_string(impl_->header_json_room) +
+                           " reserved when the file was created, which fit " +
+                           std::to_string(count) + (count == 1 ? " channel" : " channels") +
+                           " (reserve more header room)",
+                       detail::file_header_fixed_size);
+  }
+  std::string bytes = file_header_bytes(json, impl_->header_json_room);
+  const std::size_t covered = bytes.size() - detail::crc_size;
+  detail::put_u32le(&bytes[covered], crc32c(bytes.data(), covered));
+  // The fixed part never changes: only the JSON and its CRC are rewritten.
+  const std::size_t at = detail::file_header_fixed_size;
+  std::size_t written = 0;
+  while (written < bytes.size() - at) {
+    const ssize_t n = ::pwrite(impl_->fd, bytes.data() + at + written,
+                               bytes.size() - at - written, static_cast<off_t>(at + written));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int error = n < 0 ? errno : ENOSPC;
+      throw PortError(error, impl_->path + ": cannot rewrite the session header to add "
+                                 "channel \"" + channel.name + "\"");
+    }
+    written += static_cast<std::size_t>(n);
+  }
+  if (impl_->flush.fsync) (void)sys::fsync(impl_->fd);
+  header.channels.push_back(std::move(channel));
+  header.metadata_json = json;
+  return header.channels.back().id;
 }
 
 void SessionWriter::flush() {

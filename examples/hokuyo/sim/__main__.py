@@ -15,7 +15,7 @@ import scip_sim  # noqa: E402
 
 def main(argv=None):
     parser = argparse.ArgumentParser(
-        prog="python examples/hokuyo/sim",
+        prog=f"python {sys.argv[0]}",  # the folder, as run: in a checkout or a wheel
         description="A simulated Hokuyo laser scanner speaking SCIP 2.0.")
     parser.add_argument("--model", choices=sorted(scip_sim.MODELS), default="urg04lx")
     where = parser.add_mutually_exclusive_group(required=True)

@@ -11,7 +11,8 @@ from typing import Callable, Dict, Optional, Sequence, Tuple
 from .console import Output, describe
 from .errors import CheckFailed, RuntimeFailure, UsageError, exit_code_for
 from .files import require_input
-from .run import POLL_S, announce_clients, meta_pairs, replay_options_of, run_bridge
+from .run import (POLL_S, MessageRelay, announce_clients, meta_pairs, replay_options_of,
+                  run_bridge)
 
 
 def refuse_as_without_command(args) -> None:
@@ -47,14 +48,14 @@ def record_with_command(args, out: Output) -> int:
     _check_redirect_path(path)
     with LineChannelPath() as lines:
         handle = bridge.record(args.device, args.output, pty=pty, duration=args.duration,
-                               meta=meta_pairs(args.meta), quiet=args.quiet,
+                               meta=meta_pairs(args.meta), quiet=True,
                                pty_mode=args.pty_mode, pty_group=args.pty_group,
                                line_channel=lines.path)
         return _run_bridge_with_command(
             handle, out, "record", args.command_argv, path,
             lambda: announce_clients(handle, out,
                                      f"wiretape record: recording to {args.output}", link),
-            must_use_path=True, line_channel=lines.path)
+            must_use_path=True, line_channel=lines.path, quiet=args.quiet)
 
 
 def replay_with_command(args, out: Output) -> int:
@@ -79,14 +80,14 @@ def replay_with_command(args, out: Output) -> int:
         handle = bridge.serve_replay(args.file, pty=pty,
                                      replay_options=replay_options_of(args),
                                      restart=args.restart, output=args.output,
-                                     quiet=args.quiet, pty_mode=args.pty_mode,
+                                     quiet=True, pty_mode=args.pty_mode,
                                      pty_group=args.pty_group, line_channel=lines.path)
         return _run_bridge_with_command(
             handle, out, "replay", args.command_argv, path,
             lambda: announce_clients(handle, out, f"wiretape replay: replaying {args.file}",
                                      link),
             must_serve=True, outlive_injected_loss=True, identity=recorded_identity(args.file),
-            line_channel=lines.path, speed=args.speed or 1.0)
+            line_channel=lines.path, speed=args.speed or 1.0, quiet=args.quiet)
 
 
 def _check_redirect_path(path: str) -> None:
@@ -115,7 +116,8 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
                              must_serve: bool = False, must_use_path: bool = False,
                              outlive_injected_loss: bool = False,
                              identity: Optional[Dict[str, str]] = None,
-                             line_channel: Optional[str] = None, speed: float = 1.0) -> int:
+                             line_channel: Optional[str] = None, speed: float = 1.0,
+                             quiet: bool = False) -> int:
     """Runs CMD with `device_path` redirected to the bridge's pty; the bridge
     ends when CMD exits. The exit status is CMD's when it failed, else the
     bridge's (docs/cli.md); a bridge that ends first (a mismatch, --duration)
@@ -128,6 +130,7 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
     clock runs K times faster (replay --speed K -- CMD)."""
     from ..redirect import RedirectedCommand
 
+    relay = MessageRelay(handle, out, what, quiet)
     try:
         announce()
         out.note(f"wiretape {what}: running {' '.join(argv)} with {device_path} -> "
@@ -145,6 +148,7 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
     try:
         bridge_ended = False
         while command.poll() is None:
+            relay.poll()
             if bridge_ended:
                 command.child.wait(POLL_S)
             elif handle.wait(POLL_S):
@@ -180,7 +184,8 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
                  "dynamically linked programs; a static one is reached as root, through a "
                  "bind mount, only where the path exists)")
     try:
-        verdict = run_bridge(handle, out, what, lambda: None, must_serve=must_serve)
+        verdict = run_bridge(handle, out, what, lambda: None, must_serve=must_serve,
+                             relay=relay)
         if not used and must_use_path and not ended_by_us:
             raise CheckFailed(f"{command.name} never opened {device_path}: nothing was "
                               "recorded from it")

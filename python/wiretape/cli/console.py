@@ -33,20 +33,36 @@ def describe(error: BaseException) -> str:
 
 
 class Output:
-    """stdout and stderr, with colour (rich) when they are terminals."""
+    """stdout and stderr, with colour (rich) when they are terminals.
+
+    rich is imported when a line in colour is first printed, not before: a
+    command that prints nothing through it (show writes its own colours)
+    does not pay for rich's import, a quarter of show's time."""
 
     def __init__(self) -> None:
-        self._console = None
-        self._error_console = None
-        try:
-            import rich.console
+        self._consoles: dict = {}
 
-            if sys.stdout.isatty():
-                self._console = rich.console.Console(highlight=False)
-            if sys.stderr.isatty():
-                self._error_console = rich.console.Console(stderr=True, highlight=False)
-        except ImportError:  # colour is a nicety
-            pass
+    def _terminal(self, stderr: bool):
+        """rich's console of stdout or stderr when that is a terminal, else None."""
+        if stderr not in self._consoles:
+            console = None
+            try:
+                if (sys.stderr if stderr else sys.stdout).isatty():
+                    import rich.console
+
+                    console = rich.console.Console(stderr=stderr, highlight=False)
+            except (ImportError, ValueError):  # colour is a nicety; a closed stream has none
+                pass
+            self._consoles[stderr] = console
+        return self._consoles[stderr]
+
+    @property
+    def _console(self):
+        return self._terminal(stderr=False)
+
+    @property
+    def _error_console(self):
+        return self._terminal(stderr=True)
 
     def print(self, text: str = "", style: Optional[str] = None) -> None:
         if self._console is not None and style:
@@ -68,6 +84,11 @@ class Output:
         else:
             print(line, file=sys.stderr, flush=True)
 
+    def live(self) -> "LiveLine":
+        """A status line redrawn in place on stderr while work goes on: on a
+        terminal only (nothing at all otherwise)."""
+        return LiveLine(self._error_console)
+
     def table(self, columns: Sequence[str], rows: Sequence[Sequence[str]]) -> None:
         if self._console is not None:
             import rich.table
@@ -80,6 +101,41 @@ class Output:
         widths = [max([len(c)] + [len(r[i]) for r in rows]) for i, c in enumerate(columns)]
         for row in [list(columns)] + [list(r) for r in rows]:
             print("  ".join(cell.ljust(width) for cell, width in zip(row, widths)).rstrip())
+
+
+class LiveLine:
+    """One line on a terminal's stderr, redrawn in place (rich.live) and
+    gone when the work ends; notes printed meanwhile go above it. With no
+    terminal (`console` None) it does nothing."""
+
+    # The line is redrawn when update() says so, not by a thread of rich's.
+    def __init__(self, console) -> None:
+        self._live = None
+        if console is not None:
+            import rich.live
+
+            self._live = rich.live.Live(console=console, transient=True, auto_refresh=False,
+                                        redirect_stdout=False, redirect_stderr=False)
+
+    @property
+    def shown(self) -> bool:
+        return self._live is not None
+
+    def __enter__(self) -> "LiveLine":
+        if self._live is not None:
+            self._live.start()
+        return self
+
+    def update(self, text: str) -> None:
+        if self._live is not None:
+            import rich.text
+
+            self._live.update(rich.text.Text(text, style="cyan", no_wrap=True,
+                                             overflow="ellipsis"), refresh=True)
+
+    def __exit__(self, *exc) -> None:
+        if self._live is not None:
+            self._live.stop()
 
 
 def silence_stdout() -> None:

@@ -24,13 +24,29 @@ def require_input(path: str) -> None:
     raise RuntimeFailure(f"{path}: no such file")
 
 
+def _starts_as_a_session(path: str) -> bool:
+    """A regular file starting with a session's magic (a pipe is not read:
+    that would consume it)."""
+    from .._core import SESSION_MAGIC
+
+    try:
+        if not os.path.isfile(path):
+            return False
+        with open(path, "rb") as handle:
+            return handle.read(len(SESSION_MAGIC)) == SESSION_MAGIC
+    except OSError:
+        return False
+
+
 def require_session(path: str) -> None:
     """require_input(), and a file wiretape imports but does not read as it
     is (a capture, a pytest-reserial cassette) named with the command that
     converts it (exit 1, as any file that is not a session)."""
+    require_input(path)
+    if _starts_as_a_session(path):  # the usual case, without importing the importers
+        return
     from ..tools.convert import unconverted_format
 
-    require_input(path)
     found = unconverted_format(path)
     if found is not None:
         what, command = found

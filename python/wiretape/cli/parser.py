@@ -554,12 +554,16 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("--flexiport-format", choices=("new", "old"), default="new",
                          help="for a flexiport OUT: flexiport's new log format (from "
                               "2008-07, the default) or the old one")
-    convert.add_argument("--stream", metavar="FILTER",
+    convert.add_argument("--stream", metavar="[NAME=]FILTER", action="append",
                          help="--from pcap: the conversation to import: tcp:N or udp:N (as "
-                              "listed when there are several), or a tshark display filter")
-    convert.add_argument("--device-addr", dest="device_addr", metavar="IP:PORT",
+                              "listed when there are several), or a tshark display filter; "
+                              "repeated as NAME=FILTER, each conversation becomes the channel "
+                              "NAME of one session")
+    convert.add_argument("--device-addr", dest="device_addr", metavar="[NAME=]IP:PORT",
+                         action="append",
                          help="--from pcap: the device's side of the conversation (default: "
-                              "the TCP server; for UDP the lower port)")
+                              "the TCP server; for UDP the lower port); with named streams, "
+                              "NAME=IP:PORT for the channel NAME (repeatable)")
     convert.add_argument("--allow-gaps", dest="allow_gaps", action="store_true",
                          help="--from pcap: import a capture that lost bytes, with a "
                               "capture_gap event where they are missing (default: refuse it)")

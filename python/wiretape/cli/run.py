@@ -7,7 +7,7 @@ from __future__ import annotations
 import sys
 from typing import Callable, Dict, List, Optional, Tuple
 
-from .console import Output
+from .console import LiveLine, Output
 from .errors import EXIT_CHECK_FAILED, EXIT_OK, CheckFailed, RuntimeFailure, UsageError
 from .files import require_input
 
@@ -35,20 +35,91 @@ def _format_number(value: float) -> str:
 # bridges: record, replay, serve
 
 
+class MessageRelay:
+    """Prints a bridge's diagnostics (client connects, device losses...) as
+    the command's own lines, `wiretape CMD: ...`: the CLI runs its bridges
+    quiet and relays what messages() holds, so every line has one style.
+    `quiet` (--quiet): nothing is printed."""
+
+    def __init__(self, handle, out: Output, what: str, quiet: bool = False):
+        self._handle = handle
+        self._out = out
+        self._what = what
+        self._quiet = quiet
+        self._seen: List[str] = []
+
+    def poll(self) -> None:
+        messages = self._handle.messages()
+        fresh = _after(self._seen, messages)
+        self._seen = messages
+        if not self._quiet:
+            for message in fresh:
+                self._out.note(f"wiretape {self._what}: {message}")
+
+
+def _after(seen: List[str], messages: List[str]) -> List[str]:
+    """The messages not seen before. The bridge keeps its last 1000 only, so
+    once full the list shifts: the new ones follow the longest end of `seen`
+    that `messages` starts with."""
+    if messages[:len(seen)] == seen:
+        return messages[len(seen):]
+    for start in range(1, len(seen)):
+        overlap = seen[start:]
+        if messages[:len(overlap)] == overlap:
+            return messages[len(overlap):]
+    return messages
+
+
+def _elapsed(seconds: float) -> str:
+    minutes, seconds = divmod(int(seconds), 60)
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours}:{minutes:02d}:{seconds:02d}" if hours else f"{minutes}:{seconds:02d}"
+
+
+def _size(count: int) -> str:
+    """A byte count for people: 512 B, 12.3 kB, 4.5 MB."""
+    for unit, scale in (("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
+        if count >= scale:
+            return f"{count / scale:.1f} {unit}"
+    return f"{count} B"
+
+
+def live_counts(stats, elapsed_s: float) -> str:
+    """The live line of a recording on a terminal: elapsed time, bytes each
+    way, records written, clients."""
+    counts = dict(stats.items())
+    line = (f"{_elapsed(elapsed_s)}  {_size(counts.get('bytes_to_device', 0))} to the device, "
+            f"{_size(counts.get('bytes_from_device', 0))} from it, "
+            f"{plural(counts.get('records_written', 0), 'record')}")
+    clients = counts.get("clients_accepted", 0)
+    return line + (f", {plural(clients, 'client')}" if clients else "")
+
+
 def run_bridge(handle, out: Output, what: str, announce: Callable[[], None],
-               must_serve: bool = False) -> int:
+               must_serve: bool = False, relay: Optional[MessageRelay] = None,
+               live: bool = False) -> int:
     """Announces a started bridge and waits until it ends or Ctrl-C (or
     SIGTERM, see main) stops it; prints the outcome; returns the exit code.
     `must_serve`: a replay that served its clients none of the recording's
-    rx failed (exit 1), however it ended."""
-    try:
-        announce()
-        while not handle.wait(POLL_S):
-            pass
-    except KeyboardInterrupt:
-        out.note(f"wiretape {what}: stopping")
-        handle.stop()
-        handle.wait()
+    rx failed (exit 1), however it ended. `relay` prints the bridge's
+    messages as they come; `live`: a line of live counts on a terminal."""
+    import time
+
+    relay = relay if relay is not None else MessageRelay(handle, out, what, quiet=True)
+    started = time.monotonic()
+    with (out.live() if live else LiveLine(None)) as line:
+        try:
+            announce()
+            while not handle.wait(POLL_S):
+                relay.poll()
+                if line.shown:
+                    line.update(f"wiretape {what}: " +
+                                live_counts(handle.stats(), time.monotonic() - started))
+        except KeyboardInterrupt:
+            out.note(f"wiretape {what}: stopping")
+            handle.stop()
+            handle.wait()
+    relay.poll()
     result = handle.result()
     summary = bridge_summary(result.stats)
     out.note(f"wiretape {what}: {result.outcome}" + (f": {summary}" if summary else ""))
@@ -131,12 +202,14 @@ def cmd_record(args, out: Output) -> int:
     pty, listen = _client_side(args)
     handle = bridge.record(args.device, args.output, pty=pty, listen=listen, udp=args.udp,
                            backlog=args.backlog, duration=args.duration, meta=meta_pairs(args.meta),
-                           quiet=args.quiet, pty_mode=args.pty_mode,
+                           quiet=True, pty_mode=args.pty_mode,
                            pty_group=args.pty_group)
     return run_bridge(handle, out, "record",
                       lambda: announce_clients(handle, out,
                                                f"wiretape record: recording to {args.output}", pty,
-                                               udp=args.udp is not None))
+                                               udp=args.udp is not None),
+                      relay=MessageRelay(handle, out, "record", args.quiet),
+                      live=not args.quiet)
 
 
 def replay_options_of(args) -> str:
@@ -184,13 +257,13 @@ def cmd_replay(args, out: Output) -> int:
                                  protocol=args.protocol,
                                  replay_options=replay_options_of(args),
                                  restart=args.restart, output=args.output,
-                                 quiet=args.quiet, pty_mode=args.pty_mode,
+                                 quiet=True, pty_mode=args.pty_mode,
                                  pty_group=args.pty_group)
     return run_bridge(handle, out, "replay",
                       lambda: announce_clients(handle, out,
                                                f"wiretape replay: replaying {args.file}", pty,
                                                udp=args.udp is not None),
-                      must_serve=True)
+                      must_serve=True, relay=MessageRelay(handle, out, "replay", args.quiet))
 
 
 def check_fault_places(args) -> None:
@@ -219,9 +292,10 @@ def cmd_serve(args, out: Output) -> int:
     handle = bridge.serve(args.device, args.listen, output=args.output,
                           protocol=args.protocol, shared=args.shared,
                           max_monitors=max_monitors, reopen=args.reopen,
-                          backlog=args.backlog, quiet=args.quiet)
+                          backlog=args.backlog, quiet=True)
     return run_bridge(handle, out, "serve",
-                      lambda: announce_clients(handle, out, "wiretape serve: serving"))
+                      lambda: announce_clients(handle, out, "wiretape serve: serving"),
+                      relay=MessageRelay(handle, out, "serve", args.quiet))
 
 
 # --------------------------------------------------------------------------

@@ -36,13 +36,24 @@ mcap (open with Foxglove):
   * log and publish time: the record's wall-clock time in nanoseconds;
   * a metadata record ``wiretape`` holds the session header's fields.
 
+A session of several named channels (DESIGN §19: its header lists
+``channels``) is laid out by channel rather than by direction:
+  * pcapng: one interface per channel, named after it, holding its rx
+    (inbound) and tx (outbound) and its events; the link type per channel
+    as above (a TCP or UDP channel's interface holds IP packets, so its
+    events, not IP, have an interface of their own, ``NAME events``);
+  * mcap: one topic per channel, ``/wiretape/NAME`` (channel_topic), with
+    one schema, ``wiretape.Record`` (the members of Bytes or of Event, as
+    ``kind`` says, and ``channel``, the channel's name).
+
 jsonl (wiretape.exports.jsonl): a header line, then one JSON object per
-record; ``wiretape convert`` writes and reads it.
+record (with ``channel``, its channel's name, in a session of named
+channels); ``wiretape convert`` writes and reads it.
 """
 
 from ..session import escape_bytes
-from .mcap import MCAP_TOPICS, write_mcap
+from .mcap import MCAP_TOPICS, channel_topic, write_mcap
 from .pcapng import LINKTYPE_RAW, LINKTYPE_USER0, write_pcapng
 
 __all__ = ["write_pcapng", "write_mcap", "LINKTYPE_USER0", "LINKTYPE_RAW", "MCAP_TOPICS",
-           "escape_bytes"]
+           "channel_topic", "escape_bytes"]

@@ -14,12 +14,12 @@ from __future__ import annotations
 
 import json
 import struct
-from typing import Dict, Iterable, Optional, Tuple
+from typing import Any, Dict, Iterable, Optional, Tuple
 
 from .._core import __version__
 from ..session import (SessionPath, header_fields, open_session, raise_damage,
                        refuse_same_file, session_files)
-from ._common import event_json, replacing, start_epoch_ns
+from ._common import event_json, exported_header, replacing, start_epoch_ns
 from .network import LINKTYPE_RAW, NetworkSession
 
 __all__ = ["write_pcapng", "LINKTYPE_USER0", "LINKTYPE_RAW"]
@@ -114,48 +114,108 @@ def _packet(interface: int, timestamp_ns: int, payload: bytes, flags: int,
     return _block(_PCAPNG_EPB, body)
 
 
+def _channel_fields(header: Dict[str, Any], channel: Dict[str, Any]) -> Dict[str, Any]:
+    """The header as one channel's own: its port members in place of the
+    top-level ones (which are channel 0's), for NetworkSession.of_header."""
+    fields = dict(header)
+    for key in ("port_options", "port_type", "capture", "device_address"):
+        fields[key] = channel.get(key, "")
+    return fields
+
+
+def _write_records_by_direction(out, reader, header: Dict[str, Any], start_ns: int,
+                                counts: Dict[str, int]) -> None:
+    """A session without named channels: interfaces rx, tx and events."""
+    network = NetworkSession.of_header(header)
+    for name, description in _INTERFACES:
+        link_type = LINKTYPE_USER0
+        if network is not None and name in ("rx", "tx"):
+            link_type = LINKTYPE_RAW
+            description += f", {network.protocol.upper()} over IP"
+        out.write(_interface(name, description, link_type))
+    for record in reader:
+        t_ns, kind, data = record.t_ns, record.kind, record.data
+        stamp = start_ns + t_ns
+        if network is not None:
+            for to_device, packet in network.packets(kind, data):
+                interface, flags = ((_TX_INTERFACE, _EPB_OUTBOUND) if to_device
+                                    else (_RX_INTERFACE, _EPB_INBOUND))
+                out.write(_packet(interface, stamp, packet, flags))
+        if kind in ("rx", "tx"):
+            if network is None:
+                interface, flags = ((_RX_INTERFACE, _EPB_INBOUND) if kind == "rx"
+                                    else (_TX_INTERFACE, _EPB_OUTBOUND))
+                out.write(_packet(interface, stamp, data, flags))
+            counts[kind] += 1
+        else:
+            out.write(_event_packet(_EVENT_INTERFACE, stamp, kind, data))
+            counts["events"] += 1
+
+
+def _event_packet(interface: int, stamp: int, kind: str, data: bytes) -> bytes:
+    event = json.dumps(event_json(data), sort_keys=True)
+    return _packet(interface, stamp, f"{kind} {event}".encode("utf-8"), 0,
+                   comment=f"wiretape event: {kind}")
+
+
+def _write_records_by_channel(out, reader, header: Dict[str, Any], start_ns: int,
+                              counts: Dict[str, int]) -> None:
+    """A session of named channels (DESIGN §19): one interface per channel,
+    named after it, carrying its rx (inbound) and tx (outbound) and its
+    events; a TCP or UDP channel's interface carries IP packets, which an
+    event is not, so its events have an interface of their own,
+    ``NAME events``."""
+    interface_of: Dict[int, Tuple[int, Optional[NetworkSession], int]] = {}
+    number = 0
+    for channel in header["channels"]:
+        name = channel["name"]
+        network = NetworkSession.of_header(_channel_fields(header, channel))
+        description = (f"wiretape channel {name}: {channel.get('port_type') or 'port'} "
+                       f"{channel.get('port_options') or ''}").rstrip()
+        if network is None:
+            out.write(_interface(name, description, LINKTYPE_USER0))
+            interface_of[channel["id"]] = (number, None, number)
+            number += 1
+        else:
+            out.write(_interface(name, description + f", {network.protocol.upper()} over IP",
+                                 LINKTYPE_RAW))
+            out.write(_interface(f"{name} events", f"wiretape channel {name}: port events"))
+            interface_of[channel["id"]] = (number, network, number + 1)
+            number += 2
+    for record in reader:
+        t_ns, kind, data = record.t_ns, record.kind, record.data
+        stamp = start_ns + t_ns
+        interface, network, event_interface = interface_of[record.channel]
+        if network is not None:
+            for to_device, packet in network.packets(kind, data):
+                flags = _EPB_OUTBOUND if to_device else _EPB_INBOUND
+                out.write(_packet(interface, stamp, packet, flags))
+        if kind in ("rx", "tx"):
+            if network is None:
+                flags = _EPB_INBOUND if kind == "rx" else _EPB_OUTBOUND
+                out.write(_packet(interface, stamp, data, flags))
+            counts[kind] += 1
+        else:
+            out.write(_event_packet(event_interface, stamp, kind, data))
+            counts["events"] += 1
+
+
 def write_pcapng(src: SessionPath, dst: SessionPath) -> Dict[str, int]:
     """Writes the session `src` (a .wtape, or a flexiport ``name.log``) to
     `dst` as pcapng; returns counts of what was written
-    (``{"rx": n, "tx": n, "events": n}``). A damaged session is written up
-    to the damage, then its SessionError is raised."""
+    (``{"rx": n, "tx": n, "events": n}``). A session of named channels has
+    an interface per channel (wiretape.exports has the layout). A damaged
+    session is written up to the damage, then its SessionError is raised."""
     refuse_same_file(session_files(src), [dst])
     reader = open_session(src)
-    header = header_fields(reader)
+    header = exported_header(header_fields(reader))
     start_ns = start_epoch_ns(header)
     counts = {"rx": 0, "tx": 0, "events": 0}
-    network = NetworkSession.of_header(header)
     with replacing(dst) as out:
         out.write(_section_header(json.dumps(header, sort_keys=True, default=str)))
-        for name, description in _INTERFACES:
-            link_type = LINKTYPE_USER0
-            if network is not None and name in ("rx", "tx"):
-                link_type = LINKTYPE_RAW
-                description += f", {network.protocol.upper()} over IP"
-            out.write(_interface(name, description, link_type))
-        for record in reader:
-            t_ns, kind, data = record.t_ns, record.kind, record.data
-            stamp = start_ns + t_ns
-            if network is not None:
-                for to_device, packet in network.packets(kind, data):
-                    interface, flags = ((_TX_INTERFACE, _EPB_OUTBOUND) if to_device
-                                        else (_RX_INTERFACE, _EPB_INBOUND))
-                    out.write(_packet(interface, stamp, packet, flags))
-            if kind == "rx":
-                if network is None:
-                    out.write(_packet(_RX_INTERFACE, stamp, data, _EPB_INBOUND))
-                counts["rx"] += 1
-            elif kind == "tx":
-                if network is None:
-                    out.write(_packet(_TX_INTERFACE, stamp, data, _EPB_OUTBOUND))
-                counts["tx"] += 1
-            else:
-                event = json.dumps(event_json(data), sort_keys=True)
-                payload = f"{kind} {event}".encode("utf-8")
-                out.write(_packet(_EVENT_INTERFACE, stamp, payload, 0,
-                                  comment=f"wiretape event: {kind}"))
-                counts["events"] += 1
+        if header.get("channels"):
+            _write_records_by_channel(out, reader, header, start_ns, counts)
+        else:
+            _write_records_by_direction(out, reader, header, start_ns, counts)
     raise_damage(reader)  # after the rename: the export keeps what came before
     return counts
-
-

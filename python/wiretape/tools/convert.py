@@ -4,13 +4,16 @@ Formats:
   ``wiretape``  a ``.wtape`` file (docs/session-format.md);
   ``flexiport`` flexiport's two-file log: ``name.log`` stands for
                 ``name.logr`` + ``name.logw`` (read: both of its formats;
-                written: the new format, events dropped);
+                written: the new format, events dropped; one port, so a
+                session of several channels is refused);
   ``jsonl``     one JSON object per line: first ``{"header": {...}}``, then
                 one record per line as ``wiretape show --format jsonl``
-                prints it (``t_ns``, ``kind``, ``data_hex``, ``event``...);
+                prints it (``t_ns``, ``kind``, ``data_hex``, ``event``...;
+                in a session of named channels ``channel``, the name);
   ``pcapng``, ``mcap``  exports for Wireshark and Foxglove (written only);
   ``pcap``      a packet capture (pcap or pcapng; read only): one TCP
-                conversation or UDP flow becomes a session (pcap_import).
+                conversation or UDP flow becomes a session, or several
+                named ones its channels (pcap_import).
   ``reserial``, ``umockdev``  pytest-reserial cassettes (one test of one:
                 ``test``) and umockdev tty scripts (read only; importers.py).
 
@@ -31,7 +34,7 @@ import shlex
 import sys
 import tempfile
 import time
-from typing import Iterator, List, Optional, Tuple
+from typing import Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 from .. import _core, exports
 from ..exports import jsonl
@@ -239,8 +242,34 @@ def _jsonl_data(item: dict, kind, kinds: dict) -> bytes:
     return data
 
 
-def _jsonl_line(text: str):
-    """("header", dict) or ("record", (kind, t_ns, data)) for one line."""
+def _header_channel_ids(header: Optional[_core.SessionHeader]) -> Dict[str, int]:
+    """Channel name to id, for a header of named channels; {} otherwise."""
+    if header is None:
+        return {}
+    return {channel.name: channel.id for channel in header.channels}
+
+
+def _jsonl_channel(item: dict, channel_ids: Dict[str, int]) -> int:
+    """The record's channel id from its ``channel`` (a name the header's
+    ``channels`` gives); 0, the only channel, when it has none."""
+    if "channel" not in item:
+        return 0
+    name = item["channel"]
+    if not isinstance(name, str):
+        raise _BadLine(f"channel: expected the name of one of the header's channels, got "
+                       f"{_json_type(name)}")
+    if not channel_ids:
+        raise _BadLine(f"channel: {name[:40]!r}, but the header names no channels (a "
+                       f"session of one port: its records have no channel)")
+    if name not in channel_ids:
+        raise _BadLine(f"channel: unknown channel {name[:40]!r}: the header's channels are "
+                       f"{', '.join(channel_ids)}")
+    return channel_ids[name]
+
+
+def _jsonl_line(text: str, channel_ids: Dict[str, int]):
+    """("header", SessionHeader) or ("record", (kind, t_ns, data, channel))
+    for one line; `channel_ids`: the channels the header named."""
     try:
         item = json.loads(text)
     except RecursionError:
@@ -257,14 +286,16 @@ def _jsonl_line(text: str):
     t_ns = _jsonl_t_ns(item)
     kind = _jsonl_kind(item, kinds)
     data = _jsonl_data(item, kind, kinds)
+    channel = _jsonl_channel(item, channel_ids)
     problem = _core.record_content_problem(kind, t_ns, data)
     if problem is not None:
         raise _BadLine(f"record: {problem}")
-    return "record", (kind, t_ns, data)
+    return "record", (kind, t_ns, data, channel)
 
 
 def _jsonl_records(path: str) -> Iterator[tuple]:
-    """(SessionHeader or None) first, then (kind, t_ns, data) per record.
+    """(SessionHeader or None) first, then (kind, t_ns, data, channel) per
+    record (channel: the id of the channel the record names, else 0).
 
     Raises SessionError ("PATH:LINE: FIELD: problem", offset = the line's
     first byte) at the first bad line, after yielding every record before it.
@@ -272,6 +303,7 @@ def _jsonl_records(path: str) -> Iterator[tuple]:
     with open_input(path) as handle:
         header_seen = False
         records_seen = False
+        channel_ids: Dict[str, int] = {}
         offset = 0
         for number, raw in enumerate(handle, start=1):
             line_offset, offset = offset, offset + len(raw)
@@ -279,7 +311,7 @@ def _jsonl_records(path: str) -> Iterator[tuple]:
                 text = raw.decode("utf-8").strip()
                 if not text:
                     continue
-                what, value = _jsonl_line(text)
+                what, value = _jsonl_line(text, channel_ids)
                 if what == "header" and records_seen:
                     raise _BadLine("header: must be the first line, before every record")
                 if what == "header" and header_seen:
@@ -292,6 +324,7 @@ def _jsonl_records(path: str) -> Iterator[tuple]:
                 raise _core.SessionError(f"{path}:{number}: {problem}", line_offset) from None
             if what == "header":
                 header_seen = True
+                channel_ids = _header_channel_ids(value)
                 yield ("header", value)
                 continue
             if not header_seen:
@@ -306,27 +339,48 @@ def _jsonl_records(path: str) -> Iterator[tuple]:
 # --- progress ----------------------------------------------------------------
 
 class _Progress:
-    """A one-line progress report on stderr: records and bytes so far, and
-    the share of the source read (estimated from record sizes)."""
+    """Progress on a terminal's stderr (rich): a bar of the source's share
+    read (estimated from record sizes), records so far, time left. Shown
+    from the start, so that a capture's reading before its first record
+    shows too; gone when the conversion ends. Disabled: nothing at all."""
 
     def __init__(self, enabled: bool, total_bytes: int):
-        self.enabled = enabled
         self.total = max(total_bytes, 1)
         self.done = 0
         self.records = 0
         self.last = 0.0
+        self._bar = None
+        if enabled:
+            import rich.console
+            import rich.progress
+
+            self._bar = rich.progress.Progress(
+                rich.progress.TextColumn("converting"), rich.progress.BarColumn(),
+                rich.progress.TaskProgressColumn(),
+                rich.progress.TextColumn("{task.fields[records]}"),
+                rich.progress.TimeRemainingColumn(),
+                console=rich.console.Console(stderr=True), transient=True)
+            self._task = self._bar.add_task("convert", total=self.total, records="")
+            self._bar.start()
 
     def step(self, size: int) -> None:
         self.records += 1
         self.done += size + 20  # a record's header and CRC
-        if self.enabled and time.monotonic() - self.last > 0.2:
+        if self._bar is not None and time.monotonic() - self.last > 0.1:
             self.last = time.monotonic()
-            share = min(100.0, 100.0 * self.done / self.total)
-            print(f"\r{self.records} records, {share:5.1f}%", end="", file=sys.stderr, flush=True)
+            self._bar.update(self._task, completed=min(self.done, self.total),
+                             records=f"{self.records} records")
 
     def finish(self) -> None:
-        if self.enabled:
-            print(f"\r{self.records} records, 100.0%", file=sys.stderr, flush=True)
+        if self._bar is not None:
+            self._bar.stop()
+            self._bar = None
+
+    def __enter__(self) -> "_Progress":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.finish()
 
 
 def _source_size(path: str, fmt: str) -> int:
@@ -347,36 +401,42 @@ def _output_files(dst: str, fmt: str):
 
 
 def _records_of(src: str, fmt: str, choice: Optional[dict] = None):
-    """(SessionHeader, record iterator of (kind, t_ns, data), a function that
+    """(SessionHeader, record iterator of (kind, t_ns, data, channel id), a function that
     raises the damage the records stopped at, if any). `choice`: what to
     take of a source holding several sessions (a capture's stream and device
     address, a cassette's test)."""
     choice = choice or {}
+    if fmt == "pcap" and choice.get("channels"):
+        header, records = pcap_import.read_capture_channels(
+            src, choice["channels"], device_addrs=choice.get("device_addrs"),
+            allow_gaps=bool(choice.get("allow_gaps")))
+        return header, iter(records), lambda: None
     if fmt == "pcap":
         header, captured = pcap_import.read_capture(
             src, stream=choice.get("stream"), device_addr=choice.get("device_addr"),
             allow_gaps=bool(choice.get("allow_gaps")))
-        return header, iter(captured), lambda: None
+        return header, iter([(*record, 0) for record in captured]), lambda: None
     if fmt == "reserial":
         header, records = importers.reserial_records(src, choice.get("test"))
-        return header, iter(list(records)), lambda: None  # checked whole before writing
+        # checked whole before writing
+        return header, iter([(*record, 0) for record in records]), lambda: None
     if fmt == "umockdev":
         header, records = importers.umockdev_records(src)
-        return header, iter(list(records)), lambda: None
+        return header, iter([(*record, 0) for record in records]), lambda: None
     if fmt == "jsonl":
         items = _jsonl_records(src)
         _, header = next(items)
 
         def records():
-            for _, (kind, t_ns, data) in items:
-                yield kind, t_ns, data
+            for _, record in items:
+                yield record
 
         return header or _core.SessionHeader(), records(), lambda: None
     reader = open_session(src)
 
     def records():
         for record in reader:
-            yield record.kind, record.t_ns, record.data
+            yield record.kind, record.t_ns, record.data, record.channel
 
     return reader.header, records(), lambda: raise_damage(reader)
 
@@ -390,16 +450,16 @@ def session_writer(dst: str, header: _core.SessionHeader) -> _core.SessionWriter
 
 def _write_wiretape(dst: str, header: _core.SessionHeader, records, progress: _Progress) -> int:
     with session_writer(dst, header) as writer:
-        for kind, t_ns, data in records:
-            writer.write(kind, t_ns, data)
+        for kind, t_ns, data, channel in records:
+            writer.write(kind, t_ns, data, channel=channel)
             progress.step(len(data))
     return progress.records
 
 
 def _write_jsonl(dst: str, header: _core.SessionHeader, records, progress: _Progress) -> int:
     def counted():
-        for kind, t_ns, data in records:
-            yield _core.Record(t_ns, kind, data)
+        for kind, t_ns, data, channel in records:
+            yield _core.Record(t_ns, kind, data, channel)
             progress.step(len(data))
 
     jsonl.write_records(dst, header.to_dict(), counted())
@@ -415,10 +475,71 @@ class ConvertResult:
     to_format: str
 
 
+def _as_list(value: Union[None, str, Sequence[str]]) -> List[str]:
+    if value is None:
+        return []
+    return [value] if isinstance(value, str) else list(value)
+
+
+def _named_streams(streams: List[str], device_addrs: List[str]
+                   ) -> Optional[Tuple[List[Tuple[str, str]], Dict[str, str]]]:
+    """--stream NAME=FILTER (repeatable) and --device-addr NAME=IP:PORT as
+    ([(NAME, FILTER)...], {NAME: IP:PORT}); None for today's form (one
+    --stream FILTER, one --device-addr IP:PORT, no names). ValueError
+    (a usage error) naming the flag for what cannot be."""
+    split = [(text, *pcap_import.split_name(text)) for text in streams]
+    named = [text for text, name, _ in split if name is not None]
+    if not named:
+        if len(streams) > 1:
+            raise ValueError(f"--stream is given {len(streams)} times without names: name each "
+                             f"conversation's channel (--stream NAME=FILTER) to import them "
+                             f"into one session")
+        for text in device_addrs:
+            if pcap_import.split_name(text)[0] is not None:
+                raise ValueError(f"--device-addr {text}: names a channel, but no --stream "
+                                 f"does (--stream NAME=FILTER)")
+        if len(device_addrs) > 1:
+            raise ValueError(f"--device-addr is given {len(device_addrs)} times for one "
+                             f"conversation")
+        return None
+    channels: List[Tuple[str, str]] = []
+    for text, name, stream in split:
+        if name is None:
+            raise ValueError(f"--stream {text}: no NAME= while --stream {named[0]} has one: "
+                             f"name every stream (--stream NAME=FILTER)")
+        problem = _core.channel_name_problem(name)
+        if problem is not None:
+            raise ValueError(f"--stream {text}: {problem}")
+        earlier = next((f"{n}={f}" for n, f in channels if n == name), None)
+        if earlier is not None:
+            raise ValueError(f"--stream {text}: the channel name {name!r} is given twice "
+                             f"(also --stream {earlier})")
+        if not stream.strip():
+            raise ValueError(f"--stream {text}: no conversation after {name}= (tcp:N, udp:N "
+                             f"or a tshark display filter)")
+        channels.append((name, stream))
+    names = [name for name, _ in channels]
+    addresses: Dict[str, str] = {}
+    for text in device_addrs:
+        name, address = pcap_import.split_name(text)
+        if name is None:
+            raise ValueError(f"--device-addr {text}: with named streams, say whose device it "
+                             f"is: --device-addr NAME=IP:PORT (NAME: {', '.join(names)})")
+        if name not in names:
+            raise ValueError(f"--device-addr {text}: no --stream names {name!r} (the streams "
+                             f"are {', '.join(names)})")
+        if name in addresses:
+            raise ValueError(f"--device-addr {text}: {name!r} is given twice (also "
+                             f"--device-addr {name}={addresses[name]})")
+        addresses[name] = address
+    return channels, addresses
+
+
 def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = None,
             to_format: Optional[str] = None, progress: bool = False,
-            flexiport_format: str = "new", stream: Optional[str] = None,
-            device_addr: Optional[str] = None, test: Optional[str] = None,
+            flexiport_format: str = "new",
+            stream: Union[None, str, Sequence[str]] = None,
+            device_addr: Union[None, str, Sequence[str]] = None, test: Optional[str] = None,
             allow_gaps: bool = False) -> ConvertResult:
     """Converts the session `src` into `dst`.
 
@@ -434,6 +555,11 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
     `device_addr` (``IP:PORT``) says which side is the device
     (pcap_import's text has the rules); a capture of several conversations
     and none chosen raises pcap_import.CaptureError listing them.
+    Several conversations go into channels of one session when `stream`
+    is a list of ``NAME=FILTER`` (``["gps=tcp:0", "rtk=udp:1"]``, the
+    channels in that order, on the capture's clock); then `device_addr`
+    may be a list of ``NAME=IP:PORT``. A name given twice, a stream
+    without a name among named ones, raise ValueError naming the flag.
     A capture that lost bytes raises pcap_import.CaptureError naming the
     stream, direction and offset, unless `allow_gaps` (a ``capture_gap``
     event stands there, and no bytes).
@@ -453,11 +579,16 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
     if source_format == "flexiport":
         src = _core.flexiport_prefix(src) or src
     refuse_same_file(session_files(src), _output_files(dst, target_format))
-    choice = {"stream": stream, "device_addr": device_addr, "test": test,
-              "allow_gaps": allow_gaps}
-    if source_format != "pcap" and (stream is not None or device_addr is not None or allow_gaps):
+    streams, device_addrs = _as_list(stream), _as_list(device_addr)
+    if source_format != "pcap" and (streams or device_addrs or allow_gaps):
         raise ValueError("--stream, --device-addr and --allow-gaps are about a packet "
                          "capture: they need --from pcap")
+    choice = {"stream": streams[0] if streams else None,
+              "device_addr": device_addrs[0] if device_addrs else None, "test": test,
+              "allow_gaps": allow_gaps}
+    named = _named_streams(streams, device_addrs)
+    if named is not None:
+        choice["channels"], choice["device_addrs"] = named
     with tempfile.TemporaryDirectory(prefix="wiretape-convert-") as scratch:
         readable = src
         if source_format in _NEEDS_A_FILE and is_stream(src):
@@ -577,9 +708,27 @@ def _identity(path: str):
     return info.st_ino, info.st_size, info.st_mtime_ns
 
 
+def _refuse_several_channels(src: str, header: _core.SessionHeader) -> None:
+    """A flexiport log holds one port: a session of several channels is
+    refused (ValueError naming them), never merged into one port's log."""
+    channels = header.channel_list()
+    if len(channels) > 1:
+        names = ", ".join(channel.name for channel in channels)
+        raise ValueError(f"{src}: a session of {len(channels)} channels ({names}); a flexiport "
+                         f"log holds one port: convert it to wiretape, jsonl, pcapng or mcap, "
+                         f"which keep its channels")
+
+
 def _convert(src: str, dst: str, source_format: str, target_format: str, progress: bool,
              flexiport_format: str, choice: dict, scratch: str) -> ConvertResult:
-    report = _Progress(progress, _source_size(src, source_format))
+    with _Progress(progress, _source_size(src, source_format)) as report:
+        return _convert_reporting(src, dst, source_format, target_format, report,
+                                  flexiport_format, choice, scratch)
+
+
+def _convert_reporting(src: str, dst: str, source_format: str, target_format: str,
+                       report: _Progress, flexiport_format: str, choice: dict,
+                       scratch: str) -> ConvertResult:
     if target_format in ("pcapng", "mcap"):
         session = src
         if source_format in _RECORD_SOURCES:
@@ -594,12 +743,22 @@ def _convert(src: str, dst: str, source_format: str, target_format: str, progres
 
     if target_format == "flexiport":
         prefix = _core.flexiport_prefix(dst) or dst
-        if source_format in _RECORD_SOURCES:
+        # A stream's header cannot be looked at before the export reads it:
+        # it goes through a scratch session, whose header can.
+        through_scratch = source_format in _RECORD_SOURCES or (
+            source_format == "wiretape" and is_stream(src))
+        if through_scratch:
             session = os.path.join(scratch, "session.wtape")
-            header, records, _ = _records_of(src, source_format, choice)
+            header, records, raise_source_damage = _records_of(src, source_format, choice)
+            _refuse_several_channels(src, header)
             written = _write_wiretape(session, header, records, report)
-            _core.export_flexiport(session, prefix, flexiport_format)
+            exported = _core.export_flexiport(session, prefix, flexiport_format)
+            if source_format == "wiretape":
+                written = exported  # what the same file gives when not a stream
+            raise_source_damage()
         else:
+            if source_format == "wiretape":
+                _refuse_several_channels(src, open_session(src).header)
             # Its count, not a reading of the output, which may be a FIFO or
             # /dev/null written through.
             written = _core.export_flexiport(src, prefix, flexiport_format)

@@ -9,6 +9,10 @@ the packets of every conversation (``-T fields``), a second follows the one
 chosen (``-z follow,tcp,yaml,N``), which gives each reassembled chunk with
 its side, its packet number and its time. Nothing here reassembles.
 
+Several conversations, each chosen by a named ``--stream NAME=FILTER``,
+become the channels of one session on the capture's clock
+(read_capture_channels; DESIGN §19).
+
 Which side is the device (docs/cli.md, "convert --from pcap"):
 ``--device-addr IP:PORT`` when given; otherwise for TCP the side that
 answered the SYN (the listening side), and when the handshake is not in the
@@ -31,7 +35,7 @@ from .. import _core
 from ..children import Child
 
 __all__ = ["CaptureError", "CaptureGap", "Conversation", "conversations", "read_capture",
-           "is_capture"]
+           "read_capture_channels", "split_name", "is_capture"]
 
 # A capture's first four bytes: pcap (both byte orders, micro- and
 # nanosecond variants) and pcapng's section header block.
@@ -326,15 +330,21 @@ def _listing(all_of: Sequence[Conversation]) -> str:
 
 
 def choose(path: str, stream: Optional[str] = None,
-           device_addr: Optional[str] = None) -> Tuple[Conversation, Tuple[str, int]]:
+           device_addr: Optional[str] = None, name: Optional[str] = None,
+           every: Optional[List[Conversation]] = None
+           ) -> Tuple[Conversation, Tuple[str, int]]:
     """The conversation to import and its device endpoint; CaptureError
-    when none matches or several do."""
+    when none matches or several do. `name`: the channel the stream is
+    for (``--stream NAME=FILTER``), named in the errors; `every`: the
+    capture's conversations, when already listed."""
+    flag = f"--stream {name}={stream}" if name is not None else f"--stream {stream}"
     device = parse_address(device_addr) if device_addr else None
     display_filter = None
     index = None
     if stream is not None:
         index, display_filter = _stream_filter(stream)
-    every = conversations(path)
+    if every is None:
+        every = conversations(path)
     candidates = list(every)
     if display_filter:
         matching = _matching(path, display_filter)
@@ -348,7 +358,7 @@ def choose(path: str, stream: Optional[str] = None,
     if not candidates:
         asked = []
         if stream is not None:
-            asked.append(f"--stream {stream}")
+            asked.append(flag)
         if device_addr:
             asked.append(f"--device-addr {device_addr}")
         what = f"matching {' and '.join(asked)}" if asked else "of TCP or UDP"
@@ -357,7 +367,8 @@ def choose(path: str, stream: Optional[str] = None,
             message += "; its conversations:\n" + "\n".join(f"  {c.describe()}" for c in every)
         raise CaptureError(message, 0)
     if len(candidates) > 1:
-        raise CaptureError(f"{path}: {len(candidates)} conversations in the capture:\n"
+        matching = f" match {flag}" if stream is not None else " in the capture"
+        raise CaptureError(f"{path}: {len(candidates)} conversations{matching}:\n"
                            + _listing(candidates), 0)
     conversation = candidates[0]
     return conversation, conversation.device(device)
@@ -492,12 +503,31 @@ def read_capture(path: str, stream: Optional[str] = None,
     with open(path, "rb"):  # missing, unreadable: an OSError naming the file (exit 3)
         pass
     conversation, device = choose(path, stream, device_addr)
-    first = conversation.packets[0]
-    start_ns = first.epoch_ns
+    header, records = _import_conversation(path, conversation, device, allow_gaps,
+                                           conversation.packets[0].epoch_ns)
+    return header, [(kind, t_ns, data) for t_ns, _, kind, data in records]
+
+
+def _start_utc(path: str, conversation: Conversation, start_ns: int) -> str:
     start_utc = _utc_text(start_ns)
     if start_utc is None:
+        first = conversation.packets[0]
         raise CaptureError(f"{path}: packet {first.number}: timestamp {_seconds_text(start_ns)} s "
                            f"since 1970 is not a date (the capture's times are damaged)", 0)
+    return start_utc
+
+
+def _import_conversation(path: str, conversation: Conversation, device: Tuple[str, int],
+                         allow_gaps: bool, start_ns: int, channel: Optional[str] = None
+                         ) -> Tuple[_core.SessionHeader, List[Tuple[int, int, str, bytes]]]:
+    """The header of one conversation's session and its records
+    (t_ns, order, kind, data) in time order, on a clock whose zero is
+    `start_ns` (epoch ns): its first packet's, or the first of several
+    conversations imported into one session, the `channel` named in the
+    errors."""
+    first = conversation.packets[0]
+    label = conversation.name if channel is None else f"{conversation.name} (channel {channel})"
+    start_utc = _start_utc(path, conversation, start_ns)
     device_host, device_port = device
     header = _core.SessionHeader(
         port_type=conversation.protocol,
@@ -513,7 +543,7 @@ def read_capture(path: str, stream: Optional[str] = None,
     try:
         header.to_json()  # what the session writer would refuse, refused here
     except _core.OptionError as error:
-        raise CaptureError(f"{path}: {conversation.name}: no session can start as its first "
+        raise CaptureError(f"{path}: {label}: no session can start as its first "
                            f"packet ({first.number}) says: {error}", 0) from None
     records: List[Tuple[int, int, str, bytes]] = []  # (t_ns, order, kind, data)
 
@@ -542,7 +572,7 @@ def read_capture(path: str, stream: Optional[str] = None,
 
     def gap(epoch_ns: int, found: CaptureGap) -> None:
         if not allow_gaps:
-            raise CaptureError(f"{path}: {found.describe(conversation.name)}: the capture lost "
+            raise CaptureError(f"{path}: {found.describe(label)}: the capture lost "
                                f"them, and an import never invents bytes; --allow-gaps imports "
                                f"the rest with a capture_gap event there", 0)
         add(epoch_ns, "capture_gap", _core.event_payload(
@@ -610,4 +640,81 @@ def read_capture(path: str, stream: Optional[str] = None,
             add(max(last_end.epoch_ns, last_data_ns), "client_disconnect",
                 _core.event_payload("client_disconnect", {"peer": client_text, "reason": reason}))
     records.sort()
-    return header, [(kind, t_ns, data) for t_ns, _, kind, data in records]
+    return header, records
+
+
+# --- several conversations, one session of channels (DESIGN §19) ------------
+
+_NAME_PREFIX = re.compile(r"([A-Za-z_][A-Za-z0-9_-]*)=(?!=)(.*)", re.DOTALL)
+
+
+def split_name(text: str) -> Tuple[Optional[str], str]:
+    """``NAME=VALUE`` as (NAME, VALUE); anything else (``tcp:0``, a display
+    filter such as ``tcp.port == 502``, whose first ``=`` is part of
+    ``==`` or follows a dotted field) as (None, text)."""
+    match = _NAME_PREFIX.fullmatch(text)
+    if match is None:
+        return None, text
+    return match.group(1), match.group(2)
+
+
+def read_capture_channels(path: str, streams: Sequence[Tuple[str, str]],
+                          device_addrs: Optional[Dict[str, str]] = None,
+                          allow_gaps: bool = False
+                          ) -> Tuple[_core.SessionHeader, List[Tuple[str, int, bytes, int]]]:
+    """Several conversations of the capture `path` as one session: each
+    (NAME, FILTER) of `streams` (``--stream NAME=FILTER``, in order) chooses
+    one conversation, imported as read_capture does into the channel NAME
+    (ids in the order given); `device_addrs` gives a channel's device side
+    by name. One clock, the capture's: time 0 is the first packet of any
+    chosen conversation. Returns the header (``channels``; its top-level
+    port members are channel 0's) and records (kind, t_ns, data, channel
+    id) in time order. CaptureError: a stream that matches no conversation
+    or several (naming the flag and listing the capture's conversations),
+    two names for one conversation, and what read_capture refuses."""
+    with open(path, "rb"):  # missing, unreadable: an OSError naming the file (exit 3)
+        pass
+    device_addrs = dict(device_addrs or {})
+    every = conversations(path)
+    chosen: List[Tuple[str, str, Conversation, Tuple[str, int]]] = []
+    for name, stream in streams:
+        conversation, device = choose(path, stream, device_addrs.get(name), name=name,
+                                      every=every)
+        for other_name, other_stream, other, _ in chosen:
+            if other is conversation:
+                raise CaptureError(
+                    f"{path}: --stream {other_name}={other_stream} and --stream "
+                    f"{name}={stream} choose the same conversation ({conversation.name}): "
+                    f"a conversation is imported into one channel", 0)
+        chosen.append((name, stream, conversation, device))
+    start_ns = min(conversation.packets[0].epoch_ns for _, _, conversation, _ in chosen)
+    channels = []
+    merged: List[Tuple[int, int, int, str, bytes]] = []  # (t_ns, channel, order, kind, data)
+    for channel_id, (name, _, conversation, device) in enumerate(chosen):
+        part, records = _import_conversation(path, conversation, device, allow_gaps, start_ns,
+                                             channel=name)
+        channels.append(_core.Channel(id=channel_id, name=name,
+                                      port_options=part.port_options,
+                                      port_type=part.port_type, capture=part.capture,
+                                      device_address=part.device_address))
+        merged.extend((t_ns, channel_id, order, kind, data)
+                      for t_ns, order, kind, data in records)
+    first = channels[0]
+    header = _core.SessionHeader(
+        port_type=first.port_type,
+        port_options=first.port_options,
+        capture=first.capture,
+        start_utc=_utc_text(start_ns) or "",
+        source_format="pcap",
+        source_files=[os.path.basename(path)],
+        source_details={"streams": ",".join(f"{name}={conversation.name}"
+                                            for name, _, conversation, _ in chosen)},
+        device_address=first.device_address,
+    )
+    header.channels = channels
+    try:
+        header.to_json()  # what the session writer would refuse, refused here
+    except _core.OptionError as error:
+        raise CaptureError(f"{path}: no session can hold these channels: {error}", 0) from None
+    merged.sort()
+    return header, [(kind, t_ns, data, channel) for t_ns, channel, _, kind, data in merged]

@@ -462,4 +462,83 @@ TEST_F(FailingFixtureTests, UnusedDataFailsOnceAtThePortCall) {
   EXPECT_NE(output.find(location + "replaying cassette "), std::string::npos) << output;
 }
 
+// --- cassettes of several channels (DESIGN §19) ----------------------------------------
+
+CassetteSettings recording_channels_from_loopback() {
+  CassetteSettings settings;
+  settings.record = RecordMode::rewrite;
+  settings.lookup = [](const char* name) -> const char* {
+    const std::string variable = name;
+    if (variable == "WIRETAPE_DEVICE_gps") return "type=loopback";
+    if (variable == "WIRETAPE_DEVICE_rtk_1") return "type=loopback,timeout=2";
+    return nullptr;
+  };
+  return settings;
+}
+
+TEST(CassetteChannels, RecordThroughOneRecorderIntoOneCassette) {
+  TemporaryDirectory directory;
+  const fs::path path = directory.path() / "two.wtape";
+  {
+    Cassette cassette(path.string(), recording_channels_from_loopback(), {}, "Suite.Two");
+    echo(cassette.port_of("gps"), "$GPGGA\n");
+    echo(cassette.port_of("rtk-1"), "RTCM\n");
+    echo(cassette.port_of("gps"), "$GPRMC\n");  // the same port again
+    cassette.finish(true);
+  }
+  ASSERT_TRUE(fs::exists(path));
+  EXPECT_EQ(leftovers(directory.path()), 0u);
+  wiretape::SessionReader reader(path.string());
+  const auto& channels = reader.header().channels;
+  ASSERT_EQ(channels.size(), 2u);
+  EXPECT_EQ(channels[0].name, "gps");
+  EXPECT_EQ(channels[0].port_options, "type=loopback");
+  EXPECT_EQ(channels[1].name, "rtk-1");
+  EXPECT_EQ(channels[1].port_options, "type=loopback,timeout=2");
+  EXPECT_EQ(reader.header().user_metadata.at("gtest"), "Suite.Two");
+  std::map<std::uint16_t, std::string> tx;
+  wiretape::Record record;
+  while (reader.next(record)) {
+    if (record.kind == wiretape::RecordKind::tx) tx[record.channel] += record.data;
+  }
+  EXPECT_EQ(tx[0], "$GPGGA\n$GPRMC\n");
+  EXPECT_EQ(tx[1], "RTCM\n");
+}
+
+TEST(CassetteChannels, AChannelWithoutADeviceOrMixedWithPortIsAClearError) {
+  TemporaryDirectory directory;
+  const fs::path path = directory.path() / "bad.wtape";
+  Cassette cassette(path.string(), recording_channels_from_loopback());
+  try {
+    cassette.port_of("imu");
+    FAIL() << "expected an error";
+  } catch (const std::runtime_error& error) {
+    EXPECT_NE(std::string(error.what()).find("WIRETAPE_DEVICE_imu"), std::string::npos)
+        << error.what();
+  }
+  cassette.port_of("gps");
+  EXPECT_THROW(cassette.port(), std::logic_error);
+  cassette.finish(false);
+  EXPECT_FALSE(fs::exists(path));
+  EXPECT_EQ(leftovers(directory.path()), 0u);
+}
+
+// Replays each channel with channel=NAME (part C of issue 25, engineer
+// replaych): this test can pass only once type=replay takes channel=.
+TEST(CassetteChannels, ReplaysEachChannelOfTheCassette) {
+  TemporaryDirectory directory;
+  const fs::path path = directory.path() / "replayed.wtape";
+  {
+    Cassette cassette(path.string(), recording_channels_from_loopback());
+    echo(cassette.port_of("gps"), "$GPGGA\n");
+    echo(cassette.port_of("rtk-1"), "RTCM\n");
+    cassette.finish(true);
+  }
+  Cassette replay(path.string(), CassetteSettings{}, "unused=error");
+  EXPECT_NE(replay.channel_options("gps").find("channel=gps"), std::string::npos);
+  echo(replay.port_of("rtk-1"), "RTCM\n");
+  echo(replay.port_of("gps"), "$GPGGA\n");
+  EXPECT_NO_THROW(replay.finish(true));
+}
+
 }  // namespace

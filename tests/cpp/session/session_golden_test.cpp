@@ -48,6 +48,8 @@ struct Line {
 
 struct Golden {
   SessionHeader header;
+  // Written as a Recorder writes: this much header room, channels added.
+  std::optional<std::size_t> header_room;
   std::vector<Line> lines;
   std::optional<std::pair<std::size_t, int>> corrupt;  // byte, xor
   std::optional<std::uint64_t> damage_offset;
@@ -82,6 +84,21 @@ Golden load(const std::string& name) {
       o.device_address = header->string_member("device_address").value_or("");
       if (const json::Value* edits = header->find("edits")) {
         for (const auto& item : edits->items) o.edits.push_back(item.text);
+      }
+      if (const json::Value* channels = header->find("channels")) {
+        for (const auto& item : channels->items) {
+          Channel& channel = o.channels.emplace_back();
+          channel.id = static_cast<std::uint16_t>(item.find("id")->number);
+          channel.name = item.string_member("name").value_or("");
+          channel.port_options = item.string_member("port_options").value_or("");
+          channel.port_type = item.string_member("port_type").value_or("");
+          channel.capture =
+              item.string_member("capture") == "wire" ? Capture::wire : Capture::client;
+          channel.device_address = item.string_member("device_address").value_or("");
+        }
+      }
+      if (const json::Value* room = line.find("header_room")) {
+        golden.header_room = static_cast<std::size_t>(room->number);
       }
       continue;
     }
@@ -121,7 +138,13 @@ TEST_P(GoldenFile, WriterRecreatesItByteForByte) {
   ASSERT_NE(::mkstemp(pattern), -1);
   const std::string path = pattern;
   {
-    SessionWriter writer(path, golden.header);
+    SessionHeader first = golden.header;
+    first.channels.clear();
+    SessionWriter writer(path, golden.header_room ? first : golden.header, FlushPolicy{},
+                         golden.header_room.value_or(0));
+    if (golden.header_room) {
+      for (const Channel& channel : golden.header.channels) writer.add_channel(channel);
+    }
     for (const Line& line : golden.lines) {
       writer.write(static_cast<RecordKind>(line.kind_code), line.t_ns, line.data, line.channel);
     }
@@ -163,6 +186,19 @@ void expect_reads_as_golden(const std::string& name, std::uint16_t version_minor
   EXPECT_EQ(header.source_details, golden.header.source_details);
   EXPECT_EQ(header.device_address, golden.header.device_address);
   EXPECT_EQ(header.edits, golden.header.edits);
+  ASSERT_EQ(header.channels.size(), golden.header.channels.size());
+  for (std::size_t i = 0; i < header.channels.size(); ++i) {
+    const Channel& got = header.channels[i];
+    const Channel& want = golden.header.channels[i];
+    EXPECT_EQ(got.id, want.id) << i;
+    EXPECT_EQ(got.name, want.name) << i;
+    EXPECT_EQ(got.port_options, want.port_options) << i;
+    EXPECT_EQ(got.port_type, want.port_type) << i;
+    EXPECT_EQ(got.capture, want.capture) << i;
+    EXPECT_EQ(got.device_address, want.device_address) << i;
+  }
+  // The header room's padding is not part of the header's JSON.
+  EXPECT_EQ(header.metadata_json.back(), '}');
   std::vector<Line> expected;
   for (const Line& line : golden.lines) {
     if (!line.skipped && line.readable) expected.push_back(line);
@@ -174,6 +210,7 @@ void expect_reads_as_golden(const std::string& name, std::uint16_t version_minor
     EXPECT_EQ(record.t_ns, expected[index].t_ns) << index;
     EXPECT_EQ(static_cast<int>(record.kind), expected[index].kind_code) << index;
     EXPECT_EQ(record.data, expected[index].data) << index;
+    EXPECT_EQ(record.channel, expected[index].channel) << index;
     ++index;
   }
   EXPECT_EQ(index, expected.size());
@@ -194,5 +231,5 @@ TEST_P(ReadOnlyGoldenFile, ReaderReturnsTheExpectedRecords) {
 
 INSTANTIATE_TEST_SUITE_P(Golden, GoldenFile,
                          ::testing::Values("all_kinds", "wire", "unknown_kind", "damaged",
-                                           "v1_1_additions"));
+                                           "v1_1_additions", "v1_2_channels"));
 INSTANTIATE_TEST_SUITE_P(Golden, ReadOnlyGoldenFile, ::testing::Values("v1_0", "v1_1"));

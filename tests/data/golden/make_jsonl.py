@@ -15,6 +15,10 @@ format change). Each .jsonl holds:
     {..., "channel": 1, "skipped": true}
         a record of another port (channels are reserved for sessions of
         several ports): written, skipped when read
+  line 1 may also hold "header_room": N: the writer is made with N bytes of
+  header room and the header without its "channels", and each channel is
+  then added (SessionWriter::add_channel, the header rewritten in place),
+  as a Recorder writes a session of several ports.
   and for a damaged file a last line
     {"corrupt": {"byte": B, "xor": X}, "damage_offset": D}
         byte B of the written file is XORed with X; reading stops at D.
@@ -145,4 +149,28 @@ write("v1_1_additions", [{"header": header(
     {**rec(2_500, "rx", b"another port"), "channel": 1, "skipped": True},
     rec(3_000, "rx", b"\x00\x01\x00\x00\x00\x07\x01\x03\x04\x00\x2a\x00\x07"),
     rec(4_000, "close", event={}),
+])
+
+# Format 1.2's channels: a session of two ports, written as a Recorder writes
+# it (header room, each channel added in place). The top-level port members
+# are channel 0's, what a 1.1 reader sees; records of both channels
+# interleave in time order.
+GPS_OPTIONS = "type=serial,device=/dev/ttyUSB0,baud=9600"
+RTK_OPTIONS = "type=tcp,host=192.0.2.9,port=2101"
+write("v1_2_channels", [{"header": header(
+    capture="wire", port_type="serial", port_options=GPS_OPTIONS, metadata={},
+    channels=[
+        {"id": 0, "name": "gps", "port_options": GPS_OPTIONS, "port_type": "serial",
+         "capture": "wire"},
+        {"id": 1, "name": "rtk", "port_options": RTK_OPTIONS, "port_type": "tcp",
+         "capture": "wire", "device_address": "192.0.2.9:2101"},
+    ]), "header_room": 512}] + [
+    rec(0, "open", event={"description": "serial /dev/ttyUSB0 @ 9600 8N1"}),
+    {**rec(1_000, "open", event={"description": "tcp 192.0.2.9:2101"}), "channel": 1},
+    {**rec(2_000, "tx", b"GET /RTCM3 HTTP/1.0\r\n\r\n"), "channel": 1},
+    rec(3_000, "rx", b"$GPGGA,1*00\r\n"),
+    {**rec(4_000, "rx", b"ICY 200 OK\r\n"), "channel": 1},
+    rec(5_000, "rx", b"$GPGGA,2*00\r\n"),
+    {**rec(6_000, "close", event={}), "channel": 1},
+    rec(7_000, "close", event={}),
 ])

@@ -35,8 +35,9 @@ def test_record_speaks_with_one_prefix_and_ends_with_a_summary(tmp_path):
                           capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     lines = done.stderr.splitlines()
-    ours = [line for line in lines if not line.startswith("wiretape: ")]  # the bridge's own
+    ours = lines  # the bridge's own notes too: the command relays them
     assert ours and all(line.startswith("wiretape record: ") for line in ours), lines
+    assert any(line.startswith("wiretape record: listening on ") for line in ours), lines
     assert any(line.startswith(f"wiretape record: recording to {output}") for line in ours)
     assert re.fullmatch(r"wiretape record: finished: \d+ records? written.*", ours[-1]), ours
     assert "=" not in ours[-1]

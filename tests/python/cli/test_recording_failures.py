@@ -101,7 +101,7 @@ def test_a_file_that_cannot_grow_stops_the_recording_not_the_forwarding(command,
                 _echo(client, payload)
                 sent.extend(payload)
                 assert child.process.poll() is None, child.stderr()
-                return "wiretape: recording stopped" in child.stderr()
+                return f"wiretape {command}: recording stopped" in child.stderr()
 
             wait_until(exchange_until_the_failure_is_reported, DEADLINE_S,
                        what=lambda: "the recording failure to be reported: " + child.stderr())
@@ -114,7 +114,7 @@ def test_a_file_that_cannot_grow_stops_the_recording_not_the_forwarding(command,
             child.process.kill()
     err = child.stderr()
     assert "terminate called" not in err and "Traceback" not in err, err
-    assert err.count("wiretape: recording stopped") == 1, err  # reported once
+    assert err.count(f"wiretape {command}: recording stopped") == 1, err  # reported once
     assert code == cli.EXIT_RUNTIME, err
     errors = [line for line in err.splitlines() if "error:" in line]
     assert len(errors) == 1, err
@@ -147,7 +147,7 @@ def test_the_summary_counts_the_records_in_the_file_not_those_lost_with_the_fail
             def exchange_until_the_failure_is_reported():
                 _echo(client, b"x" * CHUNK)
                 assert child.process.poll() is None, child.stderr()
-                return "wiretape: recording stopped" in child.stderr()
+                return f"wiretape {command}: recording stopped" in child.stderr()
 
             wait_until(exchange_until_the_failure_is_reported, DEADLINE_S,
                        what=lambda: "the recording failure to be reported: " + child.stderr())

@@ -54,11 +54,24 @@ def _jsonl():
     return ("".join(json.dumps(line) + "\n" for line in lines)).encode()
 
 
+def _jsonl_of_channels():
+    """A session of two named channels (DESIGN §19): records name theirs."""
+    lines = [{"header": {"port_type": "serial", "channels": [
+                 {"id": 0, "name": "gps", "port_type": "serial"},
+                 {"id": 1, "name": "rtk", "port_type": "tcp",
+                  "port_options": "type=tcp,host=127.0.0.1,port=2101"}]}},
+             {"t_ns": 0, "kind": "tx", "data_hex": "49440a", "channel": "gps"},
+             {"t_ns": 500, "kind": "tx", "data_hex": "474554", "channel": "rtk"},
+             {"t_ns": 1000, "kind": "rx", "data_hex": "4f4b0a", "channel": "gps"},
+             {"t_ns": 2000, "kind": "rx", "data_hex": "d30013", "channel": "rtk"}]
+    return ("".join(json.dumps(line) + "\n" for line in lines)).encode()
+
+
 EXCHANGES = [("tx", b"ID;"), ("rx", b"OK;"), ("tx", b"GET;"), ("rx", b"42;")]
 INPUTS = {
     "umockdev": [("talk", b"d 0 /dev/ttyUSB0\nw 5 ID^J\nr 10 OK ^`^[x\nf 5 -\nw 3 GET^@\nr 1 42\n")],
     "reserial": [("two-tests", _reserial())],
-    "jsonl": [("session", _jsonl())],
+    "jsonl": [("session", _jsonl()), ("channels", _jsonl_of_channels())],
     "pcap": [("tcp.pcap", pcap(tcp_conversation(EXCHANGES))),
              ("tcp.pcapng", pcapng(tcp_conversation(EXCHANGES)))],
 }
@@ -99,6 +112,29 @@ def test_damaged_imports_convert_honestly_or_fail_cleanly(tmp_path, fmt, name, d
     tried = outcomes["ok"] + outcomes["refused"]
     print(f"damage sweep {fmt} {name}: {tried} inputs, {outcomes['ok']} converted, "
           f"{outcomes['refused']} refused, 0 crashes, 0 hangs, 0 wrong successes")
+    assert outcomes["refused"] > 0
+
+
+def test_a_damaged_capture_of_named_streams_converts_honestly_or_fails_cleanly(tmp_path):
+    """Several conversations into channels (--stream NAME=FILTER) keep the
+    contract of one: no byte that is not in the capture."""
+    if shutil.which("tshark") is None:
+        pytest.skip("SKIPPED LOUDLY: tshark is not installed")
+    from captures import udp_frame
+
+    sensor, driver = ("10.0.0.3", 2368), ("10.0.0.1", 50000)
+    frames = [udp_frame(sensor, driver, b"SCAN1")] + tcp_conversation(EXCHANGES) + \
+        [udp_frame(sensor, driver, b"SCAN2")]
+    data = pcap(frames)
+    check = _checker()
+    options = {"stream": ["cmd=tcp:0", "scan=udp:0"]}
+    assert check.check_input("pcap", data, str(tmp_path), **options) == "ok"
+    outcomes = {"ok": 0, "refused": 0}
+    for what, variant in damaged(data, 0 if FULL else PCAP_SAMPLES):
+        try:
+            outcomes[check.check_input("pcap", variant, str(tmp_path), **options)] += 1
+        except AssertionError as error:
+            raise AssertionError(f"pcap of named streams, {what}: {error}") from error
     assert outcomes["refused"] > 0
 
 
