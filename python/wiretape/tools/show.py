@@ -289,7 +289,8 @@ def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optiona
                       .rstrip() + "\n")
             previous = t_ns
         count = records.count
-    elif fmt == "text" and wrap is None:
+    elif fmt == "text" and wrap is None and not several and chosen is None:
+        # the fast timeline of a session of one port
         count, shown = _timeline(reader, out, paint, wanted, full)
     else:
         count = 0
