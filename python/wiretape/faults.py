@@ -14,6 +14,12 @@ The same cases are there for pytest::
     def test_driver_survives(case):
         with faults.faulty_device("scan.wtape", case) as path:
             ...  # run the driver against path; assert it fails cleanly
+
+A session of several ports (DESIGN §19) has exchanges numbered per
+channel: its cases are every channel's (``drop@exchange:3@channel:gps``),
+CMD names each channel's device ``{port:NAME}``, and every channel is
+replayed, on the session's one clock, with the case's fault (which names
+the channel it applies to).
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ import json
 import math
 import os
 import random
+import re
 import shlex
 import signal
 import sys
@@ -47,6 +54,8 @@ OUTCOMES = ("ok", "error", "crash", "hang")
 #: bound that no run needs, and that every clock and poll can count to.
 MAX_TIMEOUT_S = 1e6
 PORT_PLACEHOLDER = "{port}"
+#: ``{port:NAME}``: the device of channel NAME of a session of several ports.
+_CHANNEL_PLACEHOLDER = re.compile(r"\{port:([^{}]*)\}")
 
 
 class FaultInputError(ValueError):
@@ -119,13 +128,30 @@ class SessionShape:
     first_exchange: int = 0  # of the client session a replay serves (numbered per file)
 
 
+def session_channels(session: str) -> List[str]:
+    """The channels of a session of several ports, by name; empty for a
+    session of one port (named or not): its exchanges are numbered as one."""
+    channels = open_session(session).header.channel_list()
+    return [channel.name for channel in channels] if len(channels) > 1 else []
+
+
+def _with_channel(options: str, channel: Optional[str]) -> str:
+    if not channel:
+        return options
+    key = f"channel={_core.quote_option_value(channel)}"
+    return f"{options},{key}" if options.strip() else key
+
+
 def session_shape(session: str, profile: Optional[str] = None, match: Optional[str] = None,
-                  options: str = "") -> SessionShape:
+                  options: str = "", channel: Optional[str] = None) -> SessionShape:
     """The exchanges that hold rx as a replay with ``profile`` and ``match``
     (and further replay keys ``options``) numbers them: counted by the one
     segmentation in C++ (``_core.session_exchanges``). A proxy recording
     counts its first client session, as its replay serves a client (the
-    exchanges numbered per file, from ``first_exchange``)."""
+    exchanges numbered per file, from ``first_exchange``). ``channel``: the
+    channel of a session of several ports whose exchanges are counted."""
+    if channel:
+        return _channel_shape(session, profile, match, options, channel)
     exchanges = _core.session_exchanges(session, profile=profile, match=match, options=options)
     sessions = _core.session_client_sessions(session)
     first_record, end_record = 0, None
@@ -144,6 +170,40 @@ def session_shape(session: str, profile: Optional[str] = None, match: Optional[s
         first_t = record.t_ns if first_t is None else first_t
         last_t = record.t_ns
     return SessionShape(end, rx_bytes, ((last_t or 0) - (first_t or 0)) / 1e9, first)
+
+
+def _channel_shape(session: str, profile: Optional[str], match: Optional[str], options: str,
+                   channel: str) -> SessionShape:
+    """session_shape() of one channel: its exchanges as a replay of it
+    (``channel=NAME``) numbers them, from its first client session."""
+    exchanges = _core.session_exchanges(session, profile=profile, match=match,
+                                        options=_with_channel(options, channel))
+    served = [exchange.client_session for exchange in exchanges
+              if exchange.client_session is not None]
+    if served:
+        exchanges = [exchange for exchange in exchanges
+                     if exchange.client_session == min(served)]
+    with_rx = [exchange for exchange in exchanges if exchange.response_bytes]
+    first = exchanges[0].index if exchanges else 0
+    end = with_rx[-1].index + 1 if with_rx else 0
+    rx_bytes = sum(exchange.response_bytes for exchange in exchanges)
+    found = open_session(session).header.find_channel(channel)
+    first_t = last_t = None
+    if found is not None:
+        for record in _core.SessionReader(session, channel=found.id):
+            first_t = record.t_ns if first_t is None else first_t
+            last_t = record.t_ns
+    return SessionShape(end, rx_bytes, ((last_t or 0) - (first_t or 0)) / 1e9, first)
+
+
+def fault_channel(fault) -> Optional[str]:
+    """The channel a parsed fault names (``@channel:NAME``), or None."""
+    name = getattr(fault, "channel", None)
+    if name is None:
+        # (a FaultPlan item that does not bind it: the text says it)
+        found = re.search(r"@channel:([^@;]+)", getattr(fault, "text", "") or "")
+        name = found.group(1) if found else None
+    return name or None
 
 
 def _kind_spec(text: str) -> str:
@@ -169,18 +229,42 @@ def check_where(session: str, spec: str, shape: Optional[SessionShape] = None,
         plan = _core.parse_faults(spec)
     except _core.OptionError as error:
         raise FaultInputError(str(error)) from None
-    shape = shape or session_shape(session, profile=profile, match=match, options=options)
+    channels = session_channels(session)
+    shapes: Dict[Optional[str], SessionShape] = {}
     for fault in plan:
+        channel = fault_channel(fault)
+        if channel is not None and channel not in channels:
+            known = (", ".join(channels) if channels
+                     else "none: the session has one port (leave @channel out)")
+            raise FaultInputError(f"{fault.text}: the session has no channel {channel!r} "
+                                  f"(its channels: {known})")
+        if channel not in shapes:
+            if channel is None and channels:
+                # A fault without @channel applies to every channel: past
+                # the end only when past every channel's.
+                each = [session_shape(session, profile=profile, match=match, options=options,
+                                      channel=name) for name in channels]
+                shapes[channel] = SessionShape(max(one.exchanges for one in each),
+                                               max(one.rx_bytes for one in each),
+                                               max(one.seconds for one in each))
+            else:
+                shapes[channel] = (shape if shape is not None and channel is None else
+                                   session_shape(session, profile=profile, match=match,
+                                                 options=options, channel=channel))
+        fault_shape = shapes[channel]
         number, value = fault.number, fault.value
-        if fault.where == "exchange" and number is not None and number >= shape.exchanges:
+        whose = (f"channel {channel}" if channel else
+                 "every channel" if channels else "the session")
+        if (fault.where == "exchange" and number is not None
+                and number >= fault_shape.exchanges):
             raise FaultInputError(
-                f"{fault.text}: the session has {shape.exchanges} exchanges with rx "
-                f"(0..{shape.exchanges - 1}); exchange {number} is past its end")
-        if fault.where == "rx" and number is not None and number >= shape.rx_bytes:
-            raise FaultInputError(f"{fault.text}: the session has {shape.rx_bytes} rx bytes; "
-                                  f"rx byte {number} is past its end")
-        if fault.where == "t" and value is not None and value > shape.seconds:
-            raise FaultInputError(f"{fault.text}: the session lasts {shape.seconds:.3f} s; "
+                f"{fault.text}: {whose} has {fault_shape.exchanges} exchanges with rx "
+                f"(0..{fault_shape.exchanges - 1}); exchange {number} is past its end")
+        if fault.where == "rx" and number is not None and number >= fault_shape.rx_bytes:
+            raise FaultInputError(f"{fault.text}: {whose} has {fault_shape.rx_bytes} rx "
+                                  f"bytes; rx byte {number} is past its end")
+        if fault.where == "t" and value is not None and value > fault_shape.seconds:
+            raise FaultInputError(f"{fault.text}: {whose} lasts {fault_shape.seconds:.3f} s; "
                                   f"t:{value:g} is past its end")
 
 
@@ -192,7 +276,9 @@ def cases(session: str, kinds: Optional[Sequence[str]] = None, budget: Optional[
     and further replay keys ``options`` numbers them); with ``budget``, that
     many of them sampled by ``seed``, in the same order. Items of ``kinds``
     may name a place themselves (``drop@rx:100``). With ``shard``, only the
-    cases of that shard (``Shard.owns``), in the same order."""
+    cases of that shard (``Shard.owns``), in the same order. In a session
+    of several ports, every channel's exchanges, channel by channel
+    (``drop@exchange:3@channel:gps``)."""
     everything = _all_cases(session, kinds, budget, seed, profile, match, options)
     if shard is None:
         return everything
@@ -201,20 +287,29 @@ def cases(session: str, kinds: Optional[Sequence[str]] = None, budget: Optional[
 
 def _all_cases(session: str, kinds: Optional[Sequence[str]], budget: Optional[int], seed: int,
                profile: Optional[str], match: Optional[str], options: str) -> List[FaultCase]:
-    shape = session_shape(session, profile=profile, match=match, options=options)
+    channels = session_channels(session)
+    shape = (session_shape(session, profile=profile, match=match, options=options)
+             if not channels else None)
     fixed: List[FaultCase] = []
     spread: List[str] = []
     for text in (kinds or KINDS):
         text = text.strip()
         if "@" in text:
-            check_where(session, text, shape)
+            check_where(session, text, shape, profile=profile, match=match, options=options)
             fixed.extend(FaultCase(fault.kind_text, fault.where_text, seed)
                          for fault in _core.parse_faults(text))
         else:
             spread.append(_kind_spec(text))
-    everything = fixed + [FaultCase(kind, f"exchange:{n}", seed)
-                          for kind in spread
-                          for n in range(shape.first_exchange, shape.exchanges)]
+    if not channels:
+        places = [f"exchange:{n}" for n in range(shape.first_exchange, shape.exchanges)]
+    else:
+        places = []
+        for channel in channels:
+            own = session_shape(session, profile=profile, match=match, options=options,
+                                channel=channel)
+            places += [f"exchange:{n}@channel:{channel}"
+                       for n in range(own.first_exchange, own.exchanges)]
+    everything = fixed + [FaultCase(kind, place, seed) for kind in spread for place in places]
     if budget is not None and budget < len(everything):
         chosen = sorted(random.Random(seed).sample(range(len(everything)), budget))
         everything = [everything[i] for i in chosen]
@@ -242,6 +337,34 @@ def faulty_device(session: str, case: Optional[FaultCase] = None, replay_options
         finally:
             handle.stop()
             handle.wait()
+
+
+@contextlib.contextmanager
+def faulty_devices(session: str, case: Optional[FaultCase] = None, replay_options: str = "",
+                   listen: bool = False, speed: float = 1.0) -> Iterator[Dict[str, str]]:
+    """faulty_device() for a session of several ports: every channel
+    replayed (``channel=NAME``) on the session's one clock, each with
+    ``case``'s fault (a fault naming a channel applies to it alone); yields
+    each channel's device (a pty path, or with ``listen`` a ``HOST:PORT``)
+    by name."""
+    channels = session_channels(session)
+    if not channels:
+        raise FaultInputError(f"{session}: a session of one port: use faulty_device()")
+    with contextlib.ExitStack() as stack:
+        devices = {}
+        for channel in channels:
+            devices[channel] = stack.enter_context(faulty_device(
+                session, case, _with_channel(replay_options, channel), listen, speed))
+        yield devices
+
+
+def _substituted(argv: Sequence[str], devices: Dict[str, str]) -> List[str]:
+    """CMD with each ``{port:NAME}`` (and ``{port}``, a session of one
+    port's) replaced by the device."""
+    def one(arg: str) -> str:
+        arg = _CHANNEL_PLACEHOLDER.sub(lambda found: devices[found.group(1)], arg)
+        return arg.replace(PORT_PLACEHOLDER, devices[""]) if "" in devices else arg
+    return [one(arg) for arg in argv]
 
 
 # --------------------------------------------------------------------------
@@ -333,10 +456,28 @@ class CleanRunFailed(Exception):
         self.run = run
 
 
-def check_command(argv: Sequence[str], as_path: Optional[str]) -> None:
+def check_command(argv: Sequence[str], as_path: Optional[str],
+                  channels: Sequence[str] = ()) -> None:
+    """Refuses a CMD without a device to run against; `channels`: those of
+    a session of several ports, whose devices CMD names ``{port:NAME}``."""
     if not argv:
         raise FaultInputError("no command after --: give the program to run, with {port} "
                               "where the device's path goes")
+    if channels:
+        if as_path is not None:
+            raise FaultInputError("--as redirects one device path: a session of several "
+                                  "ports needs {port:NAME} in the command for each channel")
+        named = [found.group(1) for arg in argv for found in _CHANNEL_PLACEHOLDER.finditer(arg)]
+        if any(PORT_PLACEHOLDER in arg for arg in argv) or not named:
+            raise FaultInputError("the session has several ports (channels "
+                                  + ", ".join(channels) + "): put {port:NAME} where each "
+                                  "channel's device path goes (e.g. -- ./driver --gps "
+                                  "{port:" + channels[0] + "})")
+        for name in named:
+            if name not in channels:
+                raise FaultInputError("{port:" + name + "}: the session has no channel "
+                                      f"{name!r} (its channels: {', '.join(channels)})")
+        return
     if as_path is None and not any(PORT_PLACEHOLDER in arg for arg in argv):
         raise FaultInputError("the command has no {port}: put {port} where the device's path "
                               "goes (e.g. -- ./driver --device {port}), or give --as PATH for "
@@ -366,8 +507,11 @@ def run_case(session: str, case: Optional[FaultCase], argv: Sequence[str], timeo
     and the replay run K times faster, and `timeout` is on CMD's clock."""
     started = time.monotonic()
     real_timeout = min(scaled_clock.real_seconds(timeout, speed), MAX_TIMEOUT_S)
-    with faulty_device(session, case, replay_options, listen, speed) as port:
-        command = [arg.replace(PORT_PLACEHOLDER, port) for arg in argv]
+    several = session_channels(session)
+    with (faulty_devices(session, case, replay_options, listen, speed) if several else
+          faulty_device(session, case, replay_options, listen, speed)) as port:
+        devices = port if several else {"": port}
+        command = _substituted(argv, devices)
         if as_path is not None:
             from .redirect import RedirectedCommand, recorded_identity
 
@@ -401,6 +545,7 @@ def reproduction(session: str, case: FaultCase, argv: Sequence[str], replay_opti
     against it and exits with the command's status, as the campaign's run
     did (with `timeout`, a hang ends as `timeout` ends it: status 124; at
     `speed` K, the replay runs with --speed K and CMD on the scaled clock)."""
+    channels = session_channels(session)
     replay = ["wiretape", "replay", session, "--fault", case.spec, "--seed", str(case.seed)]
     if speed != 1.0:
         replay += ["--speed", _seconds_text(speed)]
@@ -413,15 +558,25 @@ def reproduction(session: str, case: FaultCase, argv: Sequence[str], replay_opti
         # with CMD's status when CMD failed: the run's own.
         return shlex.join(limit + replay + ["-q", "--as", as_path, "--"] + list(argv))
     port = REPRO_ADDRESS if listen else REPRO_PORT
-    command = [arg.replace(PORT_PLACEHOLDER, port) for arg in argv]
+    if channels:
+        # each channel's device at its own place; replay NAME=PLACE (DESIGN §19)
+        host, _, first_port = REPRO_ADDRESS.rpartition(":")
+        devices = {name: (f"{host}:{int(first_port) + number}" if listen
+                          else f"{REPRO_PORT}-{name}")
+                   for number, name in enumerate(channels)}
+    else:
+        devices = {"": port}
+    command = _substituted(argv, devices)
     if speed != 1.0:
         # CMD on the scaled clock, as replay --speed K -- CMD would run it.
         command = (["env", "LD_PRELOAD=" + scaled_clock.shim_path(),
                     f"{scaled_clock.ENV_SPEED}={speed!r}"] + command)
-    replay += ["--listen", port] if listen else ["--pty", port]
+    for name, place in devices.items():
+        replay += ["--listen" if listen else "--pty", f"{name}={place}" if name else place]
     # CMD starts once the device is there: its link appears (a TCP
     # listener is given a second: a probe would be a client of the replay).
-    ready = "sleep 1" if listen else f"until [ -e {shlex.quote(port)} ]; do sleep 0.1; done"
+    ready = "sleep 1" if listen else "; ".join(
+        f"until [ -e {shlex.quote(place)} ]; do sleep 0.1; done" for place in devices.values())
     return (f"({shlex.join(replay + ['-q'])} & {ready}; {shlex.join(limit + command)}; "
             "status=$?; kill $!; wait $!; exit $status)")
 
@@ -481,7 +636,7 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
     ``progress``: one line rewritten in place (a terminal), or with
     ``progress_every`` a line every that many seconds and one at the end (a
     log)."""
-    check_command(argv, as_path)
+    check_command(argv, as_path, session_channels(session))
     if jobs < 1:
         raise FaultInputError(f"--jobs {jobs}: give 1 or more")
     _check_timeout(timeout)
@@ -610,13 +765,18 @@ def table(result: Campaign) -> str:
         place = _core.parse_faults(run.spec)[0]
         if place.where == "exchange" and place.number is not None:
             exchange = place.number
-            by_kind.setdefault(run.kind, {})[exchange] = run.outcome
+            # a session of several ports: a line per channel and kind
+            channel = fault_channel(place)
+            row = f"{channel} {run.kind}" if channel else run.kind
+            by_kind.setdefault(row, {})[exchange] = run.outcome
             width = max(width, exchange + 1)
         else:
             others.append(run)
     lines = []
     if by_kind:
-        corner = "kind \\ exchange"
+        channelled = any(fault_channel(_core.parse_faults(run.spec)[0]) for run in result.runs
+                         if "@channel:" in run.where)
+        corner = "channel kind \\ exchange" if channelled else "kind \\ exchange"
         name_width = max(len(corner), *(len(kind) for kind in by_kind))
         header = "".join(str(n % 10) for n in range(width))
         lines.append(f"{corner:<{name_width}}  {header}")

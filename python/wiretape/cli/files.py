@@ -55,6 +55,7 @@ def require_session(path: str) -> None:
 
 
 def cmd_show(args, out: Output) -> int:
+    from ..tools.channels import UnknownChannel
     from ..tools.show import Selection, color_wanted, show_reporting_damage
 
     require_session(args.file)
@@ -70,13 +71,16 @@ def cmd_show(args, out: Output) -> int:
         select = Selection(kinds=frozenset(args.kind) if args.kind else None,
                            start_s=args.start_s, end_s=args.end_s,
                            grep=args.grep.encode("utf-8", "surrogateescape")
-                           if args.grep is not None else None)
+                           if args.grep is not None else None,
+                           channels=frozenset(args.channel) if args.channel else None)
     except ValueError as error:
         raise UsageError(str(error)) from None
     try:
         _, damage = show_reporting_damage(args.file, fmt=args.format, profile=profile,
                                           select=select, full=args.full,
                                           color=color_wanted(args.color, sys.stdout))
+    except UnknownChannel as error:
+        raise UsageError(f"--channel: {error}") from None
     except BrokenPipeError:  # `wiretape show big.wtape | head`
         silence_stdout()
         return EXIT_OK
@@ -93,7 +97,8 @@ def _show_textconv(args) -> int:
                          "hex, without --profile")
     chosen = [flag for flag, given in (("--kind", args.kind), ("--from", args.start_s is not None),
                                        ("--to", args.end_s is not None),
-                                       ("--grep", args.grep is not None), ("--full", args.full))
+                                       ("--grep", args.grep is not None), ("--full", args.full),
+                                       ("--channel", args.channel))
               if given]
     if chosen:
         raise UsageError(f"{chosen[0]} does not go with --textconv (which shows every record "
@@ -134,11 +139,25 @@ def cmd_verify(args, out: Output) -> int:
     if args.json:
         print(json.dumps(result.to_json(), indent=2, sort_keys=True, default=str))
     elif result.ok:
-        out.print(f"{args.file}: ok, {result.records} records", style="green")
+        out.print(f"{args.file}: ok, {result.records} records{_per_channel(result)}",
+                  style="green")
+    elif result.unlisted_channel is not None:
+        out.print(f"{args.file}: BAD {result.message}{_per_channel(result)}", style="bold red")
     else:
         out.print(f"{args.file}: DAMAGED at byte {result.offset} after "
-                  f"{result.records} good records: {result.message}", style="bold red")
+                  f"{result.records} good records: {result.message}{_per_channel(result)}",
+                  style="bold red")
     return EXIT_OK if result.ok else EXIT_CHECK_FAILED
+
+
+def _per_channel(result) -> str:
+    """`` (gps 4, rtk 6)``: the records of each channel of a session of several."""
+    from ..session import header_text
+
+    if not result.channel_records:
+        return ""
+    return " (" + ", ".join(f"{header_text(name)} {count}"
+                            for name, count in result.channel_records.items()) + ")"
 
 
 def cmd_convert(args, out: Output) -> int:
@@ -182,7 +201,7 @@ def cmd_edit(args, out: Output) -> int:
     profile = {None: "", "none": None}.get(args.profile, args.profile)
     # In a child process: a signal ends a catastrophic pattern's matching too.
     result = edit_in_child(args.input, args.output, cut=cut, redact=redactions,
-                           drop_meta=args.drop_meta, profile=profile)
+                           drop_meta=args.drop_meta, profile=profile, channels=args.channel)
     if not args.quiet:
         done = "; ".join(result.edits)
         matches = (f", {result.matches} matches redacted in {result.redacted_records} records"

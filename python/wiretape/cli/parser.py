@@ -511,6 +511,9 @@ def build_parser() -> argparse.ArgumentParser:
                            "regular expression; \\x00 escapes work)")
     show.add_argument("--full", action="store_true",
                       help="every byte of each payload (not the first 64)")
+    show.add_argument("--channel", metavar="NAME", action="append", default=[],
+                      help="only records of this channel of a session of several ports "
+                           "(may be repeated)")
 
     stats = command("stats", cmd_stats, "figures of a session (exit 1 if damaged)")
     stats.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
@@ -559,6 +562,9 @@ def build_parser() -> argparse.ArgumentParser:
                            "bytes (default: the session's --meta profile=NAME, else none): "
                            + ", ".join(_core.profile_names()) + ", a declared profile "
                            "('framing=...,checksum=...') or none")
+    edit.add_argument("--channel", metavar="NAME", action="append", default=[],
+                      help="--cut and --redact work on this channel only (may be repeated); "
+                           "the other channels' records are kept as they are")
     edit.add_argument("--drop-meta", metavar="KEY", action="append", default=[],
                       help="remove this --meta key (may be repeated)")
     edit.add_argument("-q", "--quiet", action="store_true", help="no summary")

@@ -143,6 +143,29 @@ def _live_url(device: str, nodeid: str) -> str:
                 pytrace=False)
 
 
+def _checked_ports(ports: Any, nodeid: str):
+    """The marker's ``ports=``: a dict of channel name to device (an
+    option string or a serial device path), names as channels take them
+    (``_core.channel_name_problem``); None when not given."""
+    if ports is None:
+        return None
+    if not isinstance(ports, Mapping) or not ports:
+        pytest.fail(f"{nodeid}: wiretape marker: ports= takes a dict of channel name to "
+                    "device (ports={'gps': '/dev/ttyUSB0', 'rtk': 'type=tcp,...'}), not "
+                    f"{ports!r}", pytrace=False)
+    checked: Dict[str, str] = {}
+    for name, device in ports.items():
+        problem = _core.channel_name_problem(name) if isinstance(name, str) else "not a string"
+        if problem is not None:
+            pytest.fail(f"{nodeid}: wiretape marker: ports= channel name {name!r}: {problem}",
+                        pytrace=False)
+        try:
+            checked[name] = device_options(os.fspath(device))
+        except (TypeError, ValueError, wiretape.OptionError) as error:
+            pytest.fail(f"{nodeid}: wiretape marker: ports= {name!r}: {error}", pytrace=False)
+    return checked
+
+
 class WiretapeCassette:
     """What the plugin decided for one test, and the cleanup it owes.
 
@@ -181,6 +204,9 @@ class WiretapeCassette:
         # The paths wiretape_serial serves (serial_patch); not a replay key.
         self.serial_port = _first_given(marker.pop("serial_port", None),
                                         defaults.pop("serial_port", None))
+        # Several ports, one cassette (DESIGN §19): channel name -> device.
+        self.ports = _checked_ports(_first_given(marker.pop("ports", None),
+                                                 defaults.pop("ports", None)), item.nodeid)
 
         cassette = _first_given(marker.pop("cassette", None), defaults.pop("cassette", None))
         if cassette is None:
@@ -209,6 +235,7 @@ class WiretapeCassette:
         self.opened_device = None  # what open_port(device) was given
         self._ports: List[wiretape.Port] = []
         self._cleanups: List[Callable[[], None]] = []
+        self._recorder = None  # wiretape.Recorder of a cassette of several ports
 
     # -- what fixtures use ---------------------------------------------------
     @property
@@ -251,12 +278,60 @@ class WiretapeCassette:
         return f"wiretape://{urllib.parse.quote(str(self.path))}?{query}"
 
     def record_command(self) -> str:
-        if self.device_from_driver and not self.device:
+        if (self.device_from_driver or self.ports is not None) and not self.device:
             # wiretape_serial records from the path the driver opens.
             return f"pytest --wiretape-record=once {self.item.nodeid!r}"
         device = self.device or "OPTS"
         return (f"pytest --wiretape-record=once --wiretape-device={device!r} "
                 f"{self.item.nodeid!r}")
+
+    def channel_options(self, name: str) -> str:
+        """The option string that replays channel `name` of the cassette."""
+        return ("type=replay,file=" + quote_option(str(self.path)) + ",channel="
+                + quote_option(name) + "," + self.replay_options)
+
+    def open_ports(self) -> Dict[str, wiretape.Port]:
+        """The ports of the marker's ``ports=`` by name: each device
+        recording into its channel of the one cassette (one clock), or each
+        channel's replay (one clock from the first open), or live."""
+        if self.ports is None:
+            pytest.fail(f"{self.item.nodeid}: wiretape_ports needs the marker's ports= "
+                        "(@pytest.mark.wiretape(ports={'gps': 'OPTS', ...}))", pytrace=False)
+        opened: Dict[str, wiretape.Port] = {}
+        try:
+            if self.recording and self._recorder is None:
+                header = wiretape.SessionHeader.starting_now()
+                header.metadata = {"pytest_node": self.item.nodeid}
+                self._recorder = wiretape.Recorder(str(self.partial_path), header)
+            if not self.recording and not self.live:
+                self._check_channels()
+            for name, device in self.ports.items():
+                if self.live:
+                    port = wiretape.open_port(device)
+                elif self.recording:
+                    port = self._recorder.open_port(f"name={name}," + device)
+                else:
+                    port = wiretape.open_port(self.channel_options(name))
+                opened[name] = port
+                self._ports.append(port)
+        except wiretape.OptionError as error:
+            source = "the marker's ports=" if self.recording or self.live else \
+                "the marker's replay keys"
+            pytest.fail(f"{self.item.nodeid}: bad wiretape options (check {source}): {error}",
+                        pytrace=False)
+        return opened
+
+    def _check_channels(self) -> None:
+        """The cassette holds a channel of each name the marker gives."""
+        header = wiretape.SessionReader(str(self.path)).header
+        known = [channel.name for channel in header.channel_list() if channel.name]
+        missing = [name for name in self.ports if header.find_channel(name) is None]
+        if missing:
+            pytest.fail(f"{self.item.nodeid}: cassette {self.path} has no channel "
+                        + ", ".join(repr(name) for name in missing) + " (its channels: "
+                        + (", ".join(known) or "one unnamed: a cassette of one port") + "); "
+                        f"record it again: {self.record_command().replace('=once', '=rewrite')}",
+                        pytrace=False)
 
     def prepare(self, device_from_driver: bool = False) -> None:
         """Checks that the test can run: a cassette to replay, or a device to
@@ -264,6 +339,13 @@ class WiretapeCassette:
         it, as wiretape_serial's do); makes the cassette's directory when
         recording."""
         self.device_from_driver = device_from_driver
+        if self.ports is not None and (self.live or self.recording):
+            # each port names its own device
+            if self.recording:
+                self.path.parent.mkdir(parents=True, exist_ok=True)
+                if self.partial_path.exists():
+                    self.partial_path.unlink()
+            return
         if self.live:
             if not self.device and not device_from_driver:
                 pytest.fail(
@@ -321,6 +403,13 @@ class WiretapeCassette:
                     port.close()
             except Exception as error:
                 errors.append(error)
+        recorder, self._recorder = self._recorder, None
+        close = getattr(recorder, "close", None)
+        if close is not None:
+            try:
+                close()
+            except Exception as error:
+                errors.append(error)
         if errors:
             raise errors[0]
 
@@ -352,8 +441,12 @@ class WiretapeCassette:
         if self.live:
             return f"live (--wiretape-live): nothing recorded\noptions: {self.options}"
         lines = [f"cassette: {self.path}",
-                 f"mode: {self.mode} (--wiretape-record={self.record_mode})",
-                 f"options: {self.options}"]
+                 f"mode: {self.mode} (--wiretape-record={self.record_mode})"]
+        if self.ports is None:
+            lines.append(f"options: {self.options}")
+        else:
+            lines += [f"port {name}: {device if self.recording else self.channel_options(name)}"
+                      for name, device in self.ports.items()]
         if not self.recording:
             lines.append(f"to record it again: {self.record_command().replace('=once', '=rewrite')}")
         return "\n".join(lines)

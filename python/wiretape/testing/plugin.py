@@ -31,11 +31,14 @@ command line beats the marker, which beats ``wiretape_config``, which beats
 the ini file.
 
 Marker: ``@pytest.mark.wiretape(cassette=None, device=None, record=None,
-serial_port=None, **replay_keys)``. ``cassette`` is a path relative to the
+serial_port=None, ports=None, **replay_keys)``. ``cassette`` is a path relative to the
 test file's directory (or absolute); ``serial_port`` the path (or list of
 paths of one device) that ``wiretape_serial`` serves; the replay keys are
 those of ``type=replay`` (``timing``, ``match``, ``check``, ``unused``, ...).
-Replays default to ``timing=none``.
+Replays default to ``timing=none``. ``ports`` gives a test several ports
+and one cassette (a session of several ports, DESIGN §19): a dict of
+channel name to device (``{"gps": "/dev/ttyUSB0", "rtk":
+"type=tcp,host=caster,port=2101"}``); ``wiretape_ports`` opens them.
 
 Fixtures a conftest overrides to change what the plugin does:
 ``wiretape_config``       a dict of settings for the test, with the marker's
@@ -47,6 +50,10 @@ Fixtures tests use:
 ``wiretape_port``     the opened ``wiretape.Port``: the device recording to the
                       cassette, or the replay. Closed when the test ends; what
                       closing raises (``unused=error``) fails the test.
+``wiretape_ports``    with the marker's ``ports=``: the opened ports by channel
+                      name, recording into one cassette on one clock
+                      (``wiretape.Recorder``) or replaying its channels
+                      (``channel=NAME``, one clock). Closed when the test ends.
 ``wiretape_options``  the option string that opens that port.
 ``wiretape_url``      a pyserial URL for it (``wiretape://`` or
                       ``wiretape+record://``).
@@ -124,10 +131,10 @@ def pytest_addoption(parser):
 def pytest_configure(config):
     config.addinivalue_line(
         "markers",
-        "wiretape(cassette=None, device=None, record=None, serial_port=None, **replay_keys): "
-        "the wiretape cassette, device and record mode of a test, the path(s) "
-        "wiretape_serial serves, and replay keys (timing, match, check, unused...) "
-        "for its replay")
+        "wiretape(cassette=None, device=None, record=None, serial_port=None, ports=None, "
+        "**replay_keys): the wiretape cassette, device and record mode of a test, the path(s) "
+        "wiretape_serial serves, its several ports by channel name (ports={'gps': OPTS}), "
+        "and replay keys (timing, match, check, unused...) for its replay")
     urlhandler.register()
 
 
@@ -225,6 +232,9 @@ def wiretape_options(wiretape_cassette: WiretapeCassette) -> str:
 @pytest.fixture
 def wiretape_port(wiretape_cassette: WiretapeCassette) -> Iterator[wiretape.Port]:
     """The opened port: the device recording to the cassette, or the replay."""
+    if wiretape_cassette.ports is not None:
+        pytest.fail(f"{wiretape_cassette.item.nodeid}: the marker gives several ports "
+                    "(ports=): use the wiretape_ports fixture", pytrace=False)
     port = wiretape_cassette.open_port()
     yield port
     try:
@@ -232,6 +242,14 @@ def wiretape_port(wiretape_cassette: WiretapeCassette) -> Iterator[wiretape.Port
             port.close()
     except Exception:
         pass  # already reported by the call, or the test failed anyway
+
+
+@pytest.fixture
+def wiretape_ports(wiretape_cassette: WiretapeCassette) -> Dict[str, wiretape.Port]:
+    """The marker's ``ports=`` opened, by channel name: each device
+    recording into its channel of the one cassette, or each channel's
+    replay (one clock). Closed when the test ends, as wiretape_port is."""
+    return wiretape_cassette.open_ports()
 
 
 @pytest.fixture

@@ -21,6 +21,12 @@ exchange as a replay numbers them (``_core.session_exchanges``, so that
 against exchange N of B, request and response, each pointing at its first
 differing byte.
 
+Sessions of several ports (DESIGN §19) are compared channel by channel,
+by name: each channel's records as a session of their own, the results
+named by channel; a channel only one of them has is a difference. Two
+sessions of one channel each are compared as they are, whatever their
+channels' names.
+
 ``a`` and ``b`` are paths of session files (``.wtape`` or a flexiport
 ``name.log``) or iterables of records (objects with ``t_ns``, ``kind`` and
 ``data``, such as ``wiretape.Record``).
@@ -31,10 +37,11 @@ from __future__ import annotations
 import os
 import tempfile
 from dataclasses import dataclass, field
-from typing import Iterable, Iterator, List, Optional, Union
+from typing import Dict, Iterable, Iterator, List, Optional, Union
 
 from .. import _core
-from ..session import DIRECTIONS, is_stream, open_session
+from ..session import DIRECTIONS, header_text, is_stream, open_session
+from .channels import capture_text, several_channels
 
 _CONTEXT = 16
 
@@ -76,9 +83,9 @@ class _Records:
         in a temporary file, to be read once per direction."""
         self._scratch = tempfile.TemporaryDirectory(prefix="wiretape-diff-")
         copy = os.path.join(self._scratch.name, "stream.wtape")
-        with open_session(path) as reader, _core.SessionWriter(copy) as writer:
+        with open_session(path) as reader, _core.SessionWriter(copy, reader.header) as writer:
             for record in reader:
-                writer.write(record.kind, record.t_ns, record.data)
+                writer.write(record.kind, record.t_ns, record.data, channel=record.channel)
             if reader.damage is not None:
                 self.damage = reader.damage.message
         return copy
@@ -157,6 +164,7 @@ class DirectionDiff:
 
     direction: str
     identical: bool = True
+    channel: str = ""  # in a session of several channels, the channel's name
     offset: Optional[int] = None  # first differing byte, or where one ended
     time_a_ns: Optional[int] = None
     time_b_ns: Optional[int] = None
@@ -173,13 +181,14 @@ class DirectionDiff:
             f"A {self.bytes_a} bytes in {self.records_a} records, "
             f"B {self.bytes_b} bytes in {self.records_b} records"
         )
+        label = _labelled(self.channel, self.direction)
         if self.identical:
-            return f"{self.direction}: identical ({counts})"
+            return f"{label}: identical ({counts})"
         if not self.at_a or not self.at_b:
             shorter = "A" if not self.at_a else "B"
-            headline = f"{self.direction}: {shorter} ends at byte {self.offset}"
+            headline = f"{label}: {shorter} ends at byte {self.offset}"
         else:
-            headline = f"{self.direction}: first difference at byte {self.offset}"
+            headline = f"{label}: first difference at byte {self.offset}"
         return "\n".join(
             [
                 f"{headline} (A at {_seconds(self.time_a_ns)}, B at {_seconds(self.time_b_ns)})",
@@ -189,6 +198,11 @@ class DirectionDiff:
                 f"  {counts}",
             ]
         )
+
+
+def _labelled(channel: str, what: str) -> str:
+    """`what` of a channel of a session of several ports: ``channel gps rx``."""
+    return f"channel {header_text(channel)} {what}" if channel else what
 
 
 #: Bytes shown each side of a divergence's first differing byte.
@@ -241,14 +255,16 @@ class Divergence:
     bytes_b: Optional[bytes]
     frame_a: str = ""  # with a profile: the frames' descriptions
     frame_b: str = ""
+    channel: str = ""  # in a session of several channels (exchanges are numbered per channel)
 
     def report(self) -> List[str]:
         part = "request" if self.direction == "tx" else "response"
+        exchange = _labelled(self.channel, f"exchange {self.exchange}")
         if self.bytes_a is None or self.bytes_b is None:
             missing = "A" if self.bytes_a is None else "B"
-            head = f"  exchange {self.exchange} {part} ({self.direction}): {missing} has none"
+            head = f"  {exchange} {part} ({self.direction}): {missing} has none"
         else:
-            head = (f"  exchange {self.exchange} {part} ({self.direction}) differs at byte "
+            head = (f"  {exchange} {part} ({self.direction}) differs at byte "
                     f"{self.offset} (A at {_seconds(self.time_a_ns)}, "
                     f"B at {_seconds(self.time_b_ns)})")
         lines = [head]
@@ -384,10 +400,12 @@ class DiffResult:
     # every divergence aligned by exchange: the first ones, and how many
     divergences: List[Divergence] = field(default_factory=list)
     divergence_count: int = 0
+    # channels of sessions of several ports that only one has: name -> "A" or "B"
+    only_in: Dict[str, str] = field(default_factory=dict)
 
     @property
     def identical(self) -> bool:
-        return all(d.identical for d in self.directions)
+        return not self.only_in and all(d.identical for d in self.directions)
 
     @property
     def damaged(self) -> bool:
@@ -398,14 +416,18 @@ class DiffResult:
     def __bool__(self) -> bool:  # truthy when the sessions differ, like a diff
         return not self.identical
 
-    def __getitem__(self, direction: str) -> Union[DirectionDiff, "FrameDiff"]:
+    def __getitem__(self, direction) -> Union[DirectionDiff, "FrameDiff"]:
+        """``result["rx"]``; in sessions of several channels ``result["gps", "rx"]``."""
+        channel, name = direction if isinstance(direction, tuple) else ("", direction)
         for d in self.directions:
-            if d.direction == direction:
+            if d.direction == name and d.channel == channel:
                 return d
         raise KeyError(direction)
 
     def report(self) -> str:
         lines = [f"A: {self.a}", f"B: {self.b}"]
+        for channel, which in self.only_in.items():
+            lines.append(f"channel {header_text(channel)}: only in {which}")
         lines += [d.report() for d in self.directions]
         if self.divergence_count:
             shown = len(self.divergences)
@@ -467,6 +489,7 @@ class FrameDiff:
 
     direction: str
     identical: bool = True
+    channel: str = ""  # in a session of several channels, the channel's name
     frames_a: int = 0
     frames_b: int = 0
     index: int = -1  # of the first differing frame
@@ -480,9 +503,10 @@ class FrameDiff:
 
     def report(self) -> str:
         counts = f"A: {self.frames_a} frames, B: {self.frames_b} frames"
+        label = _labelled(self.channel, self.direction)
         if self.identical:
-            return f"{self.direction}: identical by key ({counts})"
-        lines = [f"{self.direction}: first difference at frame {self.index} "
+            return f"{label}: identical by key ({counts})"
+        lines = [f"{label}: first difference at frame {self.index} "
                  f"(A at {_seconds(self.time_a_ns)}, B at {_seconds(self.time_b_ns)})"]
         for name, frame, description in (("A", self.frame_a, self.describe_a),
                                          ("B", self.frame_b, self.describe_b)):
@@ -544,6 +568,16 @@ def diff(a: SessionLike, b: SessionLike, profile: Optional[str] = None,
         a = list(a)
     if not isinstance(b, (str, os.PathLike)):
         b = list(b)
+    if all(isinstance(x, (str, os.PathLike)) and not is_stream(x) for x in (a, b)):
+        # (a pipe is read once: its records are compared as one stream)
+        headers = [_header_of(os.fspath(x)) for x in (a, b)]
+        if any(header is not None and several_channels(header) for header in headers):
+            records_a, records_b = _Records(a), _Records(b)
+            try:
+                return _diff_channels(records_a, records_b, headers, profile, max_divergences)
+            finally:
+                records_a.close()
+                records_b.close()
     if profile is not None:
         framing = _core.find_profile(profile)
         result = DiffResult(str(a) if isinstance(a, (str, os.PathLike)) else "(records)",
@@ -571,6 +605,64 @@ def diff(a: SessionLike, b: SessionLike, profile: Optional[str] = None,
         records_b.close()
     result.damage_a, result.damage_b = records_a.damage, records_b.damage
     return result
+
+
+def _header_of(path: str) -> Optional[_core.SessionHeader]:
+    try:
+        return open_session(path).header
+    except _core.SessionError:
+        return None  # not a session: the comparison below says so
+
+
+def _diff_channels(a: _Records, b: _Records, headers: List[Optional[_core.SessionHeader]],
+                   profile: Optional[str], keep: int) -> DiffResult:
+    """Sessions of several channels compared channel by channel, by name."""
+    result = DiffResult(a.name, b.name)
+    names = [[channel.name for channel in header.channel_list()] if header is not None else []
+             for header in headers]
+    order = names[0] + [name for name in names[1] if name not in names[0]]
+    with tempfile.TemporaryDirectory(prefix="wiretape-diff-") as scratch:
+        for name in order:
+            if name not in names[1] or name not in names[0]:
+                result.only_in[name] = "A" if name in names[0] else "B"
+                continue
+            parts = []
+            for side, (records, header) in enumerate(zip((a, b), headers)):
+                part = os.path.join(scratch, f"{'ab'[side]}.wtape")
+                damage = _channel_copy(records.file(), header, name, part)
+                if damage and side == 0:
+                    result.damage_a = result.damage_a or damage
+                elif damage:
+                    result.damage_b = result.damage_b or damage
+                parts.append(part)
+            part_result = diff(parts[0], parts[1], profile,
+                               max(0, keep - len(result.divergences)))
+            for direction in part_result.directions:
+                direction.channel = name
+                result.directions.append(direction)
+            for divergence in part_result.divergences:
+                divergence.channel = name
+            result.divergences += part_result.divergences
+            result.divergence_count += part_result.divergence_count
+    return result
+
+
+def _channel_copy(path: str, header: _core.SessionHeader, name: str, copy: str
+                  ) -> Optional[str]:
+    """One channel's records as a session of its own (its port members in
+    the header, so that it is numbered into exchanges as a replay of that
+    channel numbers them); the damage reading stopped at, if any."""
+    channel = header.find_channel(name)
+    own = _core.SessionHeader.from_dict(header.to_dict())
+    own.channels = []
+    own.port_options, own.port_type = channel.port_options, channel.port_type
+    own.capture = capture_text(channel.capture)
+    own.device_address = channel.device_address
+    with _core.SessionReader(path, channel=channel.id) as reader, \
+            _core.SessionWriter(copy, own) as writer:
+        for record in reader:
+            writer.write(record.kind, record.t_ns, record.data)
+        return reader.damage.message if reader.damage is not None else None
 
 
 def _add_divergences(result: DiffResult, a: _Records, b: _Records, profile: Optional[str],

@@ -21,6 +21,14 @@ shared (DESIGN §15, docs/cli.md "edit").
   recomputed (``Profile.recompute_checksums``), so that a scrubbed
   recording still replays to the driver that made it.
 - ``drop_meta``: removes user metadata keys.
+- ``channels``: a session of several ports (DESIGN §19) is edited channel
+  by channel on its one clock: each channel's bytes are searched and framed
+  apart, and its greeting and state are its own. ``--cut`` without
+  ``channels`` cuts every channel by the one window and moves them back
+  together; with ``channels`` only those channels are cut and redacted
+  (the part kept stays at its time, so that the channels keep their order)
+  and the others' records are kept as they are. The ``channels`` header
+  member is kept.
 
 The header's ``edits`` list says what was done (never the scrubbed text).
 The input is never written over."""
@@ -41,6 +49,7 @@ from typing import Callable, Deque, Dict, Iterable, List, Optional, Sequence, Tu
 from .. import _core
 from ..session import (DIRECTIONS, SessionPath, event_payload, is_stream, open_session,
                        raise_damage, refuse_same_file, session_files)
+from .channels import UnknownChannel, choose_channels, several_channels
 from .convert import session_writer
 
 __all__ = ["edit", "edit_in_child", "default_profile", "EditResult", "Cut", "Redaction", "parse_cut", "parse_redaction", "MAX_SPAN"]
@@ -161,9 +170,10 @@ class _Entry:
     (redaction, checksums recomputed) until the stages before the writer
     settle them."""
 
-    __slots__ = ("kind", "t_ns", "data", "marks", "settled", "written")
+    __slots__ = ("kind", "t_ns", "data", "marks", "settled", "written", "channel")
 
-    def __init__(self, kind: str, t_ns: int, data: bytes):
+    def __init__(self, kind: str, t_ns: int, data: bytes, channel: int = 0):
+        self.channel = channel
         self.kind = kind
         self.t_ns = t_ns
         self.data = data
@@ -215,15 +225,23 @@ class _Redactor:
         self.hand_on = hand_on
         self.queue: Deque[_Entry] = collections.deque()
         self.held = 0  # bytes in the queue
-        self.streams = {kind: _Stream(len(redactions)) for kind in DIRECTIONS}
+        # one byte stream per channel and direction
+        self.streams: Dict[Tuple[int, str], _Stream] = {}
         self.matches = 0
 
-    def add(self, entry: _Entry) -> None:
+    def _stream(self, entry: _Entry) -> _Stream:
+        key = (entry.channel, entry.kind)
+        stream = self.streams.get(key)
+        if stream is None:
+            stream = self.streams[key] = _Stream(len(self.redactions))
+        return stream
+
+    def add(self, entry: _Entry, redact: bool = True) -> None:
         self.queue.append(entry)
-        if not self.redactions:
+        if not self.redactions or not redact:
             entry.settled = True
         if not entry.settled:
-            stream = self.streams[entry.kind]
+            stream = self._stream(entry)
             stream.entries.append((stream.base + len(stream.buffer), entry))
             stream.buffer += entry.data
             stream.marked += bytes(len(entry.data))
@@ -233,7 +251,7 @@ class _Redactor:
                 self._scan(stream, final=False)
         self._drain()
         while self.held > HOLD_LIMIT and self.queue and not self.queue[0].settled:
-            self._scan(self.streams[self.queue[0].kind], final=True)
+            self._scan(self._stream(self.queue[0]), final=True)
             self._drain()
 
     def finish(self) -> None:
@@ -322,11 +340,12 @@ class _Resealer:
     def __init__(self, profile, hand_on: Callable[[_Entry], None]):
         self.profile = profile
         self.hand_on = hand_on
-        self.framers = {kind: profile.framer(kind) for kind in DIRECTIONS}
-        self.fed = dict.fromkeys(DIRECTIONS, 0)  # stream bytes given to the framer
-        self.framed = dict.fromkeys(DIRECTIONS, 0)  # stream bytes in complete frames
-        self.entries: Dict[str, List[Tuple[int, _Entry]]] = {kind: [] for kind in DIRECTIONS}
-        self.first = dict.fromkeys(DIRECTIONS, 0)  # the first entry a next frame may hold
+        # per (channel, direction): each channel's bytes are framed apart
+        self.framers: Dict[Tuple[int, str], object] = {}
+        self.fed: Dict[Tuple[int, str], int] = {}  # stream bytes given to the framer
+        self.framed: Dict[Tuple[int, str], int] = {}  # stream bytes in complete frames
+        self.entries: Dict[Tuple[int, str], List[Tuple[int, _Entry]]] = {}
+        self.first: Dict[Tuple[int, str], int] = {}  # the first entry a next frame may hold
         self.queue: Deque[Tuple[_Entry, int]] = collections.deque()
         self.held = 0
         self.frames = 0  # frames whose checksums changed
@@ -335,7 +354,11 @@ class _Resealer:
     def add(self, entry: _Entry) -> None:
         end = 0
         if entry.kind in DIRECTIONS and entry.data:
-            kind = entry.kind
+            kind = (entry.channel, entry.kind)
+            if kind not in self.framers:
+                self.framers[kind] = self.profile.framer(entry.kind)
+                self.fed[kind] = self.framed[kind] = self.first[kind] = 0
+                self.entries[kind] = []
             self.entries[kind].append((self.fed[kind], entry))
             self.fed[kind] += len(entry.data)
             end = self.fed[kind]
@@ -352,16 +375,17 @@ class _Resealer:
                 self._frame(kind, *tail)
         self._drain()
 
-    def _frame(self, kind: str, frame: bytes, how: str) -> None:
-        start = self.framed[kind]
-        stop = self.framed[kind] = start + len(frame)
-        entries, first = self.entries[kind], self.first[kind]
+    def _frame(self, key: Tuple[int, str], frame: bytes, how: str) -> None:
+        kind = key[1]
+        start = self.framed[key]
+        stop = self.framed[key] = start + len(frame)
+        entries, first = self.entries[key], self.first[key]
         while first < len(entries) and entries[first][0] + len(entries[first][1].data) <= start:
             first += 1
         if first > 4096:
             del entries[:first]
             first = 0
-        self.first[kind] = first
+        self.first[key] = first
         if how not in ("delimited", "broken"):
             return  # cut short or cut at the size limit: no whole frame to seal
         held = []
@@ -397,7 +421,7 @@ class _Resealer:
     def _drain(self) -> None:
         while self.queue:
             entry, end = self.queue[0]
-            if end > self.framed.get(entry.kind, end) and self.held <= HOLD_LIMIT:
+            if end > self.framed.get((entry.channel, entry.kind), end) and self.held <= HOLD_LIMIT:
                 break
             self.queue.popleft()
             if end:
@@ -417,26 +441,29 @@ def _merged(marks: List[Tuple[int, int]]) -> List[Tuple[int, int]]:
     return merged
 
 
-def _exchange_starts(path: str) -> List[int]:
+def _exchange_starts(path: str, channel: str = "") -> List[int]:
     """The time each exchange begins (its first tx byte; for one with no
     request, its first rx), exchanges as replay numbers them
-    (``_core.session_exchanges``)."""
+    (``_core.session_exchanges``; per channel in a session of several)."""
     starts: List[int] = []
-    for exchange in _core.session_exchanges(path):
+    options = f"channel={channel}" if channel else ""
+    for exchange in _core.session_exchanges(path, options=options):
         first = exchange.request_first_t_ns
         starts.append(first if first is not None else exchange.response_first_t_ns)
     return starts
 
 
-def _cut_window(path: str, cut: Cut) -> Tuple[Optional[int], Optional[int]]:
-    """[start, end) of the cut in the session's nanoseconds."""
+def _cut_window(path: str, cut: Cut, channel: str = ""
+                ) -> Tuple[Optional[int], Optional[int]]:
+    """[start, end) of the cut in the session's nanoseconds; exchanges are
+    `channel`'s (named in a session of several channels)."""
     if not cut.exchanges:
         to_ns = (lambda s: None if s is None else int(round(s * 1e9)))
         return to_ns(cut.start), to_ns(cut.end)
     if is_stream(path):
         raise ValueError(f"--cut {cut.spec}: counting exchanges reads {path} twice; "
                          "give a regular file, not a pipe or FIFO")
-    starts = _exchange_starts(path)
+    starts = _exchange_starts(path, channel)
 
     def at(index: Optional[float], side: str) -> Optional[int]:
         if index is None:
@@ -444,7 +471,8 @@ def _cut_window(path: str, cut: Cut) -> Tuple[Optional[int], Optional[int]]:
         if index >= len(starts):
             if side == "TO" and index == len(starts):
                 return None
-            raise ValueError(f"--cut {cut.spec}: the session has {len(starts)} "
+            whose = f"channel {channel} of the session" if channel else "the session"
+            raise ValueError(f"--cut {cut.spec}: {whose} has {len(starts)} "
                              f"exchanges (0 to {len(starts) - 1}), no exchange {int(index)}")
         return starts[int(index)]
 
@@ -459,40 +487,66 @@ _HOST_LINES = {"dtr", "rts"}
 
 class _Cutter:
     """Keeps the greeting, the state in force at the cut and the cut part,
-    moved back in time; feeds what it keeps on."""
+    moved back in time; feeds what it keeps on (``keep(channel, kind,
+    t_ns, data)``).
 
-    def __init__(self, start: Optional[int], end: Optional[int], keep):
+    The channels of a session share its one clock: the cut part of every
+    channel resumes where the session's client first wrote (on any
+    channel), moved back by one shift. Each channel has its own greeting
+    (the records before its client's first write), settings, modem lines
+    and client: a greeting that ends after the session's first write but
+    before the cut is held over the cut, as the state is. With `move`
+    false the part kept stays at its time (a cut of some channels only)."""
+
+    def __init__(self, start: Optional[int], end: Optional[int], keep, move: bool = True):
         self.start, self.end, self.keep = start, end, keep
-        self.in_greeting = True
-        self.first_write = 0  # when the client first wrote: where the cut part resumes
-        self.state: Dict[str, Tuple[str, int, bytes]] = {}
-        self.client: Optional[Tuple[str, int, bytes]] = None
+        self.move = move
+        self.greeting_channels: Dict[int, bool] = {}  # channel: still in its greeting
+        self.first_write: Optional[int] = None  # when a client first wrote: where the cut part resumes
+        self.state: Dict[Tuple[int, str], Tuple[int, str, int, bytes]] = {}
+        self.greetings: List[Tuple[int, str, int, bytes]] = []  # held over the cut
+        self.clients: Dict[int, Tuple[int, str, int, bytes]] = {}
         # Client sessions by the bridge's rule (C++): a monitor's connect or
         # disconnect does not change the client in force.
-        self.sessions = _core.ClientSessionTracker()
+        self.sessions: Dict[int, _core.ClientSessionTracker] = {}
         self.shift = 0
         self.started = start is None or start == 0
-        self.closing: Optional[Tuple[str, int, bytes]] = None
+        self.closing: Dict[int, Tuple[str, int, bytes]] = {}
 
-    def add(self, kind: str, t_ns: int, data: bytes) -> None:
-        if self.in_greeting and not (kind == "tx" and data):
-            self.keep(kind, t_ns, data)
+    def add(self, kind: str, t_ns: int, data: bytes, channel: int = 0) -> None:
+        in_greeting = self.greeting_channels.setdefault(channel, True)
+        if in_greeting and not (kind == "tx" and data):
+            if self.first_write is None:
+                self.keep(channel, kind, t_ns, data)
+                return
+            if not self.started:
+                if t_ns < self.start:
+                    if self.move:
+                        # after the session's first write, before the cut: held over it
+                        self.greetings.append((channel, kind, t_ns, data))
+                    else:
+                        self.keep(channel, kind, t_ns, data)
+                    return
+                self._begin(t_ns)
+            if self.end is None or t_ns < self.end:
+                self.keep(channel, kind, t_ns - self.shift, data)
             return
-        if self.in_greeting:
-            self.in_greeting = False
-            self.first_write = t_ns
+        if in_greeting:
+            self.greeting_channels[channel] = False
+            if self.first_write is None:
+                self.first_write = t_ns
         if self.end is not None and t_ns >= self.end:
-            if kind in ("close", "device_lost") and self.closing is None:
-                self.closing = (kind, t_ns, data)
+            if kind in ("close", "device_lost") and channel not in self.closing:
+                self.closing[channel] = (kind, t_ns, data)
             return
         if not self.started:
             if t_ns < self.start:
-                self._remember(kind, t_ns, data)
+                self._remember(channel, kind, t_ns, data)
                 return
             self._begin(t_ns)
-        self.keep(kind, t_ns - self.shift, data)
+        self.keep(channel, kind, t_ns - self.shift, data)
 
-    def _remember(self, kind: str, t_ns: int, data: bytes) -> None:
+    def _remember(self, channel: int, kind: str, t_ns: int, data: bytes) -> None:
         if kind in _STATE_EVENTS:
             key = kind
             if kind == "modem_lines":
@@ -502,29 +556,36 @@ class _Cutter:
                     # held over the cut they would be changes it never made.
                     return
                 key += ":" + ",".join(members)
-            self.state[key] = (kind, t_ns, data)
+            self.state[(channel, key)] = (channel, kind, t_ns, data)
         elif kind in ("client_connect", "client_disconnect"):
-            change = self.sessions.feed(kind, data)
+            sessions = self.sessions.get(channel)
+            if sessions is None:
+                sessions = self.sessions[channel] = _core.ClientSessionTracker()
+            change = sessions.feed(kind, data)
             if change == "began":
-                self.client = (kind, t_ns, data)
+                self.clients[channel] = (channel, kind, t_ns, data)
             elif change == "ended":
-                self.client = None
+                self.clients.pop(channel, None)
 
     def _begin(self, t_ns: int) -> None:
         self.started = True
-        resume = self.first_write
-        self.shift = max(0, self.start - resume)
-        held = sorted(list(self.state.values()) + ([self.client] if self.client else []),
-                      key=lambda item: item[1])
-        for kind, _, data in held:
-            self.keep(kind, resume, data)
+        resume = self.first_write if self.first_write is not None else 0
+        if not self.move:
+            # the held state goes just before the cut part, which stays where it was
+            resume = self.start
+        self.shift = max(0, self.start - resume) if self.move else 0
+        held = sorted(self.greetings + list(self.state.values()) + list(self.clients.values()),
+                      key=lambda item: item[2])
+        for channel, kind, _, data in held:
+            self.keep(channel, kind, resume, data)
 
     def finish(self) -> None:
         if not self.started and self.start is not None:
             self._begin(self.start)
-        if self.closing is not None:
-            kind, t_ns, data = self.closing
-            self.keep(kind, (self.end if self.end is not None else t_ns) - self.shift, data)
+        for channel, (kind, t_ns, data) in sorted(self.closing.items(),
+                                                  key=lambda item: item[1][1]):
+            self.keep(channel, kind, (self.end if self.end is not None else t_ns) - self.shift,
+                      data)
 
 
 def _scrub_text(text: str, redactions: Sequence[Redaction]) -> str:
@@ -549,25 +610,52 @@ def _scrub_value(value, redactions: Sequence[Redaction]):
     return value
 
 
-def _scrub_header(header, redactions: Sequence[Redaction]) -> None:
+def _scrub_header(header, redactions: Sequence[Redaction],
+                  chosen: Optional[frozenset] = None) -> None:
     """Every header field that can name the device, the machine or a user:
     the host is cleared, and so is the device identity's serial number
     with its part of the by-id name (DESIGN §20); the port options, the
     device's address, metadata values, the rest of the device identity and
     where an import came from are scrubbed."""
     header.host = ""
-    header.clear_device_serial()
-    # The by-id name keeps what is not the serial number (vendor, model,
-    # interface), so that replay still presents it: only the patterns apply.
-    header.device_identity = {key: _apply_patterns(value, redactions)
-                              for key, value in header.device_identity.items()}
-    header.port_options = _scrub_text(header.port_options, redactions)
-    header.device_address = _scrub_text(header.device_address, redactions)
+    if chosen is None or 0 in chosen:
+        _scrub_port(header, redactions)
+    if header.channels:
+        # A session of several ports: each chosen channel's port members
+        # (the top-level ones are channel 0's, written from it).
+        channels = list(header.channels)
+        for channel in channels:
+            if chosen is None or channel.id in chosen:
+                _scrub_port(channel, redactions)
+        header.channels = channels
     header.metadata = {key: _scrub_text(value, redactions)
                        for key, value in header.metadata.items()}
     header.source_files = [_scrub_text(name, redactions) for name in header.source_files]
     header.source_details = {key: _scrub_text(value, redactions)
                              for key, value in header.source_details.items()}
+
+
+def _scrub_port(port, redactions: Sequence[Redaction]) -> None:
+    """A header's (or a channel's) port members: the identity's serial
+    number cleared by the session model's rule, the rest scrubbed."""
+    if isinstance(port, _core.SessionHeader):
+        port.clear_device_serial()
+        identity = port.device_identity
+    elif port.device_identity is not None:
+        # The rule of clearing the serial number lives in SessionHeader.
+        holder = _core.SessionHeader()
+        holder.device_identity = port.device_identity
+        holder.clear_device_serial()
+        identity = holder.device_identity
+    else:
+        identity = None
+    if identity is not None:
+        # The by-id name keeps what is not the serial number (vendor, model,
+        # interface), so that replay still presents it: only the patterns apply.
+        port.device_identity = {key: _apply_patterns(value, redactions)
+                                for key, value in dict(identity).items()}
+    port.port_options = _scrub_text(port.port_options, redactions)
+    port.device_address = _scrub_text(port.device_address, redactions)
 
 
 def _scrubbed_event(kind: str, data: bytes, redactions: Sequence[Redaction]) -> bytes:
@@ -639,7 +727,7 @@ def _stat_or_none(path: str) -> Optional[os.stat_result]:
 
 def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
          redact: Iterable[Redaction] = (), drop_meta: Iterable[str] = (),
-         profile: Optional[str] = "") -> EditResult:
+         profile: Optional[str] = "", channels: Iterable[str] = ()) -> EditResult:
     """Writes an edited copy of the session `src` to `dst` (a .wtape).
     `profile`: the protocol profile whose checksums are recomputed over
     scrubbed bytes, a name or a declared profile's keys
@@ -648,15 +736,28 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
     ValueError for an edit that does not fit the session (a metadata key it
     lacks, an exchange past its end) or an unknown profile; SessionError after
     writing what came before when `src` is damaged. Interrupted
-    (KeyboardInterrupt), it removes the output it was writing."""
+    (KeyboardInterrupt), it removes the output it was writing.
+    `channels`: names of channels of a session of several ports that
+    `cut` and `redact` apply to (empty: every channel); the other
+    channels' records are kept as they are (see the module's notes)."""
     src, dst = os.fspath(src), os.fspath(dst)
     redactions = list(redact)
     drop = list(drop_meta)
+    channels = list(channels)
     if cut is None and not redactions and not drop:
         raise ValueError("nothing to edit: give --cut, --redact or --drop-meta")
+    if channels and cut is None and not redactions:
+        raise ValueError("--channel limits --cut and --redact: give one of them")
     refuse_same_file(session_files(src), [dst])
     reader = open_session(src)
     header = reader.header
+    try:
+        chosen = choose_channels(header, channels, src)
+    except UnknownChannel as error:
+        raise UnknownChannel(f"--channel: {error}") from None
+    if cut is not None and cut.exchanges and several_channels(header) and len(channels) != 1:
+        raise ValueError(f"--cut {cut.spec}: exchanges are numbered per channel in a session "
+                         "of several channels: give one --channel NAME to count them on")
     if profile == "":
         profile = default_profile(header)
     framing = _profile(profile) if profile is not None and redactions else None
@@ -668,14 +769,17 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
                              f"(its keys: {known})")
         del metadata[key]
     header.metadata = metadata
-    window = _cut_window(src, cut) if cut is not None else (None, None)
+    counted_on = channels[0] if cut is not None and cut.exchanges and channels else ""
+    window = _cut_window(src, cut, counted_on) if cut is not None else (None, None)
 
     earlier_edits = list(header.edits)
     edits: List[str] = []
+    limited = "" if chosen is None else " of channel" + ("s " if len(channels) > 1 else " ") \
+        + ", ".join(sorted(set(channels)))
     if cut is not None:
-        edits.append(cut.describe())
+        edits.append(cut.describe() + limited)
     if redactions:
-        _scrub_header(header, redactions)
+        _scrub_header(header, redactions, chosen)
     edits += [f"dropped meta {key}" for key in drop]
 
     if redactions:
@@ -683,7 +787,7 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
         # patterns' count; the redaction events say where each match was.
         count = len(redactions)
         sealed = f"; checksums recomputed ({framing.name})" if framing is not None else ""
-        edits.append(f"redacted {count} pattern{'s' if count != 1 else ''}"
+        edits.append(f"redacted {count} pattern{'s' if count != 1 else ''}{limited}"
                      f" (host and by-id serial numbers cleared{sealed})")
     header.edits = earlier_edits + edits
     before = _stat_or_none(dst)
@@ -694,25 +798,30 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
                 marks = _merged(entry.marks)
                 for offset, length in marks:
                     payload = _core.event_payload("redaction", {"offset": offset, "length": length})
-                    writer.write("redaction", entry.t_ns, payload)
-                writer.write(entry.kind, entry.t_ns, bytes(entry.data))
+                    writer.write("redaction", entry.t_ns, payload, channel=entry.channel)
+                writer.write(entry.kind, entry.t_ns, bytes(entry.data), channel=entry.channel)
                 counts["records"] += 1
                 counts["marked"] += bool(marks)
 
             resealer = _Resealer(framing, emit) if framing is not None else None
             redactor = _Redactor(redactions, resealer.add if resealer is not None else emit)
 
-            def keep(kind: str, t_ns: int, data: bytes) -> None:
+            def keep(channel: int, kind: str, t_ns: int, data: bytes) -> None:
                 if redactions and kind not in DIRECTIONS:
                     data = _scrubbed_event(kind, data, redactions)
-                redactor.add(_Entry(kind, t_ns, data))
+                redactor.add(_Entry(kind, t_ns, data, channel))
 
-            cutter = _Cutter(window[0], window[1], keep) if cut is not None else None
+            cutter = (_Cutter(window[0], window[1], keep, move=chosen is None)
+                      if cut is not None else None)
             for record in reader:
-                if cutter is not None:
-                    cutter.add(record.kind, record.t_ns, record.data)
+                channel = record.channel
+                if chosen is not None and channel not in chosen:
+                    redactor.add(_Entry(record.kind, record.t_ns, record.data, channel),
+                                 redact=False)
+                elif cutter is not None:
+                    cutter.add(record.kind, record.t_ns, record.data, channel)
                 else:
-                    keep(record.kind, record.t_ns, record.data)
+                    keep(channel, record.kind, record.t_ns, record.data)
             if cutter is not None:
                 cutter.finish()
             redactor.finish()

@@ -8,6 +8,8 @@ does not grow with the file's size.
 from __future__ import annotations
 
 import dataclasses
+import difflib
+import heapq
 import json
 import os
 import re
@@ -18,6 +20,8 @@ from .. import _core
 from ..session import DIRECTIONS as _DIRECTIONS
 from ..session import SessionPath, event_of, event_payload, header_text, open_session
 from ..session import printable as _printable
+from .channels import (capture_text, channel_label, channel_names, choose_channels,
+                       several_channels)
 
 __all__ = ["show", "show_reporting_damage", "Selection", "check_kinds", "record_kinds",
            "color_wanted"]
@@ -58,6 +62,12 @@ def _header_lines(reader: _core.SessionReader, path: SessionPath) -> Iterator[st
     yield f"  started      {started}{host}"
     if header.wiretape_version:
         yield f"  written by   wiretape {header_text(header.wiretape_version)}"
+    for channel in header.channels:
+        port = (f" {header_text(channel.port_type or '?')}: {header_text(channel.port_options)}"
+                if channel.port_type or channel.port_options else "")
+        device = f", device {header_text(channel.device_address)}" if channel.device_address else ""
+        yield (f"  channel      {channel.id} {header_text(channel.name)}:{port} "
+               f"(capture {header_text(capture_text(channel.capture))}{device})")
     for edit in header.edits:
         yield f"  edited       {header_text(edit)}"
     for key, value in sorted(header.metadata.items()):
@@ -106,6 +116,8 @@ class Selection:
     """Which records show prints: all of them by default.
 
     ``kinds``: record kinds (``record_kinds()``), None for every kind.
+    ``channels``: channel names (``--channel``), None for every channel;
+    checked against the file when it is shown.
     ``start_s``/``end_s``: seconds of session time (the first column), both
     ends included. ``grep``: a bytes regular expression searched in the
     payloads of tx and rx records (events have none, so they are left out).
@@ -115,6 +127,7 @@ class Selection:
     start_s: Optional[float] = None
     end_s: Optional[float] = None
     grep: Optional[bytes] = None
+    channels: Optional[FrozenSet[str]] = None
 
     def __post_init__(self) -> None:
         if self.kinds is not None:
@@ -131,6 +144,11 @@ class Selection:
     @property
     def everything(self) -> bool:
         return self == Selection()
+
+    @property
+    def every_record_of_the_channels(self) -> bool:
+        """Whether only the channel choice (if any) leaves records out."""
+        return dataclasses.replace(self, channels=None) == Selection()
 
     def matcher(self) -> Callable[[int, str, bytes], bool]:
         """A test of (t_ns, kind, payload) for the records to show."""
@@ -194,15 +212,24 @@ def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optiona
     framing = _core.find_profile(profile) if profile is not None else None
     out = out if out is not None else sys.stdout
     select = select if select is not None else Selection()
-    wanted = None if select.everything else select.matcher()
+    wanted = None if select.every_record_of_the_channels else select.matcher()
     reader = open_session(path)
+    header = reader.header
+    chosen = choose_channels(header, select.channels, path)
+    names = channel_names(header)
+    several = several_channels(header)
     shown = 0
     if fmt == "jsonl":
         from ..exports.jsonl import json_line, record_to_json
 
         for record in reader:
+            if chosen is not None and record.channel not in chosen:
+                continue
             if wanted is None or wanted(record.t_ns, record.kind, record.data):
-                out.write(json_line(record_to_json(record)))
+                line = record_to_json(record)
+                if several:
+                    line.setdefault("channel", names.get(record.channel, f"#{record.channel}"))
+                out.write(json_line(line))
                 shown += 1
         if reader.damage is not None:
             print(f"wiretape show: damaged: {header_text(reader.damage.message)}",
@@ -214,13 +241,40 @@ def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optiona
     out.write("\n")
     delta = wrap is None
     limit = 64 if not full else None
+    # Several channels: a column names each record's channel.
+    width = max([len("channel")] + [len(channel_label(names, id)) for id in names]) \
+        if several else 0
+    labels: dict = {}
+
+    def channel_column(channel: int) -> str:
+        if not several:
+            return ""
+        if channel not in labels:
+            labels[channel] = f"{channel_label(names, channel):<{width}} "
+        return labels[channel]
+
     if delta:
-        out.write(paint("heading", f"{'time':<10}  {'Δt':>10}  {'kind':<17} "
+        heading = f"{'channel':<{width}} " if several else ""
+        out.write(paint("heading", f"{'time':<10}  {'Δt':>10}  {heading}{'kind':<17} "
                                    f"{'size':>8}  data") + "\n")
     previous: Optional[int] = None
     if framing is not None and fmt == "text":
-        records = _counting(reader)
-        for t_ns, kind, data, description in framing.decode_session(records):
+        if several:
+            # Each channel is its own byte stream: cut into frames apart,
+            # then shown together in time order.
+            records = _counting(reader)
+            for _ in records:
+                pass
+            decoded = heapq.merge(*(_decoded(framing, path, id) for id in sorted(names)
+                                    if chosen is None or id in chosen),
+                                  key=lambda item: item[0])
+        else:
+            records = _counting(reader)
+            decoded = ((t_ns, kind, data, description, 0) for t_ns, kind, data, description
+                       in framing.decode_session(records))
+        for t_ns, kind, data, description, channel in decoded:
+            if chosen is not None and channel not in chosen:
+                continue
             if wanted is not None and not wanted(t_ns, kind, data):
                 continue
             shown += 1
@@ -229,13 +283,14 @@ def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optiona
                 description = json.dumps(event, separators=(",", ":")) if event else ""
             # Frames and events line up with the plain timeline's columns.
             size = f"{len(data):>6} B" if kind in _DIRECTIONS else ""
-            line = _stamp(paint, t_ns, previous if delta else None, delta)
+            line = _stamp(paint, t_ns, previous if delta else None, delta) + channel_column(channel)
             style = kind if kind in _DIRECTIONS else _event_style(kind)
             out.write(f"{line}{paint(style, f'{kind:<17}')} {size:>8}  {description}"
                       .rstrip() + "\n")
             previous = t_ns
         count = records.count
-    elif fmt == "text" and wrap is None:
+    elif fmt == "text" and wrap is None and not several and chosen is None:
+        # the fast timeline of a session of one port
         count, shown = _timeline(reader, out, paint, wanted, full)
     else:
         count = 0
@@ -251,10 +306,12 @@ def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optiona
         for record in reader:
             count += 1
             t_ns, kind, data = record.t_ns, record.kind, record.data
+            if chosen is not None and record.channel not in chosen:
+                continue
             if wanted is not None and not wanted(t_ns, kind, data):
                 continue
             shown += 1
-            line = _stamp(paint, t_ns, previous, delta)
+            line = _stamp(paint, t_ns, previous, delta) + channel_column(record.channel)
             previous = t_ns
             if kind in _DIRECTIONS:
                 size = f"{len(data):>6} B"
@@ -267,7 +324,8 @@ def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optiona
                 head = f"{line}{kind_column(kind)} {size}  "
                 out.write(f"{head}{summary}\n".rstrip() + "\n")
                 if fmt == "text" and wrap is not None:
-                    indent = " " * (len(_stamp(_plain, t_ns, None, False)) + 17 + 1 + 8 + 2 + 3)
+                    indent = " " * (len(_stamp(_plain, t_ns, None, False))
+                                    + len(channel_column(record.channel)) + 17 + 1 + 8 + 2 + 3)
                     for at in range(wrap, len(data), wrap):
                         more = data[at:at + wrap]
                         out.write(indent + _printable(more, len(more)) + "\n")
@@ -409,6 +467,14 @@ def color_wanted(choice: str, stream: IO[str]) -> bool:
         return stream.isatty()
     except (AttributeError, ValueError):
         return False
+
+
+def _decoded(framing, path: SessionPath, channel: int) -> Iterator[tuple]:
+    """One channel's records cut into the profile's frames, each item
+    tagged with the channel."""
+    reader = _core.SessionReader(os.fspath(path), channel=channel)
+    for t_ns, kind, data, description in framing.decode_session(reader):
+        yield t_ns, kind, data, description, channel
 
 
 class _counting:

@@ -12,8 +12,9 @@ from typing import Any, Dict, List, Optional, Tuple
 
 from .. import _core
 from ..session import DIRECTIONS, SessionPath, header_text, open_session
+from .channels import channel_names, several_channels
 
-__all__ = ["stats", "SessionStats", "Latency"]
+__all__ = ["stats", "SessionStats", "ChannelStats", "Latency"]
 
 #: The percentiles stats gives of latencies.
 PERCENTILES = (50, 90, 99)
@@ -98,10 +99,51 @@ class _LatencyMeter:
         """One Latency over every request (``all``), and with a profile one
         per request frame name, most frequent first; empty when no request
         was answered."""
-        if not self.every:
-            return []
-        named = sorted(self.waits.items(), key=lambda item: (-len(item[1]), item[0]))
-        return [_latency("all", self.every)] + [_latency(name, values) for name, values in named]
+        return _latencies(self.every, self.waits)
+
+
+def _latencies(every: List[int], waits: Dict[str, List[int]]) -> List[Latency]:
+    if not every:
+        return []
+    named = sorted(waits.items(), key=lambda item: (-len(item[1]), item[0]))
+    return [_latency("all", every)] + [_latency(name, values) for name, values in named]
+
+
+def _all_channels(meters: "Dict[int, _LatencyMeter]") -> List[Latency]:
+    """The latencies over every channel: each channel's requests answered
+    on that channel (a request on one port is not answered on another)."""
+    every: List[int] = []
+    waits: Dict[str, List[int]] = {}
+    for meter in meters.values():
+        every.extend(meter.every)
+        for name, values in meter.waits.items():
+            waits.setdefault(name, []).extend(values)
+    return _latencies(every, waits)
+
+
+@dataclasses.dataclass(frozen=True)
+class ChannelStats:
+    """The figures of one channel of a session of several ports."""
+
+    id: int
+    name: str
+    records: int
+    rx_records: int
+    tx_records: int
+    event_records: int
+    rx_bytes: int
+    tx_bytes: int
+    latency: Tuple[Latency, ...] = ()
+
+    def text_rows(self) -> List[Tuple[str, str]]:
+        label = f"channel {header_text(self.name) if self.name else f'#{self.id}'}"
+        rows = [(label, f"{self.records} records: rx {self.rx_records} ({self.rx_bytes} B), "
+                        f"tx {self.tx_records} ({self.tx_bytes} B), "
+                        f"events {self.event_records}")]
+        for latency in self.latency:
+            name = "" if latency.name == "all" else f" {header_text(latency.name)}"
+            rows.append((f"  latency{name}", latency.text()))
+        return rows
 
 
 @dataclasses.dataclass(frozen=True)
@@ -127,6 +169,9 @@ class SessionStats:
     # request to first response byte (see Latency); why it is missing, if it is
     latency: Tuple[Latency, ...] = ()
     latency_note: Optional[str] = None
+    # per channel, for a session of several ports (empty otherwise); the
+    # figures above are the totals over every channel
+    channel_stats: Tuple[ChannelStats, ...] = ()
 
     def __getattr__(self, name: str) -> Any:
         # The header's members read as the result's own (stats.port_type).
@@ -138,8 +183,9 @@ class SessionStats:
         """The counts and the header's members (as SessionHeader.to_dict
         names them) in one object."""
         out = {field.name: getattr(self, field.name) for field in dataclasses.fields(self)
-               if field.name not in ("header", "latency")}
+               if field.name not in ("header", "latency", "channel_stats")}
         out["latency"] = [dataclasses.asdict(latency) for latency in self.latency]
+        out["channel_stats"] = [dataclasses.asdict(channel) for channel in self.channel_stats]
         return {**out, **self.header.to_dict()}
 
     def text_rows(self) -> List[Tuple[str, str]]:
@@ -168,6 +214,8 @@ class SessionStats:
             rows.append((label, latency.text()))
         if self.latency_note:
             rows.append(("latency", self.latency_note))
+        for channel in self.channel_stats:
+            rows.extend(channel.text_rows())
         if self.metadata:
             rows.append(("metadata", ", ".join(f"{header_text(key)}={header_text(value)}"
                                                for key, value in sorted(self.metadata.items()))))
@@ -182,11 +230,15 @@ def stats(path: SessionPath, profile: Optional[str] = None) -> SessionStats:
     kind, and the latency of each answered request (see Latency; named by
     `profile`'s frame names when given); a damaged file is counted up to
     the damage, which the result names."""
-    meter = _LatencyMeter(profile)
+    _core.find_profile(profile) if profile is not None else None  # a bad name fails first
+    # Each channel is its own conversation: its requests, its responses.
+    meters: Dict[int, _LatencyMeter] = {}
     reader = open_session(path)
     count = {"rx": 0, "tx": 0}
     size = {"rx": 0, "tx": 0}
     events: Dict[str, int] = {}
+    # per channel: [records, rx records, tx records, events, rx bytes, tx bytes]
+    per_channel: Dict[int, List[int]] = {}
     records = 0
     first: Optional[int] = None
     last: Optional[int] = None
@@ -194,15 +246,37 @@ def stats(path: SessionPath, profile: Optional[str] = None) -> SessionStats:
         records += 1
         first = record.t_ns if first is None else min(first, record.t_ns)
         last = record.t_ns if last is None else max(last, record.t_ns)
+        channel = record.channel
+        meter = meters.get(channel)
+        if meter is None:
+            meter = meters[channel] = _LatencyMeter(profile)
         meter.feed(record.kind, record.t_ns, record.data)
+        figures = per_channel.get(channel)
+        if figures is None:
+            figures = per_channel[channel] = [0, 0, 0, 0, 0, 0]
+        figures[0] += 1
         if record.kind in DIRECTIONS:
             count[record.kind] += 1
             size[record.kind] += len(record.data)
+            rx = record.kind == "rx"
+            figures[1 if rx else 2] += 1
+            figures[4 if rx else 5] += len(record.data)
         else:
             events[record.kind] = events.get(record.kind, 0) + 1
+            figures[3] += 1
     header = reader.header
     damage = reader.damage
-    measured = meter.result()
+    measured = _all_channels(meters)
+    channel_stats: List[ChannelStats] = []
+    if several_channels(header) or set(per_channel) - {0}:
+        names = channel_names(header)
+        for channel in sorted(set(names) | set(per_channel)):
+            figures = per_channel.get(channel, [0] * 6)
+            latency = meters[channel].result() if channel in meters else []
+            channel_stats.append(ChannelStats(
+                id=channel, name=names.get(channel, ""), records=figures[0],
+                rx_records=figures[1], tx_records=figures[2], event_records=figures[3],
+                rx_bytes=figures[4], tx_bytes=figures[5], latency=tuple(latency)))
     note = ("not measured: no request is followed by a response"
             if not measured and count["tx"] and count["rx"] else None)
     return SessionStats(
@@ -223,4 +297,5 @@ def stats(path: SessionPath, profile: Optional[str] = None) -> SessionStats:
         damage_message=damage.message if damage is not None else None,
         latency=tuple(measured),
         latency_note=note,
+        channel_stats=tuple(channel_stats),
     )

@@ -53,49 +53,81 @@ def default_output(session: SessionPath) -> str:
     return root + ".html"
 
 
-def _exchanges(path: str, profile: Optional[str], options: str) -> List[List[Any]]:
+def _exchanges(path: str, profile: Optional[str], options: str,
+               channels: Optional[List[Tuple[int, str]]] = None) -> List[List[Any]]:
+    """The exchanges as rows (view.js names the columns). A session of
+    several ports (`channels`: (id, name)) has each channel's exchanges,
+    numbered per channel, with the channel's id in an eleventh column, all
+    in the order they begin."""
+    from ..faults import _with_channel
+
     rows = []
-    for exchange in _core.session_exchanges(path, profile=profile, options=options):
-        rows.append([exchange.index, exchange.first_record, exchange.end_record,
-                     exchange.request_first_t_ns, exchange.request_last_t_ns,
-                     exchange.response_first_t_ns, exchange.response_last_t_ns,
-                     exchange.request_bytes, exchange.response_bytes,
-                     exchange.client_session])
+    for channel, name in channels or [(None, "")]:
+        found = _core.session_exchanges(path, profile=profile,
+                                        options=_with_channel(options, name))
+        for exchange in found:
+            row = [exchange.index, exchange.first_record, exchange.end_record,
+                   exchange.request_first_t_ns, exchange.request_last_t_ns,
+                   exchange.response_first_t_ns, exchange.response_last_t_ns,
+                   exchange.request_bytes, exchange.response_bytes,
+                   exchange.client_session]
+            rows.append(row if channel is None else row + [channel])
+    if channels:
+        rows.sort(key=lambda row: next((t for t in (row[3], row[5]) if t is not None), 0))
     return rows
 
 
-def _frames(path: str, profile: str) -> List[List[Any]]:
-    """The profile's frames: [t_ns, direction, size, name]."""
+def _frames(path: str, profile: str, channels: Optional[List[Tuple[int, str]]] = None
+            ) -> List[List[Any]]:
+    """The profile's frames: [t_ns, direction, size, name]; in a session of
+    several ports each channel's bytes framed apart, with its id fifth."""
     framing = _core.find_profile(profile)
     frames = []
-    # The stub says object: its items are (t_ns, kind, bytes, description).
-    decoded = cast(Iterable[Tuple[int, str, bytes, Optional[str]]], framing.decode_session(path))
-    for t_ns, kind, data, description in decoded:
-        if description is None:  # an event
-            continue
-        frames.append([t_ns, kind, len(data), description])
+    for channel, _ in channels or [(None, "")]:
+        source = path if channel is None else _core.SessionReader(path, channel=channel)
+        # The stub says object: its items are (t_ns, kind, bytes, description).
+        decoded = cast(Iterable[Tuple[int, str, bytes, Optional[str]]],
+                       framing.decode_session(source))
+        for t_ns, kind, data, description in decoded:
+            if description is None:  # an event
+                continue
+            frames.append([t_ns, kind, len(data), description]
+                          + ([] if channel is None else [channel]))
+    if channels:
+        frames.sort(key=lambda frame: frame[0])
     return frames
 
 
 def _campaign(path: str, result: Campaign, session: str,
-              exchanges: List[List[Any]]) -> Dict[str, Any]:
+              exchanges: List[List[Any]], channel_ids: Optional[Dict[str, int]] = None
+              ) -> Dict[str, Any]:
     """The campaign read from `path` (its --json), its runs placed on the
-    exchange (exchange:N) or the time (t:SECONDS) they faulted; the others
-    (rx:N, every:K, p:P) are listed without a place."""
+    exchange (exchange:N, its row in `exchanges`; in a session of several
+    ports exchange:N@channel:NAME) or the time (t:SECONDS) they faulted; the
+    others (rx:N, every:K, p:P) are listed without a place."""
     from ..faults import FaultInputError, session_digest
 
-    count = len(exchanges)
+    rows = {(row[0], row[10] if len(row) > 10 else None): position
+            for position, row in enumerate(exchanges)}
     runs = []
     for run in result.runs:
         place: Dict[str, Any] = {}
-        match = re.fullmatch(r"exchange:(\d+)", run.where)
+        match = re.fullmatch(r"exchange:(\d+)(?:@channel:([^@;]+))?", run.where)
         if match:
             index = int(match.group(1))
-            if index >= count:
+            name = match.group(2)
+            channel = (channel_ids or {}).get(name) if name else None
+            if name and channel is None:
                 raise FaultInputError(
-                    f"{path}: run {run.case} ({run.spec}) is at exchange {index}, but the "
-                    f"session has {count} exchanges: the campaign ran on another session")
-            place["exchange"] = index
+                    f"{path}: run {run.case} ({run.spec}) is on channel {name}, which the "
+                    "session does not have: the campaign ran on another session")
+            if (index, channel) not in rows:
+                whose = f"channel {name} of the session" if name else "the session"
+                count = sum(1 for key in rows if key[1] == channel)
+                raise FaultInputError(
+                    f"{path}: run {run.case} ({run.spec}) is at exchange {index}, but "
+                    f"{whose} has {count} exchanges: the campaign ran on another session")
+            place["exchange"] = rows[(index, channel)]
         match = re.fullmatch(r"t:([0-9.]+)", run.where)
         if match:
             place["t_ns"] = int(float(match.group(1)) * 1e9)
@@ -147,24 +179,31 @@ def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
         kept.append(len(piece))
         payload += piece
     damage = reader.damage.message if reader.damage is not None else None
+    names = {channel.id: channel.name for channel in reader.header.channel_list()}
     # A campaign's exchanges are numbered under its replay keys.
     campaign_runs = read_json(campaign) if campaign is not None else None
     options = campaign_runs.options if campaign_runs is not None else ""
+    listed = reader.header.channel_list()
+    several = [(channel.id, channel.name) for channel in listed] if len(listed) > 1 else None
     with _intact_part(path, reader) as intact:
-        exchanges = _exchanges(intact, profile, options)
-        frames = _frames(intact, profile) if profile is not None else []
+        exchanges = _exchanges(intact, profile, options, several)
+        frames = _frames(intact, profile, several) if profile is not None else []
+    if several:
+        _to_page_records(exchanges, channels)
     campaign_data = None
     if campaign is not None and campaign_runs is not None:
-        campaign_data = _campaign(campaign, campaign_runs, path, exchanges)
+        campaign_data = _campaign(campaign, campaign_runs, path, exchanges,
+                                  {name: id for id, name in several or []})
     data = {
         "format": PAGE_FORMAT,
         "session": {"path": path, "name": os.path.basename(path), "header": header,
                     "damage": damage, "profile": profile},
-        # A group of lanes per channel: one today; a session of several
-        # ports (DESIGN §19) has one per port, and "channel" is then a
-        # column, one number per record, rather than one number for all.
-        "channels": [{"id": channel, "name": header.get("port_type") or "port"}
-                     for channel in sorted(set(channels) | {0})],
+        # A group of lanes per channel: a session of several ports (DESIGN
+        # §19) has one per port, and "channel" is then a column, one number
+        # per record, rather than one number for all.
+        "channels": [{"id": channel,
+                      "name": names.get(channel) or header.get("port_type") or "port"}
+                     for channel in sorted(set(channels) | set(names) | {0})],
         "kinds": kinds,
         "records": {"t_ns": times, "kind": kind_of, "size": sizes, "kept": kept,
                     "channel": channels if any(channels) else 0,
@@ -175,6 +214,19 @@ def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
         "mismatch": _mismatch(header, path),
     }
     return data, reader.damage
+
+
+def _to_page_records(exchanges: List[List[Any]], channels: List[int]) -> None:
+    """A channel's exchanges number its own records (first, end): made the
+    page's, which are every channel's in recorded order."""
+    positions: Dict[int, List[int]] = {}
+    for index, channel in enumerate(channels):
+        positions.setdefault(channel, []).append(index)
+    for row in exchanges:
+        own = positions.get(row[10], [])
+        first, end = row[1], row[2]
+        row[1] = own[first] if first < len(own) else len(channels)
+        row[2] = own[end - 1] + 1 if 0 < end <= len(own) else (row[1] if end <= 0 else len(channels))
 
 
 @contextlib.contextmanager
@@ -189,7 +241,7 @@ def _intact_part(path: str, read: _core.SessionReader) -> Iterator[str]:
         reader = open_session(path)
         with _core.SessionWriter(copy, reader.header) as writer:
             for record in reader:
-                writer.write(record.kind, record.t_ns, record.data)
+                writer.write(record.kind, record.t_ns, record.data, channel=record.channel)
         yield copy
 
 

@@ -154,7 +154,7 @@
         lastLabel = x0;
       }
       if (campaign) {
-        const runs = runsByExchange.get(exchanges[n][0]);
+        const runs = runsByExchange.get(n);
         if (runs) {
           ctx.fillStyle = COLOURS.outcome[worstOutcome(runs)];
           ctx.fillRect(x0, top + EXCHANGE_H + 1, Math.max(x1 - x0, 3), RUNS_H - 2);
@@ -195,7 +195,7 @@
     const scale = Math.log(maxSize + 1);
     lanes.forEach((lane, n) => {
       ctx.fillStyle = COLOURS.text; ctx.font = "11px sans-serif"; ctx.textBaseline = "middle";
-      ctx.fillText(data.channels.length > 1 ? lane.channel + " " + lane.name : lane.name, 2, lane.top + lane.height / 2);
+      ctx.fillText(data.channels.length > 1 ? lane.channelName + " " + lane.name : lane.name, 2, lane.top + lane.height / 2);
       ctx.strokeStyle = COLOURS.grid; ctx.beginPath();
       ctx.moveTo(LABEL_W, lane.top + lane.height + 0.5); ctx.lineTo(LABEL_W + pw, lane.top + lane.height + 0.5); ctx.stroke();
       if (lane.name === "events") {
@@ -400,13 +400,13 @@
         campaign.runs.slice(0, LIST_ROWS).map(run => ({
           record: run.exchange !== undefined ? exchanges[run.exchange][1] : -1, className: "outcome-" + run.outcome,
           cells: [run.case, run.kind + "@" + run.where, run.outcome, run.exit === null ? "" : run.exit, run.seconds.toFixed(3),
-            run.exchange !== undefined ? "#" + run.exchange : "", run.repro] })), campaign.runs.length);
+            run.exchange !== undefined ? "#" + exchanges[run.exchange][0] : "", run.repro] })), campaign.runs.length);
     }
     table("exchange-list", "Exchanges", ["#", "time", "request", "response bytes", "faults"],
-      exchanges.slice(0, LIST_ROWS).map(e => {
+      exchanges.slice(0, LIST_ROWS).map((e, n) => {
         let request = "";
         for (let i = e[1]; i < e[2] && i < count && request.length < 60; i++) if (kinds[i] === TX) request += escapeText(bytesOf(i));
-        const runs = runsByExchange.get(e[0]) || [];
+        const runs = runsByExchange.get(n) || [];
         const worst = worstOutcome(runs);
         return { record: e[1], className: worst ? "outcome-" + worst : "",
           cells: ["#" + e[0], e[3] !== null ? "+" + seconds(e[3]) : "", request.slice(0, 60), e[8],
