@@ -16,9 +16,20 @@ from .errors import EXIT_OK, CheckFailed, RuntimeFailure, UsageError
 
 def channel_names(file: str) -> List[str]:
     """The names of a session's channels ("" for the one channel of a file
-    without named channels)."""
+    without named channels). A file that is not a regular file (a FIFO, a
+    flexiport log's prefix, a missing file) is left to the replay, which
+    refuses it at once with the reason: reading it here would wait on a
+    FIFO's writer."""
+    import os
+    import stat
+
     from ..session import open_session
 
+    try:
+        if not stat.S_ISREG(os.stat(file).st_mode):
+            return [""]
+    except OSError:
+        return [""]
     with open_session(file) as reader:
         return [channel.name for channel in reader.header.channel_list()]
 
