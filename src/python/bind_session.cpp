@@ -339,6 +339,19 @@ void set_header_members(nb::handle header, nb::handle fields) {
   }
 }
 
+// What SessionWriter and Recorder write: `header`, or with none a session
+// recorded now on this machine, with `members` set (checked).
+SessionHeader header_to_write(const std::optional<SessionHeader>& header, nb::kwargs members) {
+  nb::object chosen = nb::cast(header ? *header : SessionHeader::starting_now());
+  set_header_members(chosen, members);
+  return nb::cast<SessionHeader>(chosen);
+}
+
+FlushPolicy flush_policy(int flush_ms, bool fsync) {
+  if (flush_ms < 0) throw nb::value_error("flush_ms must be >= 0");
+  return FlushPolicy{std::chrono::milliseconds(flush_ms), fsync};
+}
+
 // An event's members from a Python dict: bool, int or str values.
 detail::EventMembers event_members_from_python(RecordKind kind, nb::dict fields) {
   detail::EventMembers members;
@@ -737,17 +750,13 @@ void bind_session(nb::module_& m) {
           "__init__",
           [](PyWriter* self, nb::handle path, std::optional<SessionHeader> header,
              int flush_ms, bool fsync, std::size_t header_room, nb::kwargs members) {
-            if (flush_ms < 0) throw nb::value_error("flush_ms must be >= 0");
-            // No header: a session recorded now, on this machine.
-            nb::object chosen = nb::cast(header ? *header : SessionHeader::starting_now());
-            set_header_members(chosen, members);
-            const SessionHeader written = nb::cast<SessionHeader>(chosen);
+            const FlushPolicy flush = flush_policy(flush_ms, fsync);
+            const SessionHeader written = header_to_write(header, members);
             const std::string p = path_from_python(path);
             new (self) PyWriter{};
             self->path = p;
             nb::gil_scoped_release release;
-            self->writer = std::make_unique<SessionWriter>(
-                p, written, FlushPolicy{std::chrono::milliseconds(flush_ms), fsync}, header_room);
+            self->writer = std::make_unique<SessionWriter>(p, written, flush, header_room);
           },
           "path"_a, "header"_a = nb::none(), nb::kw_only(), "flush_ms"_a = 100,
           "fsync"_a = false, "header_room"_a = std::size_t{0}, "members"_a,
@@ -804,14 +813,11 @@ void bind_session(nb::module_& m) {
           "__init__",
           [](Recorder* self, nb::handle path, std::optional<SessionHeader> header,
              int flush_ms, bool fsync, std::size_t header_room, nb::kwargs members) {
-            if (flush_ms < 0) throw nb::value_error("flush_ms must be >= 0");
-            nb::object chosen = nb::cast(header ? *header : SessionHeader::starting_now());
-            set_header_members(chosen, members);
-            const SessionHeader written = nb::cast<SessionHeader>(chosen);
+            const FlushPolicy flush = flush_policy(flush_ms, fsync);
+            const SessionHeader written = header_to_write(header, members);
             const std::string p = path_from_python(path);
             nb::gil_scoped_release release;
-            new (self) Recorder(p, written, FlushPolicy{std::chrono::milliseconds(flush_ms), fsync},
-                                header_room);
+            new (self) Recorder(p, written, flush, header_room);
           },
           "path"_a, "header"_a = nb::none(), nb::kw_only(), "flush_ms"_a = 100,
           "fsync"_a = false, "header_room"_a = Recorder::default_header_room, "members"_a,
