@@ -516,8 +516,10 @@ class WiretapeCassette:
             return
         try:
             if passed and self._recorder_start_ns is not None:
-                offset_ns = self._recorder_start_ns - (self._replay_start_ns
-                                                       or self._recorder_start_ns)
+                # No replay opened (every channel recorded): the Recorder's clock.
+                replay_start_ns = (self._recorder_start_ns if self._replay_start_ns is None
+                                   else self._replay_start_ns)
+                offset_ns = self._recorder_start_ns - replay_start_ns
                 when = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
                 names = ", ".join(self.channels_to_record)
                 note = (f"appended channel{'s' if len(self.channels_to_record) > 1 else ''} "
@@ -537,8 +539,9 @@ class WiretapeCassette:
         if self.ports is None:
             lines.append(f"options: {self.options}")
         else:
-            lines += [f"port {name}: " + (device if self.recording or name in self.channels_to_record
-                                          else self.channel_options(name))
+            recorded = set(self.channels_to_record) if not self.recording else set(self.ports)
+            lines += [f"port {name}: "
+                      + (device if name in recorded else self.channel_options(name))
                       for name, device in self.ports.items()]
         if self.appending:
             replayed = [name for name in self.ports if name not in self.channels_to_record]

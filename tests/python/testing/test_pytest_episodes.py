@@ -6,6 +6,7 @@ recorded as under once. The "real devices" are small TCP servers that answer
 in upper case and count their connections (devices.TcpDevice)."""
 
 import os
+import re
 
 import pytest
 
@@ -93,6 +94,11 @@ def test_new_episodes_replays_the_channels_held_and_appends_the_port_lacking(
     assert len(header.edits) == len(header_before.edits) + 1
     assert header.edits[-1].startswith("appended channel b at ")
     assert "new_episodes" in header.edits[-1]
+    # b's times are moved onto the replay's clock by what the note says: the
+    # replay of a opened first, so b's open is that much after time 0.
+    shift = int(re.search(r"moved by (-?\d+) ns", header.edits[-1]).group(1))
+    assert shift > 0
+    assert b_records[0][:2] == (shift, "open")
     assert leftovers(pytester) == []
 
     # The next run replays both channels, in the default mode, with no device.
