@@ -201,3 +201,13 @@ def test_help_lists_new_episodes(pytester):
     result = pytester.runpytest("--help")
     result.stdout.fnmatch_lines(["*--wiretape-record*", "*new_episodes*"])
     assert "new_episodes" in os.linesep.join(result.stdout.lines)
+
+
+def test_new_episodes_in_the_ini(pytester, devices, recorded_a):
+    pytester.makeini("[pytest]\nwiretape_record = new_episodes\n")
+    pytester.makepyfile(test_episodes=ports_test(devices))
+    result = pytester.runpytest()
+    result.assert_outcomes(passed=1)
+    result.stdout.fnmatch_lines(["*1 cassette: 1 appended*"])
+    assert channel_names(recorded_a) == {0: "a", 1: "b"}
+    assert devices["a"].connections == 1
