@@ -11,7 +11,9 @@ conftest overrides to give a directory's tests their defaults), the ini file
 
 from __future__ import annotations
 
+import datetime
 import os
+import time
 import urllib.parse
 import warnings
 from pathlib import Path
@@ -23,7 +25,9 @@ import wiretape
 from wiretape import _core
 from wiretape._core import device_options
 
-RECORD_MODES = ("none", "once", "rewrite", "all")
+from .episodes import append_channels
+
+RECORD_MODES = ("none", "once", "new_episodes", "rewrite", "all")
 #: VCR's names for ours.
 RECORD_MODE_ALIASES = {"all": "rewrite"}
 DEFAULT_REPLAY_KEYS = {"timing": "none"}
@@ -228,8 +232,19 @@ class WiretapeCassette:
                             "profile= (the profile whose framing they go with)", pytrace=False)
             self.replay_keys["profile"] = callable_profile(str(base), **callables)
 
+        cassette_exists = self.path.exists()
         self.recording = not self.live and (
-            self.record_mode == "rewrite" or (self.record_mode == "once" and not self.path.exists()))
+            self.record_mode == "rewrite"
+            or (self.record_mode in ("once", "new_episodes") and not cassette_exists))
+        # new_episodes on a cassette of several ports: the episode is a port
+        # (episodes.py); the ports the cassette lacks are recorded, the others
+        # replayed. On a cassette of one port it is `once`.
+        self.appending = (not self.live and self.record_mode == "new_episodes"
+                          and self.ports is not None and cassette_exists)
+        self.channels_to_record: List[str] = []  # appending: the ports recorded
+        self.appended: List[str] = []  # the channels appended when the test passed
+        self._replay_start_ns = None  # appending: monotonic ns of the replay's first open
+        self._recorder_start_ns = None  # appending: monotonic ns of the Recorder's time 0
         self.partial_path = self.path.with_name(f"{self.path.name}.recording-{os.getpid()}")
         self.device_from_driver = False
         self.opened_device = None  # what open_port(device) was given
@@ -246,6 +261,8 @@ class WiretapeCassette:
     @property
     def mode(self) -> str:
         """What the test does with its cassette: live, recording or replay."""
+        if self.appending:
+            return "replay, recording the ports the cassette lacks"
         return "live" if self.live else "recording" if self.recording else "replay"
 
     def options_for(self, device: Any) -> str:
@@ -297,12 +314,12 @@ class WiretapeCassette:
         if self.ports is None:
             pytest.fail(f"{self.item.nodeid}: wiretape_ports needs the marker's ports= "
                         "(@pytest.mark.wiretape(ports={'gps': 'OPTS', ...}))", pytrace=False)
+        if self.appending:
+            return self._open_ports_appending()
         opened: Dict[str, wiretape.Port] = {}
         try:
             if self.recording and self._recorder is None:
-                header = wiretape.SessionHeader.starting_now()
-                header.metadata = {"pytest_node": self.item.nodeid}
-                self._recorder = wiretape.Recorder(str(self.partial_path), header)
+                self._recorder = self._new_recorder()
             if not self.recording and not self.live:
                 self._check_channels()
             for name, device in self.ports.items():
@@ -321,11 +338,58 @@ class WiretapeCassette:
                         pytrace=False)
         return opened
 
+    def _new_recorder(self) -> wiretape.Recorder:
+        header = wiretape.SessionHeader.starting_now()
+        header.metadata = {"pytest_node": self.item.nodeid}
+        return wiretape.Recorder(str(self.partial_path), header)
+
+    def _open_ports_appending(self) -> Dict[str, wiretape.Port]:
+        """new_episodes: the channels the cassette holds replayed, then the
+        other ports recorded by a Recorder of their own. The replays open
+        first, so that the replay's clock (time 0: its first open) starts
+        before the Recorder's and the recorded times move forward onto it;
+        both starts are read on the monotonic clock here (to the
+        microseconds an open takes)."""
+        opened: Dict[str, wiretape.Port] = {}
+        replayed = [name for name in self.ports if name not in self.channels_to_record]
+        try:
+            for name in replayed:
+                if self._replay_start_ns is None:
+                    self._replay_start_ns = time.monotonic_ns()
+                opened[name] = wiretape.open_port(self.channel_options(name))
+                self._ports.append(opened[name])
+        except wiretape.OptionError as error:
+            pytest.fail(f"{self.item.nodeid}: bad wiretape options (check the marker's "
+                        f"replay keys): {error}", pytrace=False)
+        try:
+            for name in self.channels_to_record:
+                if self._recorder is None:
+                    self._recorder = self._new_recorder()
+                port = self._recorder.open_port(f"name={name}," + self.ports[name])
+                if self._recorder_start_ns is None:
+                    self._recorder_start_ns = time.monotonic_ns() - self._recorder.now_ns()
+                opened[name] = port
+                self._ports.append(port)
+        except wiretape.OptionError as error:
+            pytest.fail(f"{self.item.nodeid}: bad wiretape options (check the marker's "
+                        f"ports=): {error}", pytrace=False)
+        # The test sees its ports in the marker's order.
+        return {name: opened[name] for name in self.ports}
+
     def _check_channels(self) -> None:
         """The cassette holds a channel of each name the marker gives."""
         header = wiretape.SessionReader(str(self.path)).header
         known = [channel.name for channel in header.channel_list() if channel.name]
         missing = [name for name in self.ports if header.find_channel(name) is None]
+        if self.appending:
+            if not header.channels:
+                pytest.fail(f"{self.item.nodeid}: cassette {self.path} is a session of one "
+                            "port: --wiretape-record=new_episodes appends the ports it lacks "
+                            "to a cassette of several ports (named channels) only; record "
+                            f"it again: {self.record_command().replace('=once', '=rewrite')}",
+                            pytrace=False)
+            self.channels_to_record = missing
+            return
         if missing:
             pytest.fail(f"{self.item.nodeid}: cassette {self.path} has no channel "
                         + ", ".join(repr(name) for name in missing) + " (its channels: "
@@ -339,6 +403,11 @@ class WiretapeCassette:
         it, as wiretape_serial's do); makes the cassette's directory when
         recording."""
         self.device_from_driver = device_from_driver
+        if self.appending:
+            self._check_channels()
+            if self.partial_path.exists():
+                self.partial_path.unlink()
+            return
         if self.ports is not None and (self.live or self.recording):
             # each port names its own device
             if self.recording:
@@ -423,6 +492,9 @@ class WiretapeCassette:
         """Keeps a recording made by a passing test; otherwise throws it away
         and leaves any previous cassette as it was."""
         self.close_ports_quietly()
+        if self.appending:
+            self._finish_appending(passed)
+            return
         if not self.recording:
             return
         if not passed:
@@ -437,6 +509,28 @@ class WiretapeCassette:
             return
         publish_recording(self.partial_path, self.path)
 
+    def _finish_appending(self, passed: bool) -> None:
+        """Appends the ports recorded to the cassette when the test passed
+        (episodes.append_channels); a failing test appends nothing."""
+        if not self.partial_path.exists():
+            return
+        try:
+            if passed and self._recorder_start_ns is not None:
+                # No replay opened (every channel recorded): the Recorder's clock.
+                replay_start_ns = (self._recorder_start_ns if self._replay_start_ns is None
+                                   else self._replay_start_ns)
+                offset_ns = self._recorder_start_ns - replay_start_ns
+                when = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+                names = ", ".join(self.channels_to_record)
+                note = (f"appended channel{'s' if len(self.channels_to_record) > 1 else ''} "
+                        f"{names} at {when} (pytest --wiretape-record=new_episodes, "
+                        f"{self.item.nodeid}; their times moved by {offset_ns} ns onto the "
+                        "replay's clock, to the microseconds of an open)")
+                self.appended = append_channels(self.path, self.partial_path, offset_ns, note)
+        finally:
+            if self.partial_path.exists():
+                self.partial_path.unlink()
+
     def describe(self) -> str:
         if self.live:
             return f"live (--wiretape-live): nothing recorded\noptions: {self.options}"
@@ -445,8 +539,16 @@ class WiretapeCassette:
         if self.ports is None:
             lines.append(f"options: {self.options}")
         else:
-            lines += [f"port {name}: {device if self.recording else self.channel_options(name)}"
+            recorded = set(self.channels_to_record) if not self.recording else set(self.ports)
+            lines += [f"port {name}: "
+                      + (device if name in recorded else self.channel_options(name))
                       for name, device in self.ports.items()]
+        if self.appending:
+            replayed = [name for name in self.ports if name not in self.channels_to_record]
+            if replayed:
+                lines.append("new_episodes replays the channels the cassette holds ("
+                             + ", ".join(replayed) + "): a mismatch there fails the test "
+                             "and is never re-recorded")
         if not self.recording:
             lines.append(f"to record it again: {self.record_command().replace('=once', '=rewrite')}")
         return "\n".join(lines)

@@ -10,6 +10,12 @@ it from the real device or replays it:
     command that records it.
 ``--wiretape-record=once``
     record when the cassette is missing, else replay.
+``--wiretape-record=new_episodes``
+    for a test with several ports (the marker's ``ports=``), the episode is
+    a port: replay the channels the cassette holds, record the ports it
+    lacks and append them to it when the test passes (episodes.py). A
+    cassette of one port is recorded as under ``once``: inside one port's
+    session the device that never saw the replayed part is in another state.
 ``--wiretape-record=rewrite`` (or ``all``, VCR's name)
     always record anew; a test that fails while recording leaves the previous
     cassette as it was.
@@ -18,8 +24,8 @@ it from the real device or replays it:
     (``--wiretape-device``, or the path a ``wiretape_serial`` driver opens);
     nothing is replayed or recorded, cassettes are neither needed nor touched.
 
-The run ends with a summary: cassettes replayed, recorded (and those not
-kept because the test failed), run live, and the cassettes in the test
+The run ends with a summary: cassettes replayed, recorded, appended to
+(new_episodes), not kept (the test failed while recording), run live, and the cassettes in the test
 files' recording folders that no collected test names (left by a renamed or
 removed test).
 
@@ -112,6 +118,8 @@ def pytest_addoption(parser):
     group.addoption(
         "--wiretape-record", dest="wiretape_record", default=None, choices=RECORD_MODES,
         help="none: replay only (default); once: record missing cassettes; "
+             "new_episodes: as once, and with several ports (the marker's ports=) record "
+             "the ports a cassette lacks and append them to it; "
              "rewrite (or all): record every cassette anew")
     group.addoption(
         "--wiretape-live", dest="wiretape_live", action="store_true", default=False,
@@ -121,7 +129,7 @@ def pytest_addoption(parser):
         "--wiretape-device", dest="wiretape_device", default=None, metavar="OPTS",
         help="the device to record from: a wiretape option string "
              "(e.g. type=serial,device=/dev/ttyACM0,baud=115200) or a serial device path")
-    parser.addini("wiretape_record", "wiretape record mode: none, once, rewrite or all",
+    parser.addini("wiretape_record", "wiretape record mode: none, once, new_episodes, rewrite or all",
                   default="")
     parser.addini("wiretape_live", "true: run against the real device, record nothing",
                   default="")

@@ -1,5 +1,6 @@
 """The end-of-run summary of the pytest plugin (DESIGN §11): how many
-cassettes were replayed, recorded (and kept) or run live, and the cassettes
+cassettes were replayed, recorded (and kept), appended to (new_episodes) or
+run live, and the cassettes
 in the tests' recording folders that no test names any more."""
 
 from __future__ import annotations
@@ -22,7 +23,8 @@ class CassetteSummary:
     files name (``note_collected``)."""
 
     def __init__(self) -> None:
-        self.counts: Dict[str, int] = {"replayed": 0, "recorded": 0, "not kept": 0, "live": 0}
+        self.counts: Dict[str, int] = {"replayed": 0, "recorded": 0, "appended": 0,
+                                       "not kept": 0, "live": 0}
         self._folders: Set[Path] = set()
         self._named: Set[Path] = set()
 
@@ -43,6 +45,11 @@ class CassetteSummary:
     def note(self, cassette, passed: bool) -> None:
         if cassette.live:
             self.counts["live"] += 1
+        elif cassette.appending:
+            # new_episodes: ports recorded onto a cassette replayed for the others
+            self.counts["appended" if cassette.appended else
+                        "not kept" if cassette.channels_to_record and not passed else
+                        "replayed"] += 1
         elif cassette.recording:
             self.counts["recorded" if passed and cassette.path.exists() else "not kept"] += 1
         else:

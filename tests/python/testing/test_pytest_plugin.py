@@ -199,7 +199,7 @@ def test_bad_settings_are_clear_errors(pytester):
     """)
     result = pytester.runpytest("-k", "bad_mode")
     assert result.ret != 0
-    result.stdout.fnmatch_lines(["*'sometimes' (from the marker) is not one of none, once, rewrite*"])
+    result.stdout.fnmatch_lines(["*'sometimes' (from the marker) is not one of none, once, new_episodes, rewrite*"])
     result = pytester.runpytest("-k", "no_device", "--wiretape-record=once")
     result.assert_outcomes(errors=1)
     result.stdout.fnmatch_lines(["*must be recorded*no device is given*--wiretape-device*"])
