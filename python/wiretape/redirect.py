@@ -270,7 +270,7 @@ class RedirectedCommand:
             folder = os.path.join(folder, f"device-{number}")
             os.mkdir(folder)
         tty_name, presented, by_id = _core.present_device_identity(
-            device.identity, folder, device.path)
+            device.identity or {}, folder, device.path)
         env = ({device_variable(ENV_IDENTITY_TTY, number): tty_name,
                 device_variable(ENV_IDENTITY_SYSFS, number): presented} if tty_name else {})
         if by_id:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass
-from typing import Callable, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 from .console import Output, describe
 from .errors import CheckFailed, RuntimeFailure, UsageError, exit_code_for
@@ -111,12 +111,12 @@ class _CommandChannel:
     name: str
     path: str
     link: Optional[str]
-    line_channel: object  # redirect.LineChannelPath
+    line_channel: Any  # redirect.LineChannelPath
     identity: Optional[Dict[str, str]] = None
-    handle: object = None
+    handle: Any = None  # bridge.BridgeHandle
 
 
-def _command_channels(endpoints, path_of: Callable[[object], Optional[str]],
+def _command_channels(endpoints, path_of: Callable[[Any], Optional[str]],
                       no_path: Callable[[str], str]) -> List[_CommandChannel]:
     """The channels of `endpoints` (pty client sides only), each with the
     path CMD opens for it (--as NAME=PATH, else `path_of`), each path once."""
@@ -285,7 +285,7 @@ def _run_bridges_with_command(channels: List[_CommandChannel], out: Output, what
                          "goes on until it exits")
                 continue
             which = (failed or ended)[0].name
-            out.note(f"wiretape {what}: {which} ended before {command.name}; ending it")
+            out.note(f"wiretape {what}: {which}: ended before {command.name}; ending it")
             ended_by_us = True
             break
         command.end()
