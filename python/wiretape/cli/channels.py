@@ -81,7 +81,9 @@ def _check_shared_flags(args, endpoints: Sequence[Endpoint]) -> None:
         raise UsageError("--backlog is the queue of TCP connections: give --listen "
                          "NAME=HOST:PORT")
     for flag, value in (("--pty-mode", args.pty_mode), ("--pty-group", args.pty_group)):
-        if value is not None and not any(e.pty is not None for e in endpoints):
+        # With -- CMD every channel is a pty.
+        if (value is not None and args.command_argv is None
+                and not any(e.pty is not None for e in endpoints)):
             raise UsageError(f"{flag} sets who may open the ptys: give --pty NAME=PATH too")
 
 
