@@ -3,8 +3,10 @@ device: ``wiretape record ... -- CMD`` and ``wiretape replay ... --as PATH
 -- CMD`` (DESIGN §12, "Hard-coded device paths").
 
 CMD runs with the preload shim ``_redirect_device.so`` (src/shim/), which
-rewrites the one path in CMD's open and stat calls to the bridge's pty; it
-reaches dynamically linked programs. Where the shim cannot reach (static
+rewrites the path in CMD's open and stat calls to the bridge's pty; it
+reaches dynamically linked programs. A CMD that opens several hard-coded
+paths (a session of several channels) has each redirected to its own pty
+(:class:`RedirectedDevice`; up to :data:`MAX_REDIRECTED_DEVICES`). Where the shim cannot reach (static
 programs, programs that scan /dev), CMD also runs in a private mount
 namespace with the pty bind-mounted over the path, when wiretape runs as
 root and the path exists (a bind mount needs something to cover).
@@ -26,7 +28,8 @@ import os
 import shutil
 import sys
 import tempfile
-from typing import Dict, Optional, Sequence, Tuple
+from dataclasses import dataclass
+from typing import Dict, List, Optional, Sequence, Tuple
 
 from . import _core, scaled_clock
 from .children import Child, CommandNotStarted, SanitizerWatch, sanitizer_report
@@ -38,6 +41,26 @@ ENV_TO = "WIRETAPE_REDIRECT_TO"
 ENV_HITS = "WIRETAPE_REDIRECT_HITS"
 # The side channel's socket (src/shim/line_protocol.h, WT_LINE_ENV).
 ENV_LINE_CHANNEL = "WIRETAPE_LINE_CHANNEL"
+# How many paths the shim redirects at once (WIRETAPE_SHIM_DEVICES in
+# src/shim/serial_lines.h): device 0 reads the variables above, device N
+# the same names ending in _N (device_variable).
+MAX_REDIRECTED_DEVICES = 8
+
+
+def device_variable(name: str, device: int) -> str:
+    """The shim's variable `name` for redirected device number `device`."""
+    return name if device == 0 else f"{name}_{device}"
+
+
+@dataclass
+class RedirectedDevice:
+    """One path CMD opens, redirected to `pty_path`: the recorded `identity`
+    presented for it, its serial lines told to the bridge at `line_channel`."""
+
+    path: str
+    pty_path: str
+    identity: Optional[Dict[str, str]] = None
+    line_channel: Optional[str] = None
 
 
 class LineChannelPath:
@@ -82,18 +105,29 @@ def device_path_of(options: str) -> Optional[str]:
     return dict(_core.parse_options(options)).get("device") or None
 
 
-def recorded_device_path(session_file: str) -> Optional[str]:
-    """The device path a recording was made on (its header's port options),
-    or None (a TCP or UDP device, a flexiport log without one)."""
+def _recorded_channel(session_file: str, channel: Optional[str]):
+    """The header's channel `channel` (the first when None)."""
     with _core.SessionReader(session_file) as reader:
-        return device_path_of(reader.header.port_options)
+        channels = reader.header.channel_list()
+    if channel is None:
+        return channels[0]
+    for recorded in channels:
+        if recorded.name == channel:
+            return recorded
+    raise ValueError(f"{session_file}: no channel {channel!r}")
 
 
-def recorded_identity(session_file: str) -> Dict[str, str]:
-    """The device identity a recording holds (its header's
-    ``device_identity``; {} when it has none)."""
-    with _core.SessionReader(session_file) as reader:
-        return dict(reader.header.device_identity)
+def recorded_device_path(session_file: str, channel: Optional[str] = None) -> Optional[str]:
+    """The device path a recording's channel (its first by default) was
+    made on (its port options), or None (a TCP or UDP device, a flexiport
+    log without one)."""
+    return device_path_of(_recorded_channel(session_file, channel).port_options)
+
+
+def recorded_identity(session_file: str, channel: Optional[str] = None) -> Dict[str, str]:
+    """The device identity a recording's channel (its first by default)
+    holds ({} when it has none)."""
+    return dict(_recorded_channel(session_file, channel).device_identity)
 
 
 # <sched.h> and <sys/mount.h>: Python 3.11 has no os.unshare or os.mount.
@@ -110,21 +144,24 @@ def can_bind_mount(device_path: str) -> bool:
             and not os.path.isdir(device_path))
 
 
-def _bind_mount_in_private_namespace(pty_path: str, device_path: str):
+def _bind_mount_in_private_namespace(binds: Sequence[Tuple[str, str]]):
     """The preexec function of CMD: a mount namespace of its own, nothing
-    propagated back to the host, the pty bound over the device path. A step
-    that fails leaves CMD to the shim alone (the kernel or the container may
-    refuse namespaces); wiretape still sees whether CMD opened the pty."""
+    propagated back to the host, each (pty, device path) pty bound over its
+    device path. A step that fails leaves CMD to the shim alone (the kernel
+    or the container may refuse namespaces); wiretape still sees whether
+    CMD opened the pty."""
     libc = ctypes.CDLL(None, use_errno=True)  # loaded before the fork
     unshare, mount = libc.unshare, libc.mount
-    source, target = os.fsencode(pty_path), os.fsencode(device_path)
+    encoded = [(os.fsencode(pty_path), os.fsencode(device_path))
+               for pty_path, device_path in binds]
 
     def in_child() -> None:
         if unshare(_CLONE_NEWNS) != 0:
             return
         if mount(None, b"/", None, _MS_REC | _MS_PRIVATE, None) != 0:
             return  # a bind now could show on the host: none
-        mount(source, target, None, _MS_BIND, None)
+        for source, target in encoded:
+            mount(source, target, None, _MS_BIND, None)
 
     return in_child
 
@@ -163,38 +200,52 @@ class RedirectedCommand:
     its by-id name is redirected too, and pyserial's ``list_ports`` finds
     the device by its USB ids. ``line_channel``: the bridge's side-channel
     socket for the serial lines (without it the shim emulates them in CMD
-    alone)."""
+    alone). `more_devices`: the other paths CMD opens, each redirected to
+    its own pty (a session of several channels)."""
 
     def __init__(self, argv: Sequence[str], device_path: str, pty_path: str,
                  relay: bool = False, identity: Optional[Dict[str, str]] = None,
-                 line_channel: Optional[str] = None, speed: float = 1.0):
+                 line_channel: Optional[str] = None, speed: float = 1.0,
+                 more_devices: Sequence[RedirectedDevice] = ()):
         self.argv = list(argv)
         self.device_path = device_path
+        self.devices: List[RedirectedDevice] = [
+            RedirectedDevice(device_path, pty_path, identity, line_channel), *more_devices]
+        if len(self.devices) > MAX_REDIRECTED_DEVICES:
+            raise ValueError(f"{len(self.devices)} device paths to redirect: the shim "
+                             f"redirects at most {MAX_REDIRECTED_DEVICES}")
         self._watches: Tuple[SanitizerWatch, ...] = ()
         self._identity_tree: Optional[str] = None
-        # Each process of CMD that uses the path appends a line here.
-        hits_fd, self._hits_file = tempfile.mkstemp(prefix="wiretape-redirect-")
-        os.close(hits_fd)
+        # Each process of CMD that uses a path appends a line to its file.
+        self._hits_files: List[str] = []
         # --speed K: CMD's clock runs K times faster (wiretape.scaled_clock).
         env = scaled_clock.environment(speed)
         preload = env.get("LD_PRELOAD", "").strip()
         env["LD_PRELOAD"] = shim_path() + (" " + preload if preload else "")
-        env[ENV_FROM] = device_path
-        env[ENV_TO] = pty_path
-        env[ENV_HITS] = self._hits_file
-        if line_channel:
-            env[ENV_LINE_CHANNEL] = line_channel
-        else:
-            env.pop(ENV_LINE_CHANNEL, None)
         try:
-            if identity:
-                env.update(self._present(identity))
+            for number in range(MAX_REDIRECTED_DEVICES):
+                # A wiretape run inside another must not inherit its devices.
+                for name in (ENV_FROM, ENV_TO, ENV_HITS, ENV_LINE_CHANNEL, ENV_IDENTITY_TTY,
+                             ENV_IDENTITY_SYSFS, ENV_IDENTITY_BY_ID):
+                    env.pop(device_variable(name, number), None)
+            for number, device in enumerate(self.devices):
+                hits_fd, hits_file = tempfile.mkstemp(prefix="wiretape-redirect-")
+                os.close(hits_fd)
+                self._hits_files.append(hits_file)
+                env[device_variable(ENV_FROM, number)] = device.path
+                env[device_variable(ENV_TO, number)] = device.pty_path
+                env[device_variable(ENV_HITS, number)] = hits_file
+                if device.line_channel:
+                    env[device_variable(ENV_LINE_CHANNEL, number)] = device.line_channel
+                if device.identity:
+                    env.update(self._present(device, number))
         except BaseException:
             self._remove_files()
             raise
-        self.bind_mounted = can_bind_mount(device_path)
-        preexec = (_bind_mount_in_private_namespace(pty_path, device_path)
-                   if self.bind_mounted else None)
+        binds = [(device.pty_path, device.path) for device in self.devices
+                 if can_bind_mount(device.path)]
+        self.bind_mounted = bool(binds)
+        preexec = _bind_mount_in_private_namespace(binds) if binds else None
         try:
             if relay:
                 self._watches = (SanitizerWatch(_binary(sys.stdout)),
@@ -209,14 +260,21 @@ class RedirectedCommand:
             self._remove_files()
             raise
 
-    def _present(self, identity: Dict[str, str]) -> Dict[str, str]:
-        """The shim's variables that present `identity`, its tree written."""
-        self._identity_tree = tempfile.mkdtemp(prefix="wiretape-identity-")
-        tty_name, folder, by_id = _core.present_device_identity(
-            identity, self._identity_tree, self.device_path)
-        env = {ENV_IDENTITY_TTY: tty_name, ENV_IDENTITY_SYSFS: folder} if tty_name else {}
+    def _present(self, device: RedirectedDevice, number: int) -> Dict[str, str]:
+        """The shim's variables that present the identity of device
+        `number`, its tree written (device N's in a folder of its own)."""
+        if self._identity_tree is None:
+            self._identity_tree = tempfile.mkdtemp(prefix="wiretape-identity-")
+        folder = self._identity_tree
+        if number:
+            folder = os.path.join(folder, f"device-{number}")
+            os.mkdir(folder)
+        tty_name, presented, by_id = _core.present_device_identity(
+            device.identity or {}, folder, device.path)
+        env = ({device_variable(ENV_IDENTITY_TTY, number): tty_name,
+                device_variable(ENV_IDENTITY_SYSFS, number): presented} if tty_name else {})
         if by_id:
-            env[ENV_IDENTITY_BY_ID] = by_id
+            env[device_variable(ENV_IDENTITY_BY_ID, number)] = by_id
         return env
 
     @property
@@ -245,21 +303,24 @@ class RedirectedCommand:
             return self._watches[0].finish() or self._watches[1].finish()
         return sanitizer_report(self.child.stdout)
 
-    def used_device_path(self) -> bool:
-        """True once any process of CMD opened (or looked at) the path."""
+    def used_device_path(self, number: int = 0) -> bool:
+        """True once any process of CMD opened (or looked at) the path of
+        device `number` (the first by default)."""
         try:
-            return os.path.getsize(self._hits_file) > 0
-        except OSError:
+            return os.path.getsize(self._hits_files[number]) > 0
+        except (OSError, IndexError):
             return False
 
     def close(self) -> None:
         self._remove_files()
 
     def _remove_files(self) -> None:
-        try:
-            os.unlink(self._hits_file)
-        except OSError:
-            pass
+        for hits_file in self._hits_files:
+            try:
+                os.unlink(hits_file)
+            except OSError:
+                pass
+        self._hits_files = []
         if self._identity_tree is not None:
             shutil.rmtree(self._identity_tree, ignore_errors=True)
             self._identity_tree = None

@@ -13,6 +13,9 @@
  *                            redirected to the virtual device even when no
  *                            such link exists on this machine
  *
+ * Each redirected device of a command has its own (device N: the names
+ * ending in _N, as in redirect_device.c), so that each answers for itself.
+ *
  * What pyserial's list_ports_linux does is then answered from the tree: it
  * lists /dev (opendir, readdir), follows /sys/class/tty/NAME/device
  * (lstat, readlink, stat) and reads the USB device's attributes (open); the
@@ -25,6 +28,7 @@
 #define _GNU_SOURCE
 #undef _FORTIFY_SOURCE
 #include "device_identity.h"
+#include "serial_lines.h"
 
 #include <dirent.h>
 #include <dlfcn.h>
@@ -34,17 +38,23 @@
 #include <string.h>
 #include <unistd.h>
 
-static char tty_name[NAME_MAX + 1];
-static char tty_device_path[PATH_MAX];   /* /dev/NAME */
-static char class_tty_path[PATH_MAX];    /* /sys/class/tty/NAME */
-static size_t class_tty_path_length;
-static char presented_folder[PATH_MAX];  /* the tree's folder for it */
-static char by_id_path[PATH_MAX];
-static int tree_active; /* the name and its sysfs tree are presented */
+struct presented_identity {
+  char tty_name[NAME_MAX + 1];
+  char tty_device_path[PATH_MAX];  /* /dev/NAME */
+  char class_tty_path[PATH_MAX];   /* /sys/class/tty/NAME */
+  size_t class_tty_path_length;
+  char presented_folder[PATH_MAX]; /* the tree's folder for it */
+  char by_id_path[PATH_MAX];
+  int tree_active; /* the name and its sysfs tree are presented */
+};
+static struct presented_identity identities[WIRETAPE_SHIM_DEVICES];
+static int any_tree_active;
 
 /* Each thread maps into its own buffer: initial-exec, so that no thread's
  * first use allocates. */
 static __thread char mapped_path[PATH_MAX] __attribute__((tls_model("initial-exec")));
+
+static const char *mapped_into(const char *presented_folder, const char *rest);
 
 static int copy_text(char *destination, size_t size, const char *source) {
   size_t length = strlen(source);
@@ -53,40 +63,63 @@ static int copy_text(char *destination, size_t size, const char *source) {
   return 1;
 }
 
-__attribute__((constructor)) static void read_identity_configuration(void) {
-  const char *name = getenv("WIRETAPE_IDENTITY_TTY");
-  const char *folder = getenv("WIRETAPE_IDENTITY_SYSFS");
-  const char *by_id = getenv("WIRETAPE_IDENTITY_BY_ID");
-  if (by_id != NULL && by_id[0] == '/') copy_text(by_id_path, sizeof by_id_path, by_id);
+static void read_identity(int device) {
+  struct presented_identity *identity = &identities[device];
+  const char *name = wiretape_device_variable("WIRETAPE_IDENTITY_TTY", device);
+  const char *folder = wiretape_device_variable("WIRETAPE_IDENTITY_SYSFS", device);
+  const char *by_id = wiretape_device_variable("WIRETAPE_IDENTITY_BY_ID", device);
+  if (by_id != NULL && by_id[0] == '/') {
+    copy_text(identity->by_id_path, sizeof identity->by_id_path, by_id);
+  }
   if (name == NULL || folder == NULL || name[0] == '\0' || strchr(name, '/') != NULL ||
       folder[0] != '/') {
     return;
   }
-  if (!copy_text(tty_name, sizeof tty_name, name) ||
-      !copy_text(presented_folder, sizeof presented_folder, folder)) {
+  if (!copy_text(identity->tty_name, sizeof identity->tty_name, name) ||
+      !copy_text(identity->presented_folder, sizeof identity->presented_folder, folder)) {
     return;
   }
-  strcpy(tty_device_path, "/dev/");
-  strcat(tty_device_path, tty_name);
-  strcpy(class_tty_path, "/sys/class/tty/");
-  strcat(class_tty_path, tty_name);
-  class_tty_path_length = strlen(class_tty_path);
-  tree_active = 1;
+  strcpy(identity->tty_device_path, "/dev/");
+  strcat(identity->tty_device_path, identity->tty_name);
+  strcpy(identity->class_tty_path, "/sys/class/tty/");
+  strcat(identity->class_tty_path, identity->tty_name);
+  identity->class_tty_path_length = strlen(identity->class_tty_path);
+  identity->tree_active = 1;
+  any_tree_active = 1;
+}
+
+__attribute__((constructor)) static void read_identity_configuration(void) {
+  for (int device = 0; device < WIRETAPE_SHIM_DEVICES; ++device) read_identity(device);
 }
 
 int wiretape_identity_names_device(const char *path) {
   if (path == NULL) return 0;
-  return (tree_active && strcmp(path, tty_device_path) == 0) ||
-         (by_id_path[0] != '\0' && strcmp(path, by_id_path) == 0);
+  for (int device = 0; device < WIRETAPE_SHIM_DEVICES; ++device) {
+    const struct presented_identity *identity = &identities[device];
+    if ((identity->tree_active && strcmp(path, identity->tty_device_path) == 0) ||
+        (identity->by_id_path[0] != '\0' && strcmp(path, identity->by_id_path) == 0)) {
+      return device + 1;
+    }
+  }
+  return 0;
 }
 
 const char *wiretape_identity_sysfs_path(const char *path) {
-  if (!tree_active || path == NULL ||
-      strncmp(path, class_tty_path, class_tty_path_length) != 0) {
-    return NULL;
+  if (!any_tree_active || path == NULL) return NULL;
+  for (int device = 0; device < WIRETAPE_SHIM_DEVICES; ++device) {
+    const struct presented_identity *identity = &identities[device];
+    if (!identity->tree_active ||
+        strncmp(path, identity->class_tty_path, identity->class_tty_path_length) != 0) {
+      continue;
+    }
+    const char *rest = path + identity->class_tty_path_length;
+    if (rest[0] != '\0' && rest[0] != '/') continue;  /* ttyACM0 is not ttyACM01 */
+    return mapped_into(identity->presented_folder, rest);
   }
-  const char *rest = path + class_tty_path_length;
-  if (rest[0] != '\0' && rest[0] != '/') return NULL;  /* ttyACM0 is not ttyACM01 */
+  return NULL;
+}
+
+static const char *mapped_into(const char *presented_folder, const char *rest) {
   size_t folder_length = strlen(presented_folder);
   size_t rest_length = strlen(rest);
   if (folder_length + rest_length >= sizeof mapped_path) return NULL;
@@ -128,8 +161,8 @@ ssize_t readlinkat(int directory, const char *path, char *buffer, size_t size) {
  * opened, read and closed); past them, listings are left as they are. */
 struct dev_listing {
   DIR *dir;
-  int seen;
-  int added;
+  unsigned seen;  /* a bit per device: its name was listed */
+  unsigned added; /* a bit per device: its name was added */
   struct dirent entry;
   struct dirent64 entry64;
 };
@@ -140,7 +173,7 @@ static int is_dev_folder(const char *path) {
 }
 
 static struct dev_listing *listing_of(DIR *dir) {
-  if (!tree_active || dir == NULL) return NULL;
+  if (!any_tree_active || dir == NULL) return NULL;
   for (size_t i = 0; i < sizeof dev_listings / sizeof dev_listings[0]; ++i) {
     if (__atomic_load_n(&dev_listings[i].dir, __ATOMIC_ACQUIRE) == dir) return &dev_listings[i];
   }
@@ -150,7 +183,7 @@ static struct dev_listing *listing_of(DIR *dir) {
 DIR *opendir(const char *path) {
   REAL_OR(DIR *, opendir, (const char *), NULL)
   DIR *dir = real_opendir(mapped(path));
-  if (dir == NULL || !tree_active || !is_dev_folder(path)) return dir;
+  if (dir == NULL || !any_tree_active || !is_dev_folder(path)) return dir;
   for (size_t i = 0; i < sizeof dev_listings / sizeof dev_listings[0]; ++i) {
     DIR *expected = NULL;
     struct dev_listing *listing = &dev_listings[i];
@@ -173,18 +206,23 @@ int closedir(DIR *dir) {
   return real_closedir(dir);
 }
 
-/* Whether the presented name is due now: at the end of a listing of /dev
- * that has not held it. `found` is the entry readdir returned (NULL at the
- * end). */
-static int add_presented_name(struct dev_listing *listing, const char *found) {
-  if (listing == NULL) return 0;
-  if (found != NULL) {
-    if (strcmp(found, tty_name) == 0) listing->seen = 1;
-    return 0;
+/* The presented name due now, or NULL: at the end of a listing of /dev,
+ * each presented name it has not held, one per call. `found` is the entry
+ * readdir returned (NULL at the end). */
+static const char *add_presented_name(struct dev_listing *listing, const char *found) {
+  if (listing == NULL) return NULL;
+  for (int device = 0; device < WIRETAPE_SHIM_DEVICES; ++device) {
+    const struct presented_identity *identity = &identities[device];
+    if (!identity->tree_active) continue;
+    unsigned bit = 1u << device;
+    if (found != NULL) {
+      if (strcmp(found, identity->tty_name) == 0) listing->seen |= bit;
+    } else if (!((listing->seen | listing->added) & bit)) {
+      listing->added |= bit;
+      return identity->tty_name;
+    }
   }
-  if (listing->seen || listing->added) return 0;
-  listing->added = 1;
-  return 1;
+  return NULL;
 }
 
 struct dirent *readdir(DIR *dir) {
@@ -192,12 +230,13 @@ struct dirent *readdir(DIR *dir) {
   int saved_errno = errno;
   struct dirent *entry = real_readdir(dir);
   struct dev_listing *listing = listing_of(dir);
-  if (!add_presented_name(listing, entry != NULL ? entry->d_name : NULL)) return entry;
+  const char *added = add_presented_name(listing, entry != NULL ? entry->d_name : NULL);
+  if (added == NULL) return entry;
   memset(&listing->entry, 0, sizeof listing->entry);
   listing->entry.d_ino = 1;
   listing->entry.d_reclen = sizeof listing->entry;
   listing->entry.d_type = DT_CHR;
-  strcpy(listing->entry.d_name, tty_name);
+  strcpy(listing->entry.d_name, added);
   errno = saved_errno;
   return &listing->entry;
 }
@@ -207,12 +246,13 @@ struct dirent64 *readdir64(DIR *dir) {
   int saved_errno = errno;
   struct dirent64 *entry = real_readdir64(dir);
   struct dev_listing *listing = listing_of(dir);
-  if (!add_presented_name(listing, entry != NULL ? entry->d_name : NULL)) return entry;
+  const char *added = add_presented_name(listing, entry != NULL ? entry->d_name : NULL);
+  if (added == NULL) return entry;
   memset(&listing->entry64, 0, sizeof listing->entry64);
   listing->entry64.d_ino = 1;
   listing->entry64.d_reclen = sizeof listing->entry64;
   listing->entry64.d_type = DT_CHR;
-  strcpy(listing->entry64.d_name, tty_name);
+  strcpy(listing->entry64.d_name, added);
   errno = saved_errno;
   return &listing->entry64;
 }

@@ -3,8 +3,8 @@
 #ifndef WIRETAPE_SHIM_DEVICE_IDENTITY_H
 #define WIRETAPE_SHIM_DEVICE_IDENTITY_H
 
-/* 1 when `path` is another name the identity gives the device (its by-id
- * link, its kernel name under /dev), which the shim redirects to the
+/* N+1 when `path` is another name the identity of device N gives it (its
+ * by-id link, its kernel name under /dev), which the shim redirects to that
  * virtual device as it does the path itself; else 0. */
 __attribute__((visibility("hidden"))) int wiretape_identity_names_device(const char *path);
 

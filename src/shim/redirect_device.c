@@ -11,6 +11,12 @@
  *                           that used the path, so that wiretape can say at
  *                           the end when CMD never opened it
  *
+ * A command that opens several hard-coded paths (a session of several
+ * channels) gets one such set per path: the unsuffixed variables are device
+ * 0, WIRETAPE_REDIRECT_FROM_N, _TO_N and _HITS_N device N (1 to 7; a device
+ * without FROM and TO is absent). The other variables of a device
+ * (WIRETAPE_LINE_CHANNEL, WIRETAPE_IDENTITY_*) take the same suffix.
+ *
  * A path is redirected when it is FROM as written, or when FROM exists and
  * the path resolves to the same file (a /dev/serial/by-id/ link to it, or a
  * symbolic link to it elsewhere).
@@ -40,12 +46,16 @@
 #include "serial_lines.h"
 #include "device_identity.h"
 
-static char redirect_from[PATH_MAX];
-static char redirect_from_resolved[PATH_MAX]; /* empty: FROM does not exist */
-static char redirect_to[PATH_MAX];
-static char hits_file[PATH_MAX];
-static int redirect_active;
-static int hit_noted;
+struct redirected_path {
+  char from[PATH_MAX];
+  char from_resolved[PATH_MAX]; /* empty: FROM does not exist */
+  char to[PATH_MAX];
+  char hits_file[PATH_MAX];
+  int active;
+  int hit_noted;
+};
+static struct redirected_path paths[WIRETAPE_SHIM_DEVICES];
+static int redirect_active; /* any path */
 
 /* libc's realpath: ours (below) redirects, and would call back into the
  * matching that uses it. */
@@ -67,31 +77,37 @@ static void copy_path(char *destination, const char *source) {
 }
 
 __attribute__((constructor)) static void read_configuration(void) {
-  const char *from = getenv("WIRETAPE_REDIRECT_FROM");
-  const char *to = getenv("WIRETAPE_REDIRECT_TO");
-  const char *hits = getenv("WIRETAPE_REDIRECT_HITS");
-  if (from == NULL || to == NULL || from[0] != '/' || to[0] == '\0') return;
-  copy_path(redirect_from, from);
-  copy_path(redirect_to, to);
-  if (hits != NULL) copy_path(hits_file, hits);
-  /* Resolved once, before the program runs: the real device (when there is
-   * one on this machine) is what its by-id links point to. */
-  char resolved[PATH_MAX];
-  if (real_realpath(redirect_from, resolved) != NULL) copy_path(redirect_from_resolved, resolved);
-  redirect_active = 1;
+  for (int device = 0; device < WIRETAPE_SHIM_DEVICES; ++device) {
+    struct redirected_path *redirect = &paths[device];
+    const char *from = wiretape_device_variable("WIRETAPE_REDIRECT_FROM", device);
+    const char *to = wiretape_device_variable("WIRETAPE_REDIRECT_TO", device);
+    const char *hits = wiretape_device_variable("WIRETAPE_REDIRECT_HITS", device);
+    if (from == NULL || to == NULL || from[0] != '/' || to[0] == '\0') continue;
+    copy_path(redirect->from, from);
+    copy_path(redirect->to, to);
+    if (hits != NULL) copy_path(redirect->hits_file, hits);
+    /* Resolved once, before the program runs: the real device (when there
+     * is one on this machine) is what its by-id links point to. */
+    char resolved[PATH_MAX];
+    if (real_realpath(redirect->from, resolved) != NULL) {
+      copy_path(redirect->from_resolved, resolved);
+    }
+    redirect->active = 1;
+    redirect_active = 1;
+  }
 }
 
 /* Records that this process used the path (once per process; a child that
  * CMD starts notes its own). Errors are ignored: the note is a courtesy and
  * must never change what the program sees, errno included. */
-static void note_hit(void) {
-  if (hit_noted || hits_file[0] == '\0') return;
-  hit_noted = 1;
+static void note_hit(struct redirected_path *redirect) {
+  if (redirect->hit_noted || redirect->hits_file[0] == '\0') return;
+  redirect->hit_noted = 1;
   int saved_errno = errno;
   static int (*real_open)(const char *, int, ...);
   if (real_open == NULL) real_open = (int (*)(const char *, int, ...))dlsym(RTLD_NEXT, "open");
   if (real_open != NULL) {
-    int fd = real_open(hits_file, O_WRONLY | O_APPEND | O_CLOEXEC);
+    int fd = real_open(redirect->hits_file, O_WRONLY | O_APPEND | O_CLOEXEC);
     if (fd >= 0) {
       char line[32];
       int length = snprintf(line, sizeof line, "%ld\n", (long)getpid());
@@ -109,32 +125,39 @@ static int is_symbolic_link(const char *path) {
   return readlink(path, target, sizeof target) >= 0;
 }
 
-/* The path to use instead of `path`: the pty when `path` names the device,
+static const char *hit(int device) {
+  note_hit(&paths[device]);
+  return paths[device].to;
+}
+
+/* The path to use instead of `path`: the pty of the device `path` names,
  * else `path` itself. */
 static const char *redirected(const char *path) {
   if (!redirect_active || path == NULL || path[0] != '/') return path;
-  if (strcmp(path, redirect_from) == 0 || wiretape_identity_names_device(path)) {
-    note_hit();
-    return redirect_to;
+  for (int device = 0; device < WIRETAPE_SHIM_DEVICES; ++device) {
+    if (paths[device].active && strcmp(path, paths[device].from) == 0) return hit(device);
   }
+  int named = wiretape_identity_names_device(path);
+  if (named > 0 && paths[named - 1].active) return hit(named - 1);
   const char *presented = wiretape_identity_sysfs_path(path);
   if (presented != NULL) return presented;
-  /* By-id links and other names of the real device: resolving costs system
+  /* By-id links and other names of the real devices: resolving costs system
    * calls, so only paths under /dev and symbolic links (a by-id style link
-   * made elsewhere) are resolved. */
-  if (redirect_from_resolved[0] != '\0') {
-    int saved_errno = errno;
-    char resolved[PATH_MAX];
-    int same = (strncmp(path, "/dev/", 5) == 0 || is_symbolic_link(path)) &&
-               real_realpath(path, resolved) != NULL &&
-               strcmp(resolved, redirect_from_resolved) == 0;
-    errno = saved_errno;
-    if (same) {
-      note_hit();
-      return redirect_to;
+   * made elsewhere) are resolved, and once. */
+  int saved_errno = errno;
+  char resolved[PATH_MAX];
+  int have_resolved = -1; /* not tried yet */
+  int found = -1;
+  for (int device = 0; device < WIRETAPE_SHIM_DEVICES && found < 0; ++device) {
+    if (!paths[device].active || paths[device].from_resolved[0] == '\0') continue;
+    if (have_resolved < 0) {
+      have_resolved = (strncmp(path, "/dev/", 5) == 0 || is_symbolic_link(path)) &&
+                      real_realpath(path, resolved) != NULL;
     }
+    if (have_resolved && strcmp(resolved, paths[device].from_resolved) == 0) found = device;
   }
-  return path;
+  errno = saved_errno;
+  return found >= 0 ? hit(found) : path;
 }
 
 /* The next definition of `name` (libc's), looked up on first use. */
@@ -149,9 +172,12 @@ static const char *redirected(const char *path) {
 /* A descriptor opened on the pty (through the redirection, or by its own
  * name after realpath gave it) gets the emulated serial lines. */
 static int note_opened(const char *target, int fd) {
-  if (fd >= 0 && redirect_active && target != NULL &&
-      (target == redirect_to || strcmp(target, redirect_to) == 0)) {
-    wiretape_lines_opened(fd);
+  if (fd < 0 || !redirect_active || target == NULL) return fd;
+  for (int device = 0; device < WIRETAPE_SHIM_DEVICES; ++device) {
+    if (paths[device].active && (target == paths[device].to || strcmp(target, paths[device].to) == 0)) {
+      wiretape_lines_opened(fd, device);
+      break;
+    }
   }
   return fd;
 }

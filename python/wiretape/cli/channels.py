@@ -81,7 +81,9 @@ def _check_shared_flags(args, endpoints: Sequence[Endpoint]) -> None:
         raise UsageError("--backlog is the queue of TCP connections: give --listen "
                          "NAME=HOST:PORT")
     for flag, value in (("--pty-mode", args.pty_mode), ("--pty-group", args.pty_group)):
-        if value is not None and not any(e.pty is not None for e in endpoints):
+        # With -- CMD every channel is a pty.
+        if (value is not None and args.command_argv is None
+                and not any(e.pty is not None for e in endpoints)):
             raise UsageError(f"{flag} sets who may open the ptys: give --pty NAME=PATH too")
 
 
@@ -91,10 +93,7 @@ def record_channels(args, endpoints: List[Endpoint], out: Output) -> int:
     from .._core import Recorder  # type: ignore[attr-defined]
     from .run import meta_pairs
 
-    if args.command_argv is not None:
-        raise UsageError("several channels with -- CMD are not supported yet: run the "
-                         "command against the ptys (--pty NAME=PATH)")
-    if any(e.redirect_path is not None for e in endpoints):
+    if any(e.redirect_path is not None for e in endpoints) and args.command_argv is None:
         raise UsageError("--as NAME=PATH names the device path of a command: give the "
                          "command after --")
     _check_shared_flags(args, endpoints)
@@ -102,6 +101,10 @@ def record_channels(args, endpoints: List[Endpoint], out: Output) -> int:
     header.metadata = meta_pairs(args.meta)
     recorder = Recorder(args.output, header)
     try:
+        if args.command_argv is not None:
+            from .children import record_channels_with_command
+
+            return record_channels_with_command(recorder, args, endpoints, out)
         return _record_into(recorder, args, endpoints, out)
     finally:
         recorder.close()
@@ -134,10 +137,7 @@ def replay_channels(args, endpoints: List[Endpoint], out: Output) -> int:
     from .. import bridge
     from .run import replay_options_of
 
-    if args.command_argv is not None:
-        raise UsageError("several channels with -- CMD are not supported yet: run the "
-                         "command against the ptys (--pty NAME=PATH)")
-    if any(e.redirect_path is not None for e in endpoints):
+    if any(e.redirect_path is not None for e in endpoints) and args.command_argv is None:
         raise UsageError("--as NAME=PATH names the device path of a command: give the "
                          "command after --")
     if args.output:
@@ -148,6 +148,10 @@ def replay_channels(args, endpoints: List[Endpoint], out: Output) -> int:
         if args.protocol != "raw" and endpoint.listen is None:
             raise UsageError(f"--protocol {args.protocol} is spoken over TCP: channel "
                              f"{endpoint.name!r} has no --listen {endpoint.name}=HOST:PORT")
+    if args.command_argv is not None:
+        from .children import replay_channels_with_command
+
+        return replay_channels_with_command(args, endpoints, out)
     options = replay_options_of(args)
     handles: List[Tuple[Endpoint, object]] = []
     try:
@@ -177,7 +181,7 @@ def _run_channels(handles, out: Output, what: str, doing: Callable[[Endpoint], s
     (a failed or mismatched one ends the others: the session is one) or
     Ctrl-C, relaying each one's messages with its name; prints each
     channel's outcome; raises the worst."""
-    from .run import POLL_S, MessageRelay, announce_clients, bridge_summary
+    from .run import POLL_S, MessageRelay, announce_clients
 
     relays = [MessageRelay(handle, out, f"{what}: {endpoint.name}", quiet)
               for endpoint, handle in handles]
@@ -200,6 +204,15 @@ def _run_channels(handles, out: Output, what: str, doing: Callable[[Endpoint], s
     _stop_all(handles)
     for relay in relays:
         relay.poll()
+    return report_channels(handles, out, what, must_serve)
+
+
+def report_channels(handles, out: Output, what: str, must_serve: bool) -> int:
+    """Prints each ended channel's outcome; raises the worst failure (the
+    command's), else returns EXIT_OK. `handles`: (endpoint, handle) pairs,
+    each endpoint with its .name."""
+    from .run import bridge_summary
+
     failures: List[Tuple[int, str]] = []
     for endpoint, handle in handles:
         result = handle.result()

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import os
 import time
-from typing import Callable, Dict, Optional, Sequence, Tuple
+from dataclasses import dataclass
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 from .console import Output, describe
 from .errors import CheckFailed, RuntimeFailure, UsageError, exit_code_for
@@ -67,13 +68,18 @@ def replay_with_command(args, out: Output) -> int:
     from .endpoints import Endpoint
     from .run import check_fault_places
 
+    from .channels import channel_names
+
     pty, link = _command_client_side(args)
     require_input(args.file)
-    # A file of several channels: each needs its NAME= (and -- CMD of
-    # several is not supported yet).
+    # A file of several channels: each needs its NAME= when given; -- CMD
+    # alone redirects each channel's recorded path.
     given = {dest: getattr(args, dest) for dest in ("pty", "redirect_path")
              if getattr(args, dest) is not None}
-    refuse_unnamed_on_several(args, [Endpoint("", given)] if given else [])
+    if given:
+        refuse_unnamed_on_several(args, [Endpoint("", given)])
+    elif len(channel_names(args.file)) > 1:
+        return replay_channels_with_command(args, [], out)
     # A --fault past the session's end is a usage error before CMD starts.
     check_fault_places(args)
     if args.output:
@@ -95,6 +101,236 @@ def replay_with_command(args, out: Output) -> int:
                                      link),
             must_serve=True, outlive_injected_loss=True, identity=recorded_identity(args.file),
             line_channel=lines.path, speed=args.speed or 1.0, quiet=args.quiet)
+
+
+@dataclass
+class _CommandChannel:
+    """One channel of a command's session: its bridge and the path CMD opens
+    for it."""
+
+    name: str
+    path: str
+    link: Optional[str]
+    line_channel: Any  # redirect.LineChannelPath
+    identity: Optional[Dict[str, str]] = None
+    handle: Any = None  # bridge.BridgeHandle
+
+
+def _command_channels(endpoints, path_of: Callable[[Any], Optional[str]],
+                      no_path: Callable[[str], str]) -> List[_CommandChannel]:
+    """The channels of `endpoints` (pty client sides only), each with the
+    path CMD opens for it (--as NAME=PATH, else `path_of`), each path once."""
+    from ..redirect import MAX_REDIRECTED_DEVICES, LineChannelPath
+
+    if not endpoints:
+        raise UsageError("no channel to redirect: give --as NAME=PATH")
+    if len(endpoints) > MAX_REDIRECTED_DEVICES:
+        raise UsageError(f"{len(endpoints)} channels with a command after --: at most "
+                         f"{MAX_REDIRECTED_DEVICES} device paths are redirected")
+    channels: List[_CommandChannel] = []
+    seen: Dict[str, str] = {}
+    for endpoint in endpoints:
+        for dest in ("listen", "udp"):
+            if endpoint.get(dest) is not None:
+                raise UsageError(f"{endpoint.flag(dest)} cannot be used with a command "
+                                 "after --: the command's device paths are redirected to ptys")
+        path = endpoint.redirect_path or path_of(endpoint)
+        if not path:
+            raise UsageError(no_path(endpoint.name))
+        _check_redirect_path(path)
+        if path in seen:
+            raise UsageError(f"--as {endpoint.name}={path}: channel {seen[path]!r} is "
+                             "redirected from the same path: give each channel its own "
+                             f"--as {endpoint.name}=PATH")
+        seen[path] = endpoint.name
+        channels.append(_CommandChannel(endpoint.name, path, endpoint.pty, None))
+    for channel in channels:
+        channel.line_channel = LineChannelPath()
+    return channels
+
+
+def _close_line_channels(channels: List[_CommandChannel]) -> None:
+    for channel in channels:
+        if channel.line_channel is not None:
+            channel.line_channel.close()
+
+
+def record_channels_with_command(recorder, args, endpoints, out: Output) -> int:
+    """``record --device NAME=OPTS ... -- CMD``: one bridge per channel into
+    `recorder`, CMD with each channel's path redirected to its pty."""
+    from .. import bridge
+    from ..redirect import device_path_of
+
+    _require_command(args)
+    channels = _command_channels(
+        endpoints, lambda endpoint: device_path_of(endpoint.device or ""),
+        lambda name: (f"--device {name}=... has no device path to redirect: give the "
+                      f"path the command opens with --as {name}=PATH"))
+    try:
+        for channel in channels:
+            channel.handle = bridge.record(
+                next(e.device for e in endpoints if e.name == channel.name) or "",
+                args.output, recorder=recorder, channel=channel.name,
+                pty=channel.link if channel.link is not None else True,
+                duration=args.duration, quiet=True, pty_mode=args.pty_mode,
+                pty_group=args.pty_group, line_channel=channel.line_channel.path)
+        return _run_bridges_with_command(
+            channels, out, "record", args.command_argv, f"recording to {args.output}",
+            must_use_path=True, quiet=args.quiet)
+    finally:
+        _stop_channels(channels)
+        _close_line_channels(channels)
+
+
+def replay_channels_with_command(args, endpoints, out: Output) -> int:
+    """``replay FILE [--as NAME=PATH ...] -- CMD`` of a file of several
+    channels: one replay of each of the file's channels (channel=NAME, on
+    one clock), CMD with each channel's path (its --as, else the recorded
+    one) redirected to its pty."""
+    from .. import bridge
+    from ..redirect import recorded_device_path, recorded_identity
+    from .channels import channel_names
+    from .endpoints import Endpoint
+    from .run import check_fault_places, replay_options_of
+
+    _require_command(args)
+    if args.output:
+        raise UsageError("-o records what the clients do on one port: with several "
+                         "channels it is not supported yet")
+    require_input(args.file)
+    check_fault_places(args)
+    given = {endpoint.name: endpoint for endpoint in endpoints}
+    every = [given.get(name) or Endpoint(name) for name in channel_names(args.file)]
+    channels = _command_channels(
+        every, lambda endpoint: recorded_device_path(args.file, endpoint.name),
+        lambda name: (f"{args.file}: channel {name!r} names no device path: give the "
+                      f"path the command opens with --as {name}=PATH"))
+    options = replay_options_of(args)
+    try:
+        for channel in channels:
+            channel.identity = recorded_identity(args.file, channel.name)
+            channel_options = ",".join(part for part in (options, f"channel={channel.name}")
+                                       if part)
+            channel.handle = bridge.serve_replay(
+                args.file, pty=channel.link if channel.link is not None else True,
+                replay_options=channel_options, restart=args.restart, quiet=True,
+                pty_mode=args.pty_mode, pty_group=args.pty_group,
+                line_channel=channel.line_channel.path)
+        return _run_bridges_with_command(
+            channels, out, "replay", args.command_argv, f"replaying {args.file}",
+            must_serve=True, outlive_injected_loss=True, speed=args.speed or 1.0,
+            quiet=args.quiet)
+    finally:
+        _stop_channels(channels)
+        _close_line_channels(channels)
+
+
+def _stop_channels(channels: List[_CommandChannel]) -> None:
+    started = [channel.handle for channel in channels if channel.handle is not None]
+    for handle in started:
+        handle.stop()
+    for handle in started:
+        handle.wait()
+
+
+def _run_bridges_with_command(channels: List[_CommandChannel], out: Output, what: str,
+                              argv: Sequence[str], doing: str, must_serve: bool = False,
+                              must_use_path: bool = False, outlive_injected_loss: bool = False,
+                              speed: float = 1.0, quiet: bool = False) -> int:
+    """_run_bridge_with_command for several channels: CMD runs with every
+    channel's path redirected to its bridge's pty; the bridges end when CMD
+    exits, and CMD is ended when a bridge fails (a mismatch) or every one
+    has ended. The outcome is the worst channel's; each path CMD never
+    opened is named."""
+    from ..redirect import RedirectedCommand, RedirectedDevice
+    from .channels import report_channels
+
+    relays = [MessageRelay(channel.handle, out, f"{what}: {channel.name}", quiet)
+              for channel in channels]
+    try:
+        for channel in channels:
+            announce_clients(channel.handle, out, f"wiretape {what}: {channel.name}: {doing}",
+                             channel.link)
+            out.note(f"wiretape {what}: {channel.name}: running {' '.join(argv)} with "
+                     f"{channel.path} -> {channel.handle.pty_path}")
+        first, rest = channels[0], channels[1:]
+        command = RedirectedCommand(
+            argv, first.path, first.handle.pty_path, relay=True, identity=first.identity,
+            line_channel=first.line_channel.path, speed=speed,
+            more_devices=[RedirectedDevice(channel.path, channel.handle.pty_path,
+                                           channel.identity, channel.line_channel.path)
+                          for channel in rest])
+    except BaseException:
+        _stop_channels(channels)
+        raise
+    ended_by_us = False
+    try:
+        bridges_ended = False
+        while command.poll() is None:
+            for relay in relays:
+                relay.poll()
+            if bridges_ended:
+                command.child.wait(POLL_S)
+                continue
+            running = [channel for channel in channels if not channel.handle.wait(0)]
+            ended = [channel for channel in channels if channel not in running]
+            failed = [channel for channel in ended if not channel.handle.result().ok]
+            if running and not failed:
+                running[0].handle.wait(POLL_S)
+                continue
+            bridges_ended = True
+            if outlive_injected_loss and any(channel.handle.result().ended_by_fault
+                                             for channel in ended):
+                out.note(f"wiretape {what}: an injected fault lost a device; {command.name} "
+                         "goes on until it exits")
+                continue
+            which = (failed or ended)[0].name
+            out.note(f"wiretape {what}: {which}: ended before {command.name}; ending it")
+            ended_by_us = True
+            break
+        command.end()
+        for channel in channels:
+            _wait_for_client_close(channel.handle)
+    except KeyboardInterrupt:
+        ended_by_us = True
+        out.note(f"wiretape {what}: stopping")
+        command.end()
+    finally:
+        _stop_channels(channels)
+    for relay in relays:
+        relay.poll()
+    status = command.exit_status()
+    unused = [channel for number, channel in enumerate(channels)
+              if not (command.used_device_path(number) or _client_connected(channel.handle))]
+    sanitizer = command.sanitizer_report()
+    command.close()
+    for channel in unused:
+        out.note(f"wiretape {what}: {command.name} never opened {channel.path} (the shim "
+                 "reaches dynamically linked programs; a static one is reached as root, "
+                 "through a bind mount, only where the path exists)")
+    try:
+        verdict = report_channels([(channel, channel.handle) for channel in channels], out,
+                                  what, must_serve)
+        if unused and must_use_path and not ended_by_us:
+            raise CheckFailed(f"{command.name} never opened {unused[0].path}: nothing was "
+                              f"recorded from channel {unused[0].name}")
+    except (CheckFailed, RuntimeFailure) as error:
+        if ended_by_us or status == 0:
+            raise
+        out.error(f"wiretape {what}", describe(error))
+        verdict = exit_code_for(error)
+    if sanitizer is not None and status == 0 and not ended_by_us:
+        raise CheckFailed(f"{command.name} exited 0 but printed a sanitizer report: {sanitizer}")
+    if ended_by_us or status == 0:
+        return verdict
+    out.note(f"wiretape {what}: {command.name} exited with status {status}")
+    return status
+
+
+def _require_command(args) -> None:
+    if not args.command_argv:
+        raise UsageError("no command after --: give the program to run, e.g. "
+                         "-- ./driver --port /dev/ttyUSB0")
 
 
 def _check_redirect_path(path: str) -> None:

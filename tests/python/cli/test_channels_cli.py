@@ -371,9 +371,12 @@ def test_the_unnamed_form_records_a_file_of_one_unnamed_channel(tmp_path):
         assert '"channels"' not in reader.header.metadata_json
 
 
-def test_replay_of_several_channels_with_a_command_and_no_names_is_refused(capsys, tmp_path):
+def test_replay_with_a_command_of_a_channel_without_a_device_path_is_refused(capsys,
+                                                                            tmp_path):
+    """-- CMD redirects each channel's recorded path: a TCP channel has none
+    unless --as NAME=PATH gives it."""
     session = two_channel_session(tmp_path / "two.wtape")
     status = cli.main(["replay", str(session), "--", "true"])
     err = capsys.readouterr().err
     assert status == 2, err
-    assert "has 2 channels (gps, rtk)" in err
+    assert "channel 'rtk' names no device path" in err and "--as rtk=PATH" in err

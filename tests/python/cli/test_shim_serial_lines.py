@@ -249,3 +249,70 @@ def test_a_descriptor_inherited_open_on_the_pty_is_emulated(tmp_path, channel):
     assert done.returncode == 0, done.stderr
     assert int(done.stdout) == TIOCM_CTS | TIOCM_RI
     assert [r["op"] for r in bridge.requests] == ["hello", "get"]
+
+
+# Two hard-coded paths of one program, each its own device (issue 25).
+SECOND_HARD_CODED = "/dev/ttyWIRETAPE_SHIM_TEST1"
+TWO_DEVICES_PROGRAM = textwrap.dedent(r"""
+    import fcntl, json, os, struct, sys
+
+    TIOCMBIS, TIOCMBIC = 0x5416, 0x5417
+    first = os.open(sys.argv[1], os.O_RDWR | os.O_NOCTTY)
+    second = os.open(sys.argv[2], os.O_RDWR | os.O_NOCTTY)
+    os.write(first, b"ab")
+    os.write(second, b"cdef")
+    fcntl.ioctl(first, TIOCMBIC, struct.pack("i", 0x2))
+    fcntl.ioctl(os.dup(second), TIOCMBIS, struct.pack("i", 0x4))
+
+    def same_device(path, fd):
+        return os.stat(path).st_rdev == os.fstat(fd).st_rdev
+
+    with open("/sys/class/tty/ttyWTIDA/marker") as marker_a, \
+            open("/sys/class/tty/ttyWTIDB/marker") as marker_b:
+        markers = [marker_a.read(), marker_b.read()]
+    print(json.dumps({
+        "ttys": [same_device("/dev/ttyWTIDA", first), same_device("/dev/ttyWTIDB", second)],
+        "by_id": same_device("/dev/serial/by-id/usb-wiretape-second", second),
+        "markers": markers,
+        "listed": sorted(name for name in os.listdir("/dev") if name.startswith("ttyWTID")),
+    }))
+""")
+
+
+def test_two_redirected_devices_each_reach_their_own_channel_and_identity(tmp_path):
+    """Device 0 from the unsuffixed variables, device 1 from the _1 ones: a
+    line change on one descriptor reaches its own device's bridge only,
+    with that device's byte count, and each identity answers for its own
+    pty."""
+    bridges = [FakeBridge(str(tmp_path / name)) for name in ("lines-a", "lines-b")]
+    script = tmp_path / "two.py"
+    script.write_text(TWO_DEVICES_PROGRAM)
+    ptys = [os.openpty(), os.openpty()]
+    env = dict(os.environ, LD_PRELOAD=redirect.shim_path())
+    for device, (path, (_, terminal), letter) in enumerate(
+            zip((HARD_CODED, SECOND_HARD_CODED), ptys, "AB")):
+        suffix = f"_{device}" if device else ""
+        folder = tmp_path / f"sysfs-{letter}"
+        folder.mkdir()
+        (folder / "marker").write_text(letter)
+        env[redirect.ENV_FROM + suffix] = path
+        env[redirect.ENV_TO + suffix] = os.ttyname(terminal)
+        env[redirect.ENV_LINE_CHANNEL + suffix] = str(tmp_path / f"lines-{letter.lower()}")
+        env[redirect.ENV_IDENTITY_TTY + suffix] = f"ttyWTID{letter}"
+        env[redirect.ENV_IDENTITY_SYSFS + suffix] = str(folder)
+    env[redirect.ENV_IDENTITY_BY_ID + "_1"] = "/dev/serial/by-id/usb-wiretape-second"
+    try:
+        done = subprocess.run([sys.executable, str(script), HARD_CODED, SECOND_HARD_CODED],
+                              env=env, capture_output=True, text=True, timeout=DEADLINE_S)
+    finally:
+        for controller, terminal in ptys:
+            os.close(controller)
+            os.close(terminal)
+        for bridge in bridges:
+            bridge.close()
+    assert done.returncode == 0, done.stderr
+    seen = json.loads(done.stdout)
+    assert bridges[0].ops() == [("set_outputs", 2, 0, TIOCM_DTR, 0)]
+    assert bridges[1].ops() == [("set_outputs", 4, TIOCM_RTS, 0, 0)]
+    assert seen == {"ttys": [True, True], "by_id": True, "markers": ["A", "B"],
+                    "listed": ["ttyWTIDA", "ttyWTIDB"]}
