@@ -308,23 +308,14 @@ def _run_bridges_with_command(channels: List[_CommandChannel], out: Output, what
         out.note(f"wiretape {what}: {command.name} never opened {channel.path} (the shim "
                  "reaches dynamically linked programs; a static one is reached as root, "
                  "through a bind mount, only where the path exists)")
-    try:
-        verdict = report_channels([(channel, channel.handle) for channel in channels], out,
-                                  what, must_serve)
-        if unused and must_use_path and not ended_by_us:
-            raise CheckFailed(f"{command.name} never opened {unused[0].path}: nothing was "
-                              f"recorded from channel {unused[0].name}")
-    except (CheckFailed, RuntimeFailure) as error:
-        if ended_by_us or status == 0:
-            raise
-        out.error(f"wiretape {what}", describe(error))
-        verdict = exit_code_for(error)
-    if sanitizer is not None and status == 0 and not ended_by_us:
-        raise CheckFailed(f"{command.name} exited 0 but printed a sanitizer report: {sanitizer}")
-    if ended_by_us or status == 0:
-        return verdict
-    out.note(f"wiretape {what}: {command.name} exited with status {status}")
-    return status
+    never_opened = None
+    if unused and must_use_path and not ended_by_us:
+        never_opened = (f"{command.name} never opened {unused[0].path}: nothing was "
+                        f"recorded from channel {unused[0].name}")
+    return _outcome_with_command(
+        out, what, command.name, status, sanitizer, ended_by_us, never_opened,
+        lambda: report_channels([(channel, channel.handle) for channel in channels], out,
+                                what, must_serve))
 
 
 def _require_command(args) -> None:
@@ -426,22 +417,35 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
         out.note(f"wiretape {what}: {command.name} never opened {device_path} (the shim reaches "
                  "dynamically linked programs; a static one is reached as root, through a "
                  "bind mount, only where the path exists)")
+    never_opened = None
+    if not used and must_use_path and not ended_by_us:
+        never_opened = f"{command.name} never opened {device_path}: nothing was recorded from it"
+    return _outcome_with_command(
+        out, what, command.name, status, sanitizer, ended_by_us, never_opened,
+        lambda: run_bridge(handle, out, what, lambda: None, must_serve=must_serve, relay=relay))
+
+
+def _outcome_with_command(out: Output, what: str, command_name: str, status: int,
+                          sanitizer: Optional[str], ended_by_us: bool,
+                          never_opened: Optional[str], bridge_verdict: Callable[[], int]) -> int:
+    """The exit status of ``record/replay ... -- CMD``: the bridges' verdict
+    (`bridge_verdict()`) when CMD exited 0 or wiretape ended it, else CMD's
+    status (after saying what the bridges found); `never_opened`, when CMD
+    never opened a path it had to, is a failure of its own."""
     try:
-        verdict = run_bridge(handle, out, what, lambda: None, must_serve=must_serve,
-                             relay=relay)
-        if not used and must_use_path and not ended_by_us:
-            raise CheckFailed(f"{command.name} never opened {device_path}: nothing was "
-                              "recorded from it")
+        verdict = bridge_verdict()
+        if never_opened is not None:
+            raise CheckFailed(never_opened)
     except (CheckFailed, RuntimeFailure) as error:
         if ended_by_us or status == 0:
             raise
         out.error(f"wiretape {what}", describe(error))
         verdict = exit_code_for(error)
     if sanitizer is not None and status == 0 and not ended_by_us:
-        raise CheckFailed(f"{command.name} exited 0 but printed a sanitizer report: {sanitizer}")
+        raise CheckFailed(f"{command_name} exited 0 but printed a sanitizer report: {sanitizer}")
     if ended_by_us or status == 0:
         return verdict
-    out.note(f"wiretape {what}: {command.name} exited with status {status}")
+    out.note(f"wiretape {what}: {command_name} exited with status {status}")
     return status
 
 
