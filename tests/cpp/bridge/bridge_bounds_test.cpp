@@ -294,3 +294,41 @@ TEST(BridgeBatching, ShortAndRefusedSendsToAClientLoseNoDeviceByte) {
   ASSERT_TRUE(bridge.wait(std::chrono::seconds(10)));
   EXPECT_TRUE(bridge.result().ok()) << bridge.result().message;
 }
+
+// The device is read once per wake-up: reads that come back short or with
+// EAGAIN although poll() said readable lose nothing and keep the order.
+TEST(BridgeBatching, ShortAndEmptyReadsOfTheDeviceLoseNoByte) {
+  std::atomic<int> odd_reads{0};
+  sys::ScopedOverride seam;
+  seam->read = [&odd_reads](int fd, void* buffer, size_t size) -> ssize_t {
+    if (size <= 64 || !::isatty(fd)) return sys::real().read(fd, buffer, size);
+    if (++odd_reads % 3 == 0) {
+      errno = EAGAIN;
+      return -1;
+    }
+    return sys::real().read(fd, buffer, std::min<size_t>(size, 700));
+  };
+  wiretape::test::PtyPair device;
+  make_raw(device.terminal);
+  wiretape::BridgeOptions options;
+  options.device = "type=serial,device=" + device.path;
+  options.client_side = wiretape::BridgeClientSide::tcp;
+  options.buffer_limit = kChunk;
+  options.quiet = true;
+  wiretape::Bridge bridge(options);
+  bridge.start();
+  const int client = wiretape::test::connect_tcp(bridge.listen_address());
+  ASSERT_GE(client, 0);
+  const std::string payload = numbered_bytes(512 * 1024);
+  std::thread feeder([&] { device.write_master(payload); });
+  const std::string received = wiretape::test::read_count(client, payload.size());
+  feeder.join();
+  EXPECT_EQ(received.size(), payload.size());
+  EXPECT_TRUE(received == payload) << "the client's bytes differ from the device's";
+  EXPECT_GT(odd_reads.load(), 100);
+  ::close(client);
+  bridge.stop();
+  ASSERT_TRUE(bridge.wait(std::chrono::seconds(10)));
+  EXPECT_TRUE(bridge.result().ok()) << bridge.result().message;
+  EXPECT_EQ(bridge.result().stats.bytes_from_device, payload.size());
+}
