@@ -364,7 +364,7 @@ class Bench:
         self.notes[prefix] = "; ".join(
             f"{kind} {m['cpu_s_per_MB'] * 1e3:.2f} ms CPU/MB at {m['bytes_per_s'] / 1e6:.0f} MB/s, "
             f"one-way p50 {m['one_way_p50_us']:.0f} µs p99 {m['one_way_p99_us']:.0f} µs"
-            for kind, m in median.items()) + (
+            for kind, m in best.items()) + (
             f" (medians of {len(cpu)} pairs; CPU ratio {self.spread(cpu)}, "
             f"p99 ratio {self.spread(latency)})")
 

@@ -56,9 +56,6 @@ using detail::bridge::DeviceSide;
 using detail::bridge::kChunk;
 using detail::bridge::Status;
 
-// A read of a terminal hands out about one line-discipline buffer (Linux: 4 KiB
-// less one byte) at a time; a read at least this large means more is waiting.
-constexpr std::size_t kLineDisciplineBuffer = 4095;
 // A device whose descriptor cannot tell when it takes data again is retried
 // this often while data waits for it.
 constexpr auto kWriteRetryInterval = std::chrono::milliseconds(2);
@@ -229,29 +226,30 @@ void Bridge::Impl::read_device(Readiness ready) {
   const bool one_read_per_delivery = endpoint_->keeps_datagram_boundaries();
   try {
     if (ready.readable || ready.hung_up) {
-      // A read that took a whole line-discipline buffer means the device is
-      // ahead of us: read on and pass the lot to the clients at once, one
-      // send instead of one per read.
-      for (;;) {
-        if (one_read_per_delivery) {
+      if (one_read_per_delivery) {
+        for (;;) {
           // One read is one datagram (an empty one too): recorded and
           // delivered alone, and read on while the client side takes more.
-          const std::optional<std::size_t> n = device_.read_datagram(buffer.data(), buffer.size());
+          const std::optional<std::size_t> n =
+              device_.read_datagram(buffer.data(), buffer.size());
           if (!n) break;
           device_.record(RecordKind::rx, std::string_view(buffer.data(), *n));
           filled = *n;
           deliver();
           filled = 0;
           if (!endpoint_->wants_device_data() || !device_.is_open()) break;
-          continue;
         }
-        const std::size_t n = device_.port().read(buffer.data() + filled, buffer.size() - filled,
-                                                  std::chrono::nanoseconds(0));
-        if (n > 0) {
-          device_.record(RecordKind::rx, std::string_view(buffer.data() + filled, n));
-        }
-        filled += n;
-        if (n < kLineDisciplineBuffer || buffer.size() - filled < kLineDisciplineBuffer) break;
+      } else {
+        // One read per wake-up, even when it took a whole line-discipline
+        // buffer (4095 bytes) and more is waiting: a read or a poll that
+        // finds a terminal's line discipline empty waits for the tty layer's
+        // flip work (Linux n_tty_read/n_tty_poll -> __flush_work, a task
+        // switch), and reading on until a short read emptied it before every
+        // poll. Left for the poll, which then returns at once, the rest costs
+        // less: record --pty's CPU per MB fell by a fifth (docs/benchmarks.md,
+        // "Where the cycles go").
+        filled = device_.port().read(buffer.data(), buffer.size(), std::chrono::nanoseconds(0));
+        if (filled > 0) device_.record(RecordKind::rx, std::string_view(buffer.data(), filled));
       }
     }
   } catch (const PortClosed& closed) {

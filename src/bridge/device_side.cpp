@@ -316,7 +316,23 @@ void DeviceSide::send_datagram(const char* data, std::size_t size) {
 void DeviceSide::send(const char* data, std::size_t size) {
   if (!device_ || size == 0) return;
   record(RecordKind::tx, std::string_view(data, size));
-  to_device_.append(data, size);
+  if (to_device_.empty()) {
+    // Written from the caller's buffer while nothing waits before it: only
+    // what the device does not take now is copied into the queue.
+    std::size_t n = 0;
+    try {
+      n = device_->write(data, size);
+    } catch (const PortClosed& closed) {
+      lost(closed.what());
+      return;
+    }
+    if (n > 0) status_.update_stats([n](BridgeStats& s) { s.bytes_to_device += n; });
+    if (n == size) return;
+    to_device_.append(data + n, size - n);
+    if (n == 0) return;
+  } else {
+    to_device_.append(data, size);
+  }
   flush();
 }
 

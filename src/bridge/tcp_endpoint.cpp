@@ -163,9 +163,8 @@ class TcpEndpoint final : public ClientEndpoint {
         status_.update_stats([size](BridgeStats& s) { s.bytes_dropped += size; });
         continue;
       }
-      client->outgoing.append(bytes, length);
       if (!client->monitor) client->holds_device_data = true;
-      write_client(*client);
+      send_or_queue(*client, bytes, length);
     }
   }
 
@@ -320,6 +319,30 @@ class TcpEndpoint final : public ClientEndpoint {
     }
     if (client.monitor) return;  // a monitor's input is ignored
     device_.send(data, size);
+  }
+
+  // Sent from the caller's buffer while nothing waits before it: only what
+  // the connection does not take now is copied into the client's queue.
+  void send_or_queue(Client& client, const char* bytes, std::size_t length) {
+    if (!client.outgoing.empty()) {
+      client.outgoing.append(bytes, length);
+      write_client(client);
+      return;
+    }
+    const Transfer sent = client.connection.send(bytes, length);
+    std::size_t taken = 0;
+    switch (sent.status) {
+      case Transfer::Status::failed:
+        drop_client(client, system_error_message("connection failed", sent.error));
+        return;
+      case Transfer::Status::done: taken = sent.bytes; break;
+      case Transfer::Status::would_block:
+      case Transfer::Status::closed: break;
+    }
+    if (taken > 0 && client.holds_device_data) served_device_data_ = true;
+    if (taken == length) return;
+    client.outgoing.append(bytes + taken, length - taken);
+    if (taken > 0) write_client(client);  // as the queue's loop does, till it would block
   }
 
   void write_client(Client& client) {

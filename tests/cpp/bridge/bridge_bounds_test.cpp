@@ -1,8 +1,10 @@
 // The bounds that keep a port server's memory and CPU independent of what
 // clients do: queues that hold at most their limit, and a listener that
 // rests instead of spinning when it cannot accept (out of descriptors).
+#include <fcntl.h>
 #include <poll.h>
 #include <sys/socket.h>
+#include <termios.h>
 #include <unistd.h>
 
 #include <gtest/gtest.h>
@@ -12,6 +14,7 @@
 #include <cerrno>
 #include <chrono>
 #include <string>
+#include <thread>
 
 #include "bridge/byte_queue.hpp"
 #include "posix/syscalls.hpp"
@@ -159,4 +162,173 @@ TEST(BridgeBounds, ARefusedClientThatSpokeFirstReadsTheRefusalNotAReset) {
   bridge.stop();
   ASSERT_TRUE(bridge.wait(std::chrono::seconds(10)));
   EXPECT_EQ(bridge.result().stats.clients_refused, 1u);
+}
+
+// Data is written from the reader's buffer while nothing waits before it,
+// and only the rest is queued: a terminal or a connection that takes a
+// little at a time, or nothing (EAGAIN), while the other side keeps sending
+// and the queue fills, gets every byte once and in order.
+namespace {
+
+std::string numbered_bytes(std::size_t size) {
+  std::string payload;
+  payload.reserve(size);
+  for (std::size_t i = 0; i < size; ++i) payload.push_back(static_cast<char>(i % 251));
+  return payload;
+}
+
+// Each write of more than a few bytes to a terminal (the relay's data, not
+// its 1-byte wake-ups) takes at most 700 bytes, and every third one nothing.
+void make_terminal_writes_short(sys::ScopedOverride& seam, std::atomic<int>& short_writes) {
+  seam->write = [&short_writes](int fd, const void* data, size_t size) -> ssize_t {
+    if (size <= 64 || !::isatty(fd)) return sys::real().write(fd, data, size);
+    if (++short_writes % 3 == 0) {
+      errno = EAGAIN;
+      return -1;
+    }
+    return sys::real().write(fd, data, std::min<size_t>(size, 700));
+  };
+}
+
+void make_raw(int fd) {
+  termios settings{};
+  ASSERT_EQ(::tcgetattr(fd, &settings), 0);
+  ::cfmakeraw(&settings);
+  ASSERT_EQ(::tcsetattr(fd, TCSANOW, &settings), 0);
+}
+
+}  // namespace
+
+TEST(BridgeBatching, ShortAndRefusedWritesToTheTerminalLoseNoDeviceByte) {
+  std::atomic<int> short_writes{0};
+  sys::ScopedOverride seam;
+  make_terminal_writes_short(seam, short_writes);
+  wiretape::test::PtyPair device;
+  make_raw(device.terminal);
+  wiretape::BridgeOptions options;
+  options.device = "type=serial,device=" + device.path;
+  options.buffer_limit = kChunk;  // the smallest: the queue fills at once
+  options.quiet = true;
+  wiretape::Bridge bridge(options);
+  bridge.start();
+  const int terminal = ::open(bridge.pty_path().c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC);
+  ASSERT_GE(terminal, 0);
+  make_raw(terminal);
+  const std::string payload = numbered_bytes(512 * 1024);
+  std::thread feeder([&] { device.write_master(payload); });
+  const std::string received = wiretape::test::read_count(terminal, payload.size());
+  feeder.join();
+  EXPECT_EQ(received.size(), payload.size());
+  EXPECT_TRUE(received == payload) << "the terminal's bytes differ from the device's";
+  EXPECT_GT(short_writes.load(), 100);
+  ::close(terminal);
+  bridge.stop();
+  ASSERT_TRUE(bridge.wait(std::chrono::seconds(10)));
+  EXPECT_TRUE(bridge.result().ok()) << bridge.result().message;
+}
+
+TEST(BridgeBatching, ShortAndRefusedWritesToTheDeviceLoseNoClientByte) {
+  std::atomic<int> short_writes{0};
+  sys::ScopedOverride seam;
+  make_terminal_writes_short(seam, short_writes);
+  wiretape::test::PtyPair device;
+  make_raw(device.terminal);
+  wiretape::BridgeOptions options;
+  options.device = "type=serial,device=" + device.path;
+  options.client_side = wiretape::BridgeClientSide::tcp;
+  options.buffer_limit = kChunk;
+  options.quiet = true;
+  wiretape::Bridge bridge(options);
+  bridge.start();
+  const int client = wiretape::test::connect_tcp(bridge.listen_address());
+  ASSERT_GE(client, 0);
+  const std::string payload = numbered_bytes(256 * 1024);
+  std::thread sender([&] {
+    std::size_t sent = 0;
+    while (sent < payload.size()) {
+      const ssize_t n = ::send(client, payload.data() + sent, payload.size() - sent, MSG_NOSIGNAL);
+      if (n <= 0) return;
+      sent += static_cast<std::size_t>(n);
+    }
+  });
+  const std::string received = device.read_master(payload.size());
+  sender.join();
+  EXPECT_EQ(received.size(), payload.size());
+  EXPECT_TRUE(received == payload) << "the device's bytes differ from the client's";
+  EXPECT_GT(short_writes.load(), 100);
+  ::close(client);
+  bridge.stop();
+  ASSERT_TRUE(bridge.wait(std::chrono::seconds(10)));
+  EXPECT_TRUE(bridge.result().ok()) << bridge.result().message;
+}
+
+TEST(BridgeBatching, ShortAndRefusedSendsToAClientLoseNoDeviceByte) {
+  std::atomic<int> short_sends{0};
+  sys::ScopedOverride seam;
+  seam->send = [&short_sends](int fd, const void* data, size_t size, int flags) -> ssize_t {
+    if (++short_sends % 3 == 0) {
+      errno = EAGAIN;
+      return -1;
+    }
+    return sys::real().send(fd, data, std::min<size_t>(size, 700), flags);
+  };
+  wiretape::test::PtyPair device;
+  make_raw(device.terminal);
+  wiretape::BridgeOptions options;
+  options.device = "type=serial,device=" + device.path;
+  options.client_side = wiretape::BridgeClientSide::tcp;
+  options.buffer_limit = kChunk;
+  options.quiet = true;
+  wiretape::Bridge bridge(options);
+  bridge.start();
+  const int client = wiretape::test::connect_tcp(bridge.listen_address());
+  ASSERT_GE(client, 0);
+  const std::string payload = numbered_bytes(512 * 1024);
+  std::thread feeder([&] { device.write_master(payload); });
+  const std::string received = wiretape::test::read_count(client, payload.size());
+  feeder.join();
+  EXPECT_EQ(received.size(), payload.size());
+  EXPECT_TRUE(received == payload) << "the client's bytes differ from the device's";
+  ::close(client);
+  bridge.stop();
+  ASSERT_TRUE(bridge.wait(std::chrono::seconds(10)));
+  EXPECT_TRUE(bridge.result().ok()) << bridge.result().message;
+}
+
+// The device is read once per wake-up: reads that come back short or with
+// EAGAIN although poll() said readable lose nothing and keep the order.
+TEST(BridgeBatching, ShortAndEmptyReadsOfTheDeviceLoseNoByte) {
+  std::atomic<int> odd_reads{0};
+  sys::ScopedOverride seam;
+  seam->read = [&odd_reads](int fd, void* buffer, size_t size) -> ssize_t {
+    if (size <= 64 || !::isatty(fd)) return sys::real().read(fd, buffer, size);
+    if (++odd_reads % 3 == 0) {
+      errno = EAGAIN;
+      return -1;
+    }
+    return sys::real().read(fd, buffer, std::min<size_t>(size, 700));
+  };
+  wiretape::test::PtyPair device;
+  make_raw(device.terminal);
+  wiretape::BridgeOptions options;
+  options.device = "type=serial,device=" + device.path;
+  options.client_side = wiretape::BridgeClientSide::tcp;
+  options.buffer_limit = kChunk;
+  options.quiet = true;
+  wiretape::Bridge bridge(options);
+  bridge.start();
+  const int client = wiretape::test::connect_tcp(bridge.listen_address());
+  ASSERT_GE(client, 0);
+  const std::string payload = numbered_bytes(512 * 1024);
+  std::thread feeder([&] { device.write_master(payload); });
+  const std::string received = wiretape::test::read_count(client, payload.size());
+  feeder.join();
+  EXPECT_EQ(received.size(), payload.size());
+  EXPECT_TRUE(received == payload) << "the client's bytes differ from the device's";
+  EXPECT_GT(odd_reads.load(), 100);
+  ::close(client);
+  bridge.stop();
+  ASSERT_TRUE(bridge.wait(std::chrono::seconds(10)));
+  EXPECT_TRUE(bridge.result().ok()) << bridge.result().message;
+  EXPECT_EQ(bridge.result().stats.bytes_from_device, payload.size());
 }

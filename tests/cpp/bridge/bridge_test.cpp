@@ -116,8 +116,8 @@ TEST(Bridge, TcpClientThroughLoopbackDeviceIsForwardedAndRecorded) {
 }
 
 // A serial device that sends faster than one read a wake-up: the bridge
-// reads on while reads come back full and forwards the lot at once; every
-// byte arrives and is recorded, in order.
+// reads once per wake-up and leaves the rest to the next poll; every byte
+// arrives and is recorded, in order.
 TEST(Bridge, SerialDeviceAheadOfTheBridgeArrivesWholeAndRecordedInOrder) {
   wiretape::test::PtyPair device;
   const std::string path = temp_path("ahead.wtape");
