@@ -177,16 +177,23 @@ std::string numbered_bytes(std::size_t size) {
   return payload;
 }
 
+// Every third call takes nothing (EAGAIN), the others at most 700 bytes.
+template <typename Call>
+ssize_t short_or_refused(std::atomic<int>& calls, std::size_t size, Call call) {
+  if (++calls % 3 == 0) {
+    errno = EAGAIN;
+    return -1;
+  }
+  return call(std::min<std::size_t>(size, 700));
+}
+
 // Each write of more than a few bytes to a terminal (the relay's data, not
-// its 1-byte wake-ups) takes at most 700 bytes, and every third one nothing.
+// its 1-byte wake-ups) is short or refused.
 void make_terminal_writes_short(sys::ScopedOverride& seam, std::atomic<int>& short_writes) {
   seam->write = [&short_writes](int fd, const void* data, size_t size) -> ssize_t {
     if (size <= 64 || !::isatty(fd)) return sys::real().write(fd, data, size);
-    if (++short_writes % 3 == 0) {
-      errno = EAGAIN;
-      return -1;
-    }
-    return sys::real().write(fd, data, std::min<size_t>(size, 700));
+    return short_or_refused(short_writes, size,
+                            [&](std::size_t n) { return sys::real().write(fd, data, n); });
   };
 }
 
@@ -197,6 +204,32 @@ void make_raw(int fd) {
   ASSERT_EQ(::tcsetattr(fd, TCSANOW, &settings), 0);
 }
 
+// A bridge of the pty pair's terminal with the smallest queue: it fills at once.
+wiretape::BridgeOptions smallest_queue_options(const wiretape::test::PtyPair& device,
+                                               wiretape::BridgeClientSide client_side) {
+  wiretape::BridgeOptions options;
+  options.device = "type=serial,device=" + device.path;
+  options.client_side = client_side;
+  options.buffer_limit = kChunk;
+  options.quiet = true;
+  return options;
+}
+
+// `payload` written at the device's master, as `reader` receives it.
+std::string device_bytes_at(wiretape::test::PtyPair& device, int reader,
+                            const std::string& payload) {
+  std::thread feeder([&] { device.write_master(payload); });
+  std::string received = wiretape::test::read_count(reader, payload.size());
+  feeder.join();
+  return received;
+}
+
+void expect_clean_stop(wiretape::Bridge& bridge) {
+  bridge.stop();
+  ASSERT_TRUE(bridge.wait(std::chrono::seconds(10)));
+  EXPECT_TRUE(bridge.result().ok()) << bridge.result().message;
+}
+
 }  // namespace
 
 TEST(BridgeBatching, ShortAndRefusedWritesToTheTerminalLoseNoDeviceByte) {
@@ -205,26 +238,18 @@ TEST(BridgeBatching, ShortAndRefusedWritesToTheTerminalLoseNoDeviceByte) {
   make_terminal_writes_short(seam, short_writes);
   wiretape::test::PtyPair device;
   make_raw(device.terminal);
-  wiretape::BridgeOptions options;
-  options.device = "type=serial,device=" + device.path;
-  options.buffer_limit = kChunk;  // the smallest: the queue fills at once
-  options.quiet = true;
-  wiretape::Bridge bridge(options);
+  wiretape::Bridge bridge(smallest_queue_options(device, wiretape::BridgeClientSide::pty));
   bridge.start();
   const int terminal = ::open(bridge.pty_path().c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC);
   ASSERT_GE(terminal, 0);
   make_raw(terminal);
   const std::string payload = numbered_bytes(512 * 1024);
-  std::thread feeder([&] { device.write_master(payload); });
-  const std::string received = wiretape::test::read_count(terminal, payload.size());
-  feeder.join();
+  const std::string received = device_bytes_at(device, terminal, payload);
   EXPECT_EQ(received.size(), payload.size());
   EXPECT_TRUE(received == payload) << "the terminal's bytes differ from the device's";
   EXPECT_GT(short_writes.load(), 100);
   ::close(terminal);
-  bridge.stop();
-  ASSERT_TRUE(bridge.wait(std::chrono::seconds(10)));
-  EXPECT_TRUE(bridge.result().ok()) << bridge.result().message;
+  expect_clean_stop(bridge);
 }
 
 TEST(BridgeBatching, ShortAndRefusedWritesToTheDeviceLoseNoClientByte) {
@@ -233,12 +258,7 @@ TEST(BridgeBatching, ShortAndRefusedWritesToTheDeviceLoseNoClientByte) {
   make_terminal_writes_short(seam, short_writes);
   wiretape::test::PtyPair device;
   make_raw(device.terminal);
-  wiretape::BridgeOptions options;
-  options.device = "type=serial,device=" + device.path;
-  options.client_side = wiretape::BridgeClientSide::tcp;
-  options.buffer_limit = kChunk;
-  options.quiet = true;
-  wiretape::Bridge bridge(options);
+  wiretape::Bridge bridge(smallest_queue_options(device, wiretape::BridgeClientSide::tcp));
   bridge.start();
   const int client = wiretape::test::connect_tcp(bridge.listen_address());
   ASSERT_GE(client, 0);
@@ -257,42 +277,28 @@ TEST(BridgeBatching, ShortAndRefusedWritesToTheDeviceLoseNoClientByte) {
   EXPECT_TRUE(received == payload) << "the device's bytes differ from the client's";
   EXPECT_GT(short_writes.load(), 100);
   ::close(client);
-  bridge.stop();
-  ASSERT_TRUE(bridge.wait(std::chrono::seconds(10)));
-  EXPECT_TRUE(bridge.result().ok()) << bridge.result().message;
+  expect_clean_stop(bridge);
 }
 
 TEST(BridgeBatching, ShortAndRefusedSendsToAClientLoseNoDeviceByte) {
   std::atomic<int> short_sends{0};
   sys::ScopedOverride seam;
   seam->send = [&short_sends](int fd, const void* data, size_t size, int flags) -> ssize_t {
-    if (++short_sends % 3 == 0) {
-      errno = EAGAIN;
-      return -1;
-    }
-    return sys::real().send(fd, data, std::min<size_t>(size, 700), flags);
+    return short_or_refused(short_sends, size,
+                            [&](std::size_t n) { return sys::real().send(fd, data, n, flags); });
   };
   wiretape::test::PtyPair device;
   make_raw(device.terminal);
-  wiretape::BridgeOptions options;
-  options.device = "type=serial,device=" + device.path;
-  options.client_side = wiretape::BridgeClientSide::tcp;
-  options.buffer_limit = kChunk;
-  options.quiet = true;
-  wiretape::Bridge bridge(options);
+  wiretape::Bridge bridge(smallest_queue_options(device, wiretape::BridgeClientSide::tcp));
   bridge.start();
   const int client = wiretape::test::connect_tcp(bridge.listen_address());
   ASSERT_GE(client, 0);
   const std::string payload = numbered_bytes(512 * 1024);
-  std::thread feeder([&] { device.write_master(payload); });
-  const std::string received = wiretape::test::read_count(client, payload.size());
-  feeder.join();
+  const std::string received = device_bytes_at(device, client, payload);
   EXPECT_EQ(received.size(), payload.size());
   EXPECT_TRUE(received == payload) << "the client's bytes differ from the device's";
   ::close(client);
-  bridge.stop();
-  ASSERT_TRUE(bridge.wait(std::chrono::seconds(10)));
-  EXPECT_TRUE(bridge.result().ok()) << bridge.result().message;
+  expect_clean_stop(bridge);
 }
 
 // The device is read once per wake-up: reads that come back short or with
@@ -302,33 +308,21 @@ TEST(BridgeBatching, ShortAndEmptyReadsOfTheDeviceLoseNoByte) {
   sys::ScopedOverride seam;
   seam->read = [&odd_reads](int fd, void* buffer, size_t size) -> ssize_t {
     if (size <= 64 || !::isatty(fd)) return sys::real().read(fd, buffer, size);
-    if (++odd_reads % 3 == 0) {
-      errno = EAGAIN;
-      return -1;
-    }
-    return sys::real().read(fd, buffer, std::min<size_t>(size, 700));
+    return short_or_refused(odd_reads, size,
+                            [&](std::size_t n) { return sys::real().read(fd, buffer, n); });
   };
   wiretape::test::PtyPair device;
   make_raw(device.terminal);
-  wiretape::BridgeOptions options;
-  options.device = "type=serial,device=" + device.path;
-  options.client_side = wiretape::BridgeClientSide::tcp;
-  options.buffer_limit = kChunk;
-  options.quiet = true;
-  wiretape::Bridge bridge(options);
+  wiretape::Bridge bridge(smallest_queue_options(device, wiretape::BridgeClientSide::tcp));
   bridge.start();
   const int client = wiretape::test::connect_tcp(bridge.listen_address());
   ASSERT_GE(client, 0);
   const std::string payload = numbered_bytes(512 * 1024);
-  std::thread feeder([&] { device.write_master(payload); });
-  const std::string received = wiretape::test::read_count(client, payload.size());
-  feeder.join();
+  const std::string received = device_bytes_at(device, client, payload);
   EXPECT_EQ(received.size(), payload.size());
   EXPECT_TRUE(received == payload) << "the client's bytes differ from the device's";
   EXPECT_GT(odd_reads.load(), 100);
   ::close(client);
-  bridge.stop();
-  ASSERT_TRUE(bridge.wait(std::chrono::seconds(10)));
-  EXPECT_TRUE(bridge.result().ok()) << bridge.result().message;
+  expect_clean_stop(bridge);
   EXPECT_EQ(bridge.result().stats.bytes_from_device, payload.size());
 }
