@@ -111,7 +111,8 @@ class _CommandChannel:
     name: str
     path: str
     link: Optional[str]
-    line_channel: Any  # redirect.LineChannelPath
+    device: Optional[str]  # the endpoint's --device NAME=OPTS (recording)
+    line_channel: Any = None  # redirect.LineChannelPath
     identity: Optional[Dict[str, str]] = None
     handle: Any = None  # bridge.BridgeHandle
 
@@ -143,7 +144,7 @@ def _command_channels(endpoints, path_of: Callable[[Any], Optional[str]],
                              "redirected from the same path: give each channel its own "
                              f"--as {endpoint.name}=PATH")
         seen[path] = endpoint.name
-        channels.append(_CommandChannel(endpoint.name, path, endpoint.pty, None))
+        channels.append(_CommandChannel(endpoint.name, path, endpoint.pty, endpoint.device))
     for channel in channels:
         channel.line_channel = LineChannelPath()
     return channels
@@ -169,8 +170,7 @@ def record_channels_with_command(recorder, args, endpoints, out: Output) -> int:
     try:
         for channel in channels:
             channel.handle = bridge.record(
-                next(e.device for e in endpoints if e.name == channel.name) or "",
-                args.output, recorder=recorder, channel=channel.name,
+                channel.device or "", args.output, recorder=recorder, channel=channel.name,
                 pty=channel.link if channel.link is not None else True,
                 duration=args.duration, quiet=True, pty_mode=args.pty_mode,
                 pty_group=args.pty_group, line_channel=channel.line_channel.path)
@@ -305,9 +305,7 @@ def _run_bridges_with_command(channels: List[_CommandChannel], out: Output, what
     sanitizer = command.sanitizer_report()
     command.close()
     for channel in unused:
-        out.note(f"wiretape {what}: {command.name} never opened {channel.path} (the shim "
-                 "reaches dynamically linked programs; a static one is reached as root, "
-                 "through a bind mount, only where the path exists)")
+        _note_never_opened(out, what, command.name, channel.path)
     never_opened = None
     if unused and must_use_path and not ended_by_us:
         never_opened = (f"{command.name} never opened {unused[0].path}: nothing was "
@@ -414,15 +412,19 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
     sanitizer = command.sanitizer_report()
     command.close()
     if not used:
-        out.note(f"wiretape {what}: {command.name} never opened {device_path} (the shim reaches "
-                 "dynamically linked programs; a static one is reached as root, through a "
-                 "bind mount, only where the path exists)")
+        _note_never_opened(out, what, command.name, device_path)
     never_opened = None
     if not used and must_use_path and not ended_by_us:
         never_opened = f"{command.name} never opened {device_path}: nothing was recorded from it"
     return _outcome_with_command(
         out, what, command.name, status, sanitizer, ended_by_us, never_opened,
         lambda: run_bridge(handle, out, what, lambda: None, must_serve=must_serve, relay=relay))
+
+
+def _note_never_opened(out: Output, what: str, command_name: str, path: str) -> None:
+    out.note(f"wiretape {what}: {command_name} never opened {path} (the shim reaches "
+             "dynamically linked programs; a static one is reached as root, through a "
+             "bind mount, only where the path exists)")
 
 
 def _outcome_with_command(out: Output, what: str, command_name: str, status: int,
