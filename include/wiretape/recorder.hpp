@@ -30,6 +30,11 @@ class RecordingChannel {
   // Appends a record of this channel. Throws PortError when the file cannot
   // be written or was closed (Recorder::close()).
   void write(RecordKind kind, std::uint64_t t_ns, std::string_view data);
+  // Appends a record stamped with the recorder's clock as it enters the
+  // file. The records of every channel written this way are in time order
+  // across channels: two threads cannot stamp in one order and append in
+  // the other. Throws as write().
+  void write_now(RecordKind kind, std::string_view data);
   // The recorder's clock: ns since its first channel was opened.
   std::uint64_t now_ns() const;
   std::uint16_t id() const { return id_; }

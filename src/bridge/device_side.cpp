@@ -62,7 +62,11 @@ void DeviceSide::open(bool first, const char* why) {
   EventMembers event{{event_field::description, description_}};
   if (why) event.emplace_back(why, true);
   // Time zero is the device's first open.
-  record_at(RecordKind::open, first ? 0 : now_ns(), event_payload(RecordKind::open, event));
+  if (first) {
+    record_at(RecordKind::open, 0, event_payload(RecordKind::open, event));
+  } else {
+    record(RecordKind::open, event_payload(RecordKind::open, event));
+  }
 }
 
 void DeviceSide::open_session_file() {
@@ -216,10 +220,27 @@ std::uint64_t DeviceSide::now_ns() const {
       std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - t0_).count());
 }
 
+void DeviceSide::record(RecordKind kind, std::string_view data) {
+  if (recording_ && !owns_file_) {
+    append_record(kind, std::nullopt, data);
+  } else {
+    append_record(kind, now_ns(), data);
+  }
+}
+
 void DeviceSide::record_at(RecordKind kind, std::uint64_t t_ns, std::string_view data) {
+  append_record(kind, t_ns, data);
+}
+
+void DeviceSide::append_record(RecordKind kind, std::optional<std::uint64_t> t_ns,
+                               std::string_view data) {
   if (!recording_ || recording_failed_) return;
   try {
-    recording_->write(kind, t_ns, data);
+    if (t_ns) {
+      recording_->write(kind, *t_ns, data);
+    } else {
+      recording_->write_now(kind, data);
+    }
   } catch (const PortError& error) {
     // The recorder was closed under the bridge: the session has ended.
     if (recording_->file_closed() && !owns_file_) return;

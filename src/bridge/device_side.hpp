@@ -75,7 +75,9 @@ class DeviceSide {
   // limit) is reported once, recording stops there and forwarding goes on;
   // the file keeps the whole records before the failure, and shut_down()
   // turns the failure into the bridge's result.
-  void record(RecordKind kind, std::string_view data) { record_at(kind, now_ns(), data); }
+  // A recorder's channel is stamped as the record enters the file, so that
+  // the channels of several bridges are in time order across channels.
+  void record(RecordKind kind, std::string_view data);
   void record_at(RecordKind kind, std::uint64_t t_ns, std::string_view data);
   // A client arriving and leaving, as every endpoint reports it. A
   // controlling client's arrival begins a client session of a replayed
@@ -130,6 +132,9 @@ class DeviceSide {
   bool modem_inputs_changed();
 
  private:
+  // Appends at `t_ns`, or stamped by the recorder as it enters the file.
+  void append_record(RecordKind kind, std::optional<std::uint64_t> t_ns, std::string_view data);
+
   const BridgeOptions& options_;
   Status& status_;
   std::unique_ptr<Port> device_;

@@ -64,6 +64,11 @@ void RecordingChannel::write(RecordKind kind, std::uint64_t t_ns, std::string_vi
   file_->writer.write(kind, t_ns, data, id_);
 }
 
+void RecordingChannel::write_now(RecordKind kind, std::string_view data) {
+  std::lock_guard<std::mutex> lock(file_->stamp_mutex);
+  file_->writer.write(kind, file_->now_ns(), data, id_);
+}
+
 std::uint64_t RecordingChannel::now_ns() const { return file_->now_ns(); }
 const std::string& RecordingChannel::path() const { return file_->writer.path(); }
 std::uint64_t RecordingChannel::records_written() const {

@@ -30,6 +30,9 @@ struct RecorderFile {
   std::mutex names_mutex;
   std::set<std::string> names;
 
+  // Held from stamping a record to appending it (write_now).
+  std::mutex stamp_mutex;
+
   // Guards the writer's header: add_channel() and reading it.
   mutable std::mutex header_mutex;
 

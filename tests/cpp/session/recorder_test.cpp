@@ -328,6 +328,40 @@ TEST(Recorder, AddChannelGivesTheProxyAChannelOnTheSameClock) {
   EXPECT_TRUE(found);
 }
 
+// Several proxies on several threads: a record stamped as it enters the file
+// cannot land behind a later one of another channel (a thread taken off the
+// CPU between reading the clock and appending would do that).
+TEST(Recorder, WriteNowKeepsEveryChannelInTimeOrderAcrossThreads) {
+  TempDir dir;
+  const std::string path = dir.file("threads.wtape");
+  constexpr int kChannels = 4;
+  constexpr int kRecordsEach = 20000;
+  {
+    Recorder recorder(path);
+    std::vector<RecordingChannel> channels;
+    for (int i = 0; i < kChannels; ++i) {
+      channels.push_back(recorder.add_channel(named("c" + std::to_string(i))));
+    }
+    std::vector<std::thread> writers;
+    for (RecordingChannel& channel : channels) {
+      writers.emplace_back([&channel] {
+        for (int n = 0; n < kRecordsEach; ++n) channel.write_now(RecordKind::rx, "x");
+      });
+    }
+    for (std::thread& writer : writers) writer.join();
+    recorder.close();
+  }
+  std::uint64_t last_t = 0;
+  std::vector<int> per_channel(kChannels, 0);
+  for (const Record& record : records_of(path)) {
+    ASSERT_GE(record.t_ns, last_t) << "record of channel " << record.channel;
+    last_t = record.t_ns;
+    ASSERT_LT(record.channel, kChannels);
+    ++per_channel[record.channel];
+  }
+  for (int count : per_channel) EXPECT_EQ(count, kRecordsEach);
+}
+
 TEST(Recorder, ALogPortIsAFileOfOneUnnamedChannel) {
   TempDir dir;
   const std::string path = dir.file("single.wtape");
