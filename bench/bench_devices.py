@@ -151,7 +151,11 @@ def bench_venv(work: Path) -> Path:
     return python
 
 
-def reserial_comparison(work: Path, tool: Path, python: Path, count: int) -> dict:
+def reserial_comparison(work: Path, tool: Path, python: Path, count: int,
+                        rounds: int) -> list[dict]:
+    """`rounds` interleaved pairs of pytest runs (reserial, wiretape, then
+    wiretape, reserial, ...): one run of 10,000 exchanges takes 20-50 ms,
+    where one pair alone moves by half on a shared machine."""
     import json
 
     venv_python = bench_venv(work)
@@ -171,18 +175,25 @@ def reserial_comparison(work: Path, tool: Path, python: Path, count: int) -> dic
     env = dict(os.environ, BENCH_EXCHANGES=str(count), BENCH_OUT=str(out),
                BENCH_SESSION=str(session), PYTHONDONTWRITEBYTECODE="1")
     env.pop("PYTEST_ADDOPTS", None)
-    wall = {}
-    for key in ("reserial", "wiretape"):
-        start = time.perf_counter()
-        proc = subprocess.run([str(venv_python), "-m", "pytest", "-q", "-p", "no:cacheprovider",
-                               "-k", f"test_{key}", str(where / "test_exchanges.py")],
-                              cwd=where, env=env, capture_output=True, text=True, timeout=600)
-        wall[key] = time.perf_counter() - start
-        if proc.returncode != 0:
-            raise Skip(f"{key} replay through pyserial failed: "
-                       + " | ".join(proc.stdout.strip().splitlines()[-3:]))
-    loops = {}
-    for line in out.read_text().splitlines():
-        loops.update(json.loads(line))
-    return {"reserial": loops["reserial_loop"], "wiretape": loops["wiretape_loop"],
-            "reserial_wall": wall["reserial"], "wiretape_wall": wall["wiretape"]}
+    pairs = []
+    for index in range(rounds):
+        order = ("reserial", "wiretape") if index % 2 == 0 else ("wiretape", "reserial")
+        out.unlink(missing_ok=True)
+        wall = {}
+        for key in order:
+            start = time.perf_counter()
+            proc = subprocess.run([str(venv_python), "-m", "pytest", "-q", "-p",
+                                   "no:cacheprovider", "-k", f"test_{key}",
+                                   str(where / "test_exchanges.py")],
+                                  cwd=where, env=env, capture_output=True, text=True,
+                                  timeout=600)
+            wall[key] = time.perf_counter() - start
+            if proc.returncode != 0:
+                raise Skip(f"{key} replay through pyserial failed: "
+                           + " | ".join(proc.stdout.strip().splitlines()[-3:]))
+        loops = {}
+        for line in out.read_text().splitlines():
+            loops.update(json.loads(line))
+        pairs.append({"reserial": loops["reserial_loop"], "wiretape": loops["wiretape_loop"],
+                      "reserial_wall": wall["reserial"], "wiretape_wall": wall["wiretape"]})
+    return pairs
