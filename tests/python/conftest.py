@@ -6,6 +6,7 @@ which the Hokuyo example's tests use too."""
 import os
 import pathlib
 import select
+import signal
 import socket
 import sys
 import time
@@ -18,6 +19,14 @@ import wiretape
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent / "support"))
 
 from devices import DEADLINE_S, wait_until
+
+# The tests play a terminal's Ctrl-C on the commands they start. A suite run
+# as a shell's background job (`make test &`) inherits SIGINT ignored, its
+# children too, and wiretape keeps an ignored SIGINT ignored (as a background
+# job should): Ctrl-C tests would then wait out their deadlines and fail.
+# Handled here, the children start with the default action instead.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 class Endpoint:
