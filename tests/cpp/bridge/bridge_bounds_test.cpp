@@ -215,13 +215,19 @@ wiretape::BridgeOptions smallest_queue_options(const wiretape::test::PtyPair& de
   return options;
 }
 
-// `payload` written at the device's master, as `reader` receives it.
-std::string device_bytes_at(wiretape::test::PtyPair& device, int reader,
-                            const std::string& payload) {
+// What the device sends in the batching tests: several times the queue.
+constexpr std::size_t kDevicePayloadSize = 512 * 1024;
+
+// kDevicePayloadSize numbered bytes written at the device's master arrive at
+// `reader` (the bridge's `reader_name`) whole and in order.
+void expect_device_bytes_arrive_whole(wiretape::test::PtyPair& device, int reader,
+                                      const char* reader_name) {
+  const std::string payload = numbered_bytes(kDevicePayloadSize);
   std::thread feeder([&] { device.write_master(payload); });
-  std::string received = wiretape::test::read_count(reader, payload.size());
+  const std::string received = wiretape::test::read_count(reader, payload.size());
   feeder.join();
-  return received;
+  EXPECT_EQ(received.size(), payload.size());
+  EXPECT_TRUE(received == payload) << "the " << reader_name << "'s bytes differ from the device's";
 }
 
 void expect_clean_stop(wiretape::Bridge& bridge) {
@@ -243,10 +249,7 @@ TEST(BridgeBatching, ShortAndRefusedWritesToTheTerminalLoseNoDeviceByte) {
   const int terminal = ::open(bridge.pty_path().c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC);
   ASSERT_GE(terminal, 0);
   make_raw(terminal);
-  const std::string payload = numbered_bytes(512 * 1024);
-  const std::string received = device_bytes_at(device, terminal, payload);
-  EXPECT_EQ(received.size(), payload.size());
-  EXPECT_TRUE(received == payload) << "the terminal's bytes differ from the device's";
+  expect_device_bytes_arrive_whole(device, terminal, "terminal");
   EXPECT_GT(short_writes.load(), 100);
   ::close(terminal);
   expect_clean_stop(bridge);
@@ -293,10 +296,7 @@ TEST(BridgeBatching, ShortAndRefusedSendsToAClientLoseNoDeviceByte) {
   bridge.start();
   const int client = wiretape::test::connect_tcp(bridge.listen_address());
   ASSERT_GE(client, 0);
-  const std::string payload = numbered_bytes(512 * 1024);
-  const std::string received = device_bytes_at(device, client, payload);
-  EXPECT_EQ(received.size(), payload.size());
-  EXPECT_TRUE(received == payload) << "the client's bytes differ from the device's";
+  expect_device_bytes_arrive_whole(device, client, "client");
   ::close(client);
   expect_clean_stop(bridge);
 }
@@ -317,12 +317,9 @@ TEST(BridgeBatching, ShortAndEmptyReadsOfTheDeviceLoseNoByte) {
   bridge.start();
   const int client = wiretape::test::connect_tcp(bridge.listen_address());
   ASSERT_GE(client, 0);
-  const std::string payload = numbered_bytes(512 * 1024);
-  const std::string received = device_bytes_at(device, client, payload);
-  EXPECT_EQ(received.size(), payload.size());
-  EXPECT_TRUE(received == payload) << "the client's bytes differ from the device's";
+  expect_device_bytes_arrive_whole(device, client, "client");
   EXPECT_GT(odd_reads.load(), 100);
   ::close(client);
   expect_clean_stop(bridge);
-  EXPECT_EQ(bridge.result().stats.bytes_from_device, payload.size());
+  EXPECT_EQ(bridge.result().stats.bytes_from_device, kDevicePayloadSize);
 }
