@@ -17,5 +17,13 @@ bool crc32c_hardware_available();
 // crc32c_hardware_available() is false). wiretape::crc32c picks this when it
 // can.
 std::uint32_t crc32c_hardware(const void* data, std::size_t size, std::uint32_t crc = 0);
+// Whether this CPU can fold long buffers by carry-less multiplication
+// (x86-64 with AVX-512 VPCLMULQDQ).
+bool crc32c_folding_available();
+// CRC32C by folding (buffers of 256 bytes and more; shorter ones and the
+// tail by crc32c_hardware); falls back to crc32c_hardware when
+// crc32c_folding_available() is false. wiretape::crc32c picks this when it
+// can.
+std::uint32_t crc32c_folded(const void* data, std::size_t size, std::uint32_t crc = 0);
 
 }  // namespace wiretape::detail
