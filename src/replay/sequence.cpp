@@ -85,7 +85,11 @@ void SequenceStrategy::fill() {
       case RecordKind::flush_output:
         ++rx_flushes_seen_;
         break;
+      case RecordKind::line_break:
+        rx_line_records_seen_ = true;
+        break;
       case RecordKind::modem_lines: {
+        rx_line_records_seen_ = true;
         // The device's lines are released like rx; the host's are checked
         // by the write cursor.
         const std::string_view payload = view ? view.bytes : std::string_view(record.data);
@@ -685,7 +689,11 @@ std::string SequenceStrategy::unused_report(std::uint64_t queued_rx_bytes,
   }
   // Line changes the recording has after the client's last write, which
   // the client never made (those before a write it made were a mismatch).
-  if (!have_tx_record_) next_tx_record();
+  // The write cursor looks for them up to its next tx record. When the read
+  // cursor reached the end without passing a line record, there is none,
+  // and a session the client never wrote to is not read a second time.
+  const bool no_line_change_ahead = rx_exhausted_ && !rx_line_records_seen_;
+  if (!have_tx_record_ && !no_line_change_ahead) next_tx_record();
   std::string lines_never_made;
   std::size_t line_changes = 0;
   const Record* first_line_change = nullptr;

@@ -97,6 +97,9 @@ class SequenceStrategy final : public ReplayStrategy {
   std::uint64_t rx_tx_datagrams_seen_ = 0;
   std::optional<std::uint64_t> rx_last_tx_t_ns_;
   std::uint64_t rx_flushes_seen_ = 0;
+  // Whether the read cursor passed a modem_lines or line_break record: if
+  // not, and it reached the end, the write cursor has no line change ahead.
+  bool rx_line_records_seen_ = false;
   ModemInputs rx_device_lines_;  // as the read cursor's last line event left them
   ExchangeCursor rx_exchanges_;  // numbers what the read cursor reads
   std::uint64_t client_flushes_ = 0;  // the client made

@@ -291,6 +291,24 @@ TEST(ReplayLines, ALineChangeAfterTheLastWriteNeverMadeIsUnused) {
   }
 }
 
+TEST(ReplayLines, ALineChangeInASessionTheClientNeverWroteToIsUnused) {
+  // No tx at all: the read cursor passes the line records, so the close
+  // still looks for the client's line changes.
+  const std::vector<Record> records = {
+      {0, RecordKind::open, R"({"description":"serial /dev/ttyUSB0"})"},
+      device_lines(0, true, true, false, false), rx(ms(10), "BOOT\n"), dtr(ms(20), false),
+      rx(ms(30), "READY\n"), {ms(40), RecordKind::close, ""}};
+  auto port = replay(records, "timing=none,unused=error");
+  EXPECT_EQ(read_exactly(*port, 11), "BOOT\nREADY\n");
+  try {
+    port->close();
+    FAIL() << "a line change never made was not reported";
+  } catch (const ReplayMismatch& mismatch) {
+    expect_contains(mismatch.what(), "1 recorded line changes of the client were never made "
+                                     "(the first: DTR low at session time 0.020000 s)");
+  }
+}
+
 TEST(ReplayLines, CheckOffChecksNoLines) {
   auto port = replay(reset_session(), "timing=none,check=off,unused=ignore");
   port->set_rts(false);

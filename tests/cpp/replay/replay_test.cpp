@@ -867,6 +867,34 @@ TEST(ReplayHandle, ReadinessPipeGoesThroughTheSystemCallSeam) {
   EXPECT_NE(std::find(closed.begin(), closed.end(), made[1]), closed.end());
 }
 
+// A session the client only read (no tx, no line records) is read once:
+// what the close checks for unused data the read cursor already saw.
+TEST(ReplayUnused, ClosingAReadOnlySessionDoesNotReadTheFileAgain) {
+  TempDir dir;
+  std::vector<Record> records;
+  const std::string chunk(4096, 'r');
+  constexpr int kRecords = 512;  // 2 MiB: sixteen of the reader's buffers
+  for (int i = 0; i < kRecords; ++i) records.push_back(rx(ms(i), chunk));
+  const std::string path = write_session(dir, records);
+  auto port = open_port("type=replay,timing=none,unused=error,file=" + path);
+  std::string buffer(65536, '\0');
+  std::size_t total = 0;
+  while (total < kRecords * chunk.size()) {
+    const std::size_t got = port->read(buffer.data(), buffer.size(), 5s);
+    ASSERT_GT(got, 0u) << "the replay stopped after " << total << " bytes";
+    total += got;
+  }
+  detail::sys::ScopedOverride seam;
+  std::size_t bytes_read_at_close = 0;
+  seam->read = [&bytes_read_at_close](int fd, void* out, size_t size) {
+    const ssize_t got = detail::sys::real().read(fd, out, size);
+    if (got > 0) bytes_read_at_close += static_cast<std::size_t>(got);
+    return got;
+  };
+  EXPECT_NO_THROW(port->close());
+  EXPECT_LT(bytes_read_at_close, 65536u);
+}
+
 TEST(ReplayHandle, ReadableInTimingNoneToo) {
   auto port = replay(hello_session());
   EXPECT_TRUE(test::fd_readable(port->native_handle(), 0ms));
