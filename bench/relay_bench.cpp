@@ -14,7 +14,8 @@
 // /proc/PID/task/*/schedstat, while the device sent BYTES to the client),
 // "one_way_p50_us", "one_way_p99_us" (MESSAGES 64-byte messages, one at a
 // time, alternately device to client and client to device, each from its
-// write to the read of its last byte), ...}.
+// write to the read of its last byte; "to_client_p50_us" and
+// "to_device_p50_us" each direction alone), ...}.
 //
 //   wiretape_relay_bench udp DATAGRAMS_PER_S MILLISECONDS WORKDIR -- COMMAND...
 //
@@ -406,19 +407,25 @@ int run_stream(const std::string& kind, std::uint64_t bytes, std::uint64_t messa
   // One-way latency, each message alone in the relay: device to client, then
   // client to device, and so on.
   std::vector<double> latencies_us;
+  std::vector<double> to_client_us;
+  std::vector<double> to_device_us;
   latencies_us.reserve(messages);
   for (std::uint64_t i = 0; i < messages; ++i) {
-    latencies_us.push_back(i % 2 == 0 ? one_way_us(master.get(), client.get(), message)
-                                      : one_way_us(client.get(), master.get(), message));
+    const double us = i % 2 == 0 ? one_way_us(master.get(), client.get(), message)
+                                 : one_way_us(client.get(), master.get(), message);
+    latencies_us.push_back(us);
+    (i % 2 == 0 ? to_client_us : to_device_us).push_back(us);
   }
   client.reset();
   relay.stop();
   ::unlink(link.c_str());
   std::printf("{\"bytes\": %llu, \"seconds\": %.6f, \"bytes_per_s\": %.1f, \"cpu_s\": %.3f, "
-              "\"cpu_s_per_MB\": %.6f, \"messages\": %llu, \"one_way_p50_us\": %.2f, \"one_way_p99_us\": %.2f}\n",
+              "\"cpu_s_per_MB\": %.6f, \"messages\": %llu, \"one_way_p50_us\": %.2f, \"one_way_p99_us\": %.2f, "
+              "\"to_client_p50_us\": %.2f, \"to_device_p50_us\": %.2f}\n",
               static_cast<unsigned long long>(bytes), seconds, static_cast<double>(bytes) / seconds, cpu,
               cpu / (static_cast<double>(bytes) / 1e6), static_cast<unsigned long long>(messages),
-              wb::percentile(latencies_us, 0.5), wb::percentile(latencies_us, 0.99));
+              wb::percentile(latencies_us, 0.5), wb::percentile(latencies_us, 0.99),
+              wb::percentile(to_client_us, 0.5), wb::percentile(to_device_us, 0.5));
   return 0;
 }
 
