@@ -15,7 +15,8 @@
 // "one_way_p50_us", "one_way_p99_us" (MESSAGES 64-byte messages, one at a
 // time, alternately device to client and client to device, each from its
 // write to the read of its last byte; "to_client_p50_us" and
-// "to_device_p50_us" each direction alone), ...}.
+// "to_device_p50_us" each direction alone; "message_cpu_us", the relay's
+// CPU time a message), ...}.
 //
 //   wiretape_relay_bench udp DATAGRAMS_PER_S MILLISECONDS WORKDIR -- COMMAND...
 //
@@ -410,22 +411,26 @@ int run_stream(const std::string& kind, std::uint64_t bytes, std::uint64_t messa
   std::vector<double> to_client_us;
   std::vector<double> to_device_us;
   latencies_us.reserve(messages);
+  const double message_cpu_before = cpu_seconds(relay.pid());
   for (std::uint64_t i = 0; i < messages; ++i) {
     const double us = i % 2 == 0 ? one_way_us(master.get(), client.get(), message)
                                  : one_way_us(client.get(), master.get(), message);
     latencies_us.push_back(us);
     (i % 2 == 0 ? to_client_us : to_device_us).push_back(us);
   }
+  const double message_cpu_us =
+      messages > 0 ? (cpu_seconds(relay.pid()) - message_cpu_before) * 1e6 / static_cast<double>(messages)
+                   : 0.0;
   client.reset();
   relay.stop();
   ::unlink(link.c_str());
   std::printf("{\"bytes\": %llu, \"seconds\": %.6f, \"bytes_per_s\": %.1f, \"cpu_s\": %.3f, "
               "\"cpu_s_per_MB\": %.6f, \"messages\": %llu, \"one_way_p50_us\": %.2f, \"one_way_p99_us\": %.2f, "
-              "\"to_client_p50_us\": %.2f, \"to_device_p50_us\": %.2f}\n",
+              "\"to_client_p50_us\": %.2f, \"to_device_p50_us\": %.2f, \"message_cpu_us\": %.2f}\n",
               static_cast<unsigned long long>(bytes), seconds, static_cast<double>(bytes) / seconds, cpu,
               cpu / (static_cast<double>(bytes) / 1e6), static_cast<unsigned long long>(messages),
               wb::percentile(latencies_us, 0.5), wb::percentile(latencies_us, 0.99),
-              wb::percentile(to_client_us, 0.5), wb::percentile(to_device_us, 0.5));
+              wb::percentile(to_client_us, 0.5), wb::percentile(to_device_us, 0.5), message_cpu_us);
   return 0;
 }
 

@@ -361,13 +361,14 @@ class Bench:
         self.results[f"{prefix}_vs_socat_latency_p99_ratio"] = round(statistics.median(latency), 3)
         best = {kind: {key: statistics.median(f[key] for f in runs)
                          for key in ("bytes_per_s", "cpu_s_per_MB", "one_way_p50_us",
-                                     "one_way_p99_us", "to_client_p50_us", "to_device_p50_us")}
+                                     "one_way_p99_us", "to_client_p50_us", "to_device_p50_us",
+                                     "message_cpu_us")}
                   for kind, runs in figures.items()}
         self.notes[prefix] = "; ".join(
             f"{kind} {m['cpu_s_per_MB'] * 1e3:.2f} ms CPU/MB at {m['bytes_per_s'] / 1e6:.0f} MB/s, "
             f"one-way p50 {m['one_way_p50_us']:.0f} µs p99 {m['one_way_p99_us']:.0f} µs "
             f"(p50 to the client {m['to_client_p50_us']:.0f}, to the device "
-            f"{m['to_device_p50_us']:.0f})"
+            f"{m['to_device_p50_us']:.0f}; {m['message_cpu_us']:.1f} µs of CPU a message)"
             for kind, m in best.items()) + (
             f" (medians of {len(cpu)} pairs; CPU ratio {self.spread(cpu)}, "
             f"p99 ratio {self.spread(latency)})")
