@@ -175,8 +175,8 @@ WIRETAPE_CRC32C_TARGET std::uint32_t crc32c_instructions(const void* data, std::
 #if defined(WIRETAPE_CRC32C_HARDWARE) && defined(__x86_64__)
 #define WIRETAPE_CRC32C_FOLDING 1
 // Long buffers by carry-less multiplication (VPCLMULQDQ on 512-bit
-// registers), four times the crc32 instruction's speed on CPUs that have it:
-// the replay checks every byte it serves, so this is most of its own time.
+// registers), about twice the three crc32 streams' speed on CPUs that have
+// it: the replay checks every byte it serves (docs/benchmarks.md).
 //
 // A 16-byte block A·x^64 + B (A its first eight bytes) that has d more bytes
 // after it contributes A·x^(8d+64) + B·x^(8d) to the CRC, and each power is
