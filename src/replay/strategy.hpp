@@ -29,7 +29,7 @@ struct RxItem {
   RecordKind kind = RecordKind::rx;  // rx, close or device_lost
   std::string data;
   // The payload instead of data, when the source gave one: a view into the
-  // session reader's 64 KiB read buffer, which it pins. The look-ahead's
+  // session reader's 128 KiB read buffer, which it pins. The look-ahead's
   // record limit keeps that bounded (at most one buffer per queued record;
   // in practice the look-ahead's bytes plus one buffer).
   PayloadView view;
@@ -90,10 +90,14 @@ class ReleasedRx {
 };
 
 // Look-ahead bounds of the sequence strategy's read cursor, which also bound
-// the payload buffers kept for reuse: enough that a large read is served in
-// one go, small enough that memory does not depend on the session's size.
+// the payload buffers kept for reuse, so memory does not depend on the
+// session's size. A read larger than the look-ahead is still served in one
+// go (ReplayEngine::read refills as it copies). The bytes are kept few so
+// that the reader's buffers, refilled at half, are still in the CPU's cache
+// when the client's read copies out of them: at 1 MiB (nine 128 KiB
+// buffers in turn) a timing=none replay ran 20 % slower (docs/benchmarks.md).
 inline constexpr std::size_t kLookaheadRecords = 256;
-inline constexpr std::size_t kLookaheadBytes = 1 << 20;
+inline constexpr std::size_t kLookaheadBytes = 128 << 10;
 
 // Raises ReplayMismatch with the report of DESIGN.md section 7; keeps the
 // last bytes the client wrote for its "before" line.
