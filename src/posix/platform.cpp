@@ -3,6 +3,7 @@
 #include "posix/platform.hpp"
 
 #include <cerrno>
+#include <climits>
 #include <cstdint>
 #include <cstdlib>
 #include <mutex>
@@ -19,6 +20,7 @@
 
 namespace wiretape::detail::sys {
 int ioctl_through_seam(int fd, unsigned long request, void* argument);
+ssize_t read_through_seam(int fd, void* out, size_t size);
 }
 #else
 #include <stdlib.h>
@@ -46,6 +48,15 @@ int get_baud(int fd, unsigned& baud) {
   struct termios2 settings {};
   if (sys::ioctl_through_seam(fd, TCGETS2, &settings) != 0) return errno;
   baud = settings.c_ospeed;
+  return 0;
+}
+
+int get_line_flags(int fd, LineFlags& out) {
+  struct termios2 settings {};
+  if (sys::ioctl_through_seam(fd, TCGETS2, &settings) != 0) return errno;
+  out.cflag = settings.c_cflag;
+  out.iflag = settings.c_iflag;
+  out.baud = settings.c_ospeed;
   return 0;
 }
 
@@ -90,7 +101,7 @@ std::vector<TerminalEvent> read_opens_and_closes(int watch_fd) {
   std::vector<TerminalEvent> events;
   alignas(inotify_event) char buffer[4096];
   for (;;) {
-    const ssize_t n = ::read(watch_fd, buffer, sizeof buffer);
+    const ssize_t n = sys::read_through_seam(watch_fd, buffer, sizeof buffer);
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) return events;
     for (ssize_t at = 0; at + static_cast<ssize_t>(sizeof(inotify_event)) <= n;) {
@@ -102,6 +113,12 @@ std::vector<TerminalEvent> read_opens_and_closes(int watch_fd) {
       if (event->mask & IN_CLOSE) events.push_back(TerminalEvent::closed);
       at += static_cast<ssize_t>(sizeof(inotify_event) + event->len);
     }
+    // A read takes every queued event that fits: room left for the largest
+    // means the queue was empty, and another read would only find EAGAIN
+    // (a system call per message the client writes).
+    if (static_cast<std::size_t>(n) + sizeof(inotify_event) + NAME_MAX + 1 <= sizeof buffer) {
+      return events;
+    }
   }
 }
 
@@ -109,6 +126,7 @@ std::vector<TerminalEvent> read_opens_and_closes(int watch_fd) {
 
 int set_custom_baud(int, unsigned) { return ENOTSUP; }
 int get_baud(int, unsigned&) { return ENOTSUP; }
+int get_line_flags(int, LineFlags&) { return ENOTSUP; }
 
 std::string terminal_path(int master_fd) {
   // ptsname() returns a static buffer.

@@ -17,6 +17,17 @@ int set_custom_baud(int fd, unsigned baud);
 // Returns 0 and sets `baud`, or an errno value (ENOTSUP: ask cfgetospeed).
 int get_baud(int fd, unsigned& baud);
 
+// The flags of terminal `fd` that say its line (c_cflag, c_iflag) and its
+// output rate, custom rates included, in one call (Linux: TCGETS2, where
+// tcgetattr() and get_baud() would make two). Returns 0, or an errno value
+// (ENOTSUP: use tcgetattr()).
+struct LineFlags {
+  unsigned cflag = 0;
+  unsigned iflag = 0;
+  unsigned baud = 0;
+};
+int get_line_flags(int fd, LineFlags& out);
+
 // The path of the terminal side of pseudo-terminal master `master_fd`, or ""
 // with errno set.
 std::string terminal_path(int master_fd);

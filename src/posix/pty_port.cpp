@@ -37,8 +37,18 @@ class PtyPort final : public FdPort {
 
   // What the client set on the terminal. Linux forces 8 data bits and no
   // parity on a pty, so only the rate and stop bits carry information there.
+  // Read before every read of the client's bytes (PtyEndpoint): one system
+  // call where the platform allows.
   SerialSettings serial_settings() const override {
     termios settings{};
+    platform::LineFlags flags;
+    if (platform::get_line_flags(terminal_.get(), flags) == 0) {
+      settings.c_cflag = static_cast<tcflag_t>(flags.cflag);
+      settings.c_iflag = static_cast<tcflag_t>(flags.iflag);
+      return line_settings_of(settings, flags.baud != 0
+                                            ? flags.baud
+                                            : baud_of_speed(cfgetospeed(&settings)));
+    }
     if (sys::tcgetattr(terminal_.get(), &settings) != 0) {
       raise_os_error(errno, description(), "reading the terminal settings");
     }

@@ -122,6 +122,8 @@ int ioctl_through_seam(int fd, unsigned long request, void* argument) {
   return current().ioctl(fd, request, argument);
 }
 
+ssize_t read_through_seam(int fd, void* out, size_t size) { return current().read(fd, out, size); }
+
 void close_quietly(int fd) {
   const int saved = errno;
   close(fd);

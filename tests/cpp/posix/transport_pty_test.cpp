@@ -1,4 +1,6 @@
 #include <fcntl.h>
+#include <poll.h>
+#include <sys/ioctl.h>
 #include <sys/stat.h>
 #include <termios.h>
 #include <unistd.h>
@@ -9,6 +11,7 @@
 #include <string>
 #include <thread>
 
+#include "posix/syscalls.hpp"
 #include "support/port_test_support.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/port.hpp"
@@ -130,6 +133,79 @@ TEST(Pty, SerialSettingsReportWhatTheClientProgrammed) {
   seen = port->serial_settings();
   EXPECT_EQ(seen.baud, 19200u);
   EXPECT_EQ(seen.stop_bits, 1);
+  ::close(client);
+}
+
+// The bridge reads the client's settings before every read of its bytes:
+// one system call each time (TCGETS2 on Linux), not tcgetattr() and then a
+// second call for a custom rate.
+TEST(Pty, SerialSettingsAreReadInOneSystemCall) {
+  TempDir dir;
+  const std::string link = dir.path + "/device";
+  auto port = open_port("type=pty,link=" + link);
+  const int client = open_client(link);
+  termios settings{};
+  ASSERT_EQ(::tcgetattr(client, &settings), 0);
+  ::cfmakeraw(&settings);
+  ::cfsetispeed(&settings, B57600);
+  ::cfsetospeed(&settings, B57600);
+  settings.c_cflag |= CSTOPB;
+  ASSERT_EQ(::tcsetattr(client, TCSANOW, &settings), 0);
+
+  namespace sys = wiretape::detail::sys;
+  int ioctls = 0;
+  int tcgetattrs = 0;
+  wiretape::SerialSettings seen;
+  {
+    sys::ScopedOverride seam;
+    seam->ioctl = [&](int fd, unsigned long request, void* argument) {
+      ++ioctls;
+      return sys::real().ioctl(fd, request, argument);
+    };
+    seam->tcgetattr = [&](int fd, termios* out) {
+      ++tcgetattrs;
+      return sys::real().tcgetattr(fd, out);
+    };
+    seen = port->serial_settings();
+  }
+#if defined(__linux__)
+  EXPECT_EQ(ioctls + tcgetattrs, 1);
+#endif
+  EXPECT_EQ(seen.baud, 57600u);
+  EXPECT_EQ(seen.stop_bits, 2);
+  ::close(client);
+}
+
+// A read with timeout 0 that finds nothing answers at once: one read(), no
+// poll() after it (the bridge makes such a read every time it empties a
+// terminal).
+TEST(Pty, AReadWithTimeoutZeroThatFindsNothingMakesNoPoll) {
+  TempDir dir;
+  const std::string link = dir.path + "/device";
+  auto port = open_port("type=pty,timeout=0,link=" + link);
+  const int client = open_client(link);
+  namespace sys = wiretape::detail::sys;
+  int polls = 0;
+  int reads = 0;
+  char byte;
+  {
+    sys::ScopedOverride seam;
+    seam->poll = [&](pollfd* fds, nfds_t count, int timeout_ms) {
+      ++polls;
+      return sys::real().poll(fds, count, timeout_ms);
+    };
+    seam->read = [&](int fd, void* out, size_t size) {
+      ++reads;
+      return sys::real().read(fd, out, size);
+    };
+    EXPECT_EQ(port->read(&byte, 1), 0u);
+  }
+  EXPECT_EQ(polls, 0);
+  EXPECT_EQ(reads, 1);
+  // A timeout still waits (a poll), and data still arrives.
+  write_fd(client, "x");
+  EXPECT_EQ(port->read(&byte, 1, 5s), 1u);
+  EXPECT_EQ(byte, 'x');
   ::close(client);
 }
 
