@@ -46,6 +46,22 @@ std::string read_fd(int fd, std::size_t count) {
   return out;
 }
 
+// What a client programs on its terminal: raw, `speed` both ways, one or
+// two stop bits.
+void program_client(int client, speed_t speed, bool two_stop_bits) {
+  termios settings{};
+  ASSERT_EQ(::tcgetattr(client, &settings), 0);
+  ::cfmakeraw(&settings);
+  ::cfsetispeed(&settings, speed);
+  ::cfsetospeed(&settings, speed);
+  if (two_stop_bits) {
+    settings.c_cflag |= CSTOPB;
+  } else {
+    settings.c_cflag &= ~static_cast<tcflag_t>(CSTOPB);
+  }
+  ASSERT_EQ(::tcsetattr(client, TCSANOW, &settings), 0);
+}
+
 }  // namespace
 
 TEST(Pty, DataFlowsBothWaysThroughTheLink) {
@@ -115,21 +131,12 @@ TEST(Pty, SerialSettingsReportWhatTheClientProgrammed) {
   const std::string link = dir.path + "/device";
   auto port = open_port("type=pty,link=" + link);
   const int client = open_client(link);
-  termios settings{};
-  ASSERT_EQ(::tcgetattr(client, &settings), 0);
-  ::cfmakeraw(&settings);
-  ::cfsetispeed(&settings, B115200);
-  ::cfsetospeed(&settings, B115200);
-  settings.c_cflag |= CSTOPB;
-  ASSERT_EQ(::tcsetattr(client, TCSANOW, &settings), 0);
+  program_client(client, B115200, true);
   auto seen = port->serial_settings();
   EXPECT_EQ(seen.baud, 115200u);
   EXPECT_EQ(seen.stop_bits, 2);
 
-  ::cfsetispeed(&settings, B19200);
-  ::cfsetospeed(&settings, B19200);
-  settings.c_cflag &= ~static_cast<tcflag_t>(CSTOPB);
-  ASSERT_EQ(::tcsetattr(client, TCSANOW, &settings), 0);
+  program_client(client, B19200, false);
   seen = port->serial_settings();
   EXPECT_EQ(seen.baud, 19200u);
   EXPECT_EQ(seen.stop_bits, 1);
@@ -144,13 +151,7 @@ TEST(Pty, SerialSettingsAreReadInOneSystemCall) {
   const std::string link = dir.path + "/device";
   auto port = open_port("type=pty,link=" + link);
   const int client = open_client(link);
-  termios settings{};
-  ASSERT_EQ(::tcgetattr(client, &settings), 0);
-  ::cfmakeraw(&settings);
-  ::cfsetispeed(&settings, B57600);
-  ::cfsetospeed(&settings, B57600);
-  settings.c_cflag |= CSTOPB;
-  ASSERT_EQ(::tcsetattr(client, TCSANOW, &settings), 0);
+  program_client(client, B57600, true);
 
   namespace sys = wiretape::detail::sys;
   int ioctls = 0;
