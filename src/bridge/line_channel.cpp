@@ -41,21 +41,21 @@ LineChannel::LineChannel(const std::string& path, DeviceSide& device, Status& st
                                           std::to_string(sizeof address.sun_path - 1) +
                                           " bytes");
   }
-  listener_ = sys::UniqueFd(::socket(AF_UNIX, SOCK_SEQPACKET | SOCK_NONBLOCK | SOCK_CLOEXEC, 0));
+  listener_ = sys::UniqueFd(sys::socket(AF_UNIX, SOCK_SEQPACKET | SOCK_NONBLOCK | SOCK_CLOEXEC, 0));
   if (!listener_) throw PortError(errno, "line channel " + path + ": socket");
   address.sun_family = AF_UNIX;
   std::memcpy(address.sun_path, path.data(), path.size());
-  if (::bind(listener_.get(), reinterpret_cast<sockaddr*>(&address), sizeof address) != 0) {
+  if (sys::bind(listener_.get(), reinterpret_cast<sockaddr*>(&address), sizeof address) != 0) {
     throw PortError(errno, "line channel " + path + ": bind");
   }
-  if (::listen(listener_.get(), 16) != 0) {
+  if (sys::listen(listener_.get(), 16) != 0) {
     const int error = errno;
-    ::unlink(path_.c_str());
+    sys::unlink(path_.c_str());
     throw PortError(error, "line channel " + path + ": listen");
   }
 }
 
-LineChannel::~LineChannel() { ::unlink(path_.c_str()); }
+LineChannel::~LineChannel() { sys::unlink(path_.c_str()); }
 
 void LineChannel::add_to_poll(PollSet& poll_set) {
   listener_slot_ = poll_set.add(listener_.get(), true, false);
@@ -79,7 +79,7 @@ void LineChannel::handle_events(const PollSet& poll_set, std::uint64_t relayed) 
 
 void LineChannel::accept_all() {
   for (;;) {
-    sys::UniqueFd fd(::accept4(listener_.get(), nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC));
+    sys::UniqueFd fd(sys::accept4(listener_.get(), nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC));
     if (!fd) return;
     Connection connection;
     connection.fd = std::move(fd);
@@ -92,7 +92,7 @@ void LineChannel::accept_all() {
 bool LineChannel::receive(Connection& connection, std::uint64_t relayed) {
   for (;;) {
     wt_line_request request{};
-    const ssize_t got = ::recv(connection.fd.get(), &request, sizeof request, 0);
+    const ssize_t got = sys::recv(connection.fd.get(), &request, sizeof request, 0);
     if (got == 0) return false;
     if (got < 0) return errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR;
     if (got != static_cast<ssize_t>(sizeof request) || request.magic != WT_LINE_MAGIC) {
@@ -179,7 +179,7 @@ bool LineChannel::apply(const wt_line_request& request, wt_line_reply& reply) {
 void LineChannel::answer(Connection& connection, const wt_line_reply& reply) {
   // The shim waits for it: a full socket (it cannot be, one request at a
   // time) would only drop the answer and leave the shim to time out.
-  (void)::send(connection.fd.get(), &reply, sizeof reply, MSG_NOSIGNAL);
+  (void)sys::send(connection.fd.get(), &reply, sizeof reply, MSG_NOSIGNAL);
 }
 
 wt_line_reply LineChannel::reply_of(std::int32_t error) {

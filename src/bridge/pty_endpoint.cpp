@@ -196,7 +196,7 @@ class PtyEndpoint final : public ClientEndpoint {
   // Client bytes in the terminal, not yet read by the bridge.
   std::size_t client_bytes_in_terminal() const {
     int waiting = 0;
-    if (::ioctl(pty_->native_handle(), FIONREAD, &waiting) != 0 || waiting < 0) return 0;
+    if (sys::ioctl(pty_->native_handle(), FIONREAD, &waiting) != 0 || waiting < 0) return 0;
     return static_cast<std::size_t>(waiting);
   }
 
@@ -404,7 +404,7 @@ class PtyEndpoint final : public ClientEndpoint {
                         refused.what());
       }
     }
-    set_terminal_access(*pty_, mode, ::getegid());
+    set_terminal_access(*pty_, mode, sys::getegid());
   }
 
   // Whether the client's last close (at `closed` in `events`) was followed

@@ -94,10 +94,24 @@ Table make_real() {
   t.stat = [](const char* path, struct stat* info) { return ::stat(path, info); };
   t.lstat = [](const char* path, struct stat* info) { return ::lstat(path, info); };
   t.lseek = [](int fd, off_t offset, int whence) { return ::lseek(fd, offset, whence); };
+  t.pwrite = [](int fd, const void* data, size_t size, off_t offset) {
+    return ::pwrite(fd, data, size, offset);
+  };
+  t.fallocate = [](int fd, int mode, off_t offset, off_t length) {
+#ifdef FALLOC_FL_KEEP_SIZE
+    return ::fallocate(fd, mode, offset, length);
+#else
+    (void)fd, (void)mode, (void)offset, (void)length;
+    errno = ENOSYS;
+    return -1;
+#endif
+  };
   t.fsync = [](int fd) { return ::fsync(fd); };
   t.ftruncate = [](int fd, off_t length) { return ::ftruncate(fd, length); };
   t.fchmod = [](int fd, mode_t mode) { return ::fchmod(fd, mode); };
   t.fchown = [](int fd, uid_t owner, gid_t group) { return ::fchown(fd, owner, group); };
+  t.getegid = [] { return ::getegid(); };
+  t.unlink = [](const char* path) { return ::unlink(path); };
   return t;
 }
 

@@ -70,11 +70,17 @@ struct Table {
   // What a path names without following a final symbolic link.
   std::function<int(const char* path, struct stat* info)> lstat;
   std::function<off_t(int fd, off_t offset, int whence)> lseek;
+  std::function<ssize_t(int fd, const void* data, size_t size, off_t offset)> pwrite;
+  // Room reserved ahead of a growing file (ENOSYS where there is no fallocate).
+  std::function<int(int fd, int mode, off_t offset, off_t length)> fallocate;
   std::function<int(int fd)> fsync;
   std::function<int(int fd, off_t length)> ftruncate;
   // Who may open a pseudo-terminal wiretape creates.
   std::function<int(int fd, mode_t mode)> fchmod;
   std::function<int(int fd, uid_t owner, gid_t group)> fchown;
+  std::function<gid_t()> getegid;
+  // A unix socket's name, removed.
+  std::function<int(const char* path)> unlink;
 };
 
 // The real libc calls.
@@ -184,12 +190,20 @@ inline int lstat(const char* path, struct stat* info) { return current().lstat(p
 inline off_t lseek(int fd, off_t offset, int whence) {
   return current().lseek(fd, offset, whence);
 }
+inline ssize_t pwrite(int fd, const void* data, size_t size, off_t offset) {
+  return current().pwrite(fd, data, size, offset);
+}
+inline int fallocate(int fd, int mode, off_t offset, off_t length) {
+  return current().fallocate(fd, mode, offset, length);
+}
 inline int fsync(int fd) { return current().fsync(fd); }
 inline int ftruncate(int fd, off_t length) { return current().ftruncate(fd, length); }
 inline int fchmod(int fd, mode_t mode) { return current().fchmod(fd, mode); }
 inline int fchown(int fd, uid_t owner, gid_t group) {
   return current().fchown(fd, owner, group);
 }
+inline gid_t getegid() { return current().getegid(); }
+inline int unlink(const char* path) { return current().unlink(path); }
 
 // Closes a descriptor once, keeping errno (for clean-up paths).
 void close_quietly(int fd);

@@ -5,11 +5,13 @@
 #include <algorithm>
 #include <map>
 
+#include "posix/syscalls.hpp"
+
 namespace wiretape::detail {
 
 std::shared_ptr<ChannelHub> ChannelHub::of_file(const std::string& path) {
   struct stat status {};
-  if (::stat(path.c_str(), &status) != 0) {
+  if (sys::stat(path.c_str(), &status) != 0) {
     // Unreachable in practice (the replay has just opened it): a hub of its
     // own, shared with nobody.
     return std::shared_ptr<ChannelHub>(new ChannelHub());

@@ -207,7 +207,7 @@ struct SessionWriter::Impl {
     // Small files reserve little: a killed recorder leaves at most the step
     // reserved past its end.
     const std::uint64_t target = end + std::min(reserve_step, end);
-    if (::fallocate(fd, FALLOC_FL_KEEP_SIZE, static_cast<off_t>(reserved),
+    if (sys::fallocate(fd, FALLOC_FL_KEEP_SIZE, static_cast<off_t>(reserved),
                     static_cast<off_t>(target - reserved)) == 0) {
       reserved = target;
     } else {
@@ -397,7 +397,7 @@ std::uint16_t SessionWriter::add_channel(Channel channel) {
   const std::size_t at = detail::file_header_fixed_size;
   std::size_t written = 0;
   while (written < bytes.size() - at) {
-    const ssize_t n = ::pwrite(impl_->fd, bytes.data() + at + written,
+    const ssize_t n = sys::pwrite(impl_->fd, bytes.data() + at + written,
                                bytes.size() - at - written, static_cast<off_t>(at + written));
     if (n < 0 && errno == EINTR) continue;
     if (n <= 0) {

@@ -17,6 +17,8 @@
 #include "wiretape/bridge.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/port.hpp"
+#include "wiretape/recorder.hpp"
+#include "wiretape/session.hpp"
 
 namespace sys = wiretape::detail::sys;
 
@@ -134,4 +136,65 @@ TEST(SyscallSeam, TheBridgeCarriesOnThroughInterruptedPollAndAccept) {
   EXPECT_EQ(bridge.result().stats.clients_accepted, 1u);
   EXPECT_GT(interrupted_polls.load(), 0);
   EXPECT_GT(interrupted_accepts.load(), 0);
+}
+
+// The pty bridge's line channel (the `--as` shim's socket) makes its socket
+// through the seam: a refused socket fails the start, naming the channel's
+// path and the call.
+TEST(SyscallSeam, ALineChannelThatCannotMakeItsSocketFailsTheStartNamingIt) {
+  wiretape::test::TempDir dir;
+  const std::string path = dir.file("lines.sock");
+  sys::ScopedOverride seam;
+  seam->socket = [](int domain, int type, int protocol) {
+    if (domain == AF_UNIX) {
+      errno = EMFILE;
+      return -1;
+    }
+    return sys::real().socket(domain, type, protocol);
+  };
+  wiretape::BridgeOptions options;
+  options.device = "type=loopback";
+  options.line_channel = path;
+  options.quiet = true;
+  wiretape::Bridge bridge(options);
+  try {
+    bridge.start();
+    FAIL() << "the bridge started without its line channel";
+  } catch (const wiretape::PortError& error) {
+    const std::string what = error.what();
+    EXPECT_NE(what.find("line channel " + path), std::string::npos) << what;
+    EXPECT_NE(what.find("socket"), std::string::npos) << what;
+    EXPECT_EQ(error.code().value(), EMFILE);
+  }
+  EXPECT_EQ(bridge.result().outcome, wiretape::BridgeOutcome::failed);
+}
+
+// A recorder's header rewrite (add_channel) writes through the seam: a full
+// disk is a PortError naming the file and the channel, and the channel is
+// not added.
+TEST(SyscallSeam, AHeaderRewriteThatCannotWriteNamesTheFileAndTheChannel) {
+  wiretape::test::TempDir dir;
+  const std::string path = dir.file("channels.wtape");
+  wiretape::Recorder recorder(path, wiretape::SessionHeader::starting_now(),
+                              wiretape::FlushPolicy{}, 4096);
+  {
+    sys::ScopedOverride seam;
+    seam->pwrite = [](int, const void*, size_t, off_t) -> ssize_t {
+      errno = ENOSPC;
+      return -1;
+    };
+    wiretape::Channel channel;
+    channel.name = "gps";
+    try {
+      recorder.add_channel(channel);
+      FAIL() << "the channel was added without its header";
+    } catch (const wiretape::PortError& error) {
+      const std::string what = error.what();
+      EXPECT_NE(what.find(path), std::string::npos) << what;
+      EXPECT_NE(what.find("\"gps\""), std::string::npos) << what;
+      EXPECT_EQ(error.code().value(), ENOSPC);
+    }
+  }
+  EXPECT_TRUE(recorder.header().channels.empty());
+  recorder.close();
 }
