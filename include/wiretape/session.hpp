@@ -14,6 +14,7 @@
 #include <string_view>
 #include <vector>
 
+#include "wiretape/device_identity.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/version.hpp"
 
@@ -56,29 +57,6 @@ struct Record {
 enum class Capture {
   client,  // library recording: rx stamped when the client's read returned
   wire,    // proxy: every byte, stamped on arrival
-};
-
-// A serial device's identity as its machine knew it when it was recorded
-// (DESIGN §20, "Identity"; read from sysfs and the /dev/serial/by-id links):
-// what a driver that looks for its device by USB ids finds. Empty: not known
-// (a device that is not on USB has no ids, a device udev made no by-id link
-// for has no by_id).
-struct DeviceIdentity {
-  std::string kernel_name;  // ttyUSB0, ttyACM0
-  // The kernel's bus of the tty's device: "usb" (CDC ACM), "usb-serial"
-  // (FTDI, CP210x, ...: a converter driver), "pnp", "platform", ...
-  std::string subsystem;
-  std::string vendor_id;   // USB idVendor as sysfs writes it: 4 hex digits, 2341
-  std::string product_id;  // USB idProduct: 0043
-  std::string serial_number;
-  std::string manufacturer;
-  std::string product;
-  std::string interface;  // the USB interface's own name, when it has one
-  std::string location;   // the USB interface's sysfs name: 1-1.2:1.0
-  std::string by_id;      // /dev/serial/by-id/usb-..., when udev made one
-
-  bool operator==(const DeviceIdentity& other) const;
-  bool operator!=(const DeviceIdentity& other) const { return !(*this == other); }
 };
 
 // One port of a session of several ports (format 1.2, DESIGN §19): what a

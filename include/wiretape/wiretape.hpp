@@ -3,6 +3,7 @@
 #pragma once
 
 #include "wiretape/bridge.hpp"
+#include "wiretape/device_identity.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/options.hpp"
 #include "wiretape/port.hpp"

@@ -6,7 +6,7 @@
 #include <optional>
 #include <string>
 
-#include "wiretape/session.hpp"
+#include "wiretape/device_identity.hpp"
 
 namespace wiretape::detail {
 
