@@ -14,8 +14,8 @@
 #include <optional>
 #include <string>
 
+#include "core/fault_hook.hpp"
 #include "ports/ports.hpp"
-#include "replay/replay_port.hpp"
 #include "session/recorder_file.hpp"
 #include "util/json.hpp"
 #include "session/record_kinds.hpp"
@@ -352,7 +352,7 @@ std::unique_ptr<Port> record_port_into(std::unique_ptr<Port> inner, RecordingCha
   auto port = std::make_unique<RecordingPort>(std::move(inner), std::move(channel), target);
   // A recorded faulty replay: each fault is also a `fault` event.
   RecordingPort* recorder = port.get();
-  replay_on_fault(*replayed, [recorder](const FaultEvent& event) {
+  report_faults_to(*replayed, [recorder](const FaultEvent& event) {
     std::fprintf(stderr, "wiretape: fault %s@%s: %s\n", event.kind.c_str(), event.where.c_str(),
                  event.detail.c_str());
     recorder->record_event(RecordKind::fault, json::ObjectWriter()

@@ -14,6 +14,7 @@
 #include <string_view>
 #include <vector>
 
+#include "core/fault_hook.hpp"  // FaultEvent
 #include "session/record_source.hpp"
 #include "wiretape/profile.hpp"
 
@@ -127,12 +128,5 @@ std::string normal_fault_kind(std::string_view kind);
 // splitmix64: small, fast, and the same everywhere.
 std::uint64_t splitmix64(std::uint64_t x);
 
-// One injected fault, as reported on stderr and recorded as a `fault` event.
-struct FaultEvent {
-  std::string kind;
-  std::string where;
-  std::string detail;
-  std::uint64_t exchange = 0;
-};
 
 }  // namespace wiretape::detail

@@ -158,7 +158,7 @@ std::vector<ChannelHub::TxMark> recorded_tx(const std::string& path, std::uint16
   return marks;
 }
 
-class ReplayPort : public Port {
+class ReplayPort : public Port, public FaultSource {
  public:
   ReplayPort(ReplayConfig config, RecordSourceFactory sources)
       : description_(describe(config)),
@@ -279,9 +279,10 @@ class ReplayPort : public Port {
     return afresh;
   }
 
-  // Injected faults go to `reporter` (see replay_on_fault); the engine's
-  // fault stage (fault_stage.hpp) does the rest.
-  void on_fault(std::function<void(const FaultEvent&)> reporter) {
+  // Injected faults go to `reporter` (see report_faults_to in
+  // core/fault_hook.hpp); the engine's fault stage (fault_stage.hpp) does
+  // the rest.
+  void on_fault(FaultReporter reporter) override {
     std::lock_guard<std::mutex> lock(mutex_);
     fault_reporter_ = std::move(reporter);
     engine_->on_fault(fault_reporter_);
@@ -807,13 +808,6 @@ void replay_client_flushed(Port& port) {
 bool replay_recording_greets(const Port& port) {
   const auto* replay = dynamic_cast<const ReplayPort*>(&port);
   return replay != nullptr && replay->recording_greets();
-}
-
-bool replay_on_fault(Port& port, std::function<void(const FaultEvent&)> reporter) {
-  auto* replay = dynamic_cast<ReplayPort*>(&port);
-  if (replay == nullptr) return false;
-  replay->on_fault(std::move(reporter));
-  return true;
 }
 
 bool replay_lost_by_fault(Port& port) {

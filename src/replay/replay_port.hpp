@@ -61,9 +61,8 @@ bool replay_await_client(Port& port);
 // not this client's. False for every other port.
 bool replay_begin_client_session(Port& port);
 
-// Where a replay's injected faults (faults=) are reported, instead of a line
-// on stderr; false if `port` is not a replay.
-bool replay_on_fault(Port& port, std::function<void(const FaultEvent&)> reporter);
+// A replay's injected faults (faults=) reach whoever wraps it through
+// report_faults_to (core/fault_hook.hpp): a replay is a FaultSource.
 // Whether a replay's reads fail because of an injected disconnect or
 // reconnect (not a recorded loss).
 bool replay_lost_by_fault(Port& port);

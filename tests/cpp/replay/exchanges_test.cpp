@@ -228,7 +228,7 @@ std::set<std::uint64_t> replayed_exchanges(const std::string& path, const std::s
   options.set("file", path);
   auto port = open_replay(options);
   std::set<std::uint64_t> fired;
-  replay_on_fault(*port, [&](const FaultEvent& event) { fired.insert(event.exchange); });
+  report_faults_to(*port, [&](const FaultEvent& event) { fired.insert(event.exchange); });
   SessionHeader header;
   auto source = open_session_source(path, header);
   Record record;
@@ -306,7 +306,7 @@ TEST(ExchangesAgree, AVirtualDevicesLaterClientSessionNumbersOnFromTheFile) {
     auto port = open_replay_session(take_replay_config(options), vector_source_factory(records));
     port->set_timeout(test::kEventDeadline);
     std::vector<std::uint64_t> fired;
-    replay_on_fault(*port, [&](const FaultEvent& event) { fired.push_back(event.exchange); });
+    report_faults_to(*port, [&](const FaultEvent& event) { fired.push_back(event.exchange); });
     ASSERT_TRUE(replay_begin_client_session(*port));
     port->write_all("Q0\n");
     EXPECT_EQ(port->read_exactly(3), "R0\n");
