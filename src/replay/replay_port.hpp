@@ -13,8 +13,8 @@
 
 namespace wiretape::detail {
 
-// Sources over the records of channel `channel` of the session file at
-// `path` (.wtape or flexiport log pair).
+// In replay_session_file.cpp: sources over the records of channel `channel`
+// of the session file at `path` (.wtape or flexiport log pair).
 RecordSourceFactory session_source_factory(const std::string& path,
                                            std::uint16_t channel = 0);
 
