@@ -81,11 +81,13 @@ std::vector<OptionKey> build_table() {
   const Types udp = {"udp"};
   const Types replay = {"replay"};
   const Types logging_types = {"seriallog", "tcplog", "udplog"};
+  // What `type=` accepts: the types, then flexiport's spellings of them.
+  Types type_names = every_type;
+  type_names.push_back("logreader");
+  type_names.insert(type_names.end(), logging_types.begin(), logging_types.end());
   return {
       // Common keys.
-      Row("type", every_type, choice, "the port type").required().choices(
-          {"serial", "tcp", "udp", "pty", "loopback", "replay", "logreader", "seriallog",
-           "tcplog", "udplog"}),
+      Row("type", every_type, choice, "the port type").required().choices(type_names),
       Row("timeout", every_type, OptionType::seconds,
           "how long a call waits when given no timeout of its own")
           .fallback("-1")
@@ -277,6 +279,10 @@ const std::vector<OptionKey>& option_keys() {
   return table;
 }
 
+// The names the rows above are keyed by. What each type is (constructor,
+// capabilities, aliases) is the registry's, above the port folders
+// (src/open/port_types.cpp); tests/cpp/open/port_types_test.cpp holds these
+// names and the registry's equal.
 const std::vector<std::string_view>& port_types() {
   static const std::vector<std::string_view> types = {"serial", "tcp",      "udp",
                                                       "pty",    "loopback", "replay"};

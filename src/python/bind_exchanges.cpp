@@ -10,6 +10,7 @@
 #include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
+#include "open/port_types.hpp"
 #include "python/bindings.hpp"
 #include "replay/exchanges.hpp"
 #include "wiretape/options.hpp"
@@ -83,7 +84,7 @@ void bind_exchanges(nb::module_& m) {
         if (match) keys.set("match", *match);
         const std::string text = keys.to_string();
         nb::gil_scoped_release release;
-        return detail::segment_session_file(path, text).exchanges;
+        return detail::segment_session_file(path, text, detail::datagram_port_types()).exchanges;
       },
       "path"_a, "profile"_a = nb::none(), "match"_a = nb::none(), "options"_a = "",
       "The exchanges of the session file at `path`, as a replay with profile= and "
@@ -118,7 +119,8 @@ void bind_exchanges(nb::module_& m) {
       "session_client_sessions",
       [](const std::string& path) {
         nb::gil_scoped_release release;
-        return detail::segment_session_file(path, "").client_sessions;
+        return detail::segment_session_file(path, "", detail::datagram_port_types())
+            .client_sessions;
       },
       "path"_a, "The client sessions of the session file at `path`, in order.");
 }

@@ -26,7 +26,7 @@
 #include "python/bindings.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/options.hpp"
-#include "open_port.hpp"
+#include "open/open_port.hpp"
 #include "wiretape/port.hpp"
 
 namespace nb = nanobind;

@@ -205,7 +205,8 @@ std::uint64_t first_exchange_of_client_session(RecordSource& source,
   return segments.exchanges.empty() ? 0 : segments.exchanges.back().index + 1;
 }
 
-SessionSegments segment_session_file(const std::string& path, const std::string& options) {
+SessionSegments segment_session_file(const std::string& path, const std::string& options,
+                                     const std::vector<std::string>& datagram_types) {
   Options parsed = Options::parse(options);
   parsed.set("file", path);
   const ReplayConfig config = take_replay_config(parsed);
@@ -216,7 +217,8 @@ SessionSegments segment_session_file(const std::string& path, const std::string&
   const std::unique_ptr<RecordSource> source =
       session_source_factory(config.file, channel.id)();
   SessionSegments segments = segment_session(
-      *source, Segmentation{config.profile, channel.port_type == "udp", config.match});
+      *source, Segmentation{config.profile, recorded_as_datagrams(channel, datagram_types),
+                              config.match});
   if (source->damage()) throw *source->damage();
   return segments;
 }

@@ -143,9 +143,11 @@ std::uint64_t first_exchange_of_client_session(RecordSource& source,
 
 // The session file at `path` cut as a replay with the replay keys `options`
 // (profile=, match=, a declared profile's framing= ...; file= is `path`)
-// would cut it; a udp session is datagrams.
+// would cut it; a session recorded from one of `datagram_types` (the
+// registry's, passed down: detail::datagram_port_types()) is datagrams.
 // OptionError for a bad replay key, SessionError or PortError for a file
 // that cannot be read.
-SessionSegments segment_session_file(const std::string& path, const std::string& options);
+SessionSegments segment_session_file(const std::string& path, const std::string& options,
+                                     const std::vector<std::string>& datagram_types);
 
 }  // namespace wiretape::detail

@@ -5,6 +5,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "replay/faults.hpp"
 #include "session/record_source.hpp"
@@ -25,9 +26,16 @@ Channel choose_channel(const ReplayConfig& config, const SessionHeader& header);
 
 std::unique_ptr<Port> open_replay_session(ReplayConfig config,
                                           RecordSourceFactory sources);
-// type=replay for open_port() (src/open_port.cpp): the replay keys of
+// The recorded port types whose records are datagrams (udp), as the
+// port-type registry above says (detail::datagram_port_types() in
+// src/open/port_types.hpp): replay is told, it knows no port type.
+using DatagramPortTypes = std::vector<std::string>;
+// Whether `channel` was recorded from a port of one of `datagram_types`.
+bool recorded_as_datagrams(const Channel& channel, const DatagramPortTypes& datagram_types);
+
+// type=replay for open_port() (src/open/port_types.cpp): the replay keys of
 // `options`, then the session file they name.
-std::unique_ptr<Port> open_replay(Options& options);
+std::unique_ptr<Port> open_replay(Options& options, const DatagramPortTypes& datagram_types);
 
 // True when `port` is a replay whose recording has nothing more for the
 // client to read (at_end=silent): a read without a timeout would raise

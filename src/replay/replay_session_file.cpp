@@ -134,7 +134,12 @@ RecordSourceFactory session_source_factory(const std::string& path, std::uint16_
   };
 }
 
-std::unique_ptr<Port> open_replay(Options& options) {
+bool recorded_as_datagrams(const Channel& channel, const DatagramPortTypes& datagram_types) {
+  return std::find(datagram_types.begin(), datagram_types.end(), channel.port_type) !=
+         datagram_types.end();
+}
+
+std::unique_ptr<Port> open_replay(Options& options, const DatagramPortTypes& datagram_types) {
   ReplayConfig config = take_replay_config(options);
   // The file is opened here once, so that a missing or unreadable session
   // fails at open with the reason. Not as a SessionReader, which would wait
@@ -146,7 +151,7 @@ std::unique_ptr<Port> open_replay(Options& options) {
     const Channel channel = choose_channel(config, header);
     config.channel_id = channel.id;
     config.channel = channel.name;
-    config.datagrams = channel.port_type == "udp";
+    config.datagrams = recorded_as_datagrams(channel, datagram_types);
     std::vector<std::string> names;
     for (const Channel& each : header.channel_list()) names.push_back(each.name);
     config.faults = faults_for_channel(config.faults, channel.name, names, config.file);

@@ -13,7 +13,8 @@
 #include <string>
 #include <vector>
 
-#include "open_port.hpp"
+#include "open/open_port.hpp"
+#include "open/port_types.hpp"
 #include "replay/faults.hpp"
 #include "replay/profile.hpp"
 #include "replay/replay_config.hpp"
@@ -226,7 +227,7 @@ std::set<std::uint64_t> replayed_exchanges(const std::string& path, const std::s
   Options options = Options::parse(
       "timing=none,check=off,unused=ignore,faults=duplicate@every:1," + keys);
   options.set("file", path);
-  auto port = open_replay(options);
+  auto port = open_replay(options, datagram_port_types());
   std::set<std::uint64_t> fired;
   report_faults_to(*port, [&](const FaultEvent& event) { fired.insert(event.exchange); });
   SessionHeader header;
@@ -284,7 +285,7 @@ TEST(ExchangesAgree, TheReplaysNumberingIsTheWholeSessionFormsOnEveryRecording) 
         if (std::string(match) == "request") keys += ",gap=0";
         if (*profile) keys += std::string(",profile=") + profile;
         std::set<std::uint64_t> expected;
-        for (const Exchange& exchange : segment_session_file(path, keys).exchanges) {
+        for (const Exchange& exchange : segment_session_file(path, keys, datagram_port_types()).exchanges) {
           if (exchange.response_bytes > 0) expected.insert(exchange.index);
         }
         EXPECT_EQ(replayed_exchanges(path, keys), expected) << path << " " << keys;

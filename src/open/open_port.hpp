@@ -1,7 +1,8 @@
-// The factory that knows every port type (open_port() in port.hpp). It
-// stands above the folders of the port types, so that src/core/ depends on
-// nothing above it (DESIGN.md section 18); this header gathers the port
-// types' constructors for the callers that make ports by hand (tests).
+// The factory that opens every port type (open_port() in port.hpp) through
+// the registry (port_types.hpp). It stands above the folders of the port
+// types, so that src/core/ depends on nothing above it (DESIGN.md sections
+// 18 and 25); this header gathers the port types' constructors for the
+// callers that make ports by hand (tests).
 #pragma once
 
 #include <string_view>
