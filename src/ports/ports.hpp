@@ -1,5 +1,5 @@
 // Ports that wrap or fake others: the loopback port and the recorder behind
-// `log=FILE`. open_port() (src/open_port.cpp) makes them.
+// `log=FILE`. open_port() (src/open/open_port.cpp) makes them.
 #pragma once
 
 #include <map>

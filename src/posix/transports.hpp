@@ -1,6 +1,7 @@
 // The constructors of the port types that are operating-system transports.
-// open_port() (src/open_port.cpp) calls them once the common keys have been
-// taken; each reads the keys of its type through the key table.
+// open_port() (src/open/open_port.cpp, through the registry in
+// src/open/port_types.cpp) calls them once the common keys have been taken;
+// each reads the keys of its type through the key table.
 #pragma once
 
 #include <cstdint>

@@ -228,7 +228,7 @@ TEST(OpenPort, ConflictingAccessModesAreRefused) {
 }
 
 // Keys that would do nothing alone are refused, naming what they need
-// (the table in src/open_port.cpp), before anything is opened.
+// (the table in src/open/open_port.cpp), before anything is opened.
 TEST(OpenPort, KeysThatNeedAnotherKeyNameIt) {
   for (const char* key : {"flush_ms=50", "fsync", "log_errors=warn", "meta_robot=r2"}) {
     const std::string name = std::string(key).substr(0, std::string(key).find('='));
