@@ -3,7 +3,6 @@
 // file and channels are src/session/recorder_file.cpp.
 #include "wiretape/recorder.hpp"
 
-#include "open/open_port.hpp"
 #include "open/port_types.hpp"
 #include "ports/ports.hpp"
 #include "session/recorder_file.hpp"

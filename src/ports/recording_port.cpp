@@ -348,11 +348,12 @@ class RecordingPort final : public Port {
 
 std::unique_ptr<Port> record_port_into(std::unique_ptr<Port> inner, RecordingChannel channel,
                                        RecordingTarget target) {
-  Port* replayed = inner.get();
+  Port* wrapped = inner.get();
   auto port = std::make_unique<RecordingPort>(std::move(inner), std::move(channel), target);
-  // A recorded faulty replay: each fault is also a `fault` event.
+  // A recorded port that injects faults (a faulty replay): each fault is
+  // also a `fault` event.
   RecordingPort* recorder = port.get();
-  report_faults_to(*replayed, [recorder](const FaultEvent& event) {
+  report_faults_to(*wrapped, [recorder](const FaultEvent& event) {
     std::fprintf(stderr, "wiretape: fault %s@%s: %s\n", event.kind.c_str(), event.where.c_str(),
                  event.detail.c_str());
     recorder->record_event(RecordKind::fault, json::ObjectWriter()

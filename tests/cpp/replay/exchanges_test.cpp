@@ -285,7 +285,8 @@ TEST(ExchangesAgree, TheReplaysNumberingIsTheWholeSessionFormsOnEveryRecording) 
         if (std::string(match) == "request") keys += ",gap=0";
         if (*profile) keys += std::string(",profile=") + profile;
         std::set<std::uint64_t> expected;
-        for (const Exchange& exchange : segment_session_file(path, keys, datagram_port_types()).exchanges) {
+        const SessionSegments segments = segment_session_file(path, keys, datagram_port_types());
+        for (const Exchange& exchange : segments.exchanges) {
           if (exchange.response_bytes > 0) expected.insert(exchange.index);
         }
         EXPECT_EQ(replayed_exchanges(path, keys), expected) << path << " " << keys;
