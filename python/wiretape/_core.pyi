@@ -1,6 +1,6 @@
 """wiretape's C++ core"""
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 import datetime
 import os
 
@@ -193,6 +193,16 @@ def check_replay_options(options: str) -> None:
 def quote_option_value(value: str) -> str:
     """
     A value as it is written in an option string: as is, or in double quotes with \\" and \\\\ escaped when it is empty or holds a separator, '=', '"' or '\\\\'.
+    """
+
+def option_value(port_type: str, name: str, text: str) -> bool | int | float | str | None:
+    """
+    `text` read as a port of `port_type` reads its key `name`, checked against the key table (type, range, choices): a bool, int, float (seconds: None for forever) or str. OptionError naming the key for a bad value or a key that is not one of the type's.
+    """
+
+def option_string(pairs: Iterable[tuple[str, str | int | float | bool | os.PathLike[str]]]) -> str:
+    """
+    'key=value,...' of (key, value) pairs in order: values quoted as quote_option_value() quotes them, numbers and booleans written by the one rule of the C++ option strings (2.0 as 2, 0.25, 1e-06; True as true), a path as its text. parse_options() gives the pairs back (as text). Raises OptionError naming the key for a key that is not one, a key given twice, a NUL byte or a number that is not finite; TypeError for another type of value.
     """
 
 class OptionKey:
@@ -854,11 +864,17 @@ class Bridge:
 
 class Profile:
     """
-    What wiretape knows of a protocol: how each direction is cut into frames, the bytes of a request compared when matching, and frame names. Get one with find_profile(name).
+    What wiretape knows of a protocol: how each direction is cut into frames, the bytes of a request compared when matching, and frame names. Get one with profile_from_spec(text).
     """
 
     @property
     def name(self) -> str: ...
+
+    @property
+    def options(self) -> str:
+        """
+        the replay keys that give this profile: 'profile=NAME', or a declared profile's 'framing=...[,echo=...]' (for a replay's option string and session_exchanges(options=))
+        """
 
     @property
     def summary(self) -> str: ...
@@ -941,6 +957,11 @@ def declared_profile(options: str) -> Profile:
 
 def find_profile(name: str) -> Profile:
     """The built-in profile called `name`; OptionError for an unknown name."""
+
+def profile_from_spec(text: str) -> Profile:
+    """
+    The profile a --profile value stands for, by the replay's rule: text with no '=' is a name ('scip', as profile=scip), else the replay keys profile=, framing=, ignore=, echo=, checksum= ('framing=fixed:10,echo=0:2'). OptionError naming the key for an empty spec, another key, a bad spec or an unknown name.
+    """
 
 def hex_ascii(data: bytes) -> str:
     """
