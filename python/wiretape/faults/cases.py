@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import dataclasses
 import random
-from typing import List, Optional, Sequence
+from typing import List, Optional, Sequence, Tuple
 
 from .. import _core
 from ..session import open_session
@@ -69,8 +69,12 @@ class FaultCase:
         return f"{self.kind}@{self.where}"
 
     @property
+    def option_pairs(self) -> List[Tuple[str, object]]:
+        return [("faults", self.spec), ("seed", self.seed)]
+
+    @property
     def options(self) -> str:
-        return f"faults={_core.quote_option_value(self.spec)},seed={self.seed}"
+        return _core.option_string(self.option_pairs)
 
     @property
     def id(self) -> str:
@@ -85,10 +89,10 @@ def session_channels(session: str) -> List[str]:
 
 
 def _with_channel(options: str, channel: Optional[str]) -> str:
+    """The replay keys `options` with ``channel=`` (none: as they are)."""
     if not channel:
         return options
-    key = f"channel={_core.quote_option_value(channel)}"
-    return f"{options},{key}" if options.strip() else key
+    return _core.option_string(_core.parse_options(options) + [("channel", channel)])
 
 
 def session_shape(session: str, profile: Optional[str] = None, match: Optional[str] = None,

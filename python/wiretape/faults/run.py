@@ -44,9 +44,9 @@ def faulty_device(session: str, case: Optional[FaultCase] = None, replay_options
     ``listen`` a ``HOST:PORT``. Stopped on leaving. ``speed`` K: the
     replay's timing K times faster (the replay key ``speed``), for a
     client whose clock runs at K (wiretape.scaled_clock)."""
-    speed_key = f"speed={speed!r}" if speed != 1.0 else ""
-    keys = ",".join(part for part in (replay_options.strip(), speed_key,
-                                      case.options if case else "") if part)
+    keys = _core.option_string(_core.parse_options(replay_options)
+                               + ([("speed", speed)] if speed != 1.0 else [])
+                               + (case.option_pairs if case else []))
     with tempfile.TemporaryDirectory(prefix="wiretape-faults-") as directory:
         link = os.path.join(directory, "port")
         handle = bridge.serve_replay(session, pty=None if listen else link,
@@ -295,7 +295,8 @@ def campaign(session: str, argv: Sequence[str], kinds: Optional[Sequence[str]] =
     except ValueError as error:
         raise FaultInputError(str(error)) from None
     if replay_options:
-        _core.check_replay_options("type=replay,file=x," + replay_options)
+        _core.check_replay_options(_core.option_string(
+            [("type", "replay"), ("file", "x")] + _core.parse_options(replay_options)))
         if speed != 1.0 and "speed" in dict(_core.parse_options(replay_options)):
             raise FaultInputError("--options holds speed= and --speed is given: give --speed "
                                   "only (it sets the replay's speed and CMD's clock)")
