@@ -104,7 +104,6 @@ std::uint64_t ExchangeCursor::feed(RecordKind kind, std::uint64_t t_ns,
 
 SessionSegments segment_session(RecordSource& source, const Segmentation& segmentation) {
   SessionSegments segments;
-  segments.profile = segmentation.profile;
   ExchangeCursor cursor(segmentation);
   std::unique_ptr<Framer> response_framer =
       segmentation.profile ? segmentation.profile->make_framer(StreamDirection::rx) : nullptr;

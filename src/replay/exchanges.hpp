@@ -1,7 +1,8 @@
 // The one segmentation of a session into exchanges (DESIGN.md section 17).
 // Every feature that numbers exchanges uses it: mismatch reports, the fault
-// plan's `exchange:N` (through RxItem::exchange), `wiretape edit --cut Ne`,
-// `wiretape.faults`, client-session slicing of the exports.
+// plan's `exchange:N` (through RxItem::exchange) and the check of its places
+// (served_shape), `wiretape edit --cut Ne`, `wiretape.faults`, the latencies
+// of `wiretape stats` (LatencyMeter), client-session slicing of the exports.
 //
 // An exchange is a request of the client's and what the device sent until
 // the client's next request:
@@ -185,7 +186,6 @@ struct ClientSession {
 struct SessionSegments {
   std::vector<Exchange> exchanges;
   std::vector<ClientSession> client_sessions;
-  std::shared_ptr<const Profile> profile;  // the one it was cut with (none: tx runs)
 };
 
 // Reads `source` from where it is to its end.
