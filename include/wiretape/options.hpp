@@ -19,6 +19,7 @@
 #include <string>
 #include <string_view>
 #include <unordered_map>
+#include <variant>
 #include <vector>
 
 #include "wiretape/port.hpp"
@@ -168,6 +169,24 @@ std::vector<Options::Entry> parse_options(std::string_view text);
 // holding a separator (comma, space, tab, CR, LF), `=`, `"` or `\`.
 // Options::parse gives the value back.
 std::string quote_option_value(std::string_view value);
+
+// A value given to option_string(): text as it is, or a number or a boolean
+// written by the one rule of format_option_value.
+using OptionValue = std::variant<std::string, std::int64_t, double, bool>;
+
+// The text of `value` in an option string, unquoted: text as it is; a whole
+// number in decimal; a floating-point number as the shortest text that reads
+// back as the same double, without a fraction when it is whole ("2", "0.25",
+// "1e-06"); a boolean as true or false. Throws OptionError naming `key` for
+// a number that is not finite (no key reads one).
+std::string format_option_value(std::string_view key, const OptionValue& value);
+
+// `key=value,...` of `pairs` in order, each value formatted by
+// format_option_value and quoted by quote_option_value, so that
+// parse_options gives the pairs back. Throws OptionError naming the key for a
+// key that is not one (empty, or holding a separator, `=`, `"` or a NUL byte),
+// a key given twice, or a value holding a NUL byte.
+std::string option_string(const std::vector<std::pair<std::string, OptionValue>>& pairs);
 
 // The option string that a device setting (the CLI's --device, a URL's
 // device=, WIRETAPE_DEVICE) stands for: a bare path, with no `=`, means

@@ -1,6 +1,6 @@
 """wiretape's C++ core"""
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 import datetime
 import os
 
@@ -193,6 +193,16 @@ def check_replay_options(options: str) -> None:
 def quote_option_value(value: str) -> str:
     """
     A value as it is written in an option string: as is, or in double quotes with \\" and \\\\ escaped when it is empty or holds a separator, '=', '"' or '\\\\'.
+    """
+
+def option_value(port_type: str, name: str, text: str) -> bool | int | float | str | None:
+    """
+    `text` read as a port of `port_type` reads its key `name`, checked against the key table (type, range, choices): a bool, int, float (seconds: None for forever) or str. OptionError naming the key for a bad value or a key that is not one of the type's.
+    """
+
+def option_string(pairs: Iterable[tuple[str, str | int | float | bool | os.PathLike[str]]]) -> str:
+    """
+    'key=value,...' of (key, value) pairs in order: values quoted as quote_option_value() quotes them, numbers and booleans written by the one rule of the C++ option strings (2.0 as 2, 0.25, 1e-06; True as true), a path as its text. parse_options() gives the pairs back (as text). Raises OptionError naming the key for a key that is not one, a key given twice, a NUL byte or a number that is not finite; TypeError for another type of value.
     """
 
 class OptionKey:
@@ -854,11 +864,17 @@ class Bridge:
 
 class Profile:
     """
-    What wiretape knows of a protocol: how each direction is cut into frames, the bytes of a request compared when matching, and frame names. Get one with find_profile(name).
+    What wiretape knows of a protocol: how each direction is cut into frames, the bytes of a request compared when matching, and frame names. Get one with profile_from_spec(text).
     """
 
     @property
     def name(self) -> str: ...
+
+    @property
+    def options(self) -> str:
+        """
+        the replay keys that give this profile: 'profile=NAME', or a declared profile's 'framing=...[,echo=...]' (for a replay's option string and session_exchanges(options=))
+        """
 
     @property
     def summary(self) -> str: ...
@@ -942,6 +958,11 @@ def declared_profile(options: str) -> Profile:
 def find_profile(name: str) -> Profile:
     """The built-in profile called `name`; OptionError for an unknown name."""
 
+def profile_from_spec(text: str) -> Profile:
+    """
+    The profile a --profile value stands for, by the replay's rule: text with no '=' is a name ('scip', as profile=scip), else the replay keys profile=, framing=, ignore=, echo=, checksum= ('framing=fixed:10,echo=0:2'). OptionError naming the key for an empty spec, another key, a bad spec or an unknown name.
+    """
+
 def hex_ascii(data: bytes) -> str:
     """
     The bytes as hex, then as ASCII with '.' for what is not printable: '56 56 0a  |VV.|'; '(none)' for no bytes.
@@ -983,6 +1004,26 @@ class Exchange:
 
     @property
     def response_last_t_ns(self) -> int | None: ...
+
+    @property
+    def request_end_t_ns(self) -> int | None:
+        """
+        when its request was complete: the time of the record holding its last byte (with a profile, the one completing its request frame); None: no request
+        """
+
+    @property
+    def response_start_t_ns(self) -> int | None:
+        """
+        the time of its first rx record after request_end_t_ns; None: unanswered
+        """
+
+    @property
+    def channel_id(self) -> int:
+        """the id of the channel it was said on"""
+
+    @property
+    def channel_name(self) -> str:
+        """the name of that channel ("" in a session without named channels)"""
 
     @property
     def request_bytes(self) -> int: ...
@@ -1031,6 +1072,71 @@ def session_exchanges(path: str, profile: str | None = None, match: str | None =
     """
     The exchanges of the session file at `path`, as a replay with profile= and match= (default sequence) numbers them (under match=request a greeting is exchange 0 of its own). `options`: the replay's keys, e.g. a declared profile's 'framing=...,echo=...' (profile and match, when given, override them). OptionError for a bad or non-replay key.
     """
+
+class SessionShape:
+    """
+    Where faults can fire in what a replay serves (the first client session of a proxy recording): its exchanges, rx bytes and the session time of its last rx.
+    """
+
+    @property
+    def first_exchange(self) -> int:
+        """the number of the first exchange served (numbered per file)"""
+
+    @property
+    def exchanges(self) -> int:
+        """one past the last exchange with rx (0: none)"""
+
+    @property
+    def rx_bytes(self) -> int:
+        """the rx bytes served"""
+
+    @property
+    def last_rx_t_ns(self) -> int:
+        """the session time of the last rx record served (0: none)"""
+
+    @property
+    def seconds(self) -> float:
+        """last_rx_t_ns in seconds: t:S past it never fires"""
+
+    def __repr__(self) -> str: ...
+
+def session_shape(path: str, profile: str | None = None, match: str | None = None, options: str = '', channel: str | None = None) -> SessionShape:
+    """
+    Where faults can fire in what a replay of the session file at `path` (with profile=, match=, further replay keys `options`, and channel= of a session of several ports) serves, as the replay counts places: a proxy recording's first client session.
+    """
+
+class RequestLatency:
+    """A request answered, and how long the answer took."""
+
+    @property
+    def exchange(self) -> int: ...
+
+    @property
+    def request_name(self) -> str:
+        """with a profile its request frame's name ('?': unnamed); else ''"""
+
+    @property
+    def wait_ns(self) -> int:
+        """from the request's end to the first rx record after it"""
+
+    def __repr__(self) -> str: ...
+
+class LatencyMeter:
+    """
+    The latency pairing of `wiretape stats` over the one segmentation: fed one channel's records in order, it keeps each answered request, from the end of its request (Exchange.request_end_t_ns) to the first rx after it (response_start_t_ns), as the replay cuts exchanges.
+    """
+
+    def __init__(self, header: SessionHeader, channel: int = 0, profile: str | None = None) -> None:
+        """
+        For channel `channel` (its id) of the session whose header is `header`; request frames cut and named by the profile named `profile`.
+        """
+
+    def feed(self, kind: str, t_ns: int, payload: bytes) -> None:
+        """One record of the channel, in recorded order."""
+
+    @property
+    def answered(self) -> list[RequestLatency]:
+        """The answered requests so far (RequestLatency), in order."""
 
 class ClientSessionTracker:
     """
@@ -1119,6 +1225,11 @@ class FaultPlan:
     @property
     def seed(self) -> int:
         """seed=, for the faults' random choices."""
+
+    def check_against(self, path: str, profile: str | None = None, match: str | None = None, options: str = '') -> None:
+        """
+        Raises OptionError (key 'faults') for a fault naming a channel the session file at `path` lacks, or placed past the end of what its replay (with profile=, match= and further replay keys `options`) serves: exchange:N, rx:N, t:S (after the last rx recorded on the session's clock); a fault without @channel: past every channel's end.
+        """
 
     def __len__(self) -> int: ...
 

@@ -1,7 +1,9 @@
 #include "wiretape/options.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cerrno>
+#include <charconv>
 #include <cmath>
 #include <cstdlib>
 #include <stdexcept>
@@ -449,6 +451,48 @@ std::string quote_option_value(std::string_view value) {
     out += c;
   }
   return out + "\"";
+}
+
+std::string format_option_value(std::string_view key, const OptionValue& value) {
+  if (const auto* text = std::get_if<std::string>(&value)) return *text;
+  if (const auto* flag = std::get_if<bool>(&value)) return *flag ? "true" : "false";
+  if (const auto* whole = std::get_if<std::int64_t>(&value)) return std::to_string(*whole);
+  const double number = std::get<double>(value);
+  if (!std::isfinite(number)) {
+    throw OptionError(std::string(key), "option '" + std::string(key) +
+                                            "': a value must be a finite number, not " +
+                                            (std::isnan(number) ? "nan" : "infinity"));
+  }
+  // Whole numbers within 2^53 are exact as int64: "2", not "2" + ".0".
+  if (number == std::floor(number) && std::fabs(number) < 9007199254740992.0) {
+    return std::to_string(static_cast<std::int64_t>(number));
+  }
+  std::array<char, 32> digits{};
+  const auto written = std::to_chars(digits.data(), digits.data() + digits.size(), number);
+  return std::string(digits.data(), written.ptr);
+}
+
+std::string option_string(const std::vector<std::pair<std::string, OptionValue>>& pairs) {
+  std::string out;
+  std::set<std::string_view> seen;
+  for (const auto& [key, value] : pairs) {
+    const auto bad = std::find_if(key.begin(), key.end(), [](char c) {
+      return is_separator(c) || c == '=' || c == '"' || c == '\0';
+    });
+    if (key.empty() || bad != key.end()) {
+      throw OptionError(key, "option string: " + shown(key) +
+                                 " is not a key (a key is not empty and holds no comma, "
+                                 "white space, '=', '\"' or NUL byte)");
+    }
+    if (!seen.insert(key).second) {
+      throw OptionError(key, "option '" + key + "' is given twice");
+    }
+    const std::string text = format_option_value(key, value);
+    reject_nul(key, text);
+    if (!out.empty()) out += ',';
+    out += key + "=" + quote_option_value(text);
+  }
+  return out;
 }
 
 std::string device_options(std::string_view device) {

@@ -10,8 +10,11 @@
 #include <nanobind/stl/string_view.h>
 #include <nanobind/stl/vector.h>
 
+#include "open/port_types.hpp"
 #include "python/bindings.hpp"
+#include "replay/exchanges.hpp"
 #include "replay/faults.hpp"
+#include "wiretape/options.hpp"
 
 namespace nb = nanobind;
 using namespace nb::literals;
@@ -89,6 +92,25 @@ void bind_faults(nb::module_& m) {
   nb::class_<FaultPlan>(m, "FaultPlan", "faults= parsed: its items in order, and the seed.")
       .def_ro("faults", &FaultPlan::faults, "The items (FaultSpec), in order.")
       .def_ro("seed", &FaultPlan::seed, "seed=, for the faults' random choices.")
+      .def(
+          "check_against",
+          [](const FaultPlan& plan, const std::string& path,
+             const std::optional<std::string>& profile, const std::optional<std::string>& match,
+             const std::string& options) {
+            Options keys = Options::parse(options);
+            if (profile) keys.set("profile", *profile);
+            if (match) keys.set("match", *match);
+            const std::string text = keys.to_string();
+            nb::gil_scoped_release release;
+            plan.check_against(
+                detail::session_places_file(path, text, detail::datagram_port_types()));
+          },
+          "path"_a, "profile"_a = nb::none(), "match"_a = nb::none(), "options"_a = "",
+          "Raises OptionError (key 'faults') for a fault naming a channel the session "
+          "file at `path` lacks, or placed past the end of what its replay (with "
+          "profile=, match= and further replay keys `options`) serves: exchange:N, rx:N, "
+          "t:S (after the last rx recorded on the session's clock); a fault without "
+          "@channel: past every channel's end.")
       .def("__len__", [](const FaultPlan& plan) { return plan.faults.size(); })
       // Iterable by the sequence protocol (__getitem__ to IndexError): an
       // __iter__ of make_iterator would add a class to FaultPlan on first use.

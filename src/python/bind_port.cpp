@@ -36,6 +36,56 @@ namespace wiretape::python {
 
 // --- shared helpers ---------------------------------------------------------
 
+namespace {
+
+// A Python value of option_string()'s pairs as the C++ value it stands for;
+// bool before int, which it is a subclass of.
+OptionValue option_value_from_python(const std::string& key, nb::handle value) {
+  if (PyBool_Check(value.ptr())) return value.ptr() == Py_True;
+  if (PyLong_Check(value.ptr())) {
+    int overflow = 0;
+    const long long whole = PyLong_AsLongLongAndOverflow(value.ptr(), &overflow);
+    if (whole == -1 && PyErr_Occurred()) throw nb::python_error();
+    if (overflow != 0) {
+      throw OptionError(key, "option '" + key + "': " + nb::str(value).c_str() +
+                                 " is beyond a 64-bit whole number");
+    }
+    return static_cast<std::int64_t>(whole);
+  }
+  if (PyFloat_Check(value.ptr())) return PyFloat_AsDouble(value.ptr());
+  if (PyUnicode_Check(value.ptr())) return nb::cast<std::string>(value);
+  if (PyObject_HasAttrString(value.ptr(), "__fspath__")) {
+    nb::object path = nb::module_::import_("os").attr("fspath")(value);
+    if (PyUnicode_Check(path.ptr())) return nb::cast<std::string>(path);
+  }
+  throw nb::type_error(("option '" + key + "': a value must be str, int, float, bool or a "
+                        "path, not " + nb::cast<std::string>(nb::type_name(value.type())))
+                           .c_str());
+}
+
+std::string option_string_from_python(nb::iterable pairs) {
+  std::vector<std::pair<std::string, OptionValue>> converted;
+  for (nb::handle pair : pairs) {
+    if (!PySequence_Check(pair.ptr()) || PyUnicode_Check(pair.ptr()) ||
+        PySequence_Size(pair.ptr()) != 2) {
+      throw nb::type_error("option_string() takes (key, value) pairs");
+    }
+    nb::sequence items = nb::borrow<nb::sequence>(pair);
+    nb::object key = items[0];
+    if (!PyUnicode_Check(key.ptr())) {
+      throw nb::type_error(("an option key must be str, not " +
+                            nb::cast<std::string>(nb::type_name(key.type())))
+                               .c_str());
+    }
+    std::string name = nb::cast<std::string>(key);
+    OptionValue value = option_value_from_python(name, items[1]);
+    converted.emplace_back(std::move(name), std::move(value));
+  }
+  return option_string(converted);
+}
+
+}  // namespace
+
 Timeout timeout_from_python(nb::handle value) {
   if (value.is_none()) return forever;
   double seconds = 0.0;
@@ -414,6 +464,34 @@ nb::object range_end(const OptionKey& key, bool largest) {
   return nb::none();
 }
 
+// `text` as a port of `port_type` reads key `name`: the row's typed accessor
+// checks it (type, range, choices) and gives the value.
+nb::object option_value(std::string_view port_type, std::string_view name,
+                        const std::string& text) {
+  Options options;
+  options.set(name, text);
+  options.set_port_type(port_type);
+  const OptionKey* row = find_option_key(name, port_type);
+  if (row == nullptr) {
+    throw OptionError(std::string(name), "option '" + std::string(name) +
+                                             "' is not a key of type=" + std::string(port_type));
+  }
+  switch (row->type) {
+    case OptionType::boolean: return nb::bool_(options.take_bool(name));
+    case OptionType::integer: return nb::int_(options.take_int(name));
+    case OptionType::number: return nb::float_(options.take_double(name));
+    case OptionType::seconds: {
+      const Timeout timeout = options.take_timeout(name);
+      if (!timeout) return nb::none();
+      return nb::float_(std::chrono::duration<double>(*timeout).count());
+    }
+    case OptionType::choice: return nb::str(options.take_choice(name).c_str());
+    case OptionType::text:
+    case OptionType::path: break;
+  }
+  return nb::str(options.take_string(name).c_str());
+}
+
 }  // namespace
 
 void bind_port(nb::module_& m) {
@@ -567,6 +645,22 @@ void bind_port(nb::module_& m) {
         "A value as it is written in an option string: as is, or in double "
         "quotes with \\\" and \\\\ escaped when it is empty or holds a "
         "separator, '=', '\"' or '\\\\'.");
+  m.def("option_value", &option_value, "port_type"_a, "name"_a, "text"_a,
+        nb::sig("def option_value(port_type: str, name: str, text: str) -> "
+                "bool | int | float | str | None"),
+        "`text` read as a port of `port_type` reads its key `name`, checked against "
+        "the key table (type, range, choices): a bool, int, float (seconds: None "
+        "for forever) or str. OptionError naming the key for a bad value or a key "
+        "that is not one of the type's.");
+  m.def("option_string", &option_string_from_python, "pairs"_a,
+        nb::sig("def option_string(pairs: collections.abc.Iterable[tuple[str, str | int | "
+                "float | bool | os.PathLike[str]]]) -> str"),
+        "'key=value,...' of (key, value) pairs in order: values quoted as "
+        "quote_option_value() quotes them, numbers and booleans written by the one "
+        "rule of the C++ option strings (2.0 as 2, 0.25, 1e-06; True as true), a "
+        "path as its text. parse_options() gives the pairs back (as text). Raises "
+        "OptionError naming the key for a key that is not one, a key given twice, a "
+        "NUL byte or a number that is not finite; TypeError for another type of value.");
   nb::class_<OptionKey>(m, "OptionKey",
                         "One row of the key table: a key of one or more port types "
                         "(docs/options.md).")

@@ -6,12 +6,14 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/pair.h>
 #include <nanobind/stl/string.h>
+#include <nanobind/stl/string_view.h>
 #include <nanobind/stl/unique_ptr.h>
 #include <nanobind/stl/vector.h>
 
@@ -36,6 +38,7 @@ using detail::StreamDirection;
 
 struct PyProfile {
   std::shared_ptr<const Profile> profile;
+  std::string options;  // the replay keys that give it (detail::ProfileSpec::options)
 };
 
 StreamDirection direction_from_python(const std::string& direction) {
@@ -332,8 +335,12 @@ void bind_profile(nb::module_& m) {
   nb::class_<PyProfile>(m, "Profile",
                         "What wiretape knows of a protocol: how each direction is cut into "
                         "frames, the bytes of a request compared when matching, and frame "
-                        "names. Get one with find_profile(name).")
+                        "names. Get one with profile_from_spec(text).")
       .def_prop_ro("name", [](const PyProfile& p) { return std::string(p.profile->name()); })
+      .def_prop_ro("options", [](const PyProfile& p) { return p.options; },
+                   "the replay keys that give this profile: 'profile=NAME', or a declared "
+                   "profile's 'framing=...[,echo=...]' (for a replay's option string and "
+                   "session_exchanges(options=))")
       .def_prop_ro("summary", [](const PyProfile& p) { return std::string(p.profile->summary()); })
       .def(
           "frames",
@@ -453,6 +460,7 @@ void bind_profile(nb::module_& m) {
       "declared_profile",
       [](const std::string& options) {
         Options parsed = Options::parse(options);
+        const std::string keys = parsed.to_string();
         parsed.set_port_type("replay");
         std::shared_ptr<const Profile> profile = detail::take_declared_profile(parsed);
         if (!profile) {
@@ -467,15 +475,28 @@ void bind_profile(nb::module_& m) {
                                              "ignore=, echo=, checksum=)");
           }
         }
-        return PyProfile{profile};
+        return PyProfile{profile, keys};
       },
       "options"_a,
       "The profile declared by 'framing=...[,ignore=...][,echo=...][,checksum=...]' "
       "(docs/replay.md); OptionError naming the key for a bad spec or another key.");
   m.def(
       "find_profile",
-      [](const std::string& name) { return PyProfile{detail::find_profile(name)}; },
+      [](const std::string& name) {
+        return PyProfile{detail::find_profile(name), "profile=" + quote_option_value(name)};
+      },
       "name"_a, "The built-in profile called `name`; OptionError for an unknown name.");
+  m.def(
+      "profile_from_spec",
+      [](std::string_view text) {
+        detail::ProfileSpec read = detail::profile_from_spec(text);
+        return PyProfile{std::move(read.profile), std::move(read.options)};
+      },
+      "text"_a,
+      "The profile a --profile value stands for, by the replay's rule: text with no "
+      "'=' is a name ('scip', as profile=scip), else the replay keys profile=, "
+      "framing=, ignore=, echo=, checksum= ('framing=fixed:10,echo=0:2'). OptionError "
+      "naming the key for an empty spec, another key, a bad spec or an unknown name.");
 }
 
 }  // namespace wiretape::python

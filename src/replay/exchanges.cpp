@@ -1,5 +1,6 @@
 #include "replay/exchanges.hpp"
 
+#include <algorithm>
 #include <utility>
 
 #include "replay/client_session.hpp"
@@ -18,8 +19,10 @@ ExchangeCursor::ExchangeCursor(const Segmentation& segmentation)
       greeting_alone_(segmentation.match == ReplayMatch::request),
       index_(segmentation.first_index) {}
 
-void ExchangeCursor::begin_request() {
+void ExchangeCursor::begin_request(std::optional<std::uint64_t> end_t_ns) {
   began_ = true;
+  request_end_ = end_t_ns;
+  response_start_.reset();
   // The first request of a client session takes its greeting along, except
   // under match=request, where the greeting was served on its own.
   if (!fresh_ || (has_rx_ && greeting_alone_)) ++index_;
@@ -32,12 +35,15 @@ void ExchangeCursor::end_exchange() {
   fresh_ = true;
   has_rx_ = false;
   request_open_ = false;
+  request_end_.reset();
+  response_start_.reset();
   if (request_framer_) request_framer_->finish();  // a frame cut short
 }
 
 std::uint64_t ExchangeCursor::feed(RecordKind kind, std::uint64_t t_ns,
                                    std::string_view payload) {
   began_ = false;
+  answer_began_ = false;
   frames_.clear();
   switch (kind) {
     case RecordKind::tx: {
@@ -47,11 +53,14 @@ std::uint64_t ExchangeCursor::feed(RecordKind kind, std::uint64_t t_ns,
         // device sent while the frame was incomplete belongs to the one
         // before (the replay releases it before the client's frame is whole).
         request_framer_->feed(t_ns, payload, frames_);
-        for (std::size_t i = 0; i < frames_.size(); ++i) begin_request();
+        for (std::size_t i = 0; i < frames_.size(); ++i) begin_request(t_ns);
       } else if (datagrams_ || !request_open_) {
-        begin_request();
+        begin_request(t_ns);
+      } else if (!response_start_) {
+        request_end_ = t_ns;  // the run goes on
       }
       request_open_ = true;
+      last_tx_t_ns_ = t_ns;
       break;
     }
     case RecordKind::rx:
@@ -64,12 +73,16 @@ std::uint64_t ExchangeCursor::feed(RecordKind kind, std::uint64_t t_ns,
           request_framer_->framer().pending() > 0) {
         if (std::optional<TimedFramer::TimedFrame> tail = request_framer_->finish()) {
           frames_.push_back(std::move(*tail));
-          begin_request();
+          begin_request(last_tx_t_ns_);
         }
       }
       if (kind != RecordKind::rx) break;
       has_rx_ = true;
       request_open_ = false;
+      if (request_end_ && !response_start_ && !said_to_nobody_) {
+        response_start_ = t_ns;
+        answer_began_ = true;
+      }
       break;
     case RecordKind::client_connect:
     case RecordKind::client_disconnect: {
@@ -77,6 +90,9 @@ std::uint64_t ExchangeCursor::feed(RecordKind kind, std::uint64_t t_ns,
       if (change == ClientSessionTracker::Change::began) {
         end_exchange();
         ++client_sessions_;
+        said_to_nobody_ = false;
+      } else if (change == ClientSessionTracker::Change::ended) {
+        said_to_nobody_ = true;
       }
       break;
     }
@@ -161,11 +177,16 @@ SessionSegments segment_session(RecordSource& source, const Segmentation& segmen
       const auto& completed = cursor.frames_completed();
       std::uint64_t owner = index + 1 >= completed.size() ? index + 1 - completed.size() : 0;
       for (const TimedFramer::TimedFrame& timed : completed) {
-        if (Exchange* own = exchange_at(owner)) own->request_frames.push_back(timed.frame.bytes);
+        if (Exchange* own = exchange_at(owner)) {
+          own->request_frames.push_back(timed.frame.bytes);
+          own->request_end_t_ns = cursor.request_end_t_ns();
+        }
         ++owner;
       }
     }
     exchange->end_record = ordinal + 1;
+    exchange->request_end_t_ns = cursor.request_end_t_ns();
+    exchange->response_start_t_ns = cursor.response_start_t_ns();
     if (!has_bytes) continue;
     if (record.kind == RecordKind::tx) {
       if (!exchange->request_first_t_ns) exchange->request_first_t_ns = record.t_ns;
@@ -220,7 +241,71 @@ SessionSegments segment_session_file(const std::string& path, const std::string&
       *source, Segmentation{config.profile, recorded_as_datagrams(channel, datagram_types),
                               config.match});
   if (source->damage()) throw *source->damage();
+  for (Exchange& exchange : segments.exchanges) {
+    exchange.channel_id = channel.id;
+    exchange.channel_name = channel.name;
+  }
   return segments;
+}
+
+SessionShape served_shape(const SessionSegments& segments) {
+  std::optional<std::uint64_t> served;  // the first client session holding an exchange
+  for (const Exchange& exchange : segments.exchanges) {
+    if (exchange.client_session && (!served || *exchange.client_session < *served)) {
+      served = exchange.client_session;
+    }
+  }
+  SessionShape shape;
+  bool first = true;
+  for (const Exchange& exchange : segments.exchanges) {
+    // A replay serves a client the records after its connect, numbered on.
+    if (!segments.client_sessions.empty() && exchange.client_session != served) continue;
+    if (first) shape.first_exchange = exchange.index;
+    first = false;
+    if (exchange.response_bytes > 0) shape.exchange_end = exchange.index + 1;
+    shape.rx_bytes += exchange.response_bytes;
+    if (exchange.response_last_t_ns) {
+      shape.last_rx_t_ns = std::max(shape.last_rx_t_ns, *exchange.response_last_t_ns);
+    }
+  }
+  return shape;
+}
+
+SessionPlaces session_places_file(const std::string& path, const std::string& options,
+                                  const std::vector<std::string>& datagram_types) {
+  SessionHeader header;
+  open_session_source(path, header, Streams::refused);
+  SessionPlaces places;
+  const std::vector<Channel> channels = header.channel_list();
+  if (channels.size() < 2) {
+    places.shapes.push_back(served_shape(segment_session_file(path, options, datagram_types)));
+    return places;
+  }
+  for (const Channel& channel : channels) {
+    Options keys = Options::parse(options);
+    keys.set("channel", channel.name);
+    places.channels.push_back(channel.name);
+    places.shapes.push_back(served_shape(segment_session_file(path, keys.to_string(), datagram_types)));
+  }
+  return places;
+}
+
+LatencyMeter::LatencyMeter(const Segmentation& segmentation)
+    : profile_(segmentation.profile), cursor_(segmentation) {}
+
+void LatencyMeter::feed(RecordKind kind, std::uint64_t t_ns, std::string_view payload) {
+  cursor_.feed(kind, t_ns, payload);
+  if (cursor_.began() && profile_ && !cursor_.frames_completed().empty()) {
+    request_name_ =
+        profile_->frame_name(StreamDirection::tx, cursor_.frames_completed().back().frame.bytes);
+    if (request_name_.empty()) request_name_ = "?";
+  }
+  if (!cursor_.answer_began()) return;
+  RequestLatency latency;
+  latency.exchange = cursor_.current();
+  latency.request_name = request_name_;
+  latency.wait_ns = *cursor_.response_start_t_ns() - *cursor_.request_end_t_ns();
+  answered_.push_back(std::move(latency));
 }
 
 }  // namespace wiretape::detail

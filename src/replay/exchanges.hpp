@@ -1,7 +1,8 @@
 // The one segmentation of a session into exchanges (DESIGN.md section 17).
 // Every feature that numbers exchanges uses it: mismatch reports, the fault
-// plan's `exchange:N` (through RxItem::exchange), `wiretape edit --cut Ne`,
-// `wiretape.faults`, client-session slicing of the exports.
+// plan's `exchange:N` (through RxItem::exchange) and the check of its places
+// (served_shape), `wiretape edit --cut Ne`, `wiretape.faults`, the latencies
+// of `wiretape stats` (LatencyMeter), client-session slicing of the exports.
 //
 // An exchange is a request of the client's and what the device sent until
 // the client's next request:
@@ -52,6 +53,14 @@ struct Segmentation {
   std::uint64_t first_index = 0;  // the number of the first exchange
 };
 
+// A request answered: how long after its request was complete the answer
+// began (Exchange::request_end_t_ns to response_start_t_ns).
+struct RequestLatency {
+  std::uint64_t exchange = 0;
+  std::string request_name;  // with a profile: its request frame's name ("?": none)
+  std::uint64_t wait_ns = 0;
+};
+
 // The streaming form: fed every record in recorded order, it says which
 // exchange each belongs to. Without a profile no allocation per record;
 // with one, what the profile's framer allocates for the frames it cuts.
@@ -77,9 +86,20 @@ class ExchangeCursor {
   // with the time of the record holding its first byte (a framer that cuts
   // by silence completes one when the device speaks).
   const std::vector<TimedFramer::TimedFrame>& frames_completed() const { return frames_; }
+  // When the current exchange's request was complete: the time of the
+  // record holding its last byte (without a profile the last tx record of
+  // the run; with one the record that completed its frame, or for a framer
+  // that cuts by silence the last tx before the device spoke). None: no
+  // request yet (a greeting).
+  std::optional<std::uint64_t> request_end_t_ns() const { return request_end_; }
+  // The first rx record after request_end_t_ns(), said to a client: when the
+  // answer began. None: not answered yet.
+  std::optional<std::uint64_t> response_start_t_ns() const { return response_start_; }
+  // Whether the record just fed began the answer to the current request.
+  bool answer_began() const { return answer_began_; }
 
  private:
-  void begin_request();
+  void begin_request(std::optional<std::uint64_t> end_t_ns);
   void end_exchange();
 
   std::unique_ptr<TimedFramer> request_framer_;
@@ -93,6 +113,29 @@ class ExchangeCursor {
   bool began_ = false;
   std::uint64_t client_sessions_ = 0;
   ClientSessionTracker tracker_;
+  // What the device says after its client left, before the next came, is
+  // said to nobody: no answer.
+  bool said_to_nobody_ = false;
+  std::optional<std::uint64_t> last_tx_t_ns_;
+  std::optional<std::uint64_t> request_end_;
+  std::optional<std::uint64_t> response_start_;
+  bool answer_began_ = false;
+};
+
+// The latency pairing of `wiretape stats`, streamed over the one
+// segmentation: fed a channel's records in order, it keeps each answered
+// request (RequestLatency); memory grows with the answers, not the records.
+class LatencyMeter {
+ public:
+  explicit LatencyMeter(const Segmentation& segmentation);
+  void feed(RecordKind kind, std::uint64_t t_ns, std::string_view payload);
+  const std::vector<RequestLatency>& answered() const { return answered_; }
+
+ private:
+  std::shared_ptr<const Profile> profile_;
+  ExchangeCursor cursor_;
+  std::string request_name_;  // with a profile: the current request frame's
+  std::vector<RequestLatency> answered_;
 };
 
 // The whole-session form: one Exchange per exchange, in order.
@@ -108,6 +151,18 @@ struct Exchange {
   std::optional<std::uint64_t> request_last_t_ns;
   std::optional<std::uint64_t> response_first_t_ns;
   std::optional<std::uint64_t> response_last_t_ns;
+  // When its request was complete: the record holding the request's last
+  // byte (without a profile the last tx record of the run; with one the
+  // record that completed its request frame, tx written after it being the
+  // next frame's). None: it has no request (a greeting of its own).
+  std::optional<std::uint64_t> request_end_t_ns;
+  // The first rx record after request_end_t_ns: when its answer began (a
+  // greeting before the request is not one). None: not answered.
+  std::optional<std::uint64_t> response_start_t_ns;
+  // The channel of the session it was said on (segment_session_file sets
+  // them; "" for the one channel of a session without named channels).
+  std::uint16_t channel_id = 0;
+  std::string channel_name;
   std::uint64_t request_bytes = 0;
   std::uint64_t response_bytes = 0;
   std::uint64_t response_records = 0;
@@ -142,12 +197,23 @@ std::uint64_t first_exchange_of_client_session(RecordSource& source,
                                                const Segmentation& segmentation, int k);
 
 // The session file at `path` cut as a replay with the replay keys `options`
-// (profile=, match=, a declared profile's framing= ...; file= is `path`)
+// (profile=, match=, channel=, a declared profile's framing= ...; file= is `path`)
 // would cut it; a session recorded from one of `datagram_types` (the
 // registry's, passed down: detail::datagram_port_types()) is datagrams.
 // OptionError for a bad replay key, SessionError or PortError for a file
 // that cannot be read.
 SessionSegments segment_session_file(const std::string& path, const std::string& options,
                                      const std::vector<std::string>& datagram_types);
+
+// Where faults can fire in what a replay serves of `segments`: the first
+// client session's exchanges (a virtual device's first client is served
+// that one), or all of them in a recording without client sessions.
+SessionShape served_shape(const SessionSegments& segments);
+
+// served_shape() of the file at `path` (replay keys `options`, as
+// segment_session_file takes them): of each channel of a session of several
+// ports, or of its one port.
+SessionPlaces session_places_file(const std::string& path, const std::string& options,
+                                  const std::vector<std::string>& datagram_types);
 
 }  // namespace wiretape::detail

@@ -215,6 +215,70 @@ FaultPlan faults_for_channel(const FaultPlan& plan, const std::string& channel,
   return chosen;
 }
 
+void FaultPlan::check_against(const SessionPlaces& session) const {
+  const auto refuse = [](const FaultSpec& spec, const std::string& problem) {
+    throw OptionError("faults", spec.text + ": " + problem);
+  };
+  // A fault without @channel: applies to every channel: past the end only
+  // when past every channel's.
+  SessionShape every;
+  for (const SessionShape& shape : session.shapes) {
+    every.exchange_end = std::max(every.exchange_end, shape.exchange_end);
+    every.rx_bytes = std::max(every.rx_bytes, shape.rx_bytes);
+    every.last_rx_t_ns = std::max(every.last_rx_t_ns, shape.last_rx_t_ns);
+  }
+  for (const FaultSpec& spec : faults) {
+    const SessionShape* shape = &every;
+    std::string whose = session.channels.empty() ? "the session" : "every channel";
+    if (!spec.channel.empty()) {
+      const auto found =
+          std::find(session.channels.begin(), session.channels.end(), spec.channel);
+      if (found == session.channels.end()) {
+        std::string known;
+        for (const std::string& name : session.channels) {
+          known += (known.empty() ? "" : ", ") + name;
+        }
+        refuse(spec, "the session has no channel '" + spec.channel + "' (its channels: " +
+                         (known.empty() ? "none: the session has one port (leave @channel out)"
+                                        : known) +
+                         ")");
+      }
+      const auto at = static_cast<std::size_t>(found - session.channels.begin());
+      if (at < session.shapes.size()) shape = &session.shapes[at];
+      whose = "channel " + spec.channel;
+    }
+    switch (spec.where) {
+      case FaultWhereKind::exchange:
+        if (spec.where_number >= shape->exchange_end) {
+          refuse(spec, whose + " has " + std::to_string(shape->exchange_end) +
+                           " exchanges with rx (0.." +
+                           std::to_string(static_cast<std::int64_t>(shape->exchange_end) - 1) +
+                           "); exchange " + std::to_string(spec.where_number) +
+                           " is past its end");
+        }
+        break;
+      case FaultWhereKind::rx:
+        if (spec.where_number >= shape->rx_bytes) {
+          refuse(spec, whose + " has " + std::to_string(shape->rx_bytes) + " rx bytes; rx byte " +
+                           std::to_string(spec.where_number) + " is past its end");
+        }
+        break;
+      case FaultWhereKind::time:
+        // The fault stage's own test: it fires at an rx recorded at or after S.
+        if (static_cast<double>(shape->last_rx_t_ns) < spec.where_value * 1e9) {
+          char seconds[64];
+          std::snprintf(seconds, sizeof seconds, "%.3f",
+                        static_cast<double>(shape->last_rx_t_ns) / 1e9);
+          refuse(spec, whose + " lasts " + seconds + " s; t:" + format_number(spec.where_value) +
+                           " is past its end");
+        }
+        break;
+      default:
+        break;
+    }
+  }
+}
+
 std::uint64_t splitmix64(std::uint64_t x) {
   x += 0x9e3779b97f4a7c15ULL;
   x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;

@@ -99,10 +99,34 @@ struct FaultSpec {
   std::string text;                // the item as written (trimmed), for errors
 };
 
+// Where faults can fire in what a replay of one channel serves, as the
+// fault stage (fault_stage.hpp) counts places: measured by the one
+// segmentation (exchanges.hpp, served_shape).
+struct SessionShape {
+  std::uint64_t first_exchange = 0;  // the number of the first exchange served
+  std::uint64_t exchange_end = 0;    // one past the last exchange with rx
+  std::uint64_t rx_bytes = 0;        // rx bytes served
+  // The session time of the last rx record served (0: none). `t:S` fires at
+  // the first rx recorded at or after S on the session's clock, so S past
+  // it never fires.
+  std::uint64_t last_rx_t_ns = 0;
+};
+
+// A session as fault places are checked against it.
+struct SessionPlaces {
+  std::vector<std::string> channels;  // a session of several ports' names; empty: one port
+  std::vector<SessionShape> shapes;   // one per channel, in that order; one for one port
+};
+
 struct FaultPlan {
   std::vector<FaultSpec> faults;
   std::uint64_t seed = 0;
   bool empty() const { return faults.empty(); }
+  // Throws OptionError naming `faults` for a fault naming a channel
+  // `session` lacks, or placed past the end of what its replay serves
+  // (exchange:N, rx:N, t:S; a fault without @channel: past every channel's
+  // end), naming the item, the end and the channels.
+  void check_against(const SessionPlaces& session) const;
 };
 
 // The grammar, for error messages and docs.

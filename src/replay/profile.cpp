@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "replay/profiles/builtin.hpp"
+#include "replay/profiles/declared.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail {
@@ -220,6 +221,53 @@ void SessionDecoder::emit(StreamDirection direction, std::uint64_t t_ns, Frame f
   item.bytes = std::move(frame.bytes);
   item.is_frame = true;
   out.push_back(std::move(item));
+}
+
+std::shared_ptr<const Profile> take_profile(Options& options) {
+  std::shared_ptr<const Profile> profile;
+  if (const auto name = options.peek("profile")) {
+    if (options.has("framing")) {
+      throw OptionError("framing",
+                        "options 'profile' and 'framing' both say how to frame the "
+                        "session: give a built-in profile or a declared one, not both");
+    }
+    profile = find_profile(*name);
+  }
+  options.take_string("profile");
+  if (auto declared = take_declared_profile(options)) profile = std::move(declared);
+  return profile;
+}
+
+ProfileSpec profile_from_spec(std::string_view spec) {
+  const auto first = spec.find_first_not_of(" \t\r\n");
+  if (first == std::string_view::npos) {
+    std::string names;
+    for (const std::string& name : profile_names()) names += (names.empty() ? "" : ", ") + name;
+    throw OptionError("profile", "the profile is empty; give a profile's name (" + names +
+                                     ") or a declared profile (framing=...)");
+  }
+  const std::string_view text =
+      spec.substr(first, spec.find_last_not_of(" \t\r\n") - first + 1);
+  Options options;
+  if (text.find('=') == std::string_view::npos) {
+    options.set("profile", std::string(text));
+  } else {
+    options = Options::parse(text);
+  }
+  for (const Options::Entry& entry : options.entries()) {
+    if (entry.key != "profile" && entry.key != "framing" && entry.key != "ignore" &&
+        entry.key != "echo" && entry.key != "checksum") {
+      throw OptionError(entry.key, "option '" + entry.key +
+                                       "' is not a profile's key: a profile is a name "
+                                       "(profile=NAME) or declared by framing=, ignore=, "
+                                       "echo=, checksum=");
+    }
+  }
+  ProfileSpec read;
+  read.options = options.to_string();
+  options.set_port_type("replay");
+  read.profile = take_profile(options);
+  return read;
 }
 
 }  // namespace wiretape::detail

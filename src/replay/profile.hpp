@@ -17,6 +17,7 @@
 #include <utility>
 #include <vector>
 
+#include "wiretape/options.hpp"
 #include "wiretape/profile.hpp"
 #include "wiretape/session.hpp"
 
@@ -103,5 +104,27 @@ class SessionDecoder {
   TimedFramer rx_;
   std::vector<TimedFramer::TimedFrame> frames_;  // reused between records
 };
+
+// The profile a replay's keys give, taking them: a built-in or registered one
+// by profile=NAME, or one declared by framing= (with ignore=, echo=,
+// checksum=); nullptr for neither. `options` reads the replay's rows
+// (set_port_type("replay")). Both at once, a bad spec or an unknown name is an
+// OptionError naming the key.
+std::shared_ptr<const Profile> take_profile(Options& options);
+
+// What a profile given by a person stands for (every --profile of the CLI).
+struct ProfileSpec {
+  std::shared_ptr<const Profile> profile;
+  // The replay keys that give the same profile: `profile=NAME`, or the
+  // declared profile's `framing=...[,ignore=...][,echo=...][,checksum=...]`.
+  std::string options;
+};
+
+// `spec` read by the replay's own rule (take_profile): text with no `=` is a
+// name, as profile=NAME (`scip`); else the replay keys profile=, framing=,
+// ignore=, echo= and checksum= (`framing=fixed:10,echo=0:2`). Surrounding white
+// space is ignored. OptionError naming the key for an empty spec, another
+// key, or whatever take_profile refuses.
+ProfileSpec profile_from_spec(std::string_view spec);
 
 }  // namespace wiretape::detail

@@ -2,7 +2,7 @@
 
 #include <cmath>
 
-#include "replay/profiles/declared.hpp"
+#include "replay/profile.hpp"
 #include "replay/faults.hpp"
 #include "wiretape/errors.hpp"
 
@@ -97,16 +97,7 @@ ReplayConfig take_replay_config(Options& options) {
   const double flush_wait_ms = options.take_double("flush_wait");
   config.flush_wait =
       std::chrono::nanoseconds(static_cast<std::int64_t>(std::llround(flush_wait_ms * 1e6)));
-  if (const auto name = options.peek("profile")) {
-    if (options.has("framing")) {
-      throw OptionError("framing",
-                        "options 'profile' and 'framing' both say how to frame the "
-                        "session: give a built-in profile or a declared one, not both");
-    }
-    config.profile = find_profile(std::string(*name));
-  }
-  options.take_string("profile");
-  if (auto declared = take_declared_profile(options)) config.profile = std::move(declared);
+  config.profile = take_profile(options);
   if (config.profile && config.match == ReplayMatch::sequence &&
       config.profile->make_framer(StreamDirection::tx)->quiet_gap()) {
     throw OptionError("framing",

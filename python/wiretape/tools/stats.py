@@ -1,7 +1,8 @@
 """``wiretape stats``: the figures of a session (records, bytes, duration,
 events, header), streamed: memory does not grow with the file's size; and
-the latency from each request to the first byte of its response, over the
-records in order, per request frame name with a profile."""
+the latency from each request to the first byte of its response, paired
+by the one segmentation into exchanges (C++), per request frame name with a
+profile."""
 
 from __future__ import annotations
 
@@ -55,45 +56,28 @@ def _latency(name: str, waits_ns: List[int]) -> Latency:
     return Latency(name, len(ordered), p50, p90, p99, ordered[-1] / 1e9)
 
 
-# Events after which an answer cannot be to the request before them.
-_NEW_CONVERSATION = frozenset({"open", "close", "client_connect", "client_disconnect",
-                               "device_lost"})
-
-
 class _LatencyMeter:
-    """Request to first response byte, from the records in order: a request
-    is complete at the tx record that writes its last byte (without a
-    profile, the last tx record before an rx; with one, the tx record that
-    completes a request frame, cut by the profile's framer); the next rx
-    record is the first byte of its response."""
+    """One channel's answered requests, paired in C++ by the one
+    segmentation (``_core.LatencyMeter``: each exchange's request end to
+    its response start, as the replay cuts exchanges), fed the records as
+    they stream by."""
 
-    def __init__(self, profile: Optional[str]):
-        self._profile = _core.find_profile(profile) if profile is not None else None
-        self._framer = self._profile.framer("tx") if self._profile is not None else None
-        self._sent: Optional[int] = None  # when the waiting request was complete
-        self._name = ""
-        self.waits: Dict[str, List[int]] = {}
-        self.every: List[int] = []
+    def __init__(self, header: _core.SessionHeader, channel: int, profile: Optional[str]):
+        self._profile = profile
+        self._meter = _core.LatencyMeter(header, channel=channel, profile=profile)
+        self.feed = self._meter.feed
 
-    def feed(self, kind: str, t_ns: int, data: bytes) -> None:
-        if kind == "tx":
-            if self._framer is None:
-                self._sent = t_ns
-                return
-            frames = self._framer.feed(data, t_ns)
-            if frames:
-                self._sent = t_ns
-                self._name = self._profile.frame_name("tx", frames[-1][0]) or "?"
-        elif kind == "rx":
-            if self._sent is not None:
-                self.every.append(t_ns - self._sent)
-                if self._framer is not None:
-                    self.waits.setdefault(self._name, []).append(t_ns - self._sent)
-                self._sent = None
-        elif kind in _NEW_CONVERSATION:
-            self._sent = None
-            if self._profile is not None:
-                self._framer = self._profile.framer("tx")
+    @property
+    def every(self) -> List[int]:
+        return [answered.wait_ns for answered in self._meter.answered]
+
+    @property
+    def waits(self) -> Dict[str, List[int]]:
+        named: Dict[str, List[int]] = {}
+        if self._profile is not None:
+            for answered in self._meter.answered:
+                named.setdefault(answered.request_name, []).append(answered.wait_ns)
+        return named
 
     def result(self) -> List[Latency]:
         """One Latency over every request (``all``), and with a profile one
@@ -249,7 +233,7 @@ def stats(path: SessionPath, profile: Optional[str] = None) -> SessionStats:
         channel = record.channel
         meter = meters.get(channel)
         if meter is None:
-            meter = meters[channel] = _LatencyMeter(profile)
+            meter = meters[channel] = _LatencyMeter(reader.header, channel, profile)
         meter.feed(record.kind, record.t_ns, record.data)
         figures = per_channel.get(channel)
         if figures is None:

@@ -1,5 +1,9 @@
 #include <chrono>
+#include <cstdint>
+#include <limits>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -198,6 +202,58 @@ TEST(OptionsQuote, ParseGivesTheQuotedValueBack) {
     const auto options = Options::parse("log=" + wiretape::quote_option_value(value));
     EXPECT_EQ(options.peek("log"), value) << value;
   }
+}
+
+TEST(OptionString, ValuesAreQuotedAndNumbersWrittenByOneRule) {
+  using Pairs = std::vector<std::pair<std::string, wiretape::OptionValue>>;
+  EXPECT_EQ(wiretape::option_string(Pairs{{"type", std::string("replay")},
+                                          {"file", std::string("/a b/s.wtape")},
+                                          {"speed", 2.0},
+                                          {"gap", 0.25},
+                                          {"jitter", 1e-6},
+                                          {"seed", std::int64_t{-7}},
+                                          {"fsync", true},
+                                          {"restart", false}}),
+            "type=replay,file=\"/a b/s.wtape\",speed=2,gap=0.25,jitter=1e-06,seed=-7,"
+            "fsync=true,restart=false");
+  EXPECT_EQ(wiretape::option_string(Pairs{}), "");
+}
+
+TEST(OptionString, ParseGivesThePairsBack) {
+  const std::vector<std::string> values = {"", "a,b", "k=v", "say \"x\"", "back\\slash",
+                                           "tab\tnew\nline", "caf\xc3\xa9 \xe2\x9c\x93", "=,\"\\"};
+  std::vector<std::pair<std::string, wiretape::OptionValue>> pairs;
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    pairs.emplace_back("meta_" + std::to_string(i), values[i]);
+  }
+  const auto entries = wiretape::parse_options(wiretape::option_string(pairs));
+  ASSERT_EQ(entries.size(), values.size());
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    EXPECT_EQ(entries[i].key, "meta_" + std::to_string(i));
+    EXPECT_EQ(entries[i].value, values[i]) << i;
+  }
+}
+
+TEST(OptionString, ABadKeyOrValueIsAnOptionErrorNamingTheKey) {
+  using Pairs = std::vector<std::pair<std::string, wiretape::OptionValue>>;
+  for (const std::string key : {"", "a,b", "a b", "a=b", "say\"", std::string("n\0l", 3)}) {
+    try {
+      wiretape::option_string(Pairs{{key, std::string("v")}});
+      FAIL() << "no OptionError for key " << key;
+    } catch (const OptionError& error) {
+      EXPECT_EQ(error.key(), key);
+      EXPECT_NE(std::string(error.what()).find("is not a key"), std::string::npos);
+    }
+  }
+  try {
+    wiretape::option_string(Pairs{{"speed", 1.0}, {"speed", 2.0}});
+    FAIL() << "no OptionError for a key given twice";
+  } catch (const OptionError& error) {
+    EXPECT_EQ(error.key(), "speed");
+  }
+  EXPECT_THROW(wiretape::option_string(Pairs{{"gap", std::numeric_limits<double>::infinity()}}),
+               OptionError);
+  EXPECT_THROW(wiretape::option_string(Pairs{{"log", std::string("a\0b", 3)}}), OptionError);
 }
 
 TEST(DeviceOptions, ABarePathMeansASerialDevice) {

@@ -196,6 +196,71 @@ TEST(Exchanges, AnEmptySessionHasNone) {
   EXPECT_TRUE(segments_of({Record{1, RecordKind::settings, "{}"}}).exchanges.empty());
 }
 
+TEST(Exchanges, ARequestEndsAtItsLastByteAndItsAnswerStartsAfterIt) {
+  // The greeting before the request is not its answer; a tx run ends at its
+  // last record.
+  const std::vector<Record> records = {rx(1, "hello"), tx(2, "A"), tx(3, "B"), rx(5, "ab"),
+                                       tx(8, "C")};
+  const SessionSegments segments = segments_of(records);
+  ASSERT_EQ(segments.exchanges.size(), 2u);
+  EXPECT_EQ(segments.exchanges[0].request_end_t_ns, 3u);
+  EXPECT_EQ(segments.exchanges[0].response_start_t_ns, 5u);
+  EXPECT_EQ(segments.exchanges[0].response_first_t_ns, 1u);
+  EXPECT_EQ(segments.exchanges[1].request_end_t_ns, 8u);
+  EXPECT_FALSE(segments.exchanges[1].response_start_t_ns);
+  // Under match=request the greeting is an exchange without a request.
+  const Segmentation request{nullptr, false, ReplayMatch::request};
+  const SessionSegments by_match = segments_of(records, request);
+  EXPECT_FALSE(by_match.exchanges[0].request_end_t_ns);
+  EXPECT_FALSE(by_match.exchanges[0].response_start_t_ns);
+}
+
+TEST(Exchanges, WithAProfileARequestEndsWhereItsFrameIsComplete) {
+  // The tx after the frame begins the next one: the wait is from the frame.
+  const std::string one = mbap(1), two = mbap(2);
+  const std::vector<Record> records = {tx(1, one.substr(0, 5)), tx(2, one.substr(5)),
+                                       tx(3, two.substr(0, 4)), rx(7, "r1"), tx(9, two.substr(4)),
+                                       rx(10, "r2")};
+  const SessionSegments segments = segments_of(records, {find_profile("modbus-tcp")});
+  ASSERT_EQ(segments.exchanges.size(), 2u);
+  EXPECT_EQ(segments.exchanges[0].request_end_t_ns, 2u);
+  EXPECT_EQ(segments.exchanges[0].request_last_t_ns, 3u);
+  EXPECT_EQ(segments.exchanges[0].response_start_t_ns, 7u);
+  EXPECT_EQ(segments.exchanges[1].request_end_t_ns, 9u);
+  LatencyMeter meter({find_profile("modbus-tcp")});
+  for (const Record& record : records) meter.feed(record.kind, record.t_ns, record.data);
+  const std::vector<RequestLatency>& latencies = meter.answered();
+  ASSERT_EQ(latencies.size(), 2u);
+  EXPECT_EQ(latencies[0].wait_ns, 5u);
+  EXPECT_EQ(latencies[1].wait_ns, 1u);
+  EXPECT_FALSE(latencies[0].request_name.empty());
+}
+
+TEST(Exchanges, AnOpenOrCloseBetweenARequestAndItsAnswerDoesNotCutThem) {
+  // The replay serves the answer to the request across them: so is it paired.
+  const std::vector<Record> records = {tx(1, "Q"), Record{2, RecordKind::close, "{}"},
+                                       Record{3, RecordKind::open, "{}"}, rx(6, "R")};
+  LatencyMeter meter({});
+  for (const Record& record : records) meter.feed(record.kind, record.t_ns, record.data);
+  const std::vector<RequestLatency>& latencies = meter.answered();
+  ASSERT_EQ(latencies.size(), 1u);
+  EXPECT_EQ(latencies[0].wait_ns, 5u);
+  EXPECT_TRUE(latencies[0].request_name.empty());
+  EXPECT_EQ(segments_of(records).exchanges[0].response_start_t_ns, 6u);
+}
+
+TEST(Exchanges, TheServedShapeIsTheFirstClientSessionsOnTheSessionsClock) {
+  const std::vector<Record> records = {
+      rx(1, "before any client"), connect(2'000, "a", "control"), tx(2'100, "A"),
+      rx(2'500, "aa"), tx(3'000, "B"), rx(3'500, "bbb"), disconnect(4'000, "a"),
+      connect(5'000, "c", "control"), tx(5'100, "C"), rx(5'500, "c")};
+  const SessionShape shape = served_shape(segments_of(records));
+  EXPECT_EQ(shape.first_exchange, 1u);
+  EXPECT_EQ(shape.exchange_end, 3u);
+  EXPECT_EQ(shape.rx_bytes, 5u);
+  EXPECT_EQ(shape.last_rx_t_ns, 3'500u);  // session time, not time since the connect
+}
+
 // --- the replay's own numbering agrees with the whole-session form ------------
 
 // Every real recording the tests and the example use.

@@ -24,6 +24,8 @@ using namespace std::chrono_literals;
 using detail::FaultKind;
 using detail::FaultWhereKind;
 using detail::parse_faults;
+using detail::SessionPlaces;
+using detail::SessionShape;
 
 namespace {
 
@@ -116,6 +118,52 @@ TEST(FaultParser, BadInputNamesTheKeyTheItemAndTheGrammar) {
       EXPECT_NE(message.find("'"), std::string::npos) << message;
     }
   }
+}
+
+namespace {
+
+// The message check_against gives `text` against `session`; "" when it passes.
+std::string refusal(const char* text, const SessionPlaces& session) {
+  try {
+    parse_faults(text, 0).check_against(session);
+  } catch (const OptionError& error) {
+    EXPECT_EQ(error.key(), "faults");
+    return error.what();
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(FaultPlaces, APlacePastWhatTheReplayServesIsRefused) {
+  const SessionPlaces one{{}, {SessionShape{2, 5, 30, 3'500'000'000}}};
+  EXPECT_EQ(refusal("drop@exchange:4;drop@rx:29;drop@t:3.5", one), "");
+  EXPECT_EQ(refusal("drop@exchange:5", one),
+            "drop@exchange:5: the session has 5 exchanges with rx (0..4); exchange 5 is past "
+            "its end");
+  EXPECT_EQ(refusal("drop@rx:30", one),
+            "drop@rx:30: the session has 30 rx bytes; rx byte 30 is past its end");
+  // t:S on the session's clock, as the fault stage fires it.
+  EXPECT_EQ(refusal("drop@t:3.6", one),
+            "drop@t:3.6: the session lasts 3.500 s; t:3.6 is past its end");
+  EXPECT_EQ(refusal("drop@exchange:0@channel:gps", one),
+            "drop@exchange:0@channel:gps: the session has no channel 'gps' (its channels: "
+            "none: the session has one port (leave @channel out))");
+}
+
+TEST(FaultPlaces, AChannelsPlaceIsItsOwnAndOneWithoutIsEveryChannels) {
+  const SessionPlaces two{{"gps", "rtk"},
+                          {SessionShape{0, 3, 9, 1'000'000'000}, SessionShape{0, 2, 6, 0}}};
+  EXPECT_EQ(refusal("drop@exchange:2@channel:gps;drop@exchange:2", two), "");
+  EXPECT_EQ(refusal("drop@exchange:2@channel:rtk", two),
+            "drop@exchange:2@channel:rtk: channel rtk has 2 exchanges with rx (0..1); "
+            "exchange 2 is past its end");
+  EXPECT_EQ(refusal("drop@exchange:3", two),
+            "drop@exchange:3: every channel has 3 exchanges with rx (0..2); exchange 3 is "
+            "past its end");
+  EXPECT_EQ(refusal("drop@exchange:0@channel:imu", two),
+            "drop@exchange:0@channel:imu: the session has no channel 'imu' (its channels: "
+            "gps, rtk)");
 }
 
 TEST(FaultParser, OptionsCheckFaultsAndSeedAtOpen) {

@@ -410,3 +410,39 @@ TEST(ScipChecksums, ScanDataLinesSumOverEveryByteAndAStatusLineToo) {
   EXPECT_EQ(profile->recompute_checksums(StreamDirection::rx, "SCIP2.0\n0\n\n"), "SCIP2.0\n0\n\n");
   EXPECT_EQ(profile->recompute_checksums(StreamDirection::rx, "GD\n00P\n12"), "GD\n00P\n12");
 }
+
+TEST(ProfileFromSpec, ANameIsProfileEqualsName) {
+  const ProfileSpec read = profile_from_spec(" scip ");
+  ASSERT_NE(read.profile, nullptr);
+  EXPECT_EQ(read.profile->name(), "scip");
+  EXPECT_EQ(read.options, "profile=scip");
+  EXPECT_EQ(profile_from_spec("profile=modbus-tcp").profile->name(), "modbus-tcp");
+}
+
+TEST(ProfileFromSpec, KeysWithEqualsDeclareAProfileAsTheReplayDoes) {
+  const ProfileSpec read = profile_from_spec("framing=fixed:10,echo=0:2");
+  ASSERT_NE(read.profile, nullptr);
+  EXPECT_EQ(read.options, "framing=fixed:10,echo=0:2");
+  // The replay's own reading of the same keys gives the same framing.
+  Options options = Options::parse(read.options);
+  options.set_port_type("replay");
+  const auto replayed = take_profile(options);
+  ASSERT_NE(replayed, nullptr);
+  EXPECT_EQ(replayed->name(), read.profile->name());
+}
+
+TEST(ProfileFromSpec, BadSpecsAreOptionErrorsNamingTheKey) {
+  auto key_of = [](const std::string& spec) {
+    try {
+      profile_from_spec(spec);
+    } catch (const OptionError& error) {
+      return error.key();
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(key_of("  "), "profile");
+  EXPECT_EQ(key_of("no-such-profile"), "profile");
+  EXPECT_EQ(key_of("framing=fixed:10,match=request"), "match");
+  EXPECT_EQ(key_of("echo=0:2"), "echo");
+  EXPECT_EQ(key_of("profile=scip,framing=fixed:10"), "framing");
+}

@@ -173,3 +173,16 @@ def test_the_replays_numbering_agrees_with_the_binding_on_every_recording(path, 
             assert _replayed_exchanges(path, keys, tmp_path) == expected, keys
             checked = True
     assert checked
+
+
+def test_an_exchange_carries_its_request_end_response_start_and_channel(tmp_path):
+    # A greeting before the request is not its answer; with the lines
+    # profile a request ends at the record completing its line.
+    path = write(tmp_path / "s.wtape", [("rx", 1, b"hello\n"), ("tx", 2, b"A\n"),
+                                        ("tx", 3, b"B"), ("rx", 5, b"a\n"), ("tx", 8, b"\n")])
+    first, second = _core.session_exchanges(path, profile="lines")
+    assert (first.request_end_t_ns, first.response_start_t_ns) == (2, 5)
+    assert (first.request_first_t_ns, first.request_last_t_ns) == (2, 3)
+    assert first.response_first_t_ns == 1
+    assert (second.request_end_t_ns, second.response_start_t_ns) == (8, None)
+    assert (first.channel_id, first.channel_name) == (0, "")

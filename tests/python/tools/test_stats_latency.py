@@ -91,3 +91,23 @@ def test_a_session_without_answers_says_so(tmp_path):
     result = stats(path)
     assert result.latency == ()
     assert result.latency_note == "not measured: no request is followed by a response"
+
+
+def test_a_request_answered_across_a_close_and_an_open_is_paired_as_the_replay_pairs_it(
+        tmp_path):
+    # The one segmentation (src/replay/exchanges.cpp) keeps an exchange
+    # across close/open/device_lost: the replay answers the request after
+    # them, so stats pairs them too (docs/cli.md).
+    path = tmp_path / "reopened.wtape"
+    with wiretape.SessionWriter(str(path), port_type="serial",
+                                port_options="type=serial,device=/dev/ttyX") as writer:
+        writer.write("tx", 0, b"Q\n")
+        writer.write("close", 1_000_000, b"{}")
+        writer.write("open", 2_000_000, b"{}")
+        writer.write("rx", 5_000_000, b"R\n")
+    result = stats(path)
+    assert [(latency.name, latency.requests) for latency in result.latency] == [("all", 1)]
+    assert result.latency[0].max_s == pytest.approx(0.005)
+    assert result.latency_note is None
+    exchange, = wiretape._core.session_exchanges(str(path))
+    assert (exchange.request_end_t_ns, exchange.response_start_t_ns) == (0, 5_000_000)

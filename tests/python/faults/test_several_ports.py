@@ -102,3 +102,12 @@ def test_campaign_over_two_channels_faults_each_on_its_own(session, tmp_path):
     assert set(rows) == {"gps drop", "rtk drop"}
     assert "EEE" in rows["gps drop"] and "error 3" in rows["gps drop"]
     assert "EE " in rows["rtk drop"] and "error 2" in rows["rtk drop"]
+
+
+def test_t_is_checked_on_the_sessions_clock_in_each_channel(session):
+    # rtk's last rx is recorded at 27 ms of the session's one clock (its
+    # first record at 5 ms): t:0.026 fires there, as the replay fires it.
+    faults.check_where(session, "drop@t:0.026@channel:rtk")
+    with pytest.raises(faults.FaultInputError,
+                       match=r"channel rtk lasts 0.027 s; t:0.028 is past its end"):
+        faults.check_where(session, "drop@t:0.028@channel:rtk")
