@@ -348,6 +348,68 @@ def test_every_fault_kind_serves_what_the_oracle_says(tmp_path, kind, match, pro
                     [[2, 0, 1] if match == "request" else [0, 1, 2]], "none", Fault(kind, 1), 7)
 
 
+# The dimensions of DESIGN §25 "Combinations", each covered in every bounded
+# run whatever the property tests drew.
+
+
+def events_around(parts):
+    """Every client event before the second exchange, a flush before the
+    first, the device's lines at open and changed before two responses."""
+    first = [(ClientEvent("flush"),), (ClientEvent("baud", 9600), ClientEvent("dtr", 0),
+                                       ClientEvent("break", 2), ClientEvent("dtr", 1))]
+    return dict(initial_lines=(True, True, False, False),
+                device_lines=[[(False, True, False, True), None, (False, False, True, True)]
+                              [:len(part)] for part in parts],
+                client_events=[(first + [()] * len(part))[:len(part)] for part in parts])
+
+
+@pytest.mark.parametrize("timing,check", [("none", "data"), ("causal", "data"), ("causal", "timing")])
+@pytest.mark.parametrize("match", ["sequence", "request"])
+def test_recorded_lines_settings_breaks_and_flushes_replay_as_the_recording_says(
+        tmp_path, match, timing, check):
+    parts = [[Exchange(line_frame(b"A"), (line_frame(b"a"),)),
+              Exchange(line_frame(b"B"), (line_frame(b"b"), line_frame(b"bb"))),
+              Exchange(line_frame(b"C"), (line_frame(b"c"),))]]
+    run_combination(tmp_path, PROTOCOLS["lines"], parts, SPLIT_FRAMES, [1], match,
+                    [[2, 0, 1] if match == "request" else [0, 1, 2]], timing, None, 0,
+                    check=check, around=events_around(parts))
+
+
+@pytest.mark.parametrize("fault", [None, "duplicate", "truncate:1"])
+@pytest.mark.parametrize("match", ["sequence", "request"])
+def test_a_declared_echo_with_a_checksum_is_fixed_and_resealed(tmp_path, match, fault):
+    parts = [[Exchange(checksummed_frame(b"\x55\x00", b"\x00\x01"),
+                       (checksummed_frame(b"\x55\x00", b"\x12\x34"),
+                        checksummed_frame(b"\x55\x00", b"\x56"))),
+              Exchange(checksummed_frame(b"\x55\x01", b"\x01"),
+                       (checksummed_frame(b"\x55\x01", b"\x78\x9a\xbc"),))]]
+    run_combination(tmp_path, PROTOCOLS["declared-checksum"], parts, SPLIT_FRAMES, [3], match,
+                    [[1, 0] if match == "request" else [0, 1]], "causal",
+                    Fault(fault, 1) if fault else None, 0)
+
+
+@pytest.mark.parametrize("reopen", REOPENS)
+@pytest.mark.parametrize("match", ["sequence", "request"])
+def test_a_client_that_reopens_is_served_each_session_and_faults_count_across(
+        tmp_path, match, reopen):
+    parts = two_client_sessions()
+    run_combination(tmp_path, PROTOCOLS["none"], parts, FRAME_PER_RECORD, [1], match,
+                    [[0, 1], [1, 0] if match == "request" else [0, 1]], "causal",
+                    Fault("duplicate", 3), 0, around=dict(events_around(parts), client_events=None,
+                                                          reopen=reopen))
+
+
+@pytest.mark.parametrize("clock", ["channel by channel", "one clock"])
+@pytest.mark.parametrize("match", ["sequence", "request"])
+@pytest.mark.parametrize("timing,check", [("none", "data"), ("causal", "timing")])
+def test_two_channels_serve_what_each_channel_recorded(tmp_path, clock, match, timing, check):
+    parts = {"a": [Exchange(line_frame(b"A%d" % i), (line_frame(b"a%d" % i),)) for i in range(2)],
+             "b": [Exchange(line_frame(b"B%d" % i), (line_frame(b"b%d" % i),)) for i in range(2)]}
+    run_channels(tmp_path, PROTOCOLS["lines"], parts, ["a", "b", "b", "a"], FRAME_PER_RECORD, [1],
+                 match, {"a": [0, 1], "b": [1, 0] if match == "request" else [0, 1]}, timing,
+                 check, ("b", Fault("duplicate", 1)), 0, 0, clock)
+
+
 # --- the defects issue 22 lists, one by one (fixed by branch `exchanges`) ------------------------
 
 
