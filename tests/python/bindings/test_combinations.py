@@ -2,9 +2,16 @@
 combination of match mode × profile (none, lines, modbus-tcp, a declared
 one) × timing (none, causal) × fault (none, one of each kind) × how records
 split frames × client sessions (one; two, with a client_disconnect and a
-client_connect between), and how the client splits its writes, a greeting, a
-monitor; against the oracle of support/session_oracle.py, which computes
-what must be served from the recording alone.
+client_connect between, delimited as a TCP client, a pty client that
+reopens, or a proxy's --restart records them), and how the client splits
+its writes, a greeting, a monitor; and the dimensions of DESIGN §25
+"Combinations": the recording's line and settings events (the device's
+modem lines, the client's settings, DTR and breaks) and flushes, a declared
+profile with `echo=` and `checksum=` together, `check=timing`, and a
+session of several channels replayed channel by channel or on one clock;
+against the oracle of support/session_oracle.py, which computes what must
+be served from the recording alone (the clients are in
+support/combination_clients.py).
 
 The defects issue 22 lists are explicit tests at the end of the file;
 findings of this test not fixed yet are explicit tests marked
@@ -27,8 +34,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import select
-import socket
 import time
 
 import pytest
@@ -38,6 +43,8 @@ from hypothesis import strategies as st
 import wiretape
 from wiretape import bridge
 
+from channel_sessions import write_channel_session
+from combination_clients import DEADLINE, PortClient, Step, TcpClient, play, play_steps
 from devices import wait_until
 from session_oracle import (
     DEVICE_ENDING_FAULTS,
@@ -45,24 +52,28 @@ from session_oracle import (
     FRAME_PER_RECORD,
     FRAMES_TOGETHER,
     MONITORS,
+    MS,
     PROTOCOLS,
+    REOPENS,
     SPLIT_FRAMES,
     SPLITS,
+    ClientEvent,
     Exchange,
     Expectation,
     Fault,
     Protocol,
     build_session,
+    checksummed_frame,
     declared_frame,
     expect,
+    layout,
     line_frame,
     modbus_frame,
     recorded_tx_times,
+    served_lines,
     write_session,
 )
 
-DEADLINE = 10.0  # seconds: generous, for what must happen at once
-QUIET = 0.3  # seconds: how long "nothing more comes" is watched for
 EXAMPLES_FROM_ENV = os.environ.get("WIRETAPE_COMBINATION_EXAMPLES")
 EXAMPLES = int(EXAMPLES_FROM_ENV or "60")
 
@@ -99,14 +110,44 @@ def declared_exchange(draw, index):
     return Exchange(request, responses)
 
 
-EXCHANGES_OF = {"lines": line_exchange, "modbus-tcp": modbus_exchange, "declared": declared_exchange}
+@st.composite
+def checksummed_exchange(draw, index):
+    frame_id = bytes([0x55, index & 0xFF])
+    request = checksummed_frame(frame_id, bytes([index]) + draw(text))
+    responses = tuple(checksummed_frame(frame_id, draw(st.binary(min_size=1, max_size=12)))
+                      for _ in range(draw(st.integers(1, 2))))
+    return Exchange(request, responses)
+
+
+EXCHANGES_OF = {"lines": line_exchange, "modbus-tcp": modbus_exchange, "declared": declared_exchange,
+                "declared-checksum": checksummed_exchange}
+LINES_OF = st.tuples(st.booleans(), st.booleans(), st.booleans(), st.booleans())
+CLIENT_EVENT = st.one_of(st.just(ClientEvent("flush")),
+                         st.sampled_from([9600, 115200]).map(lambda baud: ClientEvent("baud", baud)),
+                         st.integers(0, 1).map(lambda level: ClientEvent("dtr", level)),
+                         st.integers(1, 3).map(lambda ms: ClientEvent("break", ms)))
+
+
+@st.composite
+def around(draw, parts, events_allowed):
+    """What the recording holds besides the exchanges (session_oracle.Session):
+    in one example of two, the device's lines and, where the client is a
+    port, its events and flushes."""
+    if not draw(st.booleans()):
+        return {}
+    maybe_lines = st.one_of(st.none(), LINES_OF)
+    events = st.lists(CLIENT_EVENT, max_size=2).map(tuple) if events_allowed else st.just(())
+    return dict(initial_lines=draw(maybe_lines),
+                device_lines=[[draw(maybe_lines) for _ in part] for part in parts],
+                client_events=[[draw(events) for _ in part] for part in parts])
 
 
 @st.composite
 def combinations(draw):
     protocol = PROTOCOLS[draw(st.sampled_from(sorted(PROTOCOLS)))]
     # Without a profile the bytes are compared whole: any prefix-free data.
-    family = protocol.name if protocol.name != "none" else draw(st.sampled_from(["lines", "declared"]))
+    family = protocol.name if protocol.name != "none" else draw(
+        st.sampled_from(["lines", "declared", "declared-checksum"]))
     client_sessions = draw(st.sampled_from([1, 2]))
     count = draw(st.integers(1, 4))
     parts, index = [], 0
@@ -124,6 +165,9 @@ def combinations(draw):
     orders = [draw(st.permutations(range(len(part)))) if match == "request" else list(range(len(part)))
               for part in parts]
     timing = draw(st.sampled_from(["none", "causal"]))
+    # check=timing needs a clock; its tolerance is wide, as a loaded machine
+    # is slow: what it adds is the check of the client's events in order.
+    check = draw(st.sampled_from(["data", "timing"])) if timing == "causal" else "data"
     fault = None
     if draw(st.integers(0, 3)):  # a fault in three examples of four
         fault = Fault(draw(st.sampled_from(FAULT_KINDS)), draw(st.integers(0, index - 1)))
@@ -133,167 +177,30 @@ def combinations(draw):
     greeting = draw(st.sampled_from([b"", b"", line_frame(b"hello")])) if family == "lines" else b""
     # How the client splits each request into writes (0: one write).
     chunk = draw(st.sampled_from([0, 0, 1, 2, 3, 5]))
+    extra = draw(around(parts, events_allowed=client_sessions == 1))
+    if client_sessions > 1:
+        extra["reopen"] = draw(st.sampled_from(REOPENS))
     return dict(protocol=protocol, parts=parts, split=split, cuts=cuts, match=match,
                 orders=orders, timing=timing, fault=fault, seed=draw(st.integers(0, 2**16)),
-                chunk=chunk, monitor=monitor, greeting=greeting)
+                chunk=chunk, monitor=monitor, greeting=greeting, check=check, around=extra)
 
 
 # --- the client -----------------------------------------------------------------------------
 
 
-def replay_keys(protocol: Protocol, match: str, timing: str, fault, seed: int, at_end: str) -> str:
+def replay_keys(protocol: Protocol, match: str, timing: str, fault, seed: int, at_end: str,
+                check: str = "data") -> str:
     # at_end=closed lets a port's client see the recording's end at once; a
     # virtual device would end with it (no second client session), so there
     # the client waits for QUIET instead.
     keys = [f"match={match}", f"timing={timing}", "unused=error", f"at_end={at_end}"]
+    if check == "timing":
+        keys.append("check=timing,tolerance=5000")
     if protocol.keys:
         keys.append(protocol.keys)
     if fault is not None:
         keys.append(f"faults={fault.option},seed={seed}")
     return ",".join(keys)
-
-
-def pieces(data: bytes, chunk: int):
-    """`data` in writes of `chunk` bytes (0: one write)."""
-    size = chunk or len(data) or 1
-    return [data[i:i + size] for i in range(0, len(data), size)]
-
-
-class PortClient:
-    """A client of a `type=replay` port, writing in pieces of `chunk` bytes."""
-
-    def __init__(self, port, chunk=0):
-        self.port = port
-        self.chunk = chunk
-
-    def write(self, data: bytes) -> None:
-        for piece in pieces(data, self.chunk):
-            self.port.write_all(piece)
-
-    def read_exactly(self, count: int) -> bytes:
-        return self.port.read_exactly(count, timeout=DEADLINE)
-
-    def read_closed(self) -> bool:
-        """True when a read raises PortClosed (the device went away)."""
-        try:
-            self.port.read(1, timeout=DEADLINE)
-        except wiretape.PortClosed:
-            return True
-        return False
-
-    def write_when_back(self, data: bytes) -> None:
-        """Writes once the device is back from a reconnect fault (it refuses
-        writes with PortClosed while gone)."""
-        end = time.monotonic() + DEADLINE
-        while True:
-            try:
-                self.port.write_all(data)
-                return
-            except wiretape.PortClosed:
-                assert time.monotonic() < end, "the device never came back"
-                self.port.wait_readable(0.01)  # a wait with a deadline, not a sleep
-
-    def rest(self) -> bytes:
-        """What still comes: until the recording's end (at_end=closed) or
-        QUIET seconds without a byte."""
-        rest = b""
-        while True:
-            try:
-                data = self.port.read(4096, timeout=QUIET)
-            except wiretape.PortClosed:
-                return rest
-            if not data:
-                return rest
-            rest += data
-
-
-class TcpClient:
-    """A client of a virtual device on TCP (one client session)."""
-
-    def __init__(self, address, chunk=0):
-        host, port = address.rsplit(":", 1)
-        self.socket = socket.create_connection((host, int(port)), timeout=DEADLINE)
-        self.chunk = chunk
-
-    def write(self, data: bytes) -> None:
-        for piece in pieces(data, self.chunk):
-            self.socket.sendall(piece)
-
-    def read_exactly(self, count: int) -> bytes:
-        data = b""
-        end = time.monotonic() + DEADLINE
-        while len(data) < count and time.monotonic() < end:
-            ready, _, _ = select.select([self.socket], [], [], end - time.monotonic())
-            if not ready:
-                break
-            chunk = self.socket.recv(count - len(data))
-            if not chunk:
-                break
-            data += chunk
-        return data
-
-    def rest(self) -> bytes:
-        rest = b""
-        while True:
-            ready, _, _ = select.select([self.socket], [], [], QUIET)
-            if not ready:
-                return rest
-            try:
-                chunk = self.socket.recv(4096)
-            except ConnectionError:
-                return rest
-            if not chunk:
-                return rest
-            rest += chunk
-
-    def close(self):
-        self.socket.close()
-
-
-def play(client, requests, expectations, describe, greeting=b""):
-    """Reads the greeting, writes each request, reads what the oracle says
-    must come, and compares. Returns normally or fails with `describe()` in
-    the message."""
-    got = client.read_exactly(len(greeting))
-    assert got == greeting, f"greeting: served {got.hex()}\n{describe()}"
-    back_pending = False
-    for number, (request, expectation) in enumerate(zip(requests, expectations)):
-        where = f"request {number} ({request!r})"
-        asked_at = time.monotonic()
-        if back_pending:
-            client.write_when_back(request)
-            back_pending = False
-        elif expectation.closed:
-            try:
-                client.write(request)
-            except wiretape.PortClosed:
-                pass  # the device may be gone at the write already
-        else:
-            client.write(request)
-        if expectation.closed or expectation.back_after_loss:
-            assert client.read_closed(), f"{where}: the device did not go away\n{describe()}"
-            if expectation.closed:
-                with pytest.raises(wiretape.PortClosed):
-                    client.write(b"after the device went away")
-                return
-            back_pending = True
-            continue
-        got = client.read_exactly(expectation.count)
-        took = time.monotonic() - asked_at
-        # A lower bound only: a loaded machine is slower, never faster.
-        assert took >= expectation.at_least_s * 0.9, (
-            f"{where}: the whole response came after {took:.3f} s, the fault waits "
-            f"{expectation.at_least_s:.3f} s\n{describe()}")
-        if expectation.exact is not None:
-            assert got == expectation.exact, (
-                f"{where}: served {got.hex()} where the oracle says {expectation.exact.hex()}\n"
-                f"{describe()}")
-        else:
-            assert len(got) == expectation.length, f"{where}: {got.hex()}\n{describe()}"
-            problem = expectation.check(got)
-            assert not problem, f"{where}: served {got.hex()}: {problem}\n{describe()}"
-    rest = client.rest()
-    assert rest == b"", f"served more than the oracle says: {rest.hex()}\n{describe()}"
 
 
 # --- one combination ----------------------------------------------------------------------------
@@ -310,18 +217,20 @@ def client_requests(protocol, parts, orders):
 
 
 def run_combination(tmp_path, protocol, parts, split, cuts, match, orders, timing, fault, seed,
-                    chunk=0, monitor="", greeting=b""):
-    session = build_session(parts, split, cuts, greeting)
+                    chunk=0, monitor="", greeting=b"", check="data", around=None):
+    """`around`: what the recording holds besides the exchanges (Session's
+    client_events, device_lines, initial_lines, reopen)."""
+    session = build_session(parts, split, cuts, greeting, **(around or {}))
     path = write_session(tmp_path / "combination.wtape", session,
                          port_type="tcp" if len(parts) > 1 else "serial", monitor=monitor)
     keys = replay_keys(protocol, match, timing, fault, seed,
-                       at_end="closed" if len(parts) == 1 else "silent")
+                       at_end="closed" if len(parts) == 1 else "silent", check=check)
     requests = client_requests(protocol, parts, orders)
 
     def describe():
         return (f"keys: {keys}\nsplit: {split} cuts {cuts}\norders: {orders}\nwrites of {chunk}\n"
-                f"monitor: {monitor or 'none'}, greeting {greeting!r}\n"
-                f"exchanges: {parts}\nrx records: {session.records}\ntx records: {session.tx_records}")
+                f"monitor: {monitor or 'none'}, greeting {greeting!r}, reopen: {session.reopen}\n"
+                f"exchanges: {parts}\nrecords: {layout(session, monitor)[0]}")
 
     # The oracle numbers exchanges per file, across client sessions, in
     # served order.
@@ -338,8 +247,16 @@ def run_combination(tmp_path, protocol, parts, split, cuts, match, orders, timin
         first_served += len(part)
 
     if len(parts) == 1:
+        order = orders[0]
+        # The client makes the events recorded before the exchange it asks;
+        # the device's lines are checked up to a reconnect (what a device
+        # back from a loss says of its lines is no rule of the oracle's).
+        events = [session.events_before(0, recorded) for recorded in order]
+        lines = [None if fault is not None and fault.name == "reconnect" and number >= fault.exchange
+                 else served_lines(session, match, recorded)
+                 for number, recorded in enumerate(order)]
         port = wiretape.open_port(f'type=replay,file="{path}",timeout={DEADLINE},{keys}')
-        play(PortClient(port, chunk), requests[0], expectations[0], describe, greeting)
+        play(PortClient(port, chunk), requests[0], expectations[0], describe, greeting, events, lines)
         port.close()  # unused=error: everything was served (or a fault made it unreachable)
         return
     handle = bridge.serve_replay(path, listen="127.0.0.1:0", replay_options=keys, quiet=True)
@@ -379,7 +296,9 @@ def test_every_combination_serves_what_the_recording_says(tmp_path_factory, comb
           f"timing={combination['timing']}")
     event(f"split={combination['split']} client sessions={len(combination['parts'])} "
           f"monitor={combination['monitor'] or 'none'}")
-    event(f"fault={fault.name if fault else 'none'}")
+    event(f"fault={fault.name if fault else 'none'} check={combination['check']}")
+    event(f"events: {'yes' if combination['around'] else 'none'}, "
+          f"reopen={combination['around'].get('reopen', '-')}")
     run_combination(tmp_path_factory.mktemp("combination"), **combination)
 
 
@@ -427,6 +346,68 @@ def test_every_fault_kind_serves_what_the_oracle_says(tmp_path, kind, match, pro
               Exchange(line_frame(b"C"), (line_frame(b"gamma"),))]]
     run_combination(tmp_path, PROTOCOLS[profile], parts, FRAME_PER_RECORD, [1], match,
                     [[2, 0, 1] if match == "request" else [0, 1, 2]], "none", Fault(kind, 1), 7)
+
+
+# The dimensions of DESIGN §25 "Combinations", each covered in every bounded
+# run whatever the property tests drew.
+
+
+def events_around(parts):
+    """Every client event before the second exchange, a flush before the
+    first, the device's lines at open and changed before two responses."""
+    first = [(ClientEvent("flush"),), (ClientEvent("baud", 9600), ClientEvent("dtr", 0),
+                                       ClientEvent("break", 2), ClientEvent("dtr", 1))]
+    return dict(initial_lines=(True, True, False, False),
+                device_lines=[[(False, True, False, True), None, (False, False, True, True)]
+                              [:len(part)] for part in parts],
+                client_events=[(first + [()] * len(part))[:len(part)] for part in parts])
+
+
+@pytest.mark.parametrize("timing,check", [("none", "data"), ("causal", "data"), ("causal", "timing")])
+@pytest.mark.parametrize("match", ["sequence", "request"])
+def test_recorded_lines_settings_breaks_and_flushes_replay_as_the_recording_says(
+        tmp_path, match, timing, check):
+    parts = [[Exchange(line_frame(b"A"), (line_frame(b"a"),)),
+              Exchange(line_frame(b"B"), (line_frame(b"b"), line_frame(b"bb"))),
+              Exchange(line_frame(b"C"), (line_frame(b"c"),))]]
+    run_combination(tmp_path, PROTOCOLS["lines"], parts, SPLIT_FRAMES, [1], match,
+                    [[2, 0, 1] if match == "request" else [0, 1, 2]], timing, None, 0,
+                    check=check, around=events_around(parts))
+
+
+@pytest.mark.parametrize("fault", [None, "duplicate", "truncate:1"])
+@pytest.mark.parametrize("match", ["sequence", "request"])
+def test_a_declared_echo_with_a_checksum_is_fixed_and_resealed(tmp_path, match, fault):
+    parts = [[Exchange(checksummed_frame(b"\x55\x00", b"\x00\x01"),
+                       (checksummed_frame(b"\x55\x00", b"\x12\x34"),
+                        checksummed_frame(b"\x55\x00", b"\x56"))),
+              Exchange(checksummed_frame(b"\x55\x01", b"\x01"),
+                       (checksummed_frame(b"\x55\x01", b"\x78\x9a\xbc"),))]]
+    run_combination(tmp_path, PROTOCOLS["declared-checksum"], parts, SPLIT_FRAMES, [3], match,
+                    [[1, 0] if match == "request" else [0, 1]], "causal",
+                    Fault(fault, 1) if fault else None, 0)
+
+
+@pytest.mark.parametrize("reopen", REOPENS)
+@pytest.mark.parametrize("match", ["sequence", "request"])
+def test_a_client_that_reopens_is_served_each_session_and_faults_count_across(
+        tmp_path, match, reopen):
+    parts = two_client_sessions()
+    run_combination(tmp_path, PROTOCOLS["none"], parts, FRAME_PER_RECORD, [1], match,
+                    [[0, 1], [1, 0] if match == "request" else [0, 1]], "causal",
+                    Fault("duplicate", 3), 0, around=dict(events_around(parts), client_events=None,
+                                                          reopen=reopen))
+
+
+@pytest.mark.parametrize("clock", ["channel by channel", "one clock"])
+@pytest.mark.parametrize("match", ["sequence", "request"])
+@pytest.mark.parametrize("timing,check", [("none", "data"), ("causal", "timing")])
+def test_two_channels_serve_what_each_channel_recorded(tmp_path, clock, match, timing, check):
+    parts = {"a": [Exchange(line_frame(b"A%d" % i), (line_frame(b"a%d" % i),)) for i in range(2)],
+             "b": [Exchange(line_frame(b"B%d" % i), (line_frame(b"b%d" % i),)) for i in range(2)]}
+    run_channels(tmp_path, PROTOCOLS["lines"], parts, ["a", "b", "b", "a"], FRAME_PER_RECORD, [1],
+                 match, {"a": [0, 1], "b": [1, 0] if match == "request" else [0, 1]}, timing,
+                 check, ("b", Fault("duplicate", 1)), 0, 0, clock)
 
 
 # --- the defects issue 22 lists, one by one (fixed by branch `exchanges`) ------------------------
@@ -587,3 +568,111 @@ def test_a_monitor_leaving_does_not_end_the_controlling_clients_session(tmp_path
 def test_a_monitor_staying_past_the_controlling_clients_session_changes_nothing(tmp_path):
     run_combination(tmp_path, PROTOCOLS["none"], two_client_sessions(), FRAME_PER_RECORD, [1],
                     "sequence", [[0, 1], [0, 1]], "none", None, 0, monitor="stays")
+
+
+# --- several channels (DESIGN §19; §25 "Combinations") -------------------------------------------
+
+CHANNELS = (("a", "serial"), ("b", "tcp"))
+
+
+@st.composite
+def channel_combinations(draw):
+    """A session of two channels whose exchanges interleave on the one
+    clock, replayed channel by channel (one port, closed, then the other) or
+    on one clock (both ports open, the client asking in recorded order)."""
+    protocol = PROTOCOLS[draw(st.sampled_from(["none", "lines", "declared-checksum"]))]
+    family = "declared-checksum" if protocol.name == "declared-checksum" else "lines"
+    parts, index = {}, 0
+    for name, _ in CHANNELS:
+        parts[name] = []
+        for _ in range(draw(st.integers(1, 3))):
+            parts[name].append(draw(EXCHANGES_OF[family](index)))
+            index += 1
+    interleaving = draw(st.permutations([name for name, _ in CHANNELS for _ in parts[name]]))
+    match = draw(st.sampled_from(["sequence", "request"]))
+    orders = {name: draw(st.permutations(range(len(part)))) if match == "request"
+              else list(range(len(part))) for name, part in parts.items()}
+    timing = draw(st.sampled_from(["none", "causal"]))
+    fault = None
+    if draw(st.booleans()):
+        channel = draw(st.sampled_from([name for name, _ in CHANNELS]))
+        fault = (channel, Fault(draw(st.sampled_from(FAULT_KINDS)),
+                                draw(st.integers(0, len(parts[channel]) - 1))))
+    return dict(protocol=protocol, parts=parts, interleaving=interleaving,
+                split=draw(st.sampled_from(SPLITS)),
+                cuts=draw(st.lists(st.integers(1, 200), min_size=1, max_size=4)),
+                match=match, orders=orders, timing=timing,
+                check=draw(st.sampled_from(["data", "timing"])) if timing == "causal" else "data",
+                fault=fault, seed=draw(st.integers(0, 2**16)),
+                chunk=draw(st.sampled_from([0, 0, 1, 3])),
+                clock=draw(st.sampled_from(["channel by channel", "one clock"])))
+
+
+def run_channels(tmp_path, protocol, parts, interleaving, split, cuts, match, orders, timing,
+                 check, fault, seed, chunk, clock):
+    sessions = {name: build_session([part], split, cuts) for name, part in parts.items()}
+    # The records on the one clock, 1 ms apart: each exchange's tx then rx
+    # records on its channel, in the drawn interleaving.
+    records, t, next_of = [], 0, {name: 0 for name in parts}
+    for name, _ in CHANNELS:
+        records.append((name, "open", t, b"{}"))
+    for name in interleaving:
+        position = next_of[name]
+        next_of[name] += 1
+        session = sessions[name]
+        for kind, data in ([("tx", d) for d in session.tx_records[0][position]]
+                           + [("rx", d) for d in session.records[0][position]]):
+            t += MS
+            records.append((name, kind, t, data))
+    path = write_channel_session(tmp_path / "channels.wtape", CHANNELS, records).path
+    faulty_channel, channel_fault = fault or (None, None)
+
+    def keys_of(name):
+        own = channel_fault if name == faulty_channel else None
+        keys = replay_keys(protocol, match, timing, own, seed, "closed", check)
+        # The fault names its channel: only that channel's replay injects it.
+        return keys.replace(own.option, f"{own.option}@channel:{name}") if own else keys
+
+    requests = {name: client_requests(protocol, [part], [orders[name]])[0]
+                for name, part in parts.items()}
+    expectations = {name: expect(part, sessions[name].records[0], requests[name], protocol, match,
+                                 channel_fault if name == faulty_channel else None)
+                    for name, part in parts.items()}
+
+    def describe():
+        return (f"keys: {[keys_of(name) for name in parts]}\nreplayed {clock}\nsplit: {split} "
+                f"cuts {cuts}\norders: {orders}\nwrites of {chunk}\nrecords: {records}")
+
+    def opened(name):
+        port = wiretape.open_port(
+            f'type=replay,file="{path}",channel={name},timeout={DEADLINE},{keys_of(name)}')
+        return PortClient(port, chunk)
+
+    def steps_of(client, name):
+        return [Step(client, request, expectation, name=name)
+                for request, expectation in zip(requests[name], expectations[name])]
+
+    if clock == "channel by channel":
+        for name, _ in CHANNELS:
+            client = opened(name)
+            play_steps(steps_of(client, name), describe)
+            client.port.close()  # unused=error: everything of the channel was served
+        return
+    clients = {name: opened(name) for name, _ in CHANNELS}
+    pending = {name: steps_of(client, name) for name, client in clients.items()}
+    # The client asks in recorded order across channels: under timing=causal
+    # a channel's answer waits for the other channel's requests before it.
+    play_steps([pending[name].pop(0) for name in interleaving if pending[name]], describe)
+    for client in clients.values():
+        client.port.close()
+
+
+@settings(max_examples=max(10, EXAMPLES // 3), deadline=None, derandomize=EXAMPLES_FROM_ENV is None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(combination=channel_combinations())
+def test_every_channel_serves_what_the_recording_says(tmp_path_factory, combination):
+    fault = combination["fault"]
+    event(f"clock={combination['clock']} match={combination['match']} "
+          f"timing={combination['timing']} check={combination['check']}")
+    event(f"profile={combination['protocol'].name} fault={fault[1].name if fault else 'none'}")
+    run_channels(tmp_path_factory.mktemp("channels"), **combination)

@@ -13,8 +13,18 @@ rules from the documentation (docs/replay.md, docs/faults.md):
 - the response fix of each profile: `modbus-tcp` serves the client's
   transaction id in every response frame; a declared `echo=OFFSET:LEN` copies
   those bytes of the client's request into each response frame at the same
-  offset; `lines` and no profile fix nothing. Fixes are by frame, whatever the
+  offset, and with `checksum=` the checksum is recomputed over the fixed
+  frame; `lines` and no profile fix nothing. Fixes are by frame, whatever the
   records' boundaries (DESIGN §17);
+- the recording's events (DESIGN §25, "Combinations"; docs/replay.md
+  "Entitlement", "Modem lines and break", "Flushes on open"): the client
+  makes the settings, DTR and break events recorded before a request
+  (checked in order under check=timing, and DTR and break under check=data
+  where the recording holds the device's lines); a recorded flush is made
+  by the client too (rx after k recorded flushes waits for k of the
+  client's in match=sequence); the device's line changes are served like
+  rx in match=sequence, and only as they stand before the first request in
+  match=request;
 - which exchange is "exchange N" (from 0, in served order: in
   `match=sequence` the recorded order, in `match=request` the client's
   order of matches), numbered across client sessions;
@@ -28,7 +38,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
-from typing import List, Optional, Sequence, Tuple
+from typing import Dict, List, Optional, Sequence, Tuple
 
 import wiretape
 
@@ -48,31 +58,47 @@ DEVICE_ENDING_FAULTS = ("disconnect", "reconnect")
 # --- the protocols ----------------------------------------------------------------------
 
 
+def crc16_modbus(data: bytes) -> bytes:
+    """CRC-16/MODBUS, low byte first (as a declared `crc16-modbus` carries it)."""
+    crc = 0xFFFF
+    for byte in data:
+        crc ^= byte
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
+    return crc.to_bytes(2, "little")
+
+
 @dataclasses.dataclass(frozen=True)
 class Protocol:
     """What the oracle knows of a profile: its replay keys and its response fix."""
 
-    name: str  # "none", "lines", "modbus-tcp" or "declared"
+    name: str  # "none", "lines", "modbus-tcp", "declared" or "declared-checksum"
     keys: str  # replay keys selecting it ("" for none)
     # The bytes of a request frame that a response frame takes over at the
     # same offsets: (offset, length) pairs; () when the profile fixes nothing.
     echo: Tuple[Tuple[int, int], ...] = ()
+    # A CRC-16/MODBUS in a frame's last two bytes, over the bytes before it.
+    checksum: bool = False
+
+    def sealed(self, frame: bytes) -> bytes:
+        """The frame with its checksum made right for its bytes."""
+        return frame[:-2] + crc16_modbus(frame[:-2]) if self.checksum else frame
 
     def fix(self, response_frame: bytes, client_request: bytes) -> bytes:
         fixed = bytearray(response_frame)
         for offset, length in self.echo:
             fixed[offset:offset + length] = client_request[offset:offset + length]
-        return bytes(fixed)
+        return self.sealed(bytes(fixed)) if bytes(fixed) != response_frame else response_frame
 
     def vary(self, request: bytes, salt: int) -> bytes:
         """The request as a client whose run-to-run fields differ from the
-        recording writes it (another transaction id, another echoed field):
-        the same match key, other bytes."""
+        recording writes it (another transaction id, another echoed field,
+        its checksum right for them): the same match key, other bytes."""
         varied = bytearray(request)
         for offset, length in self.echo:
             for i in range(offset, offset + length):
                 varied[i] = (varied[i] + 0x5A + salt) & 0xFF
-        return bytes(varied)
+        return self.sealed(bytes(varied))
 
 
 NO_PROFILE = Protocol("none", "")
@@ -84,7 +110,13 @@ MODBUS_TCP = Protocol("modbus-tcp", "profile=modbus-tcp", echo=((0, 2),))
 # (frame = 3 + length); the id is echoed into responses.
 DECLARED_FRAMING = "length:2:1:3"
 DECLARED = Protocol("declared", f"framing={DECLARED_FRAMING},echo=0:2", echo=((0, 2),))
-PROTOCOLS = {p.name: p for p in (NO_PROFILE, LINES, MODBUS_TCP, DECLARED)}
+# The same with a checksum: two id bytes, a length byte, that many payload
+# bytes, a CRC-16/MODBUS (frame = 5 + length); `echo=` and `checksum=`
+# together: the echoed id changes the response's checksum.
+DECLARED_CHECKSUM = Protocol("declared-checksum",
+                             "framing=length:2:1:5,echo=0:2,checksum=crc16-modbus@-2",
+                             echo=((0, 2),), checksum=True)
+PROTOCOLS = {p.name: p for p in (NO_PROFILE, LINES, MODBUS_TCP, DECLARED, DECLARED_CHECKSUM)}
 
 
 def line_frame(text: bytes) -> bytes:
@@ -100,6 +132,10 @@ def modbus_frame(transaction_id: int, unit: int, pdu: bytes) -> bytes:
 def declared_frame(frame_id: bytes, payload: bytes) -> bytes:
     assert len(frame_id) == 2 and len(payload) < 256
     return frame_id + bytes([len(payload)]) + payload
+
+
+def checksummed_frame(frame_id: bytes, payload: bytes) -> bytes:
+    return DECLARED_CHECKSUM.sealed(declared_frame(frame_id, payload) + b"\0\0")
 
 
 # --- sessions -------------------------------------------------------------------------------
@@ -157,16 +193,86 @@ def request_records(exchange: Exchange, split: str, cuts: Sequence[int] = ()) ->
     return [request[:at], request[at:]]
 
 
+# The device's modem inputs as a recording holds them: (cts, dsr, ri, cd).
+Lines = Tuple[bool, bool, bool, bool]
+# What a replay reports before the recording says anything of the device's
+# lines: a modem with the line up (docs/replay.md "Modem lines and break").
+LINE_UP: Lines = (True, True, False, True)
+
+
+@dataclasses.dataclass(frozen=True)
+class ClientEvent:
+    """Something the recording shows the client doing besides writing:
+    `flush` (flush_input), `baud` (set_baud, a settings event), `dtr`
+    (set_dtr, a modem_lines event of the host's output), `break`
+    (send_break of `value` ms)."""
+
+    kind: str
+    value: int = 0
+
+    def record(self) -> Tuple[str, bytes]:
+        """The record kind and payload the recording holds."""
+        if self.kind == "flush":
+            return "flush_input", b"{}"
+        if self.kind == "baud":
+            return "settings", json.dumps({"baud": self.value}).encode()
+        if self.kind == "dtr":
+            return "modem_lines", json.dumps({"dtr": bool(self.value), "applied": True}).encode()
+        return "break", json.dumps({"duration_ms": self.value, "applied": True}).encode()
+
+    def make(self, port) -> None:
+        """What the client does for it on a `type=replay` port."""
+        if self.kind == "flush":
+            port.flush_input()
+        elif self.kind == "baud":
+            port.set_baud(self.value)
+        elif self.kind == "dtr":
+            port.set_dtr(bool(self.value))
+        else:
+            port.send_break(self.value / 1000)
+
+
+def lines_payload(lines: Lines) -> bytes:
+    cts, dsr, ri, cd = lines
+    return json.dumps({"cts": cts, "dsr": dsr, "ri": ri, "cd": cd}).encode()
+
+
+# How a recording of several client sessions delimits them: a TCP client
+# each time (its own peer), a pty client that closes and reopens (peer
+# `pty` each time), or that with `--restart` (the proxy closes and reopens
+# the device for the new client: close and open{restarted} before its
+# client_connect).
+REOPENS = ("tcp", "pty", "restart")
+
+
 @dataclasses.dataclass
 class Session:
     """A session as written: for each client session, its exchanges, the
     rx records of each exchange's response and the tx records of its
-    request."""
+    request; and what else the recording holds around them."""
 
     client_sessions: List[List[Exchange]]
     records: List[List[List[bytes]]]  # [client session][exchange] -> rx records
     tx_records: List[List[List[bytes]]]  # [client session][exchange] -> tx records
     greeting: bytes = b""  # rx before the first request (released at open, or at connect)
+    # [client session][exchange] -> the client's events recorded before its request.
+    client_events: Optional[List[List[Tuple[ClientEvent, ...]]]] = None
+    # [client session][exchange] -> the device's lines recorded between the
+    # request and the response, or None.
+    device_lines: Optional[List[List[Optional[Lines]]]] = None
+    # The device's lines recorded at open (before any greeting), or None.
+    initial_lines: Optional[Lines] = None
+    reopen: str = "tcp"  # REOPENS
+
+    def events_before(self, part: int, exchange: int) -> Tuple[ClientEvent, ...]:
+        return self.client_events[part][exchange] if self.client_events else ()
+
+    def lines_before_response(self, part: int, exchange: int) -> Optional[Lines]:
+        return self.device_lines[part][exchange] if self.device_lines else None
+
+    def holds_device_lines(self) -> bool:
+        return self.initial_lines is not None or any(
+            lines is not None for part in self.device_lines or () for lines in part)
 
     @property
     def exchanges(self) -> List[Exchange]:
@@ -178,10 +284,12 @@ class Session:
 
 
 def build_session(client_sessions: Sequence[Sequence[Exchange]], split: str,
-                  cuts: Sequence[int] = (), greeting: bytes = b"") -> Session:
+                  cuts: Sequence[int] = (), greeting: bytes = b"", **around) -> Session:
+    """`around`: Session's client_events, device_lines, initial_lines, reopen."""
     records = [[response_records(e, split, cuts) for e in part] for part in client_sessions]
     tx_records = [[request_records(e, split, cuts) for e in part] for part in client_sessions]
-    return Session([list(part) for part in client_sessions], records, tx_records, greeting)
+    return Session([list(part) for part in client_sessions], records, tx_records, greeting,
+                   **around)
 
 
 def connect(peer: str, role: str = "control") -> bytes:
@@ -201,63 +309,85 @@ MONITORS = ("", "stays", "leaves")
 TO_NOBODY = b"said to nobody\n"
 
 
-def write_session(path, session: Session, port_type: str = "serial", monitor: str = "") -> str:
-    """Writes `session` with the bound SessionWriter: the planned tx records
-    of each request, the planned rx records after them (1 ms apart, so that causal
-    timing stays fast). Several client sessions are delimited as the proxy
-    records them: client_connect ... client_disconnect, with rx said to
-    nobody between them, and a `monitor` (MONITORS) in the first."""
+def layout(session: Session, monitor: str = "") -> Tuple[List[Tuple[str, int, bytes]], List[int]]:
+    """The records of `session` ((kind, t_ns, data), 1 ms apart, so that
+    causal timing stays fast) and the recorded time of each exchange's first
+    tx record. Each exchange is its client's events, the planned tx records,
+    the device's line change, the planned rx records. Several client
+    sessions are delimited as the proxy records them (`session.reopen`):
+    client_connect ... client_disconnect, with rx said to nobody between
+    them, and a `monitor` (MONITORS) in the first."""
     several = len(session.client_sessions) > 1
-    t = 0
+    records: List[Tuple[str, int, bytes]] = [("open", 0, b"{}")]
+    tx_times: List[int] = []
 
-    def tick():
-        nonlocal t
-        t += MS
-        return t
+    def add(kind, data):
+        records.append((kind, len(records) * MS, data))
 
+    def peer(number):
+        return f"127.0.0.1:{40001 + number}" if session.reopen == "tcp" else "pty"
+
+    if session.initial_lines is not None:
+        add("modem_lines", lines_payload(session.initial_lines))
+    for number, (part_records, part_tx) in enumerate(zip(session.records, session.tx_records)):
+        if several:
+            if number:
+                add("rx", TO_NOBODY)
+                if session.reopen == "restart":
+                    add("close", b"{}")
+                    add("open", json.dumps({"description": "replay", "restarted": True}).encode())
+            add("client_connect", connect(peer(number)))
+        if number == 0 and session.greeting:
+            add("rx", session.greeting)
+        for position, (rx_records, requests) in enumerate(zip(part_records, part_tx)):
+            if several and monitor and number == 0 and position == 0:
+                add("client_connect", connect(MONITOR_PEER, "monitor"))
+            for client_event in session.events_before(number, position):
+                add(*client_event.record())
+            tx_times.append(len(records) * MS)
+            for data in requests:
+                add("tx", data)
+            lines = session.lines_before_response(number, position)
+            if lines is not None:
+                add("modem_lines", lines_payload(lines))
+            for data in rx_records:
+                add("rx", data)
+            if several and monitor == "leaves" and number == 0 and position == 0:
+                add("client_disconnect", disconnect(MONITOR_PEER))
+        if several:
+            add("client_disconnect", disconnect(peer(number)))
+            if monitor == "stays" and number == 0:
+                add("client_disconnect", disconnect(MONITOR_PEER))
+    add("close", b"{}")
+    return records, tx_times
+
+
+def write_session(path, session: Session, port_type: str = "serial", monitor: str = "") -> str:
+    """Writes `session` (its `layout`) with the bound SessionWriter."""
     with wiretape.SessionWriter(str(path), capture="wire", port_type=port_type,
                                 port_options=f"type={port_type}") as writer:
-        writer.write("open", 0, b"{}")
-        for number, (records, tx_records) in enumerate(zip(session.records, session.tx_records)):
-            if several:
-                if number:
-                    writer.write("rx", tick(), TO_NOBODY)
-                writer.write("client_connect", tick(), connect(f"127.0.0.1:{40001 + number}"))
-            if number == 0 and session.greeting:
-                writer.write("rx", tick(), session.greeting)
-            for position, (rx_records, requests) in enumerate(zip(records, tx_records)):
-                if several and monitor and number == 0 and position == 0:
-                    writer.write("client_connect", tick(), connect(MONITOR_PEER, "monitor"))
-                for data in requests:
-                    writer.write("tx", tick(), data)
-                for data in rx_records:
-                    writer.write("rx", tick(), data)
-                if several and monitor == "leaves" and number == 0 and position == 0:
-                    writer.write("client_disconnect", tick(), disconnect(MONITOR_PEER))
-            if several:
-                writer.write("client_disconnect", tick(), disconnect(f"127.0.0.1:{40001 + number}"))
-                if monitor == "stays" and number == 0:
-                    writer.write("client_disconnect", tick(), disconnect(MONITOR_PEER))
-        writer.write("close", tick(), b"{}")
+        for kind, t_ns, data in layout(session, monitor)[0]:
+            writer.write(kind, t_ns, data)
     return str(path)
 
 
 def recorded_tx_times(session: Session) -> List[int]:
     """The recorded time (ns) of each exchange's first tx record, as
     write_session writes them (with no monitor)."""
-    several = len(session.client_sessions) > 1
-    times, t = [], 0
-    for number, (records, tx_records) in enumerate(zip(session.records, session.tx_records)):
-        if several:
-            t += MS * (2 if number else 1)
-        if number == 0 and session.greeting:
-            t += MS
-        for rx_records, requests in zip(records, tx_records):
-            times.append(t + MS)
-            t += MS * (len(requests) + len(rx_records))
-        if several:
-            t += MS
-    return times
+    return layout(session)[1]
+
+
+def served_lines(session: Session, match: str, asked: int) -> Lines:
+    """The device's lines a client of the first client session sees once
+    exchange `asked` (recorded order) has been served: in match=sequence
+    the last change recorded up to its response; in match=request the
+    lines as they stand before the first request."""
+    lines = session.initial_lines or LINE_UP
+    if match == "request":
+        return lines
+    for position in range(asked + 1):
+        lines = session.lines_before_response(0, position) or lines
+    return lines
 
 
 # --- the oracle ------------------------------------------------------------------------------
@@ -330,6 +460,8 @@ def match_key(request: bytes, protocol: Protocol) -> bytes:
     key = bytearray(request)
     for offset, length in protocol.echo:
         key[offset:offset + length] = b"\x00" * length
+    if protocol.checksum:
+        key = key[:-2]
     if protocol.name == "lines":
         key = key.rstrip(b"\n")
     return bytes(key)

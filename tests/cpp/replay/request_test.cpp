@@ -1,4 +1,6 @@
-// match=request: the gap rule of DESIGN.md section 13 (a complete request
+// src/replay/request.cpp: match=request: exchanges served in the client's
+// order, unmatched bytes, repeat, the unused report, timing counted from the
+// match; the gap rule of DESIGN.md section 13 (a complete request
 // that is also a proper prefix of a longer request recorded earlier waits up
 // to `gap` ms of quiet for more bytes), checked on the engine with a clock
 // the test drives, over random splits and pauses; the index that makes
@@ -6,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "support/port_test_support.hpp"
+#include "support/replay_support.hpp"
 
 #include <chrono>
 #include <random>
@@ -24,15 +27,16 @@
 
 using namespace wiretape;
 using namespace std::chrono_literals;
+using namespace wiretape::test::replay_support;
 using detail::ReplayConfig;
 using detail::ReplayEngine;
 using detail::ReplayTime;
 
 namespace {
 
-constexpr std::uint64_t ms(std::uint64_t n) { return n * 1'000'000; }
 
-ReplayConfig config_from(const std::string& keys) {
+// The keys of a match=request replay.
+ReplayConfig request_config_from(const std::string& keys) {
   Options options = Options::parse("file=synthetic.wtape,match=request," + keys);
   return detail::take_replay_config(options);
 }
@@ -81,7 +85,7 @@ class Drive {
   Drive(const std::vector<Exchange>& exchanges, const std::string& keys)
       : start_(ReplayTime{} + 1h),
         now_(start_),
-        engine_(config_from(keys), detail::vector_source_factory(session_of(exchanges)),
+        engine_(request_config_from(keys), detail::vector_source_factory(session_of(exchanges)),
                 start_) {}
 
   void write(const std::string& bytes) { engine_.write(bytes.data(), bytes.size(), now_); }
@@ -158,8 +162,8 @@ TEST(RequestGap, BytesLeftAfterTheWaitThatMatchNothingAreAMismatchAtTheNextWrite
 }
 
 TEST(RequestGap, GapNeedsMatchRequestAndIsInMilliseconds) {
-  EXPECT_EQ(config_from("gap=7").gap, 7ms);
-  EXPECT_EQ(config_from("").gap, 50ms);
+  EXPECT_EQ(request_config_from("gap=7").gap, 7ms);
+  EXPECT_EQ(request_config_from("").gap, 50ms);
   try {
     open_port("type=replay,file=x.wtape,gap=10");
     FAIL() << "gap without match=request was accepted";
@@ -227,7 +231,7 @@ TEST(RequestGapProperty, ClientsWaitingForEachAnswerGetTheRecordedOnes) {
 
 // Through the port: a blocked read is woken when the gap ends.
 TEST(RequestGapPort, ABlockedReadGetsTheShorterRequestsAnswerAfterTheGap) {
-  ReplayConfig config = config_from("timing=none,gap=20,unused=ignore");
+  ReplayConfig config = request_config_from("timing=none,gap=20,unused=ignore");
   auto port = detail::open_replay_session(
       config, detail::vector_source_factory(session_of(slcan_exchanges())));
   port->write_all("C\r");
@@ -367,4 +371,132 @@ TEST(RequestConnectionOrder, AMonitorJoiningIsNoConnectionOfItsOwn) {
   EXPECT_EQ(port->read_exactly(3), "b1\n");
   EXPECT_EQ(read_now(*port), "");
   port->close();
+}
+
+// --- through a replay: serving, repeat, unused, timing ------------------------------------
+
+std::vector<Record> command_session() {
+  return {rx(0, "GREET\n"),   tx(ms(10), "VV\n"), rx(ms(11), "version 1\n"),
+          tx(ms(20), "PP\n"), rx(ms(21), "params\n"),
+          tx(ms(30), "MD\n"), rx(ms(31), "scan 1\n"), rx(ms(41), "scan 2\n"),
+          tx(ms(50), "VV\n"), rx(ms(51), "version 2\n")};
+}
+
+TEST(ReplayRequest, ServesExchangesInTheClientsOrderAndSplits) {
+  auto port = replay(command_session(), "timing=none,match=request");
+  EXPECT_EQ(port->read_line(), "GREET\n");
+  port->write("P");
+  port->write("P\nM");
+  EXPECT_EQ(port->read_line(), "params\n");
+  port->write("D\n");
+  // Unprompted rx (the second scan) belongs to the exchange before it.
+  EXPECT_EQ(port->read_exactly(14), "scan 1\nscan 2\n");
+  port->write("VV\nVV\n");
+  EXPECT_EQ(port->read_exactly(20), "version 1\nversion 2\n");
+}
+
+TEST(ReplayRequest, UnmatchedBytesAreAMismatchNamingTheClosestRequests) {
+  auto port = replay(command_session(), "timing=none,match=request");
+  port->write("P");
+  try {
+    port->write("X\n");
+    FAIL() << "unmatched request accepted";
+  } catch (const ReplayMismatch& mismatch) {
+    const std::string report = mismatch.what();
+    EXPECT_NE(report.find("closest unused requests"), std::string::npos) << report;
+    EXPECT_NE(report.find("|PP.|"), std::string::npos) << report;
+    EXPECT_EQ(mismatch.exchange(), 1);
+    EXPECT_EQ(mismatch.tx_offset(), 1u);
+  }
+  // The client can go on after the mismatch.
+  port->write("PP\n");
+  EXPECT_EQ(port->read_exactly(6, 0s), "GREET\n");
+  EXPECT_EQ(port->read_line(), "params\n");
+}
+
+TEST(ReplayRequest, UnmatchedSilentSwallowsBytesLikeADeviceThatIgnoresThem) {
+  auto port = replay(command_session(), "timing=none,match=request,unmatched=silent");
+  port->read_line();
+  port->write("garbage\nPP\n");
+  EXPECT_EQ(port->read_line(), "params\n");
+  EXPECT_EQ(port->available(), 0u);
+}
+
+TEST(ReplayRequest, UsedUpExchangeIsAMismatchWithoutRepeat) {
+  auto port = replay(command_session(), "timing=none,match=request");
+  port->write("PP\n");
+  EXPECT_THROW(port->write("PP\n"), ReplayMismatch);
+}
+
+TEST(ReplayRequest, RepeatLastServesTheLastUseAgain) {
+  auto port = replay(command_session(), "timing=none,match=request,repeat=last");
+  port->read_line();
+  port->write("VV\nVV\nVV\n");
+  EXPECT_EQ(port->read_exactly(30), "version 1\nversion 2\nversion 2\n");
+}
+
+TEST(ReplayRequest, RepeatCycleRestartsFromTheFirstUse) {
+  auto port = replay(command_session(), "timing=none,match=request,repeat=cycle");
+  port->read_line();
+  port->write("VV\nVV\nVV\nVV\n");
+  EXPECT_EQ(port->read_exactly(40),
+            "version 1\nversion 2\nversion 1\nversion 2\n");
+}
+
+TEST(ReplayRequest, UnusedExchangesAreReportedAtClose) {
+  auto port = replay(command_session(), "timing=none,match=request,unused=error");
+  port->read_line();
+  port->write("VV\n");
+  port->read_line();
+  try {
+    port->close();
+    FAIL() << "unused exchanges not reported";
+  } catch (const ReplayMismatch& mismatch) {
+    EXPECT_NE(std::string(mismatch.what()).find("3 of 4 recorded exchanges"),
+              std::string::npos)
+        << mismatch.what();
+  }
+}
+
+TEST(ReplayRequest, DatagramRequestsMatchWholeDatagrams) {
+  auto port = replay({tx(0, "GET a"), rx(1, "A"), tx(2, "GET b"), rx(3, "B")},
+                     "timing=none,match=request", /*datagrams=*/true);
+  port->write("GET b");
+  EXPECT_EQ(read_some(*port), "B");
+  EXPECT_THROW(port->write("GET"), ReplayMismatch);  // not a whole request
+  port->write("GET a");
+  EXPECT_EQ(read_some(*port), "A");
+}
+
+TEST(ReplayRequest, CausalTimingCountsFromTheMatch) {
+  auto port = replay({tx(0, "Q"), rx(ms(60), "A")}, "timing=causal,match=request");
+  EXPECT_FALSE(port->wait_readable(100ms));  // nothing asked, nothing released
+  const auto asked = std::chrono::steady_clock::now();
+  port->write("Q");
+  EXPECT_EQ(port->available(), 0u);
+  EXPECT_EQ(read_some(*port, 10, 5s), "A");
+  EXPECT_GE(std::chrono::steady_clock::now() - asked, 50ms);
+}
+
+TEST(ReplayRequest, CheckTimingRejectsARequestFarTooEarly) {
+  auto port = replay({tx(ms(500), "Q"), rx(ms(501), "A")},
+                     "timing=session,match=request,check=timing,tolerance=50");
+  EXPECT_THROW(port->write("Q"), ReplayMismatch);
+}
+
+TEST(ReplayRequest, TimingMismatchReportShowsTheRequestAndTheClientsBytes) {
+  auto port = replay({tx(ms(500), "Q1\n"), rx(ms(501), "A")},
+                     "timing=session,match=request,check=timing,tolerance=50");
+  port->write("Q");
+  try {
+    port->write("1\n");
+    FAIL() << "early request accepted";
+  } catch (const ReplayMismatch& mismatch) {
+    const std::string report = mismatch.what();
+    EXPECT_NE(report.find("too early"), std::string::npos) << report;
+    EXPECT_NE(report.find("  expected: 51 31 0a  |Q1.|\n"), std::string::npos)
+        << report;
+    EXPECT_NE(report.find("  actual:   51 31 0a  |Q1.|\n"), std::string::npos)
+        << report;
+  }
 }
