@@ -43,6 +43,7 @@ from typing import List, Mapping, Optional, Tuple, Union
 
 from . import _core
 from ._core import BridgeResult, BridgeStats
+from .options import join_options
 
 __all__ = [
     "DEFAULT_MAX_MONITORS",
@@ -59,9 +60,8 @@ __all__ = [
 ]
 
 
-# A bare path means type=serial,device=PATH; values quoted as options need.
+# A bare path means type=serial,device=PATH.
 device_options = _core.device_options
-_quote = _core.quote_option_value
 
 
 def _split_address(text: str, what: str, default_host: Optional[str],
@@ -293,9 +293,8 @@ def serve_replay(file, *, pty=None, listen=None, udp=None, peer=None,
     clients: the recorded modem lines, and their line changes checked."""
     if protocol != "raw" and listen is None:
         raise ValueError(f"protocol {protocol!r} is spoken over TCP: give listen=HOST:PORT")
-    options = "type=replay,file=" + _quote(os.fspath(file))
-    if replay_options.strip():
-        options += "," + replay_options.strip()
+    options = join_options(_core.option_string([("type", "replay"), ("file", file)]),
+                           replay_options)
     # Bad keys are refused before anything is opened: no listener, no pty,
     # no replay whose closing would warn about unused data.
     _core.check_replay_options(options)

@@ -12,7 +12,9 @@ import sys
 import tempfile
 import time
 
+from ._core import option_string
 from .children import Child
+from .options import join_options
 
 SCAN_ARGS = ["--json", "--scans", "3"]
 
@@ -85,8 +87,8 @@ class Simulator:
     def port_options(self):
         if "tcp" in self.fields:
             host, port = self.fields["tcp"].rsplit(":", 1)
-            return f"type=tcp,host={host},port={port}"
-        return f"type=serial,device={self.fields['link']}"
+            return option_string([("type", "tcp"), ("host", host), ("port", port)])
+        return option_string([("type", "serial"), ("device", self.fields["link"])])
 
     def stop(self):
         self.child.end()
@@ -140,10 +142,12 @@ def record_scan(program, sim, output, scan_args, workdir, proxy):
     if output.exists():
         output.unlink()
     if not proxy:
-        return (_run_program(program, f"{sim.port_options},log={output}", scan_args),
+        return (_run_program(program, join_options(sim.port_options,
+                                                   option_string([("log", output)])),
+                             scan_args),
                 "library (log=)")
     link = pathlib.Path(workdir) / "proxy-pty"
-    client_port = f"type=serial,device={link}"
+    client_port = option_string([("type", "serial"), ("device", link)])
     if proxy == "bridge":
         from . import bridge
         handle = bridge.record(sim.port_options, output, pty=link, quiet=True)
@@ -171,7 +175,7 @@ def record_scan(program, sim, output, scan_args, workdir, proxy):
 
 
 def replay_scan(program, recording, scan_args, *replay_keys):
-    port = ",".join([f"type=replay,file={recording}", *replay_keys])
+    port = join_options(option_string([("type", "replay"), ("file", recording)]), *replay_keys)
     return _run_program(program, port, scan_args)
 
 

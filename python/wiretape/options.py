@@ -1,6 +1,8 @@
 """Option strings from Python: thin views of the C++ key table and parser
-(``include/wiretape/options.hpp``). Nothing here splits an option string or
-knows a key of its own; docs/options.md lists the keys.
+(``include/wiretape/options.hpp``). Nothing here splits or builds an option
+string or knows a key of its own; docs/options.md lists the keys. Every
+option string Python makes is built by ``option_string`` (C++: values quoted,
+numbers written by one rule, keys checked).
 """
 
 from __future__ import annotations
@@ -9,9 +11,18 @@ from typing import Dict, List, Optional, Tuple
 
 from . import _core
 
-__all__ = ["default_of", "option_keys", "option_values", "parse_options", "replay_keys"]
+__all__ = ["default_of", "join_options", "option_keys", "option_string", "option_values",
+           "parse_options", "replay_keys"]
 
 parse_options = _core.parse_options
+option_string = _core.option_string
+
+
+def join_options(*texts: str) -> str:
+    """Option strings as one, in order, empty ones left out: each read by
+    parse_options and the pairs written again by option_string, so a bad
+    string or a key given in two of them is an OptionError naming it."""
+    return _core.option_string([pair for text in texts for pair in _core.parse_options(text)])
 
 
 def option_keys(port_type: Optional[str] = None) -> List[_core.OptionKey]:

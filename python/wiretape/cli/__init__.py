@@ -12,7 +12,7 @@ from .errors import (EXIT_CHECK_FAILED, EXIT_OK, EXIT_RUNTIME, EXIT_USAGE, Check
 from .main import main
 from .parser import build_parser, split_command
 from .ports import serial_ports
-from .run import replay_options_of
+from .bridges import replay_options_of
 
 __all__ = ["main", "build_parser", "split_command", "exit_code_for", "replay_options_of",
            "serial_ports", "EXIT_OK", "EXIT_CHECK_FAILED", "EXIT_USAGE", "EXIT_RUNTIME",

@@ -6,11 +6,19 @@ clock). The outcome is the worst of the channels'."""
 
 from __future__ import annotations
 
+import contextlib
+import os
 import socket
-from typing import Callable, List, Optional, Sequence, Tuple
+import stat
+from typing import Callable, Iterator, List, Optional, Sequence, Tuple
 
+from .. import _core
+from ..options import join_options, option_string
+from ..session import open_session
+from .bridges import POLL_S, MessageRelay, announce_clients, bridge_summary, meta_pairs
+from .bridges import replay_options_of
 from .console import Output
-from .endpoints import Endpoint
+from .endpoints import Endpoint, check_replay
 from .errors import EXIT_OK, CheckFailed, RuntimeFailure, UsageError
 
 
@@ -20,11 +28,6 @@ def channel_names(file: str) -> List[str]:
     flexiport log's prefix, a missing file) is left to the replay, which
     refuses it at once with the reason: reading it here would wait on a
     FIFO's writer."""
-    import os
-    import stat
-
-    from ..session import open_session
-
     try:
         if not stat.S_ISREG(os.stat(file).st_mode):
             return [""]
@@ -37,8 +40,6 @@ def channel_names(file: str) -> List[str]:
 def refuse_unnamed_on_several(args, endpoints: List[Endpoint]) -> None:
     """The single-port form of ``replay`` on a file of several channels is
     a usage error naming the channels."""
-    from .endpoints import check_replay
-
     names = channel_names(args.file)
     if len(names) <= 1:
         return
@@ -57,8 +58,7 @@ def stream_device(endpoint: Endpoint) -> Tuple[str, str]:
 
     host, port = bridge.parse_udp_address(endpoint.udp or "", "udp")
     peer_host, _ = bridge.parse_udp_address(endpoint.peer or "", "peer", 1)
-    quote = bridge._quote
-    device = f"type=udp,bind_host={quote(host)},bind_port={port}"
+    device = option_string([("type", "udp"), ("bind_host", host), ("bind_port", port)])
     family = socket.getaddrinfo(peer_host, None, type=socket.SOCK_DGRAM)[0][0]
     client = "[::]:0" if family == socket.AF_INET6 else "0.0.0.0:0"
     return device, client
@@ -87,27 +87,28 @@ def _check_shared_flags(args, endpoints: Sequence[Endpoint]) -> None:
             raise UsageError(f"{flag} sets who may open the ptys: give --pty NAME=PATH too")
 
 
-def record_channels(args, endpoints: List[Endpoint], out: Output) -> int:
-    """``wiretape record`` with named endpoints: every channel into one file."""
-    from .. import _core
-    from .._core import Recorder  # type: ignore[attr-defined]
-    from .run import meta_pairs
-
-    if any(e.redirect_path is not None for e in endpoints) and args.command_argv is None:
-        raise UsageError("--as NAME=PATH names the device path of a command: give the "
-                         "command after --")
+@contextlib.contextmanager
+def channels_recorder(args, endpoints: List[Endpoint]) -> Iterator[object]:
+    """The one file every channel of ``record`` is recorded into (one
+    clock), closed on leaving."""
     _check_shared_flags(args, endpoints)
     header = _core.SessionHeader.starting_now()
     header.metadata = meta_pairs(args.meta)
-    recorder = Recorder(args.output, header)
+    recorder = _core.Recorder(args.output, header)  # type: ignore[attr-defined]
     try:
-        if args.command_argv is not None:
-            from .children import record_channels_with_command
-
-            return record_channels_with_command(recorder, args, endpoints, out)
-        return _record_into(recorder, args, endpoints, out)
+        yield recorder
     finally:
         recorder.close()
+
+
+def record_channels(args, endpoints: List[Endpoint], out: Output) -> int:
+    """``wiretape record`` with named endpoints: every channel into one file
+    (with a CMD after ``--``: children.record_channels_with_command)."""
+    if any(e.redirect_path is not None for e in endpoints):
+        raise UsageError("--as NAME=PATH names the device path of a command: give the "
+                         "command after --")
+    with channels_recorder(args, endpoints) as recorder:
+        return _record_into(recorder, args, endpoints, out)
 
 
 def _record_into(recorder, args, endpoints: List[Endpoint], out: Output) -> int:
@@ -131,15 +132,9 @@ def _record_into(recorder, args, endpoints: List[Endpoint], out: Output) -> int:
                          quiet=args.quiet)
 
 
-def replay_channels(args, endpoints: List[Endpoint], out: Output) -> int:
-    """``wiretape replay`` with named endpoints: one virtual device per
-    channel, on one clock."""
-    from .. import bridge
-    from .run import replay_options_of
-
-    if any(e.redirect_path is not None for e in endpoints) and args.command_argv is None:
-        raise UsageError("--as NAME=PATH names the device path of a command: give the "
-                         "command after --")
+def check_replay_channels(args, endpoints: List[Endpoint]) -> None:
+    """The usage errors of ``replay`` with named endpoints, with or without
+    a CMD after ``--``."""
     if args.output:
         raise UsageError("-o records what the clients do on one port: with several "
                          "channels it is not supported yet")
@@ -148,18 +143,29 @@ def replay_channels(args, endpoints: List[Endpoint], out: Output) -> int:
         if args.protocol != "raw" and endpoint.listen is None:
             raise UsageError(f"--protocol {args.protocol} is spoken over TCP: channel "
                              f"{endpoint.name!r} has no --listen {endpoint.name}=HOST:PORT")
-    if args.command_argv is not None:
-        from .children import replay_channels_with_command
 
-        return replay_channels_with_command(args, endpoints, out)
-    options = replay_options_of(args)
+
+def channel_replay_options(args, name: str) -> str:
+    """The replay keys of channel `name`: the flags' and ``channel=NAME``."""
+    return join_options(replay_options_of(args), option_string([("channel", name)]))
+
+
+def replay_channels(args, endpoints: List[Endpoint], out: Output) -> int:
+    """``wiretape replay`` with named endpoints: one virtual device per
+    channel, on one clock (with a CMD after ``--``:
+    children.replay_channels_with_command)."""
+    from .. import bridge
+
+    if any(e.redirect_path is not None for e in endpoints):
+        raise UsageError("--as NAME=PATH names the device path of a command: give the "
+                         "command after --")
+    check_replay_channels(args, endpoints)
     handles: List[Tuple[Endpoint, object]] = []
     try:
         for endpoint in endpoints:
-            channel_options = ",".join(part for part in (options, f"channel={endpoint.name}")
-                                       if part)
             handles.append((endpoint, bridge.serve_replay(
-                args.file, replay_options=channel_options, protocol=args.protocol,
+                args.file, replay_options=channel_replay_options(args, endpoint.name),
+                protocol=args.protocol,
                 restart=args.restart, quiet=True, **_client_sides(endpoint, args))))
     except BaseException:
         _stop_all(handles)
@@ -181,7 +187,6 @@ def _run_channels(handles, out: Output, what: str, doing: Callable[[Endpoint], s
     (a failed or mismatched one ends the others: the session is one) or
     Ctrl-C, relaying each one's messages with its name; prints each
     channel's outcome; raises the worst."""
-    from .run import POLL_S, MessageRelay, announce_clients
 
     relays = [MessageRelay(handle, out, f"{what}: {endpoint.name}", quiet)
               for endpoint, handle in handles]
@@ -211,7 +216,6 @@ def report_channels(handles, out: Output, what: str, must_serve: bool) -> int:
     """Prints each ended channel's outcome; raises the worst failure (the
     command's), else returns EXIT_OK. `handles`: (endpoint, handle) pairs,
     each endpoint with its .name."""
-    from .run import bridge_summary
 
     failures: List[Tuple[int, str]] = []
     for endpoint, handle in handles:

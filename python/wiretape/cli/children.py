@@ -9,11 +9,14 @@ import time
 from dataclasses import dataclass
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
+from .bridges import (POLL_S, MessageRelay, announce_clients, check_fault_places, meta_pairs,
+                      replay_options_of, run_bridge)
+from .channels import (channel_names, channel_replay_options, channels_recorder,
+                       check_replay_channels, refuse_unnamed_on_several, report_channels)
 from .console import Output, describe
+from .endpoints import Endpoint
 from .errors import CheckFailed, RuntimeFailure, UsageError, exit_code_for
 from .files import require_input
-from .run import (POLL_S, MessageRelay, announce_clients, meta_pairs, replay_options_of,
-                  run_bridge)
 
 
 def refuse_as_without_command(args) -> None:
@@ -63,12 +66,6 @@ def replay_with_command(args, out: Output) -> int:
     from .. import bridge
     from ..redirect import LineChannelPath, recorded_device_path, recorded_identity
     from ..session import refuse_same_file, session_files
-
-    from .channels import refuse_unnamed_on_several
-    from .endpoints import Endpoint
-    from .run import check_fault_places
-
-    from .channels import channel_names
 
     pty, link = _command_client_side(args)
     require_input(args.file)
@@ -156,9 +153,14 @@ def _close_line_channels(channels: List[_CommandChannel]) -> None:
             channel.line_channel.close()
 
 
-def record_channels_with_command(recorder, args, endpoints, out: Output) -> int:
+def record_channels_with_command(args, endpoints, out: Output) -> int:
     """``record --device NAME=OPTS ... -- CMD``: one bridge per channel into
-    `recorder`, CMD with each channel's path redirected to its pty."""
+    one file, CMD with each channel's path redirected to its pty."""
+    with channels_recorder(args, endpoints) as recorder:
+        return _record_channels_into(recorder, args, endpoints, out)
+
+
+def _record_channels_into(recorder, args, endpoints, out: Output) -> int:
     from .. import bridge
     from ..redirect import device_path_of
 
@@ -189,14 +191,9 @@ def replay_channels_with_command(args, endpoints, out: Output) -> int:
     one) redirected to its pty."""
     from .. import bridge
     from ..redirect import recorded_device_path, recorded_identity
-    from .channels import channel_names
-    from .endpoints import Endpoint
-    from .run import check_fault_places, replay_options_of
 
+    check_replay_channels(args, endpoints)
     _require_command(args)
-    if args.output:
-        raise UsageError("-o records what the clients do on one port: with several "
-                         "channels it is not supported yet")
     require_input(args.file)
     check_fault_places(args)
     given = {endpoint.name: endpoint for endpoint in endpoints}
@@ -205,15 +202,12 @@ def replay_channels_with_command(args, endpoints, out: Output) -> int:
         every, lambda endpoint: recorded_device_path(args.file, endpoint.name),
         lambda name: (f"{args.file}: channel {name!r} names no device path: give the "
                       f"path the command opens with --as {name}=PATH"))
-    options = replay_options_of(args)
     try:
         for channel in channels:
             channel.identity = recorded_identity(args.file, channel.name)
-            channel_options = ",".join(part for part in (options, f"channel={channel.name}")
-                                       if part)
             channel.handle = bridge.serve_replay(
                 args.file, pty=channel.link if channel.link is not None else True,
-                replay_options=channel_options, restart=args.restart, quiet=True,
+                replay_options=channel_replay_options(args, channel.name), restart=args.restart, quiet=True,
                 pty_mode=args.pty_mode, pty_group=args.pty_group,
                 line_channel=channel.line_channel.path)
         return _run_bridges_with_command(
@@ -243,7 +237,6 @@ def _run_bridges_with_command(channels: List[_CommandChannel], out: Output, what
     has ended. The outcome is the worst channel's; each path CMD never
     opened is named."""
     from ..redirect import RedirectedCommand, RedirectedDevice
-    from .channels import report_channels
 
     relays = [MessageRelay(channel.handle, out, f"{what}: {channel.name}", quiet)
               for channel in channels]
@@ -456,7 +449,6 @@ _CLIENT_CLOSE_DEADLINE_S = 5.0
 
 
 def _wait_for_client_close(handle) -> None:
-    import time
 
     end = time.monotonic() + _CLIENT_CLOSE_DEADLINE_S
     while not _client_has_closed(handle) and time.monotonic() < end:

@@ -23,7 +23,8 @@ import pytest
 
 import wiretape
 from wiretape import _core
-from wiretape._core import device_options
+from wiretape._core import device_options, option_string
+from wiretape.options import join_options
 
 from .episodes import append_channels
 
@@ -42,16 +43,12 @@ class WiretapeWarning(UserWarning):
 # option strings
 
 
-def _plain(value: Any) -> str:
-    """A marker or ini value as option text (booleans as true/false)."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
+def _option_value(value: Any) -> Any:
+    """A marker or ini value for option_string: a number, a boolean, text or
+    a path as it is (C++ writes them), anything else as its text."""
+    if isinstance(value, (str, int, float, bool, os.PathLike)):
+        return value
     return str(value)
-
-
-def quote_option(value: Any) -> str:
-    """A value for a wiretape option string, double-quoted if it needs to be."""
-    return _core.quote_option_value(_plain(value))
 
 
 # --------------------------------------------------------------------------
@@ -274,14 +271,17 @@ class WiretapeCassette:
         if self.recording:
             if not device:
                 return "(none yet: the device is the path the driver opens)"
-            return (device_options(device) + ",log=" + quote_option(str(self.partial_path))
-                    + ",meta_pytest_node=" + quote_option(self.item.nodeid))
-        return "type=replay,file=" + quote_option(str(self.path)) + "," + self.replay_options
+            return join_options(device_options(device),
+                                option_string([("log", self.partial_path),
+                                               ("meta_pytest_node", self.item.nodeid)]))
+        return join_options(option_string([("type", "replay"), ("file", self.path)]),
+                            self.replay_options)
 
     @property
     def replay_options(self) -> str:
         """The replay keys alone (``timing=none,...``)."""
-        return ",".join(f"{key}={quote_option(value)}" for key, value in self.replay_keys.items())
+        return option_string([(key, _option_value(value))
+                              for key, value in self.replay_keys.items()])
 
     @property
     def url(self) -> str:
@@ -290,8 +290,7 @@ class WiretapeCassette:
         if self.recording:
             query = urllib.parse.urlencode({"options": device_options(self.device)})
             return f"wiretape+record://{urllib.parse.quote(str(self.partial_path))}?{query}"
-        query = urllib.parse.urlencode({key: _plain(value)
-                                        for key, value in self.replay_keys.items()})
+        query = urllib.parse.urlencode(_core.parse_options(self.replay_options))
         return f"wiretape://{urllib.parse.quote(str(self.path))}?{query}"
 
     def record_command(self) -> str:
@@ -304,8 +303,8 @@ class WiretapeCassette:
 
     def channel_options(self, name: str) -> str:
         """The option string that replays channel `name` of the cassette."""
-        return ("type=replay,file=" + quote_option(str(self.path)) + ",channel="
-                + quote_option(name) + "," + self.replay_options)
+        return join_options(option_string([("type", "replay"), ("file", self.path),
+                                           ("channel", name)]), self.replay_options)
 
     def open_ports(self) -> Dict[str, wiretape.Port]:
         """The ports of the marker's ``ports=`` by name: each device
@@ -326,7 +325,8 @@ class WiretapeCassette:
                 if self.live:
                     port = wiretape.open_port(device)
                 elif self.recording:
-                    port = self._recorder.open_port(f"name={name}," + device)
+                    port = self._recorder.open_port(
+                        join_options(option_string([("name", name)]), device))
                 else:
                     port = wiretape.open_port(self.channel_options(name))
                 opened[name] = port
@@ -365,7 +365,8 @@ class WiretapeCassette:
             for name in self.channels_to_record:
                 if self._recorder is None:
                     self._recorder = self._new_recorder()
-                port = self._recorder.open_port(f"name={name}," + self.ports[name])
+                port = self._recorder.open_port(
+                    join_options(option_string([("name", name)]), self.ports[name]))
                 if self._recorder_start_ns is None:
                     self._recorder_start_ns = time.monotonic_ns() - self._recorder.now_ns()
                 opened[name] = port

@@ -93,7 +93,8 @@ import pytest
 import wiretape
 from wiretape import bridge, urlhandler
 
-from .._core import device_options
+from .._core import device_options, option_string, parse_options
+from ..options import join_options
 from .cassette import RECORD_MODES, WiretapeCassette, default_cassette_dir
 from .summary import CassetteSummary
 from .serial_patch import SerialPatch, fail_test, served_paths
@@ -287,9 +288,10 @@ def wiretape_serial(wiretape_cassette: WiretapeCassette) -> Iterator[SerialPatch
         if not cassette.recording and not cassette.live:
             return cassette.open_port()
         device = device_options(cassette.device or path)
-        if baud and device.startswith("type=serial,") and ",baud=" not in device:
+        keys = dict(parse_options(device))
+        if baud and keys.get("type") == "serial" and "baud" not in keys:
             # The rate the driver opens at, not a settings change after open.
-            device += f",baud={int(baud)}"
+            device = join_options(device, option_string([("baud", int(baud))]))
         return cassette.open_port(device)
 
     patch = SerialPatch(open_port, fail_test, paths)

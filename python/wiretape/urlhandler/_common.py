@@ -1,5 +1,6 @@
-"""What the wiretape URL handlers share: URL parsing, option-string quoting
-and a pyserial ``Serial`` over a wiretape Port."""
+"""What the wiretape URL handlers share: URL parsing and a pyserial
+``Serial`` over a wiretape Port (option strings are built by
+``_core.option_string``)."""
 
 import urllib.parse
 
@@ -10,32 +11,23 @@ from serial.serialutil import (
     SerialTimeoutException,
 )
 
+# _core, not the package: ``import wiretape`` imports this module.
+from .. import _core
+
+#: The wiretape errors a pyserial caller sees as SerialException.
+#: ReplayMismatch passes through: it is the report a test must show.
+CONVERTED_ERRORS = (_core.OptionError, _core.SessionError, _core.PortError)
+
+
 def _parity_name(letter: str) -> str:
     """pyserial's parity letter (PARITY_EVEN is "E") as the key table's
     parity choice it stands for."""
-    from .. import _core
-
     for key in _core.option_keys():
         if key.name == "parity":
             for choice in key.choices:
                 if choice[0].upper() == letter:
                     return choice
     return str(letter)
-
-
-def _converted_errors():
-    """The wiretape errors a pyserial caller sees as SerialException.
-    ReplayMismatch passes through: it is the report a test must show."""
-    import wiretape  # not at import time: wiretape may be importing us
-
-    return (wiretape.OptionError, wiretape.SessionError, wiretape.PortError)
-
-
-def option_string(pairs) -> str:
-    """``key=value,...``, each value quoted as the option syntax needs."""
-    from .. import _core
-
-    return ",".join(f"{key}={_core.quote_option_value(str(value))}" for key, value in pairs)
 
 
 def parse_url(url, scheme):
@@ -141,7 +133,7 @@ class PortSerial(SerialBase):
     def _convert_errors(self, call, *args, **kwargs):
         try:
             return call(*args, **kwargs)
-        except _converted_errors() as error:  # evaluated only when something was raised
+        except CONVERTED_ERRORS as error:
             raise SerialException(f"{self._port}: {error}") from error
 
     @property
@@ -199,7 +191,7 @@ class PortSerial(SerialBase):
     def _raise_converted(self, error):
         """Raises wiretape's port, option and session errors as the
         SerialException naming the port; returns on anything else."""
-        if isinstance(error, _converted_errors()):
+        if isinstance(error, CONVERTED_ERRORS):
             raise SerialException(f"{self._port}: {error}") from error
 
     def flush(self):

@@ -5,7 +5,8 @@ The query's keys are the replay keys of ``type=replay`` (docs/options.md;
 and lists the valid ones.
 """
 
-from ._common import PortSerial, option_string, parse_url
+from .. import _core
+from ._common import PortSerial, parse_url
 
 SCHEME = "wiretape"
 
@@ -13,13 +14,11 @@ SCHEME = "wiretape"
 def replay_options(url):
     """The wiretape option string a ``wiretape://`` URL stands for."""
     path, pairs = parse_url(url, SCHEME)
-    return option_string([("type", "replay"), ("file", path)] + pairs)
+    return _core.option_string([("type", "replay"), ("file", path)] + pairs)
 
 
 class Serial(PortSerial):
     """pyserial's Serial, replaying the session named by the URL."""
 
     def _open_wiretape_port(self, url):
-        import wiretape
-
-        return wiretape.open_port(replay_options(url))
+        return _core.open_port(replay_options(url))

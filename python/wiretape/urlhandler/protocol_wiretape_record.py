@@ -17,7 +17,9 @@ matching option string (``type=loopback``, ``type=tcp,host=H,port=P``).
 
 from serial.serialutil import SerialException
 
-from ._common import PortSerial, option_string, parse_url
+from .. import _core
+from ..options import join_options
+from ._common import PortSerial, parse_url
 
 SCHEME = "wiretape+record"
 
@@ -33,8 +35,6 @@ class _Request:
     """What a wiretape+record:// URL asks for."""
 
     def __init__(self, url):
-        from .. import _core
-
         self.path, pairs = parse_url(url, SCHEME)
         device = None
         options = None
@@ -74,7 +74,7 @@ class _Request:
         extra = [("log", self.path)] + self.recorder
         if baud is not None:
             extra.append(("baud", baud))
-        return self.options + "," + option_string(extra)
+        return join_options(self.options, _core.option_string(extra))
 
 
 class _RecordingSerial(PortSerial):
@@ -88,8 +88,6 @@ class _RecordingSerial(PortSerial):
 
     def _open_wiretape_port(self, url):
         import pathlib
-
-        from .. import _core
 
         # As a cassette does: recordings/x.wtape in a fresh project records.
         pathlib.Path(self._request.path).parent.mkdir(parents=True, exist_ok=True)

@@ -236,7 +236,8 @@ TEST(OptionString, ParseGivesThePairsBack) {
 
 TEST(OptionString, ABadKeyOrValueIsAnOptionErrorNamingTheKey) {
   using Pairs = std::vector<std::pair<std::string, wiretape::OptionValue>>;
-  for (const std::string key : {"", "a,b", "a b", "a=b", "say\"", std::string("n\0l", 3)}) {
+  const std::vector<std::string> keys = {"", "a,b", "a b", "a=b", "say\"", std::string("n\0l", 3)};
+  for (const std::string& key : keys) {
     try {
       wiretape::option_string(Pairs{{key, std::string("v")}});
       FAIL() << "no OptionError for key " << key;

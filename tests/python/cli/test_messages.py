@@ -6,7 +6,7 @@ import re
 import subprocess
 import sys
 
-from wiretape.cli.run import bridge_summary
+from wiretape.cli.bridges import bridge_summary
 
 WIRETAPE = [sys.executable, "-m", "wiretape.cli"]
 

@@ -13,7 +13,7 @@ import threading
 
 from devices import DEADLINE_S, announced_address, interrupt, start_cli, wait_until
 
-from wiretape.cli.run import _after, live_counts
+from wiretape.cli.bridges import _after, live_counts
 
 ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
 
