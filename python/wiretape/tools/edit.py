@@ -300,6 +300,9 @@ def edit_in_child(src: SessionPath, dst: SessionPath, **options) -> EditResult:
     env = dict(os.environ)
     env["PYTHONPATH"] = os.pathsep.join(
         [package_root] + [part for part in env.get("PYTHONPATH", "").split(os.pathsep) if part])
+    # Not the current directory first (python -m would put it there): a
+    # ``wiretape`` folder where the command runs must not stand in for it.
+    env["PYTHONSAFEPATH"] = "1"
     child = Child([sys.executable, "-m", "wiretape.tools.edit_child"], separate_stderr=True,
                   relay_stderr=_StderrRelay(), stdin=subprocess.PIPE, env=env,
                   preexec_fn=_end_with_parent())

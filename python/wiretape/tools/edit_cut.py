@@ -8,6 +8,7 @@ from __future__ import annotations
 from typing import Dict, List, Optional, Tuple
 
 from .. import _core
+from ..options import join_options
 from ..session import event_payload, is_stream
 from .edit_specs import Cut
 
@@ -19,11 +20,10 @@ def exchange_starts(path: str, channel: str = "", profile=None) -> List[int]:
     request, its first rx), exchanges as a replay with `profile` (a
     ``_core.Profile``, or None) numbers them (``_core.session_exchanges``;
     per channel in a session of several)."""
-    pairs = [("channel", channel)] if channel else []
-    if profile is not None:
-        pairs += _core.parse_options(profile.options)
+    options = join_options(_core.option_string([("channel", channel)] if channel else []),
+                           profile.options if profile is not None else "")
     starts: List[int] = []
-    for exchange in _core.session_exchanges(path, options=_core.option_string(pairs)):
+    for exchange in _core.session_exchanges(path, options=options):
         first = exchange.request_first_t_ns
         starts.append(first if first is not None else exchange.response_first_t_ns)
     return starts
