@@ -319,8 +319,8 @@ def read_capture_channels(path: str, streams: Sequence[Tuple[str, str]],
         start_utc=_core.format_start_utc(start_ns),
         source_format="pcap",
         source_files=[os.path.basename(path)],
-        source_details={"streams": ",".join(f"{name}={conversation.name}"
-                                            for name, _, conversation, _ in chosen)},
+        source_details={"streams": _core.option_string(
+            [(name, conversation.name) for name, _, conversation, _ in chosen])},
         device_address=first.device_address,
     )
     header.channels = channels
