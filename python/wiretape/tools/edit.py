@@ -43,6 +43,7 @@ import ctypes
 import dataclasses
 import os
 import pickle
+import signal
 import stat
 import subprocess
 import sys
@@ -86,7 +87,6 @@ def default_profile(header) -> Optional[str]:
     known profile), else None."""
     name = header.metadata.get(PROFILE_META_KEY)
     return name if name in _core.profile_names() else None
-
 
 
 def _profile(spec: str):
@@ -257,7 +257,7 @@ class _StderrRelay:
         sys.stderr.flush()
 
 
-def _end_with_parent():
+def _ending_with_parent():
     """What the child runs before wiretape starts in it: it ends when its
     parent does, however the parent ended (even SIGKILL), so that a
     catastrophic match cannot outlive the command as an orphan holding its
@@ -271,7 +271,7 @@ def _end_with_parent():
 
     def preexec() -> None:
         pr_set_pdeathsig = 1
-        prctl(pr_set_pdeathsig, 9, 0, 0, 0)  # SIGKILL
+        prctl(pr_set_pdeathsig, int(signal.SIGKILL), 0, 0, 0)
         if os.getppid() != parent:  # the parent ended before the call
             os._exit(1)
     return preexec
@@ -305,7 +305,7 @@ def edit_in_child(src: SessionPath, dst: SessionPath, **options) -> EditResult:
     env["PYTHONSAFEPATH"] = "1"
     child = Child([sys.executable, "-m", "wiretape.tools.edit_child"], separate_stderr=True,
                   relay_stderr=_StderrRelay(), stdin=subprocess.PIPE, env=env,
-                  preexec_fn=_end_with_parent())
+                  preexec_fn=_ending_with_parent())
     try:
         try:
             with child.process.stdin as request:
