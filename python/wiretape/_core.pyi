@@ -283,71 +283,6 @@ def device_options(device: str) -> str:
     The option string a device setting stands for: a bare path (no '=') means type=serial,device=PATH; an option string is returned as given. Raises OptionError when the setting is empty.
     """
 
-SESSION_MAGIC: bytes = ...
-
-SESSION_VERSION: tuple = (1, 2)
-
-FILE_HEADER_FIXED_SIZE: int = 16
-
-MAX_HEADER_JSON: int = 16777216
-
-RECORD_HEADER_SIZE: int = 16
-
-CRC_SIZE: int = 4
-
-FILE_HEADER_OVERHEAD: int = 20
-
-RECORD_OVERHEAD: int = 20
-
-MAX_RECORD_T_NS: int = 4294967295999999999
-
-RECORD_KINDS: tuple = ...
-
-def start_utc_problem(start_utc: str) -> str | None:
-    """
-    Why a session header's start_utc would be refused (not YYYY-MM-DDTHH:MM:SS[.frac]Z, out of range), or None.
-    """
-
-def record_content_problem(kind: object, t_ns: int, data: bytes) -> str | None:
-    """
-    Why a reader would stop at this record although its CRC matches (a time past MAX_RECORD_T_NS, an event payload that is not a JSON object within the limits), or None: the rule the writer and every reader apply.
-    """
-
-def flexiport_prefix(path: object) -> str | None:
-    """
-    The 'name.log' prefix PATH stands for when it is a flexiport log ('name.log', 'name.logr' or 'name.logw' with the pair on disk), else None.
-    """
-
-class Record:
-    """One record of a session: t_ns, kind, data."""
-
-    def __init__(self, t_ns: int, kind: object, data: bytes = ..., channel: int = 0) -> None: ...
-
-    @property
-    def t_ns(self) -> int:
-        """nanoseconds since the device was opened"""
-
-    @property
-    def kind(self) -> str:
-        """'rx' (device to host), 'tx' (host to device), or an event name"""
-
-    @property
-    def kind_code(self) -> int: ...
-
-    @property
-    def channel(self) -> int:
-        """
-        the id of the record's channel (SessionHeader.channels); 0 in a session of one port
-        """
-
-    @property
-    def data(self) -> bytes:
-        """the bytes (rx, tx) or the event's JSON object as bytes"""
-
-    def __eq__(self, arg: Record, /) -> bool: ...
-
-    def __repr__(self) -> str: ...
-
 class Channel:
     """
     One port of a session of several ports (format 1.2, docs/session-format.md, "channels"): its id (what its records carry), name and what the header says of a port. Channel(**members) with the members to_dict() names.
@@ -602,6 +537,71 @@ def present_device_identity(identity: dict, root: str, device_path: str) -> tupl
     """
     Writes under `root` the sysfs folders that present `identity` (as SessionHeader.device_identity) to a command that opens `device_path`: returns (tty_name, folder, by_id), the kernel name presented (device_path's own name when it is directly under /dev, else the recorded one), the folder that stands for /sys/class/tty/TTY_NAME (tty_name and folder '' when no name can be presented) and the by-id name to redirect ('' when none).
     """
+
+SESSION_MAGIC: bytes = ...
+
+SESSION_VERSION: tuple = (1, 2)
+
+FILE_HEADER_FIXED_SIZE: int = 16
+
+MAX_HEADER_JSON: int = 16777216
+
+RECORD_HEADER_SIZE: int = 16
+
+CRC_SIZE: int = 4
+
+FILE_HEADER_OVERHEAD: int = 20
+
+RECORD_OVERHEAD: int = 20
+
+MAX_RECORD_T_NS: int = 4294967295999999999
+
+RECORD_KINDS: tuple = ...
+
+def start_utc_problem(start_utc: str) -> str | None:
+    """
+    Why a session header's start_utc would be refused (not YYYY-MM-DDTHH:MM:SS[.frac]Z, out of range), or None.
+    """
+
+def record_content_problem(kind: object, t_ns: int, data: bytes) -> str | None:
+    """
+    Why a reader would stop at this record although its CRC matches (a time past MAX_RECORD_T_NS, an event payload that is not a JSON object within the limits), or None: the rule the writer and every reader apply.
+    """
+
+def flexiport_prefix(path: object) -> str | None:
+    """
+    The 'name.log' prefix PATH stands for when it is a flexiport log ('name.log', 'name.logr' or 'name.logw' with the pair on disk), else None.
+    """
+
+class Record:
+    """One record of a session: t_ns, kind, data."""
+
+    def __init__(self, t_ns: int, kind: object, data: bytes = ..., channel: int = 0) -> None: ...
+
+    @property
+    def t_ns(self) -> int:
+        """nanoseconds since the device was opened"""
+
+    @property
+    def kind(self) -> str:
+        """'rx' (device to host), 'tx' (host to device), or an event name"""
+
+    @property
+    def kind_code(self) -> int: ...
+
+    @property
+    def channel(self) -> int:
+        """
+        the id of the record's channel (SessionHeader.channels); 0 in a session of one port
+        """
+
+    @property
+    def data(self) -> bytes:
+        """the bytes (rx, tx) or the event's JSON object as bytes"""
+
+    def __eq__(self, arg: Record, /) -> bool: ...
+
+    def __repr__(self) -> str: ...
 
 def event_payload(kind: object, fields: dict) -> bytes:
     """

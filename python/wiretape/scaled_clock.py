@@ -9,7 +9,6 @@ process it starts share one scaled clock. K = 1 loads nothing.
 
 from __future__ import annotations
 
-import math
 import os
 import time
 from typing import Dict, List, Mapping, Optional
@@ -36,17 +35,14 @@ def shim_path() -> str:
 
 
 def check_speed(speed: float, flag: str = "--speed") -> float:
-    """`speed` as a float, or ValueError naming `flag`: a finite number
-    above 0 (the replay key's range)."""
+    """`speed` as a float, or ValueError naming `flag`: checked as the
+    replay key ``speed`` is, by the key table in C++ (a number from 1e-06 to
+    1e+06), so that CMD's clock and the replay's run at the same K."""
     try:
-        value = float(speed)
-    except (TypeError, ValueError):
-        raise ValueError(f"{flag} {speed!r}: give a number above 0 (10: ten times faster)") \
-            from None
-    if not math.isfinite(value) or value <= 0:
-        raise ValueError(f"{flag} {speed!r}: give a finite number above 0 "
-                         "(10: ten times faster)")
-    return value
+        value = _core.option_value("replay", "speed", str(speed))
+    except _core.OptionError as error:
+        raise ValueError(f"{flag} {speed!r}: {error} (10: ten times faster)") from None
+    return float(value)  # type: ignore[arg-type]
 
 
 def anchor() -> str:

@@ -22,6 +22,7 @@ import json
 import os
 import select
 import stat
+from dataclasses import dataclass
 from typing import IO, Any, Dict, Iterable, List, Optional, Union
 
 from . import _core
@@ -57,6 +58,55 @@ def open_session(path: SessionPath) -> _core.SessionReader:
     raise_damage() raises the damage, a SessionError: exit 1
     (cli.exit_code_for maps both)."""
     return _core.SessionReader(os.fspath(path))
+
+
+#: The metadata key by which a session names its protocol profile
+#: (``wiretape record --meta profile=NAME``).
+PROFILE_META_KEY = "profile"
+#: The --profile value that says: no profile, not even the session's.
+NO_PROFILE = "none"
+
+
+@dataclass(frozen=True)
+class ProfileChoice:
+    """The profile a command reads sessions with: ``spec`` for
+    _core.profile_from_spec (a name or a declared profile), or None for
+    none; ``note``, when a session's ``profile`` metadata was left out, says
+    why (for the user: the command runs without it)."""
+
+    spec: Optional[str] = None
+    note: Optional[str] = None
+
+
+def chosen_profile(given: Optional[str], *headers: Any) -> ProfileChoice:
+    """The one rule of every command's --profile (docs/cli.md "Protocol
+    profiles"): a given profile is the one (``none``: no profile at all);
+    without one, the profile the sessions name in their ``profile``
+    metadata, read as --profile is read (``_core.profile_from_spec``), is
+    the default. Metadata that names no profile wiretape knows is left out,
+    with a note; sessions naming different profiles are a ValueError (give
+    --profile). `headers`: the sessions' SessionHeaders."""
+    if given is not None:
+        return ProfileChoice(None if given.strip() == NO_PROFILE else given)
+    named: Dict[str, List[Any]] = {}
+    notes: List[str] = []
+    for header in headers:
+        spec = (header.metadata.get(PROFILE_META_KEY) or "").strip()
+        if not spec or spec == NO_PROFILE:
+            continue
+        try:
+            _core.profile_from_spec(spec)
+        except _core.OptionError as error:
+            notes.append(f"the session's metadata {PROFILE_META_KEY}={spec!r} is not a "
+                         f"profile ({error}): read without one")
+            continue
+        named.setdefault(spec, []).append(header)
+    if len(named) > 1:
+        raise ValueError("the sessions name different profiles in their metadata ("
+                         + ", ".join(f"{PROFILE_META_KEY}={spec}" for spec in named)
+                         + "): give --profile NAME, or --profile none")
+    spec = next(iter(named), None)
+    return ProfileChoice(spec, "; ".join(notes) or None)
 
 
 def raise_damage(reader: _core.SessionReader) -> None:

@@ -18,6 +18,7 @@ NB_MODULE(_core, m) {
   nb::set_leak_warnings(std::getenv("WIRETAPE_DEBUG_LEAKS") != nullptr);
   wiretape::python::bind_errors(m);
   wiretape::python::bind_port(m);
+  wiretape::python::bind_header(m);
   wiretape::python::bind_session(m);
   wiretape::python::bind_bridge(m);
   wiretape::python::bind_profile(m);

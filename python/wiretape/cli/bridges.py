@@ -11,6 +11,7 @@ from typing import Callable, Dict, List, Optional, Tuple
 
 from .. import _core
 from ..options import join_options, option_string, replay_keys
+from ..session import NO_PROFILE
 from .console import LiveLine, Output
 from .errors import EXIT_OK, CheckFailed, RuntimeFailure, UsageError
 
@@ -193,8 +194,9 @@ def replay_options_of(args) -> str:
         value = getattr(args, key, None)
         if value is None:
             continue
-        if key == "profile":
-            profile_keys = _core.profile_from_spec(value).options
+        if key == "profile":  # a replay has no default: "none" is no profile either
+            if value != NO_PROFILE:
+                profile_keys = _core.profile_from_spec(value).options
         else:
             pairs.append((key, value))
     # --fault is repeatable and each may hold several items: one plan,

@@ -54,6 +54,32 @@ def require_session(path: str) -> None:
                           f"{command}")
 
 
+def session_profile(given, paths, out: Output):
+    """The profile spec a command reads `paths` with, or None: the one rule
+    of wiretape.session.chosen_profile (--profile given, else the sessions'
+    ``profile`` metadata; ``none``: none), its note printed. A session read
+    from a pipe gives no default: reading its header here would consume it."""
+    from ..session import NO_PROFILE, chosen_profile, is_stream, open_session
+
+    if given is None and any(is_stream(path) or not os.path.isfile(path) for path in paths):
+        return None
+    headers = []
+    if given is None:
+        try:
+            for path in paths:
+                with open_session(path) as reader:
+                    headers.append(reader.header)
+        except (OSError, SessionError):  # the command itself reports it, in its place
+            return None
+    try:
+        choice = chosen_profile(given, *headers)
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    if choice.note is not None:
+        out.note(f"wiretape: {choice.note}")
+    return choice.spec if choice.spec != NO_PROFILE else None
+
+
 def cmd_show(args, out: Output) -> int:
     from ..tools.channels import UnknownChannel
     from ..tools.show import Selection, color_wanted, show_reporting_damage
@@ -64,9 +90,13 @@ def cmd_show(args, out: Output) -> int:
     profile = args.profile or args.decode
     if args.profile and args.decode and args.profile != args.decode:
         raise UsageError(f"--profile {args.profile} and --decode {args.decode} disagree: give one")
-    if profile and args.format != "text":
+    if profile and profile != "none" and args.format != "text":
         option = "--profile" if args.profile else "--decode"
         raise UsageError(f"{option} works with --format text only")
+    if args.format == "text":
+        profile = session_profile(profile, [args.file], out)
+    else:
+        profile = None
     try:
         select = Selection(kinds=frozenset(args.kind) if args.kind else None,
                            start_s=args.start_s, end_s=args.end_s,
@@ -123,7 +153,9 @@ def cmd_stats(args, out: Output) -> int:
     from ..tools.stats import stats as session_stats
 
     require_session(args.file)
-    result = session_stats(args.file, profile=args.profile)
+    # stats reads the session's default itself once tools/stats.py calls
+    # wiretape.session.chosen_profile; until then, --profile alone.
+    result = session_stats(args.file, profile=None if args.profile == "none" else args.profile)
     if args.json:
         print(json.dumps(result.to_json(), indent=2, sort_keys=True, default=str))
     else:
@@ -181,7 +213,8 @@ def cmd_diff(args, out: Output) -> int:
 
     require_session(args.a)
     require_session(args.b)
-    result = diff(args.a, args.b, profile=args.profile, max_divergences=args.max_divergences)
+    result = diff(args.a, args.b, profile=session_profile(args.profile, [args.a, args.b], out),
+                  max_divergences=args.max_divergences)
     for line in result.report().splitlines():
         style = None
         if line == "sessions are identical":
@@ -229,7 +262,8 @@ def cmd_view(args, out: Output) -> int:
     output = args.output if args.output is not None else default_output(args.file)
     default = "" if args.output is not None else " (the default: SESSION with .html; -o to choose)"
     try:
-        view(args.file, output, profile=args.profile, campaign=args.campaign)
+        view(args.file, output, profile=session_profile(args.profile, [args.file], out) or "none",
+             campaign=args.campaign)
     except SessionError:  # the page shows what came before the damage
         if not args.quiet:
             out.note(f"wrote {output}{default}, up to the damage:")

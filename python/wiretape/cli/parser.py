@@ -10,6 +10,7 @@ from typing import Callable, List, Optional, Sequence, Tuple
 
 from .. import __version__, _core
 from ..options import option_keys
+from ..session import NO_PROFILE
 from .files import cmd_convert, cmd_diff, cmd_edit, cmd_show, cmd_stats, cmd_verify, cmd_view
 from .ports import cmd_ports
 from .run import cmd_demo, cmd_faults, cmd_faults_merge, cmd_record, cmd_replay, cmd_serve
@@ -55,18 +56,13 @@ def _non_negative_int(text: str) -> int:
 
 
 def _key_value(key) -> Callable[[str], object]:
-    """An argparse type checking a value of the key table's row ``key``
-    against its type and range, as the replay would."""
+    """An argparse type: a value of the key table's replay row ``key``,
+    checked by the replay's own reading of it (type and range, in C++)."""
     def check(text: str) -> object:
         try:
-            value: object = int(text) if key.type == "integer" else float(text)
-        except ValueError:
-            kind = "a whole number" if key.type == "integer" else "a number"
-            raise argparse.ArgumentTypeError(f"{text!r} is not {kind}") from None
-        if not key.minimum <= value <= key.maximum:  # type: ignore[operator]
-            raise argparse.ArgumentTypeError(
-                f"{text!r}: must be from {key.minimum:g} to {key.maximum:g}")
-        return value
+            return _core.option_value("replay", key.name, text)
+        except _core.OptionError as error:
+            raise argparse.ArgumentTypeError(str(error)) from None
 
     return check
 
@@ -80,15 +76,32 @@ def _add_replay_keys(parser: argparse.ArgumentParser) -> None:
             continue
         help_text = f"{key.help} (default {key.default})" if key.default else key.help
         if key.name == "profile":  # profiles are registered at run time
-            names = tuple(_core.profile_names())
-            parser.add_argument(key.flag, dest=key.name, choices=names, metavar="NAME",
-                                help=f"{help_text}: {', '.join(names)}")
+            parser.add_argument(key.flag, dest=key.name, type=_profile_spec, metavar="PROFILE",
+                                help=f"{help_text}: {_PROFILE_HELP}")
         elif key.type == "choice":
             parser.add_argument(key.flag, dest=key.name, choices=tuple(key.choices),
                                 help=help_text)
         else:
             parser.add_argument(key.flag, dest=key.name, type=_key_value(key),
                                 metavar=key.name.upper(), help=help_text)
+
+
+def _profile_spec(text: str) -> str:
+    """An argparse type: a --profile value, read by _core.profile_from_spec
+    (a name, or a declared profile's keys); ``none`` says no profile, not
+    even the session's (wiretape.session.chosen_profile)."""
+    if text.strip() == NO_PROFILE:
+        return NO_PROFILE
+    try:
+        _core.profile_from_spec(text)
+    except _core.OptionError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+    return text.strip()
+
+
+_SESSION_DEFAULT = "the session's --meta profile=NAME, else none"
+_PROFILE_HELP = (", ".join(_core.profile_names()) + ", a declared profile "
+                 "('framing=...,ignore=...,echo=...,checksum=...', docs/replay.md), or none")
 
 def _kind_list(text: str) -> Tuple[str, ...]:
     from ..tools.show import check_kinds
@@ -486,9 +499,9 @@ def build_parser() -> argparse.ArgumentParser:
     show.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
     show.add_argument("--format", choices=("text", "hex", "jsonl"), default="text",
                       help="text (default), hex dump, or one JSON object per record")
-    show.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
-                      help="cut the bytes into a protocol's frames and name them: "
-                           + ", ".join(_core.profile_names()))
+    show.add_argument("--profile", type=_profile_spec, metavar="PROFILE",
+                      help="cut the bytes into a protocol's frames and name them "
+                           f"(default: {_SESSION_DEFAULT}): {_PROFILE_HELP}")
     show.add_argument("--decode", choices=("scip",),
                       help="the older name of --profile scip")
     show.add_argument("--textconv", action="store_true",
@@ -518,9 +531,9 @@ def build_parser() -> argparse.ArgumentParser:
     stats = command("stats", cmd_stats, "figures of a session (exit 1 if damaged)")
     stats.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
     stats.add_argument("--json", action="store_true", help="print JSON")
-    stats.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
-                       help="latency per request frame name of a protocol: "
-                            + ", ".join(_core.profile_names()))
+    stats.add_argument("--profile", type=_profile_spec, metavar="PROFILE",
+                       help="latency per request frame name of a protocol "
+                            f"(default: {_SESSION_DEFAULT}): {_PROFILE_HELP}")
 
     view = command(
         "view", cmd_view, "a session as a timeline in one HTML page, for a browser",
@@ -534,9 +547,9 @@ def build_parser() -> argparse.ArgumentParser:
     view.add_argument("--campaign", metavar="FILE.json",
                       help="a `wiretape faults --json` file of this session: its runs on the "
                            "exchanges they faulted")
-    view.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
-                      help="name the frames by a protocol profile (default: the session's "
-                           "--meta profile=NAME): " + ", ".join(_core.profile_names()))
+    view.add_argument("--profile", type=_profile_spec, metavar="PROFILE",
+                      help="name the frames by a protocol profile "
+                           f"(default: {_SESSION_DEFAULT}): {_PROFILE_HELP}")
     view.add_argument("-q", "--quiet", action="store_true", help="no summary")
 
     edit = command(
@@ -557,11 +570,9 @@ def build_parser() -> argparse.ArgumentParser:
                       help="a regular expression over the bytes (\\= for a literal =); "
                            "matches become REPLACEMENT repeated to their length (default *); "
                            "may be repeated")
-    edit.add_argument("--profile", metavar="NAME",
+    edit.add_argument("--profile", type=_profile_spec, metavar="PROFILE",
                       help="the protocol whose checksums --redact recomputes over scrubbed "
-                           "bytes (default: the session's --meta profile=NAME, else none): "
-                           + ", ".join(_core.profile_names()) + ", a declared profile "
-                           "('framing=...,checksum=...') or none")
+                           f"bytes (default: {_SESSION_DEFAULT}): {_PROFILE_HELP}")
     edit.add_argument("--channel", metavar="NAME", action="append", default=[],
                       help="--cut and --redact work on this channel only (may be repeated); "
                            "the other channels' records are kept as they are")
@@ -614,9 +625,10 @@ def build_parser() -> argparse.ArgumentParser:
                    "every divergence by exchange (exit 1 if they differ)")
     diff.add_argument("a", metavar="A", help="a session")
     diff.add_argument("b", metavar="B", help="another session")
-    diff.add_argument("--profile", choices=tuple(_core.profile_names()), metavar="NAME",
+    diff.add_argument("--profile", type=_profile_spec, metavar="PROFILE",
                       help="compare frame by frame by the profile's match key (fields it "
-                           "leaves out do not differ): " + ", ".join(_core.profile_names()))
+                           f"leaves out do not differ; default: {_SESSION_DEFAULT}): "
+                           f"{_PROFILE_HELP}")
     diff.add_argument("--max", dest="max_divergences", type=_non_negative_int, default=10,
                       metavar="N", help="show the first N divergences by exchange (default "
                                         "10; all are counted)")

@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from typing import Dict, Iterable, Iterator, List, Optional, Union
 
 from .. import _core
-from ..session import DIRECTIONS, header_text, is_stream, open_session
+from ..session import DIRECTIONS, NO_PROFILE, header_text, is_stream, open_session
 from .channels import capture_text, several_channels
 
 _CONTEXT = 16
@@ -279,12 +279,13 @@ class _ExchangeParts:
     (request pieces, response pieces, request time, response time), a piece
     being a frame with a profile, else all of that direction's bytes."""
 
-    def __init__(self, path: str, profile: Optional[str]):
+    def __init__(self, path: str, profile: Optional[_core.Profile]):
         self._path = path
         self._profile = profile
 
     def __iter__(self):
-        exchanges = _core.session_exchanges(self._path, self._profile)
+        exchanges = _core.session_exchanges(
+            self._path, options=self._profile.options if self._profile is not None else "")
         if self._profile is not None:
             for exchange in exchanges:
                 yield ([bytes(f) for f in exchange.request_frames],
@@ -350,12 +351,14 @@ def _request_name(framing, direction: str, pieces: Optional[List[bytes]]) -> str
 def _divergences(path_a: str, path_b: str, profile: Optional[str], keep: int
                  ) -> "tuple[List[Divergence], int]":
     """The first `keep` divergences by exchange, and how many there are."""
-    framing = _core.find_profile(profile) if profile is not None else None
+    # A name or a declared profile, read by the replay's rule; "none": none.
+    framing = (_core.profile_from_spec(profile)
+               if profile is not None and profile != NO_PROFILE else None)
     key = framing.match_key if framing is not None else (lambda piece: piece)
     found: List[Divergence] = []
     total = 0
-    exchanges_a = iter(_ExchangeParts(path_a, profile))
-    exchanges_b = iter(_ExchangeParts(path_b, profile))
+    exchanges_a = iter(_ExchangeParts(path_a, framing))
+    exchanges_b = iter(_ExchangeParts(path_b, framing))
     index = 0
     while True:
         part_a, part_b = next(exchanges_a, None), next(exchanges_b, None)
@@ -578,8 +581,8 @@ def diff(a: SessionLike, b: SessionLike, profile: Optional[str] = None,
             finally:
                 records_a.close()
                 records_b.close()
-    if profile is not None:
-        framing = _core.find_profile(profile)
+    if profile is not None and profile != NO_PROFILE:
+        framing = _core.profile_from_spec(profile)
         result = DiffResult(str(a) if isinstance(a, (str, os.PathLike)) else "(records)",
                             str(b) if isinstance(b, (str, os.PathLike)) else "(records)")
         for direction in DIRECTIONS:

@@ -51,8 +51,8 @@ from typing import Iterable, List, Optional, Tuple
 
 from .. import _core
 from ..children import Child
-from ..session import (DIRECTIONS, SessionPath, open_session, raise_damage, refuse_same_file,
-                       session_files)
+from ..session import (DIRECTIONS, SessionPath, chosen_profile, open_session, raise_damage,
+                       refuse_same_file, session_files)
 from .channels import UnknownChannel, choose_channels, several_channels
 from .convert import session_writer
 from .edit_cut import Cutter, cut_window
@@ -60,8 +60,8 @@ from .edit_redact import MAX_SPAN, Entry, Redactor, Resealer, merged_marks
 from .edit_scrub import scrub_header, scrubbed_event
 from .edit_specs import Cut, Redaction, parse_cut, parse_redaction
 
-__all__ = ["edit", "edit_in_child", "default_profile", "EditResult", "Cut", "Redaction",
-           "parse_cut", "parse_redaction", "MAX_SPAN"]
+__all__ = ["edit", "edit_in_child", "EditResult", "Cut", "Redaction", "parse_cut",
+           "parse_redaction", "MAX_SPAN"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -75,18 +75,6 @@ class EditResult:
     profile: Optional[str] = None  # the profile whose checksums were recomputed
     resealed_frames: int = 0  # frames whose checksums it recomputed
     unsealed_frames: int = 0  # ... a byte of which was already written (HOLD_LIMIT)
-
-
-#: The metadata key that names the protocol profile of a recording
-#: (``--meta profile=scip``): edit's default profile.
-PROFILE_META_KEY = "profile"
-
-
-def default_profile(header) -> Optional[str]:
-    """The profile a recording names in its metadata (``profile=NAME``, a
-    known profile), else None."""
-    name = header.metadata.get(PROFILE_META_KEY)
-    return name if name in _core.profile_names() else None
 
 
 def _profile(spec: str):
@@ -133,7 +121,8 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
     numbered (as a replay with it numbers them), a name or a declared
     profile's keys
     (``framing=...,checksum=...``); "" (the default) for the one the
-    session's metadata names (``profile=NAME``), None for none. Raises
+    session's metadata names (``profile=NAME``, by
+    ``wiretape.session.chosen_profile``), None for none. Raises
     ValueError for an edit that does not fit the session (a metadata key it
     lacks, an exchange past its end) or an unknown profile; SessionError after
     writing what came before when `src` is damaged. Interrupted
@@ -160,13 +149,14 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
         raise ValueError(f"--cut {cut.spec}: exchanges are numbered per channel in a session "
                          "of several channels: give one --channel NAME to count them on")
     if profile == "":
-        profile = default_profile(header)
+        # The one rule of a session's profile metadata as the default.
+        profile = chosen_profile(None, header).spec
     counts_exchanges = cut is not None and cut.exchanges
-    chosen_profile = (_profile(profile) if profile is not None and (redactions or counts_exchanges)
-                      else None)
+    used_profile = (_profile(profile) if profile is not None and (redactions or counts_exchanges)
+                    else None)
     # The profile recomputes checksums over scrubbed bytes, and numbers the
     # exchanges of --cut Ne as a replay with it does (frames, not records).
-    framing = chosen_profile if redactions else None
+    framing = used_profile if redactions else None
     metadata = dict(header.metadata)
     for key in drop:
         if key not in metadata:
@@ -176,7 +166,7 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
         del metadata[key]
     header.metadata = metadata
     counted_on = channels[0] if counts_exchanges and channels else ""
-    window = (cut_window(src, cut, counted_on, chosen_profile) if cut is not None
+    window = (cut_window(src, cut, counted_on, used_profile) if cut is not None
               else (None, None))
 
     earlier_edits = list(header.edits)

@@ -18,7 +18,7 @@ from typing import IO, Callable, FrozenSet, Iterable, Iterator, Optional, Tuple
 
 from .. import _core
 from ..session import DIRECTIONS as _DIRECTIONS
-from ..session import SessionPath, event_of, event_payload, header_text, open_session
+from ..session import NO_PROFILE, SessionPath, event_of, event_payload, header_text, open_session
 from ..session import printable as _printable
 from .channels import (capture_text, channel_label, channel_names, choose_channels,
                        several_channels)
@@ -209,7 +209,9 @@ def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optiona
     if profile is not None and decode is not None and profile != decode:
         raise ValueError(f"profile={profile!r} and decode={decode!r} disagree: give one")
     profile = profile if profile is not None else decode
-    framing = _core.find_profile(profile) if profile is not None else None
+    # A name or a declared profile, read by the replay's rule; "none": none.
+    framing = (_core.profile_from_spec(profile)
+               if profile is not None and profile != NO_PROFILE else None)
     out = out if out is not None else sys.stdout
     select = select if select is not None else Selection()
     wanted = None if select.every_record_of_the_channels else select.matcher()

@@ -29,8 +29,9 @@ from typing import Any, Dict, Iterable, Iterator, List, Optional, Tuple, cast
 from .. import _core
 from ..exports._common import replacing
 from ..faults import Campaign, read_json
-from ..session import (FileRefused, SessionPath, header_fields, is_stream, open_session,
-                       refuse_same_file, session_files)
+from ..options import join_options
+from ..session import (FileRefused, SessionPath, chosen_profile, header_fields, is_stream,
+                       open_session, refuse_same_file, session_files)
 
 __all__ = ["view", "page_data", "default_output", "render_page", "PAGE_FORMAT",
            "MAX_RECORD_BYTES"]
@@ -53,7 +54,11 @@ def default_output(session: SessionPath) -> str:
     return root + ".html"
 
 
-def _exchanges(path: str, profile: Optional[str], options: str,
+# The replay keys that give a profile (_core.profile_from_spec reads them).
+_PROFILE_KEYS = ("profile", "framing", "ignore", "echo", "checksum")
+
+
+def _exchanges(path: str, profile: Optional[_core.Profile], options: str,
                channels: Optional[List[Tuple[int, str]]] = None) -> List[List[Any]]:
     """The exchanges as rows (view.js names the columns). A session of
     several ports (`channels`: (id, name)) has each channel's exchanges,
@@ -63,8 +68,12 @@ def _exchanges(path: str, profile: Optional[str], options: str,
 
     rows = []
     for channel, name in channels or [(None, "")]:
-        found = _core.session_exchanges(path, profile=profile,
-                                        options=_with_channel(options, name))
+        keys = _core.parse_options(_with_channel(options, name))
+        if profile is not None:  # the profile given overrides the campaign's
+            keys = [(key, value) for key, value in keys if key not in _PROFILE_KEYS]
+        found = _core.session_exchanges(
+            path, options=join_options(profile.options if profile is not None else "",
+                                       _core.option_string(keys)))
         for exchange in found:
             row = [exchange.index, exchange.first_record, exchange.end_record,
                    exchange.request_first_t_ns, exchange.request_last_t_ns,
@@ -77,11 +86,10 @@ def _exchanges(path: str, profile: Optional[str], options: str,
     return rows
 
 
-def _frames(path: str, profile: str, channels: Optional[List[Tuple[int, str]]] = None
-            ) -> List[List[Any]]:
+def _frames(path: str, framing: _core.Profile,
+            channels: Optional[List[Tuple[int, str]]] = None) -> List[List[Any]]:
     """The profile's frames: [t_ns, direction, size, name]; in a session of
     several ports each channel's bytes framed apart, with its id fifth."""
-    framing = _core.find_profile(profile)
     frames = []
     for channel, _ in channels or [(None, "")]:
         source = path if channel is None else _core.SessionReader(path, channel=channel)
@@ -148,17 +156,17 @@ def page_data(session: SessionPath, profile: Optional[str] = None,
 
 def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
                ) -> Tuple[Dict[str, Any], Optional[_core.SessionError]]:
-    """Everything the page shows, as one JSON-able object. ``profile``
-    (default: the session's ``profile`` metadata) names the frames; a
+    """Everything the page shows, as one JSON-able object. ``profile`` (a
+    name or a declared profile; by default the session's ``profile``
+    metadata, wiretape.session.chosen_profile; ``none``: none) names the frames; a
     ``campaign`` (a ``wiretape faults --json`` file) adds its runs. A
     damaged session is shown up to the damage, which the page names; the
     damage is returned with the data."""
     reader = open_session(path)
     header = header_fields(reader)
-    if profile is None:
-        profile = reader.header.metadata.get("profile") or None
-    if profile is not None:
-        _core.find_profile(profile)  # an unknown name is an OptionError, before any work
+    spec = chosen_profile(profile, reader.header).spec
+    # An unknown profile is an OptionError, before any work.
+    framing = _core.profile_from_spec(spec) if spec is not None else None
     kinds = [kind["name"] for kind in _core.RECORD_KINDS]
     kind_code = {name: code for code, name in enumerate(kinds)}
     times: List[int] = []
@@ -186,8 +194,8 @@ def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
     listed = reader.header.channel_list()
     several = [(channel.id, channel.name) for channel in listed] if len(listed) > 1 else None
     with _intact_part(path, reader) as intact:
-        exchanges = _exchanges(intact, profile, options, several)
-        frames = _frames(intact, profile, several) if profile is not None else []
+        exchanges = _exchanges(intact, framing, options, several)
+        frames = _frames(intact, framing, several) if framing is not None else []
     if several:
         _to_page_records(exchanges, channels)
     campaign_data = None
@@ -197,7 +205,7 @@ def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
     data = {
         "format": PAGE_FORMAT,
         "session": {"path": path, "name": os.path.basename(path), "header": header,
-                    "damage": damage, "profile": profile},
+                    "damage": damage, "profile": framing.name if framing is not None else None},
         # A group of lanes per channel: a session of several ports (DESIGN
         # §19) has one per port, and "channel" is then a column, one number
         # per record, rather than one number for all.
