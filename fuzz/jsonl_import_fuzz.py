@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Fuzzes the jsonl importer (``wiretape convert X.jsonl OUT --from jsonl``,
-wiretape.tools.convert): any bytes must either convert, or fail with a
+wiretape.exports.jsonl): any bytes must either convert, or fail with a
 SessionError whose one-line message names the file and the line (exit 1 from
 the CLI, as a damaged session file). Any other exception is a finding.
 
@@ -9,7 +9,7 @@ Usage: jsonl_import_fuzz.py [libFuzzer flags] [CORPUS_DIR...]
 With atheris (installed into .venv by `make fuzz`) this is a coverage-guided
 libFuzzer run, taking libFuzzer's flags (-max_total_time=N, -runs=0, ...).
 Without it, it mutates the corpus at random for -max_total_time seconds.
-tests/python/tools/test_jsonl_import.py runs every corpus file through
+tests/python/exports/test_jsonl.py runs every corpus file through
 check_input().
 """
 

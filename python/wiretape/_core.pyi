@@ -1249,3 +1249,54 @@ def normal_fault_kind(kind: str) -> str:
     """
     One KIND (drop, corrupt:4, delay:500) in its normal spelling. Raises OptionError naming the kind and the grammar.
     """
+
+class RecordCheck:
+    """
+    What check_session_records() found: every record the reader reached, with those of channels the header does not list.
+    """
+
+    @property
+    def header(self) -> SessionHeader: ...
+
+    @property
+    def records(self) -> int:
+        """the good records of the channels the header lists"""
+
+    @property
+    def channel_records(self) -> dict[int, int]:
+        """records per channel id, those of unlisted channels included"""
+
+    @property
+    def unlisted_records(self) -> int:
+        """
+        records naming a channel the header does not list (the reader skips them)
+        """
+
+    @property
+    def first_unlisted_offset(self) -> int | None:
+        """where the first such record begins, or None"""
+
+    @property
+    def first_unlisted_channel(self) -> int | None:
+        """the channel the first such record names, or None"""
+
+    @property
+    def damage(self, /) -> SessionError | None:
+        """
+        None, or a SessionError (not raised) with .offset and .message: where reading stopped and why
+        """
+
+def check_session_records(path: str) -> RecordCheck:
+    """
+    Reads every record of the session at PATH as SessionReader does (CRC, length, content), counting them per channel and noting the records of channels the header does not list, which a reader skips. Raises PortError when PATH cannot be opened, SessionError when it is not a session; damage later on is RecordCheck.damage.
+    """
+
+def parse_start_utc(text: str) -> int | None:
+    """
+    A header's start_utc (2026-11-23T10:00:00.123456Z) as ns since the epoch; None for '' (not known). Raises OptionError naming start_utc and saying why for text the header does not allow.
+    """
+
+def format_start_utc(epoch_ns: int) -> str:
+    """
+    EPOCH_NS (ns since 1970, UTC) as a header's start_utc, with nine digits of fraction (2026-11-23T10:00:00.123456789Z). Raises ValueError when it is outside the years a header can hold.
+    """

@@ -108,6 +108,75 @@ std::optional<std::string> start_utc_problem(std::string_view text) {
   return std::nullopt;
 }
 
+namespace {
+
+// Days from 1970-01-01 to year-month-day of the proleptic Gregorian calendar
+// (H. Hinnant's days_from_civil), and back.
+std::int64_t days_from_civil(std::int64_t year, unsigned month, unsigned day) {
+  year -= month <= 2;
+  const std::int64_t era = (year >= 0 ? year : year - 399) / 400;
+  const auto year_of_era = static_cast<unsigned>(year - era * 400);
+  const unsigned day_of_year = (153 * (month + (month > 2 ? -3 : 9)) + 2) / 5 + day - 1;
+  const unsigned day_of_era =
+      year_of_era * 365 + year_of_era / 4 - year_of_era / 100 + day_of_year;
+  return era * 146097 + static_cast<std::int64_t>(day_of_era) - 719468;
+}
+
+void civil_from_days(std::int64_t days, int& year, unsigned& month, unsigned& day) {
+  days += 719468;
+  const std::int64_t era = (days >= 0 ? days : days - 146096) / 146097;
+  const auto day_of_era = static_cast<unsigned>(days - era * 146097);
+  const unsigned year_of_era =
+      (day_of_era - day_of_era / 1460 + day_of_era / 36524 - day_of_era / 146096) / 365;
+  const unsigned day_of_year =
+      day_of_era - (365 * year_of_era + year_of_era / 4 - year_of_era / 100);
+  const unsigned shifted_month = (5 * day_of_year + 2) / 153;
+  day = day_of_year - (153 * shifted_month + 2) / 5 + 1;
+  month = shifted_month < 10 ? shifted_month + 3 : shifted_month - 9;
+  year = static_cast<int>(static_cast<std::int64_t>(year_of_era) + era * 400 + (month <= 2));
+}
+
+constexpr std::int64_t ns_per_second = 1'000'000'000;
+
+}  // namespace
+
+std::optional<std::int64_t> start_utc_epoch_ns(std::string_view text) {
+  if (text.empty()) return std::nullopt;
+  if (const auto problem = start_utc_problem(text)) {
+    throw OptionError(header_field::start_utc, *problem);
+  }
+  const std::int64_t days = days_from_civil(number_at(text, 0, 4),
+                                            static_cast<unsigned>(number_at(text, 5, 2)),
+                                            static_cast<unsigned>(number_at(text, 8, 2)));
+  const std::int64_t seconds = days * 86400 + number_at(text, 11, 2) * 3600 +
+                               number_at(text, 14, 2) * 60 + number_at(text, 17, 2);
+  std::int64_t fraction = 0;
+  std::size_t digits = 0;
+  for (std::size_t at = 20; text[19] == '.' && at + 1 < text.size(); ++at, ++digits) {
+    fraction = fraction * 10 + (text[at] - '0');
+  }
+  for (; digits < 9; ++digits) fraction *= 10;
+  return seconds * ns_per_second + fraction;
+}
+
+std::optional<std::string> format_start_utc(std::int64_t epoch_ns) {
+  if (epoch_ns < 0) return std::nullopt;  // before 1970, the first year allowed
+  const std::int64_t seconds = epoch_ns / ns_per_second;
+  const std::int64_t days = seconds / 86400;
+  const std::int64_t in_day = seconds % 86400;
+  int year = 0;
+  unsigned month = 0;
+  unsigned day = 0;
+  civil_from_days(days, year, month, day);
+  if (year < min_start_year || year > max_start_year) return std::nullopt;
+  char text[48];
+  std::snprintf(text, sizeof text, "%04d-%02u-%02uT%02d:%02d:%02d.%09lldZ", year, month, day,
+                static_cast<int>(in_day / 3600), static_cast<int>(in_day / 60 % 60),
+                static_cast<int>(in_day % 60),
+                static_cast<long long>(epoch_ns % ns_per_second));
+  return std::string(text);
+}
+
 const char* capture_name(Capture capture) {
   return capture == Capture::wire ? "wire" : "client";
 }

@@ -80,6 +80,15 @@ std::string header_json(const SessionHeader& header);
 // YYYY-MM-DDTHH:MM:SS[.fraction]Z within min_start_year..max_start_year),
 // or std::nullopt when it is.
 std::optional<std::string> start_utc_problem(std::string_view start_utc);
+// `start_utc` as ns since the epoch (a leap second's :60 is the next
+// minute's :00); std::nullopt when it is empty (not known). Throws
+// OptionError naming start_utc with start_utc_problem's reason when it is not
+// what the header allows.
+std::optional<std::int64_t> start_utc_epoch_ns(std::string_view start_utc);
+// `epoch_ns` as the header writes it, 2026-11-23T10:00:00.123456789Z (nine
+// digits of fraction); std::nullopt when it falls outside min_start_year..
+// max_start_year (no header can hold it).
+std::optional<std::string> format_start_utc(std::int64_t epoch_ns);
 // Parses the header JSON into `header` (metadata_json included); throws
 // SessionError(offset) naming `path` when it is not valid.
 void parse_header_json(const std::string& json, const std::string& path,

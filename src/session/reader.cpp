@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstring>
 #include <string>
+#include <utility>
 
 #include "posix/file_checks.hpp"
 #include "posix/syscalls.hpp"
@@ -55,8 +56,8 @@ std::string hex32(std::uint32_t value) {
 class WtapeSource final : public RecordSource {
  public:
   WtapeSource(const std::string& path, SessionHeader& header, Streams streams,
-              std::optional<std::uint16_t> channel)
-      : file_(path, streams), channel_(channel) {
+              std::optional<std::uint16_t> channel, UnlistedRecordSink on_unlisted)
+      : file_(path, streams), channel_(channel), on_unlisted_(std::move(on_unlisted)) {
     read_header(header);
     channel_count_ = header.channels.empty() ? 1 : header.channels.size();
     first_record_ = file_.position();
@@ -131,14 +132,16 @@ class WtapeSource final : public RecordSource {
                                 " is corrupt: CRC32C " + hex32(crc) +
                                 " does not match the stored " + hex32(stored));
       }
-      const auto kind_byte = static_cast<std::uint8_t>(head[4]);
-      if (find_record_kind(static_cast<RecordKind>(kind_byte)) == nullptr) {
-        continue;  // a newer kind: skipped
-      }
-      // A channel not asked for, or one the header does not list (a newer
-      // writer's): skipped, as a kind not known is.
+      // A channel the header does not list (a newer writer's), a kind not
+      // known or a channel not asked for: skipped.
       const std::uint16_t channel = get_u16le(head + 6);
-      if (channel >= channel_count_ || (channel_ && channel != *channel_)) continue;
+      if (channel >= channel_count_) {
+        if (on_unlisted_) on_unlisted_(UnlistedRecord{offset, channel});
+        continue;
+      }
+      const auto kind_byte = static_cast<std::uint8_t>(head[4]);
+      if (find_record_kind(static_cast<RecordKind>(kind_byte)) == nullptr) continue;
+      if (channel_ && channel != *channel_) continue;
       record.channel = channel;
       record.kind = static_cast<RecordKind>(kind_byte);
       record.t_ns = get_u64le(head + 8);
@@ -221,6 +224,7 @@ class WtapeSource final : public RecordSource {
 
   BufferedFile file_;
   std::optional<std::uint16_t> channel_;  // std::nullopt: every channel
+  UnlistedRecordSink on_unlisted_;
   std::size_t channel_count_ = 1;
   std::uint64_t first_record_ = 0;
   std::uint64_t records_ = 0;
@@ -250,7 +254,8 @@ bool starts_with_magic(const std::string& path, Streams streams) {
 
 std::unique_ptr<RecordSource> open_session_source(const std::string& path,
                                                   SessionHeader& header, Streams streams,
-                                                  std::optional<std::uint16_t> channel) {
+                                                  std::optional<std::uint16_t> channel,
+                                                  UnlistedRecordSink on_unlisted) {
   if (!starts_with_magic(path, streams)) {
     // A flexiport log is one port: channel 0.
     if (auto prefix = flexiport_prefix(path)) {
@@ -262,7 +267,8 @@ std::unique_ptr<RecordSource> open_session_source(const std::string& path,
       return open_flexiport(*prefix, header);
     }
   }
-  return std::make_unique<WtapeSource>(path, header, streams, channel);
+  return std::make_unique<WtapeSource>(path, header, streams, channel,
+                                       std::move(on_unlisted));
 }
 
 }  // namespace detail

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -22,9 +23,16 @@ namespace wiretape::detail {
 // usable session; damage later on ends the records and is reported by
 // damage(). `channel`: only that channel's records; std::nullopt: every
 // channel's (records of a channel the header does not list are skipped).
+// `on_unlisted` is told of each record (a good CRC, any kind) whose channel
+// the header does not list, which is skipped: `wiretape verify` names them.
+struct UnlistedRecord {
+  std::uint64_t offset = 0;  // where its record header begins
+  std::uint16_t channel = 0;
+};
+using UnlistedRecordSink = std::function<void(const UnlistedRecord&)>;
 std::unique_ptr<RecordSource> open_session_source(
     const std::string& path, SessionHeader& header, Streams streams = Streams::refused,
-    std::optional<std::uint16_t> channel = std::nullopt);
+    std::optional<std::uint16_t> channel = std::nullopt, UnlistedRecordSink on_unlisted = {});
 
 // Why a record whose CRC is good still cannot be handed to the commands that
 // read it, or std::nullopt. What verify accepts, every consumer (Python's

@@ -4,41 +4,28 @@ writing under a temporary name that becomes the asked-for one at the end."""
 from __future__ import annotations
 
 import contextlib
-import datetime as _datetime
 import json
 import os
 from typing import IO, Any, Dict, Iterator
 
+from .. import _core
 from ..session import (SessionPath, check_output, check_regular_output, is_written_through,
                        open_output, open_regular_output)
 
 
 def start_epoch_ns(header: Dict[str, Any]) -> int:
-    """The session's start (wall clock, UTC) in ns since the epoch; 0 if the
-    header does not say (flexiport logs carry absolute times of their own)."""
+    """The session's start (wall clock, UTC) in ns since the epoch, read by
+    the session model's rule (``_core.parse_start_utc``); 0 if the header
+    does not say or says what no header may (flexiport logs carry absolute
+    times of their own)."""
     text = header.get("start_utc") or ""
     if not isinstance(text, str) or not text:
         return 0
-    text = text.strip()
-    if text.endswith("Z"):
-        text = text[:-1] + "+00:00"
-    # fromisoformat (3.9/3.10) takes at most 6 fractional digits: split them.
-    fraction_ns = 0
-    main, dot, rest = text.partition(".")
-    if dot:
-        digits = ""
-        while rest and rest[0].isdigit():
-            digits += rest[0]
-            rest = rest[1:]
-        fraction_ns = int((digits + "000000000")[:9]) if digits else 0
-        text = main + rest
     try:
-        moment = _datetime.datetime.fromisoformat(text)
-    except ValueError:
+        start = _core.parse_start_utc(text)
+    except _core.OptionError:
         return 0
-    if moment.tzinfo is None:
-        moment = moment.replace(tzinfo=_datetime.timezone.utc)
-    return int(moment.timestamp()) * 1_000_000_000 + fraction_ns
+    return start if start is not None else 0
 
 
 def exported_header(header: Dict[str, Any]) -> Dict[str, Any]:

@@ -11,6 +11,7 @@
 
 #include "session/format.hpp"
 #include "session/header.hpp"
+#include "session/reader.hpp"
 #include "support/port_test_support.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
@@ -155,6 +156,34 @@ TEST(Channels, RecordsOfAChannelTheHeaderDoesNotListAreSkipped) {
   ASSERT_EQ(all.size(), 2u);
   EXPECT_EQ(all[0].data, "a");
   EXPECT_EQ(all[1].data, "b");
+}
+
+TEST(Channels, TheReaderTellsOfTheRecordsItSkipsForAnUnlistedChannel) {
+  TempDir dir;
+  const std::string path = dir.file("stray.wtape");
+  {
+    SessionWriter writer(path, two_channel_header());
+    writer.write(RecordKind::rx, 1, "a", 0);
+    writer.write(RecordKind::rx, 2, "newer writer's", 2);
+    writer.write(RecordKind::rx, 3, "b", 1);
+  }
+  std::vector<detail::UnlistedRecord> skipped;
+  SessionHeader header;
+  auto source = detail::open_session_source(
+      path, header, detail::Streams::refused, std::nullopt,
+      [&skipped](const detail::UnlistedRecord& record) { skipped.push_back(record); });
+  Record record;
+  int returned = 0;
+  while (source->next(record)) ++returned;
+  EXPECT_EQ(returned, 2);
+  ASSERT_EQ(skipped.size(), 1u);
+  EXPECT_EQ(skipped[0].channel, 2);
+  // Its offset is where its record header begins: the channel id is there.
+  std::ifstream file(path, std::ios::binary);
+  file.seekg(static_cast<std::streamoff>(skipped[0].offset) + 6);
+  unsigned char id[2] = {};
+  file.read(reinterpret_cast<char*>(id), 2);
+  EXPECT_EQ(id[0] | (id[1] << 8), 2);
 }
 
 TEST(Channels, NamesThatCannotNameAChannel) {

@@ -3,6 +3,7 @@
 // checked against the record-kind table.
 #include <gtest/gtest.h>
 
+#include <cstdint>
 #include <stdexcept>
 #include <string>
 
@@ -189,4 +190,30 @@ TEST(SessionHeader, ClearingTheDeviceSerialClearsItsPartOfTheByIdName) {
   EXPECT_EQ(identity.serial_number, "");
   EXPECT_EQ(identity.by_id, "/dev/serial/by-id/usb-Arduino_Uno_redacted-if00");
   EXPECT_EQ(identity.vendor_id, "2341");
+}
+
+TEST(StartUtc, ParsesToEpochNanoseconds) {
+  EXPECT_EQ(detail::start_utc_epoch_ns(""), std::nullopt);  // not known
+  EXPECT_EQ(detail::start_utc_epoch_ns("1970-01-01T00:00:00Z"), 0);
+  EXPECT_EQ(detail::start_utc_epoch_ns("2026-11-23T10:00:00.123456Z"),
+            1795428000LL * 1'000'000'000 + 123'456'000);
+  EXPECT_EQ(detail::start_utc_epoch_ns("2000-02-29T23:59:59.000000001Z"),
+            951868799LL * 1'000'000'000 + 1);
+  // A leap second is the next minute's first.
+  EXPECT_EQ(detail::start_utc_epoch_ns("2016-12-31T23:59:60Z"), 1483228800LL * 1'000'000'000);
+  EXPECT_THROW(detail::start_utc_epoch_ns("2026-11-23 10:00:00Z"), OptionError);
+  EXPECT_THROW(detail::start_utc_epoch_ns("1969-12-31T23:59:59Z"), OptionError);
+}
+
+TEST(StartUtc, FormatsWhatItParses) {
+  EXPECT_EQ(detail::format_start_utc(0), "1970-01-01T00:00:00.000000000Z");
+  EXPECT_EQ(detail::format_start_utc(1795428000LL * 1'000'000'000 + 123'456'789),
+            "2026-11-23T10:00:00.123456789Z");
+  EXPECT_EQ(detail::format_start_utc(951868799LL * 1'000'000'000),
+            "2000-02-29T23:59:59.000000000Z");
+  EXPECT_EQ(detail::format_start_utc(-1), std::nullopt);
+  EXPECT_EQ(detail::format_start_utc(INT64_MAX), std::nullopt);  // in 2262
+  const std::int64_t last = 9'214'646'399LL * 1'000'000'000;     // 2261-12-31T23:59:59
+  ASSERT_TRUE(detail::format_start_utc(last).has_value());
+  EXPECT_EQ(detail::start_utc_epoch_ns(*detail::format_start_utc(last)), last);
 }

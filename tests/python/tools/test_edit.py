@@ -282,15 +282,6 @@ def test_cli_summary(tmp_path):
 from hypothesis import given, settings, strategies as st  # noqa: E402
 
 
-@given(st.text(max_size=40))
-def test_any_cut_or_redact_spec_parses_or_names_its_problem(spec):
-    for parse in (parse_cut, parse_redaction):
-        try:
-            parse(spec)
-        except ValueError as error:
-            assert str(error).startswith(("--cut", "--redact"))
-
-
 @settings(max_examples=60, deadline=None)
 @given(stream=st.binary(min_size=1, max_size=300).map(lambda b: b.replace(b"k", b"")),
        secrets=st.lists(st.integers(0, 300), max_size=5),

@@ -324,9 +324,9 @@ def test_an_edit_interrupted_in_process_removes_its_output(tmp_path):
 def test_one_direction_waiting_long_is_settled_at_the_hold_limit(tmp_path, monkeypatch):
     """A tx record that waits for more tx bytes while rx goes on is handed
     on once HOLD_LIMIT bytes wait behind it; the result is the same."""
-    from wiretape.tools import edit as edit_module
+    from wiretape.tools import edit_redact
 
-    monkeypatch.setattr(edit_module, "HOLD_LIMIT", 1000)
+    monkeypatch.setattr(edit_redact, "HOLD_LIMIT", 1000)
     items = [(0, "tx", b"pw=secret;")] + [(i, "rx", b"r" * 100 + b" secret")
                                           for i in range(1, 200)]
     src = write_session(tmp_path / "in.wtape", items)
@@ -338,7 +338,7 @@ def test_one_direction_waiting_long_is_settled_at_the_hold_limit(tmp_path, monke
 
 
 def test_a_frame_whose_checksum_was_already_written_is_counted(tmp_path, monkeypatch):
-    from wiretape.tools import edit as edit_module
+    from wiretape.tools import edit_redact
 
     sentence = nmea(b"PXYZ,alice")
     items = ([(0, "tx", sentence[:-2])] + [(i, "rx", b"r" * 100) for i in range(1, 30)]
@@ -347,7 +347,7 @@ def test_a_frame_whose_checksum_was_already_written_is_counted(tmp_path, monkeyp
     whole = edit(src, tmp_path / "whole.wtape", redact=[parse_redaction("alice")])
     assert (whole.resealed_frames, whole.unsealed_frames) == (1, 0)
     assert direction_bytes(tmp_path / "whole.wtape", "tx") == nmea(b"PXYZ,*****")
-    monkeypatch.setattr(edit_module, "HOLD_LIMIT", 1000)
+    monkeypatch.setattr(edit_redact, "HOLD_LIMIT", 1000)
     cut_short = edit(src, tmp_path / "held.wtape", redact=[parse_redaction("alice")])
     assert (cut_short.resealed_frames, cut_short.unsealed_frames) == (1, 1)
     assert direction_bytes(tmp_path / "held.wtape", "tx") == sentence.replace(b"alice", b"*****")

@@ -19,7 +19,7 @@ import pytest
 
 import wiretape
 from wiretape import cli
-from wiretape.tools import pcap_import
+from wiretape.tools import pcap_capture, pcap_import
 from wiretape.tools.convert import convert
 
 from devices import announced_address, interrupt, start_cli, wait_until
@@ -57,7 +57,7 @@ def first_packet_time(path):
     result = subprocess.run(["tshark", "-r", path, "-c", "1", "-T", "fields",
                              "-e", "frame.time_epoch"], capture_output=True, text=True,
                             timeout=60)
-    return pcap_import._epoch_ns(result.stdout)
+    return pcap_capture.parse_epoch_ns(result.stdout)
 
 
 # --- the captures checked in -------------------------------------------------

@@ -194,3 +194,24 @@ def test_the_fuzz_corpus_converts_or_fails_cleanly(tmp_path, seed):
     """What ctest's corpus replay is for the C++ fuzz targets."""
     fuzz = _load_fuzz_script()
     fuzz.check_input((CORPUS / seed).read_bytes(), str(tmp_path))
+
+
+def test_the_reader_beside_the_writer_reads_back_what_it_wrote(tmp_path):
+    """exports.jsonl.read_records reads the form write_records writes: the
+    header first, then every record as (kind, t_ns, data, channel)."""
+    from wiretape.exports import jsonl
+
+    header = wiretape._core.SessionHeader(port_type="serial", capture="client")
+    written = [wiretape._core.Record(5, "tx", b"AT\r"), wiretape._core.Record(9, "rx", b"OK")]
+    path = tmp_path / "s.jsonl"
+    jsonl.write_records(path, header.to_dict(), written)
+    items = list(jsonl.read_records(str(path)))
+    assert items[0][0] == "header" and items[0][1].port_type == "serial"
+    assert [value for _, value in items[1:]] == [("tx", 5, b"AT\r", 0), ("rx", 9, b"OK", 0)]
+
+
+def test_a_cassette_line_is_told_apart_from_a_record():
+    from wiretape.exports import jsonl
+
+    assert jsonl.looks_like_reserial({"test_x": {"rx": "", "tx": ""}})
+    assert not jsonl.looks_like_reserial({"t_ns": 0, "kind": "rx", "data_hex": ""})

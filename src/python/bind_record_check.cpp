@@ -1,0 +1,108 @@
+// The reader's walk over every record of a session, with what it skips, for
+// `wiretape verify`: records per channel, the records of channels the header
+// does not list (by offset) and where reading stopped. verify reads no byte
+// of the layout itself.
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+
+#include <nanobind/nanobind.h>
+#include <nanobind/stl/map.h>
+#include <nanobind/stl/optional.h>
+#include <nanobind/stl/string.h>
+
+#include "python/bindings.hpp"
+#include "session/reader.hpp"
+#include "wiretape/session.hpp"
+
+namespace nb = nanobind;
+using namespace nb::literals;
+
+namespace wiretape::python {
+
+namespace {
+
+struct RecordCheck {
+  SessionHeader header;
+  std::uint64_t records = 0;  // the good records of listed channels
+  std::map<std::uint16_t, std::uint64_t> channel_records;  // listed or not
+  std::uint64_t unlisted_records = 0;
+  std::optional<detail::UnlistedRecord> first_unlisted;
+  std::optional<SessionError> damage;
+};
+
+RecordCheck check_records(const std::string& path) {
+  RecordCheck check;
+  auto on_unlisted = [&check](const detail::UnlistedRecord& record) {
+    ++check.unlisted_records;
+    ++check.channel_records[record.channel];
+    if (!check.first_unlisted) check.first_unlisted = record;
+  };
+  // Pipes and FIFOs are read as every command reads them (DESIGN §6).
+  auto source = detail::open_session_source(path, check.header, detail::Streams::read,
+                                            std::nullopt, on_unlisted);
+  Record record;
+  while (source->next(record)) {
+    ++check.records;
+    ++check.channel_records[record.channel];
+  }
+  check.damage = source->damage();
+  return check;
+}
+
+}  // namespace
+
+void bind_record_check(nb::module_& m) {
+  nb::class_<RecordCheck>(m, "RecordCheck",
+                          "What check_session_records() found: every record the reader "
+                          "reached, with those of channels the header does not list.")
+      .def_ro("header", &RecordCheck::header)
+      .def_ro("records", &RecordCheck::records,
+              "the good records of the channels the header lists")
+      .def_ro("channel_records", &RecordCheck::channel_records,
+              "records per channel id, those of unlisted channels included")
+      .def_ro("unlisted_records", &RecordCheck::unlisted_records,
+              "records naming a channel the header does not list (the reader skips them)")
+      .def_prop_ro(
+          "first_unlisted_offset",
+          [](const RecordCheck& c) -> std::optional<std::uint64_t> {
+            if (!c.first_unlisted) return std::nullopt;
+            return c.first_unlisted->offset;
+          },
+          "where the first such record begins, or None")
+      .def_prop_ro(
+          "first_unlisted_channel",
+          [](const RecordCheck& c) -> std::optional<std::uint16_t> {
+            if (!c.first_unlisted) return std::nullopt;
+            return c.first_unlisted->channel;
+          },
+          "the channel the first such record names, or None")
+      .def_prop_ro(
+          "damage",
+          [](const RecordCheck& c) -> nb::object {
+            if (!c.damage) return nb::none();
+            // The class bind_errors() registered, looked up when needed.
+            nb::object cls = nb::module_::import_("wiretape._core").attr("SessionError");
+            nb::object error = cls(std::string(c.damage->what()), c.damage->offset());
+            error.attr("message") = std::string(c.damage->what());
+            return error;
+          },
+          nb::for_getter(nb::sig("def damage(self, /) -> SessionError | None")),
+          "None, or a SessionError (not raised) with .offset and .message: where "
+          "reading stopped and why");
+
+  m.def(
+      "check_session_records",
+      [](const std::string& path) {
+        nb::gil_scoped_release release;
+        return check_records(path);
+      },
+      "path"_a,
+      "Reads every record of the session at PATH as SessionReader does (CRC, length, "
+      "content), counting them per channel and noting the records of channels the header "
+      "does not list, which a reader skips. Raises PortError when PATH cannot be opened, "
+      "SessionError when it is not a session; damage later on is RecordCheck.damage.");
+}
+
+}  // namespace wiretape::python
