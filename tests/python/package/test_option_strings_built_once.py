@@ -14,10 +14,6 @@ import re
 
 PACKAGE_DIR = pathlib.Path(__file__).resolve().parents[3] / "python" / "wiretape"
 
-# Switched by branch shape: this module still builds option strings by hand
-# until that branch moves it to _core.option_string; the lead removes this
-# allowance after merging it (tools/edit.py and tools/pcap_import.py: done).
-PENDING = {"faults.py"}
 
 # Option keys are lower case (LD_PRELOAD= in a command line is no option).
 _PAIR_IN_TEMPLATE = re.compile(r"(?:^|,)[a-z_][a-z0-9_]*=\{\}(?:,|$)")
@@ -84,15 +80,7 @@ def test_no_module_builds_an_option_string_by_hand():
     for path in sorted(PACKAGE_DIR.rglob("*.py")):
         name = path.relative_to(PACKAGE_DIR).as_posix()
         hits = hand_built_option_strings(path.read_text(encoding="utf-8"))
-        if hits and name not in PENDING:
+        if hits:
             found[name] = hits
     assert not found, "option strings built by hand (use _core.option_string): " + "; ".join(
         f"{name}:{line} {what}" for name, hits in found.items() for line, what in hits)
-
-
-def test_the_pending_modules_are_still_pending():
-    # Once a pending module is switched, its allowance goes too.
-    for name in sorted(PENDING):
-        path = PACKAGE_DIR / name
-        assert path.exists() and hand_built_option_strings(path.read_text(encoding="utf-8")), (
-            f"{name} builds no option string by hand any more: remove it from PENDING")
