@@ -178,14 +178,15 @@ void bind_exchanges(nb::module_& m) {
               if (each.id == channel) found = each;
             }
             detail::Segmentation how;
-            if (profile) how.profile = find_profile(*profile);
+            if (profile) how.profile = detail::profile_from_spec(*profile).profile;
             how.datagrams =
                 found && detail::recorded_as_datagrams(*found, detail::datagram_port_types());
             new (self) detail::LatencyMeter(how);
           },
           "header"_a, "channel"_a = 0, "profile"_a = nb::none(),
           "For channel `channel` (its id) of the session whose header is `header`; "
-          "request frames cut and named by the profile named `profile`.")
+          "request frames cut and named by the profile `profile` (a name or a declared "
+          "profile, read as every --profile is: profile_from_spec).")
       .def(
           "feed",
           [](detail::LatencyMeter& self, const std::string& kind, std::uint64_t t_ns,

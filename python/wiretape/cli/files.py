@@ -153,9 +153,7 @@ def cmd_stats(args, out: Output) -> int:
     from ..tools.stats import stats as session_stats
 
     require_session(args.file)
-    # stats reads the session's default itself once tools/stats.py calls
-    # wiretape.session.chosen_profile; until then, --profile alone.
-    result = session_stats(args.file, profile=None if args.profile == "none" else args.profile)
+    result = session_stats(args.file, profile=session_profile(args.profile, [args.file], out))
     if args.json:
         print(json.dumps(result.to_json(), indent=2, sort_keys=True, default=str))
     else:

@@ -28,7 +28,7 @@ table, the JSON, merging shards).
 """
 
 from .cases import (KIND_NAMES, KINDS, OUTCOMES, FaultCase, FaultInputError, SessionShape, Shard,
-                    _kind_spec, _with_channel, all_cases, cases, check_where, session_channels,
+                    _kind_spec, all_cases, cases, check_where, session_channels,
                     session_shape)
 from .report import Campaign, Run, merge, read_json, session_digest, table, write_json
 from .run import (MAX_TIMEOUT_S, PORT_PLACEHOLDER, REPRO_ADDRESS, REPRO_PORT, CampaignInterrupted,

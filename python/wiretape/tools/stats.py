@@ -214,7 +214,8 @@ def stats(path: SessionPath, profile: Optional[str] = None) -> SessionStats:
     kind, and the latency of each answered request (see Latency; named by
     `profile`'s frame names when given); a damaged file is counted up to
     the damage, which the result names."""
-    _core.find_profile(profile) if profile is not None else None  # a bad name fails first
+    if profile is not None:
+        _core.profile_from_spec(profile)  # a bad spec fails first, naming its key
     # Each channel is its own conversation: its requests, its responses.
     meters: Dict[int, _LatencyMeter] = {}
     reader = open_session(path)

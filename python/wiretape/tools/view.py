@@ -64,11 +64,10 @@ def _exchanges(path: str, profile: Optional[_core.Profile], options: str,
     several ports (`channels`: (id, name)) has each channel's exchanges,
     numbered per channel, with the channel's id in an eleventh column, all
     in the order they begin."""
-    from ..faults import _with_channel
-
     rows = []
     for channel, name in channels or [(None, "")]:
-        keys = _core.parse_options(_with_channel(options, name))
+        keys = _core.parse_options(
+            join_options(options, _core.option_string([("channel", name)]) if name else ""))
         if profile is not None:  # the profile given overrides the campaign's
             keys = [(key, value) for key, value in keys if key not in _PROFILE_KEYS]
         found = _core.session_exchanges(

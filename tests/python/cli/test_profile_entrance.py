@@ -110,3 +110,21 @@ def test_replay_passes_a_declared_profile_as_its_keys():
     assert ("echo", "0:1") in _core.parse_options(replay_options_of(args))
     args = build_parser().parse_args(["replay", "a.wtape", "--pty", "p", "--profile", "none"])
     assert "profile" not in dict(_core.parse_options(replay_options_of(args)))
+
+
+def latency_names(capsys, *argv):
+    code, out, err = run(capsys, "stats", "--json", *argv)
+    assert code == 0, err
+    return [row["name"] for row in json.loads(out)["latency"]]
+
+
+def test_stats_names_requests_by_the_sessions_profile_unless_told_none(tmp_path, capsys):
+    path = session(tmp_path / "s.wtape", {"profile": "lines"})
+    assert latency_names(capsys, path) == ["all", "PING2"]
+    assert latency_names(capsys, path, "--profile", "none") == ["all"]
+
+
+def test_stats_names_requests_by_a_declared_profile(tmp_path, capsys):
+    path = session(tmp_path / "s.wtape")
+    assert latency_names(capsys, path) == ["all"]
+    assert latency_names(capsys, path, "--profile", "framing=delimiter:0a") == ["all", "PING2\\n"]
