@@ -119,10 +119,12 @@ def _campaign(path: str, result: Campaign, session: str,
     runs = []
     for run in result.runs:
         place: Dict[str, Any] = {}
-        match = re.fullmatch(r"exchange:(\d+)(?:@channel:([^@;]+))?", run.where)
-        if match:
-            index = int(match.group(1))
-            name = match.group(2)
+        try:
+            fault = _core.parse_faults(run.spec)[0]  # the replay's own reading of the place
+        except _core.OptionError as error:
+            raise FaultInputError(f"{path}: run {run.case}: {error}") from None
+        if fault.where == "exchange" and fault.number is not None:
+            index, name = fault.number, fault.channel or None
             channel = (channel_ids or {}).get(name) if name else None
             if name and channel is None:
                 raise FaultInputError(
@@ -135,9 +137,8 @@ def _campaign(path: str, result: Campaign, session: str,
                     f"{path}: run {run.case} ({run.spec}) is at exchange {index}, but "
                     f"{whose} has {count} exchanges: the campaign ran on another session")
             place["exchange"] = rows[(index, channel)]
-        match = re.fullmatch(r"t:([0-9.]+)", run.where)
-        if match:
-            place["t_ns"] = int(float(match.group(1)) * 1e9)
+        if fault.where == "t" and fault.value is not None:
+            place["t_ns"] = int(fault.value * 1e9)
         runs.append({"case": run.case, "kind": run.kind, "where": run.where,
                      "outcome": run.outcome, "exit": run.exit, "seconds": run.seconds,
                      "repro": run.repro, **place})
