@@ -85,3 +85,13 @@ def test_the_cli_cuts_by_the_profile_given(tmp_path):
 
 def test_a_window_in_seconds_needs_no_segmentation(tmp_path):
     assert cut_window("/nonexistent", parse_cut("1.5:2")) == (1_500_000_000, 2_000_000_000)
+
+
+def test_a_declared_profile_in_the_metadata_is_the_default_too(tmp_path):
+    """The one rule of the profile metadata (wiretape.session.chosen_profile):
+    a declared profile's keys count as a name does."""
+    src = write_session(tmp_path / "in.wtape", ITEMS,
+                        metadata={"profile": "framing=delimiter:0a"})
+    out = tmp_path / "out.wtape"
+    edit(src, out, cut=parse_cut("2e:"))
+    assert tx_bytes(out) == b"Q3\r\n"
