@@ -1128,7 +1128,7 @@ class LatencyMeter:
 
     def __init__(self, header: SessionHeader, channel: int = 0, profile: str | None = None) -> None:
         """
-        For channel `channel` (its id) of the session whose header is `header`; request frames cut and named by the profile named `profile`.
+        For channel `channel` (its id) of the session whose header is `header`; request frames cut and named by the profile `profile` (a name or a declared profile, read as every --profile is: profile_from_spec).
         """
 
     def feed(self, kind: str, t_ns: int, payload: bytes) -> None:
