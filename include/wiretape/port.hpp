@@ -69,6 +69,8 @@ struct SerialSettings {
 //   output_pollable   native_handle() polls writable exactly when a write
 //                     would not block (descriptor-backed ports); otherwise a
 //                     write that took nothing is retried on a timer
+//   played_recording  the device is a recording played back (replay): a
+//                     virtual device, whose output waits for its client
 struct PortCapabilities {
   bool serial_settings = false;
   bool terminal_settings = false;
@@ -76,6 +78,7 @@ struct PortCapabilities {
   bool send_break = false;
   bool datagrams = false;
   bool output_pollable = false;
+  bool played_recording = false;
 };
 
 class Port {

@@ -49,7 +49,9 @@ class DeviceSide {
   bool is_open() const { return device_ != nullptr; }
   // The device is a recording played back: a virtual device (DESIGN.md
   // section 12).
-  bool is_virtual() const { return device_ != nullptr && device_->type() == "replay"; }
+  bool is_virtual() const {
+    return device_ != nullptr && device_->capabilities().played_recording;
+  }
   Port& port() { return *device_; }
   PortCapabilities capabilities() const;
   const std::string& description() const { return description_; }

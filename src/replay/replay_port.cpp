@@ -251,7 +251,11 @@ class ReplayPort : public Port, public FaultSource {
   }
   std::string description() const override { return description_; }
   std::string type() const override { return "replay"; }
-  PortCapabilities capabilities() const override { PortCapabilities c; c.serial_settings = c.modem_lines = c.send_break = true; return c; }
+  PortCapabilities capabilities() const override {
+    PortCapabilities c;
+    c.serial_settings = c.modem_lines = c.send_break = c.played_recording = true;
+    return c;
+  }
   int native_handle() const override {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!handle_handed_out_ && !closed_) {

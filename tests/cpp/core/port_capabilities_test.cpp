@@ -27,6 +27,7 @@ std::string describe(const PortCapabilities& c) {
   flag("send_break", c.send_break);
   flag("datagrams", c.datagrams);
   flag("output_pollable", c.output_pollable);
+  flag("played_recording", c.played_recording);
   return text.empty() ? "none" : text;
 }
 
@@ -83,7 +84,7 @@ TEST(PortCapabilities, ReplayEmulatesASerialLine) {
   const std::string file = dir.path + "/session.wtape";
   wiretape::open_port("type=loopback,log=" + file)->close();
   EXPECT_EQ(capabilities_of("type=replay,file=" + file),
-            "serial_settings modem_lines send_break");
+            "serial_settings modem_lines send_break played_recording");
 }
 
 TEST(PortCapabilities, ARecordingPortAnswersForThePortItWraps) {
