@@ -356,14 +356,16 @@ def channel_name_problem(name: str) -> str | None:
 
 class SessionHeader:
     """
-    A session file's header (docs/session-format.md): what was recorded, where, when and how; the one type for reading (SessionReader.header) and writing (SessionWriter). SessionHeader(**members) or SessionHeader.from_dict(d): members as to_dict() names them, checked (an unknown member or a wrong type raises); the others keep their defaults (start_utc and host empty: not known).
+    A session file's header (docs/session-format.md): what was recorded, where, when and how; the one type for reading (SessionReader.header) and writing (SessionWriter). SessionHeader(**members): members by their attribute names, checked (an unknown member or a wrong type raises); the others keep their defaults (start_utc and host empty: not known). SessionHeader.from_dict(d) takes the file's header JSON as a dict, as to_dict() gives it.
     """
 
     def __init__(self, **members: object) -> None: ...
 
     @staticmethod
-    def from_dict(members: dict) -> SessionHeader:
-        """A header from a dict of members (as to_dict() gives them), checked."""
+    def from_dict(layout: dict) -> SessionHeader:
+        """
+        A header from the file's header JSON as a dict (as to_dict() gives it, json.loads of a header's to_json()), checked: a member the layout lacks or of the wrong type raises. Its version is SESSION_VERSION, what a writer writes.
+        """
 
     @staticmethod
     def starting_now() -> SessionHeader:
@@ -517,7 +519,7 @@ class SessionHeader:
 
     def to_dict(self) -> dict:
         """
-        the members above as a dict, but metadata_json (the stored text, derived)
+        The header as the file holds it: json.loads(to_json()), the one layout commands print and write (docs/session-format.md, "Metadata"; no version, which is the file's, not the header JSON's). Raises OptionError as to_json() does.
         """
 
     def __copy__(self) -> SessionHeader: ...

@@ -118,10 +118,11 @@ def raise_damage(reader: _core.SessionReader) -> None:
 
 
 def header_fields(reader: _core.SessionReader) -> Dict[str, Any]:
-    """The session header's fields as a dict the caller may change, for
-    output as JSON (exports, jsonl); read ``reader.header``'s attributes
+    """The session header as the file holds it (its JSON layout,
+    ``SessionHeader.to_dict()``), a dict the caller may change, for output
+    as JSON (exports, jsonl, view); read ``reader.header``'s attributes
     otherwise."""
-    return dict(reader.header.to_dict())
+    return reader.header.to_dict()
 
 
 def event_of(record: _core.Record) -> Optional[Dict[str, Any]]:

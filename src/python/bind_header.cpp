@@ -1,6 +1,7 @@
 // wiretape.SessionHeader and Channel: a session's header from Python, as
-// members (SessionHeader(**members), from_dict, to_dict) or its JSON, and a
-// serial device's identity (read_device_identity, present_device_identity).
+// members (SessionHeader(**members)) or the file's header JSON (to_json, and
+// to_dict / from_dict: the same layout as a dict), and a serial device's
+// identity (read_device_identity, present_device_identity).
 #include <algorithm>
 #include <map>
 #include <optional>
@@ -15,8 +16,10 @@
 #include "posix/device_identity.hpp"
 #include "python/bindings.hpp"
 #include "python/session_members.hpp"
+#include "session/format.hpp"
 #include "session/header.hpp"
 #include "util/hex.hpp"
+#include "util/json.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 
@@ -136,8 +139,10 @@ Channel channel_from_python(nb::handle value) {
   return channel;
 }
 
-// The header's fields by name, as show, stats and convert lay them out.
-nb::dict header_dict(const SessionHeader& header) {
+// The header's members by their attribute names (SessionHeader(**members)
+// takes them): what == compares and repr shows. Not a layout for output:
+// that is the file's JSON (to_dict).
+nb::dict header_members(const SessionHeader& header) {
   nb::dict out;
   out["version_major"] = header.version_major;
   out["version_minor"] = header.version_minor;
@@ -214,10 +219,10 @@ bool has_member_shape(nb::handle value, nb::handle model) {
 }
 
 // Sets the members of `header` named in `fields` (a dict, or keyword
-// arguments), checked against the members to_dict() gives; None leaves a
-// member as it is. The names are SessionHeader's attributes, spelled once.
+// arguments), checked against header_members; None leaves a member as it
+// is. The names are SessionHeader's attributes, spelled once.
 void set_header_members(nb::handle header, nb::handle fields) {
-  const nb::dict known = header_dict(SessionHeader{});
+  const nb::dict known = header_members(SessionHeader{});
   for (auto [key, value] : nb::borrow<nb::dict>(fields)) {
     const std::string name = nb::cast<std::string>(nb::str(key));
     if (!nb::isinstance<nb::str>(key) || !known.contains(key)) {
@@ -251,6 +256,133 @@ void set_header_members(nb::handle header, nb::handle fields) {
     }
     nb::setattr(header, key, value);
   }
+}
+
+// A JSON value as json.loads gives it (a number written without a fraction
+// or exponent as an int).
+nb::object json_to_python(const detail::json::Value& value) {
+  using Type = detail::json::Value::Type;
+  switch (value.type) {
+    case Type::null:
+      return nb::none();
+    case Type::boolean:
+      return nb::bool_(value.boolean);
+    case Type::number:
+      if (value.text.find_first_of(".eE") == std::string::npos) {
+        PyObject* number = PyLong_FromString(value.text.c_str(), nullptr, 10);
+        if (number == nullptr) throw nb::python_error();
+        return nb::steal(number);
+      }
+      return nb::float_(value.number);
+    case Type::string:
+      return nb::str(value.text.data(), value.text.size());
+    case Type::array: {
+      nb::list items;
+      for (const auto& item : value.items) items.append(json_to_python(item));
+      return std::move(items);
+    }
+    case Type::object: {
+      nb::dict members;
+      for (const auto& [key, member] : value.members) {
+        members[nb::str(key.data(), key.size())] = json_to_python(member);
+      }
+      return std::move(members);
+    }
+  }
+  return nb::none();
+}
+
+// The header as the file holds it: its JSON (header_json) as a dict, so that
+// what Python prints or writes of a header has the file's one layout.
+nb::dict header_layout(const SessionHeader& header) {
+  return nb::borrow<nb::dict>(json_to_python(detail::json::parse(header.to_json())));
+}
+
+// The top-level members of the header JSON (docs/session-format.md,
+// "Metadata"). Each but source is the attribute of its name.
+constexpr const char* layout_members[] = {
+    detail::header_field::port_options, detail::header_field::port_type,
+    detail::header_field::start_utc,    detail::header_field::wiretape_version,
+    detail::header_field::host,         detail::header_field::capture,
+    detail::header_field::metadata,     detail::header_field::source,
+    detail::header_field::device_address, detail::header_field::edits,
+    detail::header_field::device_identity, detail::header_field::channels,
+};
+
+// Adds to `members` the attributes the header JSON's `source` object holds:
+// format (as the reader, "unknown" when a source does not say), files, and
+// every other member as a source detail.
+void add_source_members(nb::handle source, nb::dict& members) {
+  namespace field = detail::header_field;
+  if (source.is_none()) return;
+  if (!nb::isinstance<nb::dict>(source)) {
+    throw nb::type_error(("SessionHeader member 'source' must be a dict (format, files and "
+                          "string details), not " + python_type_name(source))
+                             .c_str());
+  }
+  members["source_format"] = "unknown";
+  nb::dict details;
+  for (auto [key, value] : nb::borrow<nb::dict>(source)) {
+    const std::string name = detail::escape_bytes(nb::cast<std::string>(nb::str(key)), 200);
+    if (!nb::isinstance<nb::str>(key)) {
+      throw nb::type_error(("SessionHeader member 'source' has a key that is not a str (" +
+                            name + ")")
+                               .c_str());
+    }
+    const bool files = name == field::source_files;
+    if (!has_member_shape(value, files ? nb::object(nb::list()) : nb::object(nb::str("")))) {
+      throw nb::type_error(("SessionHeader member 'source." + name + "' must be a " +
+                            (files ? "list of str" : "str") + ", not " +
+                            python_type_name(value))
+                               .c_str());
+    }
+    if (name == field::source_format) {
+      members["source_format"] = value;
+    } else if (files) {
+      members["source_files"] = value;
+    } else {
+      details[key] = value;
+    }
+  }
+  members["source_details"] = details;
+}
+
+// A header from the header JSON's layout as a dict (what header_layout
+// gives), checked: a member the layout lacks raises ValueError naming it, a
+// wrong type TypeError; None, like a missing member, leaves the default. The
+// JSON holds no version: the header's is the one writers write, as a file
+// read back from it has.
+SessionHeader header_from_layout(nb::dict layout) {
+  nb::dict members;
+  for (auto [key, value] : layout) {
+    const std::string name = nb::cast<std::string>(nb::str(key));
+    const bool known =
+        nb::isinstance<nb::str>(key) &&
+        std::any_of(std::begin(layout_members), std::end(layout_members),
+                    [&](const char* member) { return name == member; });
+    if (!known) {
+      std::string names;
+      for (const char* member : layout_members) {
+        names += names.empty() ? "" : ", ";
+        names += member;
+      }
+      throw nb::value_error(("the session header JSON has no member '" +
+                             detail::escape_bytes(name, 200) + "' (its members: " + names +
+                             "; docs/session-format.md)")
+                                .c_str());
+    }
+    if (name == detail::header_field::source) {
+      add_source_members(value, members);
+    } else {
+      members[key] = value;
+    }
+  }
+  SessionHeader written;
+  written.version_major = detail::session_version_major;
+  written.version_minor = detail::session_version_minor;
+  nb::object header = nb::cast(written);
+  set_header_members(header, members);
+  return nb::cast<SessionHeader>(header);
 }
 
 }  // namespace
@@ -316,9 +448,10 @@ void bind_header(nb::module_& m) {
       m, "SessionHeader",
       "A session file's header (docs/session-format.md): what was recorded, where, when "
       "and how; the one type for reading (SessionReader.header) and writing "
-      "(SessionWriter). SessionHeader(**members) or SessionHeader.from_dict(d): members "
-      "as to_dict() names them, checked (an unknown member or a wrong type raises); the "
-      "others keep their defaults (start_utc and host empty: not known).")
+      "(SessionWriter). SessionHeader(**members): members by their attribute names, "
+      "checked (an unknown member or a wrong type raises); the others keep their defaults "
+      "(start_utc and host empty: not known). SessionHeader.from_dict(d) takes the file's "
+      "header JSON as a dict, as to_dict() gives it.")
       .def(
           "__init__",
           [](nb::handle self, nb::kwargs fields) {
@@ -328,14 +461,11 @@ void bind_header(nb::module_& m) {
             set_header_members(self, fields);
           },
           nb::sig("def __init__(self, **members: object) -> None"))
-      .def_static(
-          "from_dict",
-          [](nb::dict fields) {
-            nb::object header = nb::cast(SessionHeader{});
-            set_header_members(header, fields);
-            return nb::cast<SessionHeader>(header);
-          },
-          "members"_a, "A header from a dict of members (as to_dict() gives them), checked.")
+      .def_static("from_dict", &header_from_layout, "layout"_a,
+                  "A header from the file's header JSON as a dict (as to_dict() gives it, "
+                  "json.loads of a header's to_json()), checked: a member the layout lacks "
+                  "or of the wrong type raises. Its version is SESSION_VERSION, what a "
+                  "writer writes.")
       .def_static("starting_now", &SessionHeader::starting_now,
                   "A header for a session that starts now on this machine: start_utc now, "
                   "host this machine's name (what recorders write).")
@@ -414,17 +544,20 @@ void bind_header(nb::module_& m) {
       .def("to_json", &SessionHeader::to_json,
            "The header's JSON object as a writer writes it. Raises OptionError naming the "
            "member a reader would refuse (not UTF-8, a start_utc out of range).")
-      .def("to_dict", &header_dict,
-           "the members above as a dict, but metadata_json (the stored text, derived)")
+      .def("to_dict", &header_layout,
+           "The header as the file holds it: json.loads(to_json()), the one layout "
+           "commands print and write (docs/session-format.md, \"Metadata\"; no "
+           "version, which is the file's, not the header JSON's). Raises OptionError as "
+           "to_json() does.")
       .def("__copy__", [](const SessionHeader& h) { return h; })
       .def("__deepcopy__", [](const SessionHeader& h, nb::handle) { return h; }, "memo"_a)
       .def("__eq__", [](const SessionHeader& a, const SessionHeader& b) {
-        return header_dict(a).equal(header_dict(b));
+        return header_members(a).equal(header_members(b));
       })
       .def("__repr__", [](const SessionHeader& h) {
         std::string text = "SessionHeader(";
         bool first = true;
-        for (auto [key, value] : header_dict(h)) {
+        for (auto [key, value] : header_members(h)) {
           if (!first) text += ", ";
           first = false;
           text += nb::str(key).c_str();

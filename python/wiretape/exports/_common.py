@@ -28,16 +28,6 @@ def start_epoch_ns(header: Dict[str, Any]) -> int:
     return start if start is not None else 0
 
 
-def exported_header(header: Dict[str, Any]) -> Dict[str, Any]:
-    """The header's fields as the exports write them: those of to_dict(),
-    without an empty ``channels`` (a session of one unnamed port), so that
-    such a session exports as it did before channels existed (format 1.2
-    writes no ``channels`` for it either)."""
-    if header.get("channels") == []:
-        header = {key: value for key, value in header.items() if key != "channels"}
-    return header
-
-
 def event_json(data: bytes) -> Any:
     """An event's payload as JSON; bytes that are not JSON as ``raw_hex``."""
     if not data:

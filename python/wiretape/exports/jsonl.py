@@ -14,7 +14,6 @@ from typing import Any, Dict, Iterable, Iterator, Mapping, Optional
 
 from .. import _core
 from ..session import SessionPath, event_of, open_input, open_output
-from ._common import exported_header
 
 __all__ = ["write_records", "record_to_json", "channel_names", "read_records",
            "looks_like_reserial"]
@@ -39,7 +38,7 @@ def record_to_json(record: _core.Record, channel: Optional[str] = None) -> Dict[
 
 
 def channel_names(header: Mapping[str, Any]) -> Optional[Dict[int, str]]:
-    """Channel id to name for a header (as to_dict gives it) of named
+    """Channel id to name for a header (its JSON layout, as to_dict gives it) of named
     channels; None for a session without them (one unnamed channel)."""
     channels = header.get("channels") or []
     if not channels:
@@ -57,7 +56,6 @@ def write_records(dst: SessionPath, header: Dict[str, Any],
     """Writes `header` and `records` to `dst`; returns the number of records.
     The file is written as it goes: what came before a failure stays."""
     count = 0
-    header = exported_header(header)
     names = channel_names(header)
     with open_output(dst, text=True) as out:
         out.write(json_line({"header": header}))
@@ -103,12 +101,38 @@ def _record_kinds():
     return {kind["name"]: kind for kind in _core.RECORD_KINDS}
 
 
+# Members only the flat header layout had: wiretape up to 0.1.0, before
+# issue 36 (DESIGN §25), wrote SessionHeader.to_dict()'s flat dict of then
+# as the header line; the file's own JSON layout replaced it.
+_FLAT_ONLY = ("version_major", "version_minor", "source_format", "source_files",
+              "source_details")
+
+
+def _flat_header(value: Dict[str, Any]) -> Dict[str, Any]:
+    """A header line in the flat layout of wiretape up to 0.1.0 (before issue
+    36) as the file's JSON layout: the version dropped (the writer writes its
+    own) and the source members back in their ``source`` object (none for a
+    session recorded by wiretape). Kept for reading old files only."""
+    layout = {key: item for key, item in value.items() if key not in _FLAT_ONLY}
+    source_format = value.get("source_format")
+    if source_format not in (None, "", "wiretape"):
+        details = value.get("source_details") or {}
+        if not isinstance(details, dict):
+            raise _BadLine(f"header.source_details: expected an object, got {_json_type(details)}")
+        layout["source"] = {**details, "format": source_format,
+                            "files": value.get("source_files") or []}
+    return layout
+
+
 def _jsonl_header(value) -> _core.SessionHeader:
-    """The header line's object as a SessionHeader: its members are checked
-    by the bound type, and what a writer would refuse (docs/session-format.md
-    #limits) is reported at this line rather than by the writer."""
+    """The header line's object (the file's header JSON, or the flat layout
+    of older files) as a SessionHeader: its members are checked by the bound
+    type, and what a writer would refuse (docs/session-format.md#limits) is
+    reported at this line rather than by the writer."""
     if not isinstance(value, dict):
         raise _BadLine(f"header: expected a JSON object, got {_json_type(value)}")
+    if any(key in value for key in _FLAT_ONLY):
+        value = _flat_header(value)
     try:
         header = _core.SessionHeader.from_dict(value)
         header.to_json()

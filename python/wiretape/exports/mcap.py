@@ -10,7 +10,7 @@ from typing import Any, Dict
 from .._core import __version__
 from ..session import (DIRECTIONS, SessionPath, escape_bytes, header_fields, open_session,
                        raise_damage, refuse_same_file, session_files)
-from ._common import event_json, exported_header, replacing, start_epoch_ns
+from ._common import event_json, replacing, start_epoch_ns
 
 __all__ = ["write_mcap", "MCAP_TOPICS", "channel_topic"]
 
@@ -88,7 +88,7 @@ def write_mcap(src: SessionPath, dst: SessionPath) -> Dict[str, int]:
 
     refuse_same_file(session_files(src), [dst])
     reader = open_session(src)
-    header = exported_header(header_fields(reader))
+    header = header_fields(reader)
     start_ns = start_epoch_ns(header)
     counts = {"rx": 0, "tx": 0, "events": 0}
     with replacing(dst) as out:

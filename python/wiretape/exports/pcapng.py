@@ -19,7 +19,7 @@ from typing import Any, Dict, Iterable, Optional, Tuple
 from .._core import __version__
 from ..session import (SessionPath, header_fields, open_session, raise_damage,
                        refuse_same_file, session_files)
-from ._common import event_json, exported_header, replacing, start_epoch_ns
+from ._common import event_json, replacing, start_epoch_ns
 from .network import LINKTYPE_RAW, NetworkSession
 
 __all__ = ["write_pcapng", "LINKTYPE_USER0", "LINKTYPE_RAW"]
@@ -208,7 +208,7 @@ def write_pcapng(src: SessionPath, dst: SessionPath) -> Dict[str, int]:
     session is written up to the damage, then its SessionError is raised."""
     refuse_same_file(session_files(src), [dst])
     reader = open_session(src)
-    header = exported_header(header_fields(reader))
+    header = header_fields(reader)
     start_ns = start_epoch_ns(header)
     counts = {"rx": 0, "tx": 0, "events": 0}
     with replacing(dst) as out:

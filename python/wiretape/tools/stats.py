@@ -164,10 +164,14 @@ class SessionStats:
         return getattr(self.header, name)
 
     def to_json(self) -> Dict[str, Any]:
-        """The counts and the header's members (as SessionHeader.to_dict
-        names them) in one object."""
+        """The counts, the file's format version and the header as the file
+        holds it (SessionHeader.to_dict(), the header JSON's layout) in one
+        object."""
         out = {field.name: getattr(self, field.name) for field in dataclasses.fields(self)
                if field.name not in ("header", "latency", "channel_stats")}
+        # The version is the file's, not a member of the header JSON.
+        out["version_major"] = self.header.version_major
+        out["version_minor"] = self.header.version_minor
         out["latency"] = [dataclasses.asdict(latency) for latency in self.latency]
         out["channel_stats"] = [dataclasses.asdict(channel) for channel in self.channel_stats]
         return {**out, **self.header.to_dict()}

@@ -1,6 +1,8 @@
 """The bound SessionHeader (one type for reading and writing, members
 checked) and event_payload (event payloads made by the record-kind table)."""
 
+import copy
+
 import pytest
 
 from wiretape import _core
@@ -44,7 +46,7 @@ def test_a_header_written_invents_nothing(tmp_path):
 def test_members_are_checked_by_name_and_type():
     with pytest.raises(ValueError, match="SessionHeader has no member 'hots'"):
         _core.SessionHeader(hots="x")
-    with pytest.raises(ValueError, match="SessionHeader has no member 'hots'"):
+    with pytest.raises(ValueError, match="header JSON has no member 'hots'"):
         _core.SessionHeader.from_dict({"hots": "x"})
     with pytest.raises(TypeError, match="member 'host' must be a str, not int"):
         _core.SessionHeader(host=3)
@@ -75,7 +77,6 @@ def test_header_members_can_be_changed_and_copied():
     header.port_options = "type=tcp,host=h,port=1"
     header.metadata = {}
     assert header.to_dict()["port_options"] == "type=tcp,host=h,port=1"
-    import copy
     other = copy.copy(header)
     other.host = "elsewhere"
     assert header.host == "bench"
@@ -109,3 +110,76 @@ def test_event_payload_names_the_kind_and_member_it_refuses(kind, fields, messag
     with pytest.raises(ValueError) as raised:
         _core.event_payload(kind, fields)
     assert message in str(raised.value)
+
+
+# --- to_dict and from_dict: the file's header JSON as a dict (DESIGN §25) ---
+
+IDENTITY = {"kernel_name": "ttyUSB0", "subsystem": "usb", "vendor_id": "0403",
+            "product_id": "6001", "serial_number": "A9X", "by_id": "/dev/serial/by-id/x"}
+
+
+def _headers(tmp_path):
+    """Headers of every shape the header JSON has, by name."""
+    channels = [dict(id=0, name="cmd", port_options="type=tcp,host=h,port=1", port_type="tcp",
+                     capture="wire", device_address="10.0.0.1:1"),
+                dict(id=1, name="data", port_options="type=serial,device=/dev/ttyUSB0",
+                     port_type="serial", device_identity=IDENTITY)]
+    # Channels attached one by one to a recorder's header (header room), read back.
+    attached = tmp_path / "attached.wtape"
+    with _core.SessionWriter(attached, _core.SessionHeader(start_utc=MEMBERS["start_utc"],
+                                                           host="bench", metadata={"k": "v"}),
+                             header_room=512) as writer:
+        for channel in channels:
+            writer.add_channel(_core.Channel(**channel))
+    return {
+        "empty": _core.SessionHeader(),
+        "members": _core.SessionHeader(**MEMBERS),
+        "identity": _core.SessionHeader(port_type="serial", device_identity=IDENTITY,
+                                        metadata={"robot": "r2", "site": "lab"}),
+        "channels": _core.SessionHeader(port_type="tcp", port_options="type=tcp,host=h,port=1",
+                                        capture="wire", device_address="10.0.0.1:1",
+                                        channels=channels),
+        "attached": _core.SessionReader(attached).header,
+    }
+
+
+@pytest.mark.parametrize("name", ["empty", "members", "identity", "channels", "attached"])
+def test_to_dict_is_the_files_header_json_and_from_dict_takes_it_back(tmp_path, name):
+    import json
+
+    header = _headers(tmp_path)[name]
+    assert header.to_dict() == json.loads(header.to_json())
+    assert list(header.to_dict()) == list(json.loads(header.to_json()))  # its order too
+    back = _core.SessionHeader.from_dict(header.to_dict())
+    # The JSON holds no version: from_dict's is the one writers write.
+    expected = copy.copy(header)
+    expected.version_major, expected.version_minor = _core.SESSION_VERSION
+    assert back == expected
+    assert back.to_json() == header.to_json()
+
+
+def test_to_dict_nests_the_source_and_names_no_version():
+    layout = _core.SessionHeader(**MEMBERS).to_dict()
+    assert layout["source"] == {"format": "pcap", "files": ["plc.pcapng"], "stream": "tcp:0"}
+    assert not {"source_format", "source_files", "source_details", "version_major",
+                "version_minor"} & set(layout)
+    # A recorded session's header has no source, and one port no channels.
+    plain = _core.SessionHeader(port_type="serial").to_dict()
+    assert "source" not in plain and "channels" not in plain and "device_identity" not in plain
+
+
+def test_from_dict_checks_the_layout_by_name_and_type():
+    with pytest.raises(ValueError, match="header JSON has no member 'source_format'"):
+        _core.SessionHeader.from_dict({"source_format": "pcap"})
+    with pytest.raises(ValueError, match="header JSON has no member 'version_major'"):
+        _core.SessionHeader.from_dict({"version_major": 1})
+    with pytest.raises(TypeError, match="member 'source' must be a dict"):
+        _core.SessionHeader.from_dict({"source": "pcap"})
+    with pytest.raises(TypeError, match="member 'source.files' must be a list of str, not str"):
+        _core.SessionHeader.from_dict({"source": {"format": "pcap", "files": "a.pcap"}})
+    with pytest.raises(TypeError, match="member 'source.stream' must be a str, not int"):
+        _core.SessionHeader.from_dict({"source": {"format": "pcap", "stream": 0}})
+    with pytest.raises(TypeError, match="member 'host' must be a str, not int"):
+        _core.SessionHeader.from_dict({"host": 3})
+    # A source that names no format reads as the file reader reads it.
+    assert _core.SessionHeader.from_dict({"source": {"files": []}}).source_format == "unknown"

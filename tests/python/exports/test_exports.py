@@ -43,7 +43,8 @@ def test_pcapng_holds_every_record_in_order_with_direction_and_time(session, tmp
     assert [i["name"] for i in interfaces] == ["rx", "tx", "events"]
     assert all(i["link_type"] == exports.LINKTYPE_USER0 for i in interfaces)
     assert all(i["tsresol"] == bytes([9]) for i in interfaces)
-    assert json.loads(comment)  # the session header, as JSON
+    # The session header, as the file holds it (its header JSON, DESIGN §25).
+    assert json.loads(comment) == json.loads(wiretape.SessionReader(str(session)).header.to_json())
 
     assert [p[0] if p[0] != "events" else p[3].split(b" ")[0].decode() for p in packets] == \
         [kind for _, kind, _ in SESSION_RECORDS]

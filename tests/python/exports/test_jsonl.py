@@ -105,7 +105,7 @@ BAD_HEADERS = {
                               "header.start_utc: the session header's start_utc"),
     # Members are SessionHeader's, checked by the bound type.
     "header_unknown_member": ('{"header": {"hots": "x"}}',
-                              "header: SessionHeader has no member 'hots'"),
+                              "header: the session header JSON has no member 'hots'"),
     "header_lone_surrogate": ('{"header": {"host": "\\ud800"}}',
                               "header: SessionHeader member 'host' is not valid UTF-8"),
     "header_metadata_surrogate": ('{"header": {"metadata": {"k": "\\udfff"}}}',
@@ -215,3 +215,40 @@ def test_a_cassette_line_is_told_apart_from_a_record():
 
     assert jsonl.looks_like_reserial({"test_x": {"rx": "", "tx": ""}})
     assert not jsonl.looks_like_reserial({"t_ns": 0, "kind": "rx", "data_hex": ""})
+
+
+GOLDEN = ROOT / "tests" / "data" / "golden"
+OLD_JSONL = ROOT / "tests" / "data" / "jsonl"
+
+
+@pytest.mark.parametrize("name", ["v1_1", "v1_2_channels"])
+def test_the_header_line_is_the_files_header_json(tmp_path, name):
+    # One layout (DESIGN §25): the export's header is the session file's
+    # header JSON, not the flat dict wiretape 0.1.0 wrote.
+    out = tmp_path / "s.jsonl"
+    convert_module.convert(GOLDEN / f"{name}.wtape", out)
+    first = json.loads(out.read_text().splitlines()[0])
+    header = wiretape.SessionReader(str(GOLDEN / f"{name}.wtape")).header
+    assert first == {"header": json.loads(header.to_json())}
+
+
+@pytest.mark.parametrize("old, original", [
+    ("flat_header_provenance.jsonl", "v1_1.wtape"),
+    ("flat_header_channels.jsonl", "v1_2_channels.wtape"),
+])
+def test_a_jsonl_file_with_the_old_flat_header_still_reads(tmp_path, old, original):
+    from wiretape.exports import jsonl
+
+    assert "version_major" in json.loads((OLD_JSONL / old).read_text().splitlines()[0])["header"]
+    items = list(jsonl.read_records(str(OLD_JSONL / old)))
+    source = wiretape.SessionReader(str(GOLDEN / original))
+    assert items[0][0] == "header"
+    assert items[0][1].to_dict() == source.header.to_dict()
+    written_now = tmp_path / "now.jsonl"
+    convert_module.convert(GOLDEN / original, written_now)
+    records = [value for _, value in items[1:]]
+    assert len(records) > 1
+    assert records == [value for _, value in list(jsonl.read_records(str(written_now)))[1:]]
+    converted = tmp_path / "back.wtape"
+    convert_module.convert(OLD_JSONL / old, converted)
+    assert wiretape.SessionReader(str(converted)).header.to_dict() == source.header.to_dict()

@@ -194,10 +194,12 @@ def test_the_device_identity_is_shown_and_kept_by_stats_and_jsonl(tmp_path):
             "product_id=0043, serial_number=8573, manufacturer=Arduino, product=Uno, "
             "location=1-2:1.0, by_id=/dev/serial/by-id/usb-Arduino_Uno_8573-if00"
             in _show_text(source))
-    assert session_stats(source).to_json()["device_identity"] == identity
+    # As the file holds it: the members not known ("interface") left out.
+    known = {name: value for name, value in identity.items() if value}
+    assert session_stats(source).to_json()["device_identity"] == known
     jsonl = tmp_path / "id.jsonl"
     convert_module.convert(source, jsonl)
-    assert json.loads(jsonl.read_text().splitlines()[0])["header"]["device_identity"] == identity
+    assert json.loads(jsonl.read_text().splitlines()[0])["header"]["device_identity"] == known
     back = tmp_path / "back.wtape"
     convert_module.convert(jsonl, back)
     assert _core.SessionReader(back).header.device_identity == identity
@@ -274,4 +276,10 @@ def test_stats_reports_format_1_1_provenance():
     assert result.edits == ["cut 0.5:2 s", "redacted 1 match in 1 record"]
     rows = dict(result.text_rows())
     assert rows["source_files"] == "plc.pcapng" and rows["device_address"] == "192.0.2.7:502"
+    # --json: the header as the file holds it, and the file's format version.
+    document = result.to_json()
+    assert document["source"] == {"format": "pcap", "files": ["plc.pcapng"],
+                                  "stream": "tcp.stream eq 0"}
+    assert "source_format" not in document and "source_files" not in document
+    assert (document["version_major"], document["version_minor"]) == (1, 2)
     assert result.rx_records == 1  # the record of channel 1 is not this port's
