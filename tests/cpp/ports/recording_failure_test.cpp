@@ -83,27 +83,7 @@ class FailingFileWrites {
   sys::ScopedOverride seam_;  // last: restored before the members it uses go
 };
 
-// --- messages ---------------------------------------------------------------------
-
-TEST(SystemErrorMessage, NamesTheErrnoOnceAndNothingForErrnoZero) {
-  EXPECT_EQ(system_error_message("dev: read failed", EIO), "dev: read failed: Input/output error");
-  EXPECT_EQ(system_error_message("dev: the device went away", 0), "dev: the device went away");
-  // A message wrapped again keeps one copy of the errno's text.
-  const std::string once = system_error_message("dev: read failed", EIO);
-  EXPECT_EQ(system_error_message(once, EIO), once);
-}
-
-TEST(SystemErrorMessage, IsWhatEveryPortErrorSays) {
-  EXPECT_STREQ(PortClosed("loopback: the port is closed").what(), "loopback: the port is closed");
-  EXPECT_STREQ(PortError(0, "no errno").what(), "no errno");
-  EXPECT_STREQ(PortError(ENOENT, "x.wtape: cannot open").what(),
-               "x.wtape: cannot open: No such file or directory");
-  EXPECT_EQ(PortError(ENOENT, "x").code().value(), ENOENT);
-  // Copies (std::optional<PortError>, rethrow) keep the message.
-  const PortError original(EIO, "copied");
-  const PortError copy = original;
-  EXPECT_STREQ(copy.what(), "copied: Input/output error");
-}
+// --- messages (system_error_message itself: tests/cpp/core/errors_test.cpp) ---
 
 TEST(SystemErrorMessage, ADeviceThatWentAwayIsNamedOnce) {
   for (const int error : {EIO, ECONNRESET, ENXIO, EACCES}) {

@@ -1,7 +1,7 @@
-// Hostile content in files whose CRCs are all valid: the JSON parser's
-// limits, and the reader refusing what a command could not use (non-UTF-8
-// header strings, deeply nested event payloads, absurd times), so that what
-// `verify` accepts every command can read.
+// Hostile content in files whose CRCs are all valid: the reader refusing
+// what a command could not use (non-UTF-8 header strings, deeply nested
+// event payloads, absurd times), so that what `verify` accepts every command
+// can read. The JSON parser's own limits: tests/cpp/util/json_test.cpp.
 #include <unistd.h>
 
 #include <gtest/gtest.h>
@@ -16,12 +16,10 @@
 #include "session/format.hpp"
 #include "session/header.hpp"
 #include "support/port_test_support.hpp"
-#include "util/json.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
 
 using namespace wiretape;
-namespace json = wiretape::detail::json;
 
 namespace {
 
@@ -97,52 +95,6 @@ ReadResult read_through(const std::string& path) {
 }
 
 }  // namespace
-
-// --- JSON ---------------------------------------------------------------------------
-
-TEST(JsonLimits, NestingUpToTheLimitParsesAndDeeperIsAnErrorWithItsOffset) {
-  EXPECT_NO_THROW(json::parse(nested(json::max_nesting_depth)));
-  const std::string deep = nested(50'000);
-  try {
-    json::parse(deep);
-    FAIL() << "50,000 levels accepted";
-  } catch (const json::ParseError& e) {
-    EXPECT_EQ(e.offset(), static_cast<std::size_t>(json::max_nesting_depth));
-    EXPECT_NE(std::string(e.what()).find("deeper than 64"), std::string::npos) << e.what();
-  }
-  const std::string objects = R"({"a":)" + nested(json::max_nesting_depth) + "}";
-  EXPECT_THROW(json::parse(objects), json::ParseError);
-}
-
-TEST(JsonLimits, StringsMustBeValidUtf8) {
-  EXPECT_EQ(json::parse("\"caf\xc3\xa9 \xe2\x82\xac \xf0\x9f\x98\x80\"").text,
-            "caf\xc3\xa9 \xe2\x82\xac \xf0\x9f\x98\x80");
-  EXPECT_EQ(json::parse(R"("\ud83d\ude00")").text, "\xf0\x9f\x98\x80");
-  for (const std::string bad :
-       {"\"\xff\"", "\"a\x80\"", "\"\xc3\"", "\"\xc0\xaf\"", "\"\xed\xa0\x80\"",
-        "\"\xf4\x90\x80\x80\"", R"("\ud800")", R"("\udc00")", R"("\ud800\u0041")"}) {
-    try {
-      json::parse(bad);
-      ADD_FAILURE() << "accepted " << ::testing::PrintToString(bad);
-    } catch (const json::ParseError& e) {
-      EXPECT_GE(e.offset(), 1u);
-      EXPECT_LT(e.offset(), bad.size());
-    }
-  }
-  try {
-    json::parse("{\"k\":\"ok\xff\"}");
-    FAIL();
-  } catch (const json::ParseError& e) {
-    EXPECT_EQ(e.offset(), 8u);
-    EXPECT_NE(std::string(e.what()).find("UTF-8"), std::string::npos);
-  }
-}
-
-TEST(JsonLimits, InvalidUtf8OffsetFindsTheFirstBadByte) {
-  EXPECT_EQ(json::invalid_utf8_offset("plain \xc3\xa9"), std::nullopt);
-  EXPECT_EQ(json::invalid_utf8_offset("ab\xff"), std::optional<std::size_t>(2));
-  EXPECT_EQ(json::invalid_utf8_offset("\xe2\x82"), std::optional<std::size_t>(0));
-}
 
 // --- the reader ----------------------------------------------------------------------
 
