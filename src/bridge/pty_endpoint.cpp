@@ -357,8 +357,11 @@ class PtyEndpoint final : public ClientEndpoint {
     // reads so far must be seen first: a flush seen late may have come
     // before a greeting the client has read since (its read is in the watch
     // already, put there before its read() returned, though the poll that
-    // brought this packet may not have shown it).
-    if (opens_and_closes_) watch_clients();
+    // brought this packet may not have shown it). Not while a close is
+    // handled: the flush is the leaving client's, and the watch may show the
+    // next client's open by now, which must wait until the leaving client
+    // has been disconnected from the replay.
+    if (opens_and_closes_ && !passing_on_leaving_client_) watch_clients();
     const std::size_t kept = std::min(terminal_unread(*pty_), retained_.size());
     std::string again = retained_.substr(0, retained_.size() - kept);
     retained_.erase(0, retained_.size() - kept);
@@ -475,7 +478,11 @@ class PtyEndpoint final : public ClientEndpoint {
         holding_ = true;
         drain_pty();
         holding_ = was_holding;
-        if (leaving_client_wrote || !reopened_after(events, i)) pass_on_held();
+        if (leaving_client_wrote || !reopened_after(events, i)) {
+          passing_on_leaving_client_ = true;
+          pass_on_held();
+          passing_on_leaving_client_ = false;
+        }
         device_.client_disconnected("pty", "closed the terminal");
         status_.message("client closed " + pty_->description());
       }
@@ -529,6 +536,8 @@ class PtyEndpoint final : public ClientEndpoint {
     std::string data;
   };
   bool holding_ = false;
+  // The held reads are the leaving client's, passed on before its close.
+  bool passing_on_leaving_client_ = false;
   std::vector<HeldRead> held_;
   std::size_t held_bytes_ = 0;
   // The watch saw the client write since a read found the terminal empty.

@@ -10,6 +10,9 @@
 
 #include <gtest/gtest.h>
 
+#include <termios.h>
+
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <string>
@@ -19,6 +22,7 @@
 #include "wiretape/bridge.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/session.hpp"
+#include "posix/syscalls.hpp"
 #include "support/port_test_support.hpp"
 
 namespace {
@@ -359,6 +363,98 @@ TEST(BridgeReopen, RecordingAWriteAfterACloseAndReopenGoesToTheSecondSession) {
   // The last close may come after the stop: the session then ends without it.
   if (events.size() + 1 == expected.size()) events += 'D';
   EXPECT_EQ(events, expected);
+}
+
+namespace {
+
+std::string reopen_session(const wiretape::test::TempDir& dir) {
+  const std::string path = dir.file("reopen.wtape");
+  wiretape::SessionHeader header;
+  header.port_type = "serial";
+  wiretape::SessionWriter writer(path, header);
+  const std::string pty = "{\"peer\":\"pty\",\"role\":\"control\"}";
+  writer.write({1'000'000, RecordKind::client_connect, pty});
+  writer.write({2'000'000, RecordKind::client_disconnect, pty});
+  writer.write({3'000'000, RecordKind::client_connect, pty});
+  writer.write({4'000'000, RecordKind::tx, "PING\n"});
+  writer.write({5'000'000, RecordKind::rx, "PONG\n"});
+  writer.write({6'000'000, RecordKind::client_disconnect, pty});
+  writer.close();
+  return path;
+}
+
+bool is_inotify(int fd) {
+  char target[64] = {};
+  const std::string link = "/proc/self/fd/" + std::to_string(fd);
+  const ssize_t n = ::readlink(link.c_str(), target, sizeof target - 1);
+  return n > 0 && std::string(target, static_cast<std::size_t>(n)) == "anon_inode:inotify";
+}
+
+}  // namespace
+
+// The interleaving a loaded machine made (pyserial's Serial(), close(),
+// Serial(), write): the bridge sees the first client's open, opening flush
+// and close together, and the reopen lands while it hands that flush on.
+// The seam puts the reopen exactly there. The second client's open must not
+// be taken before the first client has left the replay: its PING would be
+// checked against the first client session, which wrote nothing.
+TEST(BridgeReopen, AReopenWhileTheLeavingClientsFlushIsPassedOnIsTheNextSession) {
+  wiretape::test::TempDir dir;
+  const std::string path = reopen_session(dir);
+  namespace sys = wiretape::detail::sys;
+  sys::ScopedOverride seam;
+  const auto real_poll = sys::real().poll;
+  const auto real_read = sys::real().read;
+  const Bridge* running = nullptr;  // set before start(), read by the hooks
+  std::atomic<int> step{0};
+  int watch_reads = 0;
+  int second = -1;  // closed by the Fd below, once the bridge has it
+  wiretape::test::Event reopened;
+  seam->poll = [&](pollfd* fds, nfds_t count, int timeout_ms) {
+    bool polls_watch = false;
+    for (nfds_t i = 0; i < count; ++i) polls_watch = polls_watch || is_inotify(fds[i].fd);
+    if (polls_watch && step.load() == 0) {
+      // The first client: open, flush its input (as pyserial's open does), close.
+      Fd first(::open(running->pty_path().c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC));
+      EXPECT_GE(first.get(), 0);
+      EXPECT_EQ(::tcflush(first.get(), TCIFLUSH), 0);
+      step.store(1);
+    }
+    return real_poll(fds, count, timeout_ms);
+  };
+  seam->read = [&](int fd, void* buffer, size_t size) {
+    const ssize_t n = real_read(fd, buffer, size);
+    if (step.load() != 1 || !is_inotify(fd)) return n;
+    // The second read of the watch is the close's look for a reopen: the
+    // reopen comes just after it.
+    if (++watch_reads == 2) {
+      const int saved = errno;
+      second = ::open(running->pty_path().c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC);
+      write_all(second, "PING\n");
+      step.store(2);
+      reopened.set();
+      errno = saved;
+    }
+    return n;
+  };
+  BridgeOptions options;
+  options.device = "type=replay,timing=none,file=" + path;
+  options.quiet = true;
+  Bridge bridge(options);
+  running = &bridge;
+  bridge.start();
+  ASSERT_TRUE(reopened.wait());
+  const Fd second_client(second);
+  ASSERT_GE(second_client.get(), 0);
+  EXPECT_EQ(wiretape::test::read_count(second_client.get(), 5), "PONG\n");
+  bridge.stop();
+  ASSERT_TRUE(bridge.wait(kDeadline));
+  EXPECT_TRUE(bridge.result().ok()) << bridge.result().message;
+  const std::vector<std::string> messages = bridge.messages();
+  ASSERT_GE(messages.size(), 3u);
+  EXPECT_EQ(messages[0].rfind("client connected", 0), 0u) << messages[0];
+  EXPECT_EQ(messages[1].rfind("client closed", 0), 0u) << messages[1];
+  EXPECT_EQ(messages[2].rfind("client connected", 0), 0u) << messages[2];
 }
 
 TEST(BridgeReopen, ReplayingACloseAndReopenServesTheSecondSession) {
