@@ -31,22 +31,13 @@ namespace {
 
 constexpr auto kSettingsPollInterval = std::chrono::milliseconds(50);
 
-std::string pty_options(const std::string& link) {
-  std::string options = "type=pty";
-  if (link.empty()) return options;
-  std::string quoted;
-  for (char c : link) {
-    if (c == '"' || c == '\\') quoted.push_back('\\');
-    quoted.push_back(c);
-  }
-  return options + ",link=\"" + quoted + "\"";
-}
-
 class PtyEndpoint final : public ClientEndpoint {
  public:
   PtyEndpoint(const BridgeOptions& options, DeviceSide& device, Status& status)
       : options_(options), device_(device), status_(status) {
-    pty_ = open_port(pty_options(options_.pty_link));
+    // Without its link: the link is the announcement that the terminal is
+    // served, made last (below).
+    pty_ = open_port("type=pty");
     pty_->set_timeout(std::chrono::nanoseconds(0));
     // The client's flushes show only in packet mode.
     set_packet_mode(*pty_);
@@ -55,7 +46,6 @@ class PtyEndpoint final : public ClientEndpoint {
     // Best effort: without it, a pty client's coming and going goes unseen.
     opens_and_closes_ = sys::UniqueFd(platform::watch_opens_and_closes(terminal_path_));
     watching_reads_ = static_cast<bool>(opens_and_closes_);
-    status_.set(&Status::pty_path, terminal_path_);
     try {
       last_settings_ = pty_->serial_settings();
     } catch (const PortError&) {
@@ -70,6 +60,12 @@ class PtyEndpoint final : public ClientEndpoint {
           // Bytes written before a hello: held here, or still in the terminal.
           [this] { return static_cast<std::uint64_t>(held_bytes_ + client_bytes_in_terminal()); });
     }
+    // The announcements, last: a client may open the terminal the moment
+    // its link appears (a script waiting for the path), and by now the
+    // watch sees its open, packet mode its opening flush, and the terminal
+    // has its mode (DESIGN.md section 12).
+    if (!options_.pty_link.empty()) publish_terminal_link(*pty_, options_.pty_link);
+    status_.set(&Status::pty_path, terminal_path_);
   }
 
   void add_to_poll(PollSet& poll_set) override {

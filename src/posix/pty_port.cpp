@@ -24,12 +24,10 @@ namespace {
 
 class PtyPort final : public FdPort {
  public:
-  PtyPort(sys::UniqueFd master, sys::UniqueFd terminal, std::string path,
-          std::string link)
-      : FdPort(std::move(master), describe(path, link)),
+  PtyPort(sys::UniqueFd master, sys::UniqueFd terminal, std::string path)
+      : FdPort(std::move(master), describe(path, "")),
         terminal_(std::move(terminal)),
-        path_(std::move(path)),
-        link_(std::move(link)) {}
+        path_(std::move(path)) {}
   ~PtyPort() override { close(); }
 
   std::string type() const override { return "pty"; }
@@ -82,6 +80,27 @@ class PtyPort final : public FdPort {
     }
   }
 
+  // The link appears last: a client may open the terminal through it at
+  // once. A stale link from an earlier run is replaced; anything else is
+  // refused.
+  void publish_link(const std::string& link) {
+    if (!link_.empty()) throw std::logic_error(description() + ": the link is made once");
+    struct stat existing {};
+    if (sys::lstat(link.c_str(), &existing) == 0) {
+      if (!S_ISLNK(existing.st_mode)) {
+        throw PortError(EEXIST, "pty: link=" + link +
+                                    " exists and is not a symbolic link; "
+                                    "refusing to replace it");
+      }
+      sys::unlink(link.c_str());
+    }
+    if (sys::symlink(path_.c_str(), link.c_str()) != 0) {
+      raise_os_error(errno, "pty: link=" + link, "creating the symbolic link");
+    }
+    link_ = link;
+    set_description(describe(path_, link_));
+  }
+
   void set_dtr(bool) override { no_modem_lines(); }
   void set_rts(bool) override { no_modem_lines(); }
   bool cts() override { no_modem_lines(); }
@@ -94,9 +113,9 @@ class PtyPort final : public FdPort {
     if (!link_.empty()) {
       // Remove the link only if it is still ours.
       char target[4096];
-      const ssize_t n = ::readlink(link_.c_str(), target, sizeof target - 1);
+      const ssize_t n = sys::readlink(link_.c_str(), target, sizeof target - 1);
       if (n > 0 && std::string(target, static_cast<std::size_t>(n)) == path_) {
-        ::unlink(link_.c_str());
+        sys::unlink(link_.c_str());
       }
     }
     terminal_.reset();
@@ -170,6 +189,14 @@ void set_packet_mode(Port& port) {
   pty->set_packet_mode();
 }
 
+void publish_terminal_link(Port& port, const std::string& link) {
+  auto* pty = dynamic_cast<PtyPort*>(&port);
+  if (pty == nullptr) {
+    throw std::logic_error("publish_terminal_link: " + port.description() + " is not a pty");
+  }
+  pty->publish_link(link);
+}
+
 std::size_t terminal_unread(const Port& port) {
   const auto* pty = dynamic_cast<const PtyPort*>(&port);
   return pty ? pty->terminal_unread() : 0;
@@ -199,22 +226,9 @@ std::unique_ptr<Port> open_pty(Options& options) {
     raise_os_error(errno, "pty " + path, "putting the terminal in raw mode");
   }
 
-  if (!link.empty()) {
-    struct stat existing {};
-    if (::lstat(link.c_str(), &existing) == 0) {
-      if (!S_ISLNK(existing.st_mode)) {
-        throw PortError(EEXIST, "pty: link=" + link +
-                                    " exists and is not a symbolic link; "
-                                    "refusing to replace it");
-      }
-      ::unlink(link.c_str());  // a stale link from an earlier run
-    }
-    if (::symlink(path.c_str(), link.c_str()) != 0) {
-      raise_os_error(errno, "pty: link=" + link, "creating the symbolic link");
-    }
-  }
-  return std::make_unique<PtyPort>(std::move(master), std::move(terminal),
-                                   path, link);
+  auto port = std::make_unique<PtyPort>(std::move(master), std::move(terminal), path);
+  if (!link.empty()) port->publish_link(link);
+  return port;
 }
 
 }  // namespace wiretape::detail

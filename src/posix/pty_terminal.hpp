@@ -40,6 +40,13 @@ void set_terminal_access(Port& port, mode_t mode, gid_t group);
 // PortError when the system refuses.
 void set_packet_mode(Port& port);
 
+// Makes `link` a symbolic link to the terminal of the pty `port` (opened
+// without one), removed when the port closes. A bridge publishes it once it
+// is ready to serve: a client that opens the terminal the moment the link
+// appears is seen arriving (DESIGN.md section 12). A stale link is
+// replaced; a file that is not a link is refused (PortError).
+void publish_terminal_link(Port& port, const std::string& link);
+
 // Bytes written to the pty `port` that its client has not read yet (0 when
 // that cannot be told).
 std::size_t terminal_unread(const Port& port);

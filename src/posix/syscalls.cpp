@@ -112,6 +112,10 @@ Table make_real() {
   t.fchown = [](int fd, uid_t owner, gid_t group) { return ::fchown(fd, owner, group); };
   t.getegid = [] { return ::getegid(); };
   t.unlink = [](const char* path) { return ::unlink(path); };
+  t.symlink = [](const char* target, const char* link) { return ::symlink(target, link); };
+  t.readlink = [](const char* path, char* buffer, size_t size) {
+    return ::readlink(path, buffer, size);
+  };
   return t;
 }
 

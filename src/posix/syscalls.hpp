@@ -81,6 +81,10 @@ struct Table {
   std::function<gid_t()> getegid;
   // A unix socket's name, removed.
   std::function<int(const char* path)> unlink;
+  // A pty's link (type=pty's link=, the bridge's --pty LINK): the moment it
+  // appears is when a client may open the terminal.
+  std::function<int(const char* target, const char* link)> symlink;
+  std::function<ssize_t(const char* path, char* buffer, size_t size)> readlink;
 };
 
 // The real libc calls.
@@ -204,6 +208,12 @@ inline int fchown(int fd, uid_t owner, gid_t group) {
 }
 inline gid_t getegid() { return current().getegid(); }
 inline int unlink(const char* path) { return current().unlink(path); }
+inline int symlink(const char* target, const char* link) {
+  return current().symlink(target, link);
+}
+inline ssize_t readlink(const char* path, char* buffer, size_t size) {
+  return current().readlink(path, buffer, size);
+}
 
 // Closes a descriptor once, keeping errno (for clean-up paths).
 void close_quietly(int fd);

@@ -487,3 +487,109 @@ TEST(BridgeReopen, ReplayingACloseAndReopenServesTheSecondSession) {
     EXPECT_TRUE(bridge.result().ok()) << run << ": " << bridge.result().message;
   }
 }
+
+namespace {
+
+// A request-mode recording of one client: VV\n answered with V1\n.
+std::string request_session(const wiretape::test::TempDir& dir) {
+  const std::string path = dir.file("request.wtape");
+  wiretape::SessionHeader header;
+  header.port_type = "serial";
+  wiretape::SessionWriter writer(path, header);
+  const std::string pty = "{\"peer\":\"pty\",\"role\":\"control\"}";
+  writer.write({1'000'000, RecordKind::client_connect, pty});
+  writer.write({2'000'000, RecordKind::tx, "VV\n"});
+  writer.write({3'000'000, RecordKind::rx, "V1\n"});
+  writer.write({4'000'000, RecordKind::client_disconnect, pty});
+  writer.close();
+  return path;
+}
+
+// What pyserial's Serial() then write() do: open, flush the input, write.
+int open_flush_and_write(const std::string& path, const std::string& data) {
+  const int fd = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_CLOEXEC);
+  EXPECT_GE(fd, 0) << path;
+  if (fd < 0) return fd;
+  EXPECT_EQ(::tcflush(fd, TCIFLUSH), 0);
+  write_all(fd, data);
+  return fd;
+}
+
+}  // namespace
+
+// The link is the announcement a client waits for (`replay --pty LINK`, a
+// script opening the path once it exists). A client that opens it the
+// instant it appears, before the bridge was watching the terminal, went
+// unseen: the replay never began its client session and answered nothing
+// (issue 37, once in four runs under load). The seam opens it exactly then.
+TEST(BridgeFirstOpen, AClientOpeningTheLinkTheMomentItAppearsIsServed) {
+  wiretape::test::TempDir dir;
+  const std::string path = request_session(dir);
+  const std::string link = dir.file("ttyV0");
+  namespace sys = wiretape::detail::sys;
+  sys::ScopedOverride seam;
+  const auto real_symlink = sys::real().symlink;
+  int client = -1;  // closed by the Fd below
+  seam->symlink = [&](const char* target, const char* made) {
+    const int result = real_symlink(target, made);
+    if (result == 0 && made == link) {
+      const int saved = errno;
+      client = open_flush_and_write(link, "VV\n");
+      errno = saved;
+    }
+    return result;
+  };
+  BridgeOptions options;
+  options.device = "type=replay,match=request,timing=none,file=" + path;
+  options.pty_link = link;
+  options.quiet = true;
+  Bridge bridge(options);
+  bridge.start();
+  const Fd first(client);
+  ASSERT_GE(first.get(), 0);
+  EXPECT_EQ(wiretape::test::read_count(first.get(), 3), "V1\n");
+  bridge.stop();
+  ASSERT_TRUE(bridge.wait(kDeadline));
+  EXPECT_TRUE(bridge.result().ok()) << bridge.result().message;
+  EXPECT_EQ(bridge.result().nothing_served, "");
+  const std::vector<std::string> messages = bridge.messages();
+  ASSERT_FALSE(messages.empty());
+  EXPECT_EQ(messages[0].rfind("client connected", 0), 0u) << messages[0];
+}
+
+// A client that opens, flushes and writes before the bridge's thread first
+// polls: its open, its opening flush and its request wait in the watch and
+// the terminal, and are taken in that order.
+TEST(BridgeFirstOpen, AClientThatWritesBeforeTheFirstPollIsServed) {
+  wiretape::test::TempDir dir;
+  const std::string path = request_session(dir);
+  namespace sys = wiretape::detail::sys;
+  sys::ScopedOverride seam;
+  const auto real_poll = sys::real().poll;
+  const Bridge* running = nullptr;  // set before start(), read by the hook
+  std::atomic<bool> opened{false};
+  int client = -1;
+  wiretape::test::Event wrote;
+  seam->poll = [&](pollfd* fds, nfds_t count, int timeout_ms) {
+    bool polls_watch = false;
+    for (nfds_t i = 0; i < count; ++i) polls_watch = polls_watch || is_inotify(fds[i].fd);
+    if (polls_watch && !opened.exchange(true)) {
+      client = open_flush_and_write(running->pty_path(), "VV\n");
+      wrote.set();
+    }
+    return real_poll(fds, count, timeout_ms);
+  };
+  BridgeOptions options;
+  options.device = "type=replay,match=request,timing=none,file=" + path;
+  options.quiet = true;
+  Bridge bridge(options);
+  running = &bridge;
+  bridge.start();
+  ASSERT_TRUE(wrote.wait());
+  const Fd first(client);
+  ASSERT_GE(first.get(), 0);
+  EXPECT_EQ(wiretape::test::read_count(first.get(), 3), "V1\n");
+  bridge.stop();
+  ASSERT_TRUE(bridge.wait(kDeadline));
+  EXPECT_TRUE(bridge.result().ok()) << bridge.result().message;
+}
