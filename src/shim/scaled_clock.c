@@ -10,6 +10,13 @@
  * are converted back to real time (anchor + (deadline - anchor) / K) and
  * relative ones divided by K. CPU-time clocks are never scaled.
  *
+ * A slowed clock (K < 1) leaves CMD's code as fast as ever: a wait of zero
+ * that finds nothing (a timeout that rounded down to 0 ms while less than
+ * 1 ms was left, a zero sleep in a loop until a deadline) would spin 1/K
+ * times longer than at K = 1, a million times at K = 1e-6. So there a zero
+ * wait lasts the least span a wait can have on CMD's clock (1 us), in real
+ * time at most 1 ms: it still returns as soon as a descriptor is ready.
+ *
  * Not libfaketime: 0.9.10 with `x10` hangs futex waits on CLOCK_MONOTONIC
  * deadlines (Python's Lock.acquire(timeout=) goes through sem_clockwait),
  * which this shim converts like every other deadline.
@@ -52,7 +59,12 @@ enum { ANCHOR_REALTIME, ANCHOR_MONOTONIC, ANCHOR_RAW, ANCHOR_BOOTTIME, ANCHOR_CO
 static const clockid_t kAnchorClocks[ANCHOR_COUNT] = {CLOCK_REALTIME, CLOCK_MONOTONIC,
                                                       CLOCK_MONOTONIC_RAW, CLOCK_BOOTTIME};
 
+/* A zero wait under a slowed clock (see the top of the file): 1 us of CMD's
+ * clock, at most 1 ms of real time. */
+enum { LEAST_WAIT_NS = 1000, LONGEST_NAP_NS = 1000000 };
+
 static double g_speed = 1.0;
+static int64_t g_nap_ns; /* 0: a zero wait returns at once (K >= 1) */
 static int64_t g_anchor[ANCHOR_COUNT];
 static int g_scaling; /* 0: every hook passes through (K = 1 or no K) */
 static int g_ready;
@@ -193,6 +205,10 @@ static void initialise(void) {
   int every_call_found = real.clock_gettime && real.clock_nanosleep && real.nanosleep &&
                          real.cond_clockwait && real.sem_clockwait && real.mutex_clocklock;
   g_scaling = speed != 1.0 && every_call_found;
+  if (g_scaling && speed < 1.0 && real.ppoll != NULL && real.pselect != NULL) {
+    double nap = (double)LEAST_WAIT_NS / speed;
+    g_nap_ns = nap > LONGEST_NAP_NS ? LONGEST_NAP_NS : (int64_t)nap;
+  }
   if (g_scaling) {
     const char *anchor_text = getenv(kAnchorVariable);
     if (anchor_text == NULL || !parse_anchor(anchor_text)) {
@@ -237,6 +253,36 @@ static int64_t real_now(clockid_t clock) {
   struct timespec now;
   real.clock_gettime(clock, &now);
   return ns_of(&now);
+}
+
+static int is_zero(const struct timespec *span) { return span->tv_sec == 0 && span->tv_nsec == 0; }
+
+/* The real wait a zero wait becomes (see g_nap_ns). */
+static struct timespec nap(void) { return timespec_of(g_nap_ns); }
+
+/* A zero-length sleep under a slowed clock: the nap (nothing is left of a
+ * zero sleep should a signal interrupt it). */
+static int napped(struct timespec *remaining) {
+  struct timespec span = nap();
+  int result = real.nanosleep(&span, NULL);
+  if (result != 0 && remaining != NULL) {
+    int saved = errno;
+    remaining->tv_sec = 0;
+    remaining->tv_nsec = 0;
+    errno = saved;
+  }
+  return result;
+}
+
+/* An absolute deadline on CMD's clock, in real time; under a slowed clock
+ * one that has passed already is the nap from now (a zero wait). */
+static struct timespec real_deadline_or_nap(clockid_t clock, const struct timespec *deadline) {
+  struct timespec converted = real_deadline(clock, deadline);
+  if (g_nap_ns > 0) {
+    int64_t now = real_now(clock);
+    if (ns_of(&converted) <= now) converted = timespec_of(now + g_nap_ns);
+  }
+  return converted;
 }
 
 /* Whether an absolute deadline whose clock the call does not say (a
@@ -285,8 +331,13 @@ EXPORT int clock_nanosleep(clockid_t clock, int flags, const struct timespec *re
   if (!g_scaling || anchor_index(clock) < 0 || request == NULL)
     return real.clock_nanosleep(clock, flags, request, remaining);
   if (flags & TIMER_ABSTIME) {
-    struct timespec deadline = real_deadline(clock, request);
+    /* A deadline now or past (Python's time.sleep(0)) is a zero sleep. */
+    struct timespec deadline = real_deadline_or_nap(clock, request);
     return real.clock_nanosleep(clock, flags, &deadline, remaining);
+  }
+  if (g_nap_ns > 0 && is_zero(request)) {
+    struct timespec span = nap();
+    return real.clock_nanosleep(clock, 0, &span, NULL);
   }
   struct timespec span = timespec_of(real_span(ns_of(request)));
   int result = real.clock_nanosleep(clock, flags, &span, remaining);
@@ -297,6 +348,7 @@ EXPORT int clock_nanosleep(clockid_t clock, int flags, const struct timespec *re
 EXPORT int nanosleep(const struct timespec *request, struct timespec *remaining) {
   initialise();
   if (!g_scaling || request == NULL) return real.nanosleep(request, remaining);
+  if (g_nap_ns > 0 && is_zero(request)) return napped(remaining);
   struct timespec span = timespec_of(real_span(ns_of(request)));
   int result = real.nanosleep(&span, remaining);
   if (result != 0 && errno == EINTR && remaining != NULL) {
@@ -332,6 +384,10 @@ EXPORT int select(int count, fd_set *readable, fd_set *writable, fd_set *excepti
                   struct timeval *timeout) {
   initialise();
   if (!g_scaling || timeout == NULL) return real.select(count, readable, writable, exceptional, timeout);
+  if (g_nap_ns > 0 && timeout->tv_sec == 0 && timeout->tv_usec == 0) {
+    struct timespec span = nap();
+    return real.pselect(count, readable, writable, exceptional, &span, NULL);
+  }
   int64_t span = real_span(((int64_t)timeout->tv_sec * 1000000 + timeout->tv_usec) * 1000);
   struct timeval scaled = {(time_t)(span / NS_PER_S), (suseconds_t)((span % NS_PER_S) / 1000)};
   int result = real.select(count, readable, writable, exceptional, &scaled);
@@ -349,12 +405,17 @@ EXPORT int pselect(int count, fd_set *readable, fd_set *writable, fd_set *except
   initialise();
   if (!g_scaling || timeout == NULL)
     return real.pselect(count, readable, writable, exceptional, timeout, mask);
-  struct timespec span = timespec_of(real_span(ns_of(timeout)));
+  struct timespec span = g_nap_ns > 0 && is_zero(timeout) ? nap()
+                                                           : timespec_of(real_span(ns_of(timeout)));
   return real.pselect(count, readable, writable, exceptional, &span, mask);
 }
 
 EXPORT int poll(struct pollfd *fds, nfds_t count, int milliseconds) {
   initialise();
+  if (g_nap_ns > 0 && milliseconds == 0) {
+    struct timespec span = nap();
+    return real.ppoll(fds, count, &span, NULL);
+  }
   return real.poll(fds, count, real_milliseconds(milliseconds));
 }
 
@@ -362,18 +423,35 @@ EXPORT int ppoll(struct pollfd *fds, nfds_t count, const struct timespec *timeou
                  const sigset_t *mask) {
   initialise();
   if (!g_scaling || timeout == NULL) return real.ppoll(fds, count, timeout, mask);
-  struct timespec span = timespec_of(real_span(ns_of(timeout)));
+  struct timespec span = g_nap_ns > 0 && is_zero(timeout) ? nap()
+                                                           : timespec_of(real_span(ns_of(timeout)));
   return real.ppoll(fds, count, &span, mask);
+}
+
+/* A zero wait on an epoll set under a slowed clock: the set's own
+ * descriptor is readable while an event is ready, so the nap is a ppoll of
+ * it, and the events are then taken as the caller asked. */
+static int epoll_napped(int epoll, struct epoll_event *events, int capacity,
+                        const sigset_t *mask) {
+  int ready = real.epoll_pwait(epoll, events, capacity, 0, mask);
+  if (ready != 0) return ready;
+  struct pollfd set = {epoll, POLLIN, 0};
+  struct timespec span = nap();
+  if (real.ppoll(&set, 1, &span, mask) <= 0) return 0; /* the nap, or its interruption */
+  return real.epoll_pwait(epoll, events, capacity, 0, mask);
 }
 
 EXPORT int epoll_wait(int epoll, struct epoll_event *events, int capacity, int milliseconds) {
   initialise();
+  if (g_nap_ns > 0 && milliseconds == 0 && real.epoll_pwait != NULL)
+    return epoll_napped(epoll, events, capacity, NULL);
   return real.epoll_wait(epoll, events, capacity, real_milliseconds(milliseconds));
 }
 
 EXPORT int epoll_pwait(int epoll, struct epoll_event *events, int capacity, int milliseconds,
                        const sigset_t *mask) {
   initialise();
+  if (g_nap_ns > 0 && milliseconds == 0) return epoll_napped(epoll, events, capacity, mask);
   return real.epoll_pwait(epoll, events, capacity, real_milliseconds(milliseconds), mask);
 }
 
@@ -384,7 +462,7 @@ EXPORT int pthread_cond_clockwait(pthread_cond_t *cond, pthread_mutex_t *mutex, 
   initialise();
   if (!g_scaling || anchor_index(clock) < 0)
     return real.cond_clockwait(cond, mutex, clock, deadline);
-  struct timespec converted = real_deadline(clock, deadline);
+  struct timespec converted = real_deadline_or_nap(clock, deadline);
   return real.cond_clockwait(cond, mutex, clock, &converted);
 }
 
@@ -412,7 +490,7 @@ EXPORT int sem_clockwait(sem_t *semaphore, clockid_t clock, const struct timespe
   initialise();
   if (!g_scaling || anchor_index(clock) < 0)
     return real.sem_clockwait(semaphore, clock, deadline);
-  struct timespec converted = real_deadline(clock, deadline);
+  struct timespec converted = real_deadline_or_nap(clock, deadline);
   return real.sem_clockwait(semaphore, clock, &converted);
 }
 
@@ -425,7 +503,7 @@ EXPORT int pthread_mutex_clocklock(pthread_mutex_t *mutex, clockid_t clock,
   initialise();
   if (!g_scaling || anchor_index(clock) < 0)
     return real.mutex_clocklock(mutex, clock, deadline);
-  struct timespec converted = real_deadline(clock, deadline);
+  struct timespec converted = real_deadline_or_nap(clock, deadline);
   return real.mutex_clocklock(mutex, clock, &converted);
 }
 
@@ -436,7 +514,8 @@ EXPORT int pthread_mutex_timedlock(pthread_mutex_t *mutex, const struct timespec
 EXPORT int sigtimedwait(const sigset_t *set, siginfo_t *info, const struct timespec *timeout) {
   initialise();
   if (!g_scaling || timeout == NULL) return real.sigtimedwait(set, info, timeout);
-  struct timespec span = timespec_of(real_span(ns_of(timeout)));
+  struct timespec span = g_nap_ns > 0 && is_zero(timeout) ? nap()
+                                                           : timespec_of(real_span(ns_of(timeout)));
   return real.sigtimedwait(set, info, &span);
 }
 
