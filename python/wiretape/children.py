@@ -4,7 +4,10 @@ scanner) is started and ended one way (DESIGN §17, "Child processes").
 
 A :class:`Child` runs in a process group of its own (a new session), so
 that ending it reaches what it started: SIGTERM to the whole group, SIGKILL
-to the whole group after a grace period. Its output is captured (and
+to the whole group after a grace period. It ends with this process however
+this process ends (SIGKILL of wiretape by a CI job's timeout included):
+Linux's parent-death signal, set between fork and exec (see
+:func:`_ending_with_parent`). Its output is captured (and
 relayed as it comes, if asked) by a reader thread, or passed through.
 Reading stops once the direct child has exited and its group has been
 ended, not at the end of the pipe: a grandchild of another session that
@@ -13,6 +16,7 @@ keeps the pipe open cannot stall the caller.
 
 from __future__ import annotations
 
+import ctypes
 import dataclasses
 import os
 import select
@@ -101,6 +105,37 @@ class SanitizerWatch:
         if self.report is None and self._partial:
             self.report = sanitizer_report(self._partial)
         return self.report
+
+
+# prctl(2): the signal a process gets when the thread that forked it ends.
+_PR_SET_PDEATHSIG = 1
+
+
+def _ending_with_parent(then: Optional[Callable[[], None]] = None
+                        ) -> Optional[Callable[[], None]]:
+    """What a child runs between fork and exec so that it ends (SIGKILL) when
+    this process does, however it ends, then `then` (the caller's own
+    preexec_fn). Linux only (prctl PR_SET_PDEATHSIG); elsewhere `then` alone.
+
+    The signal comes when the *thread* that forked the child ends, so a
+    Child is started by a thread that outlives it (the main thread, or a
+    campaign's worker, which runs its child to the end). A parent that ended
+    before the call cannot signal any more: the child then ends at once
+    instead of running as an orphan. SIGKILL, not SIGTERM: nobody is left to
+    escalate to SIGKILL should CMD ignore SIGTERM."""
+    try:
+        prctl = ctypes.CDLL(None, use_errno=True).prctl
+    except (OSError, AttributeError):
+        return then
+    parent = os.getpid()
+
+    def preexec() -> None:
+        prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        if os.getppid() != parent:  # the parent ended before the call
+            os._exit(128 + int(signal.SIGKILL))
+        if then is not None:
+            then()
+    return preexec
 
 
 class CommandNotStarted(Exception):
@@ -252,7 +287,9 @@ class Child:
     they are passed through (the
     child writes where this process writes). ``stdin`` as subprocess takes
     it (default: nothing to read). ``preexec_fn`` runs in the child after it
-    has left this session. A command that cannot be started raises
+    has left this session. The child ends (SIGKILL) should this process end
+    before it (see :func:`_ending_with_parent`: start it from a thread that
+    outlives it). A command that cannot be started raises
     :class:`CommandNotStarted`.
     """
 
@@ -274,7 +311,7 @@ class Child:
                 stdout=subprocess.PIPE if capture else None,
                 stderr=(subprocess.PIPE if separate_stderr else subprocess.STDOUT)
                 if capture else None,
-                start_new_session=True, preexec_fn=preexec_fn)
+                start_new_session=True, preexec_fn=_ending_with_parent(preexec_fn))
         except FileNotFoundError:
             raise CommandNotStarted(f"{self.argv[0]}: command not found",
                                     EXIT_COMMAND_NOT_FOUND) from None

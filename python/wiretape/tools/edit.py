@@ -39,11 +39,9 @@ edit_in_child() runs it in)."""
 
 from __future__ import annotations
 
-import ctypes
 import dataclasses
 import os
 import pickle
-import signal
 import stat
 import subprocess
 import sys
@@ -247,26 +245,6 @@ class _StderrRelay:
         sys.stderr.flush()
 
 
-def _ending_with_parent():
-    """What the child runs before wiretape starts in it: it ends when its
-    parent does, however the parent ended (even SIGKILL), so that a
-    catastrophic match cannot outlive the command as an orphan holding its
-    output. Linux only (prctl PR_SET_PDEATHSIG); elsewhere, nothing."""
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        prctl = libc.prctl
-    except (OSError, AttributeError):
-        return None
-    parent = os.getpid()
-
-    def preexec() -> None:
-        pr_set_pdeathsig = 1
-        prctl(pr_set_pdeathsig, int(signal.SIGKILL), 0, 0, 0)
-        if os.getppid() != parent:  # the parent ended before the call
-            os._exit(1)
-    return preexec
-
-
 def edit_in_child(src: SessionPath, dst: SessionPath, **options) -> EditResult:
     """edit() in a child process (``wiretape.tools.edit_child``, run as a
     :class:`~wiretape.children.Child`) while this process only waits for it.
@@ -280,7 +258,9 @@ def edit_in_child(src: SessionPath, dst: SessionPath, **options) -> EditResult:
     command exit 130/143. Running the matching in a thread would not help
     (``re`` holds the GIL throughout). The request goes to the child
     pickled on its stdin; its outcome, a result or an exception, comes back
-    pickled on its stdout."""
+    pickled on its stdout. Like every Child, it ends with this process, even
+    one killed by SIGKILL: a catastrophic match cannot outlive the command
+    as an orphan holding its output."""
     src, dst = os.fspath(src), os.fspath(dst)
     before = _stat_or_none(dst)
     for stream in (sys.stdout, sys.stderr):
@@ -294,8 +274,7 @@ def edit_in_child(src: SessionPath, dst: SessionPath, **options) -> EditResult:
     # ``wiretape`` folder where the command runs must not stand in for it.
     env["PYTHONSAFEPATH"] = "1"
     child = Child([sys.executable, "-m", "wiretape.tools.edit_child"], separate_stderr=True,
-                  relay_stderr=_StderrRelay(), stdin=subprocess.PIPE, env=env,
-                  preexec_fn=_ending_with_parent())
+                  relay_stderr=_StderrRelay(), stdin=subprocess.PIPE, env=env)
     try:
         try:
             with child.process.stdin as request:
