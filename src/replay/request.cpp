@@ -656,7 +656,7 @@ void RequestStrategy::raise_unmatched_frame(const Frame& frame, const std::strin
   const Profile& profile = *config_.profile;
   // The closest recorded frames: longest common key prefix first, then order.
   const auto ranked = closest_exchanges(key, 3);
-  if (ranked.empty()) {
+  if (ranked.empty() && frame.end == FrameEnd::delimited) {
     const std::uint64_t offset = pending_offset_;
     pending_offset_ += frame.bytes.size();
     raise_past_the_end(offset, frame.bytes);
@@ -672,25 +672,32 @@ void RequestStrategy::raise_unmatched_frame(const Frame& frame, const std::strin
   } else {
     title << "the client's frame " << name << " matches no unused exchange";
   }
-  const Exchange& closest = exchanges_[ranked.front().second];
-  expected = raw_request(closest);
-  same = common_prefix(expected, frame.bytes);
-  if (frame.end == FrameEnd::delimited) {
-    title << differing_field_text(profile, expected, frame.bytes);
-    same = first_key_difference(profile, expected, frame.bytes).value_or(same);
-  }
-  extra << "  closest recorded frames:\n";
-  for (const auto& ranked_exchange : ranked) {
-    const Exchange& exchange = exchanges_[ranked_exchange.second];
-    extra << "    exchange " << ranked_exchange.second << " (session time "
-          << session_seconds(exchange.first_tx_t_ns) << " s): "
-          << profile.frame_name(StreamDirection::tx, raw_request(exchange)) << "  "
-          << hex_ascii(raw_request(exchange).substr(0, kReplayContext * 2)) << "\n";
+  if (!ranked.empty()) {
+    const Exchange& closest = exchanges_[ranked.front().second];
+    expected = raw_request(closest);
+    same = common_prefix(expected, frame.bytes);
+    if (frame.end == FrameEnd::delimited) {
+      title << differing_field_text(profile, expected, frame.bytes);
+      same = first_key_difference(profile, expected, frame.bytes).value_or(same);
+    }
+    extra << "  closest recorded frames:\n";
+    for (const auto& ranked_exchange : ranked) {
+      const Exchange& exchange = exchanges_[ranked_exchange.second];
+      extra << "    exchange " << ranked_exchange.second << " (session time "
+            << session_seconds(exchange.first_tx_t_ns) << " s): "
+            << profile.frame_name(StreamDirection::tx, raw_request(exchange)) << "  "
+            << hex_ascii(raw_request(exchange).substr(0, kReplayContext * 2)) << "\n";
+    }
+  } else {
+    // Not a whole frame, and no request left: what is wrong with it is the news.
+    extra << "  no unused request is left in the recording\n";
   }
   const std::uint64_t offset = pending_offset_ + same;
   pending_offset_ += frame.bytes.size();
-  const std::uint64_t t_ns = closest.first_tx_t_ns;
-  const auto reported_exchange = static_cast<std::int64_t>(ranked.front().second);
+  const std::uint64_t t_ns =
+      ranked.empty() ? last_match_t_ns_ : exchanges_[ranked.front().second].first_tx_t_ns;
+  const std::int64_t reported_exchange =
+      ranked.empty() ? -1 : static_cast<std::int64_t>(ranked.front().second);
   const std::string_view actual(frame.bytes);
   report_.raise(title.str(), offset,
                 expected.substr(std::min(same, expected.size()), kReplayContext),
