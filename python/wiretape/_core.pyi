@@ -1077,7 +1077,7 @@ def session_exchanges(path: str, profile: str | None = None, match: str | None =
 
 class SessionShape:
     """
-    Where faults can fire in what a replay serves (the first client session of a proxy recording): its exchanges, rx bytes and the session time of its last rx.
+    Where faults can fire in what a replay serves (every client session of a proxy recording): its exchanges, rx bytes and the session time of its last rx.
     """
 
     @property
@@ -1104,7 +1104,7 @@ class SessionShape:
 
 def session_shape(path: str, profile: str | None = None, match: str | None = None, options: str = '', channel: str | None = None) -> SessionShape:
     """
-    Where faults can fire in what a replay of the session file at `path` (with profile=, match=, further replay keys `options`, and channel= of a session of several ports) serves, as the replay counts places: a proxy recording's first client session.
+    Where faults can fire in what a replay of the session file at `path` (with profile=, match=, further replay keys `options`, and channel= of a session of several ports) serves, as the replay counts places: every client session of a proxy recording.
     """
 
 class RequestLatency:

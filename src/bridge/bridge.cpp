@@ -322,6 +322,10 @@ std::string Bridge::Impl::why_nothing_was_served() const {
     return none + "an injected fault ended the replay before any was served (" +
            end_message_ + ")";
   }
+  if (const std::string& silence = device_.silenced_by_fault(); !silence.empty()) {
+    return none + "an injected fault ended the replay before any was served (fault " +
+           silence + ": the device stopped answering)";
+  }
   if (std::string why = endpoint_->why_nothing_was_served(); !why.empty()) return none + why;
   if (stats.clients_accepted == 0) return none + "no client connected before the end";
   if (stats.bytes_from_device == 0 && stats.bytes_to_device == 0 && replay_greets_) {

@@ -159,6 +159,7 @@ void DeviceSide::restart() {
 void DeviceSide::shut_down(BridgeOutcome& outcome, std::string& message) {
   if (device_) {
     count_what_the_port_dropped();
+    silenced_by_fault_ = replay_silenced_by_fault(*device_);
     try {
       record(RecordKind::close, "{}");
     } catch (const std::exception&) {

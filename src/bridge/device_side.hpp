@@ -61,6 +61,9 @@ class DeviceSide {
   // The last device lost was a replay's injected fault (faults=): TCP
   // clients see it as a reset (docs/faults.md).
   bool lost_by_fault() const { return lost_by_fault_; }
+  // The replay's injected silence (KIND@WHERE) when one fired, as the
+  // device was when shut_down() closed it; empty otherwise.
+  const std::string& silenced_by_fault() const { return silenced_by_fault_; }
   // Closes the device and opens it again (a replay starts over).
   void restart();
   // Closes the device and the session file when the bridge ends, turning a
@@ -141,6 +144,7 @@ class DeviceSide {
   Status& status_;
   std::unique_ptr<Port> device_;
   bool lost_by_fault_ = false;
+  std::string silenced_by_fault_;
   std::string description_;
   // What the bridge records into: a file of its own (output, one unnamed
   // channel; owns_file_) or a channel of the options' recorder.

@@ -116,8 +116,8 @@ void bind_exchanges(nb::module_& m) {
       "them). OptionError for a bad or non-replay key.");
   nb::class_<detail::SessionShape>(
       m, "SessionShape",
-      "Where faults can fire in what a replay serves (the first client session of a "
-      "proxy recording): its exchanges, rx bytes and the session time of its last rx.")
+      "Where faults can fire in what a replay serves (every client session of a proxy "
+      "recording): its exchanges, rx bytes and the session time of its last rx.")
       .def_ro("first_exchange", &detail::SessionShape::first_exchange,
               "the number of the first exchange served (numbered per file)")
       .def_ro("exchanges", &detail::SessionShape::exchange_end,
@@ -150,8 +150,8 @@ void bind_exchanges(nb::module_& m) {
       "channel"_a = nb::none(),
       "Where faults can fire in what a replay of the session file at `path` (with "
       "profile=, match=, further replay keys `options`, and channel= of a session of "
-      "several ports) serves, as the replay counts places: a proxy recording's first "
-      "client session.");
+      "several ports) serves, as the replay counts places: every client session of a "
+      "proxy recording.");
   nb::class_<detail::RequestLatency>(m, "RequestLatency",
                                      "A request answered, and how long the answer took.")
       .def_ro("exchange", &detail::RequestLatency::exchange)

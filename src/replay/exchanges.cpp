@@ -249,17 +249,13 @@ SessionSegments segment_session_file(const std::string& path, const std::string&
 }
 
 SessionShape served_shape(const SessionSegments& segments) {
-  std::optional<std::uint64_t> served;  // the first client session holding an exchange
-  for (const Exchange& exchange : segments.exchanges) {
-    if (exchange.client_session && (!served || *exchange.client_session < *served)) {
-      served = exchange.client_session;
-    }
-  }
   SessionShape shape;
   bool first = true;
   for (const Exchange& exchange : segments.exchanges) {
-    // A replay serves a client the records after its connect, numbered on.
-    if (!segments.client_sessions.empty() && exchange.client_session != served) continue;
+    // A virtual device serves each client the records after its connect,
+    // numbered on, and faults fire in any of them (the fault memory lasts
+    // across them): what no client was connected for is served to none.
+    if (!segments.client_sessions.empty() && !exchange.client_session) continue;
     if (first) shape.first_exchange = exchange.index;
     first = false;
     if (exchange.response_bytes > 0) shape.exchange_end = exchange.index + 1;

@@ -205,9 +205,10 @@ std::uint64_t first_exchange_of_client_session(RecordSource& source,
 SessionSegments segment_session_file(const std::string& path, const std::string& options,
                                      const std::vector<std::string>& datagram_types);
 
-// Where faults can fire in what a replay serves of `segments`: the first
-// client session's exchanges (a virtual device's first client is served
-// that one), or all of them in a recording without client sessions.
+// Where faults can fire in what a replay serves of `segments`: the
+// exchanges of every client session (a virtual device serves its k-th
+// client the k-th, and a fault's place may be in any), or all of them in a
+// recording without client sessions.
 SessionShape served_shape(const SessionSegments& segments);
 
 // served_shape() of the file at `path` (replay keys `options`, as

@@ -90,7 +90,7 @@ void FaultInjector::report(const FaultSpec& spec, std::uint64_t exchange, std::s
 void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime now) {
   if (rest_unreachable()) return;  // nothing more reaches the client
   const std::uint64_t exchange = item.exchange;
-  const std::uint64_t offset = rx_offset_;
+  const std::uint64_t offset = memory_->rx_served;
   const bool starts_exchange = !current_exchange_ || *current_exchange_ != exchange;
 
   // The pieces the client gets instead of this record, in order.
@@ -126,7 +126,7 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
   // real in every timing mode; later records of the exchange keep their
   // own times (they may be released late, while a trickle still plays).
   item.due = std::max(item.due, released_at_);
-  if (item.kind == RecordKind::rx) rx_offset_ += item.payload().size() - item.consumed;
+  if (item.kind == RecordKind::rx) memory_->rx_served += item.payload().size() - item.consumed;
   if (drop_rest_ && item.kind == RecordKind::rx) return;
   pieces.push_back(std::move(item));
 
@@ -251,6 +251,7 @@ void FaultInjector::apply(RxItem&& item, std::deque<FaultedRx>& out, ReplayTime 
       case FaultKind::silence:
         report(spec, exchange, "the device stopped answering" + where_in(first));
         memory_->silenced = true;
+        memory_->silenced_by = spec.kind_text + "@" + spec.where_text;
         pieces.clear();
         break;
       case FaultKind::disconnect:

@@ -26,11 +26,15 @@ namespace wiretape::detail {
 // What a plan's faults leave behind that outlasts one client session of a
 // virtual device (each session has an engine, and so a stage, of its own):
 // a silenced device stays silent, a lost one lost, a once-only place (rx:N,
-// t:S) does not fire again, and once a fault was injected no session reports
-// unused data. The replaying port keeps one and hands it to each session's
-// stage.
+// t:S) does not fire again, rx bytes are counted on (rx:N is an offset in
+// what the device served, as exchanges are numbered across client
+// sessions), and once a fault was injected no session reports unused data.
+// The replaying port keeps one and hands it to each session's stage.
 struct FaultMemory {
   bool silenced = false;
+  // The silence that did it (KIND@WHERE), for the replay's verdict.
+  std::string silenced_by;
+  std::uint64_t rx_served = 0;  // rx bytes through the stages so far
   // Why the device is gone (disconnect); a later session starts with it.
   std::optional<std::string> lost;
   std::vector<bool> once_fired;  // per fault of the plan
@@ -95,7 +99,6 @@ class FaultInjector {
   bool trickled_ = false;  // a byte of this exchange was trickled: the next waits
   std::chrono::nanoseconds shift_{0};  // delays and stalls so far in it
   ReplayTime released_at_;             // when its first record was released
-  std::uint64_t rx_offset_ = 0;        // served rx bytes before this record
 };
 
 class FaultStage {

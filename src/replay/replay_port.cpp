@@ -185,6 +185,11 @@ class ReplayPort : public Port, public FaultSource {
     return !closed_ && engine_->lost_by_fault(ReplayClock::now());
   }
 
+  std::string silenced_by_fault() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return fault_memory_->silenced ? fault_memory_->silenced_by : std::string();
+  }
+
   void flush_input() override {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
@@ -702,6 +707,11 @@ bool replay_recording_greets(const Port& port) {
 bool replay_lost_by_fault(Port& port) {
   auto* replay = dynamic_cast<ReplayPort*>(&port);
   return replay != nullptr && replay->lost_by_fault();
+}
+
+std::string replay_silenced_by_fault(Port& port) {
+  auto* replay = dynamic_cast<ReplayPort*>(&port);
+  return replay != nullptr ? replay->silenced_by_fault() : std::string();
 }
 
 bool replay_recording_has_rx(const Port& port) {

@@ -74,5 +74,8 @@ bool replay_begin_client_session(Port& port);
 // Whether a replay's reads fail because of an injected disconnect or
 // reconnect (not a recorded loss).
 bool replay_lost_by_fault(Port& port);
+// The injected silence (faults=) after which the replay answers nothing, as
+// KIND@WHERE; empty when none fired, and for every other port.
+std::string replay_silenced_by_fault(Port& port);
 
 }  // namespace wiretape::detail

@@ -567,33 +567,37 @@ void RequestStrategy::match_pending(bool quiet, bool may_raise) {
   }
 }
 
+void RequestStrategy::raise_past_the_end(std::uint64_t offset, std::string_view actual) const {
+  // Every recorded exchange was served (repeat=none): numbered as served.
+  const std::uint64_t first = config_.first_exchange + (greeting_ ? 1 : 0);
+  report_.raise_past_the_end(offset, actual.substr(0, kReplayContext), last_match_t_ns_, first,
+                             static_cast<std::int64_t>(first + exchanges_.size()) - 1);
+}
+
 void RequestStrategy::raise_unmatched() {
   // The closest unused requests: longest common prefix first, then order.
   const auto ranked = closest_exchanges(pending_, 3);
-  const std::size_t shown = ranked.size();
-  std::ostringstream extra;
   if (ranked.empty()) {
-    extra << "  no unused request is left in the recording\n";
-  } else {
-    extra << "  closest unused requests:\n";
-    for (std::size_t k = 0; k < shown; ++k) {
-      const Exchange& exchange = exchanges_[ranked[k].second];
-      extra << "    exchange " << ranked[k].second << " (session time "
-            << session_seconds(exchange.first_tx_t_ns) << " s): "
-            << hex_ascii(request_of_exchange(ranked[k].second).substr(0, kReplayContext))
-            << "\n";
-    }
+    const std::string actual = pending_;
+    const std::uint64_t offset = pending_offset_;
+    // The unmatched bytes are dropped, so that the client can go on.
+    pending_offset_ += pending_.size();
+    pending_.clear();
+    raise_past_the_end(offset, actual);
   }
-  const std::size_t same = ranked.empty() ? 0 : ranked.front().first;
-  const std::string_view expected =
-      ranked.empty() ? std::string_view() : request_of_exchange(ranked.front().second);
+  std::ostringstream extra;
+  extra << "  closest unused requests:\n";
+  for (const auto& [same, index] : ranked) {
+    extra << "    exchange " << index << " (session time "
+          << session_seconds(exchanges_[index].first_tx_t_ns) << " s): "
+          << hex_ascii(request_of_exchange(index).substr(0, kReplayContext)) << "\n";
+  }
+  const std::size_t same = ranked.front().first;
+  const std::string_view expected = request_of_exchange(ranked.front().second);
   const std::string actual = pending_;
   const std::uint64_t offset = pending_offset_ + same;
-  const std::uint64_t t_ns =
-      ranked.empty() ? last_match_t_ns_
-                     : exchanges_[ranked.front().second].first_tx_t_ns;
-  const std::int64_t reported_exchange =
-      ranked.empty() ? -1 : static_cast<std::int64_t>(ranked.front().second);
+  const std::uint64_t t_ns = exchanges_[ranked.front().second].first_tx_t_ns;
+  const auto reported_exchange = static_cast<std::int64_t>(ranked.front().second);
   // The unmatched bytes are dropped, so that the client can go on.
   pending_offset_ += pending_.size();
   pending_.clear();
@@ -652,7 +656,11 @@ void RequestStrategy::raise_unmatched_frame(const Frame& frame, const std::strin
   const Profile& profile = *config_.profile;
   // The closest recorded frames: longest common key prefix first, then order.
   const auto ranked = closest_exchanges(key, 3);
-  const std::size_t shown = ranked.size();
+  if (ranked.empty() && frame.end == FrameEnd::delimited) {
+    const std::uint64_t offset = pending_offset_;
+    pending_offset_ += frame.bytes.size();
+    raise_past_the_end(offset, frame.bytes);
+  }
   const std::string name = profile.frame_name(StreamDirection::tx, frame.bytes);
   std::ostringstream title;
   std::ostringstream extra;
@@ -673,14 +681,15 @@ void RequestStrategy::raise_unmatched_frame(const Frame& frame, const std::strin
       same = first_key_difference(profile, expected, frame.bytes).value_or(same);
     }
     extra << "  closest recorded frames:\n";
-    for (std::size_t k = 0; k < shown; ++k) {
-      const Exchange& exchange = exchanges_[ranked[k].second];
-      extra << "    exchange " << ranked[k].second << " (session time "
+    for (const auto& ranked_exchange : ranked) {
+      const Exchange& exchange = exchanges_[ranked_exchange.second];
+      extra << "    exchange " << ranked_exchange.second << " (session time "
             << session_seconds(exchange.first_tx_t_ns) << " s): "
             << profile.frame_name(StreamDirection::tx, raw_request(exchange)) << "  "
             << hex_ascii(raw_request(exchange).substr(0, kReplayContext * 2)) << "\n";
     }
   } else {
+    // Not a whole frame, and no request left: what is wrong with it is the news.
     extra << "  no unused request is left in the recording\n";
   }
   const std::uint64_t offset = pending_offset_ + same;

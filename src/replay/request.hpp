@@ -160,6 +160,9 @@ class RequestStrategy final : public ReplayStrategy {
   void read_from_session(const Exchange& exchange,
                          const ReplayTimeline::Anchor& matched);
   [[noreturn]] void raise_unmatched();
+  // The client's request at `offset` came when every recorded exchange was
+  // served: a request past them (MismatchReport::raise_past_the_end).
+  [[noreturn]] void raise_past_the_end(std::uint64_t offset, std::string_view actual) const;
   // Whether a record read by the loaders opens another client session's
   // records (see the definition); notes where this session's end.
   bool another_client_session(RecordKind kind, std::string_view payload);

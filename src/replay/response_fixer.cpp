@@ -38,12 +38,12 @@ void ResponseFixer::push(RxItem&& item, std::uint64_t after) {
   held_.push_back({std::move(item), offset, after});
   frames_.clear();
   framer_->feed_at(held_.back().item.t_ns, held_.back().item.data, frames_);
-  for (const Frame& frame : frames_) fix_frame(frame.bytes, frame_start_);
+  for (const Frame& frame : frames_) fix_frame(frame, frame_start_);
   mark_ready();
 }
 
 void ResponseFixer::end_response() {
-  if (std::optional<Frame> tail = framer_->finish()) fix_frame(tail->bytes, frame_start_);
+  if (std::optional<Frame> tail = framer_->finish()) fix_frame(*tail, frame_start_);
   ready_ = held_.size();
 }
 
@@ -101,9 +101,15 @@ const ResponseFixer::Request* ResponseFixer::answered_by(std::string_view bytes,
   return &requests_.front();
 }
 
-void ResponseFixer::fix_frame(const std::string& bytes, std::uint64_t start) {
+void ResponseFixer::fix_frame(const Frame& frame, std::uint64_t start) {
+  const std::string& bytes = frame.bytes;
   const std::uint64_t end = start + bytes.size();
   frame_start_ = end;
+  // A fix applies to whole frames only. A frame the response ends inside
+  // (FrameEnd::stream_end) is all the device sent of it, and one the profile
+  // finds broken is not its protocol's: both are served as recorded, as a
+  // fix (a checksum recomputed over part of a frame) would invent bytes.
+  if (frame.end != FrameEnd::delimited) return;
   auto first = std::find_if(held_.begin(), held_.end(), [&](const Held& held) {
     return held.item.kind == RecordKind::rx && held.offset + held.item.data.size() > start;
   });

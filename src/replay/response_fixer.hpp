@@ -5,7 +5,9 @@
 // rx records, or several frames in one record, is fixed as the device would
 // have sent it. Records keep their times and boundaries; a record is held
 // back only until the frames its bytes belong to are complete, or the
-// response ends. Both match strategies use it.
+// response ends; a frame that is not whole (the response ends inside it, or
+// the profile finds it broken) is served as recorded.
+// Both match strategies use it.
 #pragma once
 
 #include <cstddef>
@@ -36,8 +38,9 @@ class ResponseFixer {
   // A record that is not rx ends the response and passes through.
   void push(RxItem&& item, std::uint64_t after);
   // The response goes no further (the next request is due, the client must
-  // act before more is released, or the session ended): its incomplete
-  // frame is fixed as far as it goes and everything held is given out.
+  // act before more is released, or the session ended): everything held is
+  // given out, a frame it ends inside as recorded (a fix applies to whole
+  // frames only).
   void end_response();
 
   // Items ready to serve, in recorded order.
@@ -62,8 +65,8 @@ class ResponseFixer {
     std::string actual;
     bool answered = false;
   };
-  // Fixes the frame of `bytes` that begins at stream offset `start`.
-  void fix_frame(const std::string& bytes, std::uint64_t start);
+  // Fixes `frame`, which begins at stream offset `start`, if it is whole.
+  void fix_frame(const Frame& frame, std::uint64_t start);
   // The request the response frame `bytes`, pushed after `after`, answers.
   const Request* answered_by(std::string_view bytes, std::uint64_t after);
   void mark_ready();

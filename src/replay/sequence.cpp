@@ -408,9 +408,9 @@ void SequenceStrategy::write_records(const char* data, std::size_t size,
                          " s; it takes no more writes");
       }
       if (compare) {
-        report_.raise("the client wrote more than the recording holds",
-                      tx_written_, {}, rest.substr(0, kReplayContext),
-                      previous_tx_t_ns_, tx_exchange_);
+        report_.raise_past_the_end(tx_written_, rest.substr(0, kReplayContext),
+                                   previous_tx_t_ns_, config_.first_exchange, tx_exchange_,
+                                   config_.first_exchange > 0 ? " of this client session" : "");
       }
       tx_written_ += rest.size();
       report_.accepted(rest);

@@ -65,17 +65,36 @@ void MismatchReport::raise(const std::string& title, std::uint64_t offset,
                            std::string_view expected, std::string_view actual,
                            std::uint64_t session_t_ns, std::int64_t exchange,
                            const std::string& extra, bool expected_is_datagram) const {
+  raise_with(title, offset, expected, actual, session_t_ns, exchange,
+             exchange >= 0 ? std::to_string(exchange) : std::string("-"), extra,
+             expected_is_datagram);
+}
+
+void MismatchReport::raise_past_the_end(std::uint64_t offset, std::string_view actual,
+                                        std::uint64_t session_t_ns, std::uint64_t first,
+                                        std::int64_t last, std::string_view whose) const {
+  const std::uint64_t held =
+      last >= static_cast<std::int64_t>(first) ? static_cast<std::uint64_t>(last) + 1 - first : 0;
+  const std::uint64_t next = first + held;
+  std::string count = std::to_string(held) + " recorded exchange" + (held == 1 ? "" : "s");
+  count += whose;
+  if (held == 1) count += " (" + std::to_string(first) + ")";
+  if (held > 1) count += " (" + std::to_string(first) + ".." + std::to_string(next - 1) + ")";
+  raise_with("the client wrote more than the recording holds", offset, {}, actual,
+             session_t_ns, static_cast<std::int64_t>(next),
+             std::to_string(next) + ", past the " + count, {}, false);
+}
+
+void MismatchReport::raise_with(const std::string& title, std::uint64_t offset,
+                                std::string_view expected, std::string_view actual,
+                                std::uint64_t session_t_ns, std::int64_t exchange,
+                                const std::string& exchange_text, const std::string& extra,
+                                bool expected_is_datagram) const {
   std::ostringstream report;
   report << "replay mismatch in " << file_ << ": "
          << (channel_.empty() ? "" : "channel " + channel_ + ": ") << title << "\n"
          << "  at tx byte offset " << offset << ", session time "
-         << session_seconds(session_t_ns) << " s, exchange ";
-  if (exchange >= 0) {
-    report << exchange;
-  } else {
-    report << "-";
-  }
-  report << "\n";
+         << session_seconds(session_t_ns) << " s, exchange " << exchange_text << "\n";
   report << "  before:   " << hex_ascii(history_) << "\n"
          << "  expected: "
          << (expected.empty() && expected_is_datagram

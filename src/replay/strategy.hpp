@@ -118,8 +118,22 @@ class MismatchReport {
                           std::uint64_t session_t_ns, std::int64_t exchange,
                           const std::string& extra = {},
                           bool expected_is_datagram = false) const;
+  // The client wrote `actual` when no recorded request is left for it: a
+  // request past the recorded exchanges `first` to `last` (none when last <
+  // first), reported as the exchange after the last, by its number and the
+  // count of those it is past; `whose` follows the count (" of this client
+  // session").
+  [[noreturn]] void raise_past_the_end(std::uint64_t offset, std::string_view actual,
+                                       std::uint64_t session_t_ns, std::uint64_t first,
+                                       std::int64_t last, std::string_view whose = {}) const;
 
  private:
+  [[noreturn]] void raise_with(const std::string& title, std::uint64_t offset,
+                               std::string_view expected, std::string_view actual,
+                               std::uint64_t session_t_ns, std::int64_t exchange,
+                               const std::string& exchange_text, const std::string& extra,
+                               bool expected_is_datagram) const;
+
   std::string file_;
   ReplayMatch match_;
   std::string channel_;

@@ -170,8 +170,10 @@ def replay_channels(args, endpoints: List[Endpoint], out: Output) -> int:
     except BaseException:
         _stop_all(handles)
         raise
+    named = {endpoint.name for endpoint in endpoints}
+    left_out = [name for name in channel_names(args.file) if name not in named]
     return _run_channels(handles, out, "replay", lambda endpoint: f"replaying {args.file}",
-                         must_serve=True, quiet=args.quiet)
+                         must_serve=True, quiet=args.quiet, left_out=left_out)
 
 
 def _stop_all(handles) -> None:
@@ -182,11 +184,12 @@ def _stop_all(handles) -> None:
 
 
 def _run_channels(handles, out: Output, what: str, doing: Callable[[Endpoint], str],
-                  must_serve: bool = False, quiet: bool = True) -> int:
+                  must_serve: bool = False, quiet: bool = True,
+                  left_out: Sequence[str] = ()) -> int:
     """Announces each channel's bridge, waits until every one has ended
     (a failed or mismatched one ends the others: the session is one) or
     Ctrl-C, relaying each one's messages with its name; prints each
-    channel's outcome; raises the worst."""
+    channel's outcome and the channels `left_out`; raises the worst."""
 
     relays = [MessageRelay(handle, out, f"{what}: {endpoint.name}", quiet)
               for endpoint, handle in handles]
@@ -209,11 +212,14 @@ def _run_channels(handles, out: Output, what: str, doing: Callable[[Endpoint], s
     _stop_all(handles)
     for relay in relays:
         relay.poll()
-    return report_channels(handles, out, what, must_serve)
+    return report_channels(handles, out, what, must_serve, left_out)
 
 
-def report_channels(handles, out: Output, what: str, must_serve: bool) -> int:
-    """Prints each ended channel's outcome; raises the worst failure (the
+def report_channels(handles, out: Output, what: str, must_serve: bool,
+                    left_out: Sequence[str] = ()) -> int:
+    """Prints each ended channel's outcome, then a note naming each channel
+    of the file `left_out` (no endpoint named it: allowed, so no failure,
+    but a user who forgot one can tell); raises the worst failure (the
     command's), else returns EXIT_OK. `handles`: (endpoint, handle) pairs,
     each endpoint with its .name."""
 
@@ -227,6 +233,10 @@ def report_channels(handles, out: Output, what: str, must_serve: bool) -> int:
         if failure is not None:
             rank, message = failure
             failures.append((rank, f"channel {endpoint.name}: {message}"))
+    for name in left_out:
+        out.note(f"wiretape {what}: {name}: not replayed (no endpoint names channel {name}; "
+                 f"give --pty {name}=PATH, --listen {name}=HOST:PORT or --udp {name}=HOST:PORT "
+                 "to serve it)")
     if not failures:
         return EXIT_OK
     rank, message = max(failures, key=lambda failure: failure[0])

@@ -101,8 +101,8 @@ def session_shape(session: str, profile: Optional[str] = None, match: Optional[s
     (and further replay keys ``options``) serves: its exchanges (numbered
     per file, ``first_exchange`` up to ``exchanges``, one past the last with
     rx), rx bytes, and ``seconds``, the session time of its last rx. A
-    proxy recording counts its first client session, as its replay serves
-    a client. ``channel``: the channel of a session of several ports. All
+    proxy recording counts every client session, as its replay serves each
+    client its own. ``channel``: the channel of a session of several ports. All
     of it measured by the one segmentation in C++."""
     return _core.session_shape(session, profile=profile, match=match, options=options,
                                channel=channel)

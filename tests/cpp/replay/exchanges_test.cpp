@@ -249,16 +249,19 @@ TEST(Exchanges, AnOpenOrCloseBetweenARequestAndItsAnswerDoesNotCutThem) {
   EXPECT_EQ(segments_of(records).exchanges[0].response_start_t_ns, 6u);
 }
 
-TEST(Exchanges, TheServedShapeIsTheFirstClientSessionsOnTheSessionsClock) {
+TEST(Exchanges, TheServedShapeIsEveryClientSessionsOnTheSessionsClock) {
+  // A virtual device serves its second client the second client session,
+  // and a fault's place may be there: what no client heard is no place.
   const std::vector<Record> records = {
       rx(1, "before any client"), connect(2'000, "a", "control"), tx(2'100, "A"),
       rx(2'500, "aa"), tx(3'000, "B"), rx(3'500, "bbb"), disconnect(4'000, "a"),
-      connect(5'000, "c", "control"), tx(5'100, "C"), rx(5'500, "c")};
+      rx(4'500, "to nobody"), connect(5'000, "c", "control"), tx(5'100, "C"), rx(5'500, "c"),
+      disconnect(6'000, "c")};
   const SessionShape shape = served_shape(segments_of(records));
   EXPECT_EQ(shape.first_exchange, 1u);
-  EXPECT_EQ(shape.exchange_end, 3u);
-  EXPECT_EQ(shape.rx_bytes, 5u);
-  EXPECT_EQ(shape.last_rx_t_ns, 3'500u);  // session time, not time since the connect
+  EXPECT_EQ(shape.exchange_end, 4u);
+  EXPECT_EQ(shape.rx_bytes, 6u);
+  EXPECT_EQ(shape.last_rx_t_ns, 5'500u);  // session time, not time since the connect
 }
 
 // --- the replay's own numbering agrees with the whole-session form ------------

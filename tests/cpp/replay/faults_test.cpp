@@ -756,3 +756,28 @@ TEST(FaultMemory, AFaultInAnEarlierClientSessionHidesUnusedData) {
   EXPECT_TRUE(run.second_unread_hidden);
   EXPECT_FALSE(run.second_rest_unreachable);
 }
+
+TEST(FaultMemory, RxBytesAreCountedOnAcrossClientSessions) {
+  // rx:N is an offset in what the device served, as exchanges are numbered
+  // per file: byte 18 is the 's' of the second session's "c-second\n" (the
+  // first session served 16 bytes), where the session's shape puts it.
+  const TwoSessions run = run_two_sessions("duplicate@rx:18");
+  EXPECT_EQ(bytes_of_exchange(run.first, 0), "a-first\n");
+  EXPECT_EQ(bytes_of_exchange(run.first, 1), "b-first\n");
+  EXPECT_EQ(bytes_of_exchange(run.second, 2), "c-second\nc-second\n");
+  ASSERT_EQ(run.events.size(), 1u);
+  EXPECT_NE(run.events[0].detail.find("rx byte 16"), std::string::npos) << run.events[0].detail;
+}
+
+TEST(FaultMemory, ASilenceRemembersWhichFaultItWas) {
+  const detail::FaultPlan plan = parse_faults("silence@exchange:1", 5);
+  const auto memory = std::make_shared<detail::FaultMemory>();
+  ReleasedRx released(/*recycle_payloads=*/false);
+  FaultStage stage(plan, /*datagrams=*/false, released, memory);
+  stage.on_fault([](const detail::FaultEvent&) {});
+  released.push(rx_item("a\n", 1, 0));
+  released.push(rx_item("b\n", 401, 1));
+  drain(stage);
+  EXPECT_TRUE(memory->silenced);
+  EXPECT_EQ(memory->silenced_by, "silence@exchange:1");
+}

@@ -333,10 +333,12 @@ TEST(ProfileInterface, ARegisteredProfileIsFoundByName) {
   register_profile("counter4", [] { return std::make_shared<CounterProfile>(); });
   EXPECT_THROW(register_profile("scip", [] { return std::make_shared<CounterProfile>(); }),
                std::invalid_argument);
-  auto port = replay({tx(1, "abc1"), rx(2, "A"), tx(3, "xyz2"), rx(4, "X")},
+  // Its fix applies to its whole frames (a response cut short is served as
+  // recorded): each answer gets the client's counter.
+  auto port = replay({tx(1, "abc1"), rx(2, "AAAA"), tx(3, "xyz2"), rx(4, "XXXX")},
                      "timing=none,match=request,profile=counter4");
   port->write_all("xyz9abc8");
-  EXPECT_EQ(port->read_exactly(4), "X9A8");
+  EXPECT_EQ(port->read_exactly(10), "XXXX9AAAA8");
 }
 
 // --- profiles declared in options ----------------------------------------------

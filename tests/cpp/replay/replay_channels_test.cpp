@@ -256,6 +256,26 @@ TEST(ReplayChannels, MismatchNamesTheChannel) {
   }
 }
 
+TEST(ReplayChannels, ARequestPastAChannelsExchangesNamesTheChannelsCount) {
+  // Exchanges are numbered per channel: rtk's one exchange is its exchange 0.
+  TempDir dir;
+  const std::string path = gps_and_rtk(dir);
+  auto rtk = open_port("type=replay,timing=none,unused=ignore,file=" + path + ",channel=rtk");
+  rtk->write(std::string("LOGIN\n"));
+  EXPECT_EQ(read_text(*rtk, 11), "ICY 200 OK\n");
+  try {
+    rtk->write(std::string("LOGIN\n"));
+    FAIL() << "no mismatch";
+  } catch (const ReplayMismatch& e) {
+    const std::string report = e.what();
+    EXPECT_NE(report.find(": channel rtk: the client wrote more than the recording holds"),
+              std::string::npos) << report;
+    EXPECT_NE(report.find("exchange 1, past the 1 recorded exchange (0)\n"), std::string::npos)
+        << report;
+    EXPECT_EQ(e.exchange(), 1);
+  }
+}
+
 TEST(ReplayChannels, MismatchOfASingleChannelFileNamesNoChannel) {
   TempDir dir;
   const std::string path = dir.file("one.wtape");

@@ -7,6 +7,7 @@
 
 #include <random>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "replay/profile.hpp"
@@ -99,12 +100,53 @@ TEST_P(ResponseFixByFrame, DeclaredEchoOverASplitResponse) {
   EXPECT_EQ(port->read_exactly(5), "\xCD\x01\x34\x56\n");
 }
 
-TEST_P(ResponseFixByFrame, AResponseThatNeverCompletesAFrameIsServedWhenTheSessionEnds) {
-  // A tail the framer never completes is still served (fixed as far as it goes).
+TEST_P(ResponseFixByFrame, AResponseThatNeverCompletesAFrameIsServedAsRecordedWhenTheSessionEnds) {
+  // A tail the framer never completes is served, and as the device sent it:
+  // a fix applies to whole frames only.
   auto port = replay({tx(1, mbap(1, read_holding(0))), rx(2, be16(1) + be16(0))},
                      mode() + ",profile=modbus-tcp");
   port->write_all(mbap(0x7777, read_holding(0)));
-  EXPECT_EQ(port->read_exactly(4), be16(0x7777) + be16(0));
+  EXPECT_EQ(port->read_exactly(4), be16(1) + be16(0));
+}
+
+// A declared frame of 7 bytes: an id the response echoes, 5 bytes, a sum8.
+std::string sum8(std::string_view bytes) {
+  unsigned sum = 0;
+  for (const char byte : bytes) sum += static_cast<unsigned char>(byte);
+  return std::string(1, static_cast<char>(sum & 0xFF));
+}
+std::string sealed(const std::string& six) { return six + sum8(six); }
+const char* const kSealedFixed = ",framing=fixed:7,echo=0:1,checksum=sum8@-1";
+
+TEST_P(ResponseFixByFrame, ABytePastTheLastWholeFrameIsServedAsRecordedNotResealed) {
+  // 8 bytes under fixed:7: one whole frame (fixed: the client's id, its sum
+  // recomputed) and a 1-byte frame that never completes, the recorded 'j'
+  // (a sum8 over no bytes would make it \x00).
+  const std::string response = sealed("Aresp1") + "j";
+  auto port = replay({tx(1, sealed("Aaskme")), rx(2, response)}, mode() + kSealedFixed);
+  port->write_all(sealed("Baskme"));
+  EXPECT_EQ(port->read_exactly(8), sealed("Bresp1") + "j");
+}
+
+TEST_P(ResponseFixByFrame, AnIncompleteFrameSplitOverRecordsIsServedAsRecordedRecordByRecord) {
+  // The whole frame and the 3-byte tail both cut across records.
+  const std::string response = sealed("Aresp1") + "xyz";
+  auto port = replay({tx(1, sealed("Aaskme")), rx(2, response.substr(0, 5)),
+                      rx(3, response.substr(5, 3)), rx(4, response.substr(8))},
+                     mode() + kSealedFixed);
+  port->write_all(sealed("Baskme"));
+  EXPECT_EQ(port->read_exactly(10), sealed("Bresp1") + "xyz");
+}
+
+TEST_P(ResponseFixByFrame, ABrokenFrameIsServedAsRecordedAndTheWholeOneAfterItFixed) {
+  // The device's first frame has a wrong sum: the profile cannot read it as
+  // its protocol's, so neither its id nor its sum is rewritten.
+  const std::string broken = "Abad!!" + std::string(1, '\x00');
+  ASSERT_NE(sum8("Abad!!"), std::string(1, '\x00'));
+  auto port = replay({tx(1, sealed("Aaskme")), rx(2, broken + sealed("Agood1"))},
+                     mode() + kSealedFixed);
+  port->write_all(sealed("Baskme"));
+  EXPECT_EQ(port->read_exactly(14), broken + sealed("Bgood1"));
 }
 
 INSTANTIATE_TEST_SUITE_P(BothMatchModes, ResponseFixByFrame,

@@ -280,3 +280,58 @@ TEST(ReplaySequence, CloseThatEndsTheRecordingIsTheEndNotALoss) {
   EXPECT_EQ(read_some(*closed), "A");
   EXPECT_THROW(read_some(*closed), PortClosed);
 }
+
+// --- a request past the recorded exchanges --------------------------------------------
+
+namespace {
+
+// The mismatch a client raises by writing `extra` after every request of a
+// two-exchange recording, under `keys`.
+ReplayMismatch past_the_end(const std::string& keys, const std::string& extra = "EXTRA\n") {
+  auto port = replay({tx(ms(1), "PING\n"), rx(ms(2), "PONG\n"), tx(ms(3), "TIME\n"),
+                      rx(ms(4), "12:00\n")},
+                     "timing=none,unused=ignore," + keys);
+  port->write("PING\n");
+  EXPECT_EQ(read_some(*port), "PONG\n");
+  port->write("TIME\n");
+  EXPECT_EQ(read_some(*port), "12:00\n");
+  try {
+    port->write(extra);
+  } catch (const ReplayMismatch& mismatch) {
+    return mismatch;
+  }
+  ADD_FAILURE() << keys << ": no mismatch";
+  return ReplayMismatch("", 0, 0, -2);
+}
+
+}  // namespace
+
+TEST(MismatchReport, ARequestPastTheRecordedExchangesSaysSoAndNamesTheirCount) {
+  // The third request of a two-exchange recording is no exchange 1: it is
+  // the next one, past the two the recording holds.
+  for (const char* keys : {"match=sequence", "match=sequence,profile=lines", "match=request",
+                           "match=request,profile=lines"}) {
+    const ReplayMismatch mismatch = past_the_end(keys);
+    const std::string report = mismatch.what();
+    EXPECT_EQ(mismatch.exchange(), 2) << keys << ": " << report;
+    EXPECT_NE(report.find("the client wrote more than the recording holds"), std::string::npos)
+        << keys << ": " << report;
+    EXPECT_NE(report.find("exchange 2, past the 2 recorded exchanges (0..1)\n"), std::string::npos)
+        << keys << ": " << report;
+    EXPECT_EQ(report.find("exchange 1"), std::string::npos) << keys << ": " << report;
+  }
+}
+
+TEST(MismatchReport, ARequestPastOneRecordedExchangeSaysOne) {
+  auto port = replay({tx(ms(1), "PING\n"), rx(ms(2), "PONG\n")}, "timing=none,unused=ignore");
+  port->write("PING\n");
+  EXPECT_EQ(read_some(*port), "PONG\n");
+  try {
+    port->write("PING\n");
+    FAIL() << "no mismatch";
+  } catch (const ReplayMismatch& mismatch) {
+    EXPECT_NE(std::string(mismatch.what()).find("exchange 1, past the 1 recorded exchange (0)\n"),
+              std::string::npos)
+        << mismatch.what();
+  }
+}

@@ -380,3 +380,50 @@ def test_replay_with_a_command_of_a_channel_without_a_device_path_is_refused(cap
     err = capsys.readouterr().err
     assert status == 2, err
     assert "channel 'rtk' names no device path" in err and "--as rtk=PATH" in err
+
+
+# --- a channel left out of a replay: a note, not a failure (issue 37) -------
+
+
+def three_channel_session(path):
+    """Channels gps, rtk and imu (tcp): one exchange each."""
+    names = ("gps", "rtk", "imu")
+    header = _core.SessionHeader.starting_now()
+    header.channels = [_core.Channel(id=number, name=name, port_type="tcp",
+                                     port_options=f"type=tcp,host={name},port=9")
+                       for number, name in enumerate(names)]
+    with _core.SessionWriter(str(path), header) as writer:
+        for number, name in enumerate(names):
+            writer.write("open", 0, b"", channel=number)
+            writer.write("tx", (2 * number + 1) * 1_000_000, f"{name}?\n".encode(), channel=number)
+            writer.write("rx", (2 * number + 2) * 1_000_000, f"{name}!\n".encode(),
+                         channel=number)
+    return path
+
+
+def test_a_channel_left_out_of_a_replay_is_named_in_the_summary_and_exits_0(tmp_path):
+    session = three_channel_session(tmp_path / "three.wtape")
+    child = start_cli("replay", str(session), "--timing", "none",
+                      "--listen", "gps=127.0.0.1:0", "--listen", "rtk=127.0.0.1:0")
+    try:
+        for name in ("gps", "rtk"):
+            with socket.create_connection(announced_address(child, "tcp"),
+                                          timeout=DEADLINE_S) as client:
+                client.sendall(f"{name}?\n".encode())
+                answer = b""
+                while len(answer) < 5:
+                    chunk = client.recv(64)
+                    assert chunk, f"{name}: the replay closed the connection"
+                    answer += chunk
+                assert answer == f"{name}!\n".encode()
+    finally:
+        status, _, err = interrupt(child)
+    assert status == 0, err
+    assert "wiretape replay: imu: not replayed (no endpoint names channel imu;" in err, err
+    for served in ("gps", "rtk"):
+        assert f"{served}: not replayed" not in err
+
+
+def test_every_channel_replayed_leaves_no_note(capsys):
+    run_channels(("gps", FinishedBridge("finished")), ("rtk", FinishedBridge("finished")))
+    assert "not replayed" not in capsys.readouterr().err
