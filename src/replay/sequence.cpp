@@ -228,6 +228,15 @@ bool SequenceStrategy::held_by_flush_gate() {
   return false;
 }
 
+// The client wrote a byte recorded after the flushes before the current tx
+// record: a flush of those it did not make can no longer come, so the rx
+// they held is due at once (DESIGN.md section 12).
+void SequenceStrategy::wrote_past_recorded_flushes() {
+  if (client_flushes_ + flushes_forgiven_ < tx_record_flushes_before_) {
+    flushes_forgiven_ = tx_record_flushes_before_ - client_flushes_;
+  }
+}
+
 void SequenceStrategy::release_item(RxItem&& item, std::uint64_t tx_before) {
   if (item.kind == RecordKind::modem_lines) {
     released_.push_lines(item.due, modem_inputs_of(item.data, {}).value_or(ModemInputs{}));
@@ -266,9 +275,14 @@ bool SequenceStrategy::next_tx_record() {
         have_tx_record_ = true;
         tx_wildcards_.clear();
         std::swap(tx_wildcards_, pending_wildcards_);
+        tx_record_flushes_before_ = tx_flushes_seen_;
         break;
       case RecordKind::rx:
         pending_wildcards_.clear();  // the redaction was of this rx record
+        break;
+      case RecordKind::flush_input:
+      case RecordKind::flush_output:
+        ++tx_flushes_seen_;
         break;
       case RecordKind::redaction:
         pending_wildcards_.add_event(record.data);
@@ -453,6 +467,7 @@ void SequenceStrategy::write_records(const char* data, std::size_t size,
       tx_written_ += expected.size();
       report_.accepted(expected);
       accepted = rest.size();
+      wrote_past_recorded_flushes();
     } else {
       const std::size_t n = std::min(rest.size(), expected.size() - tx_position_);
       const std::string_view want(expected.data() + tx_position_, n);
@@ -475,6 +490,7 @@ void SequenceStrategy::write_records(const char* data, std::size_t size,
       tx_written_ += n;
       report_.accepted(rest.substr(0, n));
       accepted = n;
+      if (n > 0) wrote_past_recorded_flushes();
       if (tx_position_ < expected.size()) {
         done += accepted;
         continue;
@@ -661,32 +677,10 @@ std::uint64_t SequenceStrategy::tx_consumed() const {
 
 std::string SequenceStrategy::unused_report(std::uint64_t queued_rx_bytes,
                                             std::uint64_t queued_rx_records) {
-  // Rx held at the end for a flush the client did not make, though the
-  // client wrote what the recording shows after it: the client was denied
-  // what it was entitled to, which is no success (DESIGN.md section 12). Rx
-  // recorded after its last write is only unused.
-  if (!ahead_.empty() && ahead_.front().item.kind == RecordKind::rx &&
-      config_.timing != ReplayTiming::session && tx_progress() > ahead_.front().tx_before &&
-      client_flushes_ + flushes_forgiven_ < ahead_.front().flushes_before) {
-    const Ahead& held = ahead_.front();
-    std::uint64_t held_bytes = 0;
-    for (const Ahead& later : ahead_) {
-      if (later.tx_before > held.tx_before) break;
-      held_bytes += later.item.payload().size();
-    }
-    report_.raise("the client was entitled to rx that a recorded client flush still held "
-                  "at the end: the recording shows " +
-                      std::to_string(held.flushes_before) + " client flushes before it, the " +
-                      "client made " + std::to_string(client_flushes_ + flushes_forgiven_) +
-                      " and the replay ended within flush_wait (" +
-                      std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(
-                                         config_.flush_wait)
-                                         .count()) +
-                      " ms) of it being due",
-                  tx_consumed(), held.item.payload().substr(0, kReplayContext), {},
-                  held.item.t_ns, static_cast<std::int64_t>(held.item.exchange),
-                  "  held:     " + std::to_string(held_bytes) + " rx bytes\n");
-  }
+  // A flush gate holds rx at the end only where the client's last write
+  // ended at the recorded flush (a write past it opens the gate): that rx is
+  // recorded after the client's last write, and only unused (DESIGN.md
+  // section 12).
   // Line changes the recording has after the client's last write, which
   // the client never made (those before a write it made were a mismatch).
   // The write cursor looks for them up to its next tx record. When the read
