@@ -3,19 +3,11 @@
 #include <algorithm>
 
 #include "replay/channel_hub.hpp"
+#include "replay/recorded_events.hpp"
 #include "util/json.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail {
-
-namespace {
-
-std::string recorded_event_text(const Record& record);
-std::string event_levels_text(
-    const std::optional<Record>& recorded,
-    const std::optional<std::pair<RecordKind, std::map<std::string, std::string>>>& made);
-
-}  // namespace
 
 SequenceStrategy::SequenceStrategy(const ReplayConfig& config,
                                    const ReplayTimeline& timeline,
@@ -438,9 +430,7 @@ void SequenceStrategy::write_records(const char* data, std::size_t size,
                     tx_written_,
                     std::string_view(expected).substr(0, kReplayContext),
                     rest.substr(0, kReplayContext), missing.t_ns, tx_exchange_,
-                    missing.kind == RecordKind::settings
-                        ? std::string()
-                        : event_levels_text(missing, std::nullopt));
+                    event_mismatch_lines(missing, std::nullopt));
     }
     if (tx_position_ == 0 && config_.check == ReplayCheck::timing) {
       if (const auto miss = timeline_.check_write(tx_record_.t_ns, previous_tx_finished_,
@@ -517,130 +507,32 @@ bool SequenceStrategy::checks_lines() const {
   return checks_events() || (config_.check == ReplayCheck::data && lines_recorded_);
 }
 
-namespace {
-
-std::string member_text(const json::Value& value) {
-  switch (value.type) {
-    case json::Value::Type::boolean:
-      return value.boolean ? "true" : "false";
-    case json::Value::Type::number:
-    case json::Value::Type::string:
-      return value.text;
-    default:
-      return json::serialize(value);
-  }
+std::string_view SequenceStrategy::recorded_writes_next() const {
+  if (!have_tx_record_) return {};
+  return std::string_view(tx_record_.data).substr(tx_position_, kReplayContext);
 }
 
-std::string fields_json(const std::map<std::string, std::string>& fields) {
-  std::string text = "{";
-  for (const auto& [key, value] : fields) {
-    if (text.size() > 1) text += ",";
-    const bool bare = value == "true" || value == "false" ||
-                      (!value.empty() &&
-                       value.find_first_not_of("-0123456789.") == std::string::npos);
-    text += json::quote(key) + ":" + (bare ? value : json::quote(value));
-  }
-  return text + "}";
-}
-
-// A line change in words: "DTR low", "RTS high", "a break"; other events as
-// their kind and members.
-std::string line_change_text(RecordKind kind, const std::map<std::string, std::string>& fields) {
-  if (kind == RecordKind::line_break) return "a break";
-  if (kind == RecordKind::modem_lines) {
-    std::string text;
-    for (const char* line : {event_field::dtr, event_field::rts}) {
-      const auto level = fields.find(line);
-      if (level == fields.end()) continue;
-      if (!text.empty()) text += ", ";
-      for (const char* c = line; *c != '\0'; ++c) text += static_cast<char>(*c - 'a' + 'A');
-      text += level->second == "true" ? " high" : " low";
-    }
-    if (!text.empty()) return text;
-  }
-  return std::string(to_string(kind)) + " " + fields_json(fields);
-}
-
-std::map<std::string, std::string> recorded_fields(const Record& record) {
-  std::map<std::string, std::string> fields;
-  try {
-    const json::Value value = json::parse(record.data.empty() ? "{}" : record.data);
-    for (const auto& [key, member] : value.members) {
-      if (key == event_field::applied) continue;  // the proxy's note, not the client's doing
-      fields[key] = member_text(member);
-    }
-  } catch (const json::ParseError&) {
-  }
-  return fields;
-}
-
-std::string recorded_event_text(const Record& record) {
-  if (record.kind == RecordKind::modem_lines || record.kind == RecordKind::line_break) {
-    return line_change_text(record.kind, recorded_fields(record));
-  }
-  return "a " + std::string(to_string(record.kind)) + " event " + record.data;
-}
-
-// The report's lines for a line change: what the recording has there and
-// what the client did (nothing: it made none).
-std::string event_levels_text(
-    const std::optional<Record>& recorded,
-    const std::optional<std::pair<RecordKind, std::map<std::string, std::string>>>& made) {
-  return "  expected line change: " +
-         (recorded ? line_change_text(recorded->kind, recorded_fields(*recorded))
-                   : std::string("(none)")) +
-         "\n  actual line change:   " +
-         (made ? line_change_text(made->first, made->second) : std::string("(none)")) + "\n";
-}
-
-}  // namespace
-
-void SequenceStrategy::client_event(RecordKind kind,
-                                    const std::map<std::string, std::string>& fields) {
-  const bool line = kind == RecordKind::modem_lines || kind == RecordKind::line_break;
+void SequenceStrategy::client_event(RecordKind kind, const EventFields& fields) {
+  const bool line = is_line_event(kind);
   // Settings are checked under check=timing; the client's lines also under
   // check=data, where the recording holds the device's lines.
   if (!checks_events() && !(line && config_.check == ReplayCheck::data)) return;
   if (!have_tx_record_ || tx_position_ == 0) next_tx_record();
   if (line && !checks_lines()) return;
-  const std::string made = line ? line_change_text(kind, fields)
-                                : "a " + std::string(to_string(kind)) + " " + fields_json(fields) +
-                                      " event";
-  const auto made_event = std::make_pair(kind, fields);
+  const ClientEvent made{kind, fields};
+  const std::string made_text =
+      line ? event_text(kind, fields) : "a " + event_text(kind, fields) + " event";
   if (expected_events_.empty()) {
-    report_.raise("the client made " + made + " where the recording has none",
-                  tx_written_, {}, {}, previous_tx_t_ns_, tx_exchange_,
-                  line ? event_levels_text(std::nullopt, made_event) : std::string());
+    report_.raise_event("the client made " + made_text + " where the recording has none",
+                        tx_written_, previous_tx_t_ns_, tx_exchange_,
+                        event_mismatch_lines(std::nullopt, made), recorded_writes_next());
   }
   const Record& recorded = expected_events_.front();
-  bool same = recorded.kind == kind;
-  if (same) {
-    const std::map<std::string, std::string> recorded_members = recorded_fields(recorded);
-    // Only what both say is compared (set_baud against a full configure); a
-    // break's length is the client's timing, compared only under
-    // check=timing.
-    for (const auto& [key, text] : fields) {
-      if (key == event_field::duration_ms && !checks_events()) continue;
-      const auto member = recorded_members.find(key);
-      if (member != recorded_members.end() && member->second != text) same = false;
-    }
-    // A line the recording changed that the client did not.
-    if (kind == RecordKind::modem_lines) {
-      for (const char* name : {event_field::dtr, event_field::rts}) {
-        if (recorded_members.count(name) != fields.count(name)) same = false;
-      }
-    }
-  }
-  if (!same) {
-    const bool recorded_line =
-        recorded.kind == RecordKind::modem_lines || recorded.kind == RecordKind::line_break;
-    report_.raise("the client made " + made + "; the recording has " +
-                      (recorded_line ? recorded_event_text(recorded)
-                                     : std::string(to_string(recorded.kind)) + " " + recorded.data),
-                  tx_written_, {}, {}, recorded.t_ns, tx_exchange_,
-                  line || recorded.kind != RecordKind::settings
-                      ? event_levels_text(recorded, made_event)
-                      : std::string());
+  if (!event_matches(recorded, made, /*compare_break_length=*/checks_events())) {
+    report_.raise_event("the client made " + made_text + "; the recording has " +
+                            recorded_event_text(recorded),
+                        tx_written_, recorded.t_ns, tx_exchange_,
+                        event_mismatch_lines(recorded, made), recorded_writes_next());
   }
   expected_events_.pop_front();
 }

@@ -12,6 +12,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "replay/exchanges.hpp"
 #include "replay/profile.hpp"
@@ -71,6 +72,9 @@ class SequenceStrategy final : public ReplayStrategy {
   std::optional<ReplayTime> finish_of(std::uint64_t tx_offset) const;
   bool next_tx_record();
   void write_records(const char* data, std::size_t size, ReplayTime now);
+  // The recorded tx bytes the write cursor is at (those a mismatch report
+  // says follow); empty at the end of the recorded writes.
+  std::string_view recorded_writes_next() const;
   bool checks_events() const;
   // Whether the client's line changes (DTR, RTS, break) are checked: under
   // check=timing always, under check=data once the recording showed it

@@ -118,8 +118,19 @@ class MismatchReport {
                           std::uint64_t session_t_ns, std::int64_t exchange,
                           const std::string& extra = {},
                           bool expected_is_datagram = false) const;
+  // A client event (settings, a line change, a break) that differs from the
+  // recording: `event_lines` name the expected and the actual event, and
+  // `writes_next` are the recorded writes that follow at that point (empty:
+  // the recorded writes end there).
+  [[noreturn]] void raise_event(const std::string& title, std::uint64_t offset,
+                                std::uint64_t session_t_ns, std::int64_t exchange,
+                                const std::string& event_lines,
+                                std::string_view writes_next) const;
 
  private:
+  std::string heading(const std::string& title, std::uint64_t offset,
+                      std::uint64_t session_t_ns, std::int64_t exchange) const;
+
   std::string file_;
   ReplayMatch match_;
   std::string channel_;
