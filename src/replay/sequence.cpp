@@ -4,7 +4,6 @@
 
 #include "replay/channel_hub.hpp"
 #include "replay/recorded_events.hpp"
-#include "util/json.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail {
