@@ -298,9 +298,12 @@ def serve_replay(file, *, pty=None, listen=None, udp=None, peer=None,
     # Bad keys are refused before anything is opened: no listener, no pty,
     # no replay whose closing would warn about unused data.
     _core.check_replay_options(options)
-    # The terminal settings of a replayed device are not applied anywhere.
+    # The terminal settings the client sets are applied to the replay, as to
+    # a device: under check=timing they must match the recorded settings
+    # events in order with the writes (docs/replay.md "Events"), as the
+    # command that made the recording made them.
     return _start(options, pty=pty, listen=listen, udp=udp, peer=peer, backlog=backlog,
                   restart=restart, protocol=protocol,
                   output=os.fspath(output) if output else "",
-                  mirror_settings=False, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group,
+                  mirror_settings=True, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group,
                   line_channel=line_channel)

@@ -72,6 +72,11 @@ struct ReplayConfig {
   // Fault injection (faults.hpp): faults= parsed, with seed= for its random
   // choices; empty without faults=.
   FaultPlan faults;
+  // The line settings the recorded device opened with (its port options'
+  // baud, databits, ...; a serial port's defaults where they say none): the
+  // replay starts with them, so that a virtual device tells the client's
+  // changes from them as the proxy that recorded them did.
+  SerialSettings recorded_settings;
 };
 
 // Whether empty tx and rx records are datagrams that the replay serves and

@@ -638,7 +638,7 @@ class ReplayPort : public Port, public FaultSource {
   // The lines the last client session left, seen until the next begins.
   ModemInputs lines_before_client_;
   int client_sessions_ = 0;
-  SerialSettings settings_;
+  SerialSettings settings_ = config_.recorded_settings;
   std::function<void(const FaultEvent&)> fault_reporter_;  // empty: stderr
   bool closed_ = false;
   sys::UniqueFd signal_read_;

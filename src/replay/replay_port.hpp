@@ -33,6 +33,11 @@ using DatagramPortTypes = std::vector<std::string>;
 // Whether `channel` was recorded from a port of one of `datagram_types`.
 bool recorded_as_datagrams(const Channel& channel, const DatagramPortTypes& datagram_types);
 
+// The line settings a recorded port's options open it with: the serial keys
+// they give, a serial port's defaults for the others (and for options that
+// do not parse: the header's text is not the replay's to refuse).
+SerialSettings recorded_line_settings(const std::string& port_options);
+
 // type=replay for open_port() (src/open/port_types.cpp): the replay keys of
 // `options`, then the session file they name.
 std::unique_ptr<Port> open_replay(Options& options, const DatagramPortTypes& datagram_types);

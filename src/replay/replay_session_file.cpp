@@ -139,6 +139,33 @@ bool recorded_as_datagrams(const Channel& channel, const DatagramPortTypes& data
          datagram_types.end();
 }
 
+SerialSettings recorded_line_settings(const std::string& port_options) {
+  SerialSettings settings;
+  std::vector<Options::Entry> entries;
+  try {
+    entries = parse_options(port_options);
+  } catch (const OptionError&) {
+    return settings;
+  }
+  for (const Options::Entry& entry : entries) {
+    const bool digits = !entry.value.empty() && entry.value.size() <= 9 &&
+                        entry.value.find_first_not_of("0123456789") == std::string::npos;
+    const unsigned long number = digits ? std::stoul(entry.value) : 0;
+    if (entry.key == "baud" && number > 0) {
+      settings.baud = static_cast<unsigned>(number);
+    } else if (entry.key == "databits" && number >= 5 && number <= 8) {
+      settings.data_bits = static_cast<int>(number);
+    } else if (entry.key == "stopbits" && (number == 1 || number == 2)) {
+      settings.stop_bits = static_cast<int>(number);
+    } else if (entry.key == "parity") {
+      settings.parity = parse_parity(entry.value).value_or(settings.parity);
+    } else if (entry.key == "flow") {
+      settings.flow = parse_flow_control(entry.value).value_or(settings.flow);
+    }
+  }
+  return settings;
+}
+
 std::unique_ptr<Port> open_replay(Options& options, const DatagramPortTypes& datagram_types) {
   ReplayConfig config = take_replay_config(options);
   // The file is opened here once, so that a missing or unreadable session
@@ -152,6 +179,7 @@ std::unique_ptr<Port> open_replay(Options& options, const DatagramPortTypes& dat
     config.channel_id = channel.id;
     config.channel = channel.name;
     config.datagrams = recorded_as_datagrams(channel, datagram_types);
+    config.recorded_settings = recorded_line_settings(channel.port_options);
     std::vector<std::string> names;
     for (const Channel& each : header.channel_list()) names.push_back(each.name);
     config.faults = faults_for_channel(config.faults, channel.name, names, config.file);

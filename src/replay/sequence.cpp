@@ -3,19 +3,10 @@
 #include <algorithm>
 
 #include "replay/channel_hub.hpp"
-#include "util/json.hpp"
+#include "replay/recorded_events.hpp"
 #include "wiretape/errors.hpp"
 
 namespace wiretape::detail {
-
-namespace {
-
-std::string recorded_event_text(const Record& record);
-std::string event_levels_text(
-    const std::optional<Record>& recorded,
-    const std::optional<std::pair<RecordKind, std::map<std::string, std::string>>>& made);
-
-}  // namespace
 
 SequenceStrategy::SequenceStrategy(const ReplayConfig& config,
                                    const ReplayTimeline& timeline,
@@ -228,6 +219,15 @@ bool SequenceStrategy::held_by_flush_gate() {
   return false;
 }
 
+// The client wrote a byte recorded after the flushes before the current tx
+// record: a flush of those it did not make can no longer come, so the rx
+// they held is due at once (DESIGN.md section 12).
+void SequenceStrategy::wrote_past_recorded_flushes() {
+  if (client_flushes_ + flushes_forgiven_ < tx_record_flushes_before_) {
+    flushes_forgiven_ = tx_record_flushes_before_ - client_flushes_;
+  }
+}
+
 void SequenceStrategy::release_item(RxItem&& item, std::uint64_t tx_before) {
   if (item.kind == RecordKind::modem_lines) {
     released_.push_lines(item.due, modem_inputs_of(item.data, {}).value_or(ModemInputs{}));
@@ -266,9 +266,14 @@ bool SequenceStrategy::next_tx_record() {
         have_tx_record_ = true;
         tx_wildcards_.clear();
         std::swap(tx_wildcards_, pending_wildcards_);
+        tx_record_flushes_before_ = tx_flushes_seen_;
         break;
       case RecordKind::rx:
         pending_wildcards_.clear();  // the redaction was of this rx record
+        break;
+      case RecordKind::flush_input:
+      case RecordKind::flush_output:
+        ++tx_flushes_seen_;
         break;
       case RecordKind::redaction:
         pending_wildcards_.add_event(record.data);
@@ -424,9 +429,7 @@ void SequenceStrategy::write_records(const char* data, std::size_t size,
                     tx_written_,
                     std::string_view(expected).substr(0, kReplayContext),
                     rest.substr(0, kReplayContext), missing.t_ns, tx_exchange_,
-                    missing.kind == RecordKind::settings
-                        ? std::string()
-                        : event_levels_text(missing, std::nullopt));
+                    event_mismatch_lines(missing, std::nullopt));
     }
     if (tx_position_ == 0 && config_.check == ReplayCheck::timing) {
       if (const auto miss = timeline_.check_write(tx_record_.t_ns, previous_tx_finished_,
@@ -453,6 +456,7 @@ void SequenceStrategy::write_records(const char* data, std::size_t size,
       tx_written_ += expected.size();
       report_.accepted(expected);
       accepted = rest.size();
+      wrote_past_recorded_flushes();
     } else {
       const std::size_t n = std::min(rest.size(), expected.size() - tx_position_);
       const std::string_view want(expected.data() + tx_position_, n);
@@ -475,6 +479,7 @@ void SequenceStrategy::write_records(const char* data, std::size_t size,
       tx_written_ += n;
       report_.accepted(rest.substr(0, n));
       accepted = n;
+      if (n > 0) wrote_past_recorded_flushes();
       if (tx_position_ < expected.size()) {
         done += accepted;
         continue;
@@ -501,130 +506,32 @@ bool SequenceStrategy::checks_lines() const {
   return checks_events() || (config_.check == ReplayCheck::data && lines_recorded_);
 }
 
-namespace {
-
-std::string member_text(const json::Value& value) {
-  switch (value.type) {
-    case json::Value::Type::boolean:
-      return value.boolean ? "true" : "false";
-    case json::Value::Type::number:
-    case json::Value::Type::string:
-      return value.text;
-    default:
-      return json::serialize(value);
-  }
+std::string_view SequenceStrategy::recorded_writes_next() const {
+  if (!have_tx_record_) return {};
+  return std::string_view(tx_record_.data).substr(tx_position_, kReplayContext);
 }
 
-std::string fields_json(const std::map<std::string, std::string>& fields) {
-  std::string text = "{";
-  for (const auto& [key, value] : fields) {
-    if (text.size() > 1) text += ",";
-    const bool bare = value == "true" || value == "false" ||
-                      (!value.empty() &&
-                       value.find_first_not_of("-0123456789.") == std::string::npos);
-    text += json::quote(key) + ":" + (bare ? value : json::quote(value));
-  }
-  return text + "}";
-}
-
-// A line change in words: "DTR low", "RTS high", "a break"; other events as
-// their kind and members.
-std::string line_change_text(RecordKind kind, const std::map<std::string, std::string>& fields) {
-  if (kind == RecordKind::line_break) return "a break";
-  if (kind == RecordKind::modem_lines) {
-    std::string text;
-    for (const char* line : {event_field::dtr, event_field::rts}) {
-      const auto level = fields.find(line);
-      if (level == fields.end()) continue;
-      if (!text.empty()) text += ", ";
-      for (const char* c = line; *c != '\0'; ++c) text += static_cast<char>(*c - 'a' + 'A');
-      text += level->second == "true" ? " high" : " low";
-    }
-    if (!text.empty()) return text;
-  }
-  return std::string(to_string(kind)) + " " + fields_json(fields);
-}
-
-std::map<std::string, std::string> recorded_fields(const Record& record) {
-  std::map<std::string, std::string> fields;
-  try {
-    const json::Value value = json::parse(record.data.empty() ? "{}" : record.data);
-    for (const auto& [key, member] : value.members) {
-      if (key == event_field::applied) continue;  // the proxy's note, not the client's doing
-      fields[key] = member_text(member);
-    }
-  } catch (const json::ParseError&) {
-  }
-  return fields;
-}
-
-std::string recorded_event_text(const Record& record) {
-  if (record.kind == RecordKind::modem_lines || record.kind == RecordKind::line_break) {
-    return line_change_text(record.kind, recorded_fields(record));
-  }
-  return "a " + std::string(to_string(record.kind)) + " event " + record.data;
-}
-
-// The report's lines for a line change: what the recording has there and
-// what the client did (nothing: it made none).
-std::string event_levels_text(
-    const std::optional<Record>& recorded,
-    const std::optional<std::pair<RecordKind, std::map<std::string, std::string>>>& made) {
-  return "  expected line change: " +
-         (recorded ? line_change_text(recorded->kind, recorded_fields(*recorded))
-                   : std::string("(none)")) +
-         "\n  actual line change:   " +
-         (made ? line_change_text(made->first, made->second) : std::string("(none)")) + "\n";
-}
-
-}  // namespace
-
-void SequenceStrategy::client_event(RecordKind kind,
-                                    const std::map<std::string, std::string>& fields) {
-  const bool line = kind == RecordKind::modem_lines || kind == RecordKind::line_break;
+void SequenceStrategy::client_event(RecordKind kind, const EventFields& fields) {
+  const bool line = is_line_event(kind);
   // Settings are checked under check=timing; the client's lines also under
   // check=data, where the recording holds the device's lines.
   if (!checks_events() && !(line && config_.check == ReplayCheck::data)) return;
   if (!have_tx_record_ || tx_position_ == 0) next_tx_record();
   if (line && !checks_lines()) return;
-  const std::string made = line ? line_change_text(kind, fields)
-                                : "a " + std::string(to_string(kind)) + " " + fields_json(fields) +
-                                      " event";
-  const auto made_event = std::make_pair(kind, fields);
+  const ClientEvent made{kind, fields};
+  const std::string made_text =
+      line ? event_text(kind, fields) : "a " + event_text(kind, fields) + " event";
   if (expected_events_.empty()) {
-    report_.raise("the client made " + made + " where the recording has none",
-                  tx_written_, {}, {}, previous_tx_t_ns_, tx_exchange_,
-                  line ? event_levels_text(std::nullopt, made_event) : std::string());
+    report_.raise_event("the client made " + made_text + " where the recording has none",
+                        tx_written_, previous_tx_t_ns_, tx_exchange_,
+                        event_mismatch_lines(std::nullopt, made), recorded_writes_next());
   }
   const Record& recorded = expected_events_.front();
-  bool same = recorded.kind == kind;
-  if (same) {
-    const std::map<std::string, std::string> recorded_members = recorded_fields(recorded);
-    // Only what both say is compared (set_baud against a full configure); a
-    // break's length is the client's timing, compared only under
-    // check=timing.
-    for (const auto& [key, text] : fields) {
-      if (key == event_field::duration_ms && !checks_events()) continue;
-      const auto member = recorded_members.find(key);
-      if (member != recorded_members.end() && member->second != text) same = false;
-    }
-    // A line the recording changed that the client did not.
-    if (kind == RecordKind::modem_lines) {
-      for (const char* name : {event_field::dtr, event_field::rts}) {
-        if (recorded_members.count(name) != fields.count(name)) same = false;
-      }
-    }
-  }
-  if (!same) {
-    const bool recorded_line =
-        recorded.kind == RecordKind::modem_lines || recorded.kind == RecordKind::line_break;
-    report_.raise("the client made " + made + "; the recording has " +
-                      (recorded_line ? recorded_event_text(recorded)
-                                     : std::string(to_string(recorded.kind)) + " " + recorded.data),
-                  tx_written_, {}, {}, recorded.t_ns, tx_exchange_,
-                  line || recorded.kind != RecordKind::settings
-                      ? event_levels_text(recorded, made_event)
-                      : std::string());
+  if (!event_matches(recorded, made, /*compare_break_length=*/checks_events())) {
+    report_.raise_event("the client made " + made_text + "; the recording has " +
+                            recorded_event_text(recorded),
+                        tx_written_, recorded.t_ns, tx_exchange_,
+                        event_mismatch_lines(recorded, made), recorded_writes_next());
   }
   expected_events_.pop_front();
 }
@@ -661,32 +568,10 @@ std::uint64_t SequenceStrategy::tx_consumed() const {
 
 std::string SequenceStrategy::unused_report(std::uint64_t queued_rx_bytes,
                                             std::uint64_t queued_rx_records) {
-  // Rx held at the end for a flush the client did not make, though the
-  // client wrote what the recording shows after it: the client was denied
-  // what it was entitled to, which is no success (DESIGN.md section 12). Rx
-  // recorded after its last write is only unused.
-  if (!ahead_.empty() && ahead_.front().item.kind == RecordKind::rx &&
-      config_.timing != ReplayTiming::session && tx_progress() > ahead_.front().tx_before &&
-      client_flushes_ + flushes_forgiven_ < ahead_.front().flushes_before) {
-    const Ahead& held = ahead_.front();
-    std::uint64_t held_bytes = 0;
-    for (const Ahead& later : ahead_) {
-      if (later.tx_before > held.tx_before) break;
-      held_bytes += later.item.payload().size();
-    }
-    report_.raise("the client was entitled to rx that a recorded client flush still held "
-                  "at the end: the recording shows " +
-                      std::to_string(held.flushes_before) + " client flushes before it, the " +
-                      "client made " + std::to_string(client_flushes_ + flushes_forgiven_) +
-                      " and the replay ended within flush_wait (" +
-                      std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(
-                                         config_.flush_wait)
-                                         .count()) +
-                      " ms) of it being due",
-                  tx_consumed(), held.item.payload().substr(0, kReplayContext), {},
-                  held.item.t_ns, static_cast<std::int64_t>(held.item.exchange),
-                  "  held:     " + std::to_string(held_bytes) + " rx bytes\n");
-  }
+  // A flush gate holds rx at the end only where the client's last write
+  // ended at the recorded flush (a write past it opens the gate): that rx is
+  // recorded after the client's last write, and only unused (DESIGN.md
+  // section 12).
   // Line changes the recording has after the client's last write, which
   // the client never made (those before a write it made were a mismatch).
   // The write cursor looks for them up to its next tx record. When the read

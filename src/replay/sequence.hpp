@@ -12,6 +12,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "replay/exchanges.hpp"
 #include "replay/profile.hpp"
@@ -71,6 +72,9 @@ class SequenceStrategy final : public ReplayStrategy {
   std::optional<ReplayTime> finish_of(std::uint64_t tx_offset) const;
   bool next_tx_record();
   void write_records(const char* data, std::size_t size, ReplayTime now);
+  // The recorded tx bytes the write cursor is at (those a mismatch report
+  // says follow); empty at the end of the recorded writes.
+  std::string_view recorded_writes_next() const;
   bool checks_events() const;
   // Whether the client's line changes (DTR, RTS, break) are checked: under
   // check=timing always, under check=data once the recording showed it
@@ -103,9 +107,11 @@ class SequenceStrategy final : public ReplayStrategy {
   ModemInputs rx_device_lines_;  // as the read cursor's last line event left them
   ExchangeCursor rx_exchanges_;  // numbers what the read cursor reads
   std::uint64_t client_flushes_ = 0;  // the client made
-  // Recorded client flushes the client did not make within flush_wait:
-  // counted as made, so that later gates wait only for later flushes.
+  // Recorded client flushes the client did not make within flush_wait, or
+  // wrote past: counted as made, so that later gates wait only for later
+  // flushes.
   std::uint64_t flushes_forgiven_ = 0;
+  void wrote_past_recorded_flushes();
   // When the front record, entitled but for a recorded flush, stops waiting
   // for it (none: no record waits for a flush).
   std::optional<ReplayTime> flush_gate_ends_;
@@ -130,6 +136,10 @@ class SequenceStrategy final : public ReplayStrategy {
   std::size_t tx_position_ = 0;
   ExchangeCursor tx_exchanges_;  // numbers what the write cursor reads
   std::int64_t tx_exchange_ = -1;  // of tx_record_; -1 before the first
+  // Client flushes the write cursor passed; of them, those recorded before
+  // tx_record_.
+  std::uint64_t tx_flushes_seen_ = 0;
+  std::uint64_t tx_record_flushes_before_ = 0;
   std::deque<Record> expected_events_;  // recorded before the next tx record
   bool lines_recorded_ = false;  // the write cursor passed a record of the device's lines
   std::optional<ReplayTime> previous_tx_finished_;

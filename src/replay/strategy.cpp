@@ -61,6 +61,17 @@ void MismatchReport::accepted(std::string_view bytes) {
   }
 }
 
+// The lines every report begins with: what, where, and the bytes before.
+std::string MismatchReport::heading(const std::string& title, std::uint64_t offset,
+                                    std::uint64_t session_t_ns,
+                                    const std::string& exchange_text) const {
+  return "replay mismatch in " + file_ + ": " +
+         (channel_.empty() ? "" : "channel " + channel_ + ": ") + title + "\n" +
+         "  at tx byte offset " + std::to_string(offset) + ", session time " +
+         session_seconds(session_t_ns) + " s, exchange " + exchange_text + "\n" +
+         "  before:   " + hex_ascii(history_) + "\n";
+}
+
 void MismatchReport::raise(const std::string& title, std::uint64_t offset,
                            std::string_view expected, std::string_view actual,
                            std::uint64_t session_t_ns, std::int64_t exchange,
@@ -91,12 +102,8 @@ void MismatchReport::raise_with(const std::string& title, std::uint64_t offset,
                                 const std::string& exchange_text, const std::string& extra,
                                 bool expected_is_datagram) const {
   std::ostringstream report;
-  report << "replay mismatch in " << file_ << ": "
-         << (channel_.empty() ? "" : "channel " + channel_ + ": ") << title << "\n"
-         << "  at tx byte offset " << offset << ", session time "
-         << session_seconds(session_t_ns) << " s, exchange " << exchange_text << "\n";
-  report << "  before:   " << hex_ascii(history_) << "\n"
-         << "  expected: "
+  report << heading(title, offset, session_t_ns, exchange_text);
+  report << "  expected: "
          << (expected.empty() && expected_is_datagram
                  ? std::string("(an empty datagram)")
              : expected.empty() && match_ == ReplayMatch::sequence
@@ -105,6 +112,20 @@ void MismatchReport::raise_with(const std::string& title, std::uint64_t offset,
          << "\n"
          << "  actual:   " << hex_ascii(actual) << "\n"
          << extra;
+  throw ReplayMismatch(report.str(), offset, session_t_ns, exchange);
+}
+
+void MismatchReport::raise_event(const std::string& title, std::uint64_t offset,
+                                 std::uint64_t session_t_ns, std::int64_t exchange,
+                                 const std::string& event_lines,
+                                 std::string_view writes_next) const {
+  std::ostringstream report;
+  report << heading(title, offset, session_t_ns,
+                    exchange >= 0 ? std::to_string(exchange) : std::string("-"));
+  report << event_lines << "  recorded writes that follow: "
+         << (writes_next.empty() ? std::string("(none: the recorded writes end here)")
+                                 : hex_ascii(writes_next))
+         << "\n";
   throw ReplayMismatch(report.str(), offset, session_t_ns, exchange);
 }
 

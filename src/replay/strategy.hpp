@@ -126,6 +126,14 @@ class MismatchReport {
   [[noreturn]] void raise_past_the_end(std::uint64_t offset, std::string_view actual,
                                        std::uint64_t session_t_ns, std::uint64_t first,
                                        std::int64_t last, std::string_view whose = {}) const;
+  // A client event (settings, a line change, a break) that differs from the
+  // recording: `event_lines` name the expected and the actual event, and
+  // `writes_next` are the recorded writes that follow at that point (empty:
+  // the recorded writes end there).
+  [[noreturn]] void raise_event(const std::string& title, std::uint64_t offset,
+                                std::uint64_t session_t_ns, std::int64_t exchange,
+                                const std::string& event_lines,
+                                std::string_view writes_next) const;
 
  private:
   [[noreturn]] void raise_with(const std::string& title, std::uint64_t offset,
@@ -133,6 +141,8 @@ class MismatchReport {
                                std::uint64_t session_t_ns, std::int64_t exchange,
                                const std::string& exchange_text, const std::string& extra,
                                bool expected_is_datagram) const;
+  std::string heading(const std::string& title, std::uint64_t offset,
+                      std::uint64_t session_t_ns, const std::string& exchange_text) const;
 
   std::string file_;
   ReplayMatch match_;

@@ -252,6 +252,28 @@ TEST(ReplayLines, AWrongLevelIsAMismatchWithBothLevels) {
   expect_contains(report, "actual line change:   DTR high");
 }
 
+// Issue 37: a client that skips its reset pulse and sends a break is told
+// the event expected there, its own, and the recorded writes that follow
+// (not that the recorded writes end there).
+TEST(ReplayLines, ALineMismatchNamesBothEventsAndTheRecordedWritesThatFollow) {
+  auto port = replay(reset_session(), "timing=none,unused=ignore");
+  const std::string report = mismatch_of([&] { port->send_break(250ms); });
+  expect_contains(report, "the client made a break; the recording has DTR low");
+  expect_contains(report, "at tx byte offset 0, session time 0.001000 s");
+  expect_contains(report, "expected line change: DTR low");
+  expect_contains(report, "actual line change:   a break");
+  expect_contains(report, "recorded writes that follow: 50 49 4e 47 0a  |PING.|");
+  EXPECT_EQ(report.find("end here"), std::string::npos) << report;
+}
+
+TEST(ReplayLines, AnExtraChangeAfterTheLastWriteSaysTheRecordedWritesEnd) {
+  auto port = replay(reset_session(), "timing=none,unused=ignore");
+  reset_and_talk(*port);
+  const std::string report = mismatch_of([&] { port->set_dtr(false); });
+  expect_contains(report, "the client made DTR low where the recording has none");
+  expect_contains(report, "recorded writes that follow: (none: the recorded writes end here)");
+}
+
 TEST(ReplayLines, AnotherLineIsAMismatch) {
   auto port = replay(reset_session(), "timing=none,unused=ignore");
   const std::string report = mismatch_of([&] { port->set_rts(false); });

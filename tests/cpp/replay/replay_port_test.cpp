@@ -57,6 +57,31 @@ TEST(ReplaySequence, UdpSessionFileReplaysAsDatagrams) {
   EXPECT_EQ(read_some(*port), "two");
 }
 
+// Issue 37: the replay starts with the line the recorded device opened
+// with, so that a virtual device tells the client's settings changes from
+// it as the proxy that recorded them did (a client setting the rate the
+// device had is no change, in the recording or in the replay).
+TEST(ReplaySettings, TheReplayStartsWithTheRecordedPortsLineSettings) {
+  TempDir dir;
+  const std::string path = dir.file("fast.wtape");
+  SessionHeader header;
+  header.port_type = "serial";
+  header.port_options = "type=serial,device=/dev/ttyUSB0,baud=115200,parity=even,stopbits=2";
+  SessionWriter writer(path, header);
+  writer.write(rx(ms(1), "HI"));
+  writer.close();
+  auto port = open_port("type=replay,timing=none,unused=ignore,file=" + path);
+  const SerialSettings settings = port->serial_settings();
+  EXPECT_EQ(settings.baud, 115200u);
+  EXPECT_EQ(settings.parity, Parity::even);
+  EXPECT_EQ(settings.stop_bits, 2);
+  EXPECT_EQ(settings.data_bits, 8);  // a serial port's default where they say none
+  // A recorded port without line settings: a serial port's defaults.
+  EXPECT_EQ(open_port("type=replay,unused=ignore,file=" + write_session(dir, {rx(0, "x")}))
+                ->serial_settings(),
+            SerialSettings{});
+}
+
 TEST(ReplayEnd, AfterTheLastRecordReadsTimeOutLikeASilentDevice) {
   auto port = replay({rx(0, "only")});
   EXPECT_EQ(read_some(*port), "only");

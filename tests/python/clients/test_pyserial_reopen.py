@@ -2,7 +2,8 @@
 reopens at once is two client sessions, when recording and when replaying
 (the issue's repro: `s=serial.Serial(p); s.close(); s=serial.Serial(p);
 s.write(b"PING\\n")`); and rx gated on recorded flushes is served to a
-client that flushed fewer times than recorded, within flush_wait."""
+client that flushed fewer times than recorded, within flush_wait, and at
+once when it writes past the recorded flushes (issue 37)."""
 
 import socket
 import sys
@@ -148,3 +149,52 @@ def test_a_client_that_flushed_fewer_times_than_recorded_is_served_everything(tm
         assert handle.wait(DEADLINE)
     assert got == b"$A$B$C"
     assert handle.result().ok, handle.result()
+
+
+# A motor-controller SDK's status request (Dynamixel protocol 2.0 ping: 10 bytes).
+SDK_PING = bytes.fromhex("fffffd0001030001194e")
+SDK_STATUS = bytes.fromhex("fffffd0001070055000604265d")
+
+
+def open_set_baud_and_ping(path, read_timeout):
+    """openPort() then setBaudRate() (which closes and reopens the port: the
+    reopen flushes once), then one ping and its status packet."""
+    port = serial.Serial(path, timeout=read_timeout)
+    port.close()
+    port = serial.Serial(path, 57600, timeout=read_timeout)
+    try:
+        port.write(SDK_PING)
+        return port.read(len(SDK_STATUS))
+    finally:
+        port.close()
+
+
+@linux_only
+@pytest.mark.parametrize("flush_wait", [None, 600_000], ids=["default", "ten_minutes"])
+def test_an_sdk_that_flushed_once_of_two_recorded_flushes_is_answered_at_its_ping(
+        tmp_path, flush_wait):
+    # Issue 37: the recording shows two flushes before the ping (the SDK's
+    # number of flushes depends on timing); the client makes one. Once it
+    # has written the ping, past the place of the recorded flushes, they can
+    # no longer come, and the status packet they held is due at once: not
+    # flush_wait later, so a flush_wait of ten minutes still answers it
+    # within the client's read timeout.
+    recording = write_recording(tmp_path / "sdk.wtape", [
+        ("client_connect", PTY_CLIENT), ("flush_input", b"{}"),
+        ("client_disconnect", PTY_CLIENT),
+        ("client_connect", PTY_CLIENT), ("flush_input", b"{}"), ("flush_input", b"{}"),
+        ("tx", SDK_PING), ("rx", SDK_STATUS), ("client_disconnect", PTY_CLIENT)])
+    options = [("timing", "none")]
+    if flush_wait is not None:
+        options.append(("flush_wait", flush_wait))
+    link = str(tmp_path / "ttySdk")
+    handle = bridge.serve_replay(recording, pty=link,
+                                 replay_options=_core.option_string(options), quiet=True)
+    try:
+        assert open_set_baud_and_ping(link, read_timeout=DEADLINE) == SDK_STATUS
+    finally:
+        handle.stop()
+        assert handle.wait(DEADLINE)
+    result = handle.result()
+    assert result.ok, result
+    assert not result.nothing_served, result

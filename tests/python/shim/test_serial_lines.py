@@ -136,26 +136,14 @@ def test_replay_passes_the_reset(tmp_path, reset_board):
     assert replayed.stdout == "cts=1 dtr=1\nread: PONG\n"
 
 
-def without_settings(recording, path):
-    """`recording` without its settings events: a replayed pty's settings are
-    applied nowhere (replay --pty), so no replay can check them."""
-    with _core.SessionReader(str(recording)) as reader, \
-            wiretape.SessionWriter(str(path), capture="wire", port_type="serial",
-                                   port_options="type=serial,device=/dev/ttyUSB0") as writer:
-        for record in reader:
-            if record.kind != "settings":
-                writer.write(record.kind, record.t_ns, bytes(record.data))
-    return str(path)
-
-
 def test_a_replay_checking_events_names_the_missing_pulse_where_it_was(tmp_path,
                                                                       reset_board):
-    """Under check=timing (which checks recorded events today) the pulse is
-    checked in its place: after HELLO, before SYNC."""
+    """Under check=timing every recorded event is checked in its place: the
+    custom baud before HELLO (the replay is given the client's terminal
+    settings, issue 37), the pulse after HELLO, before SYNC."""
     _, recording = record_the_reset(tmp_path, reset_board)
-    checked = without_settings(recording, tmp_path / "lines.wtape")
-    # A tolerance no loaded machine misses: the lines are checked, not the clock.
-    arguments = ("replay", checked, "--check", "timing", "--tolerance", "60000",
+    # A tolerance no loaded machine misses: the events are checked, not the clock.
+    arguments = ("replay", str(recording), "--check", "timing", "--tolerance", "60000",
                  "--as", HARD_CODED, "-q", "--", reset_board)
     replayed = wiretape_cli(*arguments)
     assert replayed.returncode == 0, replayed.stderr
@@ -173,6 +161,71 @@ def test_the_default_replay_names_a_missing_pulse(tmp_path, reset_board):
     assert omitted.returncode in (1, 4), omitted.stdout + omitted.stderr
     assert "the recording has DTR low before these bytes" in omitted.stderr, omitted.stderr
     assert "at tx byte offset 6" in omitted.stderr, omitted.stderr
+
+
+FLASHER = textwrap.dedent("""
+    import sys, time
+    import serial
+
+    # A flashing tool's reset (esptool's): 115200, EN low with IO0 high, then
+    # released; its first command once the board is up.
+    port = serial.Serial("/dev/ttyUSB0", 115200, timeout=30)
+    if "--write-first" in sys.argv:
+        port.write(b"SYNC\\n")
+    if "--rts-first" in sys.argv:
+        port.rts = False
+    port.dtr = False
+    port.rts = True
+    time.sleep(0.1)
+    port.dtr = True
+    port.rts = False
+    time.sleep(0.05)
+    port.dtr = False
+    if "--write-first" not in sys.argv:
+        port.write(b"SYNC\\n")
+    print("read: " + port.readline().decode(), end="")
+""")
+
+
+def test_check_timing_passes_the_command_that_made_the_recording(tmp_path):
+    """Issue 37: `record --as PATH -- CMD` records the client's 115200 and
+    its DTR/RTS reset; `replay --check timing --as PATH -- CMD` of the same
+    command passes (its settings are matched in order with its lines and
+    bytes), and the same calls in another order fail, naming both events."""
+    ms = 1_000_000
+    device = tmp_path / "board.wtape"
+    with wiretape.SessionWriter(str(device), capture="wire", port_type="serial",
+                                port_options="type=serial,device=/dev/ttyUSB0") as writer:
+        writer.write("open", 0, b"{}")
+        writer.write("tx", 1 * ms, b"SYNC\n")
+        writer.write("rx", 2 * ms, b"OK\n")
+        writer.write("close", 3 * ms, b"{}")
+    script = tmp_path / "flasher.py"
+    script.write_text(FLASHER)
+    recording = tmp_path / "flash.wtape"
+    done = wiretape_cli("record", "--device", f"type=replay,file={device}", "--as", HARD_CODED,
+                        "-o", str(recording), "-q", "--", sys.executable, str(script))
+    assert done.returncode == 0, done.stderr
+    events = [(kind, what) for kind, what in timeline(recording) if kind != "rx"]
+    assert events[0][0] == "settings" and events[0][1]["baud"] == 115200, events
+    assert events[1:] == [("modem_lines", {"dtr": False}), ("modem_lines", {"dtr": True}),
+                          ("modem_lines", {"rts": False}), ("modem_lines", {"dtr": False}),
+                          ("tx", b"SYNC\n")], events
+    # A tolerance no loaded machine misses: the events are checked, not the clock.
+    replay = ("replay", str(recording), "--check", "timing", "--tolerance", "60000",
+              "--as", HARD_CODED, "-q", "--", sys.executable, str(script))
+    replayed = wiretape_cli(*replay)
+    assert replayed.returncode == 0, replayed.stderr
+    assert replayed.stdout == "read: OK\n"
+    assert wiretape_cli("replay", str(recording), "--as", HARD_CODED, "-q", "--",
+                        sys.executable, str(script)).returncode == 0
+    # 1, or the program's own failure when it sees the replay end first.
+    reordered = wiretape_cli(*replay, "--rts-first")
+    assert reordered.returncode != 0, reordered.stdout + reordered.stderr
+    assert "the client made RTS low; the recording has DTR low" in reordered.stderr
+    written_early = wiretape_cli(*replay, "--write-first")
+    assert written_early.returncode != 0, written_early.stdout + written_early.stderr
+    assert "the recording has DTR low before these bytes" in written_early.stderr
 
 
 PYSERIAL_CLIENT = textwrap.dedent("""
