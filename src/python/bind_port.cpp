@@ -16,14 +16,13 @@
 
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/pair.h>
-#include <nanobind/stl/string.h>
-#include <nanobind/stl/string_view.h>
 #include <nanobind/stl/unique_ptr.h>
 #include <nanobind/stl/vector.h>
 
 #include "replay/replay_port.hpp"
 
 #include "python/bindings.hpp"
+#include "python/text_caster.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/options.hpp"
 #include "open/open_port.hpp"
