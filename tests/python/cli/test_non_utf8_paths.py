@@ -96,3 +96,17 @@ def test_record_writes_it(folder):
     assert result.returncode == 0, text(result)
     with wiretape.SessionReader(output) as reader:
         assert reader.header.port_type == "loopback"
+
+
+@pytest.mark.parametrize("command", ["show", "verify", "stats"])
+def test_its_name_prints_with_the_bytes_escaped_on_a_strict_terminal(session, command):
+    """A UTF-8 locale's strict stdout cannot print the name as Python holds
+    it: the command prints those bytes as \\xNN instead of failing."""
+    env = dict(os.environ, PYTHONIOENCODING="utf-8:strict")
+    result = subprocess.run([*WIRETAPE, command, session], capture_output=True, timeout=120,
+                            env=env)
+    assert result.returncode == 0, text(result)
+    assert b"n\\xff.wtape" in result.stdout
+    missing = subprocess.run([*WIRETAPE, command, session + b".gone"], capture_output=True,
+                             timeout=120, env=env)
+    assert missing.returncode == 3 and b"n\\xff.wtape.gone" in missing.stderr, text(missing)
