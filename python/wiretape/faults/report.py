@@ -280,21 +280,28 @@ def _run_member(item: object, where: str) -> Run:
                repro=repro, case=_count_member(item, "case", where, 0))
 
 
+def _is_kinds_item(text: object) -> bool:
+    """An item of --kinds: a kind (delay, corrupt:4) or a fault at a place
+    (drop@rx:100), as the replay's parser reads them."""
+    if not isinstance(text, str):
+        return False
+    try:
+        if "@" in text:
+            _core.parse_faults(text)
+        elif text not in KIND_NAMES:
+            _core.normal_fault_kind(text)
+    except _core.OptionError:
+        return False
+    return True
+
+
 def _kinds_member(document: Dict[str, object], path: str) -> Optional[List[str]]:
-    """``kinds``: null (all), or --kinds's items, each a kind (delay,
-    corrupt:4) or a fault at a place (drop@rx:100)."""
+    """``kinds``: null (all), or --kinds's items."""
     kinds = _member(document, "kinds", (list, type(None)), path)
     for number, text in enumerate(kinds or []):
-        try:
-            if not isinstance(text, str):
-                raise _core.OptionError("not text")
-            if "@" in text:
-                _core.parse_faults(text)
-            elif text not in KIND_NAMES:
-                _core.normal_fault_kind(text)
-        except _core.OptionError:
+        if not _is_kinds_item(text):
             raise _refused(path, f"kinds[{number}]", text, "not a fault kind (KIND or "
-                           "KIND@WHERE, as --kinds takes them)") from None
+                           "KIND@WHERE, as --kinds takes them)")
     return kinds
 
 
