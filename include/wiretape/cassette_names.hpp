@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <string>
 #include <string_view>
+#include <system_error>
 #include <vector>
 
 #include "wiretape/options.hpp"
@@ -148,6 +149,49 @@ inline std::string default_cassette_path(std::string_view source_file, std::stri
       .string();
 }
 
+// The file a cassette path stands for: the path itself, or through a
+// symbolic link (a chain of them, a dangling one too) the file the last
+// link names, so that a cassette kept behind a link is written where the
+// link points and the link stays, as the exports write through links.
+inline std::filesystem::path cassette_target(const std::filesystem::path& cassette) {
+  std::filesystem::path target = cassette;
+  std::error_code error;
+  for (int hops = 0; hops < 40; ++hops) {  // 40: the kernel's own bound on a chain
+    if (!std::filesystem::is_symlink(std::filesystem::symlink_status(target, error))) break;
+    const std::filesystem::path next = std::filesystem::read_symlink(target, error);
+    if (error) break;
+    target = next.is_absolute() ? next : target.parent_path() / next;
+  }
+  return target;
+}
+
+namespace detail {
+
+// Renames `from` to `to`; where they are on different file systems (a link
+// to a cassette store elsewhere), copies to a file beside `to` and renames
+// that, so that `to` is never half written.
+inline void move_recording(const std::filesystem::path& from, const std::filesystem::path& to) {
+  std::error_code error;
+  std::filesystem::rename(from, to, error);
+  if (!error) return;
+  if (error != std::errc::cross_device_link) {
+    throw std::filesystem::filesystem_error("cannot move the recording to its cassette", from,
+                                            to, error);
+  }
+  const std::filesystem::path beside = to.string() + ".partial";
+  std::error_code ignored;
+  try {
+    std::filesystem::copy_file(from, beside, std::filesystem::copy_options::overwrite_existing);
+    std::filesystem::rename(beside, to);
+  } catch (...) {
+    std::filesystem::remove(beside, ignored);
+    throw;
+  }
+  std::filesystem::remove(from, ignored);
+}
+
+}  // namespace detail
+
 // Moves a finished recording (recorded to the temporary file `recording`,
 // e.g. "<cassette>.recording-4242") to `cassette`, so that the cassette says
 // nothing of the machine or the run that recorded it: the port option
@@ -157,9 +201,11 @@ inline std::string default_cassette_path(std::string_view source_file, std::stri
 // (records, times, host, metadata) is kept. A recording that is damaged (a
 // failed write) or names no temporary file is moved as it is, so that
 // nothing it holds is lost. Throws PortError/SessionError when the files
-// cannot be read or written.
+// cannot be read or written. A cassette that is a symbolic link is
+// written through it (cassette_target), its header naming the link's name.
 inline void publish_recording(const std::string& recording, const std::string& cassette) {
   const std::string cassette_name = std::filesystem::path(cassette).filename().string();
+  const std::filesystem::path target = cassette_target(cassette);
   const std::string quoted_recording = quote_option_value(recording);
   const auto replace_all = [](std::string text, const std::string& from, const std::string& to) {
     for (std::size_t at = text.find(from); at != std::string::npos;
@@ -198,14 +244,14 @@ inline void publish_recording(const std::string& recording, const std::string& c
         throw;
       }
       if (whole) {
-        std::filesystem::rename(rewritten, cassette);
+        detail::move_recording(rewritten, target);
         std::filesystem::remove(recording, ignored);
         return;
       }
       std::filesystem::remove(rewritten, ignored);
     }
   }
-  std::filesystem::rename(recording, cassette);
+  detail::move_recording(recording, target);
 }
 
 }  // namespace wiretape::testing

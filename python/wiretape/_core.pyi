@@ -190,6 +190,11 @@ def check_replay_options(options: str) -> None:
     Checks a replay's option string ('type=replay,file=...,timing=none') as open_port() would, opening nothing, not even the session file. Raises OptionError naming the key.
     """
 
+def replay_speed_applies(options: str) -> bool:
+    """
+    Whether a replay of these keys has something for speed= to scale: a clock (timing=session or causal) or an injected wait (delay, stall, trickle, reconnect). open_port() refuses speed= where it has not.
+    """
+
 def quote_option_value(value: str) -> str:
     """
     A value as it is written in an option string: as is, or in double quotes with \\" and \\\\ escaped when it is empty or holds a separator, '=', '"' or '\\\\'.

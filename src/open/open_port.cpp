@@ -78,6 +78,27 @@ bool clocked(const Options& options) {
   return !value_is(options, "timing", "none") && !is_true(options, "ignoretimes");
 }
 
+// The fault kinds whose waits speed= divides in every timing mode
+// (docs/faults.md): a delay, a stall, a trickle's gaps, a reconnect's loss.
+bool waits(detail::FaultKind kind) {
+  using detail::FaultKind;
+  return kind == FaultKind::delay || kind == FaultKind::stall || kind == FaultKind::trickle ||
+         kind == FaultKind::reconnect;
+}
+
+bool speed_scales(const Options& options) {
+  if (clocked(options)) return true;
+  const auto faults = options.peek("faults");
+  if (!faults) return false;
+  try {
+    const detail::FaultPlan plan = detail::parse_faults(*faults, 0);
+    return std::any_of(plan.faults.begin(), plan.faults.end(),
+                       [](const detail::FaultSpec& fault) { return waits(fault.kind); });
+  } catch (const OptionError&) {
+    return true;  // the plan's own error is the one to report, when it is read
+  }
+}
+
 constexpr KeyDependency key_dependencies[] = {
     {"flush_ms", false, "", "log=FILE (it tunes the recording)", recorded},
     {"fsync", false, "", "log=FILE (it tunes the recording)", recorded},
@@ -88,7 +109,10 @@ constexpr KeyDependency key_dependencies[] = {
     {"gap", false, "replay", "match=request", request_matching},
     {"tolerance", false, "replay", "check=timing", timing_checked},
     {"jitter", false, "replay", "check=timing (or strictness=2)", timing_checked},
-    {"speed", false, "replay", "a clock: timing=session or timing=causal", clocked},
+    {"speed", false, "replay",
+     "a clock (timing=session or timing=causal) or an injected wait (faults= delay, stall, "
+     "trickle or reconnect): with timing=none it scales nothing",
+     speed_scales},
     {"seed", false, "replay", "faults=KIND@WHERE (it seeds their random choices)", faulty},
 };
 
@@ -217,6 +241,10 @@ std::unique_ptr<Port> open_port(Options options) {
 }
 
 namespace detail {
+
+bool replay_speed_applies(std::string_view text) {
+  return speed_scales(Options::parse(text));
+}
 
 void check_replay_options(std::string_view text) {
   Options options = Options::parse(text);

@@ -20,4 +20,11 @@ namespace wiretape::detail {
 // (the CLI's replay, before it listens or makes a pty).
 void check_replay_options(std::string_view options);
 
+// Whether the replay key speed= has anything to scale in a replay of these
+// keys: its clock (timing=session|causal) or the waits of its injected
+// faults (delay, stall, trickle, reconnect). The rule open_port() refuses
+// a useless speed= by; `wiretape replay --speed K -- CMD` asks it whether
+// K goes to the replay too, or to CMD's clock alone.
+bool replay_speed_applies(std::string_view options);
+
 }  // namespace wiretape::detail

@@ -14,10 +14,10 @@
 #include <nanobind/stl/map.h>
 #include <nanobind/stl/pair.h>
 #include <nanobind/stl/shared_ptr.h>
-#include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
 #include "python/bindings.hpp"
+#include "python/text_caster.hpp"
 #include "wiretape/bridge.hpp"
 #include "wiretape/errors.hpp"
 

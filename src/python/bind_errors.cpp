@@ -8,9 +8,9 @@
 #include <string>
 
 #include <nanobind/eval.h>
-#include <nanobind/stl/string.h>
 
 #include "python/bindings.hpp"
+#include "python/text_caster.hpp"
 #include "wiretape/errors.hpp"
 
 namespace nb = nanobind;

@@ -8,11 +8,11 @@
 
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/optional.h>
-#include <nanobind/stl/string.h>
 #include <nanobind/stl/vector.h>
 
 #include "open/port_types.hpp"
 #include "python/bindings.hpp"
+#include "python/text_caster.hpp"
 #include "replay/exchanges.hpp"
 #include "replay/profile.hpp"
 #include "replay/replay_port.hpp"

@@ -6,12 +6,11 @@
 #include <vector>
 
 #include <nanobind/stl/optional.h>
-#include <nanobind/stl/string.h>
-#include <nanobind/stl/string_view.h>
 #include <nanobind/stl/vector.h>
 
 #include "open/port_types.hpp"
 #include "python/bindings.hpp"
+#include "python/text_caster.hpp"
 #include "replay/exchanges.hpp"
 #include "replay/faults.hpp"
 #include "wiretape/options.hpp"

@@ -9,12 +9,11 @@
 
 #include <nanobind/stl/map.h>
 #include <nanobind/stl/optional.h>
-#include <nanobind/stl/string.h>
-#include <nanobind/stl/string_view.h>
 #include <nanobind/stl/vector.h>
 
 #include "posix/device_identity.hpp"
 #include "python/bindings.hpp"
+#include "python/text_caster.hpp"
 #include "python/session_members.hpp"
 #include "session/format.hpp"
 #include "session/header.hpp"

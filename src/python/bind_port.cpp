@@ -16,14 +16,13 @@
 
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/pair.h>
-#include <nanobind/stl/string.h>
-#include <nanobind/stl/string_view.h>
 #include <nanobind/stl/unique_ptr.h>
 #include <nanobind/stl/vector.h>
 
 #include "replay/replay_port.hpp"
 
 #include "python/bindings.hpp"
+#include "python/text_caster.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/options.hpp"
 #include "open/open_port.hpp"
@@ -639,6 +638,12 @@ void bind_port(nb::module_& m) {
         "Checks a replay's option string ('type=replay,file=...,timing=none') as "
         "open_port() would, opening nothing, not even the session file. Raises "
         "OptionError naming the key.");
+  m.def("replay_speed_applies",
+        [](const std::string& options) { return detail::replay_speed_applies(options); },
+        "options"_a,
+        "Whether a replay of these keys has something for speed= to scale: a clock "
+        "(timing=session or causal) or an injected wait (delay, stall, trickle, "
+        "reconnect). open_port() refuses speed= where it has not.");
 
   m.def("quote_option_value",
         [](std::string_view value) { return quote_option_value(value); }, "value"_a,

@@ -12,12 +12,11 @@
 
 #include <nanobind/stl/optional.h>
 #include <nanobind/stl/pair.h>
-#include <nanobind/stl/string.h>
-#include <nanobind/stl/string_view.h>
 #include <nanobind/stl/unique_ptr.h>
 #include <nanobind/stl/vector.h>
 
 #include "python/bindings.hpp"
+#include "python/text_caster.hpp"
 #include "replay/profile.hpp"
 #include "replay/profiles/declared.hpp"
 #include "wiretape/errors.hpp"

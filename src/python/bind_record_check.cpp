@@ -10,9 +10,9 @@
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/map.h>
 #include <nanobind/stl/optional.h>
-#include <nanobind/stl/string.h>
 
 #include "python/bindings.hpp"
+#include "python/text_caster.hpp"
 #include "session/reader.hpp"
 #include "wiretape/session.hpp"
 

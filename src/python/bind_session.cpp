@@ -14,11 +14,10 @@
 #include <nanobind/stl/unique_ptr.h>
 #include <nanobind/stl/vector.h>
 #include <nanobind/stl/optional.h>
-#include <nanobind/stl/string.h>
-#include <nanobind/stl/string_view.h>
 
 #include "posix/file_checks.hpp"
 #include "python/bindings.hpp"
+#include "python/text_caster.hpp"
 #include "python/session_members.hpp"
 #include "session/flexiport.hpp"
 #include "session/format.hpp"

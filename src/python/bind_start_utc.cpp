@@ -7,10 +7,9 @@
 
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/optional.h>
-#include <nanobind/stl/string.h>
-#include <nanobind/stl/string_view.h>
 
 #include "python/bindings.hpp"
+#include "python/text_caster.hpp"
 #include "session/header.hpp"
 
 namespace nb = nanobind;

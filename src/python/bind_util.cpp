@@ -3,9 +3,8 @@
 #include <string>
 #include <string_view>
 
-#include <nanobind/stl/string.h>
-
 #include "python/bindings.hpp"
+#include "python/text_caster.hpp"
 #include "util/hex.hpp"
 
 namespace nb = nanobind;

@@ -207,7 +207,15 @@ def replay_options_of(args) -> str:
         pairs.append(("faults", ";".join(faults)))
     elif getattr(args, "seed", None) is not None:
         raise UsageError("--seed seeds the random choices of --fault: give --fault too")
-    return join_options(option_string(pairs), profile_keys, args.options or "")
+    given = args.options or ""
+    if getattr(args, "command_argv", None) and getattr(args, "speed", None) is not None:
+        # --speed K -- CMD scales CMD's clock; the replay's speed= too where
+        # the replay has something to scale (its clock, injected waits).
+        without = join_options(option_string([p for p in pairs if p[0] != "speed"]),
+                               profile_keys, given)
+        if not _core.replay_speed_applies(without):
+            return without
+    return join_options(option_string(pairs), profile_keys, given)
 
 
 def check_fault_places(args) -> None:

@@ -3,11 +3,60 @@ terminal), and a failure as one line naming the problem."""
 
 from __future__ import annotations
 
+import codecs
+import contextlib
+import io
 import os
 import sys
-from typing import Optional, Sequence
+from typing import Iterator, Optional, Sequence
 
 from .errors import CheckFailed, RuntimeFailure, UsageError
+
+#: The error handler with which the command line prints text that its
+#: stream's encoding cannot hold (undecodable_text_escaped).
+UNDECODABLE = "wiretape.undecodable"
+
+
+def _undecodable_as_escapes(error: UnicodeError):
+    """Lone surrogates, by which Python holds the bytes of a name that are
+    not UTF-8 (a path such as b"n\\xff.wtape", PEP 383), as ``\\xNN``, as
+    C++'s messages show such bytes; any other character the stream cannot
+    encode as ``\\uNNNN``."""
+    if not isinstance(error, UnicodeEncodeError):
+        raise error
+    text = error.object[error.start:error.end]
+    return "".join(f"\\x{ord(char) - 0xDC00:02x}" if 0xDC80 <= ord(char) <= 0xDCFF
+                   else f"\\u{ord(char):04x}" for char in text), error.end
+
+
+codecs.register_error(UNDECODABLE, _undecodable_as_escapes)
+
+
+@contextlib.contextmanager
+def undecodable_text_escaped() -> Iterator[None]:
+    """While a command runs, stdout and stderr print a path that is not
+    UTF-8 with those bytes as \\xNN, where a strict stream (a UTF-8 locale)
+    would fail the command and a C locale's would send the raw bytes to the
+    terminal; their error handlers are restored after."""
+    saved = []
+    for stream in (sys.stdout, sys.stderr):
+        errors = getattr(stream, "errors", None)
+        reconfigure = getattr(stream, "reconfigure", None)
+        if errors is None or reconfigure is None:
+            continue
+        try:
+            reconfigure(errors=UNDECODABLE)
+        except (ValueError, io.UnsupportedOperation):
+            continue
+        saved.append((stream, errors))
+    try:
+        yield
+    finally:
+        for stream, errors in saved:
+            try:
+                stream.reconfigure(errors=errors)
+            except (ValueError, io.UnsupportedOperation):
+                pass
 
 
 def describe(error: BaseException) -> str:

@@ -11,13 +11,18 @@ import signal
 import sys
 from typing import Optional, Sequence
 
-from .console import Output, describe, silence_stdout
+from .console import Output, describe, silence_stdout, undecodable_text_escaped
 from .errors import EXIT_OK, EXIT_USAGE, Interrupted, exit_code_for, exit_for_signal
 from .parser import ParserError, ParserExit, build_parser, split_command
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Runs the command line; returns the exit code."""
+    with undecodable_text_escaped():
+        return _main(argv)
+
+
+def _main(argv: Optional[Sequence[str]]) -> int:
     out = Output()
     parser = build_parser()
     own_arguments, command_argv = split_command(sys.argv[1:] if argv is None else argv)

@@ -164,7 +164,7 @@ def cmd_faults_merge(args, out: Output) -> int:
     if args.json:
         refuse_same_file(args.files, [args.json])
     try:
-        result = faults.merge(args.files)
+        result = faults.merge(args.files, note=lambda text: out.note(f"faults merge: {text}"))
     except faults.FaultInputError as error:
         raise UsageError(str(error)) from None
     _report_campaign(result, args.json, out)
@@ -174,9 +174,10 @@ def cmd_faults_merge(args, out: Output) -> int:
 def _report_campaign(result, json_path: Optional[str], out: Output) -> None:
     from .. import faults
 
+    table = faults.table(result)  # what it cannot show is refused before anything is written
     if json_path:
         faults.write_json(result, json_path)
-    out.print(faults.table(result))
+    out.print(table)
     for run in result.runs:
         if run.repro:
             out.print(f"{run.outcome} {run.kind}@{run.where}: {run.repro}")

@@ -19,7 +19,10 @@ pcapng (open with Wireshark or ``tshark -r``):
   * each packet also carries the pcapng direction flag (inbound for rx,
     outbound for tx) and, for events, a comment;
   * timestamps in nanoseconds (``if_tsresol`` = 9); the section header's
-    comment holds the session header (JSON).
+    comment holds the session header (JSON): a header longer than one
+    option holds (64 KiB) is cut at character boundaries into several
+    comments, in order, which joined are the JSON (Wireshark lists them
+    all); an interface description that long is cut, ending in an ellipsis.
 
 mcap (open with Foxglove):
   * topics ``/wiretape/rx``, ``/wiretape/tx`` and ``/wiretape/events``;

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import json
 import struct
-from typing import Any, Dict, Iterable, Optional, Tuple
+from typing import Any, Dict, Iterable, List, Optional, Tuple
 
 from .._core import __version__
 from ..session import (SessionPath, header_fields, open_session, raise_damage,
@@ -53,12 +53,49 @@ _RX_INTERFACE, _TX_INTERFACE, _EVENT_INTERFACE = 0, 1, 2
 
 
 
+#: The longest value of one option: its length is 16 bits.
+_OPTION_MAX = 0xFFFF
+
+
 def _pad4(data: bytes) -> bytes:
     return data + b"\0" * (-len(data) % 4)
 
 
 def _option(code: int, value: bytes) -> bytes:
     return struct.pack("<HH", code, len(value)) + _pad4(value)
+
+
+def _utf8_cut(data: bytes, limit: int) -> int:
+    """Where to cut UTF-8 `data` at or before `limit`: at a character's start."""
+    cut = min(limit, len(data))
+    while 0 < cut < len(data) and data[cut] & 0xC0 == 0x80:
+        cut -= 1
+    return cut
+
+
+def _text_options(code: int, text: str) -> List[Tuple[int, bytes]]:
+    """A text longer than one option holds, as several options of `code` in
+    order, each cut at a character's start (a comment, which pcapng lets
+    repeat: the section's comments, joined, are the header JSON)."""
+    data = text.encode("utf-8")
+    pieces = []
+    while True:
+        cut = _utf8_cut(data, _OPTION_MAX)
+        pieces.append((code, data[:cut]))
+        data = data[cut:]
+        if not data:
+            return pieces
+
+
+def _one_text_option(code: int, text: str) -> Tuple[int, bytes]:
+    """A text option that cannot repeat (an interface's name, its
+    description): cut to what one option holds, ending in an ellipsis
+    (the header JSON in the section's comments holds it whole)."""
+    data = text.encode("utf-8")
+    if len(data) <= _OPTION_MAX:
+        return code, data
+    ellipsis = "\u2026".encode("utf-8")
+    return code, data[:_utf8_cut(data, _OPTION_MAX - len(ellipsis))] + ellipsis
 
 
 def _options(options: Iterable[Tuple[int, bytes]]) -> bytes:
@@ -73,24 +110,16 @@ def _block(block_type: int, body: bytes) -> bytes:
 
 def _section_header(comment: str) -> bytes:
     body = struct.pack("<IHHq", _BYTE_ORDER_MAGIC, 1, 0, -1)
-    body += _options(
-        [
-            (_OPT_COMMENT, comment.encode("utf-8")),
-            (_SHB_USERAPPL, f"wiretape {__version__}".encode("utf-8")),
-        ]
-    )
+    body += _options(_text_options(_OPT_COMMENT, comment)
+                     + [(_SHB_USERAPPL, f"wiretape {__version__}".encode("utf-8"))])
     return _block(_PCAPNG_SHB, body)
 
 
 def _interface(name: str, description: str, link_type: int = LINKTYPE_USER0) -> bytes:
     body = struct.pack("<HHI", link_type, 0, 0)  # snaplen 0: no limit
-    body += _options(
-        [
-            (_IF_NAME, name.encode("utf-8")),
-            (_IF_DESCRIPTION, description.encode("utf-8")),
-            (_IF_TSRESOL, bytes([9])),
-        ]
-    )
+    body += _options([_one_text_option(_IF_NAME, name),
+                      _one_text_option(_IF_DESCRIPTION, description),
+                      (_IF_TSRESOL, bytes([9]))])
     return _block(_PCAPNG_IDB, body)
 
 

@@ -10,11 +10,12 @@ import math
 import os
 import stat
 import tempfile
-from typing import Dict, List, Optional, Sequence
+from typing import Callable, Dict, List, Optional, Sequence, Tuple
 
 from .. import _core
-from ..session import session_files
-from .cases import OUTCOMES, FaultInputError, Shard
+from ..session import header_text, session_files
+from .cases import (KIND_NAMES, KINDS, OUTCOMES, FaultInputError, Shard, _kind_spec,
+                    all_cases, check_where)
 
 
 @dataclasses.dataclass
@@ -158,7 +159,7 @@ def write_json(result: Campaign, path: str) -> None:
         special = False
     if special:
         with open(path, "w", encoding="utf-8") as output:
-            json.dump(result.as_json(), output, indent=1)
+            json.dump(result.as_json(), output, indent=1, allow_nan=False)
             output.write("\n")
         return
     folder = os.path.dirname(os.path.abspath(path))
@@ -166,7 +167,7 @@ def write_json(result: Campaign, path: str) -> None:
                                          dir=folder)
     try:
         with os.fdopen(handle, "w", encoding="utf-8") as output:
-            json.dump(result.as_json(), output, indent=1)
+            json.dump(result.as_json(), output, indent=1, allow_nan=False)
             output.write("\n")
         umask = os.umask(0o022)
         os.umask(umask)
@@ -184,6 +185,14 @@ def write_json(result: Campaign, path: str) -> None:
 # shards of one campaign, merged
 
 
+def _shown(value: object) -> str:
+    """A value of a file anyone may have written, as a message shows it: its
+    JSON (control characters escaped), cut to 60 characters, and safe on a
+    terminal (header_text)."""
+    text = json.dumps(value)
+    return header_text(text if len(text) <= 60 else text[:57] + "...")
+
+
 def _member(document: Dict[str, object], name: str, types, where: str):
     if name not in document:
         raise FaultInputError(f"{where}: no {name!r}: not the --json of a wiretape faults run "
@@ -192,50 +201,154 @@ def _member(document: Dict[str, object], name: str, types, where: str):
     allowed = types if isinstance(types, tuple) else (types,)
     # A JSON true is a Python bool, which is an int too: not a count.
     if not isinstance(value, allowed) or (isinstance(value, bool) and bool not in allowed):
-        raise FaultInputError(f"{where}: {name!r} is {json.dumps(value)[:60]}: not what a "
+        raise FaultInputError(f"{where}: {name!r} is {_shown(value)}: not what a "
                               "campaign writes")
     return value
 
 
+def _refused(where: str, name: str, value: object, why: str) -> FaultInputError:
+    return FaultInputError(f"{where}: {name!r} is {_shown(value)}: {why}")
+
+
+def _count_member(document: Dict[str, object], name: str, where: str, least: int,
+                  optional: bool = False) -> Optional[int]:
+    """A whole number of at least `least` (or null when `optional`)."""
+    value = _member(document, name, (int, type(None)) if optional else int, where)
+    if value is not None and value < least:
+        raise _refused(where, name, value, f"a campaign writes {least} or more")
+    return value
+
+
+def _kind_member(item: Dict[str, object], where: str) -> str:
+    kind = _member(item, "kind", str, where)
+    try:
+        if _core.normal_fault_kind(kind) == kind:
+            return kind
+    except _core.OptionError:
+        pass
+    raise _refused(where, "kind", kind, "not a fault kind as a campaign writes it "
+                   "(" + ", ".join(KINDS) + ")")
+
+
+def _where_member(item: Dict[str, object], kind: str, where: str) -> str:
+    place = _member(item, "where", str, where)
+    try:
+        parsed = _core.parse_faults(f"{kind}@{place}")
+        if len(parsed) == 1 and parsed[0].where_text == place:
+            return place
+    except _core.OptionError:
+        pass
+    raise _refused(where, "where", place, "not a place as a campaign writes it "
+                   "(exchange:N, rx:N, t:SECONDS, every:K or p:P, @channel:NAME)")
+
+
+# What a run's outcome says of CMD's exit status (run.py sorts them so): a
+# hang has none, ok is 0, an error a status of its own; a crash is a signal
+# (minus its number) or a sanitizer's report, whatever the status.
+_EXITS = {"ok": "0", "error": "a status from 1 to 255", "crash": "a status or minus a signal",
+          "hang": "null (CMD was ended)"}
+_LOWEST_EXIT = -64  # minus the highest signal number (SIGRTMAX)
+
+
+def _exit_fits(outcome: str, status: Optional[int]) -> bool:
+    if outcome == "hang":
+        return status is None
+    if status is None or not _LOWEST_EXIT <= status <= 255:
+        return False
+    return {"ok": status == 0, "error": status > 0}.get(outcome, True)
+
+
+def _run_member(item: object, where: str) -> Run:
+    if not isinstance(item, dict):
+        raise FaultInputError(f"{where}: not an object")
+    outcome = _member(item, "outcome", str, where)
+    if outcome not in OUTCOMES:
+        raise _refused(where, "outcome", outcome, "not one of " + ", ".join(OUTCOMES))
+    status = _member(item, "exit", (int, type(None)), where)
+    if not _exit_fits(outcome, status):
+        raise _refused(where, "exit", status, f"a run whose outcome is {outcome} exited with "
+                       + _EXITS[outcome])
+    seconds = _member(item, "seconds", (int, float), where)
+    if not (math.isfinite(seconds) and seconds >= 0):
+        raise _refused(where, "seconds", seconds, "a run lasts a finite time, 0 or more")
+    repro = _member(item, "repro", str, where)
+    if not repro.isprintable():  # merge prints it as it is, for a shell
+        raise _refused(where, "repro", repro, "a reproduction line is one line of printable "
+                       "text")
+    kind = _kind_member(item, where)
+    return Run(kind, _where_member(item, kind, where), outcome, status, float(seconds),
+               repro=repro, case=_count_member(item, "case", where, 0))
+
+
+def _is_kinds_item(text: object) -> bool:
+    """An item of --kinds: a kind (delay, corrupt:4) or a fault at a place
+    (drop@rx:100), as the replay's parser reads them."""
+    if not isinstance(text, str):
+        return False
+    try:
+        if "@" in text:
+            _core.parse_faults(text)
+        elif text not in KIND_NAMES:
+            _core.normal_fault_kind(text)
+    except _core.OptionError:
+        return False
+    return True
+
+
+def _kinds_member(document: Dict[str, object], path: str) -> Optional[List[str]]:
+    """``kinds``: null (all), or --kinds's items."""
+    kinds = _member(document, "kinds", (list, type(None)), path)
+    for number, text in enumerate(kinds or []):
+        if not _is_kinds_item(text):
+            raise _refused(path, f"kinds[{number}]", text, "not a fault kind (KIND or "
+                           "KIND@WHERE, as --kinds takes them)")
+    return kinds
+
+
 def read_json(path: str) -> Campaign:
     """A campaign's ``--json`` file read back (for ``merge``); FaultInputError
-    names the file and what is wrong in it."""
+    names the file, the member and what is wrong with it, every value
+    escaped for a terminal."""
+    shown_path = header_text(path)
     try:
         with open(path, encoding="utf-8") as stream:
-            document = json.load(stream)
+            document = json.load(stream)  # NaN and Infinity: refused where they stand
+    except RecursionError:
+        raise FaultInputError(f"{shown_path}: not a campaign's JSON: nested too deeply (a "
+                              "campaign's JSON nests 3 levels)") from None
     except (OSError, UnicodeDecodeError, ValueError) as error:
-        raise FaultInputError(f"{path}: not a campaign's JSON: {error}") from None
+        raise FaultInputError(f"{shown_path}: not a campaign's JSON: "
+                              f"{header_text(str(error))}") from None
     if not isinstance(document, dict):
-        raise FaultInputError(f"{path}: not a campaign's JSON: not an object")
-    shard_text = _member(document, "shard", (str, type(None)), path)
-    kinds = _member(document, "kinds", (list, type(None)), path)
-    if kinds is not None and not all(isinstance(kind, str) for kind in kinds):
-        raise FaultInputError(f"{path}: 'kinds' holds something that is not a kind")
-    runs = []
-    for number, item in enumerate(_member(document, "runs", list, path)):
-        where = f"{path}: runs[{number}]"
-        if not isinstance(item, dict):
-            raise FaultInputError(f"{where}: not an object")
-        outcome = _member(item, "outcome", str, where)
-        if outcome not in OUTCOMES:
-            raise FaultInputError(f"{where}: outcome {outcome!r} is not one of "
-                                  + ", ".join(OUTCOMES))
-        runs.append(Run(_member(item, "kind", str, where), _member(item, "where", str, where),
-                        outcome, _member(item, "exit", (int, type(None)), where),
-                        float(_member(item, "seconds", (int, float), where)),
-                        repro=_member(item, "repro", str, where),
-                        case=_member(item, "case", int, where)))
+        raise FaultInputError(f"{shown_path}: not a campaign's JSON: not an object")
+    shard_text = _member(document, "shard", (str, type(None)), shown_path)
+    kinds = _kinds_member(document, shown_path)
+    runs = [_run_member(item, f"{shown_path}: runs[{number}]")
+            for number, item in enumerate(_member(document, "runs", list, shown_path))]
     try:
         shard = Shard.parse(shard_text) if shard_text is not None else None
     except FaultInputError as error:
-        raise FaultInputError(f"{path}: {error}") from None
-    return Campaign(_member(document, "session", str, path), _member(document, "seed", int, path),
-                    runs, interrupted=_member(document, "interrupted", bool, path),
-                    kinds=kinds, budget=_member(document, "budget", (int, type(None)), path),
-                    options=_member(document, "options", str, path),
-                    session_sha256=_member(document, "session_sha256", str, path),
-                    cases=_member(document, "cases", int, path), shard=shard,
-                    planned=len(runs), speed=_speed_member(document, path))
+        raise FaultInputError(f"{shown_path}: {header_text(str(error))}") from None
+    options = _member(document, "options", str, shown_path)
+    try:
+        _core.check_replay_options(_core.option_string(
+            [("type", "replay"), ("file", "x")] + _core.parse_options(options)))
+    except _core.OptionError as error:
+        raise _refused(shown_path, "options", options,
+                       f"not replay keys ({header_text(str(error))})") from None
+    cases = _count_member(document, "cases", shown_path, 1)
+    for number, run in enumerate(runs):
+        if run.case >= cases:
+            raise _refused(f"{shown_path}: runs[{number}]", "case", run.case,
+                           f"past the campaign's {cases} cases")
+    return Campaign(_member(document, "session", str, shown_path),
+                    _count_member(document, "seed", shown_path, 0),
+                    runs, interrupted=_member(document, "interrupted", bool, shown_path),
+                    kinds=kinds, budget=_count_member(document, "budget", shown_path, 1,
+                                                      optional=True),
+                    options=options, session_sha256=_member(document, "session_sha256", str, shown_path),
+                    cases=cases, shard=shard,
+                    planned=len(runs), speed=_speed_member(document, shown_path))
 
 
 def _speed_member(document: Dict[str, object], path: str) -> float:
@@ -243,7 +356,7 @@ def _speed_member(document: Dict[str, object], path: str) -> float:
     value = document.get("speed", 1.0)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
             math.isfinite(value) and value > 0):
-        raise FaultInputError(f"{path}: 'speed' is {json.dumps(value)[:60]}: not what a "
+        raise FaultInputError(f"{path}: 'speed' is {_shown(value)}: not what a "
                               "campaign writes")
     return float(value)
 
@@ -254,42 +367,117 @@ _CAMPAIGN_IDENTITY = (("session_sha256", "SESSION (its bytes differ)"), ("seed",
                       ("speed", "--speed"), ("cases", "the cases (a different wiretape?)"))
 
 
-def merge(paths: Sequence[str]) -> Campaign:
+def merge(paths: Sequence[str], note: Optional[Callable[[str], None]] = None) -> Campaign:
     """One campaign from the ``--json`` of its shards (``--shard K/N``, every
     K once): the runs in the cases' order, as one unsharded run gives them.
     Refuses (FaultInputError) files of different sessions, seeds, kinds,
-    budgets or replay keys, a shard missing or given twice, and an
-    interrupted shard."""
+    budgets or replay keys, a shard missing or given twice, an interrupted
+    shard, a case run twice, a kind the campaign does not inject and, when
+    the session is here (the path a shard names, from the current folder or
+    the shard's own; the same bytes), a run that is not the case of its
+    index: a place past the session's end among them. `note` hears that the
+    session is not here, so the places went unchecked."""
     if not paths:
         raise FaultInputError("give the --json files of every shard")
     shards = [(path, read_json(path)) for path in paths]
     first_path, first = shards[0]
     by_number: Dict[int, str] = {}
     for path, part in shards:
+        shown = header_text(path)
         if part.shard is None:
-            raise FaultInputError(f"{path}: a whole campaign (run without --shard): nothing to "
+            raise FaultInputError(f"{shown}: a whole campaign (run without --shard): nothing to "
                                   "merge")
         if part.interrupted:
-            raise FaultInputError(f"{path}: shard {part.shard} was interrupted after "
+            raise FaultInputError(f"{shown}: shard {part.shard} was interrupted after "
                                   f"{len(part.runs)} runs: run it again")
         for member, flag in _CAMPAIGN_IDENTITY:
             if getattr(part, member) != getattr(first, member):
                 raise FaultInputError(
-                    f"{path}: {member} {json.dumps(getattr(part, member))} but {first_path}: "
-                    f"{json.dumps(getattr(first, member))}: shards of one campaign share {flag}")
+                    f"{shown}: {member} {_shown(getattr(part, member))} but "
+                    f"{header_text(first_path)}: {_shown(getattr(first, member))}: shards of "
+                    f"one campaign share {flag}")
         if part.shard.count != first.shard.count:
-            raise FaultInputError(f"{path}: --shard {part.shard} but {first_path}: --shard "
-                                  f"{first.shard}: shards of one campaign share N")
+            raise FaultInputError(f"{shown}: --shard {part.shard} but {header_text(first_path)}: "
+                                  f"--shard {first.shard}: shards of one campaign share N")
         if part.shard.number in by_number:
-            raise FaultInputError(f"{path}: shard {part.shard} is also {by_number[part.shard.number]}")
+            raise FaultInputError(f"{shown}: shard {part.shard} is also "
+                                  f"{header_text(by_number[part.shard.number])}")
         by_number[part.shard.number] = path
         expected = [index for index in range(part.cases) if part.shard.owns(index)]
         if sorted(run.case for run in part.runs) != expected:
-            raise FaultInputError(f"{path}: its runs are not the cases of shard {part.shard} "
+            raise FaultInputError(f"{shown}: its runs are not the cases of shard {part.shard} "
                                   f"({len(part.runs)} runs, {len(expected)} cases)")
     missing = [f"{number}/{first.shard.count}" for number in range(1, first.shard.count + 1)
                if number not in by_number]
     if missing:
         raise FaultInputError("missing shard " + ", ".join(missing) + " of the campaign")
+    _check_runs(shards, note)
     runs = sorted((run for _, part in shards for run in part.runs), key=lambda run: run.case)
     return dataclasses.replace(first, runs=runs, planned=first.cases, shard=None)
+
+
+def _campaign_kinds(campaign: Campaign) -> List[str]:
+    """The kinds a campaign injects, as its runs name them (delay:500)."""
+    kinds = []
+    for text in campaign.kinds or KIND_NAMES:
+        if "@" in text:
+            kinds += [fault.kind_text for fault in _core.parse_faults(text)]
+        else:
+            kinds.append(_kind_spec(text))
+    return kinds
+
+
+def _check_runs(shards: Sequence[Tuple[str, Campaign]],
+                note: Optional[Callable[[str], None]]) -> None:
+    """Each run once, of a kind its campaign injects, and the case of its
+    index (when the session is here)."""
+    first_path, first = shards[0]
+    kinds = _campaign_kinds(first)
+    session, cases = _session_cases(first_path, first)
+    if cases is None and note is not None:
+        note(f"{header_text(first.session)} is not here (or not the session the shards ran): "
+             "the runs' places are not checked against it")
+    seen: Dict[str, str] = {}
+    for path, part in shards:
+        for number, run in enumerate(part.runs):
+            here = f"{header_text(path)}: runs[{number}]"
+            if run.kind not in kinds:
+                raise _refused(here, "kind", run.kind, "not a kind of the campaign ("
+                               + ", ".join(kinds) + ")")
+            if run.spec in seen:
+                raise _refused(here, "where", run.where, f"{_shown(run.spec)} is run twice "
+                               f"(also {seen[run.spec]})")
+            seen[run.spec] = here
+            if cases is None:
+                continue
+            case = cases[run.case]
+            if (case.kind, case.where) != (run.kind, run.where):
+                try:  # the replay's own words for a place past the session's end
+                    check_where(session, run.spec, options=first.options)
+                except FaultInputError as error:
+                    raise _refused(here, "where", run.where, header_text(str(error))) from None
+                raise _refused(here, "where", run.where,
+                               f"case {run.case} of the campaign over "
+                               f"{header_text(session)} is {_shown(case.spec)}, "
+                               f"not {_shown(run.spec)}")
+
+
+def _session_cases(json_path: str, campaign: Campaign) -> Tuple[str, Optional[list]]:
+    """(where the campaign's session is, its cases made again from it); the
+    cases None when the session is not here."""
+    candidates = [campaign.session]
+    if not os.path.isabs(campaign.session):
+        candidates.append(os.path.join(os.path.dirname(json_path), campaign.session))
+    for candidate in candidates:
+        try:
+            if session_digest(candidate) != campaign.session_sha256:
+                continue
+        except (OSError, ValueError):
+            continue
+        everything = all_cases(candidate, campaign.kinds, campaign.budget, campaign.seed,
+                               None, None, campaign.options)
+        if len(everything) != campaign.cases:
+            raise _refused(header_text(json_path), "cases", campaign.cases,
+                           f"the campaign over {header_text(candidate)} has {len(everything)}")
+        return candidate, everything
+    return campaign.session, None

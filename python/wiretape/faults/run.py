@@ -44,9 +44,11 @@ def faulty_device(session: str, case: Optional[FaultCase] = None, replay_options
     ``listen`` a ``HOST:PORT``. Stopped on leaving. ``speed`` K: the
     replay's timing K times faster (the replay key ``speed``), for a
     client whose clock runs at K (wiretape.scaled_clock)."""
-    keys = _core.option_string(_core.parse_options(replay_options)
-                               + ([("speed", speed)] if speed != 1.0 else [])
-                               + (case.option_pairs if case else []))
+    pairs = _core.parse_options(replay_options) + (case.option_pairs if case else [])
+    # Without a clock or an injected wait to scale, the speed is CMD's alone.
+    if speed != 1.0 and _core.replay_speed_applies(_core.option_string(pairs)):
+        pairs.append(("speed", speed))
+    keys = _core.option_string(pairs)
     with tempfile.TemporaryDirectory(prefix="wiretape-faults-") as directory:
         link = os.path.join(directory, "port")
         handle = bridge.serve_replay(session, pty=None if listen else link,

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import datetime
 import os
+import re
 import time
 import urllib.parse
 import warnings
@@ -63,6 +64,45 @@ def publish_recording(recording: Path, cassette: Path) -> None:
     damaged (a failed write) is moved as it is, so that nothing it holds is
     lost."""
     _core.publish_recording(recording, cassette)
+
+
+#: A recording in progress beside its cassette: ``NAME.recording-PID``
+#: (and ``.header``, publish_recording's rewrite of it), PID the recorder's.
+_PARTIAL_RECORDING = re.compile(r"^(?P<cassette>.+)\.recording-(?P<pid>[0-9]+)(?:\.header)?$")
+
+
+def _process_exists(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return pid > 0  # another user's process (or a PID no process has)
+    return True
+
+
+def remove_stale_recordings(folder: Path) -> List[Path]:
+    """Removes the recordings in progress in `folder` whose process is gone
+    (a pytest ended by SIGKILL, or SIGTERM, never reaches its clean-up) and
+    returns them. A recording of a live process is left alone (another
+    pytest recording beside this one, or this one)."""
+    removed = []
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError:
+        return removed
+    for name in names:
+        found = _PARTIAL_RECORDING.match(name)
+        if found is None or _process_exists(int(found["pid"])):
+            continue
+        path = folder / name
+        try:
+            if path.is_file() and not path.is_symlink():
+                path.unlink()
+                removed.append(path)
+        except OSError:
+            pass  # not ours to remove after all: left as it is
+    return removed
 
 
 # --------------------------------------------------------------------------

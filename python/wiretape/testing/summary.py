@@ -1,7 +1,8 @@
 """The end-of-run summary of the pytest plugin (DESIGN §11): how many
 cassettes were replayed, recorded (and kept), appended to (new_episodes) or
-run live, and the cassettes
-in the tests' recording folders that no test names any more."""
+run live, the cassettes in the tests' recording folders that no test names
+any more, and the recordings in progress that a killed pytest left there
+(removed)."""
 
 from __future__ import annotations
 
@@ -11,7 +12,8 @@ from typing import Dict, List, Set
 
 import pytest
 
-from .cassette import cassette_file_name, default_cassette_dir, marker_settings, source_file_of
+from .cassette import (cassette_file_name, default_cassette_dir, marker_settings,
+                       remove_stale_recordings, source_file_of)
 
 
 def _plural(count: int, word: str) -> str:
@@ -27,6 +29,7 @@ class CassetteSummary:
                                        "not kept": 0, "live": 0}
         self._folders: Set[Path] = set()
         self._named: Set[Path] = set()
+        self._cassette_folders: Set[Path] = set()  # of the cassettes used, wherever
 
     def note_collected(self, item: pytest.Item) -> None:
         try:
@@ -43,6 +46,7 @@ class CassetteSummary:
             self._named.add(path)
 
     def note(self, cassette, passed: bool) -> None:
+        self._cassette_folders.add(cassette.path.parent)
         if cassette.live:
             self.counts["live"] += 1
         elif cassette.appending:
@@ -64,11 +68,21 @@ class CassetteSummary:
                           if os.path.realpath(path) not in named]
         return found
 
+    def stale_recordings(self) -> List[Path]:
+        """Removes and returns the recordings in progress (``NAME.recording-PID``)
+        of processes that are gone, in the folders of the cassettes."""
+        removed = []
+        for folder in sorted(self._folders | self._cassette_folders):
+            removed += remove_stale_recordings(folder)
+        return removed
+
     def lines(self) -> List[str]:
-        """Nothing when no test used a cassette and none is orphaned."""
+        """Nothing when no test used a cassette, none is orphaned and no
+        stale recording was removed."""
         used = sum(self.counts.values())
         orphans = self.orphans()
-        if not used and not orphans:
+        stale = self.stale_recordings()
+        if not used and not orphans and not stale:
             return []
         lines = []
         if used:
@@ -80,4 +94,8 @@ class CassetteSummary:
             lines.append(f"{_plural(len(orphans), 'cassette')} no collected test names "
                          "(a renamed or removed test?):")
             lines += [f"    {path}" for path in orphans]
+        if stale:
+            lines.append(f"removed {_plural(len(stale), 'recording')} left in progress by a "
+                         "pytest that was killed (its process is gone):")
+            lines += [f"    {path}" for path in stale]
         return lines

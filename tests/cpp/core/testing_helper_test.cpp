@@ -323,6 +323,34 @@ TEST(Cassette, ADamagedRecordingIsPublishedAsItIs) {
   EXPECT_EQ(leftovers(directory.path()), 0u);
 }
 
+// A cassette that is a symbolic link (into a store of recordings, dangling
+// before its first recording) is written where the link points; the link
+// stays, and the header names the cassette by the link's name.
+TEST(Cassette, ALinkedCassetteIsWrittenThroughTheLink) {
+  TemporaryDirectory directory;
+  fs::create_directories(directory.path() / "store");
+  const fs::path cassette = directory.path() / "t.wtape";
+  fs::create_symlink(fs::path("store") / "t-1.wtape", cassette);  // dangling, relative
+  EXPECT_EQ(wiretape::testing::cassette_target(cassette), directory.path() / "store" / "t-1.wtape");
+  for (const char* data : {"first", "second"}) {
+    const fs::path recording = directory.path() / "t.wtape.recording-1";
+    {
+      wiretape::SessionHeader header;
+      header.port_options = "type=loopback,log=" + recording.string();
+      wiretape::SessionWriter writer(recording.string(), header);
+      writer.write(wiretape::RecordKind::tx, 1, data);
+    }
+    wiretape::testing::publish_recording(recording.string(), cassette.string());
+    EXPECT_TRUE(fs::is_symlink(cassette));
+    EXPECT_FALSE(fs::exists(recording));
+    wiretape::SessionReader reader((directory.path() / "store" / "t-1.wtape").string());
+    EXPECT_EQ(reader.header().port_options, "type=loopback,log=t.wtape");
+    wiretape::Record record;
+    ASSERT_TRUE(reader.next(record));
+    EXPECT_EQ(record.data, data);
+  }
+}
+
 // The fixture itself, on a cassette recorded from type=loopback and kept in
 // tests/cpp/core/recordings/testing_helper_test/ (record it again with
 // WIRETAPE_RECORD=1 WIRETAPE_DEVICE=type=loopback).

@@ -8,6 +8,7 @@
 #include <utility>
 #include <vector>
 
+#include "open/open_port.hpp"
 #include "support/port_test_support.hpp"
 #include "wiretape/errors.hpp"
 #include "wiretape/options.hpp"
@@ -227,6 +228,20 @@ TEST(OpenPort, ConflictingAccessModesAreRefused) {
   expect_option_error("type=loopback,colour=1", "colour", "readonly");
 }
 
+// speed= scales a replay's clock, and the waits of injected faults in every
+// timing mode: with timing=none it is refused only when there is no such wait.
+TEST(OpenPort, SpeedWithoutAClockScalesInjectedWaits) {
+  const std::string replay = "type=replay,file=/nonexistent/s.wtape,timing=none,";
+  for (const char* faults : {"delay:100@exchange:0", "stall:5@rx:1", "trickle@exchange:0",
+                             "reconnect:5@exchange:0", "drop@exchange:0;delay:1@exchange:1"}) {
+    const std::string options = replay + "speed=2,faults=" + faults;
+    EXPECT_NO_THROW(wiretape::detail::check_replay_options(options)) << options;
+    EXPECT_TRUE(wiretape::detail::replay_speed_applies(options)) << options;
+  }
+  EXPECT_FALSE(wiretape::detail::replay_speed_applies(replay + "faults=silence@exchange:0"));
+  EXPECT_TRUE(wiretape::detail::replay_speed_applies("type=replay,file=x,timing=causal"));
+}
+
 // Keys that would do nothing alone are refused, naming what they need
 // (the table in src/open/open_port.cpp), before anything is opened.
 TEST(OpenPort, KeysThatNeedAnotherKeyNameIt) {
@@ -242,6 +257,8 @@ TEST(OpenPort, KeysThatNeedAnotherKeyNameIt) {
   expect_option_error(replay + "match=sequence,unmatched=silent", "unmatched", "match=request");
   expect_option_error(replay + "tolerance=5", "tolerance", "check=timing");
   expect_option_error(replay + "timing=none,speed=2", "speed", "timing=session");
+  expect_option_error(replay + "timing=none,speed=2,faults=drop@exchange:0", "speed",
+                      "scales nothing");
   expect_option_error(replay + "bogus=1", "bogus", "unknown option");
   // A key of another type is still "does not apply", not a dependency.
   expect_option_error("type=loopback,repeat=last", "repeat", "does not apply");

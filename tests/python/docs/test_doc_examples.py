@@ -116,6 +116,27 @@ MYDRIVER = """class Scanner:
         return product[product.index("URG"):]
 """
 
+# Tools a fresh machine may lack, declared once: (what in a block's command
+# needs one, the tool, why). A block needing a tool that is not on the
+# sandbox's PATH is skipped, loudly, naming the tool; every other test that
+# needs one skips the same way.
+NEEDED_TOOLS = [
+    (re.compile(r"\bwiretape convert\s+(?:\S+\.(?:pcapng|pcap|cap)(?:\s|$)|.*--from[ =]pcap\b)"),
+     "tshark", "convert reads a capture with tshark (Debian: apt-get install tshark)"),
+    (re.compile(r"(?:^|[|;&]\s*)tshark\b"), "tshark", "the block runs tshark"),
+]
+
+
+def require_tools(block, commands, sandbox):
+    """Skips the block (SKIPPED LOUDLY, naming the tool) when one of
+    `commands` needs a tool the sandbox's PATH lacks."""
+    for command in commands:
+        for pattern, tool, why in NEEDED_TOOLS:
+            if pattern.search(command) and shutil.which(tool, path=sandbox.env["PATH"]) is None:
+                pytest.skip(f"SKIPPED LOUDLY: {block.id} needs {tool}, which is not on PATH: "
+                            f"{why}")
+
+
 SHELL_LANGS = {"sh", "bash", "console", "shell"}
 TIMEOUT_S = 60
 
@@ -341,6 +362,7 @@ def run_shell(block, sandbox):
     if "git " in block.text:
         sandbox.run(["git", "init", "-q"])
     script, shown = shell_script(sandbox.substitute(block.text))
+    require_tools(block, commands_of(script), sandbox)
     if "./driver" in script or "hokuyo-scan" in script:
         require_hokuyo_scan()
     if not any(SERVICE.search(command) for command in commands_of(script)):

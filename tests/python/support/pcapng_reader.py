@@ -13,7 +13,9 @@ def read_pcapng(path):
     packets = []
     section_comment = None
 
-    def options(body):
+    def options(body, every=None):
+        """{code: first value}; `every`, a dict, gets {code: [each value]}
+        (an option that repeats, as comments may)."""
         found = {}
         position = 0
         while position + 4 <= len(body):
@@ -22,6 +24,8 @@ def read_pcapng(path):
             if code == 0:
                 break
             found.setdefault(code, body[position:position + length])
+            if every is not None:
+                every.setdefault(code, []).append(body[position:position + length])
             position += length + (-length % 4)
         return found
 
@@ -34,7 +38,11 @@ def read_pcapng(path):
         if block_type == 0x0A0D0D0A:
             magic, major, minor = struct.unpack_from("<IHH", body)
             assert (magic, major, minor) == (0x1A2B3C4D, 1, 0)
-            section_comment = options(body[16:]).get(1, b"").decode()
+            # The section's comments, joined, are the header JSON
+            # (several when it is longer than one option holds).
+            every = {}
+            options(body[16:], every)
+            section_comment = b"".join(every.get(1, [])).decode()
         elif block_type == 1:
             link_type, _, _ = struct.unpack_from("<HHI", body)
             opts = options(body[8:])
