@@ -26,8 +26,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except ParserError as error:
         where, message = unknown_option_message(parser, own_arguments, str(error))
         where = where or error.parser
-        where.print_usage(sys.stderr)
-        out.error(where.prog, message or str(error))
+        out.error(where.prog, with_help_hint(where, message or str(error)))
         return EXIT_USAGE
     except ParserExit as done:
         return int(done.status or 0)
@@ -78,6 +77,16 @@ def unknown_option_message(parser, arguments: Sequence[str], message: str):
     return parser, (f"unknown option {unknown!r}: wiretape's own options are --help and "
                     f"--version; a command's options go after it (wiretape COMMAND --help)"
                     + hint)
+
+
+def with_help_hint(parser, message: str) -> str:
+    """A usage error as the one line docs/cli.md promises: the problem, then
+    where to read more unless it already says what was meant or what is
+    valid (argparse's usage block before it would bury the line that
+    matters)."""
+    if any(said in message for said in ("did you mean", "choose from", "--help")):
+        return message
+    return f"{message} (see {parser.prog} --help)"
 
 
 def _subcommands(parser) -> dict:

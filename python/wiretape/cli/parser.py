@@ -5,6 +5,7 @@ split_command() for the CMD after ``--``."""
 from __future__ import annotations
 
 import argparse
+import difflib
 import sys
 from typing import Callable, List, Optional, Sequence, Tuple
 
@@ -258,6 +259,16 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message):  # noqa: D401 - argparse's hook
         raise ParserError(self, message)
+
+    def _check_value(self, action, value):
+        # A mistyped command gets the one it was probably meant to be, not
+        # the list of every command (argparse's own message).
+        if isinstance(action, argparse._SubParsersAction) and value not in action.choices:
+            # 0.7: "shwo" is show and "replya" replay, "teleport" is not ports
+            near = difflib.get_close_matches(value, list(action.choices), n=1, cutoff=0.7)
+            hint = f" (did you mean {near[0]}?)" if near else f" (see {self.prog} --help)"
+            raise argparse.ArgumentError(None, f"unknown command {value!r}{hint}")
+        super()._check_value(action, value)
 
     def exit(self, status=0, message=None):
         if message:
