@@ -632,8 +632,9 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
 
     diff = command("diff", cmd_diff,
-                   "where two sessions differ: the first difference per direction, then "
-                   "every divergence by exchange (exit 1 if they differ)")
+                   "where two sessions differ: the first difference per direction, the "
+                   "exchanges aligned as diff -u aligns lines, every divergence by exchange "
+                   "(exit 1 if they differ)")
     diff.add_argument("a", metavar="A", help="a session")
     diff.add_argument("b", metavar="B", help="another session")
     diff.add_argument("--profile", type=_profile_spec, metavar="PROFILE",
@@ -643,6 +644,9 @@ def build_parser() -> argparse.ArgumentParser:
     diff.add_argument("--max", dest="max_divergences", type=_non_negative_int, default=10,
                       metavar="N", help="show the first N divergences by exchange (default "
                                         "10; all are counted)")
+    diff.add_argument("--json", action="store_true",
+                      help="the same comparison as JSON: directions, the exchanges' alignment, "
+                           "divergences")
 
     command("demo", cmd_demo,
             "record a simulated Hokuyo scanner, replay it without it, compare (make demo)")
