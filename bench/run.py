@@ -70,6 +70,11 @@ TARGETS = {
     "show_sensor_s": (0.5, "lower", "show run, colour, 10 MB: 13 B requests, 1 KiB replies"),
     "show_bulk_s": (0.5, "lower", "show run, colour, 10 MB of 4 KiB rx records"),
     "show_vs_anchor_ratio": (None, "info", "show's loop now / before issue 26, sensor session"),
+    # --- diff (issue 38): exchanges aligned, vs diff by position before it ---
+    "diff_aligned_vs_anchor_ratio": (2.0, "lower",
+                                     "diff of two 100k-exchange sessions, aligned / by position, CPU s"),
+    "diff_aligned_s": (None, "info", "diff, 100k exchanges, a handshake before one of them"),
+    "diff_worst_s": (None, "info", "diff, 100k exchanges, every reply different"),
     # --- fault campaigns (docs/faults.md) ---
     "faults_campaign_vs_loop_ratio": (1.3, "lower", "campaign / same faulty replays in a loop"),
     # Info: faulty runs also wait for what the driver does about each fault.
@@ -595,6 +600,25 @@ class Bench:
             f"and {figures['bulk_loop_s']:.3f} s, before issue 26 "
             f"{figures['sensor_anchor_s']:.3f} s and {figures['bulk_anchor_s']:.3f} s")
 
+    def diff(self) -> None:
+        """`wiretape diff` of two long sessions (bench/diff_bench.py): the
+        exchanges aligned against the comparison by position before issue 38."""
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "diff_bench.py"),
+                               str(self.work)], capture_output=True, text=True,
+                              timeout=900, env=self.env)
+        if proc.returncode != 0:
+            raise Skip("diff_bench.py: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        self.results["diff_aligned_s"] = figures["aligned_s"]
+        self.results["diff_worst_s"] = figures["worst_s"]
+        self.results["diff_aligned_vs_anchor_ratio"] = round(
+            figures["aligned_s"] / figures["anchor_s"], 3)
+        self.notes["diff"] = (
+            f"{figures['exchanges']} exchanges: by position {figures['anchor_s']:.3f} s "
+            f"({figures['anchor_divergences']} divergences), aligned {figures['aligned_s']:.3f} s "
+            f"({figures['aligned_divergences']}: {figures['aligned_summary']}); nothing "
+            f"aligns {figures['worst_s']:.3f} s ({figures['worst_summary']})")
+
     def gbench(self) -> None:
         """The Google Benchmark program: the per-call view, and the request
         mode figures (GBENCH_FIGURES)."""
@@ -623,7 +647,7 @@ class Bench:
 
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
-           "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "speed", "view", "show",
+           "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "speed", "view", "show", "diff",
            "shim", "channels", "record_channels"]
 
 
