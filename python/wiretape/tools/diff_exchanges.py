@@ -144,7 +144,9 @@ def _pieces(data: bytearray) -> List[bytes]:
 
 def _keys(parts: ExchangeParts, key: Callable) -> Tuple[List[int], List[int]]:
     """Each exchange's key (request and response) and its request's key,
-    as hashes: two numbers per exchange, however long the session."""
+    as hashes: two numbers per exchange, however long the session. (Two
+    exchanges that differ yet share a 64-bit hash would align as the same;
+    each direction's first difference is still found byte by byte.)"""
     whole: List[int] = []
     requests: List[int] = []
     for request, response, _, _ in parts:
@@ -238,6 +240,8 @@ class Alignment:
         """The exchanges that differ, in order: (A's, B's), None for the
         side that has none."""
         for block in self.blocks:
+            if block.kind == "same":
+                continue
             for n in range(block.count):
                 if block.kind == "changed":
                     yield block.a_start + n, block.b_start + n
