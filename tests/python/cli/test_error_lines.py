@@ -28,6 +28,8 @@ CASES = [
     (["record", "--device", "type=loopback", "--pty", "{tmp}/tty"], 2,
      "wiretape record: error: the following arguments are required: -o/--output "
      "(see wiretape record --help)"),
+    (["record", "--device", "type=loopback", "--pty", "{tmp}/tty", "--ouput", "{tmp}/out.wtape"],
+     2, "wiretape record: error: unknown option '--ouput' (did you mean --output?)"),
     (["replya", SESSION], 2, "wiretape: error: unknown command 'replya' (did you mean replay?)"),
     (["shwo", SESSION], 2, "wiretape: error: unknown command 'shwo' (did you mean show?)"),
     (["teleport"], 2, "wiretape: error: unknown command 'teleport' (see wiretape --help)"),
@@ -48,7 +50,8 @@ CASES = [
 ]
 
 
-NAMES = ["option typo", "bad choice", "missing -o", "command typo replya", "command typo shwo",
+NAMES = ["option typo", "bad choice", "missing -o", "typo leaving -o missing",
+         "command typo replya", "command typo shwo",
          "unknown command", "key typo devcie", "key typo prot", "empty member", "unknown host"]
 
 
