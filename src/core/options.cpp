@@ -87,7 +87,8 @@ Options Options::parse(std::string_view text) {
   std::size_t i = 0;
   const std::size_t n = text.size();
   // "type=serial,,device=X" is a slip of the keyboard, not a style: an empty
-  // member is refused where it is (spaces beside a comma are no member).
+  // member is refused where it is (spaces beside a comma are no member). A
+  // comma at the end is not one: "file=x," + more keys, more often empty.
   bool member_since_comma = false;
   std::size_t last_comma = std::string_view::npos;
   while (i < n) {
@@ -175,10 +176,6 @@ Options Options::parse(std::string_view text) {
     }
     reject_nul(key, value);
     options.add(std::move(key), std::move(value));
-  }
-  if (last_comma != std::string_view::npos && !member_since_comma) {
-    throw OptionError("", "option string: an empty option at position " +
-                              std::to_string(last_comma) + " (nothing after the last comma)");
   }
   return options;
 }

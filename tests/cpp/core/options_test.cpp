@@ -63,7 +63,7 @@ TEST(OptionsParse, AnEmptyMemberIsRefusedNamingItsPosition) {
                                 "commas at positions 11 and 12)"},
       {"type=serial, ,device=X", "an empty option at position 13"},
       {",type=serial", "an empty option at position 0 (nothing before the first comma)"},
-      {"type=serial,", "an empty option at position 11 (nothing after the last comma)"},
+      {"type=serial,,", "an empty option at position 12"},
   };
   for (const auto& [text, message] : cases) {
     try {
@@ -76,6 +76,8 @@ TEST(OptionsParse, AnEmptyMemberIsRefusedNamingItsPosition) {
   }
   EXPECT_EQ(Options::parse("type=serial, device=X").entries().size(), 2u)
       << "spaces beside a comma are no member";
+  EXPECT_EQ(Options::parse("type=serial,device=X,").entries().size(), 2u)
+      << "a comma at the end ends the last member";
 }
 
 // Options of one port type, as open_port() hands them to the type's
