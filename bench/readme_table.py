@@ -124,7 +124,7 @@ ROWS: List[Tuple[str, Callable[[Figures], Optional[str]], str, Tuple[str, ...],
 ]
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from run import TARGETS  # noqa: E402  (key -> (target, better, what): one list of targets)
+from targets import TARGETS  # noqa: E402  (key -> (target, better, what): one list of targets)
 
 
 def missed(key: str, value: float) -> bool:

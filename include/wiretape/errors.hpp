@@ -37,6 +37,12 @@ class PortError : public std::system_error {
   PortError(int errno_value, const std::string& context)
       : std::system_error(errno_value, std::generic_category()),
         message_(system_error_message(context, errno_value)) {}
+  // A failure that comes with its own explanation (a resolver's "Name or
+  // service not known"): `message` as it is. The errno stays for programs,
+  // its text is left out, since it would contradict the explanation.
+  struct OwnExplanation {};
+  PortError(int errno_value, const std::string& message, OwnExplanation)
+      : std::system_error(errno_value, std::generic_category()), message_(message) {}
   // std::system_error's own text would append the errno's text whatever the
   // message already says, ": Success" included.
   const char* what() const noexcept override { return message_.what(); }

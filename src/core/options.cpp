@@ -86,11 +86,30 @@ Options Options::parse(std::string_view text) {
   Options options;
   std::size_t i = 0;
   const std::size_t n = text.size();
+  // "type=serial,,device=X" is a slip of the keyboard, not a style: an empty
+  // member is refused where it is (spaces beside a comma are no member). A
+  // comma at the end is not one: "file=x," + more keys, more often empty.
+  bool member_since_comma = false;
+  std::size_t last_comma = std::string_view::npos;
   while (i < n) {
     if (is_separator(text[i])) {
+      if (text[i] == ',') {
+        if (!member_since_comma) {
+          throw OptionError("", "option string: an empty option at position " +
+                                    std::to_string(i) +
+                                    (last_comma == std::string_view::npos
+                                         ? " (nothing before the first comma)"
+                                         : " (nothing between the commas at positions " +
+                                               std::to_string(last_comma) + " and " +
+                                               std::to_string(i) + ")"));
+        }
+        member_since_comma = false;
+        last_comma = i;
+      }
       ++i;
       continue;
     }
+    member_since_comma = true;
     const std::size_t key_start = i;
     while (i < n && !is_separator(text[i]) && text[i] != '=') {
       if (text[i] == '"') {
@@ -253,13 +272,30 @@ std::optional<std::string> Options::take(std::string_view key) {
 
 namespace {
 
+// The message of an unknown key a typo away from `near`, a key of `type`.
+std::string typo_message(const std::string& unknown, std::string_view type,
+                         const std::string& near) {
+  return "unknown option " + shown(unknown) + " for type=" + std::string(type) +
+         "; did you mean '" + near + "'?";
+}
+
 // The value of `row`: given, or the row's default. Nothing when neither; a
-// required key missing is an OptionError.
+// required key missing is an OptionError, which names the typo of it
+// (devcie=) among the keys given when there is one: that is the mistake.
 std::optional<std::string> value_or_default(std::optional<std::string> given,
                                             const OptionKey& row,
-                                            std::string_view port_type) {
+                                            std::string_view port_type,
+                                            const std::vector<Options::Entry>& entries) {
   if (row.required && (!given || given->empty())) {
     const std::string key(row.name);
+    if (!given) {
+      for (const auto& entry : entries) {
+        if (find_option_key(entry.key, port_type)) continue;
+        if (nearest_name(entry.key, {key})) {
+          throw OptionError(entry.key, typo_message(entry.key, port_type, key));
+        }
+      }
+    }
     throw OptionError(key, "missing option '" + key + "'" +
                                (port_type.empty() ? std::string()
                                                   : " for type=" + std::string(port_type)) +
@@ -282,7 +318,7 @@ std::string no_default(const OptionKey& row) {
 
 std::string Options::take_string(std::string_view key) {
   const OptionKey& key_row = row(key, OptionType::text);
-  return value_or_default(take(key), key_row, port_type_).value_or("");
+  return value_or_default(take(key), key_row, port_type_, entries_).value_or("");
 }
 
 std::string Options::take_required(std::string_view key) {
@@ -291,12 +327,12 @@ std::string Options::take_required(std::string_view key) {
     throw std::logic_error("option key '" + std::string(key) +
                            "' is not required in the key table");
   }
-  return *value_or_default(take(key), key_row, port_type_);
+  return *value_or_default(take(key), key_row, port_type_, entries_);
 }
 
 bool Options::take_bool(std::string_view key) {
   const OptionKey& key_row = row(key, OptionType::boolean);
-  const auto value = value_or_default(take(key), key_row, port_type_);
+  const auto value = value_or_default(take(key), key_row, port_type_, entries_);
   if (!value) throw std::logic_error(no_default(key_row));
   if (const auto parsed = parse_bool(*value)) return *parsed;
   throw OptionError(std::string(key),
@@ -307,7 +343,7 @@ bool Options::take_bool(std::string_view key) {
 
 std::int64_t Options::take_int(std::string_view key) {
   const OptionKey& key_row = row(key, OptionType::integer);
-  const auto value = value_or_default(take(key), key_row, port_type_);
+  const auto value = value_or_default(take(key), key_row, port_type_, entries_);
   if (!value) throw std::logic_error(no_default(key_row));
   errno = 0;
   char* end = nullptr;
@@ -323,7 +359,7 @@ std::int64_t Options::take_int(std::string_view key) {
 
 double Options::take_double(std::string_view key) {
   const OptionKey& key_row = row(key, OptionType::number);
-  const auto value = value_or_default(take(key), key_row, port_type_);
+  const auto value = value_or_default(take(key), key_row, port_type_, entries_);
   if (!value) throw std::logic_error(no_default(key_row));
   char* end = nullptr;
   const double parsed = std::strtod(value->c_str(), &end);
@@ -338,7 +374,7 @@ double Options::take_double(std::string_view key) {
 
 std::string Options::take_choice(std::string_view key) {
   const OptionKey& key_row = row(key, OptionType::choice);
-  const auto value = value_or_default(take(key), key_row, port_type_);
+  const auto value = value_or_default(take(key), key_row, port_type_, entries_);
   if (!value) throw std::logic_error(no_default(key_row));
   const std::string v = lower(*value);
   for (auto choice : key_row.choices) {
@@ -351,7 +387,7 @@ std::string Options::take_choice(std::string_view key) {
 
 Timeout Options::take_timeout(std::string_view key) {
   const OptionKey& key_row = row(key, OptionType::seconds);
-  const auto value = value_or_default(take(key), key_row, port_type_);
+  const auto value = value_or_default(take(key), key_row, port_type_, entries_);
   if (!value) throw std::logic_error(no_default(key_row));
   const std::string v = lower(*value);
   if (v == "none" || v == "-1" || v == "forever") return forever;
@@ -403,8 +439,7 @@ void Options::finish(std::string_view type) const {
     }
     // A typo gets the key it was meant to be, not a list of 30 to read through.
     if (const auto near = suggest_key(entry.key, type)) {
-      throw OptionError(entry.key, "unknown option " + shown(entry.key) + " for type=" +
-                                       std::string(type) + "; did you mean '" + *near + "'?");
+      throw OptionError(entry.key, typo_message(entry.key, type, *near));
     }
     throw OptionError(entry.key, "unknown option " + shown(entry.key) + "; valid keys for type=" +
                                      std::string(type) + ": " + join(valid));

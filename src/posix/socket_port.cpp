@@ -20,10 +20,14 @@ AddrInfoList resolve(const std::string& host, int port, int socket_type,
   const std::string service = std::to_string(port);
   const int status = ::getaddrinfo(host.empty() ? nullptr : host.c_str(),
                                    service.c_str(), &hints, &list);
+  if (status == EAI_SYSTEM) {
+    const int error = errno;  // before the message's allocations
+    throw PortError(error, where + ": cannot resolve host '" + host + "'");
+  }
   if (status != 0) {
-    throw PortError(status == EAI_SYSTEM ? errno : EHOSTUNREACH,
-                    where + ": cannot resolve host '" + host +
-                        "': " + ::gai_strerror(status));
+    throw PortError(EHOSTUNREACH,
+                    where + ": cannot resolve host '" + host + "': " + ::gai_strerror(status),
+                    PortError::OwnExplanation{});
   }
   return AddrInfoList(list);
 }

@@ -213,6 +213,9 @@ def cmd_diff(args, out: Output) -> int:
     require_session(args.b)
     result = diff(args.a, args.b, profile=session_profile(args.profile, [args.a, args.b], out),
                   max_divergences=args.max_divergences)
+    if args.json:
+        print(json.dumps(result.to_json(), indent=2, sort_keys=True))
+        return EXIT_OK if result.identical and not result.damaged else EXIT_CHECK_FAILED
     for line in result.report().splitlines():
         style = None
         if line == "sessions are identical":

@@ -30,9 +30,10 @@ def _main(argv: Optional[Sequence[str]]) -> int:
         args = parser.parse_args(own_arguments)
     except ParserError as error:
         where, message = unknown_option_message(parser, own_arguments, str(error))
+        if message is None:  # a typo can leave a required flag missing: name the typo
+            where, message = mistyped_option(parser, own_arguments)
         where = where or error.parser
-        where.print_usage(sys.stderr)
-        out.error(where.prog, message or str(error))
+        out.error(where.prog, with_help_hint(where, message or str(error)))
         return EXIT_USAGE
     except ParserExit as done:
         return int(done.status or 0)
@@ -64,12 +65,7 @@ def unknown_option_message(parser, arguments: Sequence[str], message: str):
     commands = _subcommands(parser)
     named = next((a for a in arguments if not a.startswith("-")), None)
     if named in commands:
-        sub = commands[named]
-        known = _option_strings(sub)
-        close = difflib.get_close_matches(flag, known, n=1, cutoff=0.6)
-        hint = f" (did you mean {close[0]}?)" if close else f" (see {sub.prog} --help)"
-        what = "unknown option" if flag.startswith("-") else "unexpected argument"
-        return sub, f"{what} {unknown!r}{hint}"
+        return commands[named], _unknown_of(commands[named], unknown)
     own = _option_strings(parser)
     close = difflib.get_close_matches(flag, own, n=1, cutoff=0.6)
     if close:
@@ -83,6 +79,45 @@ def unknown_option_message(parser, arguments: Sequence[str], message: str):
     return parser, (f"unknown option {unknown!r}: wiretape's own options are --help and "
                     f"--version; a command's options go after it (wiretape COMMAND --help)"
                     + hint)
+
+
+def _unknown_of(sub, unknown: str) -> str:
+    """One line naming the argument `unknown` a command does not take, and
+    the option it was probably meant to be."""
+    flag = unknown.split("=", 1)[0]
+    close = difflib.get_close_matches(flag, _option_strings(sub), n=1, cutoff=0.6)
+    hint = f" (did you mean {close[0]}?)" if close else f" (see {sub.prog} --help)"
+    what = "unknown option" if flag.startswith("-") else "unexpected argument"
+    return f"{what} {unknown!r}{hint}"
+
+
+def mistyped_option(parser, arguments: Sequence[str]):
+    """For any other error of a command: (its parser, one line naming the
+    first --flag it does not know) when there is one (``--ouput f`` leaves
+    -o missing, and the typo is the mistake to name); (None, None) else."""
+    commands = _subcommands(parser)
+    named = next((a for a in arguments if not a.startswith("-")), None)
+    if named not in commands:
+        return None, None
+    sub = commands[named]
+    known = _option_strings(sub)
+    for argument in arguments[arguments.index(named) + 1:]:
+        flag = argument.split("=", 1)[0]
+        if not flag.startswith("--") or flag == "--":
+            continue
+        if not any(option.startswith(flag) for option in known):  # argparse takes prefixes
+            return sub, _unknown_of(sub, argument)
+    return None, None
+
+
+def with_help_hint(parser, message: str) -> str:
+    """A usage error as the one line docs/cli.md promises: the problem, then
+    where to read more unless it already says what was meant or what is
+    valid (argparse's usage block before it would bury the line that
+    matters)."""
+    if any(said in message for said in ("did you mean", "choose from", "--help")):
+        return message
+    return f"{message} (see {parser.prog} --help)"
 
 
 def _subcommands(parser) -> dict:

@@ -5,6 +5,7 @@ split_command() for the CMD after ``--``."""
 from __future__ import annotations
 
 import argparse
+import difflib
 import sys
 from typing import Callable, List, Optional, Sequence, Tuple
 
@@ -258,6 +259,16 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message):  # noqa: D401 - argparse's hook
         raise ParserError(self, message)
+
+    def _check_value(self, action, value):
+        # A mistyped command gets the one it was probably meant to be, not
+        # the list of every command (argparse's own message).
+        if isinstance(action, argparse._SubParsersAction) and value not in action.choices:
+            # 0.7: "shwo" is show and "replya" replay, "teleport" is not ports
+            near = difflib.get_close_matches(value, list(action.choices), n=1, cutoff=0.7)
+            hint = f" (did you mean {near[0]}?)" if near else f" (see {self.prog} --help)"
+            raise argparse.ArgumentError(None, f"unknown command {value!r}{hint}")
+        super()._check_value(action, value)
 
     def exit(self, status=0, message=None):
         if message:
@@ -621,8 +632,9 @@ def build_parser() -> argparse.ArgumentParser:
     convert.add_argument("-q", "--quiet", action="store_true", help="no progress or summary")
 
     diff = command("diff", cmd_diff,
-                   "where two sessions differ: the first difference per direction, then "
-                   "every divergence by exchange (exit 1 if they differ)")
+                   "where two sessions differ: the first difference per direction, the "
+                   "exchanges aligned as diff -u aligns lines, every divergence by exchange "
+                   "(exit 1 if they differ)")
     diff.add_argument("a", metavar="A", help="a session")
     diff.add_argument("b", metavar="B", help="another session")
     diff.add_argument("--profile", type=_profile_spec, metavar="PROFILE",
@@ -632,6 +644,9 @@ def build_parser() -> argparse.ArgumentParser:
     diff.add_argument("--max", dest="max_divergences", type=_non_negative_int, default=10,
                       metavar="N", help="show the first N divergences by exchange (default "
                                         "10; all are counted)")
+    diff.add_argument("--json", action="store_true",
+                      help="the same comparison as JSON: directions, the exchanges' alignment, "
+                           "divergences")
 
     command("demo", cmd_demo,
             "record a simulated Hokuyo scanner, replay it without it, compare (make demo)")

@@ -14,12 +14,15 @@ profile's match key: fields the profile leaves out of the key (a Modbus TCP
 transaction id, a MAVLink sequence number and CRC) do not make a
 difference, and the first differing frame is named.
 
-Besides the first difference of each direction's stream, every divergence
-is listed (``max_divergences`` of them shown; all counted), aligned by
-exchange as a replay numbers them (``_core.session_exchanges``, so that
-``exchange N`` is what ``faults=…@exchange:N`` means): exchange N of A
-against exchange N of B, request and response, each pointing at its first
-differing byte.
+Besides the first difference of each direction's stream, the exchanges
+(as a replay numbers them, ``_core.session_exchanges``, so that ``exchange
+N`` is what ``faults=…@exchange:N`` means) are aligned as ``diff -u`` aligns
+lines (tools/diff_exchanges.py): two runs that differ by a handshake at the
+start differ by those exchanges, not by every exchange after them. Every
+divergence of what the alignment pairs is listed (``max_divergences`` of
+them shown; all counted): the request and the response of exchange N of A
+against the exchange of B it is aligned with, each pointing at its first
+differing byte, and each exchange only one session has.
 
 Sessions of several ports (DESIGN §19) are compared channel by channel,
 by name: each channel's records as a session of their own, the results
@@ -42,6 +45,8 @@ from typing import Dict, Iterable, Iterator, List, Optional, Union
 from .. import _core
 from ..session import DIRECTIONS, NO_PROFILE, header_text, is_stream, open_session
 from .channels import capture_text, several_channels
+from .diff_exchanges import (Alignment, Divergence, diff_exchanges, first_key_difference,
+                             labelled, pointed)
 
 _CONTEXT = 16
 
@@ -181,7 +186,7 @@ class DirectionDiff:
             f"A {self.bytes_a} bytes in {self.records_a} records, "
             f"B {self.bytes_b} bytes in {self.records_b} records"
         )
-        label = _labelled(self.channel, self.direction)
+        label = labelled(self.channel, self.direction)
         if self.identical:
             return f"{label}: identical ({counts})"
         if not self.at_a or not self.at_b:
@@ -200,197 +205,6 @@ class DirectionDiff:
         )
 
 
-def _labelled(channel: str, what: str) -> str:
-    """`what` of a channel of a session of several ports: ``channel gps rx``."""
-    return f"channel {header_text(channel)} {what}" if channel else what
-
-
-#: Bytes shown each side of a divergence's first differing byte.
-_WINDOW = 8
-
-
-def pointed(a: Optional[bytes], b: Optional[bytes], at: int) -> List[str]:
-    """Lines showing A and B around byte `at`, and a caret under the byte
-    where they differ (hex, then the printable text)."""
-    start = max(0, at - _WINDOW)
-    lines = []
-    for name, data in (("A", a), ("B", b)):
-        if data is None:
-            lines.append(f"      {name}: (nothing)")
-            continue
-        window = data[start:at + _WINDOW]
-        hex_part = " ".join(f"{byte:02x}" for byte in window)
-        text = "".join(chr(byte) if 0x20 <= byte < 0x7F else "." for byte in window)
-        lead = "…" if start else " "
-        tail = "…" if len(data) > at + _WINDOW else " "
-        lines.append(f"      {name}: {lead}{hex_part:<{3 * 2 * _WINDOW - 1}}{tail} |{text}|")
-    column = at - start
-    hex_caret = " " * (3 * column) + "^^"
-    text_caret = " " * column + "^"
-    lines.append(f"          {hex_caret:<{3 * 2 * _WINDOW - 1}}   {text_caret}")
-    return lines
-
-
-def _first_difference(a: bytes, b: bytes) -> int:
-    same = 0
-    for byte_a, byte_b in zip(a, b):
-        if byte_a != byte_b:
-            break
-        same += 1
-    return same
-
-
-@dataclass
-class Divergence:
-    """Exchange `exchange` differs in `direction` ("tx": the request, "rx":
-    the response) from byte `offset` of that part of the exchange; bytes
-    None: the session has no such exchange."""
-
-    exchange: int
-    direction: str
-    offset: int
-    time_a_ns: Optional[int]
-    time_b_ns: Optional[int]
-    bytes_a: Optional[bytes]
-    bytes_b: Optional[bytes]
-    frame_a: str = ""  # with a profile: the frames' descriptions
-    frame_b: str = ""
-    channel: str = ""  # in a session of several channels (exchanges are numbered per channel)
-
-    def report(self) -> List[str]:
-        part = "request" if self.direction == "tx" else "response"
-        exchange = _labelled(self.channel, f"exchange {self.exchange}")
-        if self.bytes_a is None or self.bytes_b is None:
-            missing = "A" if self.bytes_a is None else "B"
-            head = f"  {exchange} {part} ({self.direction}): {missing} has none"
-        else:
-            head = (f"  {exchange} {part} ({self.direction}) differs at byte "
-                    f"{self.offset} (A at {_seconds(self.time_a_ns)}, "
-                    f"B at {_seconds(self.time_b_ns)})")
-        lines = [head]
-        for name, frame in (("A", self.frame_a), ("B", self.frame_b)):
-            if frame:
-                lines.append(f"      {name} is {frame}")
-        return lines + pointed(self.bytes_a, self.bytes_b, self.offset)
-
-
-class _ExchangeParts:
-    """The exchanges of a session file with their bytes, one at a time:
-    (request pieces, response pieces, request time, response time), a piece
-    being a frame with a profile, else all of that direction's bytes."""
-
-    def __init__(self, path: str, profile: Optional[_core.Profile]):
-        self._path = path
-        self._profile = profile
-
-    def __iter__(self):
-        exchanges = _core.session_exchanges(
-            self._path, options=self._profile.options if self._profile is not None else "")
-        if self._profile is not None:
-            for exchange in exchanges:
-                yield ([bytes(f) for f in exchange.request_frames],
-                       [bytes(f) for f in exchange.response_frames],
-                       exchange.request_first_t_ns, exchange.response_first_t_ns)
-            return
-        ends = iter([(exchange.end_record, exchange) for exchange in exchanges])
-        end, exchange = next(ends, (None, None))
-        parts = {"tx": bytearray(), "rx": bytearray()}
-        with open_session(self._path) as reader:
-            for index, record in enumerate(reader):
-                while end is not None and index >= end:
-                    yield (_pieces(parts["tx"]), _pieces(parts["rx"]),
-                           exchange.request_first_t_ns, exchange.response_first_t_ns)
-                    parts = {"tx": bytearray(), "rx": bytearray()}
-                    end, exchange = next(ends, (None, None))
-                if end is None:
-                    break
-                if record.kind in parts:
-                    parts[record.kind] += record.data
-        if end is not None:
-            yield (_pieces(parts["tx"]), _pieces(parts["rx"]),
-                   exchange.request_first_t_ns, exchange.response_first_t_ns)
-
-
-def _pieces(data: bytearray) -> List[bytes]:
-    return [bytes(data)] if data else []
-
-
-def _first_key_difference(a: bytes, b: bytes, key) -> int:
-    """The first byte where A and B differ that the key compares: B's byte
-    put in A changes A's key (a Modbus TCP transaction id differs first, but
-    it is not what differs by key). The first difference when none alone does."""
-    key_a = key(a)
-    for at in range(min(len(a), len(b))):
-        if a[at] != b[at] and key(a[:at] + b[at:at + 1] + a[at + 1:]) != key_a:
-            return at
-    return _first_difference(a, b)
-
-
-def _differs_at(pieces_a: List[bytes], pieces_b: List[bytes], key) -> Optional[int]:
-    """The offset (in the pieces joined) of the first byte of the first
-    piece whose key differs, None when every key is the same."""
-    offset = 0
-    for at in range(max(len(pieces_a), len(pieces_b))):
-        if at >= len(pieces_a) or at >= len(pieces_b):
-            return offset
-        piece_a, piece_b = pieces_a[at], pieces_b[at]
-        if key(piece_a) != key(piece_b):
-            return offset + _first_key_difference(piece_a, piece_b, key)
-        offset += len(piece_a)
-    return None
-
-
-def _request_name(framing, direction: str, pieces: Optional[List[bytes]]) -> str:
-    """A request's description under a profile (it is one frame): which
-    command differs."""
-    if framing is None or direction != "tx" or not pieces:
-        return ""
-    return framing.describe("tx", pieces[0])
-
-
-def _divergences(path_a: str, path_b: str, profile: Optional[str], keep: int
-                 ) -> "tuple[List[Divergence], int]":
-    """The first `keep` divergences by exchange, and how many there are."""
-    # A name or a declared profile, read by the replay's rule; "none": none.
-    framing = (_core.profile_from_spec(profile)
-               if profile is not None and profile != NO_PROFILE else None)
-    key = framing.match_key if framing is not None else (lambda piece: piece)
-    found: List[Divergence] = []
-    total = 0
-    exchanges_a = iter(_ExchangeParts(path_a, framing))
-    exchanges_b = iter(_ExchangeParts(path_b, framing))
-    index = 0
-    while True:
-        part_a, part_b = next(exchanges_a, None), next(exchanges_b, None)
-        if part_a is None and part_b is None:
-            break
-        for direction, slot, time_slot in (("tx", 0, 2), ("rx", 1, 3)):
-            pieces_a = part_a[slot] if part_a is not None else None
-            pieces_b = part_b[slot] if part_b is not None else None
-            if not pieces_a and not pieces_b:
-                continue
-            if pieces_a is not None and pieces_b is not None:
-                # with a profile, what its match key leaves out does not differ
-                offset = _differs_at(pieces_a, pieces_b, key)
-                if offset is None:
-                    continue
-            else:
-                offset = 0
-            data_a = b"".join(pieces_a) if pieces_a is not None else None
-            data_b = b"".join(pieces_b) if pieces_b is not None else None
-            total += 1
-            if len(found) >= keep:
-                continue
-            found.append(Divergence(
-                index, direction, offset,
-                part_a[time_slot] if part_a is not None else None,
-                part_b[time_slot] if part_b is not None else None,
-                data_a, data_b, _request_name(framing, direction, pieces_a),
-                _request_name(framing, direction, pieces_b)))
-        index += 1
-    return found, total
-
-
 @dataclass
 class DiffResult:
     """The outcome of diff(): identical, per-direction details, report()."""
@@ -400,7 +214,9 @@ class DiffResult:
     directions: List[Union[DirectionDiff, "FrameDiff"]] = field(default_factory=list)
     damage_a: Optional[str] = None
     damage_b: Optional[str] = None
-    # every divergence aligned by exchange: the first ones, and how many
+    # the exchanges aligned (one per channel compared), every divergence of
+    # what differs: the first ones, and how many
+    alignments: List[Alignment] = field(default_factory=list)
     divergences: List[Divergence] = field(default_factory=list)
     divergence_count: int = 0
     # channels of sessions of several ports that only one has: name -> "A" or "B"
@@ -432,6 +248,8 @@ class DiffResult:
         for channel, which in self.only_in.items():
             lines.append(f"channel {header_text(channel)}: only in {which}")
         lines += [d.report() for d in self.directions]
+        if not self.identical:
+            lines += [f"by exchange: {alignment.summary()}" for alignment in self.alignments]
         if self.divergence_count:
             shown = len(self.divergences)
             more = (f" (the first {shown} of {self.divergence_count}; --max shows more)"
@@ -446,6 +264,23 @@ class DiffResult:
                 lines.append(f"{name} is damaged; compared up to the damage: {damage}")
         lines.append("sessions are identical" if self.identical else "sessions differ")
         return "\n".join(lines)
+
+    def to_json(self) -> dict:
+        """What report() says, for programs (``wiretape diff --json``)."""
+        return {"a": self.a, "b": self.b, "identical": self.identical,
+                "damage_a": self.damage_a, "damage_b": self.damage_b,
+                "only_in": dict(self.only_in),
+                "directions": [_direction_json(d) for d in self.directions],
+                "alignments": [alignment.to_json() for alignment in self.alignments],
+                "divergence_count": self.divergence_count,
+                "divergences": [divergence.to_json() for divergence in self.divergences]}
+
+
+def _direction_json(direction: Union[DirectionDiff, "FrameDiff"]) -> dict:
+    fields = {name: value.hex() if isinstance(value, (bytes, bytearray)) else value
+              for name, value in vars(direction).items()}
+    fields["identical"] = direction.identical
+    return fields
 
 
 def _compare(a: _Records, b: _Records, direction: str) -> DirectionDiff:
@@ -506,7 +341,7 @@ class FrameDiff:
 
     def report(self) -> str:
         counts = f"A: {self.frames_a} frames, B: {self.frames_b} frames"
-        label = _labelled(self.channel, self.direction)
+        label = labelled(self.channel, self.direction)
         if self.identical:
             return f"{label}: identical by key ({counts})"
         lines = [f"{label}: first difference at frame {self.index} "
@@ -553,7 +388,7 @@ def _compare_frames(profile, a, b, direction: str) -> FrameDiff:
         if next_b is not None:
             result.time_b_ns, result.frame_b, result.describe_b = next_b
         if next_a is not None and next_b is not None:
-            result.byte = _first_key_difference(next_a[1], next_b[1], profile.match_key)
+            result.byte = first_key_difference(next_a[1], next_b[1], profile.match_key)
     return result
 
 
@@ -645,6 +480,9 @@ def _diff_channels(a: _Records, b: _Records, headers: List[Optional[_core.Sessio
                 result.directions.append(direction)
             for divergence in part_result.divergences:
                 divergence.channel = name
+            for alignment in part_result.alignments:
+                alignment.channel = name
+            result.alignments += part_result.alignments
             result.divergences += part_result.divergences
             result.divergence_count += part_result.divergence_count
     return result
@@ -672,12 +510,15 @@ def _add_divergences(result: DiffResult, a: _Records, b: _Records, profile: Opti
                      keep: int) -> None:
     """Every divergence by exchange, from files (a damaged one has no
     exchanges to align: the first differences above are all there is)."""
+    # A name or a declared profile, read by the replay's rule; "none": none.
+    framing = (_core.profile_from_spec(profile)
+               if profile is not None and profile != NO_PROFILE else None)
     try:
-        path_a, path_b = a.file(), b.file()
-        result.divergences, result.divergence_count = _divergences(path_a, path_b, profile,
-                                                                   keep)
+        by_exchange = diff_exchanges(a.file(), b.file(), framing, keep)
     except _core.SessionError:
-        pass
+        return
+    result.alignments = [by_exchange.alignment]
+    result.divergences, result.divergence_count = by_exchange.divergences, by_exchange.count
 
 
-__all__ = ["diff", "DiffResult", "DirectionDiff", "Divergence", "FrameDiff"]
+__all__ = ["diff", "Alignment", "DiffResult", "DirectionDiff", "Divergence", "FrameDiff"]

@@ -30,6 +30,16 @@ TEST(SystemErrorMessage, IsWhatEveryPortErrorSays) {
   EXPECT_STREQ(copy.what(), "copied: Input/output error");
 }
 
+// A resolver's reason is the whole explanation: the errno a program reads
+// stays, its text (which would contradict the reason) is not appended.
+TEST(SystemErrorMessage, AnErrorWithItsOwnExplanationIsTakenAsItIs) {
+  const PortError error(EHOSTUNREACH, "tcp nosuch:1: cannot resolve host 'nosuch': Name or "
+                                      "service not known", PortError::OwnExplanation{});
+  EXPECT_STREQ(error.what(),
+               "tcp nosuch:1: cannot resolve host 'nosuch': Name or service not known");
+  EXPECT_EQ(error.code().value(), EHOSTUNREACH);
+}
+
 TEST(SystemErrorMessage, NoContextIsTheErrnosTextAlone) {
   EXPECT_EQ(system_error_message("", ENOENT), "No such file or directory");
   EXPECT_EQ(system_error_message("", 0), "");

@@ -2,6 +2,7 @@
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -54,6 +55,31 @@ TEST(OptionsParse, SyntaxErrorsNamePosition) {
   }
 }
 
+// Two commas with nothing between them, or one at either end, are a slip
+// of the keyboard: refused, naming where (issue 38).
+TEST(OptionsParse, AnEmptyMemberIsRefusedNamingItsPosition) {
+  const std::pair<const char*, const char*> cases[] = {
+      {"type=serial,,device=X", "an empty option at position 12 (nothing between the "
+                                "commas at positions 11 and 12)"},
+      {"type=serial, ,device=X", "an empty option at position 13"},
+      {",type=serial", "an empty option at position 0 (nothing before the first comma)"},
+      {"type=serial,,", "an empty option at position 12"},
+  };
+  for (const auto& [text, message] : cases) {
+    try {
+      Options::parse(text);
+      ADD_FAILURE() << text << " was accepted";
+    } catch (const OptionError& e) {
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_EQ(Options::parse("type=serial, device=X").entries().size(), 2u)
+      << "spaces beside a comma are no member";
+  EXPECT_EQ(Options::parse("type=serial,device=X,").entries().size(), 2u)
+      << "a comma at the end ends the last member";
+}
+
 // Options of one port type, as open_port() hands them to the type's
 // constructor.
 Options of_type(const std::string& type, const std::string& text) {
@@ -104,6 +130,39 @@ TEST(OptionsFinish, UnknownAndInapplicableKeysAreErrors) {
     FAIL();
   } catch (const OptionError& e) {
     EXPECT_NE(std::string(e.what()).find("does not apply to type=tcp"), std::string::npos);
+  }
+}
+
+// A required key typed wrong is the mistake to name, not the key it left
+// missing (issue 38).
+TEST(OptionsTake, AMissingRequiredKeyNamesItsTypo) {
+  const std::tuple<const char*, const char*, const char*, const char*> cases[] = {
+      {"serial", "devcie=/dev/ttyUSB0", "device", "devcie"},
+      {"tcp", "host=localhost,prot=5000", "port", "prot"},
+  };
+  for (const auto& [type, text, required, typo] : cases) {
+    auto options = of_type(type, text);
+    try {
+      if (std::string(required) == "port") {
+        options.take_int(required);
+      } else {
+        options.take_required(required);
+      }
+      ADD_FAILURE() << text << " was accepted";
+    } catch (const OptionError& e) {
+      EXPECT_EQ(e.key(), typo);
+      EXPECT_EQ(std::string(e.what()), "unknown option '" + std::string(typo) + "' for type=" +
+                                           type + "; did you mean '" + required + "'?");
+    }
+  }
+  // no typo of it given: the key is missing, as before
+  auto missing = of_type("serial", "baud=9600");
+  try {
+    missing.take_required("device");
+    ADD_FAILURE();
+  } catch (const OptionError& e) {
+    EXPECT_NE(std::string(e.what()).find("missing option 'device' for type=serial"),
+              std::string::npos) << e.what();
   }
 }
 

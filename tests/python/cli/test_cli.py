@@ -84,7 +84,7 @@ def test_the_installed_entry_point_runs():
 
 @pytest.mark.parametrize("argv, words", [
     ([], ["a command is required"]),
-    (["teleport"], ["invalid choice", "teleport"]),
+    (["teleport"], ["unknown command", "teleport"]),
     (["record", "--pty", "/tmp/x", "-o", "out.wtape"], ["--device"]),
     (["record", "--device", "/dev/null", "--pty", "a", "--listen", "1", "-o", "x"],
      ["not allowed"]),
