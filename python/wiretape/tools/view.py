@@ -11,8 +11,11 @@ runs to the exchanges they faulted.
 The data travels as one JSON object (``page_data``): per record its time,
 kind and size in columns, and every payload's bytes in one base64 string,
 so 100,000 records load in well under the 2 s first-paint budget
-(bench/view_bench.py measures it). Only this module knows the layout; the
-page's script (view_page/view.js) reads it.
+(bench/view_bench.py measures it). The records are streamed: the page holds
+the first DETAIL_RECORDS in detail and every record in a binned summary,
+so that memory and page stay bounded whatever the session's size. Only
+this module knows the layout; the page's script (view_page/view.js) reads
+it, and draws the record table, search, follow stream and cursors.
 """
 
 from __future__ import annotations
