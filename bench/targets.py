@@ -59,6 +59,12 @@ TARGETS = {
     "view_first_paint_ms_100k": (2000, "lower", "ms to first paint, 100,000 records, Chromium"),
     "view_write_s_100k": (None, "info", "s to write that page"),
     "view_page_MB_100k": (None, "info", "MB, that page"),
+    "view_peak_rss_MB_100k": (None, "info", "MB peak RSS of view writing that page"),
+    "view_first_paint_ms_2_5M": (2000, "lower",
+                                 "ms to first paint, 2.5 million exchanges (5M records)"),
+    "view_write_s_2_5M": (None, "info", "s to write that page (not --quick)"),
+    "view_peak_rss_MB_2_5M": (400, "lower", "MB peak RSS of view writing it (flat)"),
+    "view_page_MB_2_5M": (None, "info", "MB, that page (bounded: docs/view.md)"),
     # --- the --as shim (docs/replay.md, "Serial lines under --as") ---
     "shim_redirected_write_added_ns": (2000, "lower",
                                        "ns a 1-byte write to the redirected pty gains"),

@@ -11,20 +11,25 @@ runs to the exchanges they faulted.
 The data travels as one JSON object (``page_data``): per record its time,
 kind and size in columns, and every payload's bytes in one base64 string,
 so 100,000 records load in well under the 2 s first-paint budget
-(bench/view_bench.py measures it). Only this module knows the layout; the
-page's script (view_page/view.js) reads it.
+(bench/view_bench.py measures it). The records are streamed: the page holds
+the first DETAIL_RECORDS in detail and every record in a binned summary,
+so that memory and page stay bounded whatever the session's size. Only
+this module knows the layout; the page's script (view_page/view.js) reads
+it, and draws the record table, search, follow stream and cursors.
 """
 
 from __future__ import annotations
 
 import base64
 import contextlib
+import itertools
 import json
 import os
 import re
+import sys
 import tempfile
 from pathlib import Path
-from typing import Any, Dict, Iterable, Iterator, List, Optional, Tuple, cast
+from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Tuple, cast
 
 from .. import _core
 from ..exports._common import replacing
@@ -33,15 +38,27 @@ from ..options import join_options
 from ..session import (FileRefused, SessionPath, chosen_profile, header_fields, is_stream,
                        open_session, refuse_same_file, session_files)
 
-__all__ = ["view", "page_data", "default_output", "render_page", "PAGE_FORMAT",
-           "MAX_RECORD_BYTES"]
+__all__ = ["view", "page_data", "default_output", "render_page", "decimation_note",
+           "detail_limit", "PAGE_FORMAT", "MAX_RECORD_BYTES", "DETAIL_RECORDS", "DETAIL_BYTES"]
 
 #: The version of page_data's layout, which view.js checks.
-PAGE_FORMAT = 1
+PAGE_FORMAT = 2
 
 #: The bytes of one record the page holds: enough for any request and most
 #: responses; the hex pane says when a record holds more.
 MAX_RECORD_BYTES = 16384
+
+#: The records a page holds in detail (their bytes, the record table, the
+#: exchanges, frames and latencies): at most this many, holding at most
+#: DETAIL_BYTES of bytes (detail_limit). A session past either is shown
+#: whole in the summary timeline and in detail up to there; the page and
+#: the command say so. Chosen so that the page opens to its first paint in
+#: well under 2 s (docs/view.md, bench/view_bench.py).
+DETAIL_RECORDS = 200_000
+DETAIL_BYTES = 24 << 20
+
+#: The bins of the summary timeline: a few per pixel of a wide screen.
+SUMMARY_BINS = 4096
 
 _PAGE_DIR = Path(__file__).with_name("view_page")
 
@@ -62,8 +79,8 @@ def _exchanges(path: str, profile: Optional[_core.Profile], options: str,
                channels: Optional[List[Tuple[int, str]]] = None) -> List[List[Any]]:
     """The exchanges as rows (view.js names the columns). A session of
     several ports (`channels`: (id, name)) has each channel's exchanges,
-    numbered per channel, with the channel's id in an eleventh column, all
-    in the order they begin."""
+    numbered per channel, all in the order they begin; the eleventh column
+    is the channel's id (0 in a session of one port)."""
     rows = []
     for channel, name in channels or [(None, "")]:
         keys = _core.parse_options(
@@ -79,7 +96,7 @@ def _exchanges(path: str, profile: Optional[_core.Profile], options: str,
                    exchange.response_first_t_ns, exchange.response_last_t_ns,
                    exchange.request_bytes, exchange.response_bytes,
                    exchange.client_session]
-            rows.append(row if channel is None else row + [channel])
+            rows.append(row + [channel or 0])
     if channels:
         rows.sort(key=lambda row: next((t for t in (row[3], row[5]) if t is not None), 0))
     return rows
@@ -114,7 +131,7 @@ def _campaign(path: str, result: Campaign, session: str,
     others (rx:N, every:K, p:P) are listed without a place."""
     from ..faults import FaultInputError, session_digest
 
-    rows = {(row[0], row[10] if len(row) > 10 else None): position
+    rows = {(row[0], row[10] if channel_ids else None): position
             for position, row in enumerate(exchanges)}
     runs = []
     for run in result.runs:
@@ -154,6 +171,56 @@ def page_data(session: SessionPath, profile: Optional[str] = None,
     return _page_data(os.fspath(session), profile, campaign)[0]
 
 
+def detail_limit(records: int, payload_bytes: int) -> bool:
+    """Whether a record, after `records` records holding `payload_bytes` of
+    bytes, is still in the page's detail (its bytes, the tables, the
+    exchanges): the first DETAIL_RECORDS records, up to DETAIL_BYTES of
+    their bytes. The records past it are in the summary timeline only."""
+    return records < DETAIL_RECORDS and payload_bytes < DETAIL_BYTES
+
+
+class _Summary:
+    """The whole session binned in time for the summary timeline: per
+    channel and lane (tx, rx, events) the records of each of SUMMARY_BINS
+    bins of equal width, counted, with the largest size. One pass, memory
+    fixed: when a record falls past the last bin the bins are merged by
+    pairs and their width doubles."""
+
+    def __init__(self) -> None:
+        self.width_ns = 1000
+        self._lanes: Dict[Tuple[int, str], Tuple[List[int], List[int]]] = {}
+
+    def add(self, channel: int, lane: str, t_ns: int, size: int) -> None:
+        at = t_ns // self.width_ns
+        while at >= SUMMARY_BINS:
+            self._merge()
+            at = t_ns // self.width_ns
+        counts, largest = self._lanes.get((channel, lane)) or self._new(channel, lane)
+        counts[at] += 1
+        if size > largest[at]:
+            largest[at] = size
+
+    def _new(self, channel: int, lane: str) -> Tuple[List[int], List[int]]:
+        bins = self._lanes[(channel, lane)] = ([0] * SUMMARY_BINS, [0] * SUMMARY_BINS)
+        return bins
+
+    def _merge(self) -> None:
+        half = SUMMARY_BINS // 2
+        for counts, largest in self._lanes.values():
+            counts[:half] = [counts[2 * n] + counts[2 * n + 1] for n in range(half)]
+            largest[:half] = [max(largest[2 * n], largest[2 * n + 1]) for n in range(half)]
+            counts[half:] = [0] * half
+            largest[half:] = [0] * half
+        self.width_ns *= 2
+
+    def to_page(self) -> Dict[str, Any]:
+        """Sparse: per lane [bin, count, largest] of the bins holding records."""
+        return {"bin_ns": self.width_ns, "lanes": [
+            {"channel": channel, "lane": lane,
+             "bins": [[n, count, largest[n]] for n, count in enumerate(counts) if count]}
+            for (channel, lane), (counts, largest) in sorted(self._lanes.items())]}
+
+
 def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
                ) -> Tuple[Dict[str, Any], Optional[_core.SessionError]]:
     """Everything the page shows, as one JSON-able object. ``profile`` (a
@@ -161,7 +228,10 @@ def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
     metadata, wiretape.session.chosen_profile; ``none``: none) names the frames; a
     ``campaign`` (a ``wiretape faults --json`` file) adds its runs. A
     damaged session is shown up to the damage, which the page names; the
-    damage is returned with the data."""
+    damage is returned with the data. The records are streamed once, with
+    memory bounded whatever the session's size: the first records (while
+    detail_limit allows) are held in detail, every record is binned in the
+    summary."""
     reader = open_session(path)
     header = header_fields(reader)
     spec = chosen_profile(profile, reader.header).spec
@@ -169,19 +239,37 @@ def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
     framing = _core.profile_from_spec(spec) if spec is not None else None
     kinds = [kind["name"] for kind in _core.RECORD_KINDS]
     kind_code = {name: code for code, name in enumerate(kinds)}
+    lane_of_kind = {name: name if name in ("tx", "rx") else "events" for name in kinds}
     times: List[int] = []
     kind_of: List[int] = []
     sizes: List[int] = []
     kept: List[int] = []
     channels: List[int] = []
     payload = bytearray()
+    summary = _Summary()
+    meters: Dict[int, _core.LatencyMeter] = {}
+    total = 0
+    last_t_ns = 0
     for record in reader:
         content = record.data
-        channels.append(getattr(record, "channel", 0))
-        times.append(record.t_ns)
-        kind_of.append(kind_code.setdefault(record.kind, len(kinds)))
-        if kind_of[-1] == len(kinds):
-            kinds.append(record.kind)
+        channel, kind, t_ns = record.channel, record.kind, record.t_ns
+        total += 1
+        last_t_ns = t_ns
+        summary.add(channel, lane_of_kind.get(kind, "events"), t_ns, len(content))
+        if not detail_limit(len(times), len(payload)):
+            continue
+        meter = meters.get(channel)
+        if meter is None:
+            meter = meters[channel] = _core.LatencyMeter(reader.header, channel=channel,
+                                                         profile=spec)
+        meter.feed(kind, t_ns, content)
+        channels.append(channel)
+        times.append(t_ns)
+        code = kind_code.get(kind)
+        if code is None:
+            code = kind_code[kind] = len(kinds)
+            kinds.append(kind)
+        kind_of.append(code)
         sizes.append(len(content))
         piece = content[:MAX_RECORD_BYTES]
         kept.append(len(piece))
@@ -193,19 +281,30 @@ def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
     options = campaign_runs.options if campaign_runs is not None else ""
     listed = reader.header.channel_list()
     several = [(channel.id, channel.name) for channel in listed] if len(listed) > 1 else None
-    with _intact_part(path, reader) as intact:
-        exchanges = _exchanges(intact, framing, options, several)
-        frames = _frames(intact, framing, several) if framing is not None else []
+    with _detail_part(path, reader.damage is None and len(times) == total,
+                      len(times)) as detailed:
+        exchanges = _exchanges(detailed, framing, options, several)
+        frames = _frames(detailed, framing, several) if framing is not None else []
+    latencies = {(channel, answered.exchange): answered.wait_ns
+                 for channel, meter in meters.items() for answered in meter.answered}
+    for row in exchanges:
+        row.append(latencies.get((row[10], row[0])))
     if several:
         _to_page_records(exchanges, channels)
     campaign_data = None
     if campaign is not None and campaign_runs is not None:
         campaign_data = _campaign(campaign, campaign_runs, path, exchanges,
                                   {name: id for id, name in several or []})
+    decimated: Optional[Dict[str, Any]] = None
+    if len(times) < total:
+        decimated = {"records": total, "shown": len(times),
+                     "shown_until_t_ns": times[-1] if times else 0,
+                     "limit_records": DETAIL_RECORDS, "limit_bytes": DETAIL_BYTES}
     data = {
         "format": PAGE_FORMAT,
         "session": {"path": path, "name": os.path.basename(path), "header": header,
-                    "damage": damage, "profile": framing.name if framing is not None else None},
+                    "damage": damage, "profile": framing.name if framing is not None else None,
+                    "records": total, "last_t_ns": last_t_ns},
         # A group of lanes per channel: a session of several ports (DESIGN
         # §19) has one per port, and "channel" is then a column, one number
         # per record, rather than one number for all.
@@ -216,11 +315,15 @@ def _page_data(path: str, profile: Optional[str], campaign: Optional[str]
         "records": {"t_ns": times, "kind": kind_of, "size": sizes, "kept": kept,
                     "channel": channels if any(channels) else 0,
                     "bytes": base64.b64encode(bytes(payload)).decode("ascii")},
+        "decimated": decimated,
+        "summary": summary.to_page(),
         "exchanges": exchanges,
         "frames": frames,
         "campaign": campaign_data,
         "mismatch": _mismatch(header, path),
     }
+    if decimated is not None:
+        decimated["message"] = decimation_note(data)
     return data, reader.damage
 
 
@@ -238,17 +341,19 @@ def _to_page_records(exchanges: List[List[Any]], channels: List[int]) -> None:
 
 
 @contextlib.contextmanager
-def _intact_part(path: str, read: _core.SessionReader) -> Iterator[str]:
-    """`path`, or for a damaged session a temporary copy of the records
-    before the damage: exchanges are found in what can be shown."""
-    if read.damage is None:
+def _detail_part(path: str, whole: bool, records: int) -> Iterator[str]:
+    """`path`, or a temporary copy of its first `records` records when the
+    page holds fewer than the whole (a damaged session: those before the
+    damage; a large one: those in detail): exchanges and frames are found in
+    what the page shows, by the one segmentation."""
+    if whole:
         yield path
         return
     with tempfile.TemporaryDirectory(prefix="wiretape-view-") as directory:
-        copy = os.path.join(directory, "intact.wtape")
+        copy = os.path.join(directory, "detail.wtape")
         reader = open_session(path)
         with _core.SessionWriter(copy, reader.header) as writer:
-            for record in reader:
+            for record in itertools.islice(reader, records):
                 writer.write(record.kind, record.t_ns, record.data, channel=record.channel)
         yield copy
 
@@ -311,13 +416,28 @@ def _mismatch(header: Dict[str, Any], path: str) -> Optional[Dict[str, Any]]:
             "expected": _core.hex_ascii(bytes(tx.at_a)), "actual": _core.hex_ascii(bytes(tx.at_b))}
 
 
+def decimation_note(data: Dict[str, Any]) -> Optional[str]:
+    """What the page says when it holds only part of the session in detail
+    (the command prints it too), or None when it holds all of it."""
+    cut = data.get("decimated")
+    if not cut:
+        return None
+    return (f"{data['session']['name']}: {cut['records']:,} records, more than a page holds "
+            f"in detail ({DETAIL_RECORDS:,} records or {DETAIL_BYTES >> 20} MiB of bytes): "
+            f"the first {cut['shown']:,} (to +{cut['shown_until_t_ns'] / 1e9:.6f} s) are in "
+            "detail, the whole session in the summary timeline; `wiretape edit SESSION PART "
+            "--cut FROM:TO` makes a session of a later part (docs/view.md, \"Large sessions\")")
+
+
 def view(session: SessionPath, output: Optional[SessionPath] = None,
-         profile: Optional[str] = None, campaign: Optional[str] = None) -> str:
+         profile: Optional[str] = None, campaign: Optional[str] = None,
+         note: Optional[Callable[[str], None]] = None) -> str:
     """Writes the page of ``session`` to ``output`` (default:
     default_output(session)) and returns its path. Nothing is written over
     the session or the campaign's file; the page appears whole or not at all
     (an interrupted view leaves nothing). A damaged session is shown up to
-    the damage, then its SessionError is raised."""
+    the damage, then its SessionError is raised. A session larger than the
+    page's detail (detail_limit) is said so to `note` (default: stderr)."""
     path = os.fspath(session)
     output = os.fspath(output) if output is not None else default_output(path)
     if is_stream(path):
@@ -326,6 +446,9 @@ def view(session: SessionPath, output: Optional[SessionPath] = None,
     inputs = session_files(path) + ([campaign] if campaign is not None else [])
     refuse_same_file(inputs, [output])
     data, damage = _page_data(path, profile, campaign)
+    told = decimation_note(data)
+    if told is not None:
+        (note or (lambda text: print(f"wiretape view: {text}", file=sys.stderr)))(told)
     page = render_page(data).encode("utf-8")
     with replacing(output) as out:
         out.write(page)

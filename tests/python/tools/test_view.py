@@ -10,19 +10,13 @@ collected, and must be none."""
 
 from __future__ import annotations
 
-import base64
-import html
-import select
-import time
 import json
 import os
 import re
 import shutil
 import signal
-import struct
 import subprocess
 import sys
-import zlib
 from pathlib import Path
 
 import pytest
@@ -30,6 +24,7 @@ import pytest
 import serial  # pyserial, a test dependency
 
 from devices import skip_unless_serial_opens_on_a_pty, start_cli, wait_until
+from view_browser import DevTools, element_text, open_page, png_pixels, table_rows
 from wiretape import _core
 from wiretape.faults import session_digest
 from wiretape.tools.view import MAX_RECORD_BYTES, default_output, view
@@ -39,183 +34,6 @@ HOKUYO = ROOT / "examples" / "hokuyo" / "recordings"
 TX_COLOUR = (0x1F, 0x6F, 0xD1)
 RX_COLOUR = (0x1A, 0x9A, 0x3A)
 CRASH_COLOUR = (0xC6, 0x28, 0x28)
-
-
-def chromium() -> str:
-    for name in ("chromium", "chromium-browser"):
-        found = shutil.which(name) or (f"/usr/bin/{name}" if os.path.exists(f"/usr/bin/{name}") else None)
-        if found:
-            return found
-    pytest.skip("chromium is not installed (Debian: apt-get install chromium): "
-                "the view is tested in headless Chromium")
-
-
-
-class DevTools:
-    """Headless Chromium driven through --remote-debugging-pipe (JSON
-    messages ended by NUL on its fds 3 and 4): mouse events as a user makes
-    them, and the page's state read back."""
-
-    def __init__(self, tmp_path: Path):
-        to_browser_r, self._to_browser = os.pipe()
-        self._from_browser, from_browser_w = os.pipe()
-        null = os.open(os.devnull, os.O_RDWR)
-        actions = [(os.POSIX_SPAWN_DUP2, to_browser_r, 3), (os.POSIX_SPAWN_DUP2, from_browser_w, 4),
-                   (os.POSIX_SPAWN_DUP2, null, 1), (os.POSIX_SPAWN_DUP2, null, 2)]
-        argv = [chromium(), "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
-                "--remote-debugging-pipe", f"--user-data-dir={tmp_path / 'chromium-devtools'}",
-                "--window-size=1200,900", "--force-device-scale-factor=1", "about:blank"]
-        self._pid = os.posix_spawn(argv[0], argv, os.environ, file_actions=actions)
-        for fd in (to_browser_r, from_browser_w, null):
-            os.close(fd)
-        self._buffer = b""
-        self._next_id = 0
-        self._session = None
-        self.events = []
-
-    def call(self, method, session=True, **params):
-        self._next_id += 1
-        message = {"id": self._next_id, "method": method, "params": params}
-        if session and self._session:
-            message["sessionId"] = self._session
-        os.write(self._to_browser, json.dumps(message).encode() + b"\0")
-        deadline = time.monotonic() + 60
-        while True:
-            while b"\0" in self._buffer:
-                raw, self._buffer = self._buffer.split(b"\0", 1)
-                reply = json.loads(raw)
-                if reply.get("id") == self._next_id:
-                    assert "error" not in reply, reply["error"]
-                    return reply["result"]
-                if "method" in reply:
-                    self.events.append(reply)
-            remaining = deadline - time.monotonic()
-            assert remaining > 0, f"no answer to {method}"
-            ready, _, _ = select.select([self._from_browser], [], [], remaining)
-            if ready:
-                chunk = os.read(self._from_browser, 1 << 16)
-                assert chunk, "chromium went away"
-                self._buffer += chunk
-
-    def open(self, url: str) -> None:
-        target = self.call("Target.createTarget", url="about:blank")["targetId"]
-        self._session = self.call("Target.attachToTarget", targetId=target, flatten=True)["sessionId"]
-        self.call("Emulation.setDeviceMetricsOverride", width=1200, height=900,
-                  deviceScaleFactor=1, mobile=False)
-        for domain in ("Runtime", "Log", "Page"):
-            self.call(f"{domain}.enable")
-        self.call("Page.navigate", url=url)
-        wait_until(lambda: self.evaluate("location.href.startsWith('file:') && "
-                                         "!!document.documentElement && "
-                                         "document.documentElement.dataset.ready") == "true",
-                   what="the page to be ready")
-
-    def evaluate(self, expression: str):
-        result = self.call("Runtime.evaluate", expression=expression, returnByValue=True)
-        assert "exceptionDetails" not in result, result
-        return result["result"].get("value")
-
-    def console(self):
-        """What the page logged: console calls, uncaught exceptions, and
-        the browser's errors and warnings about it (a refused fetch...)."""
-        self.evaluate("0")  # every event before this answer has arrived
-        found = []
-        for event in self.events:
-            method, params = event["method"], event["params"]
-            if method == "Runtime.consoleAPICalled":
-                found.append(f"console.{params['type']}: {params['args']}")
-            elif method == "Runtime.exceptionThrown":
-                found.append(f"exception: {params['exceptionDetails']}")
-            elif method == "Log.entryAdded" and params["entry"]["level"] in ("error", "warning"):
-                found.append(f"log: {params['entry']}")
-        return found
-
-    def mouse(self, kind: str, x: float, y: float, **extra) -> None:
-        self.call("Input.dispatchMouseEvent", type=kind, x=x, y=y, **extra)
-
-    def close(self) -> None:
-        try:
-            self.call("Browser.close", session=False)
-        except (AssertionError, OSError):
-            os.kill(self._pid, 9)
-        os.waitpid(self._pid, 0)
-        os.close(self._to_browser)
-        os.close(self._from_browser)
-
-
-
-def open_page(page: Path, tmp_path: Path, fragment: str = "", screenshot: Path = None):
-    """The page once ready in headless Chromium: (its DOM, the console
-    messages and errors it logged); with `screenshot`, its picture saved
-    there too."""
-    browser = DevTools(tmp_path)
-    try:
-        browser.open(page.resolve().as_uri() + fragment)
-        dom = browser.evaluate("document.documentElement.outerHTML")
-        if screenshot:
-            picture = browser.call("Page.captureScreenshot", format="png")["data"]
-            screenshot.write_bytes(base64.b64decode(picture))
-        return dom, browser.console()
-    finally:
-        browser.close()
-
-
-def png_pixels(path: Path):
-    """The RGB pixels of a non-interlaced 8-bit RGB or RGBA PNG (Chromium's
-    screenshots), as a set of colours."""
-    data = path.read_bytes()
-    assert data[:8] == b"\x89PNG\r\n\x1a\n"
-    at, chunks, width = 8, b"", 0
-    while at < len(data):
-        length, kind = struct.unpack(">I4s", data[at:at + 8])
-        body = data[at + 8:at + 8 + length]
-        if kind == b"IHDR":
-            width, height, depth, colour = struct.unpack(">IIBB", body[:10])
-            assert depth == 8 and colour in (2, 6), (depth, colour)
-            channels = 3 if colour == 2 else 4
-        elif kind == b"IDAT":
-            chunks += body
-        at += 12 + length
-    raw = zlib.decompress(chunks)
-    stride = width * channels
-    previous = bytearray(stride)
-    colours = set()
-    for row in range(height):
-        line = raw[row * (stride + 1):(row + 1) * (stride + 1)]
-        kind, current = line[0], bytearray(line[1:])
-        for i in range(stride):
-            left = current[i - channels] if i >= channels else 0
-            up = previous[i]
-            corner = previous[i - channels] if i >= channels else 0
-            if kind == 1:
-                current[i] = (current[i] + left) & 0xFF
-            elif kind == 2:
-                current[i] = (current[i] + up) & 0xFF
-            elif kind == 3:
-                current[i] = (current[i] + (left + up) // 2) & 0xFF
-            elif kind == 4:
-                p = left + up - corner
-                pa, pb, pc = abs(p - left), abs(p - up), abs(p - corner)
-                predictor = left if pa <= pb and pa <= pc else up if pb <= pc else corner
-                current[i] = (current[i] + predictor) & 0xFF
-        for i in range(0, stride, channels):
-            colours.add(tuple(current[i:i + 3]))
-        previous = current
-    return colours
-
-
-def element_text(dom: str, element_id: str) -> str:
-    match = re.search(rf'id="{element_id}"[^>]*>(.*?)</(?:pre|div|section)>', dom, re.S)
-    assert match, f"no #{element_id} in the page"
-    return html.unescape(re.sub(r"<[^>]+>", "\n", match.group(1)))
-
-
-def table_rows(dom: str, section_id: str):
-    match = re.search(rf'<div id="{section_id}">(.*?)</table>', dom, re.S)
-    assert match, f"no #{section_id} list in the page"
-    rows = re.findall(r"<tr([^>]*)>(.*?)</tr>", match.group(1), re.S)
-    return [(attributes, [html.unescape(cell) for cell in re.findall(r"<td>(.*?)</td>", cells, re.S)])
-            for attributes, cells in rows[1:]]
 
 
 def records_of(path):
@@ -233,7 +51,7 @@ def test_a_hokuyo_session_shows_both_lanes_its_exchanges_and_frames(tmp_path):
     exchanges = _core.session_exchanges(os.fspath(session), profile="scip")
     rows = table_rows(dom, "exchange-list")
     assert [cells[0] for _, cells in rows] == [f"#{e.index}" for e in exchanges]
-    assert rows[-1][1][2] == "GD0044072501\\n"
+    assert rows[-1][1][3] == "GD0044072501\\n"
     frames = [cells[3] for _, cells in table_rows(dom, "frame-list")]
     assert len(frames) == 18 and any(name.startswith("GD0044072501") for name in frames)
     assert 'data-first-paint-ms="' in dom
@@ -285,7 +103,7 @@ def test_a_campaigns_runs_mark_the_exchanges_they_faulted(tmp_path):
         ("corrupt@exchange:8", "crash", "#8"), ("drop@exchange:3", "ok", "#3"),
         ("silence@rx:100", "hang", "")]
     exchanges = {cells[0]: (attributes, cells) for attributes, cells in table_rows(dom, "exchange-list")}
-    assert 'outcome-crash' in exchanges["#8"][0] and exchanges["#8"][1][4] == "corrupt:crash"
+    assert 'outcome-crash' in exchanges["#8"][0] and exchanges["#8"][1][6] == "corrupt:crash"
     assert "warning" not in element_text(dom, "notes")
 
     picture = tmp_path / "campaign.png"
@@ -418,7 +236,7 @@ def test_bytes_and_names_from_the_file_stay_text_in_the_page(tmp_path):
     dom, console = open_page(page, tmp_path, fragment="#record=0")
     assert console == []
     rows = table_rows(dom, "exchange-list")
-    assert rows[0][1][2] == hostile.decode()[:60]
+    assert rows[0][1][3] == hostile.decode()[:60]
     assert "<img" not in dom.split('id="lists"')[1].replace("&lt;img", "")
 
 
@@ -526,7 +344,7 @@ def test_a_real_campaigns_json_colours_the_exchanges_it_crashed(tmp_path):
     assert ("corrupt@exchange:1", "crash") in listed
     exchanges = {cells[0]: (attributes, cells) for attributes, cells in table_rows(dom, "exchange-list")}
     assert "outcome-crash" in exchanges["#1"][0]
-    assert "corrupt:crash" in exchanges["#1"][1][4].split()
+    assert "corrupt:crash" in exchanges["#1"][1][6].split()
     picture = tmp_path / "campaign.png"
     open_page(page, tmp_path, screenshot=picture)
     assert CRASH_COLOUR in png_pixels(picture)
