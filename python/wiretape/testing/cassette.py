@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import datetime
 import os
+import shlex
 import time
 import urllib.parse
 import warnings
@@ -248,6 +249,9 @@ class WiretapeCassette:
         self._ports: List[wiretape.Port] = []
         self._cleanups: List[Callable[[], None]] = []
         self._recorder = None  # wiretape.Recorder of a cassette of several ports
+        # What the closed replays left of the cassette (Port.left_unused), for
+        # the summary: unused=ignore, the default, says nothing else.
+        self.left_unused: List[str] = []
 
     # -- what fixtures use ---------------------------------------------------
     @property
@@ -294,12 +298,28 @@ class WiretapeCassette:
         return f"wiretape://{urllib.parse.quote(str(self.path))}?{query}"
 
     def record_command(self) -> str:
-        if (self.device_from_driver or self.ports is not None) and not self.device:
+        """The shell command that records the cassette: the device setting,
+        else the device the cassette's header says it was recorded from,
+        else OPTS."""
+        test = shlex.quote(self.item.nodeid)
+        device = self.device or self._recorded_device()
+        if (self.device_from_driver or self.ports is not None) and not device:
             # wiretape_serial records from the path the driver opens.
-            return f"pytest --wiretape-record=once {self.item.nodeid!r}"
-        device = self.device or "OPTS"
-        return (f"pytest --wiretape-record=once --wiretape-device={device!r} "
-                f"{self.item.nodeid!r}")
+            return f"pytest --wiretape-record=once {test}"
+        device = shlex.quote(device) if device else "OPTS"
+        return f"pytest --wiretape-record=once --wiretape-device={device} {test}"
+
+    def _recorded_device(self) -> str:
+        """The device the cassette's header names (``_core.recorded_device``);
+        '' for a missing or unreadable cassette, or one of several ports
+        (their devices are the marker's ``ports=``)."""
+        try:
+            header = wiretape.SessionReader(str(self.path)).header
+        except (OSError, wiretape.SessionError):
+            return ""
+        if header.channels:
+            return ""
+        return _core.recorded_device(header.port_options)
 
     def channel_options(self, name: str) -> str:
         """The option string that replays channel `name` of the cassette."""
@@ -473,6 +493,8 @@ class WiretapeCassette:
                     port.close()
             except Exception as error:
                 errors.append(error)
+            if port.left_unused:
+                self.left_unused.append(port.left_unused)
         recorder, self._recorder = self._recorder, None
         close = getattr(recorder, "close", None)
         if close is not None:
