@@ -330,6 +330,7 @@ class WiretapeCassette:
         """The ports of the marker's ``ports=`` by name: each device
         recording into its channel of the one cassette (one clock), or each
         channel's replay (one clock from the first open), or live."""
+        __tracebackhide__ = True  # wiretape's frames, not the test's
         if self.ports is None:
             pytest.fail(f"{self.item.nodeid}: wiretape_ports needs the marker's ports= "
                         "(@pytest.mark.wiretape(ports={'gps': 'OPTS', ...}))", pytrace=False)
@@ -462,6 +463,7 @@ class WiretapeCassette:
     def open_port(self, device: Any = None) -> wiretape.Port:
         """Opens the replay, or the device recording to the cassette: `device`,
         or else the device setting."""
+        __tracebackhide__ = True  # wiretape's frames, not the test's
         if device:
             self.opened_device = device
         options = self.options
@@ -480,6 +482,7 @@ class WiretapeCassette:
     def close_ports(self) -> None:
         """Closes what the plugin opened; raises what closing raises (a replay
         with unused=error reports unused data here)."""
+        __tracebackhide__ = True  # wiretape's frames, not the test's
         errors = []
         while self._cleanups:
             try:

@@ -73,3 +73,41 @@ def test_a_cassette_that_several_tests_share_counts_once(pytester):
     result.stdout.fnmatch_lines(["1 cassette: 1 replayed"])
     result = pytester.runpytest()
     result.stdout.fnmatch_lines(["1 cassette: 1 replayed"])
+
+
+def test_a_mismatch_traceback_shows_the_tests_frames_not_wiretapes(pytester):
+    pytester.makepyfile(test_url="""
+        import serial
+
+        def test_pyserial(wiretape_url):
+            with serial.serial_for_url(wiretape_url, timeout=5) as port:
+                port.write(b"hello\\n")
+                assert port.read(6) == b"hello\\n"
+    """)
+    pytester.runpytest("--wiretape-record=once",
+                       "--wiretape-device=type=loopback").assert_outcomes(passed=1)
+    pytester.makepyfile(test_url="""
+        import serial
+
+        def test_pyserial(wiretape_url):
+            with serial.serial_for_url(wiretape_url, timeout=5) as port:
+                port.write(b"hellx\\n")
+                assert port.read(6) == b"hello\\n"
+    """)
+    result = pytester.runpytest("--tb=long")
+    result.assert_outcomes(failed=1)
+    output = result.stdout.str()
+    assert "mismatch" in output
+    assert "test_url.py" in output
+    assert "wiretape/urlhandler" not in output and "wiretape/testing" not in output, output
+
+
+def test_unused_error_fails_without_the_plugins_frames(pytester):
+    pytester.makepyfile(test_two=TWO_WORDS.replace("cassette=SHARED", "cassette=SHARED, unused='error'"))
+    pytester.runpytest("--wiretape-record=once", "--wiretape-device=type=loopback",
+                       "test_two.py::test_two").assert_outcomes(passed=1)
+    result = pytester.runpytest("--tb=long", "-k", "only_first")
+    result.assert_outcomes(failed=1)
+    output = result.stdout.str()
+    assert "never read" in output
+    assert "wiretape/testing" not in output, output
