@@ -63,7 +63,7 @@ demo-build: $(BUILD)/build.ninja
 	cmake --build $(BUILD) --target $(DEMO_TARGETS)
 
 demo: demo-build $(VENV)/.installed
-	$(VENV)/bin/wiretape demo
+	WIRETAPE_BIN_DIR=$(abspath $(BUILD))/bin $(VENV)/bin/wiretape demo
 
 # The C++ library, its headers and its CMake package (docs/port.md):
 # find_package(wiretape) with CMAKE_PREFIX_PATH=$(PREFIX).
