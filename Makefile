@@ -8,8 +8,8 @@ GENERATOR ?= Ninja
 CMAKE_ARGS ?=
 export PATH := $(abspath $(VENV))/bin:$(PATH)
 
-.PHONY: all cpp python stubs test test-cpp test-python test-odr demo bench fuzz test-sanitize soak clean \
-	wheel wheel-smoke
+.PHONY: all cpp python stubs test test-cpp test-python test-odr demo demo-build install bench fuzz \
+	test-sanitize soak clean wheel wheel-smoke
 
 all: python
 
@@ -52,8 +52,26 @@ test: python
 	$(PYTHON) -m pytest -q || status=1; \
 	exit $$status
 
-demo: python
-	$(VENV)/bin/wiretape demo
+# The demo runs the extension and hokuyo-scan; the preload shim (four C
+# files, Linux) comes along so that the CLI's `-- CMD` works after it. Not
+# the tests and fuzz targets that `cpp` builds too. Ninja's [n/N] lines are
+# its progress.
+DEMO_TARGETS := _core hokuyo-scan $(if $(filter Linux,$(shell uname -s)),wiretape_redirect wiretape_scaled_clock)
+
+demo-build: $(BUILD)/build.ninja
+	@echo "demo: building $(DEMO_TARGETS) (not the tests: make test builds those)"
+	cmake --build $(BUILD) --target $(DEMO_TARGETS)
+
+demo: demo-build $(VENV)/.installed
+	WIRETAPE_BIN_DIR=$(abspath $(BUILD))/bin $(VENV)/bin/wiretape demo
+
+# The C++ library, its headers and its CMake package (docs/port.md):
+# find_package(wiretape) with CMAKE_PREFIX_PATH=$(PREFIX).
+PREFIX ?= /usr/local
+
+install: $(BUILD)/build.ninja
+	cmake --build $(BUILD) --target wiretape
+	cmake --install $(BUILD) --prefix $(PREFIX) --component cpp
 
 # The One Definition Rule checked across the whole program: its own tree,
 # built with link-time optimisation so the linker sees every translation

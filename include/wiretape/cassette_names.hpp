@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
+#include <exception>
 #include <filesystem>
 #include <string>
 #include <string_view>
@@ -191,6 +192,37 @@ inline void move_recording(const std::filesystem::path& from, const std::filesys
 }
 
 }  // namespace detail
+
+// `text` as one word of a POSIX shell, for the commands that messages print:
+// in single quotes, each `'` in it spelled `'\''`.
+inline std::string shell_quoted(std::string_view text) {
+  std::string quoted = "'";
+  for (char c : text) {
+    if (c == '\'') {
+      quoted += "'\\''";
+    } else {
+      quoted += c;
+    }
+  }
+  return quoted + "'";
+}
+
+// The device setting a cassette was recorded from, for the command that
+// records it again: the port options its header keeps (a channel's, for a
+// cassette of several ports) without what the recording added to the
+// device's own: log= (the cassette), name= (a Recorder's channel) and the
+// test helpers' metadata (meta_gtest, meta_pytest_node). "" when the header
+// keeps none (an imported session) or they do not parse.
+inline std::string recorded_device(std::string_view port_options) {
+  Options options;
+  try {
+    options = Options::parse(port_options);
+  } catch (const std::exception&) {
+    return {};
+  }
+  for (const char* added : {"log", "name", "meta_gtest", "meta_pytest_node"}) options.erase(added);
+  return options.entries().empty() ? std::string() : options.to_string();
+}
 
 // Moves a finished recording (recorded to the temporary file `recording`,
 // e.g. "<cassette>.recording-4242") to `cassette`, so that the cassette says

@@ -146,6 +146,11 @@ class Port {
   virtual int native_handle() const = 0;
   // What this port can do (see PortCapabilities); none of it by default.
   virtual PortCapabilities capabilities() const { return {}; }
+  // A played recording (replay), once closed: what its client left of the
+  // recording unread or unasked, as unused= words it ("" when it used it
+  // all), whatever unused= says to do about it; "" before close() and for
+  // every other port.
+  virtual std::string left_unused() const { return {}; }
 
   // --- serial line control (PortError ENOTSUP where the port has none) ----
   virtual void set_baud(unsigned baud);

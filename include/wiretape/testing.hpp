@@ -79,12 +79,19 @@ struct CassetteSettings {
   // channel name; filled as channels are asked for (channel_device).
   std::function<const char*(const char*)> lookup;
 
-  // The option string of channel `name`'s device, "" when none is given.
-  std::string channel_device(const std::string& name) const {
+  // The environment variable naming channel `name`'s device:
+  // WIRETAPE_DEVICE_<name>, a '-' in it spelled '_'.
+  static std::string channel_device_variable(const std::string& name) {
     std::string variable = "WIRETAPE_DEVICE_" + name;
     for (char& c : variable) {
       if (c == '-') c = '_';
     }
+    return variable;
+  }
+
+  // The option string of channel `name`'s device, "" when none is given.
+  std::string channel_device(const std::string& name) const {
+    const std::string variable = channel_device_variable(name);
     const char* value = lookup ? lookup(variable.c_str()) : std::getenv(variable.c_str());
     return value ? value : "";
   }
@@ -161,7 +168,7 @@ class Cassette {
     if (!std::filesystem::exists(path_)) {
       throw std::runtime_error("wiretape: no recording " + path_ +
                                "; record it from the device with\n    " +
-                               record_command("once"));
+                               record_command());
     }
     std::string text = "type=replay,file=" + quote_option_value(path_);
     if (!Options::parse(replay_keys_).has("timing")) text += ",timing=none";
@@ -169,19 +176,21 @@ class Cassette {
     return text;
   }
 
-  // The shell command that records this cassette from the device again
-  // (`mode`: once or rewrite), for messages.
-  std::string record_command(const char* mode) const {
+  // The shell command that records this cassette from its device: `once`
+  // while it is missing, `rewrite` once it exists. The device is
+  // WIRETAPE_DEVICE when set, else the one the cassette's header says it was
+  // recorded from (each channel's, for a cassette of several), else OPTS.
+  std::string record_command() const {
     std::string program = "<this test program>";
 #ifdef __GLIBC__
     if (program_invocation_name != nullptr && *program_invocation_name != '\0') {
       program = program_invocation_name;
     }
 #endif
-    std::string text = std::string("WIRETAPE_RECORD=") + mode + " WIRETAPE_DEVICE='" +
-                       (settings_.device.empty() ? std::string("OPTS") : settings_.device) +
-                       "' " + program;
-    if (!test_name_.empty()) text += " --gtest_filter='" + test_name_ + "'";
+    const bool exists = std::filesystem::exists(path_);
+    std::string text = std::string("WIRETAPE_RECORD=") + (exists ? "rewrite" : "once") + " " +
+                       device_assignments(exists) + program;
+    if (!test_name_.empty()) text += " --gtest_filter=" + shell_quoted(test_name_);
     return text;
   }
 
@@ -202,10 +211,7 @@ class Cassette {
     if (recording_) {
       const std::string device = settings_.channel_device(name);
       if (device.empty()) {
-        std::string variable = "WIRETAPE_DEVICE_" + name;
-        for (char& c : variable) {
-          if (c == '-') c = '_';
-        }
+        const std::string variable = CassetteSettings::channel_device_variable(name);
         throw std::runtime_error("wiretape: cassette " + path_ + " must be recorded "
                                  "(WIRETAPE_RECORD is set) but " + variable +
                                  " names no device for its channel \"" + name + "\"");
@@ -215,7 +221,7 @@ class Cassette {
     if (!std::filesystem::exists(path_)) {
       throw std::runtime_error("wiretape: no recording " + path_ +
                                "; record it from the devices with\n    " +
-                               record_command("once"));
+                               record_command());
     }
     std::string text = "type=replay,file=" + quote_option_value(path_) + ",channel=" + name;
     if (!Options::parse(replay_keys_).has("timing")) text += ",timing=none";
@@ -292,6 +298,27 @@ class Cassette {
   }
 
  private:
+  // `WIRETAPE_DEVICE='...' ` (or one WIRETAPE_DEVICE_<name> per channel) for
+  // record_command().
+  std::string device_assignments(bool exists) const {
+    if (!settings_.device.empty()) return "WIRETAPE_DEVICE=" + shell_quoted(settings_.device) + " ";
+    std::string text;
+    if (exists) {
+      try {
+        for (const Channel& channel : SessionReader(path_).header().channel_list()) {
+          const std::string device = recorded_device(channel.port_options);
+          if (device.empty()) continue;
+          text += (channel.name.empty() ? std::string("WIRETAPE_DEVICE")
+                                        : CassetteSettings::channel_device_variable(channel.name)) +
+                  "=" + shell_quoted(device) + " ";
+        }
+      } catch (const std::exception&) {
+        // A cassette that cannot be read says nothing of its device.
+      }
+    }
+    return text.empty() ? "WIRETAPE_DEVICE=OPTS " : text;
+  }
+
   std::string path_;
   std::string partial_path_;
   CassetteSettings settings_;
@@ -368,11 +395,13 @@ class CassetteTest : public ::testing::Test {
       // (and any other) this test's line and the way out.
       trace_ = std::make_unique<::testing::ScopedTrace>(
           source_file, source_line,
-          cassette_->recording()
-              ? "recording cassette " + cassette_->path()
-              : "replaying cassette " + cassette_->path() +
+          cassette_->recording() ? "recording cassette " + cassette_->path()
+          : std::filesystem::exists(cassette_->path())
+              ? "replaying cassette " + cassette_->path() +
                     "; if the driver changed on purpose, record it again with\n    " +
-                    cassette_->record_command("rewrite"));
+                    cassette_->record_command()
+              // The error that the missing cassette raises gives the command.
+              : "replaying cassette " + cassette_->path() + " (missing)");
     }
     return *cassette_;
   }

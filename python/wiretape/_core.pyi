@@ -107,6 +107,12 @@ class Port:
         """The port's type as in the option string: 'serial', 'tcp', ..."""
 
     @property
+    def left_unused(self) -> str:
+        """
+        A replay, once closed: what its client left of the recording, as unused= words it ('' when it used it all), whatever unused= says; '' before close() and for other ports.
+        """
+
+    @property
     def access(self) -> str:
         """'readwrite', 'readonly' or 'writeonly'."""
 
@@ -738,6 +744,11 @@ def cassette_file_name(test_name_parts: Sequence[str]) -> str:
 def cassette_directory(source_file: object, directory: str = '') -> str:
     """
     The folder of SOURCE_FILE's cassettes: <its dir>/recordings/<its stem>, or <DIRECTORY>/<its stem> when a directory is given.
+    """
+
+def recorded_device(port_options: str) -> str:
+    """
+    The device setting a cassette was recorded from, for the command that records it again: PORT_OPTIONS as its header keeps them without log=, name= and the test helpers' meta_gtest= and meta_pytest_node=; '' when none are kept.
     """
 
 def publish_recording(recording: object, cassette: object) -> None:

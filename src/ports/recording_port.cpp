@@ -98,6 +98,7 @@ class RecordingPort final : public Port {
   std::string description() const override { return inner_->description(); }
   std::string type() const override { return inner_->type(); }
   PortCapabilities capabilities() const override { return inner_->capabilities(); }
+  std::string left_unused() const override { return inner_->left_unused(); }
   int native_handle() const override { return inner_->native_handle(); }
 
   void set_baud(unsigned baud) override {

@@ -564,6 +564,10 @@ void bind_port(nb::module_& m) {
                    "Human-readable, e.g. 'serial /dev/ttyUSB0 @ 115200 8N1'.")
       .def_prop_ro("type", [](const Port& port) { return port.type(); },
                    "The port's type as in the option string: 'serial', 'tcp', ...")
+      .def_prop_ro("left_unused", [](const Port& port) { return port.left_unused(); },
+                   "A replay, once closed: what its client left of the recording, as "
+                   "unused= words it ('' when it used it all), whatever unused= says; '' "
+                   "before close() and for other ports.")
       .def_prop_ro("access", [](const Port& port) { return access_name(port.access()); },
                    "'readwrite', 'readonly' or 'writeonly'.")
       .def("fileno", &fileno,

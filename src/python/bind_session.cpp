@@ -465,6 +465,10 @@ void bind_session(nb::module_& m) {
       "source_file"_a, "directory"_a = "",
       "The folder of SOURCE_FILE's cassettes: <its dir>/recordings/<its stem>, or "
       "<DIRECTORY>/<its stem> when a directory is given.");
+  m.def("recorded_device", &testing::recorded_device, "port_options"_a,
+        "The device setting a cassette was recorded from, for the command that records it "
+        "again: PORT_OPTIONS as its header keeps them without log=, name= and the test "
+        "helpers' meta_gtest= and meta_pytest_node=; '' when none are kept.");
   m.def(
       "publish_recording",
       [](nb::handle recording, nb::handle cassette) {

@@ -261,6 +261,10 @@ class ReplayPort : public Port, public FaultSource {
     c.serial_settings = c.modem_lines = c.send_break = c.played_recording = true;
     return c;
   }
+  std::string left_unused() const override {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return left_unused_;
+  }
   int native_handle() const override {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!handle_handed_out_ && !closed_) {
@@ -606,6 +610,7 @@ class ReplayPort : public Port, public FaultSource {
       // Asked whatever the policy: rx a flush gate held from a client that
       // wrote past it raises here (sequence.cpp).
       unused = engine_->unused_report();
+      left_unused_ = unused;
       if (unused.empty() || policy == ReplayUnused::ignore) return;
       if (policy == ReplayUnused::warn || !may_throw) {
         // After a mismatch what the client left unused follows from it: the
@@ -625,6 +630,8 @@ class ReplayPort : public Port, public FaultSource {
   mutable std::mutex mutex_;
   // A write did not match the recording (ReplayMismatch was raised).
   bool mismatched_ = false;
+  // What the client left of the recording, as close() found it (left_unused()).
+  std::string left_unused_;
   std::condition_variable changed_;
   const ReplayConfig config_;  // for the engine of each client session
   // What faults left behind, for every client session's engine: a silenced

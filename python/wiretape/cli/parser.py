@@ -242,16 +242,36 @@ _CHANNELS_USAGE = {
 }
 
 
+# The end of --help of the commands a newcomer starts with: one device
+# first, then -- CMD, then several channels (docs/cli.md has each).
+_EXAMPLES = {
+    "record": """examples:
+  wiretape record --device /dev/ttyUSB0 --pty /tmp/ttyLidar -o scan.wtape
+  wiretape record --device type=tcp,host=10.0.0.5,port=10940 --listen 127.0.0.1:10940 -o scan.wtape
+  wiretape record --device /dev/ttyUSB0 -o scan.wtape -- ./driver --port /dev/ttyUSB0
+  wiretape record -o nav.wtape --device gps=/dev/ttyUSB0 --pty gps=/tmp/gps \\
+      --device rtk=type=tcp,host=caster,port=2101 --listen rtk=127.0.0.1:2101""",
+    "replay": """examples:
+  wiretape replay scan.wtape --pty /tmp/ttyLidar
+  wiretape replay scan.wtape --listen 127.0.0.1:10940 --match request
+  wiretape replay scan.wtape --as /dev/ttyUSB0 -- ./driver --port /dev/ttyUSB0
+  wiretape replay nav.wtape --pty gps=/tmp/gps --listen rtk=127.0.0.1:2101""",
+}
+
+
 def _finish_help(name: str, sub: argparse.ArgumentParser) -> None:
     """The usage line shows the CMD after ``--`` (argparse never sees it),
-    and the note on --device is only where there is a --device."""
+    the one-device form before the form of several channels; the note on
+    --device is only where there is a --device, after the examples."""
     has_device = any("--device" in action.option_strings for action in sub._actions)
     sub.epilog = _EPILOG if has_device else _EXIT_CODES
+    if name in _EXAMPLES:
+        sub.epilog = _EXAMPLES[name] + "\n\n" + sub.epilog
     if name in _COMMAND_USAGE:
         usage = sub.format_usage().rstrip()
         sub.usage = usage[len("usage: "):] + " " + _COMMAND_USAGE[name]
-    if name in _CHANNELS_USAGE:  # first, so that the usage still ends with CMD
-        sub.usage = _CHANNELS_USAGE[name] + "\n       " + sub.usage
+    if name in _CHANNELS_USAGE:
+        sub.usage += "\n       " + _CHANNELS_USAGE[name]
 
 
 class _Parser(argparse.ArgumentParser):

@@ -14,6 +14,7 @@ from __future__ import annotations
 import datetime
 import os
 import re
+import shlex
 import time
 import urllib.parse
 import warnings
@@ -288,6 +289,9 @@ class WiretapeCassette:
         self._ports: List[wiretape.Port] = []
         self._cleanups: List[Callable[[], None]] = []
         self._recorder = None  # wiretape.Recorder of a cassette of several ports
+        # What the closed replays left of the cassette (Port.left_unused), for
+        # the summary: unused=ignore, the default, says nothing else.
+        self.left_unused: List[str] = []
 
     # -- what fixtures use ---------------------------------------------------
     @property
@@ -334,12 +338,28 @@ class WiretapeCassette:
         return f"wiretape://{urllib.parse.quote(str(self.path))}?{query}"
 
     def record_command(self) -> str:
-        if (self.device_from_driver or self.ports is not None) and not self.device:
+        """The shell command that records the cassette: the device setting,
+        else the device the cassette's header says it was recorded from,
+        else OPTS."""
+        test = shlex.quote(self.item.nodeid)
+        device = self.device or self._recorded_device()
+        if (self.device_from_driver or self.ports is not None) and not device:
             # wiretape_serial records from the path the driver opens.
-            return f"pytest --wiretape-record=once {self.item.nodeid!r}"
-        device = self.device or "OPTS"
-        return (f"pytest --wiretape-record=once --wiretape-device={device!r} "
-                f"{self.item.nodeid!r}")
+            return f"pytest --wiretape-record=once {test}"
+        device = shlex.quote(device) if device else "OPTS"
+        return f"pytest --wiretape-record=once --wiretape-device={device} {test}"
+
+    def _recorded_device(self) -> str:
+        """The device the cassette's header names (``_core.recorded_device``);
+        '' for a missing or unreadable cassette, or one of several ports
+        (their devices are the marker's ``ports=``)."""
+        try:
+            header = wiretape.SessionReader(str(self.path)).header
+        except (OSError, wiretape.SessionError):
+            return ""
+        if header.channels:
+            return ""
+        return _core.recorded_device(header.port_options)
 
     def channel_options(self, name: str) -> str:
         """The option string that replays channel `name` of the cassette."""
@@ -350,6 +370,7 @@ class WiretapeCassette:
         """The ports of the marker's ``ports=`` by name: each device
         recording into its channel of the one cassette (one clock), or each
         channel's replay (one clock from the first open), or live."""
+        __tracebackhide__ = True  # wiretape's frames, not the test's
         if self.ports is None:
             pytest.fail(f"{self.item.nodeid}: wiretape_ports needs the marker's ports= "
                         "(@pytest.mark.wiretape(ports={'gps': 'OPTS', ...}))", pytrace=False)
@@ -482,6 +503,7 @@ class WiretapeCassette:
     def open_port(self, device: Any = None) -> wiretape.Port:
         """Opens the replay, or the device recording to the cassette: `device`,
         or else the device setting."""
+        __tracebackhide__ = True  # wiretape's frames, not the test's
         if device:
             self.opened_device = device
         options = self.options
@@ -500,6 +522,7 @@ class WiretapeCassette:
     def close_ports(self) -> None:
         """Closes what the plugin opened; raises what closing raises (a replay
         with unused=error reports unused data here)."""
+        __tracebackhide__ = True  # wiretape's frames, not the test's
         errors = []
         while self._cleanups:
             try:
@@ -513,6 +536,8 @@ class WiretapeCassette:
                     port.close()
             except Exception as error:
                 errors.append(error)
+            if port.left_unused:
+                self.left_unused.append(port.left_unused)
         recorder, self._recorder = self._recorder, None
         close = getattr(recorder, "close", None)
         if close is not None:

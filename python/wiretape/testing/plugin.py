@@ -179,6 +179,7 @@ def pytest_runtest_makereport(item, call):
 
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_call(item):
+    __tracebackhide__ = True  # wiretape's frames, not the test's
     cassette = item.stash.get(_CASSETTE_KEY, None)
     try:
         result = yield
@@ -333,6 +334,7 @@ def _virtual_device(cassette: WiretapeCassette, fixture: str, **client_side):
                                      **client_side)
 
     def stop():
+        __tracebackhide__ = True  # wiretape's frames, not the test's
         handle.stop()
         handle.wait(10)
         result = handle.result()

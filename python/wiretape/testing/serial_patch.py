@@ -146,6 +146,7 @@ class SerialPatch:
             replacement = getattr(PortSerial, name)
 
             def method(self, *args, **kwargs):
+                __tracebackhide__ = True  # wiretape's frames, not the test's
                 if served(self):
                     return replacement(self, *args, **kwargs)
                 return native(self, *args, **kwargs)
@@ -159,6 +160,7 @@ class SerialPatch:
             replacement = getattr(PortSerial, name)
 
             def getter(self):
+                __tracebackhide__ = True  # wiretape's frames, not the test's
                 if served(self):
                     return replacement.fget(self)
                 return native.fget(self)
@@ -169,6 +171,7 @@ class SerialPatch:
         native_close = cls.close
 
         def open(self):
+            __tracebackhide__ = True  # wiretape's frames, not the test's
             if not patch.serves(self._port):
                 self.__dict__.pop("_wiretape_patch", None)  # a served port moved to another path
                 return native_open(self)
@@ -180,6 +183,7 @@ class SerialPatch:
                 raise
 
         def open_wiretape_port(self, path):
+            __tracebackhide__ = True  # wiretape's frames, not the test's
             return patch.attach(self)
 
         def close(self):

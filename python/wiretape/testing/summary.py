@@ -1,8 +1,9 @@
 """The end-of-run summary of the pytest plugin (DESIGN §11): how many
 cassettes were replayed, recorded (and kept), appended to (new_episodes) or
-run live, the cassettes in the tests' recording folders that no test names
-any more, and the recordings in progress that a killed pytest left there
-(removed)."""
+run live (a cassette shared by several tests counted once), the cassettes
+that a passing test left partly unread, the cassettes in the tests'
+recording folders that no test names any more, and the recordings in
+progress that a killed pytest left there (removed)."""
 
 from __future__ import annotations
 
@@ -20,16 +21,31 @@ def _plural(count: int, word: str) -> str:
     return f"{count} {word}" + ("" if count == 1 else "s")
 
 
+# What a cassette's tests did with it, in the summary's order.
+OUTCOMES = ("replayed", "recorded", "appended", "not kept", "live")
+# A cassette that several tests share is counted once, under the strongest
+# thing one of them did to it.
+STRONGEST_FIRST = ("recorded", "appended", "not kept", "replayed", "live")
+
+
 class CassetteSummary:
     """What the run did with cassettes (``note``) and which ones its test
     files name (``note_collected``)."""
 
     def __init__(self) -> None:
-        self.counts: Dict[str, int] = {"replayed": 0, "recorded": 0, "appended": 0,
-                                       "not kept": 0, "live": 0}
+        self._outcomes: Dict[str, str] = {}  # cassette (real path) -> outcome
+        self._left_unused: Dict[str, Dict[str, None]] = {}  # cassette -> what its tests left
         self._folders: Set[Path] = set()
         self._named: Set[Path] = set()
         self._cassette_folders: Set[Path] = set()  # of the cassettes used, wherever
+
+    @property
+    def counts(self) -> Dict[str, int]:
+        """Cassettes by outcome, each counted once."""
+        counts = {outcome: 0 for outcome in OUTCOMES}
+        for outcome in self._outcomes.values():
+            counts[outcome] += 1
+        return counts
 
     def note_collected(self, item: pytest.Item) -> None:
         try:
@@ -48,16 +64,25 @@ class CassetteSummary:
     def note(self, cassette, passed: bool) -> None:
         self._cassette_folders.add(cassette.path.parent)
         if cassette.live:
-            self.counts["live"] += 1
+            outcome = "live"
         elif cassette.appending:
             # new_episodes: ports recorded onto a cassette replayed for the others
-            self.counts["appended" if cassette.appended else
-                        "not kept" if cassette.channels_to_record and not passed else
-                        "replayed"] += 1
+            outcome = ("appended" if cassette.appended else
+                       "not kept" if cassette.channels_to_record and not passed else
+                       "replayed")
         elif cassette.recording:
-            self.counts["recorded" if passed and cassette.path.exists() else "not kept"] += 1
+            outcome = "recorded" if passed and cassette.path.exists() else "not kept"
         else:
-            self.counts["replayed"] += 1
+            outcome = "replayed"
+        # The device of a live test is no cassette: each test is its own.
+        key = (f"live {cassette.item.nodeid}" if cassette.live
+               else os.path.realpath(cassette.path))
+        known = self._outcomes.get(key)
+        if known is None or STRONGEST_FIRST.index(outcome) < STRONGEST_FIRST.index(known):
+            self._outcomes[key] = outcome
+        if cassette.left_unused and passed and not cassette.recording:
+            left = self._left_unused.setdefault(str(cassette.path), {})
+            left.update(dict.fromkeys(cassette.left_unused))
 
     def orphans(self) -> List[Path]:
         named = {os.path.realpath(path) for path in self._named}
@@ -79,17 +104,24 @@ class CassetteSummary:
     def lines(self) -> List[str]:
         """Nothing when no test used a cassette, none is orphaned and no
         stale recording was removed."""
-        used = sum(self.counts.values())
+        counts = self.counts
+        used = sum(counts.values())
         orphans = self.orphans()
         stale = self.stale_recordings()
         if not used and not orphans and not stale:
             return []
         lines = []
         if used:
-            parts = [f"{count} {what}" for what, count in self.counts.items() if count]
+            parts = [f"{count} {what}" for what, count in counts.items() if count]
             lines.append(f"{_plural(used, 'cassette')}: " + ", ".join(parts)
                          + ("  (not kept: the test failed while recording)"
-                            if self.counts["not kept"] else ""))
+                            if counts["not kept"] else ""))
+        if self._left_unused:
+            lines.append(f"{_plural(len(self._left_unused), 'cassette')} left partly unread "
+                         "by a passing test (replay key unused=error makes it a failure; "
+                         "docs/testing.md):")
+            for path, reports in sorted(self._left_unused.items()):
+                lines.append(f"    {path}: " + "; ".join(reports))
         if orphans:
             lines.append(f"{_plural(len(orphans), 'cassette')} no collected test names "
                          "(a renamed or removed test?):")

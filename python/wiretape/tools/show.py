@@ -27,8 +27,16 @@ __all__ = ["show", "show_reporting_damage", "Selection", "check_kinds", "record_
            "color_wanted"]
 
 
+# The time and Δt columns are as wide as a day and more of session time
+# (+99999.999999s): the columns after them do not move when times pass 10 s
+# or 100 s. The time is left-aligned, so that a record's line still starts
+# with its signed time.
+TIME_WIDTH = 14
+STEP_WIDTH = 13
+
+
 def _seconds(t_ns: int) -> str:
-    return f"{t_ns / 1e9:+.6f}s"
+    return f"{f'{t_ns / 1e9:+.6f}s':<{TIME_WIDTH}}"
 
 
 def _header_lines(reader: _core.SessionReader, path: SessionPath) -> Iterator[str]:
@@ -257,7 +265,7 @@ def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optiona
 
     if delta:
         heading = f"{'channel':<{width}} " if several else ""
-        out.write(paint("heading", f"{'time':<10}  {'Δt':>10}  {heading}{'kind':<17} "
+        out.write(paint("heading", f"{'time':<{TIME_WIDTH}}  {'Δt':>{STEP_WIDTH}}  {heading}{'kind':<17} "
                                    f"{'size':>8}  data") + "\n")
     previous: Optional[int] = None
     if framing is not None and fmt == "text":
@@ -373,7 +381,7 @@ def _timeline(reader, out: IO[str], paint: Callable[[str, str], str],
     lines: list = []
     count = shown = 0
     previous: Optional[int] = None
-    first_step = f"{time_on}{'':>10}{time_off}  "
+    first_step = f"{time_on}{'':>{STEP_WIDTH}}{time_off}  "
     for record in reader:
         count += 1
         t_ns, kind, data = record.t_ns, record.kind, record.data
@@ -388,7 +396,7 @@ def _timeline(reader, out: IO[str], paint: Callable[[str, str], str],
                 if len(steps) >= _COLUMNS_KEPT:
                     steps.clear()
                 gap = f"{(t_ns - previous) / 1e9:.6f}s"
-                step = steps[t_ns - previous] = f"{time_on}{gap:>10}{time_off}  "
+                step = steps[t_ns - previous] = f"{time_on}{gap:>{STEP_WIDTH}}{time_off}  "
         previous = t_ns
         sizes = heads.get(kind)
         if sizes is None:
@@ -404,12 +412,12 @@ def _timeline(reader, out: IO[str], paint: Callable[[str, str], str],
                 head = sizes[size] = (f"{sizes['column']} {size:>6} B  "
                                       f"{'<-' if kind == 'rx' else '->'} ")
             text = escape(data, size if full else limit)
-            lines.append(f"{time_on}{t_ns / 1e9:+.6f}s{time_off}  {step}{head}{text}".rstrip())
+            lines.append(f"{time_on}{_seconds(t_ns)}{time_off}  {step}{head}{text}".rstrip())
         else:
             event = event_of(record)
             text = (json.dumps(event, separators=(",", ":")) if event is not None
                     else escape(data, len(data) if full else limit))
-            lines.append(f"{time_on}{t_ns / 1e9:+.6f}s{time_off}  {step}{sizes['column']} "
+            lines.append(f"{time_on}{_seconds(t_ns)}{time_off}  {step}{sizes['column']} "
                          f"{'':>8}  {text}".rstrip())
         if len(lines) >= _LINES_PER_WRITE:
             lines.append("")
@@ -451,7 +459,7 @@ def _stamp(paint: Callable[[str, str], str], t_ns: int, previous: Optional[int],
     if not delta:
         return f"{time}  "
     step = "" if previous is None else f"{(t_ns - previous) / 1e9:.6f}s"
-    return f"{time}  {paint('time', f'{step:>10}')}  "
+    return f"{time}  {paint('time', f'{step:>{STEP_WIDTH}}')}  "
 
 
 def color_wanted(choice: str, stream: IO[str]) -> bool:

@@ -131,6 +131,7 @@ class PortSerial(SerialBase):
         return self._wiretape_port
 
     def _convert_errors(self, call, *args, **kwargs):
+        __tracebackhide__ = True  # wiretape's frames, not the test's
         try:
             return call(*args, **kwargs)
         except CONVERTED_ERRORS as error:
@@ -146,6 +147,7 @@ class PortSerial(SerialBase):
     # line in one call, where pyserial's own read_until and readline read a
     # byte at a time), errors converted only once one was raised.
     def read(self, size=1):
+        __tracebackhide__ = True  # wiretape's frames, not the test's
         port = self._wiretape_port  # None whenever the port is not open
         if port is None:
             raise PortNotOpenError()
@@ -158,6 +160,7 @@ class PortSerial(SerialBase):
             raise
 
     def read_until(self, expected=b"\n", size=None):
+        __tracebackhide__ = True  # wiretape's frames, not the test's
         port = self._wiretape_port  # None whenever the port is not open
         if port is None:
             raise PortNotOpenError()
@@ -168,9 +171,11 @@ class PortSerial(SerialBase):
             raise
 
     def readline(self, size=-1):
+        __tracebackhide__ = True  # wiretape's frames, not the test's
         return self.read_until(b"\n", None if size is None or size < 0 else size)
 
     def write(self, data):
+        __tracebackhide__ = True  # wiretape's frames, not the test's
         port = self._wiretape_port  # None whenever the port is not open
         if port is None:
             raise PortNotOpenError()
@@ -191,10 +196,12 @@ class PortSerial(SerialBase):
     def _raise_converted(self, error):
         """Raises wiretape's port, option and session errors as the
         SerialException naming the port; returns on anything else."""
+        __tracebackhide__ = True  # wiretape's frames, not the test's
         if isinstance(error, CONVERTED_ERRORS):
             raise SerialException(f"{self._port}: {error}") from error
 
     def flush(self):
+        __tracebackhide__ = True  # wiretape's frames, not the test's
         port = self._require_open()
         self._convert_errors(port.drain)
 

@@ -197,6 +197,37 @@ TEST(Cassette, MissingCassetteOrDeviceIsAClearError) {
   }
 }
 
+TEST(CassetteNames, RecordedDeviceIsTheDeviceWithoutWhatTheRecordingAdded) {
+  using wiretape::testing::recorded_device;
+  EXPECT_EQ(recorded_device("type=serial,device=/dev/ttyUSB0,baud=115200,log=t.wtape,"
+                            "meta_gtest=Suite.Test"),
+            "type=serial,device=/dev/ttyUSB0,baud=115200");
+  EXPECT_EQ(recorded_device("type=tcp,host=10.0.0.5,port=502,log=t.wtape,meta_pytest_node="
+                            "'t.py::test',meta_board=rev2"),
+            "type=tcp,host=10.0.0.5,port=502,meta_board=rev2");
+  EXPECT_EQ(recorded_device("log=t.wtape"), "");
+  EXPECT_EQ(recorded_device(""), "");
+  EXPECT_EQ(wiretape::testing::shell_quoted("device=/dev/it's"), "'device=/dev/it'\\''s'");
+}
+
+TEST(Cassette, TheRecordCommandNamesTheDeviceTheCassetteWasRecordedFrom) {
+  TemporaryDirectory directory;
+  const fs::path path = directory.path() / "echo.wtape";
+  CassetteSettings settings = recording_from_loopback();
+  settings.device = "type=loopback,timeout=2";
+  {
+    Cassette cassette(path.string(), settings, {}, "Suite.Echo");
+    echo(cassette.port(), "hello\n");
+    cassette.finish(true);
+  }
+  const std::string command = Cassette(path.string(), CassetteSettings{}, {}, "Suite.Echo")
+                                  .record_command();
+  EXPECT_NE(command.find("WIRETAPE_RECORD=rewrite WIRETAPE_DEVICE='type=loopback,timeout=2' "),
+            std::string::npos)
+      << command;
+  EXPECT_NE(command.find("--gtest_filter='Suite.Echo'"), std::string::npos) << command;
+}
+
 TEST(Cassette, BarePathDeviceMeansASerialPort) {
   CassetteSettings settings = recording_from_loopback();
   settings.device = "/dev/ttyUSB0";
@@ -474,10 +505,24 @@ TEST_F(FailingFixtureTests, AMismatchFailsOnceAtThePortCallWithTheWayOut) {
   const std::string location = port_call_location("DISABLED_WritesWhatTheCassetteDoesNotHold");
   ASSERT_FALSE(location.empty()) << "the test's source is not in " << WIRETAPE_TEST_DATA_DIR;
   EXPECT_NE(output.find(location + "replaying cassette "), std::string::npos) << output;
-  EXPECT_NE(output.find("WIRETAPE_RECORD=rewrite WIRETAPE_DEVICE='OPTS' "), std::string::npos)
+  // The device the cassette was recorded from, as its header keeps it.
+  EXPECT_NE(output.find("WIRETAPE_RECORD=rewrite WIRETAPE_DEVICE='type=loopback' "),
+            std::string::npos)
       << output;
+  EXPECT_EQ(output.find("OPTS"), std::string::npos) << output;
   EXPECT_NE(output.find("--gtest_filter='" + test + "'"), std::string::npos) << output;
   EXPECT_NE(output.find("[  FAILED  ] " + test), std::string::npos) << output;
+}
+
+TEST(CassetteFixtureProgram, AMissingCassettePrintsOneCommandThatRecordsIt) {
+  TemporaryDirectory directory;
+  const std::string output =
+      fixture_test_output("CassetteFixture.EchoesThroughTheCassette", directory.path());
+  EXPECT_NE(output.find("no recording "), std::string::npos) << output;
+  EXPECT_EQ(occurrences(output, "WIRETAPE_RECORD="), 1u) << output;
+  EXPECT_NE(output.find("WIRETAPE_RECORD=once WIRETAPE_DEVICE=OPTS "), std::string::npos)
+      << output;
+  EXPECT_NE(output.find("(missing)"), std::string::npos) << output;
 }
 
 TEST_F(FailingFixtureTests, UnusedDataFailsOnceAtThePortCall) {
@@ -549,6 +594,22 @@ TEST(CassetteChannels, AChannelWithoutADeviceOrMixedWithPortIsAClearError) {
   cassette.finish(false);
   EXPECT_FALSE(fs::exists(path));
   EXPECT_EQ(leftovers(directory.path()), 0u);
+}
+
+TEST(CassetteChannels, TheRecordCommandNamesEachChannelsDevice) {
+  TemporaryDirectory directory;
+  const fs::path path = directory.path() / "two.wtape";
+  {
+    Cassette cassette(path.string(), recording_channels_from_loopback());
+    echo(cassette.port_of("gps"), "$GPGGA\n");
+    echo(cassette.port_of("rtk-1"), "RTCM\n");
+    cassette.finish(true);
+  }
+  const std::string command = Cassette(path.string(), CassetteSettings{}).record_command();
+  EXPECT_NE(command.find("WIRETAPE_RECORD=rewrite WIRETAPE_DEVICE_gps='type=loopback' "
+                         "WIRETAPE_DEVICE_rtk_1='type=loopback,timeout=2' "),
+            std::string::npos)
+      << command;
 }
 
 // Replays each channel with channel=NAME (part C of issue 25, engineer

@@ -184,7 +184,7 @@ def test_a_missing_cassette_is_an_error_naming_it_and_the_command_that_records_i
     result.assert_outcomes(errors=1)
     cassette = cassette_of(pytester, "test_gadget")
     result.stdout.fnmatch_lines([f"*{cassette}*does not exist*",
-                                 "*pytest --wiretape-record=once 'test_driver.py::test_gadget'*"])
+                                 "*pytest --wiretape-record=once test_driver.py::test_gadget*"])
     assert "--wiretape-device" not in result.stdout.str()  # the driver names the device
     assert gadget.heard == b""  # the device was not touched
 
