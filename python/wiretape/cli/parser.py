@@ -486,9 +486,15 @@ def build_parser() -> argparse.ArgumentParser:
     faults.add_argument("--speed", type=_speed, default=1.0, metavar="K",
                         help="run CMD on a clock K times faster, and the replays with it "
                              "(--timeout is on CMD's clock; default 1)")
-    faults.add_argument("--shard", metavar="K/N",
+    faults.add_argument("--shard", metavar="K/N|auto",
                         help="run only shard K of N: the cases whose index is K-1 modulo N "
-                             "(merge the shards' --json with 'wiretape faults merge')")
+                             "(merge the shards' --json with 'wiretape faults merge'); auto: "
+                             "from Bazel's, a Kubernetes Indexed Job's or GitLab's variables")
+    faults.add_argument("--shards", type=_positive_int, metavar="N",
+                        help="with --shard auto: the total of a Kubernetes Indexed Job "
+                             "(JOB_COMPLETION_INDEX gives only the index)")
+    faults.add_argument("--junit", metavar="FILE",
+                        help="write the runs as JUnit XML to FILE (a test case per run)")
 
     merge = command(
         "faults merge", cmd_faults_merge, "one campaign's table from the --json of its shards",
@@ -500,6 +506,8 @@ def build_parser() -> argparse.ArgumentParser:
     merge.add_argument("files", nargs="+", metavar="FILE.json",
                        help="the --json of each shard")
     merge.add_argument("--json", metavar="FILE", help="write the merged runs as JSON to FILE")
+    merge.add_argument("--junit", metavar="FILE",
+                       help="write the merged runs as JUnit XML to FILE (a test case per run)")
 
     serve = command(
         "serve", cmd_serve, "share a local device with remote programs over TCP",

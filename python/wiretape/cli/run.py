@@ -4,6 +4,7 @@ run by cli/children.py."""
 
 from __future__ import annotations
 
+import os
 import sys
 from typing import Optional
 
@@ -128,11 +129,17 @@ def cmd_faults(args, out: Output) -> int:
         raise UsageError("no command after --: give the program to run, with {port} where "
                          "the device's path goes")
     require_input(args.file)
-    if args.json:
-        refuse_same_file(session_files(args.file), [args.json])
+    reports = [path for path in (args.json, args.junit) if path]
+    if reports:
+        refuse_same_file(session_files(args.file), reports)
+    if args.json and args.junit and os.path.abspath(args.json) == os.path.abspath(args.junit):
+        raise UsageError(f"--json and --junit are both {args.json}: give two files")
     kinds = [kind for kind in (args.kinds or "").split(",") if kind.strip()] or None
     try:
-        shard = faults.Shard.parse(args.shard) if args.shard is not None else None
+        if args.shards is not None and args.shard is None:
+            raise UsageError("--shards N goes with --shard auto")
+        shard = (faults.Shard.parse(args.shard, shards=args.shards)
+                 if args.shard is not None else None)
         result = faults.campaign(args.file, args.command_argv, kinds=kinds, budget=args.budget,
                                  seed=args.seed, timeout=args.timeout, jobs=args.jobs,
                                  replay_options=args.options, listen=args.listen,
@@ -149,9 +156,9 @@ def cmd_faults(args, out: Output) -> int:
         # exits 130/143.
         partial = interruption.campaign
         out.note(f"faults: interrupted after {len(partial.runs)} of {partial.planned} runs")
-        _report_campaign(partial, args.json, out)
+        _report_campaign(partial, args, out)
         raise
-    _report_campaign(result, args.json, out)
+    _report_campaign(result, args, out)
     return EXIT_CHECK_FAILED if result.failed else EXIT_OK
 
 
@@ -161,22 +168,25 @@ def cmd_faults_merge(args, out: Output) -> int:
 
     for path in args.files:
         require_input(path)
-    if args.json:
-        refuse_same_file(args.files, [args.json])
+    reports = [path for path in (args.json, args.junit) if path]
+    if reports:
+        refuse_same_file(args.files, reports)
     try:
         result = faults.merge(args.files, note=lambda text: out.note(f"faults merge: {text}"))
     except faults.FaultInputError as error:
         raise UsageError(str(error)) from None
-    _report_campaign(result, args.json, out)
+    _report_campaign(result, args, out)
     return EXIT_CHECK_FAILED if result.failed else EXIT_OK
 
 
-def _report_campaign(result, json_path: Optional[str], out: Output) -> None:
+def _report_campaign(result, args, out: Output) -> None:
     from .. import faults
 
     table = faults.table(result)  # what it cannot show is refused before anything is written
-    if json_path:
-        faults.write_json(result, json_path)
+    if args.json:
+        faults.write_json(result, args.json)
+    if args.junit:
+        faults.write_junit(result, args.junit)
     out.print(table)
     for run in result.runs:
         if run.repro:

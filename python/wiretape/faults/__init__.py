@@ -31,6 +31,8 @@ from .cases import (KIND_NAMES, KINDS, OUTCOMES, FaultCase, FaultInputError, Ses
                     _kind_spec, all_cases, cases, check_where, session_channels,
                     session_shape)
 from .report import Campaign, Run, merge, read_json, session_digest, table, write_json
+from .junit import campaign_xml, write_junit
+from .shard import ENGINES, from_engine
 from .run import (MAX_TIMEOUT_S, PORT_PLACEHOLDER, REPRO_ADDRESS, REPRO_PORT, CampaignInterrupted,
                   CleanRunFailed, campaign, check_command, faulty_device, faulty_devices,
                   reproduction, run_case)
@@ -41,4 +43,5 @@ __all__ = [
     "CampaignInterrupted", "CleanRunFailed", "session_channels", "session_shape", "check_where",
     "cases", "all_cases", "faulty_device", "faulty_devices", "check_command", "run_case",
     "reproduction", "campaign", "session_digest", "table", "write_json", "read_json", "merge",
+    "campaign_xml", "write_junit", "ENGINES", "from_engine",
 ]

@@ -11,6 +11,7 @@ from typing import List, Optional, Sequence, Tuple
 
 from .. import _core
 from ..session import open_session
+from .shard import FaultInputError, Shard
 
 #: Every fault kind, as a campaign injects it (docs/faults.md says why these
 #: amounts): the replay's own table of kinds.
@@ -20,39 +21,6 @@ OUTCOMES = ("ok", "error", "crash", "hang")
 
 #: Where faults can fire in what a replay serves (``session_shape()``).
 SessionShape = _core.SessionShape
-
-
-class FaultInputError(ValueError):
-    """Bad input to a campaign (exit 2): names the problem."""
-
-
-@dataclasses.dataclass(frozen=True)
-class Shard:
-    """Shard ``number`` of ``count`` (``--shard K/N``, K from 1): the cases
-    whose index is K-1 modulo N. Every shard makes its own clean run."""
-
-    number: int
-    count: int
-
-    def __post_init__(self) -> None:
-        if self.count < 1 or not 1 <= self.number <= self.count:
-            raise FaultInputError(f"--shard {self.number}/{self.count}: K must be from 1 to N "
-                                  "(e.g. 1/3, 2/3, 3/3)")
-
-    @classmethod
-    def parse(cls, text: str) -> "Shard":
-        """``K/N`` as the command line gives it."""
-        number, slash, count = text.strip().partition("/")
-        if not slash or not number.strip().isdigit() or not count.strip().isdigit():
-            raise FaultInputError(f"--shard {text!r}: give K/N, e.g. 2/3 for the second of "
-                                  "three shards")
-        return cls(int(number), int(count))
-
-    def owns(self, index: int) -> bool:
-        return index % self.count == self.number - 1
-
-    def __str__(self) -> str:
-        return f"{self.number}/{self.count}"
 
 
 @dataclasses.dataclass(frozen=True)

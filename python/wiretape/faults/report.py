@@ -16,6 +16,9 @@ from .. import _core
 from ..session import header_text, session_files
 from .cases import (KIND_NAMES, KINDS, OUTCOMES, FaultInputError, Shard, _kind_spec,
                     all_cases, check_where)
+from .shard import ENGINES
+
+ENGINE_NAMES = tuple(engine[0] for engine in ENGINES)
 
 
 @dataclasses.dataclass
@@ -78,7 +81,8 @@ class Campaign:
         return {"session": self.session, "session_sha256": self.session_sha256,
                 "seed": self.seed, "kinds": self.kinds, "budget": self.budget,
                 "options": self.options, "cases": self.cases,
-                "shard": str(self.shard) if self.shard else None, "speed": self.speed,
+                "shard": str(self.shard) if self.shard else None,
+                "shard_from": self.shard.engine if self.shard else None, "speed": self.speed,
                 "runs": [run.as_json() for run in self.runs], "summary": self.summary,
                 "interrupted": self.interrupted}
 
@@ -151,24 +155,30 @@ def _not_run(result: Campaign) -> str:
 
 
 def write_json(result: Campaign, path: str) -> None:
-    """Writes the campaign's JSON whole or not at all (a file beside it,
-    renamed over `path`); to a FIFO, a device or /dev/stdout, directly."""
+    """Writes the campaign's JSON whole or not at all (write_whole)."""
+    def dump(output) -> None:
+        json.dump(result.as_json(), output, indent=1, allow_nan=False)
+        output.write("\n")
+    write_whole(path, dump, suffix=".json")
+
+
+def write_whole(path: str, write: Callable[[object], None], suffix: str) -> None:
+    """Writes a report whole or not at all: `write(stream)` into a file
+    beside `path`, renamed over it; to a FIFO, a device or /dev/stdout,
+    directly."""
     try:
         special = not stat.S_ISREG(os.stat(path).st_mode)
     except OSError:
         special = False
     if special:
         with open(path, "w", encoding="utf-8") as output:
-            json.dump(result.as_json(), output, indent=1, allow_nan=False)
-            output.write("\n")
+            write(output)
         return
     folder = os.path.dirname(os.path.abspath(path))
-    handle, temporary = tempfile.mkstemp(prefix=".wiretape-faults-", suffix=".json",
-                                         dir=folder)
+    handle, temporary = tempfile.mkstemp(prefix=".wiretape-faults-", suffix=suffix, dir=folder)
     try:
         with os.fdopen(handle, "w", encoding="utf-8") as output:
-            json.dump(result.as_json(), output, indent=1, allow_nan=False)
-            output.write("\n")
+            write(output)
         umask = os.umask(0o022)
         os.umask(umask)
         os.chmod(temporary, 0o666 & ~umask)  # as open() would have made it
@@ -325,10 +335,17 @@ def read_json(path: str) -> Campaign:
     kinds = _kinds_member(document, shown_path)
     runs = [_run_member(item, f"{shown_path}: runs[{number}]")
             for number, item in enumerate(_member(document, "runs", list, shown_path))]
+    # written since --shard auto: absent in older files
+    shard_from = document.get("shard_from")
+    if shard_from is not None and (shard_text is None or shard_from not in ENGINE_NAMES):
+        raise _refused(shown_path, "shard_from", shard_from,
+                       "not a CI engine --shard auto knows (" + ", ".join(ENGINE_NAMES) + ")")
     try:
         shard = Shard.parse(shard_text) if shard_text is not None else None
     except FaultInputError as error:
         raise FaultInputError(f"{shown_path}: {header_text(str(error))}") from None
+    if shard is not None:
+        shard = dataclasses.replace(shard, engine=shard_from)
     options = _member(document, "options", str, shown_path)
     try:
         _core.check_replay_options(_core.option_string(
