@@ -32,11 +32,13 @@ $(BUILD)/build.ninja: $(VENV)/.deps CMakeLists.txt
 cpp: $(BUILD)/build.ninja
 	cmake --build $(BUILD)
 
-# The editable install reuses the extension built in $(BUILD) (see pyproject).
-# It maps each module to its file, so it is made again when a folder of the
-# package gains or loses a file (the folders' times change).
+# The editable install reuses the extension that $(BUILD) writes into
+# python/wiretape (see pyproject): python/ on sys.path by a .pth line, with
+# scikit-build-core's import hook dropped (cmake/editable_without_hook.py
+# says why).
 $(VENV)/.installed: $(VENV)/.deps pyproject.toml $(shell find python/wiretape -type d)
 	WIRETAPE_PREBUILT=1 $(PYTHON) -m pip install -q --no-build-isolation --no-deps -e .
+	$(PYTHON) cmake/editable_without_hook.py
 	touch $@
 
 python: cpp $(VENV)/.installed
