@@ -2,7 +2,11 @@
 
 #include <array>
 #include <cstdio>
+#include <memory>
+#include <optional>
 #include <utility>
+
+#include "wiretape/profile.hpp"
 
 namespace wiretape::detail {
 namespace {
@@ -17,34 +21,48 @@ std::string hex_byte(std::uint8_t value) {
   return text;
 }
 
-std::string record_name(std::size_t index) { return "rx record " + std::to_string(index); }
+// What the steps act on: rx records, or with a profile its rx frames, whose
+// checksums are recomputed after a byte in them changes.
+struct Units {
+  const Profile* profile = nullptr;
+  const char* noun() const { return profile ? "rx frame " : "rx record "; }
+};
 
-// Sets one byte and says so; nothing when the value is unchanged.
-void set_byte(MutatedRx& out, std::size_t index, std::size_t offset, std::uint8_t value) {
+// Sets one byte (the frame's checksums recomputed) and says so, by the
+// profile's field name where it has one; nothing when the frame is unchanged.
+void set_byte(MutatedRx& out, const Units& units, std::size_t index, std::size_t offset, std::uint8_t value) {
   auto& bytes = out.records[index].bytes;
+  const std::string original = bytes;
   const auto before = static_cast<std::uint8_t>(bytes[offset]);
-  if (before == value) return;
   bytes[offset] = static_cast<char>(value);
-  out.edits.push_back(record_name(index) + " byte " + std::to_string(offset) + ": " + hex_byte(before) +
-                      " → " + hex_byte(value));
+  std::string where = " byte " + std::to_string(offset);
+  if (units.profile) {
+    bytes = units.profile->recompute_checksums(StreamDirection::rx, bytes);
+    const std::string field = units.profile->field_name(StreamDirection::rx, bytes, offset);
+    if (!field.empty()) where = " field " + field;
+  }
+  if (bytes == original) return;
+  out.edits.push_back(units.noun() + std::to_string(index) + where + ": " + hex_byte(before) + " → " +
+                      hex_byte(value));
 }
 
-void apply_step(MutatedRx& out, const PlanStep& step) {
+void apply_step(MutatedRx& out, const Units& units, const PlanStep& step) {
   auto& records = out.records;
   if (records.empty()) return;
   const std::size_t index = step.record % records.size();
   auto& record = records[index];
   const std::size_t size = record.bytes.size();
+  const auto record_name = [&](std::size_t i) { return units.noun() + std::to_string(i); };
   const std::string name = record_name(index);
   switch (step.kind) {
     case MutationKind::flip:
       if (size == 0) return;
-      set_byte(out, index, step.offset % size,
+      set_byte(out, units, index, step.offset % size,
                static_cast<std::uint8_t>(record.bytes[step.offset % size] ^ (1u << (step.amount % 8))));
       return;
     case MutationKind::boundary:
       if (size == 0) return;
-      set_byte(out, index, step.offset % size, kBoundaryBytes[step.amount % kBoundaryBytes.size()]);
+      set_byte(out, units, index, step.offset % size, kBoundaryBytes[step.amount % kBoundaryBytes.size()]);
       return;
     case MutationKind::truncate: {
       if (size == 0) return;
@@ -123,7 +141,25 @@ std::vector<PlanStep> decode_plan(std::string_view plan) {
 
 MutatedRx apply_plan(std::vector<RxRecord> records, std::string_view plan) {
   MutatedRx out{std::move(records), {}};
-  for (const PlanStep& step : decode_plan(plan)) apply_step(out, step);
+  for (const PlanStep& step : decode_plan(plan)) apply_step(out, Units{}, step);
+  return out;
+}
+
+std::vector<RxRecord> rx_frames(const Profile& profile, const std::vector<RxRecord>& records) {
+  const std::unique_ptr<Framer> framer = profile.make_framer(StreamDirection::rx);
+  std::vector<Frame> frames;
+  for (const RxRecord& record : records) framer->feed(record.bytes, frames);
+  if (std::optional<Frame> tail = framer->finish()) frames.push_back(std::move(*tail));
+  std::vector<RxRecord> out;
+  out.reserve(frames.size());
+  for (Frame& frame : frames) out.push_back({std::move(frame.bytes), 0});
+  return out;
+}
+
+MutatedRx apply_plan(const Profile& profile, const std::vector<RxRecord>& records, std::string_view plan) {
+  MutatedRx out{rx_frames(profile, records), {}};
+  const Units units{&profile};
+  for (const PlanStep& step : decode_plan(plan)) apply_step(out, units, step);
   return out;
 }
 

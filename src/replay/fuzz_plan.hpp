@@ -16,6 +16,10 @@
 #include <string_view>
 #include <vector>
 
+namespace wiretape {
+class Profile;
+}
+
 namespace wiretape::detail {
 
 enum class MutationKind {
@@ -62,5 +66,15 @@ struct MutatedRx {
 // act on (no records left, a one-byte record to split) changes nothing and
 // says nothing.
 MutatedRx apply_plan(std::vector<RxRecord> records, std::string_view plan);
+
+// The rx stream of `records` cut into frames by `profile`'s rx framer, one
+// record a frame (an incomplete tail is a frame of its own).
+std::vector<RxRecord> rx_frames(const Profile& profile, const std::vector<RxRecord>& records);
+
+// With a profile the steps act on its rx frames (rx_frames), "rx frame N"
+// in the edits, a changed byte named by the profile's field where it has
+// one; a frame whose byte changed has its checksums recomputed
+// (Profile::recompute_checksums), so that it reaches the driver's parser.
+MutatedRx apply_plan(const Profile& profile, const std::vector<RxRecord>& records, std::string_view plan);
 
 }  // namespace wiretape::detail

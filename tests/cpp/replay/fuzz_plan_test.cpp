@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "replay/fuzz_plan.hpp"
+#include "wiretape/profile.hpp"
 
 namespace wiretape::detail {
 namespace {
@@ -83,6 +84,82 @@ TEST(FuzzPlan, StepsOnAnEmptyRecordingChangeNothing) {
   const MutatedRx out = apply_plan({}, step(MutationKind::extend, 0, 0, 1) + step(MutationKind::drop, 0, 0, 0));
   EXPECT_TRUE(out.records.empty());
   EXPECT_TRUE(out.edits.empty());
+}
+
+// A recorded device side for each built-in profile, two frames of it, made
+// valid by the profile's own checksum rule (a checksum field left zero here).
+std::vector<RxRecord> seed_for(const Profile& profile) {
+  const std::string name(profile.name());
+  std::vector<std::string> frames;
+  if (name == "scip") frames = {"VV\n00P\nVEND:Hokuyo;[\n\n", "MD0044072501001\n00P\n\n"};
+  else if (name == "nmea") frames = {"$GPGGA,1,2*00\r\n", "$GPRMC,3*00\r\n"};
+  else if (name == "slcan") frames = {"t1232AABB\r", "z\r"};
+  else if (name == "modbus-rtu") frames = {std::string("\x01\x03\x04\x00\x01\x00\x02\x00\x00", 9),
+                                           std::string("\x01\x06\x00\x01\x00\x03\x00\x00", 8)};
+  else if (name == "modbus-tcp") frames = {std::string("\x00\x01\x00\x00\x00\x05\x01\x03\x02\x00\x2a", 11),
+                                           std::string("\x00\x02\x00\x00\x00\x05\x01\x03\x02\x00\x2b", 11)};
+  else if (name == "mavlink")
+    frames = {std::string("\xfe\x09\x00\x01\x01\x00\x00\x00\x00\x00\x02\x03\x51\x04\x03\x00\x00", 17),
+              std::string("\xfe\x09\x01\x01\x01\x00\x00\x00\x00\x00\x02\x03\x51\x04\x03\x00\x00", 17)};
+  else frames = {"OK\r\n", "READY\r\n"};
+  std::vector<RxRecord> records;
+  for (const std::string& frame : frames) records.push_back({profile.recompute_checksums(StreamDirection::rx, frame), 0});
+  return records;
+}
+
+std::string joined(const std::vector<RxRecord>& records) {
+  std::string all;
+  for (const RxRecord& record : records) all += record.bytes;
+  return all;
+}
+
+TEST(FuzzPlanProfile, EmptyPlanServesEveryProfilesRecordingUnchanged) {
+  for (const std::string& name : profile_names()) {
+    SCOPED_TRACE(name);
+    const auto profile = find_profile(name);
+    const std::vector<RxRecord> seed = seed_for(*profile);
+    const MutatedRx out = apply_plan(*profile, seed, "");
+    EXPECT_EQ(joined(out.records), joined(seed));
+    EXPECT_EQ(out.records.size(), seed.size());  // one record a frame
+    EXPECT_TRUE(out.edits.empty());
+  }
+}
+
+// Byte steps (flip, boundary) over random plans and every built-in profile:
+// each frame served still carries a correct checksum, so it reaches the
+// driver's parser, and each change names the frame.
+TEST(FuzzPlanProfile, ChangedFramesKeepCorrectChecksums) {
+  std::mt19937 random(27);  // fixed seed: the same plans on every run
+  for (const std::string& name : profile_names()) {
+    SCOPED_TRACE(name);
+    const auto profile = find_profile(name);
+    const std::vector<RxRecord> seed = seed_for(*profile);
+    for (const RxRecord& frame : seed)
+      ASSERT_EQ(profile->recompute_checksums(StreamDirection::rx, frame.bytes), frame.bytes) << "seed not valid";
+    for (int run = 0; run < 300; ++run) {
+      std::string plan(4 * (1 + random() % 6), '\0');
+      for (char& byte : plan) byte = static_cast<char>(random());
+      for (std::size_t at = 0; at < plan.size(); at += kPlanStepBytes)
+        plan[at] = static_cast<char>(random() % 2);  // flip or boundary
+      const MutatedRx out = apply_plan(*profile, seed, plan);
+      for (const RxRecord& frame : out.records)
+        EXPECT_EQ(profile->recompute_checksums(StreamDirection::rx, frame.bytes), frame.bytes);
+      for (const std::string& edit : out.edits) EXPECT_EQ(edit.rfind("rx frame ", 0), 0u) << edit;
+    }
+  }
+}
+
+TEST(FuzzPlanProfile, ModbusRtuBoundaryRecomputesTheCrc) {
+  const auto profile = find_profile("modbus-rtu");
+  const std::vector<RxRecord> seed = seed_for(*profile);
+  // boundary 0xff on byte 3 (the first register's high byte) of frame 0
+  const MutatedRx out = apply_plan(*profile, seed, step(MutationKind::boundary, 0, 3, 5));
+  ASSERT_EQ(out.edits.size(), 1u);
+  EXPECT_NE(out.records[0].bytes, seed[0].bytes);
+  EXPECT_EQ(out.records[0].bytes.substr(0, 4), std::string("\x01\x03\x04\xff", 4));
+  EXPECT_NE(out.records[0].bytes.substr(7), seed[0].bytes.substr(7));  // a new CRC
+  EXPECT_EQ(profile->recompute_checksums(StreamDirection::rx, out.records[0].bytes), out.records[0].bytes);
+  EXPECT_EQ(out.edits[0].rfind("rx frame 0 ", 0), 0u) << out.edits[0];
 }
 
 }  // namespace
