@@ -134,6 +134,8 @@ def test_the_presented_tree_is_removed_when_the_command_is_done(tmp_path, monkey
     try:
         assert command.exit_status() == 0
         assert any(p.name.startswith("wiretape-identity-") for p in tmp_path.iterdir())
+        # The exit comes before the reader thread has drained the pipe.
+        assert command.child.wait_for_output(lambda out: out.endswith(b"\n"), timeout=30)
         # The tty's device is the presented USB interface, inside the tree.
         assert command.child.stdout.decode().strip().startswith(str(tmp_path))
         assert command.child.stdout.decode().strip().endswith("/usb1/1-2/1-2:1.0")
