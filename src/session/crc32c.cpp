@@ -4,6 +4,7 @@
 #include <cstring>
 
 #if defined(__x86_64__)
+#include <cpuid.h>
 #include <immintrin.h>
 #include <nmmintrin.h>
 #elif defined(__aarch64__) && defined(__ARM_FEATURE_CRC32)
@@ -105,17 +106,53 @@ inline std::uint64_t load_u64(const unsigned char* p) {
 #if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
 #define WIRETAPE_CRC32C_HARDWARE 1
 
-__attribute__((target("sse4.2"))) inline std::uint32_t crc_step(std::uint32_t crc,
-                                                                  const unsigned char* p) {
+// Newer clang splits the CRC32 instruction out of SSE 4.2 as feature "crc32";
+// gcc accepts the name too, so both are named wherever the instruction is used.
+#define WIRETAPE_CRC32C_TARGET __attribute__((target("sse4.2,crc32")))
+
+WIRETAPE_CRC32C_TARGET inline std::uint32_t crc_step(std::uint32_t crc, const unsigned char* p) {
   return static_cast<std::uint32_t>(_mm_crc32_u64(crc, load_u64(p)));
 }
-__attribute__((target("sse4.2"))) inline std::uint32_t crc_step_byte(std::uint32_t crc,
-                                                                       unsigned char byte) {
+WIRETAPE_CRC32C_TARGET inline std::uint32_t crc_step_byte(std::uint32_t crc, unsigned char byte) {
   return _mm_crc32_u8(crc, byte);
 }
-#define WIRETAPE_CRC32C_TARGET __attribute__((target("sse4.2")))
 
-bool cpu_has_crc32c() { return __builtin_cpu_supports("sse4.2"); }
+// CPUID read directly, not __builtin_cpu_supports: that needs the compiler
+// runtime's __cpu_model, which some toolchains (zig's, for the
+// manylinux_2_28 wheel) do not provide or do not initialise.
+struct CpuFeatures {
+  bool sse42 = false;
+  bool pclmul = false;
+  bool avx512_folding = false;  // AVX-512 F and VL, VPCLMULQDQ, and the OS saves ZMM state
+};
+
+CpuFeatures read_cpu_features() {
+  CpuFeatures features;
+  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
+  if (__get_cpuid(1, &eax, &ebx, &ecx, &edx) == 0) return features;
+  features.sse42 = (ecx & bit_SSE4_2) != 0;
+  features.pclmul = (ecx & bit_PCLMUL) != 0;
+  const bool os_saves_state = (ecx & bit_OSXSAVE) != 0;
+  unsigned leaf7_ebx = 0, leaf7_ecx = 0;
+  if (__get_cpuid_count(7, 0, &eax, &leaf7_ebx, &leaf7_ecx, &edx) == 0 || !os_saves_state) {
+    return features;
+  }
+  unsigned xcr0_low = 0, xcr0_high = 0;
+  __asm__("xgetbv" : "=a"(xcr0_low), "=d"(xcr0_high) : "c"(0));
+  constexpr unsigned zmm_state = 0xE6;  // SSE, AVX, opmask, ZMM_Hi256, Hi16_ZMM
+  features.avx512_folding = (xcr0_low & zmm_state) == zmm_state &&
+                            (leaf7_ebx & bit_AVX512F) != 0 &&
+                            (leaf7_ebx & bit_AVX512VL) != 0 &&
+                            (leaf7_ecx & bit_VPCLMULQDQ) != 0;
+  return features;
+}
+
+const CpuFeatures& cpu_features() {
+  static const CpuFeatures features = read_cpu_features();
+  return features;
+}
+
+bool cpu_has_crc32c() { return cpu_features().sse42; }
 
 #elif defined(__aarch64__) && defined(__ARM_FEATURE_CRC32)
 #define WIRETAPE_CRC32C_HARDWARE 1
@@ -220,8 +257,15 @@ const CrcFoldTable& crc_fold_table() {
   return table;
 }
 
+// clang 18 to 20 gate 512-bit vectors on "evex512" too (AVX10); clang 21
+// dropped the name again and gcc 12 never knew it.
+#if defined(__clang__) && __clang_major__ >= 18 && __clang_major__ <= 20
 #define WIRETAPE_CRC32C_FOLD_TARGET \
-  __attribute__((target("sse4.2,pclmul,avx512f,avx512vl,vpclmulqdq")))
+  __attribute__((target("sse4.2,crc32,pclmul,avx512f,avx512vl,vpclmulqdq,evex512")))
+#else
+#define WIRETAPE_CRC32C_FOLD_TARGET \
+  __attribute__((target("sse4.2,crc32,pclmul,avx512f,avx512vl,vpclmulqdq")))
+#endif
 
 WIRETAPE_CRC32C_FOLD_TARGET inline __m512i fold_512(__m512i blocks, __m512i constants,
                                                     __m512i ahead) {
@@ -297,9 +341,7 @@ WIRETAPE_CRC32C_FOLD_TARGET std::uint32_t crc32c_folding(const void* data, std::
 }
 
 bool cpu_has_crc_folding() {
-  return cpu_has_crc32c() && __builtin_cpu_supports("pclmul") &&
-         __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
-         __builtin_cpu_supports("vpclmulqdq");
+  return cpu_has_crc32c() && cpu_features().pclmul && cpu_features().avx512_folding;
 }
 #endif
 
