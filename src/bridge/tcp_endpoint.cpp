@@ -22,7 +22,7 @@
 
 #include "bridge/com_port_adapter.hpp"
 #include "bridge/endpoint.hpp"
-#include "bridge/rfc2217.hpp"
+#include "core/rfc2217.hpp"
 #include "posix/listener.hpp"
 #include "wiretape/errors.hpp"
 
