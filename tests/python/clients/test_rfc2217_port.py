@@ -181,6 +181,36 @@ def test_record_from_an_rfc2217_device_url(served_pty, tmp_path):
     assert b"".join(r.data for r in records if r.kind == "rx") == b"PONG\n"
 
 
+def test_record_on_a_pty_carries_the_drivers_rate_to_the_exported_line(served_pty, tmp_path):
+    """The driver programs 115200 on the proxy's pty: the proxy sends it to
+    the exporter as SET-BAUDRATE, which sets the far device, and records it."""
+    serial = pytest.importorskip("serial", reason="pyserial is not installed")
+    device, address = served_pty
+    link = tmp_path / "ttyBoard"
+    out = tmp_path / "desk.wtape"
+    child = start_cli("record", "--device", "rfc2217://" + address, "--pty", str(link),
+                      "-o", str(out))
+    try:
+        seen = []
+        while not any("clients use pty" in line for line in seen):
+            line = child.stderr.readline()
+            assert line, "no pty announced: " + "".join(seen)
+            seen.append(line)
+        with serial.Serial(str(link), 115200, timeout=DEADLINE) as driver:
+            wait_until(lambda: device.speed() == termios.B115200, DEADLINE,
+                       what="the exported line to be set to 115200")
+            driver.write(b"PING\n")
+            assert device.read(5) == b"PING\n"
+            device.write(b"PONG\n")
+            assert driver.read(5) == b"PONG\n"
+    finally:
+        code, _, err = interrupt(child)
+    assert code == 0, err
+    _, records = records_of(out)
+    settings = [json.loads(r.data) for r in records if r.kind == "settings"]
+    assert {"baud": 115200, "applied": True}.items() <= settings[-1].items(), settings
+
+
 def test_a_bad_rfc2217_url_is_a_usage_error_naming_it(tmp_path):
     child = start_cli("record", "--device", "rfc2217://lab-pi", "--listen", "127.0.0.1:0",
                       "-o", str(tmp_path / "x.wtape"))
