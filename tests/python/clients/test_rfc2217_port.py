@@ -1,7 +1,8 @@
 """The RFC 2217 client port (type=rfc2217, --device rfc2217://HOST:PORT)
 against the servers a lab runs: wiretape's own `serve --protocol rfc2217`
-(over a pty device, and over a replay of a device with modem lines) and
-ser2net (Debian's, exporting a pty). What it records is a serial port's
+(over a pty device, and over a replay of a device with modem lines),
+ser2net (Debian's, exporting a pty) and pyserial's server side
+(PortManager). What it records is a serial port's
 session, which a replay checks as it would a local port's."""
 
 import json
@@ -11,6 +12,7 @@ import shutil
 import socket
 import subprocess
 import termios
+import threading
 import time
 import tty
 
@@ -217,6 +219,79 @@ def test_a_bad_rfc2217_url_is_a_usage_error_naming_it(tmp_path):
     out, err = child.communicate(timeout=30)
     assert child.returncode == 2, err
     assert "rfc2217://lab-pi" in err and "HOST:PORT" in err, err
+
+
+# --- pyserial's server side ---------------------------------------------------------
+
+@pytest.fixture
+def pyserial_server(pty_device):
+    """pyserial's RFC 2217 server side (serial.rfc2217.PortManager) over a
+    pyserial Serial on the pty, one client, as pyserial's example server."""
+    serial = pytest.importorskip("serial.rfc2217", reason="pyserial is not installed")
+    import serial as pyserial
+    listener = socket.create_server(("127.0.0.1", 0))
+    stop = threading.Event()
+
+    def serve():
+        connection, _ = listener.accept()
+
+        class PtySerial(pyserial.Serial):
+            """A pty has no modem lines, which PortManager reads."""
+            cts = dsr = ri = cd = property(lambda self: False)
+
+            def _update_dtr_state(self):
+                pass
+
+            def _update_rts_state(self):
+                pass
+        device = PtySerial(pty_device.path, 9600, timeout=0.05)
+
+        class Connection:
+            def write(self, data):
+                connection.sendall(data)
+        manager = serial.PortManager(device, Connection())
+
+        def device_to_client():
+            while not stop.is_set():
+                data = device.read(device.in_waiting or 1)
+                if data:
+                    connection.sendall(b"".join(manager.escape(data)))
+        relay = threading.Thread(target=device_to_client, daemon=True)
+        relay.start()
+        try:
+            while True:
+                data = connection.recv(4096)
+                if not data:
+                    break
+                device.write(b"".join(manager.filter(data)))
+        finally:
+            stop.set()
+            relay.join(DEADLINE)
+            device.close()
+            connection.close()
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    yield pty_device, "127.0.0.1:%d" % listener.getsockname()[1]
+    stop.set()
+    thread.join(DEADLINE)
+    listener.close()
+
+
+@pytest.mark.filterwarnings("ignore:set.*is deprecated:DeprecationWarning")
+def test_the_port_against_pyserials_server_side(pyserial_server):
+    device, address = pyserial_server
+    with wiretape.open_port(rfc2217_options(address, baud=115200, timeout=DEADLINE)) as port:
+        assert device.speed() == termios.B115200
+        payload = bytes(range(256)) * 2
+        port.write_all(payload)
+        assert device.read(len(payload)) == payload
+        device.write(payload[::-1])
+        assert port.read_exactly(len(payload)) == payload[::-1]
+        port.flush_output()
+        port.configure(baud=19200, stopbits=2)
+        assert device.speed() == termios.B19200
+        assert port.serial_settings()["stopbits"] == 2
 
 
 # --- ser2net ----------------------------------------------------------------------------
