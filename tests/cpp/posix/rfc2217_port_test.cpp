@@ -1,6 +1,7 @@
 // type=rfc2217 against a server in this process: the negotiation, the line
 // API mapped onto COM-PORT-OPTION requests, IAC both ways, and servers that
-// misbehave (silent, not Telnet, refusing, gone mid-session, mute later),
+// misbehave (silent, not Telnet, refusing, gone mid-session, mute or
+// answering garbage later),
 // each a clear error naming the server; a recording through log= is kept
 // and valid when the server goes away.
 #include <arpa/inet.h>
@@ -146,6 +147,9 @@ class FakeServer {
     dropped_ = true;
   }
   void stop_answering() { mute_ = true; }
+  // Later requests are answered with a malformed answer (a SET-BAUDRATE
+  // answer of one byte) and stray data.
+  void answer_garbage() { garbage_ = true; }
 
  private:
   void send_raw(const std::string& bytes) {
@@ -178,6 +182,10 @@ class FakeServer {
       const ssize_t n = ::recv(connection_, buffer, sizeof buffer, 0);
       if (n <= 0) return;
       if (behaviour_ != Behaviour::rfc2217 && behaviour_ != Behaviour::mute_later) continue;
+      if (garbage_) {
+        send_raw(std::string("\xff\xfa\x2c\x65\x01\xff\xf0?!", 9));
+        continue;
+      }
       if (mute_) continue;
       std::string to_device;
       std::string to_client;
@@ -196,6 +204,7 @@ class FakeServer {
   int port_ = 0;
   std::atomic<bool> stop_{false};
   std::atomic<bool> mute_{false};
+  std::atomic<bool> garbage_{false};
   bool dropped_ = false;
   std::mutex mutex_;
   std::mutex send_mutex_;
@@ -316,6 +325,23 @@ TEST(Rfc2217Port, AServerThatStopsAnsweringIsNamedWithTheRequest) {
               std::string::npos)
         << error;
   }
+}
+
+TEST(Rfc2217Port, AServerAnsweringGarbageIsNamedWithTheRequest) {
+  FakeServer server(Behaviour::rfc2217);
+  auto port = open_port(server.options(",answer_timeout=0.3,timeout=10"));
+  server.answer_garbage();
+  try {
+    port->set_baud(19200);
+    FAIL() << "no error";
+  } catch (const PortError& e) {
+    const std::string error = e.what();
+    EXPECT_NE(error.find(server.where() + ": the server did not answer SET-BAUDRATE within 0.3 s"),
+              std::string::npos)
+        << error;
+  }
+  // The stray bytes are data, as a serial line's noise would be.
+  EXPECT_EQ(port->read_exactly(2), "?!");
 }
 
 TEST(Rfc2217Port, AServerGoneMidSessionIsPortClosedNamingIt) {
