@@ -289,7 +289,7 @@ void TelnetSession::feed(const void* data, std::size_t size, std::string& data_o
           }
           state_ = State::subnegotiation;
         } else if (byte == telnet::se) {
-          if (!sub_overflow_) subnegotiation(answers);
+          if (!sub_overflow_) subnegotiation(data_out, answers);
           sub_.clear();
           state_ = State::data;
         } else {
@@ -351,10 +351,11 @@ void TelnetSession::negotiate(std::uint8_t command, std::uint8_t option, std::st
   after_negotiation(out);
 }
 
-void TelnetSession::subnegotiation(std::string& out) {
+void TelnetSession::subnegotiation(std::string& data_out, std::string& out) {
   if (sub_.size() < 2 || static_cast<std::uint8_t>(sub_[0]) != telnet::com_port) {
     return;  // another option's subnegotiation, or empty: ignored
   }
+  before_com_port_command(data_out);
   com_port_subnegotiation(static_cast<std::uint8_t>(sub_[1]), sub_.substr(2), out);
 }
 
@@ -377,6 +378,10 @@ void ServerSession::after_negotiation(std::string& out) {
     announced_ = true;
     reply(notify_modemstate, one_byte(code_of(port_.modem_lines())), out);
   }
+}
+
+void ServerSession::before_com_port_command(std::string& data_out) {
+  if (device_data_sink_ && !data_out.empty()) device_data_sink_(data_out);
 }
 
 std::string ServerSession::modem_state_notification() {

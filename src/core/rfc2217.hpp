@@ -17,6 +17,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 
@@ -81,6 +82,9 @@ class TelnetSession {
                                        std::string& out) = 0;
   // Called after every negotiation the peer sent.
   virtual void after_negotiation(std::string& /*out*/) {}
+  // Called before a COM-PORT-OPTION command is taken, with the data of this
+  // feed() that came before it.
+  virtual void before_com_port_command(std::string& /*data_out*/) {}
 
   bool ours(OptionIndex option) const { return we_[option]; }
   bool theirs(OptionIndex option) const { return they_[option]; }
@@ -94,7 +98,7 @@ class TelnetSession {
   enum class State { data, iac, negotiate, subnegotiation, subnegotiation_iac };
   static int option_index(std::uint8_t option);
   void negotiate(std::uint8_t command, std::uint8_t option, std::string& out);
-  void subnegotiation(std::string& out);
+  void subnegotiation(std::string& data_out, std::string& out);
 
   State state_ = State::data;
   std::uint8_t negotiation_command_ = 0;
@@ -147,6 +151,14 @@ class ServerSession final : public TelnetSession {
   // A NOTIFY-MODEMSTATE with the device's current modem state, for a
   // change the server noticed; empty until COM-PORT-OPTION is agreed.
   std::string modem_state_notification();
+  // Where data that came before a COM-PORT command in the same receive()
+  // goes before the command is applied (the sink sends it to the device
+  // and clears it), so that the device gets the bytes and the settings in
+  // the client's order. Without a sink, receive() returns all the data
+  // after taking every command.
+  void set_device_data_sink(std::function<void(std::string&)> sink) {
+    device_data_sink_ = std::move(sink);
+  }
 
   // The client asked the server to stop sending data (FLOWCONTROL-SUSPEND).
   bool suspended() const { return suspended_; }
@@ -157,9 +169,11 @@ class ServerSession final : public TelnetSession {
   void com_port_subnegotiation(std::uint8_t code, const std::string& value,
                                std::string& out) override;
   void after_negotiation(std::string& out) override;
+  void before_com_port_command(std::string& data_out) override;
   void reply(std::uint8_t command, const std::string& value, std::string& out);
 
   ComPort& port_;
+  std::function<void(std::string&)> device_data_sink_;
   bool announced_ = false;
   bool suspended_ = false;
   std::uint8_t linestate_mask_ = 0;

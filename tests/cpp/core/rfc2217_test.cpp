@@ -257,6 +257,23 @@ TEST(Rfc2217, MalformedCommandsAreIgnored) {
   EXPECT_EQ(fed.to_device, "");
 }
 
+TEST(Rfc2217, DataBeforeACommandGoesToTheSinkBeforeTheCommandIsApplied) {
+  RecordingComPort port;
+  ServerSession session(port);
+  session.set_device_data_sink([&](std::string& data) {
+    port.calls.push_back("data " + data);
+    data.clear();
+  });
+  feed(session, kClientOpen);
+  // HELLO, DTR low, SYNC, DTR high, PING in one read, as a client that
+  // pulses DTR between its writes may send them.
+  const Fed fed = feed(session, "HELLO" + bytes({255, 250, 44, 5, 9, 255, 240}) + "SYNC" +
+                                    bytes({255, 250, 44, 5, 8, 255, 240}) + "PING");
+  EXPECT_EQ(port.calls, (std::vector<std::string>{"data HELLO", "dtr off", "data SYNC",
+                                                  "dtr on"}));
+  EXPECT_EQ(fed.to_device, "PING");
+}
+
 // --- the client side ---------------------------------------------------------
 
 using wiretape::detail::rfc2217::Answer;
