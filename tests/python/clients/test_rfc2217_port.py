@@ -139,11 +139,14 @@ def board_session(port):
     return before, answer, lines(port)
 
 
+def record_board(address, out):
+    with wiretape.open_port(rfc2217_options(address, timeout=DEADLINE, log=str(out))) as port:
+        assert board_session(port) == (BEFORE, b"PONG\n", AFTER)
+
+
 def test_a_recording_through_rfc2217_replays_as_a_serial_ports(line_device, tmp_path):
     out = tmp_path / "board.wtape"
-    with wiretape.open_port(rfc2217_options(line_device, timeout=DEADLINE,
-                                            log=str(out))) as port:
-        assert board_session(port) == (BEFORE, b"PONG\n", AFTER)
+    record_board(line_device, out)
     _, records = records_of(out)
     events = [json.loads(r.data) for r in records if r.kind == "modem_lines"]
     assert {"dtr": False} in events and {"dtr": True} in events, events
@@ -157,6 +160,48 @@ def test_a_recording_through_rfc2217_replays_as_a_serial_ports(line_device, tmp_
         with wiretape.open_port(f"type=replay,file={out},timing=none") as replay:
             replay.write(b"PING\n")
             replay.read_exactly(5)
+
+
+def test_the_port_on_replay_listen_protocol_rfc2217(line_device, tmp_path):
+    """Recorded through the port, served by `replay --listen --protocol
+    rfc2217`, played by the port again: the same session passes (exit 0),
+    one without the reset pulse is exit 1 naming it."""
+    out = tmp_path / "board.wtape"
+    record_board(line_device, out)
+
+    def replay_with(session, may_drop=False):
+        child = start_cli("replay", str(out), "--listen", "127.0.0.1:0", "--protocol",
+                          "rfc2217", "--timing", "none")
+        host, port = announced_address(child, "tcp")
+        try:
+            with wiretape.open_port(rfc2217_options(f"{host}:{port}",
+                                                    timeout=DEADLINE)) as client:
+                wait_until(lambda: lines(client) == BEFORE, DEADLINE,
+                           what=lambda: f"the recorded lines (now {lines(client)})")
+                session(client)
+        except wiretape.PortError:
+            if not may_drop:  # the replay may end the connection at its mismatch
+                raise
+        finally:
+            if may_drop:
+                # A mismatch ends the replay by itself: no Ctrl-C racing its
+                # report.
+                try:
+                    child.wait(DEADLINE)
+                except subprocess.TimeoutExpired:
+                    pass
+            code, _, err = interrupt(child)
+        return code, err
+
+    code, err = replay_with(board_session)
+    assert code == 0, err
+
+    def no_pulse(client):
+        client.write(b"PING\n")
+        client.read_exactly(5)
+    code, err = replay_with(no_pulse, may_drop=True)
+    assert code == 1, (code, err)
+    assert "replay mismatch" in err and "DTR low" in err, err
 
 
 def test_record_from_an_rfc2217_device_url(served_pty, tmp_path):
