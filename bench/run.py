@@ -528,6 +528,30 @@ class Bench:
             f"and {figures['bulk_loop_s']:.3f} s, before issue 26 "
             f"{figures['sensor_anchor_s']:.3f} s and {figures['bulk_anchor_s']:.3f} s")
 
+    def rfc2217(self) -> None:
+        """The RFC 2217 client port against pyserial's rfc2217:// client on the
+        same server (bench/rfc2217_bench.py): read throughput, CPU per MB
+        and one-way latency, in alternating pairs."""
+        proc = subprocess.run([str(self.python), "-W", "ignore",
+                               str(ROOT / "bench" / "rfc2217_bench.py")]
+                              + (["--quick"] if self.quick else []),
+                              capture_output=True, text=True, timeout=900, env=self.env)
+        if proc.returncode != 0:
+            raise Skip("rfc2217_bench.py: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        f = json.loads(proc.stdout.strip().splitlines()[-1])
+        self.results["rfc2217_read_cpu_vs_pyserial_ratio"] = f["read_cpu_s_per_MB_ratio"]
+        self.results["rfc2217_read_vs_pyserial_ratio"] = f["read_MBps_ratio"]
+        self.results["rfc2217_latency_p50_vs_pyserial_ratio"] = f["latency_p50_us_ratio"]
+        self.results["rfc2217_latency_p99_vs_pyserial_ratio"] = f["latency_p99_us_ratio"]
+        self.results["rfc2217_read_MBps"] = f["wiretape_read_MBps"]
+        self.results["rfc2217_latency_p50_us"] = f["wiretape_latency_p50_us"]
+        self.notes["rfc2217"] = "; ".join(
+            f"{name} {f[name + '_read_MBps']:.2f} MB/s at {f[name + '_read_cpu_s_per_MB']:.3f} "
+            f"CPU s/MB, one-way p50 {f[name + '_latency_p50_us']:.0f} µs "
+            f"p99 {f[name + '_latency_p99_us']:.0f} µs" for name in ("wiretape", "pyserial")) + (
+            f" (medians of {f['pairs']} pairs of {f['size_bytes']} bytes and {f['rounds']} "
+            f"rounds; CPU ratio range {f['read_cpu_s_per_MB_ratio_range']})")
+
     def diff(self) -> None:
         """`wiretape diff` of two long sessions (bench/diff_bench.py): the
         exchanges aligned against the comparison by position before issue 38."""
@@ -576,7 +600,7 @@ class Bench:
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
            "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "speed", "view", "show", "diff",
-           "shim", "channels", "record_channels"]
+           "shim", "channels", "record_channels", "rfc2217"]
 
 
 def machine_note() -> dict:

@@ -41,6 +41,14 @@ TARGETS = {
                                      "diff of two 100k-exchange sessions, aligned / by position, CPU s"),
     "diff_aligned_s": (None, "info", "diff, 100k exchanges, a handshake before one of them"),
     "diff_worst_s": (None, "info", "diff, 100k exchanges, every reply different"),
+    # --- the RFC 2217 client port (issue 41) vs pyserial's rfc2217://, same server ---
+    "rfc2217_read_cpu_vs_pyserial_ratio": (1.0, "lower",
+                                           "CPU s per MB read, type=rfc2217 / pyserial rfc2217://"),
+    "rfc2217_read_vs_pyserial_ratio": (1.0, "higher", "MB/s read, type=rfc2217 / pyserial"),
+    "rfc2217_latency_p50_vs_pyserial_ratio": (None, "info", "one-way p50, type=rfc2217 / pyserial"),
+    "rfc2217_latency_p99_vs_pyserial_ratio": (None, "info", "one-way p99, type=rfc2217 / pyserial"),
+    "rfc2217_read_MBps": (None, "info", "MB/s, type=rfc2217 reading through serve over a pty"),
+    "rfc2217_latency_p50_us": (None, "info", "µs one-way, device to type=rfc2217 client, p50"),
     # --- fault campaigns (docs/faults.md) ---
     "faults_campaign_vs_loop_ratio": (1.3, "lower", "campaign / same faulty replays in a loop"),
     # Info: faulty runs also wait for what the driver does about each fault.

@@ -2,7 +2,8 @@
 // OptionError; what parses survives a round trip through to_string(); every
 // row of the key table, read by its typed accessor for each of its port
 // types, rejects bad values with OptionError only; finish() and the "did
-// you mean" suggestion accept any key.
+// you mean" suggestion accept any key; a device setting (a path, an option
+// string, rfc2217://HOST:PORT) is read or refused with OptionError.
 #include <cstdint>
 #include <cstdlib>
 #include <string>
@@ -13,6 +14,10 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   const std::string_view text(reinterpret_cast<const char*>(data), size);
+  try {
+    wiretape::device_options(text);
+  } catch (const wiretape::OptionError&) {
+  }
   wiretape::Options parsed;
   try {
     parsed = wiretape::Options::parse(text);

@@ -1,13 +1,13 @@
-// Fuzzes the RFC 2217 (Telnet COM-PORT-CONTROL) server session: any bytes a
-// client sends must be parsed without crashing, with bounded output and
-// state. The first byte picks where the input is split in two calls, so that
+// Fuzzes the RFC 2217 (Telnet COM-PORT-CONTROL) sessions, the server's and
+// the client's (type=rfc2217): any bytes a peer sends must be parsed without
+// crashing, with bounded output and state. The first byte picks where the input is split in two calls, so that
 // every parser state is also crossed between reads.
 #include <cstdint>
 #include <cstdlib>
 #include <optional>
 #include <string>
 
-#include "bridge/rfc2217.hpp"
+#include "core/rfc2217.hpp"
 
 namespace {
 
@@ -59,6 +59,7 @@ class FakeComPort final : public ComPort {
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  using wiretape::detail::rfc2217::ClientSession;
   using wiretape::detail::rfc2217::ServerSession;
   if (size == 0) return 0;
   const std::size_t rest = size - 1;
@@ -76,6 +77,17 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   // 3 bytes, or an escaped 4-byte reply of at most 16 bytes per 3 input
   // bytes), plus one modem-state announcement.
   if (to_client.size() > greeting + 16 * rest + 16) std::abort();
+
+  // The client session, fed the same bytes as a server's: its data never
+  // grows, and it answers at most a refusal (3 bytes) per negotiation.
+  ClientSession client;
+  std::string data_out;
+  std::string to_server = client.greeting();
+  const std::size_t client_greeting = to_server.size();
+  client.receive(data + 1, split, data_out, to_server);
+  client.receive(data + 1 + split, rest - split, data_out, to_server);
+  if (data_out.size() > rest) std::abort();
+  if (to_server.size() > client_greeting + rest) std::abort();
 
   // Device data escaped for the client reads back unchanged.
   std::string escaped;

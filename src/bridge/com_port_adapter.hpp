@@ -11,7 +11,7 @@
 #include <optional>
 
 #include "bridge/device_side.hpp"
-#include "bridge/rfc2217.hpp"
+#include "core/rfc2217.hpp"
 
 namespace wiretape::detail::bridge {
 

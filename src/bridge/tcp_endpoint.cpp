@@ -22,7 +22,7 @@
 
 #include "bridge/com_port_adapter.hpp"
 #include "bridge/endpoint.hpp"
-#include "bridge/rfc2217.hpp"
+#include "core/rfc2217.hpp"
 #include "posix/listener.hpp"
 #include "wiretape/errors.hpp"
 
@@ -276,6 +276,11 @@ class TcpEndpoint final : public ClientEndpoint {
       if (options_.protocol == BridgeProtocol::rfc2217) {
         client->com_port = std::make_unique<ComPortAdapter>(device_, !client->monitor);
         client->telnet = std::make_unique<rfc2217::ServerSession>(*client->com_port);
+        // Bytes the client sent before a setting reach the device before it.
+        client->telnet->set_device_data_sink([this, monitor = client->monitor](std::string& data) {
+          if (!monitor) device_.send(data.data(), data.size());
+          data.clear();
+        });
         client->outgoing.append(client->telnet->greeting());
       }
       if (!client->monitor) had_client_ = true;

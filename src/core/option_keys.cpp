@@ -77,6 +77,9 @@ constexpr std::int64_t int64_max = std::numeric_limits<std::int64_t>::max();
 std::vector<OptionKey> build_table() {
   const Types& every_type = port_types();
   const Types serial = {"serial"};
+  // A line exported over RFC 2217 is set like a local one.
+  const Types serial_lines = {"serial", "rfc2217"};
+  const Types rfc2217 = {"rfc2217"};
   const Types tcp = {"tcp"};
   const Types udp = {"udp"};
   const Types replay = {"replay"};
@@ -117,14 +120,14 @@ std::vector<OptionKey> build_table() {
 
       // type=serial
       Row("device", serial, path, "the serial device").required(),
-      Row("baud", serial, integer, "the line rate").fallback("9600").integers(1, 100'000'000),
-      Row("databits", serial, integer, "data bits").fallback("8").integers(5, 8),
-      Row("stopbits", serial, integer, "stop bits").fallback("1").integers(1, 2),
-      Row("parity", serial, choice, "parity")
+      Row("baud", serial_lines, integer, "the line rate").fallback("9600").integers(1, 100'000'000),
+      Row("databits", serial_lines, integer, "data bits").fallback("8").integers(5, 8),
+      Row("stopbits", serial_lines, integer, "stop bits").fallback("1").integers(1, 2),
+      Row("parity", serial_lines, choice, "parity")
           .fallback(to_string(Parity::none))
           .choices({to_string(Parity::none), to_string(Parity::even), to_string(Parity::odd),
                     to_string(Parity::mark), to_string(Parity::space)}),
-      Row("flow", serial, choice, "flow control")
+      Row("flow", serial_lines, choice, "flow control")
           .fallback(to_string(FlowControl::none))
           .choices({to_string(FlowControl::none), to_string(FlowControl::rtscts),
                     to_string(FlowControl::xonxoff)}),
@@ -141,6 +144,15 @@ std::vector<OptionKey> build_table() {
       Row("listen", tcp, boolean, "wait for one client instead of connecting")
           .fallback("false"),
       Row("nodelay", tcp, boolean, "TCP_NODELAY").fallback("true"),
+
+      // type=rfc2217 (and the line keys of type=serial above)
+      Row("host", rfc2217, text, "the RFC 2217 server (ser2net, a labgrid exporter)")
+          .fallback("127.0.0.1"),
+      Row("port", rfc2217, integer, "the server's TCP port").required().integers(1, 65535),
+      Row("answer_timeout", rfc2217, OptionType::seconds,
+          "how long the server has to connect, agree COM-PORT-OPTION and answer each setting")
+          .fallback("5")
+          .numbers(0, 1e9),
 
       // type=udp
       Row("host", udp, text, "destination of written datagrams, and with port the only sender read")
@@ -284,8 +296,8 @@ const std::vector<OptionKey>& option_keys() {
 // (src/open/port_types.cpp); tests/cpp/open/port_types_test.cpp holds these
 // names and the registry's equal.
 const std::vector<std::string_view>& port_types() {
-  static const std::vector<std::string_view> types = {"serial", "tcp",      "udp",
-                                                      "pty",    "loopback", "replay"};
+  static const std::vector<std::string_view> types = {"serial", "tcp",    "udp",    "pty",
+                                                      "loopback", "replay", "rfc2217"};
   return types;
 }
 

@@ -530,6 +530,45 @@ std::string option_string(const std::vector<std::pair<std::string, OptionValue>>
   return out;
 }
 
+namespace {
+
+// rfc2217://HOST:PORT (pyserial's form; [ADDRESS]:PORT for IPv6) as
+// type=rfc2217,host=HOST,port=PORT.
+std::string rfc2217_device_options(std::string_view url, std::string_view address) {
+  const auto problem = [&](const std::string& what) {
+    return OptionError("device", "device '" + std::string(url) + "': " + what +
+                                     "; give rfc2217://HOST:PORT (e.g. "
+                                     "rfc2217://lab-pi:2000)");
+  };
+  std::string_view host;
+  std::string_view port;
+  if (!address.empty() && address.front() == '[') {
+    const auto close = address.find(']');
+    if (close == std::string_view::npos) throw problem("no ']' after the IPv6 address");
+    host = address.substr(1, close - 1);
+    if (address.substr(close + 1, 1) != ":") throw problem("no ':PORT' after the address");
+    port = address.substr(close + 2);
+  } else {
+    const auto colon = address.rfind(':');
+    if (colon == std::string_view::npos) throw problem("no ':PORT'");
+    host = address.substr(0, colon);
+    port = address.substr(colon + 1);
+  }
+  if (host.empty()) throw problem("no host");
+  if (port.empty() || port.find_first_not_of("0123456789") != std::string_view::npos ||
+      port.size() > 5) {
+    throw problem("the port '" + std::string(port) + "' is not a number");
+  }
+  if (host.find_first_of("/?#,\"") != std::string_view::npos) {
+    throw problem("the host '" + std::string(host) + "' is not a host name or address");
+  }
+  return option_string({{"type", std::string("rfc2217")},
+                        {"host", std::string(host)},
+                        {"port", static_cast<std::int64_t>(std::stoi(std::string(port)))}});
+}
+
+}  // namespace
+
 std::string device_options(std::string_view device) {
   const auto first = device.find_first_not_of(" \t\r\n");
   if (first == std::string_view::npos) {
@@ -539,6 +578,10 @@ std::string device_options(std::string_view device) {
   }
   const auto last = device.find_last_not_of(" \t\r\n");
   const std::string_view text = device.substr(first, last - first + 1);
+  constexpr std::string_view rfc2217_scheme = "rfc2217://";
+  if (text.substr(0, rfc2217_scheme.size()) == rfc2217_scheme) {
+    return rfc2217_device_options(text, text.substr(rfc2217_scheme.size()));
+  }
   if (text.find('=') != std::string_view::npos) return std::string(text);
   return "type=serial,device=" + quote_option_value(text);
 }

@@ -25,6 +25,8 @@ const std::vector<PortType>& registered_port_types() {
       // What a replay serves is its recording's: datagrams when the
       // recorded channel's type is one of datagram_port_types().
       {"replay", open_replay_of_registered_types, {}},
+      // A serial line over the network: recorded as a serial port's.
+      {"rfc2217", open_rfc2217, {/*datagrams=*/false, /*modem_lines=*/true}},
   };
   return types;
 }

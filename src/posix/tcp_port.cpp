@@ -121,7 +121,19 @@ sys::UniqueFd accept_one(const std::string& host, int port, Timeout timeout,
   }
 }
 
+void set_nodelay(int fd) {
+  const int on = 1;
+  sys::setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &on, sizeof on);
+}
+
 }  // namespace
+
+std::unique_ptr<Port> connect_tcp(const std::string& host, int port, Timeout connect_timeout,
+                                  const std::string& where) {
+  sys::UniqueFd fd = connect_to(host, port, connect_timeout, where);
+  set_nodelay(fd.get());
+  return std::make_unique<TcpPort>(std::move(fd), where);
+}
 
 std::unique_ptr<Port> open_tcp(Options& options) {
   const std::string host = options.take_string("host");
@@ -143,10 +155,7 @@ std::unique_ptr<Port> open_tcp(Options& options) {
     description = "tcp " + endpoint;
     fd = connect_to(host, port, timeout, description);
   }
-  if (nodelay) {
-    const int on = 1;
-    sys::setsockopt(fd.get(), IPPROTO_TCP, TCP_NODELAY, &on, sizeof on);
-  }
+  if (nodelay) set_nodelay(fd.get());
   return std::make_unique<TcpPort>(std::move(fd), std::move(description));
 }
 

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <string>
 
 #include "wiretape/options.hpp"
 #include "wiretape/port.hpp"
@@ -17,6 +18,13 @@ std::unique_ptr<Port> open_serial(Options& options);
 std::unique_ptr<Port> open_tcp(Options& options);
 std::unique_ptr<Port> open_udp(Options& options);
 std::unique_ptr<Port> open_pty(Options& options);
+std::unique_ptr<Port> open_rfc2217(Options& options);
+
+// A TCP connection to host:port as type=tcp makes it (TCP_NODELAY set),
+// for the transports that speak a protocol over one (type=rfc2217); errors
+// name `where`.
+std::unique_ptr<Port> connect_tcp(const std::string& host, int port, Timeout connect_timeout,
+                                  const std::string& where);
 
 // What a datagram transport (type=udp) offers beyond Port, whose reads and
 // writes cannot carry an empty datagram (a read of 0 bytes is a timeout).

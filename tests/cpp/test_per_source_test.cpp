@@ -32,7 +32,7 @@ struct TestedElsewhere {
 // Kept in the order of the source tree.
 const std::vector<TestedElsewhere> tested_elsewhere = {
     {"src/bridge/com_port_adapter.cpp",
-     {"tests/cpp/bridge/rfc2217_test.cpp", "tests/python/cli/test_rfc2217.py"},
+     {"tests/cpp/core/rfc2217_test.cpp", "tests/python/cli/test_rfc2217.py"},
      "RFC 2217's view of the device is what a Telnet client sees of the bridge"},
     {"src/bridge/device_side.cpp",
      {"tests/cpp/bridge/bridge_test.cpp", "tests/cpp/bridge/bridge_bounds_test.cpp",
@@ -45,7 +45,7 @@ const std::vector<TestedElsewhere> tested_elsewhere = {
      {"tests/cpp/bridge/bridge_test.cpp", "tests/python/cli/test_pty_*.py"},
      "an endpoint is tested through the bridge that owns it"},
     {"src/bridge/tcp_endpoint.cpp",
-     {"tests/cpp/bridge/bridge_test.cpp", "tests/cpp/bridge/rfc2217_test.cpp",
+     {"tests/cpp/bridge/bridge_test.cpp", "tests/cpp/core/rfc2217_test.cpp",
       "tests/python/cli/test_tcp_chunks_not_held.py"},
      "an endpoint is tested through the bridge that owns it"},
     {"src/bridge/udp_endpoint.cpp",

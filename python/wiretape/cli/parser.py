@@ -219,8 +219,10 @@ _EXIT_CODES = """exit codes: 0 ok (Ctrl-C included); 1 the checked thing failed 
 mismatch, damaged file, diff found a difference, unused data under
 unused=error); 2 usage error; 3 runtime error (device or file I/O)."""
 
-_DEVICE_NOTE = """--device takes a port option string (type=tcp,host=10.0.0.5,port=10940) or a
-bare path, which means type=serial,device=PATH."""
+_DEVICE_NOTE = """--device takes a port option string (type=tcp,host=10.0.0.5,port=10940), a
+bare path, which means type=serial,device=PATH, or rfc2217://HOST:PORT (a line
+exported by ser2net or a labgrid exporter), which means
+type=rfc2217,host=HOST,port=PORT."""
 
 _EPILOG = _EXIT_CODES + "\n" + _DEVICE_NOTE
 

@@ -335,6 +335,24 @@ TEST(DeviceOptions, AnEmptySettingNamesTheProblem) {
   }
 }
 
+TEST(DeviceOptions, AnRfc2217UrlMeansTheRfc2217PortType) {
+  EXPECT_EQ(wiretape::device_options("rfc2217://lab-pi:2000"),
+            "type=rfc2217,host=lab-pi,port=2000");
+  EXPECT_EQ(wiretape::device_options(" rfc2217://[::1]:7000 "),
+            "type=rfc2217,host=::1,port=7000");
+  for (const char* bad : {"rfc2217://lab-pi", "rfc2217://:2000", "rfc2217://lab-pi:20x0",
+                          "rfc2217://[::1:7000", "rfc2217://lab-pi:2000/ttyUSB0"}) {
+    try {
+      wiretape::device_options(bad);
+      FAIL() << bad << ": no OptionError";
+    } catch (const OptionError& error) {
+      EXPECT_EQ(error.key(), "device");
+      EXPECT_NE(std::string(error.what()).find(bad), std::string::npos) << error.what();
+      EXPECT_NE(std::string(error.what()).find("rfc2217://HOST:PORT"), std::string::npos);
+    }
+  }
+}
+
 TEST(OptionsAlias, AliasIsListedAmongValidKeys) {
   auto options = Options::parse("colour=1");
   options.alias("ip", "host");

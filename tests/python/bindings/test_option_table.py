@@ -21,6 +21,7 @@ SECTION_TYPES = {
     "Common keys (every type)": tuple(_core.port_types()),
     "type=serial": ("serial",),
     "type=tcp": ("tcp",),
+    "type=rfc2217": ("rfc2217",),
     "type=udp": ("udp",),
     "type=pty": ("pty",),
     "type=loopback": ("loopback",),

@@ -1,4 +1,4 @@
-// The RFC 2217 server session byte for byte: option negotiation, COM-PORT
+// The RFC 2217 sessions byte for byte, the server's and the client's: option
 // commands and their answers, IAC escaping, and hostile input.
 #include <gtest/gtest.h>
 
@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "bridge/rfc2217.hpp"
+#include "core/rfc2217.hpp"
 
 namespace {
 
@@ -255,6 +255,161 @@ TEST(Rfc2217, MalformedCommandsAreIgnored) {
   EXPECT_TRUE(port.calls.empty());
   EXPECT_EQ(fed.to_client, "");
   EXPECT_EQ(fed.to_device, "");
+}
+
+TEST(Rfc2217, DataBeforeACommandGoesToTheSinkBeforeTheCommandIsApplied) {
+  RecordingComPort port;
+  ServerSession session(port);
+  session.set_device_data_sink([&](std::string& data) {
+    port.calls.push_back("data " + data);
+    data.clear();
+  });
+  feed(session, kClientOpen);
+  // HELLO, DTR low, SYNC, DTR high, PING in one read, as a client that
+  // pulses DTR between its writes may send them.
+  const Fed fed = feed(session, "HELLO" + bytes({255, 250, 44, 5, 9, 255, 240}) + "SYNC" +
+                                    bytes({255, 250, 44, 5, 8, 255, 240}) + "PING");
+  EXPECT_EQ(port.calls, (std::vector<std::string>{"data HELLO", "dtr off", "data SYNC",
+                                                  "dtr on"}));
+  EXPECT_EQ(fed.to_device, "PING");
+}
+
+// --- the client side ---------------------------------------------------------
+
+using wiretape::detail::rfc2217::Answer;
+using wiretape::detail::rfc2217::ClientSession;
+
+// Runs a client and a server session against each other until neither has
+// anything left to say; returns the device data each side received.
+struct Pair {
+  RecordingComPort port;
+  ServerSession server{port};
+  ClientSession client;
+  std::string client_data;
+  std::string device_data;
+
+  void exchange(std::string to_server, std::string to_client = "") {
+    for (int round = 0; round < 16 && (!to_server.empty() || !to_client.empty()); ++round) {
+      std::string answers_to_client;
+      server.receive(to_server.data(), to_server.size(), device_data, answers_to_client);
+      std::string answers_to_server;
+      const std::string incoming = to_client + answers_to_client;
+      client.receive(incoming.data(), incoming.size(), client_data, answers_to_server);
+      to_server = answers_to_server;
+      to_client.clear();
+    }
+  }
+};
+
+TEST(Rfc2217Client, GreetingAsksBinaryAndSgaBothWaysAndOffersComPort) {
+  ClientSession client;
+  EXPECT_EQ(client.greeting(), bytes({255, 251, 0, 255, 253, 0, 255, 251, 3, 255, 253, 3,
+                                      255, 251, 44}));
+  EXPECT_EQ(client.greeting(), "");  // offers are made once
+}
+
+TEST(Rfc2217Client, AgreesWithWiretapesServer) {
+  Pair pair;
+  const std::string greeting = pair.server.greeting();
+  pair.exchange(pair.client.greeting(), greeting);
+  EXPECT_TRUE(pair.client.com_port_agreed());
+  EXPECT_TRUE(pair.client.binary_settled());
+  EXPECT_FALSE(pair.client.binary_refused());
+  EXPECT_TRUE(pair.server.com_port_active());
+  // The server's announcement of the modem lines reached the client.
+  ASSERT_TRUE(pair.client.state().modem_lines);
+  EXPECT_TRUE(pair.client.state().modem_lines->cts);
+  EXPECT_TRUE(pair.client.state().modem_lines->dsr);
+  EXPECT_FALSE(pair.client.state().modem_lines->cd);
+  EXPECT_EQ(pair.client_data, "");
+  EXPECT_EQ(pair.device_data, "");
+}
+
+TEST(Rfc2217Client, RequestsAreAnsweredAndCounted) {
+  Pair pair;
+  pair.exchange(pair.client.greeting(), pair.server.greeting());
+  pair.exchange(ClientSession::set_baud(0x0001ffff) + ClientSession::set_data_bits(7) +
+                ClientSession::set_parity(Parity::odd) +
+                ClientSession::set_stop_bits(StopBits::two) +
+                ClientSession::set_flow_control(FlowControl::rtscts) +
+                ClientSession::set_dtr(false) + ClientSession::set_rts(true) +
+                ClientSession::set_break(true) + ClientSession::purge(true, true));
+  EXPECT_EQ(pair.port.calls,
+            (std::vector<std::string>{"baud 131071", "datasize 7", "parity odd", "stopsize 2",
+                                      "flow rtscts", "dtr off", "rts on", "break on",
+                                      "purge from_device for_device"}));
+  const auto& state = pair.client.state();
+  EXPECT_EQ(state.baud, 131071u);
+  EXPECT_EQ(state.data_bits, 7);
+  EXPECT_EQ(state.parity, Parity::odd);
+  EXPECT_EQ(state.stop_bits, StopBits::two);
+  EXPECT_EQ(state.flow, FlowControl::rtscts);
+  EXPECT_EQ(state.dtr, false);
+  EXPECT_EQ(state.rts, true);
+  EXPECT_EQ(state.break_on, true);
+  EXPECT_EQ(pair.client.answers(Answer::baud), 1u);
+  EXPECT_EQ(pair.client.answers(Answer::control), 4u);
+  EXPECT_EQ(pair.client.answers(Answer::purge), 1u);
+}
+
+TEST(Rfc2217Client, ABaudRateWithIacIsEscapedInTheRequest) {
+  // 0x0000ff00: the byte 255 doubled inside the subnegotiation.
+  EXPECT_EQ(ClientSession::set_baud(0xff00),
+            bytes({255, 250, 44, 1, 0, 0, 255, 255, 0, 255, 240}));
+  Pair pair;
+  pair.exchange(pair.client.greeting(), pair.server.greeting());
+  pair.exchange(ClientSession::set_baud(0xff00));
+  EXPECT_EQ(pair.client.state().baud, 0xff00u);
+}
+
+TEST(Rfc2217Client, DeviceDataIsUnescapedAndNotificationsAreTaken) {
+  ClientSession client;
+  client.greeting();
+  std::string data;
+  std::string answers;
+  // IAC IAC, a modem-state notification (CD, RI) and a line-state one
+  // (break detected) between data bytes.
+  const std::string input = bytes({'a', 255, 255, 'b', 255, 250, 44, 107, 0xc0, 255, 240, 'c',
+                                   255, 250, 44, 106, 0x10, 255, 240});
+  client.receive(input.data(), 3, data, answers);
+  client.receive(input.data() + 3, input.size() - 3, data, answers);
+  EXPECT_EQ(data, bytes({'a', 255, 'b', 'c'}));
+  ASSERT_TRUE(client.state().modem_lines);
+  EXPECT_TRUE(client.state().modem_lines->cd);
+  EXPECT_TRUE(client.state().modem_lines->ri);
+  EXPECT_FALSE(client.state().modem_lines->cts);
+  ASSERT_TRUE(client.state().line_state);
+  EXPECT_TRUE(client.state().line_state->break_detected);
+  EXPECT_EQ(answers, "");
+}
+
+TEST(Rfc2217Client, ARefusalIsSeenAndOtherOptionsAreRefused) {
+  ClientSession client;
+  client.greeting();
+  std::string data;
+  std::string answers;
+  const std::string input = bytes({255, 254, 44, 255, 251, 1, 255, 253, 24});
+  client.receive(input.data(), input.size(), data, answers);
+  EXPECT_TRUE(client.com_port_refused());
+  EXPECT_TRUE(client.heard_telnet());
+  // WILL ECHO is refused (a server echoing our data would corrupt it), DO
+  // TERMINAL-TYPE too.
+  EXPECT_EQ(answers, bytes({255, 254, 1, 255, 252, 24}));
+}
+
+TEST(Rfc2217Client, MalformedAnswersAreIgnored) {
+  ClientSession client;
+  std::string data;
+  std::string answers;
+  const std::string input = bytes({255, 250, 44, 101, 1, 2, 255, 240,  // short baud answer
+                                   255, 250, 44, 102, 255, 240,        // no value
+                                   255, 250, 44, 1, 0, 0, 0, 1, 255, 240,  // a client's code
+                                   255, 250, 44, 250, 1, 255, 240});  // unknown
+  client.receive(input.data(), input.size(), data, answers);
+  EXPECT_EQ(client.answers(Answer::baud), 0u);
+  EXPECT_EQ(client.answers(Answer::data_size), 0u);
+  EXPECT_FALSE(client.state().baud);
+  EXPECT_EQ(data, "");
 }
 
 }  // namespace
