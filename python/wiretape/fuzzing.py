@@ -34,7 +34,7 @@ import contextlib
 import os
 from typing import Iterable, Iterator, List, Optional, Union
 
-import serial
+from serial.serialutil import SerialException
 
 from . import _core
 
@@ -43,7 +43,7 @@ PathLike = Union[str, "os.PathLike[str]"]
 # What the replay raises at a driver that met a mutated recording: it asked
 # for what the recording does not hold (ReplayMismatch) or read past its end
 # (PortClosed); through pyserial a device that went away is a SerialException.
-DRIVER_ERRORS = (_core.ReplayMismatch, _core.PortError, serial.SerialException)
+DRIVER_ERRORS = (_core.ReplayMismatch, _core.PortError, SerialException)
 
 
 class FuzzedRecording:
