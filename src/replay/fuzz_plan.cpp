@@ -14,6 +14,9 @@ namespace {
 constexpr std::array<std::uint8_t, 6> kBoundaryBytes = {0x00, 0x01, 0x7f, 0x80, 0xfe, 0xff};
 // A delay step adds amount * this: up to 2.55 s, past any driver's timeout.
 constexpr std::uint64_t kDelayStepMs = 10;
+// A split's tail comes this much after its head, so that a reader across a
+// pty or a socket sees two reads, not the one the kernel would merge them into.
+constexpr std::uint64_t kSplitGapMs = 10;
 
 std::string hex_byte(std::uint8_t value) {
   char text[8];
@@ -104,10 +107,11 @@ void apply_step(MutatedRx& out, const Units& units, const PlanStep& step) {
     case MutationKind::split: {
       if (size < 2) return;
       const std::size_t at = step.offset % (size - 1) + 1;
-      RxRecord tail{record.bytes.substr(at), 0, record.place};
+      RxRecord tail{record.bytes.substr(at), kSplitGapMs, record.place};
       record.bytes.resize(at);
       records.insert(records.begin() + static_cast<std::ptrdiff_t>(index) + 1, std::move(tail));
-      say(out, step.kind, name + " split across reads at byte " + std::to_string(at));
+      say(out, step.kind, name + " split across reads at byte " + std::to_string(at) + ", " +
+                              std::to_string(kSplitGapMs) + " ms apart");
       return;
     }
     case MutationKind::delay: {

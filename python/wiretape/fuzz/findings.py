@@ -22,6 +22,10 @@ INDEX = "index.json"
 _SUMMARY = re.compile(r"SUMMARY: \w+Sanitizer: .*")
 # The first frame of a stack trace that names a function ("#0 0x... in f").
 _FRAME = re.compile(r"#\d+ 0x[0-9a-f]+ in (\S+)")
+# A whole frame line, for the finding's stack.
+_FRAME_LINE = re.compile(r"^\s*(#\d+ 0x[0-9a-f]+ in .*)$", re.MULTILINE)
+#: Frames of a finding's stack kept in index.json.
+STACK_FRAMES = 16
 
 
 class PlanFileError(FaultInputError):
@@ -65,6 +69,12 @@ def signature(kind: str, run: Run) -> str:
     return f"exit {run.exit}"
 
 
+def stack(run: Run) -> List[str]:
+    """The (symbolized, where CMD's sanitizer did so) frames of the first
+    stack trace CMD printed."""
+    return [line.strip() for line in _FRAME_LINE.findall(run.output or "")][:STACK_FRAMES]
+
+
 @dataclasses.dataclass
 class Finding:
     kind: str
@@ -74,6 +84,7 @@ class Finding:
     changed: List[str]
     repro: str
     plan: str  # hex, the plan that the session holds the result of
+    stack: List[str] = dataclasses.field(default_factory=list)
 
     def as_json(self) -> Dict[str, object]:
         return dataclasses.asdict(self)

@@ -21,7 +21,7 @@ from ..faults.report import Run
 from ..faults.run import (CleanRunFailed, _check_timeout, _quiet_stderr, check_command,
                           replay_reproduction, run_case)
 from ..fuzzing import FuzzedRecording
-from .findings import Finding, finding_kind, run_signal, signature, write_index
+from .findings import Finding, finding_kind, run_signal, signature, stack, write_index
 
 #: Steps of a plan the search makes (four bytes a step, docs/fuzzing.md).
 MAX_STEPS = 4
@@ -65,6 +65,16 @@ def random_plan(seed: int, index: int, units: int) -> bytes:
         plan += bytes([rng.randrange(256), rng.randrange(max(units, 1)) % 256,
                        rng.randrange(256), rng.randrange(256)])
     return bytes(plan)
+
+
+def _written_options(replay_options: str) -> str:
+    """The replay keys the plans' sessions are made with: CMD's own (the
+    tolerance that makes a delay inert), on the clock CMD's replays keep
+    (causal unless timing= is given), not in-process fuzzing's timing=none."""
+    pairs = _core.parse_options(replay_options)
+    if not any(key == "timing" for key, _ in pairs):
+        pairs.append(("timing", "causal"))
+    return _core.option_string(pairs)
 
 
 def steps_of(plan: bytes) -> List[bytes]:
@@ -131,7 +141,7 @@ def search(session: str, target: Target, findings_dir: str, profile: Optional[st
         raise FaultInputError(f"--jobs {jobs}: give 1 or more")
     try:
         target.speed = scaled_clock.check_speed(target.speed)
-        recording = FuzzedRecording(session, profile, target.replay_options)
+        recording = FuzzedRecording(session, profile, _written_options(target.replay_options))
     except (ValueError, _core.OptionError, _core.SessionError) as error:
         raise FaultInputError(str(error)) from None
     budget = runs if runs is not None else (None if seconds is not None else DEFAULT_RUNS)
@@ -224,7 +234,8 @@ def _keep_findings(runner: _Runner, found: Dict[Tuple[str, str], Tuple[bytes, Ru
         repro = replay_reproduction(path, [], target.argv, target.replay_options,
                                     target.as_path, target.listen,
                                     target.timeout if kind == "hang" else None, target.speed)
-        findings.append(Finding(kind, run_signal(run), sign, name, changed, repro, plan.hex()))
+        findings.append(Finding(kind, run_signal(run), sign, name, changed, repro, plan.hex(),
+                                stack(run)))
     write_index(directory, findings)
     return findings, flaky, duplicates
 

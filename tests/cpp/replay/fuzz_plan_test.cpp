@@ -51,7 +51,7 @@ TEST(FuzzPlan, SplitDropAndTruncateReshapeRecords) {
   EXPECT_EQ(out.records[0].bytes, "he");
   EXPECT_EQ(out.records[1].bytes, "llo");
   EXPECT_EQ(out.records[2].bytes, "x");
-  EXPECT_EQ(out.edits[0], "rx record 1 split across reads at byte 2");
+  EXPECT_EQ(out.edits[0], "rx record 1 split across reads at byte 2, 10 ms apart");
   EXPECT_EQ(out.edits[1], "rx record 0 dropped");
   EXPECT_EQ(out.edits[2], "rx record 2 truncated: 3 → 1 bytes");
 }

@@ -52,7 +52,7 @@ TEST(FuzzSession, MutatedRxStaysAtItsPlaceAmongTheTx) {
   EXPECT_EQ(kinds_and_data(out.records),
             "rx:HELLO\n|rx:HELLO\n|tx:PING\n|rx:PO|rx:NG\n|tx:TIME\n|rx:12:00\n|rx:OK\n|");
   ASSERT_EQ(out.edits.size(), 2u);
-  EXPECT_EQ(out.edits[0], "rx record 1 split across reads at byte 2");
+  EXPECT_EQ(out.edits[0], "rx record 1 split across reads at byte 2, 10 ms apart");
 }
 
 // A reorder swaps what two places serve; the places keep their order.

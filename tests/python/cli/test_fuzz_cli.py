@@ -137,3 +137,42 @@ def test_a_session_without_device_bytes_exits_2(tmp_path, driver):
     result = run_cli("fuzz", str(quiet), "--", *driver)
     assert result.returncode == 2, result.stdout + result.stderr
     assert "no device bytes" in result.stderr
+
+
+# Waits at most 0.3 s for each answer, then exits with an error: a delay
+# within the replay's tolerance (an inert plan) must not make it fail.
+IMPATIENT_DRIVER = textwrap.dedent("""
+    import os, select, sys, tty
+    fd = os.open(sys.argv[1], os.O_RDWR | os.O_NOCTTY)
+    tty.setraw(fd)
+    for n in range(3):
+        os.write(fd, f"Q{n}\\n".encode())
+        line = b""
+        while not line.endswith(b"\\n"):
+            if not select.select([fd], [], [], 0.3)[0]:
+                sys.exit(3)
+            line += os.read(fd, 100)
+    sys.exit(0)
+""")
+
+
+def test_an_error_exit_on_an_inert_plan_is_a_finding(tmp_path, session):
+    script = tmp_path / "impatient.py"
+    script.write_text(IMPATIENT_DRIVER)
+    plan = tmp_path / "delay.txt"
+    plan.write_text("08 01 00 31\n")  # rx record 1 delayed by 500 ms
+    findings = tmp_path / "findings"
+    # A tolerance of one second makes the delay inert.
+    result = run_cli("fuzz", str(session), "--plan", str(plan), "--runs", "1", "--timeout", "5",
+                     "--options", "check=timing,tolerance=1000", "--findings", str(findings), "--",
+                     sys.executable, str(script), "{port}")
+    assert result.returncode == 1, result.stdout + result.stderr
+    [finding] = json.loads((findings / "index.json").read_text())["findings"]
+    assert finding["kind"] == "error" and finding["signature"] == "exit 3"
+    assert finding["changed"] == ["rx record 1 delayed by 500 ms"]
+    # Within the default tolerance (100 ms) the same delay is the driver's
+    # right to refuse: nothing found.
+    result = run_cli("fuzz", str(session), "--plan", str(plan), "--runs", "1", "--timeout", "5",
+                     "--findings", str(tmp_path / "none"), "--",
+                     sys.executable, str(script), "{port}")
+    assert result.returncode == 0, result.stdout + result.stderr
