@@ -72,7 +72,12 @@ def signature(kind: str, run: Run) -> str:
 def stack(run: Run) -> List[str]:
     """The (symbolized, where CMD's sanitizer did so) frames of the first
     stack trace CMD printed."""
-    return [line.strip() for line in _FRAME_LINE.findall(run.output or "")][:STACK_FRAMES]
+    frames: List[str] = []
+    for line in _FRAME_LINE.findall(run.output or ""):
+        if frames and line.startswith("#0 "):
+            break  # the next trace (where the memory was allocated, freed...)
+        frames.append(line.strip())
+    return frames[:STACK_FRAMES]
 
 
 @dataclasses.dataclass

@@ -176,3 +176,93 @@ def test_an_error_exit_on_an_inert_plan_is_a_finding(tmp_path, session):
                      "--findings", str(tmp_path / "none"), "--",
                      sys.executable, str(script), "{port}")
     assert result.returncode == 0, result.stdout + result.stderr
+
+
+# Waits for each answer's end without a timeout: an answer cut short hangs it.
+PATIENT_DRIVER = textwrap.dedent("""
+    import os, sys, tty
+    fd = os.open(sys.argv[1], os.O_RDWR | os.O_NOCTTY)
+    tty.setraw(fd)
+    for n in range(3):
+        os.write(fd, f"Q{n}\\n".encode())
+        line = b""
+        while not line.endswith(b"\\n"):
+            line += os.read(fd, 100)
+    sys.exit(0)
+""")
+
+
+def test_a_hang_past_the_timeout_is_a_finding(tmp_path, session):
+    script = tmp_path / "patient.py"
+    script.write_text(PATIENT_DRIVER)
+    plan = tmp_path / "truncate.txt"
+    plan.write_text("02020400")  # rx record 2 truncated to 4 bytes
+    findings = tmp_path / "findings"
+    result = run_cli("fuzz", str(session), "--plan", str(plan), "--runs", "1", "--timeout", "1",
+                     "--findings", str(findings), "--", sys.executable, str(script), "{port}")
+    assert result.returncode == 1, result.stdout + result.stderr
+    [finding] = json.loads((findings / "index.json").read_text())["findings"]
+    assert finding["kind"] == "hang" and finding["signal"] is None
+    assert finding["changed"] == ["rx record 2 truncated: 10 → 4 bytes"]
+    assert finding["repro"].startswith("(wiretape replay ") and "timeout -k 5 1 " in finding["repro"]
+
+
+# A C driver that copies whatever one read gave into an 11-byte buffer: an
+# answer longer than recorded overflows it, which AddressSanitizer reports.
+OVERFLOWING_DRIVER = r"""
+#include <fcntl.h>
+#include <stdlib.h>
+#include <string.h>
+#include <termios.h>
+#include <unistd.h>
+#include <sys/select.h>
+int main(int argc, char** argv) {
+  int fd = open(argv[1], O_RDWR | O_NOCTTY);
+  struct termios raw;
+  tcgetattr(fd, &raw); cfmakeraw(&raw); tcsetattr(fd, TCSANOW, &raw);
+  for (int n = 0; n < 3; ++n) {
+    char question[4] = {'Q', (char)('0' + n), '\n', 0};
+    write(fd, question, 3);
+    char got[100];
+    size_t size = 0;
+    while (!memchr(got, '\n', size)) {
+      fd_set readable; FD_ZERO(&readable); FD_SET(fd, &readable);
+      struct timeval wait = {0, 300000};
+      if (select(fd + 1, &readable, 0, 0, &wait) <= 0) return 3;
+      usleep(20000);  /* let the whole answer arrive */
+      ssize_t count = read(fd, got + size, sizeof got - size);
+      if (count <= 0) return 3;
+      size += (size_t)count;
+    }
+    char* answer = malloc(11);
+    memcpy(answer, got, size);  /* the bug: trusts the answer's length */
+    free(answer);
+  }
+  return 0;
+}
+"""
+
+
+def test_sanitizer_reports_of_one_cause_are_one_finding(tmp_path, session):
+    source = tmp_path / "overflow.c"
+    source.write_text(OVERFLOWING_DRIVER)
+    program = tmp_path / "overflow"
+    built = subprocess.run(["cc", "-g", "-fsanitize=address", "-o", str(program), str(source)],
+                           capture_output=True, text=True)
+    if built.returncode != 0:
+        pytest.skip(f"no C compiler with AddressSanitizer here: {built.stderr.strip()[:200]}")
+    plans = []
+    for name, text in (("five", "03000441"), ("nine", "03000842")):
+        plans += ["--plan", str(tmp_path / name)]
+        (tmp_path / name).write_text(text)  # rx record 0 extended by 5 (9) bytes
+    findings = tmp_path / "findings"
+    result = run_cli("fuzz", str(session), *plans, "--runs", "2", "--timeout", "10",
+                     "--findings", str(findings), "--", str(program), "{port}")
+    assert result.returncode == 1, result.stdout + result.stderr
+    [finding] = json.loads((findings / "index.json").read_text())["findings"]
+    assert finding["kind"] == "crash" and finding["signal"] is None
+    assert finding["signature"].startswith("SUMMARY: AddressSanitizer: heap-buffer-overflow")
+    assert "1 duplicate" in result.stdout
+    assert any(" in main " in frame for frame in finding["stack"]), finding["stack"]
+    assert [frame.split()[0] for frame in finding["stack"]][:2] == ["#0", "#1"]
+    assert sum(frame.startswith("#0 ") for frame in finding["stack"]) == 1  # the first trace
