@@ -28,9 +28,10 @@ const wiretape::FuzzedReplay& recording() {
 
 void run_driver(wiretape::Port& port) {
   hokuyo::DriverOptions options;
-  // The replay releases each reply as its request is written (timing=none):
-  // a line not there at once never comes.
-  options.line_timeout = std::chrono::milliseconds(20);
+  // The replay releases each reply as its request is written (timing=none,
+  // in this thread): a line not there at once never comes, so the driver
+  // need not wait long for it (each run that waits costs this).
+  options.line_timeout = std::chrono::milliseconds(1);
   options.probe_timeout = options.line_timeout;
   hokuyo::Driver driver(port, options);
   driver.version();
