@@ -266,3 +266,33 @@ def test_sanitizer_reports_of_one_cause_are_one_finding(tmp_path, session):
     assert any(" in main " in frame for frame in finding["stack"]), finding["stack"]
     assert [frame.split()[0] for frame in finding["stack"]][:2] == ["#0", "#1"]
     assert sum(frame.startswith("#0 ") for frame in finding["stack"]) == 1  # the first trace
+
+
+FIXED_PATH = "/dev/ttyWIRETAPEFUZZ0"
+
+
+def test_a_driver_with_a_fixed_path_is_fuzzed_and_its_finding_replays_with_as(tmp_path,
+                                                                              session, driver):
+    """CMD opens its device itself: --as redirects it, and the finding's
+    reproduction is `wiretape replay FINDING --as PATH -- CMD`."""
+    from wiretape.redirect import shim_path
+
+    try:
+        shim_path()
+    except RuntimeError as missing:
+        pytest.skip(f"device-redirecting shim not built: {missing}")
+    plan = tmp_path / "boundary.txt"
+    plan.write_text("01010005")  # rx record 1 byte 0: 0x52 → 0xff
+    findings = tmp_path / "findings"
+    fixed = [arg.replace("{port}", FIXED_PATH) for arg in driver]
+    result = run_cli("fuzz", str(session), "--plan", str(plan), "--runs", "1", "--timeout", "10",
+                     "--as", FIXED_PATH, "--findings", str(findings), "--", *fixed)
+    assert result.returncode == 1, result.stdout + result.stderr
+    [finding] = json.loads((findings / "index.json").read_text())["findings"]
+    assert finding["kind"] == "crash" and finding["changed"] == ["rx record 1 byte 0: 0x52 → 0xff"]
+    session_path = str(findings / finding["session"])
+    assert finding["repro"].startswith(f"wiretape replay {session_path} -q --as {FIXED_PATH} --")
+    env = dict(os.environ, PATH=os.path.dirname(sys.executable) + os.pathsep + os.environ["PATH"])
+    again = subprocess.run(["bash", "-c", finding["repro"]], capture_output=True, text=True,
+                           timeout=120, env=env)
+    assert again.returncode == 128 + 6, again.stdout + again.stderr
