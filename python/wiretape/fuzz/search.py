@@ -192,9 +192,15 @@ def search(session: str, target: Target, findings_dir: str, profile: Optional[st
             clean = runner.run(b"")
             if clean.outcome != "ok":
                 raise CleanRunFailed(clean)
-            with ThreadPoolExecutor(max_workers=jobs) as pool:
+            pool = ThreadPoolExecutor(max_workers=jobs)
+            try:
                 for future in [pool.submit(worker) for _ in range(jobs)]:
                     future.result()
+            except BaseException:
+                stop.set()  # before waiting for the workers: each ends its CMD now
+                raise
+            finally:
+                pool.shutdown(wait=True)
             result = _keep_findings(runner, found, findings_dir, session)
     except BaseException:
         stop.set()
