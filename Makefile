@@ -49,7 +49,8 @@ stubs: python
 	$(PYTHON) -m nanobind.stubgen -m wiretape._core -o python/wiretape/_core.pyi
 
 # Both suites run even when the first fails; the target fails if either did.
-test: python
+# atheris (a wheel, where one exists) for the in-process fuzzing tests.
+test: python $(VENV)/.atheris
 	status=0; \
 	(cd $(BUILD) && ctest --output-on-failure -j2 --timeout 300) || status=1; \
 	$(PYTHON) -m pytest -q || status=1; \

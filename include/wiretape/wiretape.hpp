@@ -5,6 +5,7 @@
 #include "wiretape/bridge.hpp"
 #include "wiretape/device_identity.hpp"
 #include "wiretape/errors.hpp"
+#include "wiretape/fuzzing.hpp"
 #include "wiretape/options.hpp"
 #include "wiretape/port.hpp"
 #include "wiretape/profile.hpp"

@@ -1268,6 +1268,40 @@ def normal_fault_kind(kind: str) -> str:
     One KIND (drop, corrupt:4, delay:500) in its normal spelling. Raises OptionError naming the kind and the grammar.
     """
 
+class FuzzedReplay:
+    """
+    A recording read once, that fuzzing plans mutate (docs/fuzzing.md): open(plan) a replay Port of it, write(path, plan) a .wtape session.
+    """
+
+    def __init__(self, session: str, profile: str = '', options: str = '') -> None:
+        """
+        session: the recording; profile: a profile name whose frames plans mutate ('' : plans act on rx records); options: replay keys over the fuzzing defaults timing=none,at_end=closed,unused=ignore. OptionError for bad options or a profile that does not fit the recording; SessionError for a session with no device bytes.
+        """
+
+    def open(self, plan: bytes) -> Port:
+        """A replay Port of the recording mutated by `plan` (any bytes)."""
+
+    def edits(self, plan: bytes) -> list[str]:
+        """
+        What `plan` changes, one line a change; [] for a plan that changes nothing.
+        """
+
+    def write(self, path: str, plan: bytes) -> list[str]:
+        """
+        Writes the recording mutated by `plan` as a .wtape session at `path` (the edits appended to its header's edits); returns the edits.
+        """
+
+    def inert(self, plan: bytes) -> bool:
+        """
+        Whether `plan` only splits frames across reads or delays them within the replay's tolerance: a driver failing on it, even with a clean error, has a finding.
+        """
+
+    @property
+    def units(self) -> int:
+        """
+        How many rx frames (with a profile) or rx records a plan's steps index.
+        """
+
 class RecordCheck:
     """
     What check_session_records() found: every record the reader reached, with those of channels the header does not list.

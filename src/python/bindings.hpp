@@ -16,6 +16,7 @@ void bind_bridge(nanobind::module_& m);   // bind_bridge.cpp: proxy, serve, virt
 void bind_profile(nanobind::module_& m);  // bind_profile.cpp: protocol profiles
 void bind_util(nanobind::module_& m);     // bind_util.cpp: hex_ascii, escape_bytes
 void bind_exchanges(nanobind::module_& m);  // bind_exchanges.cpp: session_exchanges
+void bind_fuzzing(nanobind::module_& m);  // bind_fuzzing.cpp: FuzzedReplay
 void bind_faults(nanobind::module_& m);   // bind_faults.cpp: fault plans and kinds
 void bind_record_check(nanobind::module_& m);  // bind_record_check.cpp: verify's walk
 void bind_start_utc(nanobind::module_& m);  // bind_start_utc.cpp: start_utc parse, format

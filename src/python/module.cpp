@@ -25,6 +25,7 @@ NB_MODULE(_core, m) {
   wiretape::python::bind_util(m);
   wiretape::python::bind_exchanges(m);
   wiretape::python::bind_faults(m);
+  wiretape::python::bind_fuzzing(m);
   wiretape::python::bind_record_check(m);
   wiretape::python::bind_start_utc(m);
 }

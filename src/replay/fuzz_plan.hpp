@@ -18,6 +18,7 @@
 
 namespace wiretape {
 class Profile;
+enum class FrameEnd;
 }
 
 namespace wiretape::detail {
@@ -53,6 +54,11 @@ std::vector<PlanStep> decode_plan(std::string_view plan);
 struct RxRecord {
   std::string bytes;
   std::uint64_t delay_ms = 0;  // added before it is served
+  // Where in the session it is served: the index of the recorded record it
+  // came from (for a frame, the record its last byte was in). A reorder
+  // swaps what two places serve, so this stays with the place; a duplicate
+  // or a split's tail is served at the place of what it came from.
+  std::size_t place = 0;
 };
 
 struct MutatedRx {
@@ -60,6 +66,7 @@ struct MutatedRx {
   // One line per step that changed something, in words
   // ("rx record 1 byte 3: 0x04 → 0x2c"), for the session header's `edits`.
   std::vector<std::string> edits;
+  std::vector<MutationKind> kinds;  // what made each edit, in step
 };
 
 // `records` with the plan's steps applied in order. A step with nothing to
@@ -68,13 +75,18 @@ struct MutatedRx {
 MutatedRx apply_plan(std::vector<RxRecord> records, std::string_view plan);
 
 // The rx stream of `records` cut into frames by `profile`'s rx framer, one
-// record a frame (an incomplete tail is a frame of its own).
-std::vector<RxRecord> rx_frames(const Profile& profile, const std::vector<RxRecord>& records);
+// record a frame (an incomplete tail is a frame of its own). `ends`, when
+// given, receives why each frame ended (whether the profile fits).
+std::vector<RxRecord> rx_frames(const Profile& profile, const std::vector<RxRecord>& records,
+                                std::vector<FrameEnd>* ends = nullptr);
 
 // With a profile the steps act on its rx frames (rx_frames), "rx frame N"
 // in the edits, a changed byte named by the profile's field where it has
 // one; a frame whose byte changed has its checksums recomputed
 // (Profile::recompute_checksums), so that it reaches the driver's parser.
 MutatedRx apply_plan(const Profile& profile, const std::vector<RxRecord>& records, std::string_view plan);
+// The same on frames already cut by rx_frames (a recording fuzzed many
+// times is cut once).
+MutatedRx apply_plan_to_frames(const Profile& profile, std::vector<RxRecord> frames, std::string_view plan);
 
 }  // namespace wiretape::detail

@@ -38,6 +38,11 @@ bool recorded_as_datagrams(const Channel& channel, const DatagramPortTypes& data
 // do not parse: the header's text is not the replay's to refuse).
 SerialSettings recorded_line_settings(const std::string& port_options);
 
+// The replay keys of `options` and what the session file they name says
+// (its channel, datagrams, line settings, the channel's faults): what
+// open_replay plays the file's records with. Throws as open_replay does.
+ReplayConfig replay_file_config(Options& options, const DatagramPortTypes& datagram_types);
+
 // type=replay for open_port() (src/open/port_types.cpp): the replay keys of
 // `options`, then the session file they name.
 std::unique_ptr<Port> open_replay(Options& options, const DatagramPortTypes& datagram_types);

@@ -166,7 +166,7 @@ SerialSettings recorded_line_settings(const std::string& port_options) {
   return settings;
 }
 
-std::unique_ptr<Port> open_replay(Options& options, const DatagramPortTypes& datagram_types) {
+ReplayConfig replay_file_config(Options& options, const DatagramPortTypes& datagram_types) {
   ReplayConfig config = take_replay_config(options);
   // The file is opened here once, so that a missing or unreadable session
   // fails at open with the reason. Not as a SessionReader, which would wait
@@ -191,6 +191,11 @@ std::unique_ptr<Port> open_replay(Options& options, const DatagramPortTypes& dat
       }
     }
   }
+  return config;
+}
+
+std::unique_ptr<Port> open_replay(Options& options, const DatagramPortTypes& datagram_types) {
+  ReplayConfig config = replay_file_config(options, datagram_types);
   RecordSourceFactory sources = session_source_factory(config.file, config.channel_id);
   return open_replay_session(std::move(config), std::move(sources));
 }

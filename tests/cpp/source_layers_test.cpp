@@ -32,7 +32,7 @@ const std::map<std::string, int> folder_levels = {
 const std::map<std::string, int> public_header_levels = {
     {"timeout.hpp", 1},        {"errors.hpp", 1},  {"port.hpp", 1},
     {"options.hpp", 1},        {"version.hpp", 1}, {"device_identity.hpp", 1},
-    {"session.hpp", 3},        {"recorder.hpp", 3}, {"profile.hpp", 5},
+    {"fuzzing.hpp", 6},       {"session.hpp", 3},        {"recorder.hpp", 3}, {"profile.hpp", 5},
     {"bridge.hpp", 7},         {"cassette_names.hpp", 8}, {"testing.hpp", 8},
     {"wiretape.hpp", 8},
 };

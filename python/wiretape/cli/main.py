@@ -134,8 +134,8 @@ def _option_strings(parser) -> list:
 
 # Commands that are batch work whatever their arguments; any command with
 # -- CMD is too.
-_BATCH_COMMANDS = frozenset({"convert", "edit", "faults", "faults merge", "diff", "show", "stats",
-                             "verify", "view"})
+_BATCH_COMMANDS = frozenset({"convert", "edit", "faults", "faults merge", "fuzz", "diff", "show",
+                             "stats", "verify", "view"})
 
 
 def is_batch_work(args) -> bool:

@@ -13,6 +13,7 @@ from .. import __version__, _core
 from ..options import option_keys
 from ..session import NO_PROFILE
 from .files import cmd_convert, cmd_diff, cmd_edit, cmd_show, cmd_stats, cmd_verify, cmd_view
+from .fuzz_command import add_fuzz_parser
 from .ports import cmd_ports
 from .run import cmd_demo, cmd_faults, cmd_faults_merge, cmd_record, cmd_replay, cmd_serve
 
@@ -231,6 +232,7 @@ _COMMAND_USAGE = {
     "record": "[-- CMD [ARG...]]",
     "replay": "[-- CMD [ARG...]]",
     "faults": "-- CMD [ARG...] {port} [ARG...]",
+    "fuzz": "-- CMD [ARG...] {port} [ARG...]",
 }
 
 
@@ -355,7 +357,7 @@ def _add_redirect(parser, default: str) -> None:
                              f"pty ({default})" + _NAMED)
 
 
-_COMMANDS_WITH_CMD = ("record", "replay", "faults")
+_COMMANDS_WITH_CMD = ("record", "replay", "faults", "fuzz")
 
 
 def split_command(argv: Sequence[str]) -> Tuple[List[str], Optional[List[str]]]:
@@ -497,6 +499,9 @@ def build_parser() -> argparse.ArgumentParser:
                              "(JOB_COMPLETION_INDEX gives only the index)")
     faults.add_argument("--junit", metavar="FILE",
                         help="write the runs as JUnit XML to FILE (a test case per run)")
+
+    add_fuzz_parser(command, {"positive_int": _positive_int, "non_negative_int": _non_negative_int,
+                              "positive_seconds": _positive_seconds, "speed": _speed})
 
     merge = command(
         "faults merge", cmd_faults_merge, "one campaign's table from the --json of its shards",

@@ -197,8 +197,18 @@ def reproduction(session: str, case: FaultCase, argv: Sequence[str], replay_opti
     against it and exits with the command's status, as the campaign's run
     did (with `timeout`, a hang ends as `timeout` ends it: status 124; at
     `speed` K, the replay runs with --speed K and CMD on the scaled clock)."""
+    return replay_reproduction(session, ["--fault", case.spec, "--seed", str(case.seed)], argv,
+                               replay_options, as_path, listen, timeout, speed)
+
+
+def replay_reproduction(session: str, replay_arguments: Sequence[str], argv: Sequence[str],
+                        replay_options: str, as_path: Optional[str], listen: bool = False,
+                        timeout: Optional[float] = None, speed: float = 1.0) -> str:
+    """reproduction() of a replay of `session` with `replay_arguments`
+    (a fault and its seed; none for a session that is the finding itself,
+    as `wiretape fuzz` writes them)."""
     channels = session_channels(session)
-    replay = ["wiretape", "replay", session, "--fault", case.spec, "--seed", str(case.seed)]
+    replay = ["wiretape", "replay", session] + list(replay_arguments)
     if speed != 1.0:
         replay += ["--speed", _seconds_text(speed)]
     if replay_options:

@@ -8,10 +8,13 @@
 #include <vector>
 
 #include "replay/fuzz_plan.hpp"
+#include "support/profile_seeds.hpp"
 #include "wiretape/profile.hpp"
 
 namespace wiretape::detail {
 namespace {
+
+using test::profile_seed_frames;
 
 std::vector<RxRecord> recording() { return {{"AB\x04", 0}, {"hello", 0}, {"xyz", 0}}; }
 
@@ -48,7 +51,7 @@ TEST(FuzzPlan, SplitDropAndTruncateReshapeRecords) {
   EXPECT_EQ(out.records[0].bytes, "he");
   EXPECT_EQ(out.records[1].bytes, "llo");
   EXPECT_EQ(out.records[2].bytes, "x");
-  EXPECT_EQ(out.edits[0], "rx record 1 split across reads at byte 2");
+  EXPECT_EQ(out.edits[0], "rx record 1 split across reads at byte 2, 10 ms apart");
   EXPECT_EQ(out.edits[1], "rx record 0 dropped");
   EXPECT_EQ(out.edits[2], "rx record 2 truncated: 3 → 1 bytes");
 }
@@ -86,24 +89,9 @@ TEST(FuzzPlan, StepsOnAnEmptyRecordingChangeNothing) {
   EXPECT_TRUE(out.edits.empty());
 }
 
-// A recorded device side for each built-in profile, two frames of it, made
-// valid by the profile's own checksum rule (a checksum field left zero here).
 std::vector<RxRecord> seed_for(const Profile& profile) {
-  const std::string name(profile.name());
-  std::vector<std::string> frames;
-  if (name == "scip") frames = {"VV\n00P\nVEND:Hokuyo;[\n\n", "MD0044072501001\n00P\n\n"};
-  else if (name == "nmea") frames = {"$GPGGA,1,2*00\r\n", "$GPRMC,3*00\r\n"};
-  else if (name == "slcan") frames = {"t1232AABB\r", "z\r"};
-  else if (name == "modbus-rtu") frames = {std::string("\x01\x03\x04\x00\x01\x00\x02\x00\x00", 9),
-                                           std::string("\x01\x06\x00\x01\x00\x03\x00\x00", 8)};
-  else if (name == "modbus-tcp") frames = {std::string("\x00\x01\x00\x00\x00\x05\x01\x03\x02\x00\x2a", 11),
-                                           std::string("\x00\x02\x00\x00\x00\x05\x01\x03\x02\x00\x2b", 11)};
-  else if (name == "mavlink")
-    frames = {std::string("\xfe\x09\x00\x01\x01\x00\x00\x00\x00\x00\x02\x03\x51\x04\x03\x00\x00", 17),
-              std::string("\xfe\x09\x01\x01\x01\x00\x00\x00\x00\x00\x02\x03\x51\x04\x03\x00\x00", 17)};
-  else frames = {"OK\r\n", "READY\r\n"};
   std::vector<RxRecord> records;
-  for (const std::string& frame : frames) records.push_back({profile.recompute_checksums(StreamDirection::rx, frame), 0});
+  for (std::string& frame : profile_seed_frames(profile)) records.push_back({std::move(frame), 0});
   return records;
 }
 

@@ -1,0 +1,83 @@
+"""wiretape.fuzzing (DESIGN §27, in process): a recording read once, each
+plan a replay of it mutated; pyserial's own serial.Serial served the mutated
+replay; a plan written as a session that plays as it was fuzzed."""
+
+import os
+import pathlib
+import sys
+
+import pytest
+import serial
+
+import wiretape
+from wiretape.fuzzing import DRIVER_ERRORS, FuzzedRecording
+
+EXAMPLE = pathlib.Path(__file__).resolve().parents[3] / "examples" / "pyserial"
+RECORDING = EXAMPLE / "recordings" / "test_thermometer" / "test_identify_and_read.wtape"
+
+DROP_FIRST_ANSWER = bytes([5, 0, 0, 0])
+LAST_ANSWER_DIGIT_TO_FF = bytes([1, 1, 0, 5])
+
+
+@pytest.fixture
+def thermometer_class(monkeypatch):
+    monkeypatch.syspath_prepend(str(EXAMPLE))
+    from thermometer import Thermometer
+    return Thermometer
+
+
+def test_empty_plan_serves_the_recording(thermometer_class):
+    recording = FuzzedRecording(RECORDING)
+    assert recording.units == 2
+    assert recording.edits(b"") == []
+    with recording.serial(b""):
+        thermometer = thermometer_class()
+        assert thermometer.identify().startswith("ACME THERMO")
+        assert thermometer.temperature() == 21.5
+        thermometer.close()
+
+
+def test_plan_changes_what_the_driver_reads(thermometer_class):
+    recording = FuzzedRecording(RECORDING)
+    assert recording.edits(LAST_ANSWER_DIGIT_TO_FF) == ["rx record 1 byte 0: 0x32 → 0xff"]
+    with recording.serial(LAST_ANSWER_DIGIT_TO_FF):
+        thermometer = thermometer_class()
+        thermometer.identify()
+        with pytest.raises(ValueError):  # a byte that is no ASCII digit
+            thermometer.temperature()
+
+
+def test_port_of_a_plan_ends_at_the_recordings_end():
+    recording = FuzzedRecording(RECORDING)
+    port = recording.open(DROP_FIRST_ANSWER)
+    port.write(b"*IDN?\n")
+    port.write(b"TEMP?\n")
+    assert port.read_until(b"\n", 100, 5.0) == b"21.5\n"
+    with pytest.raises(wiretape.PortClosed):
+        port.read(1, 5.0)
+    assert isinstance(wiretape.PortClosed("x"), DRIVER_ERRORS)
+
+
+def test_written_plan_replays_as_it_was_fuzzed(tmp_path):
+    recording = FuzzedRecording(RECORDING)
+    path = tmp_path / "finding.wtape"
+    edits = recording.write(path, DROP_FIRST_ANSWER)
+    assert edits == ["rx record 0 dropped"]
+    reader = wiretape.SessionReader(str(path))
+    assert list(reader.header.edits) == edits
+    rx = [record.data for record in reader if record.kind == "rx"]
+    assert rx == [b"21.5\n"]
+
+
+def test_profile_that_does_not_fit_is_refused_by_name():
+    with pytest.raises(wiretape.OptionError, match="'modbus-rtu' does not fit"):
+        FuzzedRecording(RECORDING, profile="modbus-rtu")
+
+
+def test_session_without_device_bytes_is_refused_by_name(tmp_path):
+    path = tmp_path / "quiet.wtape"
+    writer = wiretape.SessionWriter(str(path), wiretape.SessionHeader(port_type="serial"))
+    writer.write("tx", 1000, b"PING\n")
+    writer.close()
+    with pytest.raises(wiretape.SessionError, match="no device bytes"):
+        FuzzedRecording(path)
