@@ -13,19 +13,25 @@ export PATH := $(abspath $(VENV))/bin:$(PATH)
 
 all: python
 
-# pip and the build tools of the extension, once per pyproject change.
-# nanobind and mypy are pinned: the checked-in stubs are stubgen's output of
-# that nanobind, and the typing test holds them to that mypy.
-$(VENV)/.deps: pyproject.toml
+# pip, the build tools of the extension and the package's own dependencies,
+# once per pyproject change: all that `make demo` needs.
+# nanobind is pinned: the checked-in stubs are stubgen's output of it.
+$(VENV)/.build-deps: pyproject.toml
 	test -x $(PYTHON) || python3 -m venv $(VENV)
 	$(PYTHON) -m pip install -q --upgrade pip
 	$(PYTHON) -m pip install -q "scikit-build-core>=0.10" "nanobind==3.1.0" \
-	  "pyserial>=3.5" "rich>=13" "mcap>=1.1" "pytest>=7" "hypothesis>=6" "mypy==2.4.1" \
+	  "pyserial>=3.5" "rich>=13" "mcap>=1.1"
+	touch $@
+
+# The tests' tools on top (the `test` extra of pyproject). mypy is pinned:
+# the typing test holds the stubs to it.
+$(VENV)/.deps: $(VENV)/.build-deps
+	$(PYTHON) -m pip install -q "pytest>=7" "hypothesis>=6" "mypy==2.4.1" \
 	  "pymodbus>=3" "pytest-reserial>=0.4" "pymavlink>=2.4" "pytest-xdist>=3" "pyyaml>=6" \
 	  "junitparser==3.2.0" "pyelftools==0.33"
 	touch $@
 
-$(BUILD)/build.ninja: $(VENV)/.deps CMakeLists.txt
+$(BUILD)/build.ninja: $(VENV)/.build-deps CMakeLists.txt
 	cmake -S . -B $(BUILD) -G $(GENERATOR) -DWIRETAPE_PYTHON=ON \
 	  -DPython_EXECUTABLE=$(abspath $(PYTHON)) $(CMAKE_ARGS)
 
@@ -36,7 +42,7 @@ cpp: $(BUILD)/build.ninja
 # python/wiretape (see pyproject): python/ on sys.path by a .pth line, with
 # scikit-build-core's import hook dropped (cmake/editable_without_hook.py
 # says why).
-$(VENV)/.installed: $(VENV)/.deps pyproject.toml $(shell find python/wiretape -type d)
+$(VENV)/.installed: $(VENV)/.build-deps pyproject.toml $(shell find python/wiretape -type d)
 	WIRETAPE_PREBUILT=1 $(PYTHON) -m pip install -q --no-build-isolation --no-deps -e .
 	$(PYTHON) cmake/editable_without_hook.py
 	touch $@
@@ -50,7 +56,7 @@ stubs: python
 
 # Both suites run even when the first fails; the target fails if either did.
 # atheris (a wheel, where one exists) for the in-process fuzzing tests.
-test: python $(VENV)/.atheris
+test: python $(VENV)/.deps $(VENV)/.atheris
 	status=0; \
 	(cd $(BUILD) && ctest --output-on-failure -j2 --timeout 300) || status=1; \
 	$(PYTHON) -m pytest -q || status=1; \
@@ -175,7 +181,7 @@ SOAK_MINUTES  ?= 30
 SOAK_GPSD_REPEAT ?= 100
 
 # README's benchmark table is rewritten from the run's results, never by hand.
-bench: python
+bench: python $(VENV)/.deps
 	bench/install-tools.sh $(BENCH_TOOLS)
 	$(PYTHON) bench/run.py --build $(BUILD)
 	$(PYTHON) bench/readme_table.py $(BUILD)/bench/results.json README.md
@@ -206,7 +212,7 @@ fuzz: python $(VENV)/.atheris
 # Record+replay loop for SOAK_MINUTES; fails if RSS or open fds grow. Then
 # SOAK_GPSD_REPEAT sequence replays to gpsd, each of which must deliver every
 # recorded fix (DESIGN.md section 12; make test runs one).
-soak: python
+soak: python $(VENV)/.deps
 	$(PYTHON) bench/soak.py --minutes $(SOAK_MINUTES) --build $(BUILD) --work $(BUILD)/soak
 	WIRETAPE_GPSD_REPEAT=$(SOAK_GPSD_REPEAT) $(PYTHON) -m pytest -q \
 	  tests/python/clients/test_gpsd.py -k test_gpsd_gets_every_recorded_fix_whatever_it_flushed

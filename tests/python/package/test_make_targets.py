@@ -43,3 +43,20 @@ def test_make_install_installs_the_cpp_package_into_prefix():
     lines = dry_run("install", "PREFIX=/opt/wiretape")
     assert "cmake --build build-dry-run --target wiretape" in lines
     assert "cmake --install build-dry-run --prefix /opt/wiretape --component cpp" in lines
+
+
+def pip_installs(lines):
+    """The packages of every `pip install` line make would run."""
+    commands = "\n".join(lines).replace("\\\n", " ").splitlines()
+    return {word.strip('"').split(">")[0].split("=")[0] for line in commands
+            if " -m pip install" in line for word in line.split() if word.startswith('"')}
+
+
+def test_make_demo_installs_only_what_the_demo_runs_and_make_test_the_test_tools(tmp_path):
+    # A venv that does not exist yet: make must install everything it needs.
+    fresh = f"VENV={tmp_path}/venv"
+    demo = pip_installs(dry_run("demo", fresh))
+    assert {"scikit-build-core", "nanobind", "pyserial", "rich", "mcap"} <= demo
+    assert not demo & {"pytest", "mypy", "pymavlink", "pymodbus", "hypothesis"}, demo
+    test = pip_installs(dry_run("test", fresh))
+    assert {"pytest", "mypy", "pymavlink", "pymodbus", "hypothesis", "nanobind"} <= test
