@@ -17,6 +17,7 @@
 #include "session/header.hpp"
 #include "session/reader.hpp"
 #include "session/record_kinds.hpp"
+#include "session/session_index.hpp"
 #include "util/json.hpp"
 #include "wiretape/session.hpp"
 
@@ -56,11 +57,22 @@ std::string hex32(std::uint32_t value) {
 class WtapeSource final : public RecordSource {
  public:
   WtapeSource(const std::string& path, SessionHeader& header, Streams streams,
-              std::optional<std::uint16_t> channel, UnlistedRecordSink on_unlisted)
-      : file_(path, streams), channel_(channel), on_unlisted_(std::move(on_unlisted)) {
+              std::optional<std::uint16_t> channel, UnlistedRecordSink on_unlisted,
+              RecordPlaceSink on_place)
+      : file_(path, streams), channel_(channel), on_unlisted_(std::move(on_unlisted)),
+        on_place_(std::move(on_place)) {
     read_header(header);
     channel_count_ = header.channels.empty() ? 1 : header.channels.size();
     first_record_ = file_.position();
+    // One channel of several: its spans, if the file's index describes it;
+    // every record otherwise (a file still being written has none yet).
+    if (channel_ && channel_count_ > 1 && !file_.is_stream()) {
+      if (auto index = find_session_index(file_.fd(), file_.size(), first_record_,
+                                          channel_count_, nullptr)) {
+        spans_ = channel_spans(*index, *channel_);
+      }
+      file_.seek(first_record_);
+    }
   }
 
   bool next(Record& record) override { return next_record(record, nullptr); }
@@ -74,6 +86,11 @@ class WtapeSource final : public RecordSource {
     file_.seek(first_record_);
     damage_.reset();
     records_ = 0;
+    if (spans_) {
+      spans_->rewind();
+      span_ = IndexSpan{};
+      file_.limit_read_ahead(0);
+    }
   }
 
   const std::optional<SessionError>& damage() const override { return damage_; }
@@ -84,6 +101,7 @@ class WtapeSource final : public RecordSource {
     for (;;) {
       if (view) *view = PayloadView{};
       if (damage_) return false;
+      if (spans_ && !enter_span()) return false;
       const std::uint64_t offset = file_.position();
       char head[record_header_size];
       if (file_.remaining() == 0) return false;
@@ -107,7 +125,7 @@ class WtapeSource final : public RecordSource {
       }
       std::uint32_t crc = crc32c(head, sizeof head);
       const char* payload = nullptr;
-      if (view && !file_.is_stream() && length >= min_view_payload &&
+      if (view && views_pin_own_records() && length >= min_view_payload &&
           length <= BufferedFile::max_view_size()) {
         if (!file_.read_view(length, *view)) {
           return stop(offset, "truncated record at byte " + std::to_string(offset));
@@ -135,11 +153,12 @@ class WtapeSource final : public RecordSource {
       // A channel the header does not list (a newer writer's), a kind not
       // known or a channel not asked for: skipped.
       const std::uint16_t channel = get_u16le(head + 6);
+      const auto kind_byte = static_cast<std::uint8_t>(head[4]);
+      if (on_place_) on_place_(RecordPlace{offset, file_.position(), channel, kind_byte});
       if (channel >= channel_count_) {
         if (on_unlisted_) on_unlisted_(UnlistedRecord{offset, channel});
         continue;
       }
-      const auto kind_byte = static_cast<std::uint8_t>(head[4]);
       if (find_record_kind(static_cast<RecordKind>(kind_byte)) == nullptr) continue;
       if (channel_ && channel != *channel_) continue;
       record.channel = channel;
@@ -155,6 +174,29 @@ class WtapeSource final : public RecordSource {
       ++records_;
       return true;
     }
+  }
+
+  // A view pins its read buffer. Reading one channel of several without an
+  // index, a buffer holds mostly other channels' records: a view would pin
+  // a whole buffer for the few bytes of this channel's, so the look-ahead's
+  // memory would grow with the number of channels, and a copy costs less.
+  // Through the index, the reads hold this channel's spans.
+  bool views_pin_own_records() const {
+    if (file_.is_stream()) return false;
+    return !channel_ || channel_count_ == 1 || spans_.has_value();
+  }
+
+  // Moves to the next span of the channel when the reader is past the
+  // current one; false after the last.
+  bool enter_span() {
+    while (file_.position() >= span_.end) {
+      if (!spans_->next(span_)) return false;
+      if (span_.begin > file_.position() && !file_.skip(span_.begin - file_.position())) {
+        return false;  // the file is shorter than its index says: not a span of it
+      }
+      file_.limit_read_ahead(span_.end);
+    }
+    return true;
   }
 
   bool stop(std::uint64_t offset, const std::string& what) {
@@ -225,8 +267,11 @@ class WtapeSource final : public RecordSource {
   BufferedFile file_;
   std::optional<std::uint16_t> channel_;  // std::nullopt: every channel
   UnlistedRecordSink on_unlisted_;
+  RecordPlaceSink on_place_;
   std::size_t channel_count_ = 1;
   std::uint64_t first_record_ = 0;
+  std::optional<ChannelSpans> spans_;  // the channel's, from the file's index
+  IndexSpan span_;                     // the one being read
   std::uint64_t records_ = 0;
   std::optional<SessionError> damage_;
 };
@@ -255,7 +300,8 @@ bool starts_with_magic(const std::string& path, Streams streams) {
 std::unique_ptr<RecordSource> open_session_source(const std::string& path,
                                                   SessionHeader& header, Streams streams,
                                                   std::optional<std::uint16_t> channel,
-                                                  UnlistedRecordSink on_unlisted) {
+                                                  UnlistedRecordSink on_unlisted,
+                                                  RecordPlaceSink on_place) {
   if (!starts_with_magic(path, streams)) {
     // A flexiport log is one port: channel 0.
     if (auto prefix = flexiport_prefix(path)) {
@@ -268,7 +314,7 @@ std::unique_ptr<RecordSource> open_session_source(const std::string& path,
     }
   }
   return std::make_unique<WtapeSource>(path, header, streams, channel,
-                                       std::move(on_unlisted));
+                                       std::move(on_unlisted), std::move(on_place));
 }
 
 }  // namespace detail

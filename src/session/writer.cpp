@@ -25,6 +25,7 @@
 #include "session/format.hpp"
 #include "session/header.hpp"
 #include "session/reader.hpp"
+#include "session/session_index.hpp"
 #include "wiretape/session.hpp"
 
 namespace wiretape {
@@ -78,6 +79,10 @@ struct SessionWriter::Impl {
   bool closing = false;
   bool closed = false;
   std::thread flusher;
+  // Where each channel's records are, for the index written at close.
+  detail::SessionIndexBuilder index;
+  std::uint64_t index_end = 0;  // where the index, once buffered, ends
+  bool index_committed = false;  // the last record in the file is the index
 
   // The header JSON's length in the file: the JSON, then spaces up to it.
   std::size_t header_json_room = 0;
@@ -169,6 +174,7 @@ struct SessionWriter::Impl {
       committed += data.size();
       std::lock_guard<std::mutex> count(mutex);
       committed_records += ends.size();
+      index_committed = index_end != 0 && committed >= index_end;
       data.clear();
       if (spare.capacity() < data.capacity()) spare.swap(data);
       return;
@@ -183,6 +189,7 @@ struct SessionWriter::Impl {
     {
       std::lock_guard<std::mutex> count(mutex);
       committed_records += whole_records;
+      index_committed = index_end != 0 && committed >= index_end;
     }
     fail_and_release(error);
   }
@@ -216,6 +223,21 @@ struct SessionWriter::Impl {
 #else
     (void)end;
 #endif
+  }
+
+  // A file of several channels ends with their index (format 1.3), so that
+  // a reader of one reads only its spans; a file of one is read whole
+  // anyway. Called once the last records are in the file.
+  void append_index() {
+    std::lock_guard<std::mutex> io(io_mutex);  // header.channels
+    if (header.channels.size() < 2) return;
+    std::lock_guard<std::mutex> lock(mutex);
+    if (failure || fd < 0) return;
+    const std::string bytes = index.record_bytes(buffered_total, header.channels.size());
+    buffer += bytes;
+    record_ends.push_back(buffer.size());
+    buffered_total += bytes.size();
+    index_end = buffered_total;
   }
 
   // Gives back the blocks reserved past the end of the file.
@@ -337,7 +359,9 @@ void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view 
     buffer.append(data.data(), data.size());
     buffer.append(tail, sizeof tail);
     impl_->record_ends.push_back(buffer.size());
+    const std::uint64_t offset = impl_->buffered_total;
     impl_->buffered_total += sizeof head + data.size() + sizeof tail;
+    impl_->index.add(offset, impl_->buffered_total, channel);
     if (!impl_->oldest_unflushed) {
       impl_->oldest_unflushed = Clock::now();
       impl_->wake.notify_one();
@@ -432,6 +456,8 @@ void SessionWriter::close() {
   }
   if (impl_->flusher.joinable()) impl_->flusher.join();
   impl_->flush_now();
+  impl_->append_index();
+  impl_->flush_now();
   std::optional<PortError> failure;
   {
     std::lock_guard<std::mutex> lock(impl_->mutex);
@@ -459,8 +485,10 @@ std::optional<PortError> SessionWriter::failure() const {
 
 std::uint64_t SessionWriter::records_written() const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
-  // The file header, in the file since the constructor, is not a record.
-  return impl_->committed_records == 0 ? 0 : impl_->committed_records - 1;
+  // The file header, in the file since the constructor, is not a record,
+  // nor is the index.
+  const std::uint64_t structure = 1 + (impl_->index_committed ? 1 : 0);
+  return impl_->committed_records < structure ? 0 : impl_->committed_records - structure;
 }
 
 std::uint64_t SessionWriter::size() const {

@@ -15,7 +15,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[3]
 GOLDEN = ROOT / "tests" / "data" / "golden"
 GOLDEN_NAMES = ["all_kinds", "wire", "unknown_kind", "damaged", "v1_1_additions"]
 # Written by an older format version: read, no longer written.
-READ_ONLY_GOLDEN = {"v1_0": 0, "v1_1": 1}
+READ_ONLY_GOLDEN = {"v1_0": 0, "v1_1": 1, "v1_2": 2}
 PROVENANCE = ("source_format", "source_files", "source_details", "device_address", "edits")
 
 
@@ -32,7 +32,7 @@ def test_golden_file_reads_as_its_jsonl_says(name):
     header, records, corrupt = load_jsonl(name)
     reader = _core.SessionReader(GOLDEN / f"{name}.wtape")
     got = reader.header
-    assert (got.version_major, got.version_minor) == (1, READ_ONLY_GOLDEN.get(name, 2))
+    assert (got.version_major, got.version_minor) == (1, READ_ONLY_GOLDEN.get(name, 3))
     # The golden .jsonl name the writer's members by attribute (make_jsonl.py).
     for key in ("port_options", "port_type", "start_utc", "wiretape_version", "host", "capture",
                 "metadata"):
