@@ -553,7 +553,7 @@ def present_device_identity(identity: dict, root: str, device_path: str) -> tupl
 
 SESSION_MAGIC: bytes = ...
 
-SESSION_VERSION: tuple = (1, 2)
+SESSION_VERSION: tuple = (1, 3)
 
 FILE_HEADER_FIXED_SIZE: int = 16
 
@@ -1299,6 +1299,16 @@ class RecordCheck:
         """the channel the first such record names, or None"""
 
     @property
+    def index_state(self) -> str:
+        """
+        the per-channel index: 'not needed' (one channel), 'current', 'absent', 'stale' or 'unchecked' (a damaged file, a stream)
+        """
+
+    @property
+    def index_detail(self) -> str:
+        """why the index is absent, stale or unchecked; where it is when current"""
+
+    @property
     def damage(self, /) -> SessionError | None:
         """
         None, or a SessionError (not raised) with .offset and .message: where reading stopped and why
@@ -1307,6 +1317,11 @@ class RecordCheck:
 def check_session_records(path: str) -> RecordCheck:
     """
     Reads every record of the session at PATH as SessionReader does (CRC, length, content), counting them per channel and noting the records of channels the header does not list, which a reader skips. Raises PortError when PATH cannot be opened, SessionError when it is not a session; damage later on is RecordCheck.damage.
+    """
+
+def repair_session_index(path: str) -> tuple[str, str]:
+    """
+    `wiretape verify --repair`: appends the per-channel index to the session at PATH, of several channels, when it has none or a stale one. Returns (state, detail): ('current', 'appended at byte N'), or the state found when nothing was to be done. Raises SessionError when the file is damaged, PortError when it cannot be written.
     """
 
 def parse_start_utc(text: str) -> int | None:

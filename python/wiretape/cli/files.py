@@ -166,11 +166,22 @@ def cmd_verify(args, out: Output) -> int:
 
     require_session(args.file)
     result = verify(args.file)
+    if args.repair and result.ok and result.index in ("absent", "stale"):
+        from ..tools.verify import repair_index
+
+        appended = repair_index(args.file)
+        result = verify(args.file)
+        if not args.json:
+            out.print(f"{args.file}: index {appended}")
     if args.json:
         print(json.dumps(result.to_json(), indent=2, sort_keys=True, default=str))
     elif result.ok:
         out.print(f"{args.file}: ok, {result.records} records{_per_channel(result)}",
                   style="green")
+        if result.index in ("absent", "stale"):
+            # Not damage: a recorder that did not close its file leaves none.
+            out.print(f"{args.file}: index {result.index} ({result.index_detail}): a reader of "
+                      f"one channel reads every record; `wiretape verify --repair` appends it")
     elif result.unlisted_channel is not None:
         out.print(f"{args.file}: BAD {result.message}{_per_channel(result)}", style="bold red")
     else:

@@ -622,6 +622,9 @@ def build_parser() -> argparse.ArgumentParser:
     verify = command("verify", cmd_verify, "check every record of a session (exit 1 if damaged)")
     verify.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
     verify.add_argument("--json", action="store_true", help="print JSON")
+    verify.add_argument("--repair", action="store_true",
+                        help="append the per-channel index to a session of several channels "
+                             "that lacks it (an intact file only)")
 
     convert = command(
         "convert", cmd_convert, "convert between session formats",
