@@ -67,11 +67,8 @@ class WtapeSource final : public RecordSource {
     // One channel of several: its spans, if the file's index describes it;
     // every record otherwise (a file still being written has none yet).
     if (channel_ && channel_count_ > 1 && !file_.is_stream()) {
-      if (auto index = find_session_index(file_.fd(), file_.size(), first_record_,
-                                          channel_count_, nullptr)) {
-        spans_ = channel_spans(*index, *channel_);
-      }
-      file_.seek(first_record_);
+      spans_ = find_channel_spans(file_.fd(), file_.size(), first_record_, channel_count_,
+                                  *channel_, nullptr);
     }
   }
 

@@ -45,17 +45,47 @@ std::optional<IndexFound> none(std::string* why_not, std::string why) {
 
 }  // namespace
 
+bool ChannelSpans::refill() {
+  constexpr std::size_t block = 4096;
+  buffer_.erase(0, at_);
+  base_ += at_;
+  at_ = 0;
+  const std::uint64_t read = base_ + buffer_.size();
+  const auto want = static_cast<std::size_t>(std::min<std::uint64_t>(block, size_ - read));
+  if (want == 0) return false;
+  const std::size_t kept = buffer_.size();
+  buffer_.resize(kept + want);
+  if (!read_at(fd_, offset_ + read, &buffer_[kept], want)) {
+    buffer_.resize(kept);
+    return false;
+  }
+  return true;
+}
+
 bool ChannelSpans::next(IndexSpan& span) {
+  // Two varints take at most 20 bytes: have that many at hand, or the rest.
+  constexpr std::size_t most = 20;
+  if (fd_ >= 0 && buffer_.size() - at_ < most && base_ + buffer_.size() < size_) refill();
+  if (at_ >= buffer_.size()) return false;
   std::uint64_t gap = 0;
   std::uint64_t length = 0;
-  if (at_ >= encoded_.size()) return false;
-  // find_session_index decoded every span once: these cannot fail.
-  get_varint(encoded_, at_, gap);
-  get_varint(encoded_, at_, length);
+  if (!get_varint(buffer_, at_, gap) || !get_varint(buffer_, at_, length)) {
+    at_ = buffer_.size();
+    return false;
+  }
   span.begin = previous_end_ + gap;
   span.end = span.begin + length;
   previous_end_ = span.end;
   return true;
+}
+
+void ChannelSpans::rewind() {
+  previous_end_ = 0;
+  at_ = 0;
+  if (fd_ >= 0) {
+    buffer_.clear();
+    base_ = 0;
+  }
 }
 
 void SessionIndexBuilder::add(std::uint64_t offset, std::uint64_t end, std::uint16_t channel) {
@@ -110,9 +140,33 @@ std::string SessionIndexBuilder::record_bytes(std::uint64_t at,
   return record;
 }
 
-std::optional<IndexFound> find_session_index(int fd, std::uint64_t file_size,
-                                             std::uint64_t first_record,
-                                             std::size_t channel_count, std::string* why_not) {
+namespace {
+
+// Whether `spans` holds `count` spans, in order, between `first_record` and
+// the index at `offset`.
+bool spans_lie_within(ChannelSpans& spans, std::uint64_t count, std::uint64_t first_record,
+                      std::uint64_t offset) {
+  IndexSpan span;
+  std::uint64_t previous_end = 0;
+  std::uint64_t seen = 0;
+  while (spans.next(span)) {
+    if (span.begin < previous_end || span.begin < first_record || span.end <= span.begin ||
+        span.begin > offset || span.end > offset) {
+      return false;
+    }
+    previous_end = span.end;
+    ++seen;
+  }
+  return seen == count;
+}
+
+// The index at the end of the file, checked; of its spans, those of
+// `channel` are kept (in `spans`), or with std::nullopt the whole payload
+// (in `payload`). Memory: the directory and what is kept; the rest is read
+// through a small buffer for its CRC.
+std::optional<IndexFound> read_index(int fd, std::uint64_t file_size, std::uint64_t first_record,
+                                     std::size_t channel_count,
+                                     std::optional<std::uint16_t> channel, std::string* why_not) {
   const std::uint64_t smallest =
       record_header_size + index_head_size + index_trailer_size + crc_size;
   if (file_size < first_record + smallest) return none(why_not, "no index");
@@ -122,6 +176,7 @@ std::optional<IndexFound> find_session_index(int fd, std::uint64_t file_size,
     return none(why_not, "no index");
   }
   const std::uint64_t offset = get_u64le(tail);
+  const std::string at_offset = "the index at byte " + std::to_string(offset);
   if (offset < first_record || offset > file_size - smallest) {
     return none(why_not, "the index at the end of the file names offset " +
                              std::to_string(offset) + ", outside the file's records");
@@ -134,73 +189,108 @@ std::optional<IndexFound> find_session_index(int fd, std::uint64_t file_size,
                              std::to_string(offset) + " is not an index record ending there");
   }
   if (length > max_index_payload) {
-    return none(why_not, "the index at byte " + std::to_string(offset) + " claims " +
-                             std::to_string(length) + " bytes, more than a reader takes");
+    return none(why_not, at_offset + " claims " + std::to_string(length) +
+                             " bytes, more than a reader takes");
   }
-  IndexFound found;
-  found.offset = offset;
-  found.payload.resize(static_cast<std::size_t>(length));
-  char stored[crc_size];
-  if (!read_at(fd, offset + record_header_size, &found.payload[0], found.payload.size()) ||
-      !read_at(fd, file_size - crc_size, stored, sizeof stored)) {
-    return none(why_not, "the index at byte " + std::to_string(offset) + " cannot be read");
+  const std::uint64_t directory_size = index_head_size + channel_count * index_directory_entry;
+  if (directory_size + index_trailer_size > length) {
+    return none(why_not, at_offset + " is too short for the header's " +
+                             std::to_string(channel_count) + " channels");
+  }
+  std::string directory(static_cast<std::size_t>(directory_size), '\0');
+  if (!read_at(fd, offset + record_header_size, &directory[0], directory.size())) {
+    return none(why_not, at_offset + " cannot be read");
   }
   std::uint32_t crc = crc32c(head, sizeof head);
-  crc = crc32c(found.payload.data(), found.payload.size(), crc);
-  if (crc != get_u32le(stored)) {
-    return none(why_not, "the index at byte " + std::to_string(offset) + " is corrupt (CRC32C)");
-  }
-  const std::string_view payload = found.payload;
-  found.channel_count = get_u16le(payload.data());
+  crc = crc32c(directory.data(), directory.size(), crc);
+  IndexFound found;
+  found.offset = offset;
+  found.channel_count = get_u16le(directory.data());
   if (found.channel_count != channel_count) {
-    return none(why_not, "the index at byte " + std::to_string(offset) + " lists " +
-                             std::to_string(found.channel_count) + " channels, the header " +
-                             std::to_string(channel_count));
+    return none(why_not, at_offset + " lists " + std::to_string(found.channel_count) +
+                             " channels, the header " + std::to_string(channel_count));
   }
-  const std::size_t directory_end = index_head_size + channel_count * index_directory_entry;
-  if (directory_end + index_trailer_size > payload.size()) {
-    return none(why_not, "the index at byte " + std::to_string(offset) + " is truncated");
-  }
-  const std::size_t spans_end = payload.size() - index_trailer_size;
-  std::size_t at = directory_end;
+  // Where each channel's spans are in the payload.
+  std::vector<std::uint64_t> starts;
+  std::uint64_t spans_end = directory_size;
   for (std::size_t id = 0; id < channel_count; ++id) {
-    const char* entry = payload.data() + index_head_size + id * index_directory_entry;
-    const std::uint64_t spans = get_u64le(entry + 8);
-    const std::uint64_t bytes = get_u32le(entry + 16);
-    const auto stale = [&](const std::string& what) {
-      return none(why_not, "the index at byte " + std::to_string(offset) + " does not describe "
-                           "the file: channel " + std::to_string(id) + "'s " + what);
-    };
-    if (bytes > spans_end - at) return stale("spans run past the index");
-    const std::string_view encoded = payload.substr(at, static_cast<std::size_t>(bytes));
-    std::size_t position = 0;
-    std::uint64_t previous_end = 0;
-    std::uint64_t count = 0;
-    while (position < encoded.size()) {
-      std::uint64_t gap = 0;
-      std::uint64_t span_length = 0;
-      if (!get_varint(encoded, position, gap) || !get_varint(encoded, position, span_length)) {
-        return stale("spans are cut short");
-      }
-      const std::uint64_t begin = previous_end + gap;
-      if (begin < previous_end || begin < first_record || span_length == 0 ||
-          span_length > offset - std::min(offset, begin)) {
-        return stale("span " + std::to_string(count) + " lies outside the records");
-      }
-      previous_end = begin + span_length;
-      ++count;
+    starts.push_back(spans_end);
+    spans_end += get_u32le(directory.data() + index_head_size + id * index_directory_entry + 16);
+  }
+  if (spans_end != length - index_trailer_size) {
+    return none(why_not, at_offset + " holds bytes its directory does not account for");
+  }
+  const bool one = channel && *channel < channel_count;
+  const std::uint64_t keep_begin = one ? starts[*channel] : directory_size;
+  const std::uint64_t keep_end =
+      one ? (*channel + 1u < channel_count ? starts[*channel + 1u] : spans_end) : length;
+  std::string kept;
+  // A reader of one channel reads its spans from the file as it goes.
+  const bool keep_bytes = !one;
+  char block[1 << 16];
+  for (std::uint64_t position = directory_size; position < length;) {
+    const auto n = static_cast<std::size_t>(std::min<std::uint64_t>(sizeof block, length - position));
+    if (!read_at(fd, offset + record_header_size + position, block, n)) {
+      return none(why_not, at_offset + " cannot be read");
     }
-    if (count != spans) return stale("span count does not match its spans");
-    at += static_cast<std::size_t>(bytes);
+    crc = crc32c(block, n, crc);
+    const std::uint64_t from = std::max(position, keep_begin);
+    const std::uint64_t to = std::min<std::uint64_t>(position + n, keep_end);
+    if (keep_bytes && from < to) {
+      kept.append(block + (from - position), static_cast<std::size_t>(to - from));
+    }
+    position += n;
   }
-  if (at != spans_end) {
-    return none(why_not, "the index at byte " + std::to_string(offset) +
-                             " holds bytes its directory does not account for");
+  if (crc != get_u32le(tail + index_trailer_size)) {
+    return none(why_not, at_offset + " is corrupt (CRC32C)");
   }
-  if (get_u64le(payload.data() + spans_end) != offset) {
-    return none(why_not, "the index at byte " + std::to_string(offset) + " names another offset");
+  const auto stale = [&](std::size_t id) {
+    return none(why_not, at_offset + " does not describe the file: channel " +
+                             std::to_string(id) + "'s spans lie outside its records");
+  };
+  const auto entry = [&](std::size_t id) {
+    return directory.data() + index_head_size + id * index_directory_entry;
+  };
+  if (channel) {
+    if (!one) return found;  // a channel the file lacks: none of its records
+    ChannelSpans spans(fd, offset + record_header_size + keep_begin, keep_end - keep_begin,
+                       get_u64le(entry(*channel)));
+    if (!spans_lie_within(spans, get_u64le(entry(*channel) + 8), first_record, offset)) {
+      return stale(*channel);
+    }
+    spans.rewind();
+    found.spans = std::move(spans);
+    return found;
+  }
+  found.payload = directory + kept;
+  for (std::size_t id = 0; id < channel_count; ++id) {
+    ChannelSpans spans(found.payload.substr(
+                           static_cast<std::size_t>(starts[id]),
+                           static_cast<std::size_t>(
+                               (id + 1 < channel_count ? starts[id + 1] : spans_end) - starts[id])),
+                       0);
+    if (!spans_lie_within(spans, get_u64le(entry(id) + 8), first_record, offset)) {
+      return stale(id);
+    }
   }
   return found;
+}
+
+}  // namespace
+
+std::optional<IndexFound> find_session_index(int fd, std::uint64_t file_size,
+                                             std::uint64_t first_record,
+                                             std::size_t channel_count, std::string* why_not) {
+  return read_index(fd, file_size, first_record, channel_count, std::nullopt, why_not);
+}
+
+std::optional<ChannelSpans> find_channel_spans(int fd, std::uint64_t file_size,
+                                               std::uint64_t first_record,
+                                               std::size_t channel_count, std::uint16_t channel,
+                                               std::string* why_not) {
+  auto found = read_index(fd, file_size, first_record, channel_count, channel, why_not);
+  if (!found) return std::nullopt;
+  return std::move(found->spans);
 }
 
 ChannelSpans channel_spans(const IndexFound& index, std::uint16_t channel) {

@@ -39,21 +39,34 @@ struct IndexSpan {
 };
 
 // A channel's spans in the index's compact form (varints: gap since the
-// previous span's end, then length), read one at a time.
+// previous span's end, then length), read one at a time: from memory, or
+// from the file through a small buffer (a reader's memory then does not
+// grow with the index).
 class ChannelSpans {
  public:
   ChannelSpans() = default;
   ChannelSpans(std::string encoded, std::uint64_t records)
-      : encoded_(std::move(encoded)), records_(records) {}
-  // The next span, or false after the last.
+      : size_(encoded.size()), buffer_(std::move(encoded)), records_(records) {}
+  // The `size` bytes at `offset` of the open file `fd` (the caller's, which
+  // outlives this).
+  ChannelSpans(int fd, std::uint64_t offset, std::uint64_t size, std::uint64_t records)
+      : fd_(fd), offset_(offset), size_(size), records_(records) {}
+  // The next span, or false after the last (or if the file cannot be read
+  // or its bytes do not decode).
   bool next(IndexSpan& span);
-  void rewind() { at_ = 0, previous_end_ = 0; }
+  void rewind();
   std::uint64_t records() const { return records_; }
 
  private:
-  std::string encoded_;
-  std::uint64_t records_ = 0;
+  bool refill();
+
+  int fd_ = -1;              // -1: buffer_ holds every byte
+  std::uint64_t offset_ = 0;  // of the encoded bytes in the file
+  std::uint64_t size_ = 0;    // of the encoded bytes
+  std::uint64_t base_ = 0;    // where in the encoded bytes buffer_ begins
+  std::string buffer_;
   std::size_t at_ = 0;
+  std::uint64_t records_ = 0;
   std::uint64_t previous_end_ = 0;
 };
 
@@ -81,9 +94,10 @@ class SessionIndexBuilder {
 
 // What the end of a file says of its index.
 struct IndexFound {
-  std::uint64_t offset = 0;   // where the index record begins
-  std::string payload;        // checked: CRC, layout
+  std::uint64_t offset = 0;  // where the index record begins
+  std::string payload;       // checked: CRC, layout (find_session_index)
   std::size_t channel_count = 0;
+  ChannelSpans spans;  // one channel's (find_channel_spans)
 };
 
 // The index at the end of the regular file `fd` of `file_size` bytes whose
@@ -96,6 +110,14 @@ std::optional<IndexFound> find_session_index(int fd, std::uint64_t file_size,
 
 // `channel`'s spans of a found index.
 ChannelSpans channel_spans(const IndexFound& index, std::uint16_t channel);
+// find_session_index() for a reader of one channel: only its spans are
+// kept (the rest of the index is read through a small buffer for its CRC),
+// so that its memory is that channel's share of the index. A channel the
+// index does not list has no spans.
+std::optional<ChannelSpans> find_channel_spans(int fd, std::uint64_t file_size,
+                                               std::uint64_t first_record,
+                                               std::size_t channel_count, std::uint16_t channel,
+                                               std::string* why_not);
 
 // What `wiretape verify` says of a file's index.
 enum class IndexState {

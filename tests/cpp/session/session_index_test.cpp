@@ -54,7 +54,7 @@ std::string payload_of(std::uint16_t id, int round, std::size_t size) {
 // Four channels' records interleaved round by round, as a recorder of four
 // busy ports writes them.
 std::string write_four_channels(const TempDir& dir, std::size_t size = payload_size,
-                                const char* name = "four.wtape") {
+                                const char* name = "four.wtape", int rounds = ::rounds) {
   const std::string path = dir.file(name);
   SessionWriter writer(path, four_channel_header());
   std::uint64_t t_ns = 1000;
@@ -150,6 +150,30 @@ TEST(SessionIndex, WrittenAtTheCloseOfAFileOfSeveralChannels) {
   int count = 0;
   while (spans.next(span)) ++count;
   EXPECT_EQ(count, rounds);
+}
+
+TEST(SessionIndex, AReaderReadsAChannelsSpansFromTheFileAsItGoes) {
+  // Spans 4 KiB and more apart, enough of them that their encoding is
+  // read in several pieces.
+  TempDir dir;
+  constexpr int many = 3000;
+  const std::string path = write_four_channels(dir, 1400, "many.wtape", many);
+  std::uint64_t read = 0;
+  std::vector<Record> records;
+  {
+    sys::ScopedOverride seam;
+    seam->pread = [&read](int fd, void* buffer, size_t size, off_t offset) {
+      const ssize_t n = sys::real().pread(fd, buffer, size, offset);
+      if (n > 0) read += static_cast<std::uint64_t>(n);
+      return n;
+    };
+    records = read_records(path, 3);
+  }
+  EXPECT_LT(read, file_size(path) * 35 / 100) << "the index was not used";
+  ASSERT_EQ(records.size(), static_cast<std::size_t>(many));
+  for (int round = 0; round < many; ++round) {
+    ASSERT_EQ(records[round].data, payload_of(3, round, 1400)) << round;
+  }
 }
 
 TEST(SessionIndex, NeverHandedOutAsARecord) {
