@@ -12,6 +12,7 @@
 #include "posix/file_checks.hpp"
 #include "posix/syscalls.hpp"
 #include "session/buffered_file.hpp"
+#include "session/chunks.hpp"
 #include "session/flexiport.hpp"
 #include "session/format.hpp"
 #include "session/header.hpp"
@@ -83,6 +84,7 @@ class WtapeSource final : public RecordSource {
     file_.seek(first_record_);
     damage_.reset();
     records_ = 0;
+    if (chunk_) chunk_->reset();
     if (spans_) {
       spans_->rewind();
       span_ = IndexSpan{};
@@ -98,10 +100,40 @@ class WtapeSource final : public RecordSource {
     for (;;) {
       if (view) *view = PayloadView{};
       if (damage_) return false;
+      if (chunk_) {
+        std::string problem;
+        if (chunk_->next(record, &problem)) {
+          if (!wanted(record.channel, static_cast<std::uint8_t>(record.kind),
+                      chunk_->chunk_offset())) {
+            continue;
+          }
+          if (const auto unusable = record_content_problem(record.kind, record.t_ns, record.data)) {
+            return stop(chunk_->chunk_offset(), "a record of the chunk at byte " +
+                                                    std::to_string(chunk_->chunk_offset()) +
+                                                    " is unusable: " + *unusable);
+          }
+          ++records_;
+          return true;
+        }
+        if (!problem.empty()) {
+          return stop(chunk_->chunk_offset(), "the chunk at byte " +
+                                                  std::to_string(chunk_->chunk_offset()) +
+                                                  " is damaged: " + problem);
+        }
+      }
       if (spans_ && !enter_span()) return false;
       const std::uint64_t offset = file_.position();
       char head[record_header_size];
-      if (file_.remaining() == 0) return false;
+      if (file_.remaining() == 0) {
+        if (chunk_ && chunk_->open()) {
+          // What a recorder killed inside a chunk leaves: its flushed parts
+          // were read; the records after its last flush are lost.
+          return stop(chunk_->chunk_offset(),
+                      "the chunk at byte " + std::to_string(chunk_->chunk_offset()) +
+                          " has no last part (the recording stopped inside it)");
+        }
+        return false;
+      }
       if (!file_.read(head, sizeof head)) {
         // What is left now: a stream's bytes are known only once they came.
         return stop(offset, "truncated record at byte " + std::to_string(offset) +
@@ -152,12 +184,22 @@ class WtapeSource final : public RecordSource {
       const std::uint16_t channel = get_u16le(head + 6);
       const auto kind_byte = static_cast<std::uint8_t>(head[4]);
       if (on_place_) on_place_(RecordPlace{offset, file_.position(), channel, kind_byte});
-      if (channel >= channel_count_) {
-        if (on_unlisted_) on_unlisted_(UnlistedRecord{offset, channel});
+      if (kind_byte == chunk_record_code) {
+        if (!chunk_) chunk_ = std::make_unique<ChunkDecoder>();
+        const bool last = (static_cast<std::uint8_t>(head[5]) & chunk_last_part) != 0;
+        if (const auto problem = chunk_->feed(offset, std::string_view(payload, length), last)) {
+          return stop(offset, "the chunk at byte " + std::to_string(chunk_->chunk_offset()) +
+                                  " is damaged in its part at byte " + std::to_string(offset) +
+                                  ": " + *problem);
+        }
         continue;
       }
-      if (find_record_kind(static_cast<RecordKind>(kind_byte)) == nullptr) continue;
-      if (channel_ && channel != *channel_) continue;
+      if (chunk_ && chunk_->open()) {
+        return stop(offset, "record at byte " + std::to_string(offset) +
+                                " lies inside the unfinished chunk at byte " +
+                                std::to_string(chunk_->chunk_offset()));
+      }
+      if (!wanted(channel, kind_byte, offset)) continue;
       record.channel = channel;
       record.kind = static_cast<RecordKind>(kind_byte);
       record.t_ns = get_u64le(head + 8);
@@ -171,6 +213,17 @@ class WtapeSource final : public RecordSource {
       ++records_;
       return true;
     }
+  }
+
+  // A channel the header does not list (a newer writer's, reported), a kind
+  // not known or a channel not asked for: skipped.
+  bool wanted(std::uint16_t channel, std::uint8_t kind_byte, std::uint64_t offset) {
+    if (channel >= channel_count_) {
+      if (on_unlisted_) on_unlisted_(UnlistedRecord{offset, channel});
+      return false;
+    }
+    if (find_record_kind(static_cast<RecordKind>(kind_byte)) == nullptr) return false;
+    return !channel_ || channel == *channel_;
   }
 
   // A view pins its read buffer. Reading one channel of several without an
@@ -226,12 +279,12 @@ class WtapeSource final : public RecordSource {
     }
     header.version_major = get_u16le(fixed + 8);
     header.version_minor = get_u16le(fixed + 10);
-    if (header.version_major > session_version_major) {
+    if (header.version_major > compressed_version_major) {
       fail(8, "written in session format " + std::to_string(header.version_major) +
                   "." + std::to_string(header.version_minor) +
                   ", newer than this reader's " +
-                  std::to_string(session_version_major) + "." +
-                  std::to_string(session_version_minor) +
+                  std::to_string(compressed_version_major) + "." +
+                  std::to_string(compressed_version_minor) +
                   ": upgrade wiretape to read it");
     }
     if (header.version_major == 0) fail(8, "invalid format version 0");
@@ -268,6 +321,7 @@ class WtapeSource final : public RecordSource {
   std::size_t channel_count_ = 1;
   std::uint64_t first_record_ = 0;
   std::optional<ChannelSpans> spans_;  // the channel's, from the file's index
+  std::unique_ptr<ChunkDecoder> chunk_;  // once a file shows it has chunks (2.0)
   IndexSpan span_;                     // the one being read
   std::uint64_t records_ = 0;
   std::optional<SessionError> damage_;

@@ -10,6 +10,7 @@
 
 #include "posix/file_checks.hpp"
 #include "posix/syscalls.hpp"
+#include "session/chunks.hpp"
 #include "wiretape/errors.hpp"
 #include "session/format.hpp"
 #include "wiretape/session.hpp"
@@ -318,6 +319,7 @@ std::string_view to_string(IndexState state) {
 RecordPlaceSink IndexCheck::sink() {
   return [this](const RecordPlace& place) {
     // Indexes are the file's structure, not records it indexes.
+    if (place.kind_code == chunk_record_code) chunked_ = true;
     if (place.kind_code != index_record_code) scanned_.add(place.offset, place.end, place.channel);
   };
 }
@@ -325,6 +327,7 @@ RecordPlaceSink IndexCheck::sink() {
 IndexStatus IndexCheck::status(const std::string& path, std::size_t channel_count,
                                bool damaged) const {
   if (channel_count < 2) return {IndexState::not_needed, ""};
+  if (chunked_) return {IndexState::not_needed, "compressed: the channels share chunks"};
   if (damaged) return {IndexState::unchecked, "the file is damaged"};
   const InputFile file(path);
   struct stat info {};

@@ -146,6 +146,7 @@ class IndexCheck {
 
  private:
   SessionIndexBuilder scanned_;
+  bool chunked_ = false;  // compressed (2.0): no index
 };
 
 // `wiretape verify --repair`: appends the index to a file of several
