@@ -662,7 +662,7 @@ class SessionWriter:
     Writes a new .wtape file (truncating PATH). Buffered; buffered records reach the OS at most flush_ms after they were written. A full disk or file-size limit raises PortError; what was written before stays readable.
     """
 
-    def __init__(self, path: str | os.PathLike[str] | bytes, header: SessionHeader | None = None, *, flush_ms: int = 100, fsync: bool = False, header_room: int = 0, **members: object) -> None:
+    def __init__(self, path: str | os.PathLike[str] | bytes, header: SessionHeader | None = None, *, flush_ms: int = 100, fsync: bool = False, header_room: int = 0, compress: str = 'none', **members: object) -> None:
         """
         HEADER (default: SessionHeader.starting_now()) with MEMBERS (keyword arguments named as SessionHeader's members) set on it is what the file's header says. header_room: spare header bytes (spaces) kept so that add_channel() can rewrite the header in place; 0 writes it exactly as long as its JSON.
         """
@@ -697,7 +697,7 @@ class Recorder:
     Records several ports into one session file, one channel each, on one clock (time 0: the first channel's open). Its ports keep the file open; it is closed at close() (or leaving a with block), or when the recorder and its ports are gone.
     """
 
-    def __init__(self, path: str | os.PathLike[str] | bytes, header: SessionHeader | None = None, *, flush_ms: int = 100, fsync: bool = False, header_room: int = 32768, **members: object) -> None:
+    def __init__(self, path: str | os.PathLike[str] | bytes, header: SessionHeader | None = None, *, flush_ms: int = 100, fsync: bool = False, header_room: int = 32768, compress: str = 'none', **members: object) -> None:
         """
         Creates the session file. HEADER (default: SessionHeader.starting_now()) with MEMBERS set on it is its header; each port adds its channel to it. header_room: the bytes kept for the channels' entries.
         """
@@ -840,9 +840,9 @@ class Bridge:
     Forwards bytes between a device port and a pty, TCP clients or UDP clients, optionally recording them (see wiretape.bridge).
     """
 
-    def __init__(self, device: str, *, client_side: str = 'pty', pty_link: str = '', pty_mode: int = 432, pty_group: str = '', listen_host: str = '127.0.0.1', listen_port: int = 0, listen_backlog: int = 4096, udp_peer_host: str = '', udp_peer_port: int = 0, protocol: str = 'raw', shared: bool = False, max_monitors: int = 16, output: str = '', metadata: Mapping[str, str] = {}, flush_ms: int = 100, mirror_settings: bool = True, reopen: bool = False, restart: bool = False, duration: object | None = None, buffer_limit: int = 1048576, quiet: bool = False, line_channel: str = '', recorder: Recorder | None = None, channel: str = '') -> None:
+    def __init__(self, device: str, *, client_side: str = 'pty', pty_link: str = '', pty_mode: int = 432, pty_group: str = '', listen_host: str = '127.0.0.1', listen_port: int = 0, listen_backlog: int = 4096, udp_peer_host: str = '', udp_peer_port: int = 0, protocol: str = 'raw', shared: bool = False, max_monitors: int = 16, output: str = '', metadata: Mapping[str, str] = {}, flush_ms: int = 100, mirror_settings: bool = True, reopen: bool = False, restart: bool = False, duration: object | None = None, buffer_limit: int = 1048576, quiet: bool = False, line_channel: str = '', recorder: Recorder | None = None, channel: str = '', compress: str = 'none') -> None:
         """
-        recorder: a Recorder whose channel named `channel` the bridge records into (capture=wire) instead of opening `output`.
+        compress: 'zstd' writes `output` in compressed chunks (format 2.0). recorder: a Recorder whose channel named `channel` the bridge records into (capture=wire) instead of opening `output`.
         """
 
     def start(self) -> None:

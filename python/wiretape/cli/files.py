@@ -210,7 +210,7 @@ def cmd_convert(args, out: Output) -> int:
                      to_format=args.to_format, progress=progress,
                      flexiport_format=args.flexiport_format,
                      stream=args.stream, device_addr=args.device_addr, test=args.test,
-                     allow_gaps=args.allow_gaps)
+                     allow_gaps=args.allow_gaps, compress=args.compress)
     if not args.quiet:
         out.note(f"converted {result.records} records: {args.input} "
                  f"({result.from_format}) -> {args.output} ({result.to_format})")
@@ -246,7 +246,8 @@ def cmd_edit(args, out: Output) -> int:
     profile = {None: "", "none": None}.get(args.profile, args.profile)
     # In a child process: a signal ends a catastrophic pattern's matching too.
     result = edit_in_child(args.input, args.output, cut=cut, redact=redactions,
-                           drop_meta=args.drop_meta, profile=profile, channels=args.channel)
+                           drop_meta=args.drop_meta, profile=profile, channels=args.channel,
+                           compress=args.compress)
     if not args.quiet:
         done = "; ".join(result.edits)
         matches = (f", {result.matches} matches redacted in {result.redacted_records} records"
