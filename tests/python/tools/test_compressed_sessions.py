@@ -121,3 +121,27 @@ def test_a_replay_of_it_serves_what_the_plain_one_serves(sessions):
         return bytes(got)
 
     assert served(packed) == served(plain) == rx
+
+
+def test_view_writes_the_page_it_writes_of_the_plain_session(tmp_path, sessions):
+    plain, packed = sessions
+    pages = []
+    for path in (plain, packed):
+        page = tmp_path / f"{path.stem}.html"
+        assert cli.main(["view", str(path), "-o", str(page)]) == 0
+        text = page.read_text()
+        text = text.replace(str(path), "FILE").replace(path.name, "FILE")
+        pages.append(re.sub(r"wiretape [12]\.[0-9]", "wiretape X.Y", text))
+    assert len(pages[1]) > 1000
+    assert pages[1] == pages[0]
+
+
+def test_an_import_can_be_written_compressed(tmp_path):
+    """An import (here flexiport's logs) straight into a compressed session."""
+    packed = tmp_path / "imported.wtape"
+    source = flexiport_log("urg04lx_2011")
+    assert cli.main(["convert", "-q", "--compress", "zstd", str(source), str(packed)]) == 0
+    plain = tmp_path / "plain.wtape"
+    assert cli.main(["convert", "-q", str(source), str(plain)]) == 0
+    assert records(packed) == records(plain)
+    assert _core.SessionReader(packed).header.version_major == 2
