@@ -192,7 +192,7 @@ TEST(SessionFile, MissingEmptyAndForeignFilesAreClearErrors) {
   expect_error(dir.file("cut-header.wtape"), "truncated or corrupt header", 12);
 
   std::string future = good;
-  detail::put_u16le(&future[8], 2);
+  detail::put_u16le(&future[8], 3);  // 2.0 is compressed chunks: read
   write_file(dir.file("future.wtape"), future);
   expect_error(dir.file("future.wtape"), "newer than this reader", 8);
 
