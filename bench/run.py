@@ -456,6 +456,22 @@ class Bench:
             f"CPU/MB, 4 single ports {figures['single_ms_per_MB']:.2f} ms CPU/MB (medians; "
             f"ratio {self.spread(figures['ratios'])})")
 
+    def compress(self) -> None:
+        """Compressed sessions (bench/compress_bench.py): sizes and costs."""
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "compress_bench.py"),
+                               str(self.work)] + (["--quick"] if self.quick else []),
+                              capture_output=True, text=True, timeout=1800, env=self.env)
+        if proc.returncode != 0:
+            raise Skip("compress_bench.py: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        self.results["compress_ratio_hokuyo"] = round(figures["hokuyo_ratio"], 4)
+        self.results["compress_ratio_nmea"] = round(figures["nmea_ratio"], 4)
+        self.results["compressed_replay_vs_plain_ratio"] = round(figures["replay_ratio"], 3)
+        self.results["compressed_write_MBps"] = round(figures["write_MBps"], 1)
+        self.notes["compress"] = (f"replay throughput compressed/plain "
+                                  f"{self.spread(figures['replay_ratios'])}; the replayed file "
+                                  f"compressed to {figures['replay_file_ratio']:.3f}")
+
     # --- the --as shim -------------------------------------------------------
     def shim(self) -> None:
         """The shim's added cost per call: bench/shim_bench.c run with and
@@ -600,7 +616,7 @@ class Bench:
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
            "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "speed", "view", "show", "diff",
-           "shim", "channels", "record_channels", "rfc2217"]
+           "shim", "channels", "record_channels", "rfc2217", "compress"]
 
 
 def machine_note() -> dict:

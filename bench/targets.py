@@ -90,4 +90,10 @@ TARGETS = {
     "record_4_channels_vs_4_single_cpu_ratio": (1.1, "lower",
                                                 "record of 4 channels CPU s/MB / 4 single-port "
                                                 "records of the same traffic"),
+    # --- compressed sessions (issue 42, bench/compress_bench.py) ---
+    "compress_ratio_hokuyo": (0.333, "lower", "Hokuyo scanning sessions, compressed / plain size"),
+    "compress_ratio_nmea": (0.25, "lower", "NMEA at 5 Hz, each fix flushed, compressed / plain"),
+    "compressed_replay_vs_plain_ratio": (0.5, "higher",
+                                         "timing=none replay throughput, compressed / plain"),
+    "compressed_write_MBps": (10, "higher", "MB/s the writer compresses (10 MB/s of traffic)"),
 }

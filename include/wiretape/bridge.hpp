@@ -104,6 +104,8 @@ struct BridgeOptions {
   std::string output;
   std::map<std::string, std::string> metadata;
   int flush_ms = 100;
+  // How `output` stores its records (`--compress zstd`: chunks, format 2.0).
+  Compression compression = Compression::none;
   // Sessions of several ports (DESIGN §19): record into the channel named
   // `channel` (capture=wire, the device's options, identity and address in
   // its entry) of this recorder's file, on its clock, instead of opening

@@ -168,11 +168,20 @@ class SessionReader {
 };
 
 // How a SessionWriter hands its records to the OS (not part of the file).
+// How records are stored: as they are, or in zstd chunks (format 2.0,
+// DESIGN §29; `compress=zstd`).
+enum class Compression { none, zstd };
+
+// How records reach the file.
 struct FlushPolicy {
   // Bound on what a crash may lose: buffered records reach the OS at most
   // this long after they were written, even when the recorder goes idle.
   std::chrono::milliseconds interval{100};
   bool fsync = false;  // fsync after each flush
+  // zstd: records are grouped into chunks of about 1 MiB, each flush of
+  // the file flushing the compressor too, so that what reached the file
+  // decodes up to it; the file is format 2.0, which 1.x readers refuse.
+  Compression compression = Compression::none;
 };
 
 // Appends records to a new session file. Thread-safe: a reader thread and a

@@ -553,7 +553,7 @@ def present_device_identity(identity: dict, root: str, device_path: str) -> tupl
 
 SESSION_MAGIC: bytes = ...
 
-SESSION_VERSION: tuple = (1, 2)
+SESSION_VERSION: tuple = (1, 3)
 
 FILE_HEADER_FIXED_SIZE: int = 16
 
@@ -662,7 +662,7 @@ class SessionWriter:
     Writes a new .wtape file (truncating PATH). Buffered; buffered records reach the OS at most flush_ms after they were written. A full disk or file-size limit raises PortError; what was written before stays readable.
     """
 
-    def __init__(self, path: str | os.PathLike[str] | bytes, header: SessionHeader | None = None, *, flush_ms: int = 100, fsync: bool = False, header_room: int = 0, **members: object) -> None:
+    def __init__(self, path: str | os.PathLike[str] | bytes, header: SessionHeader | None = None, *, flush_ms: int = 100, fsync: bool = False, header_room: int = 0, compress: str = 'none', **members: object) -> None:
         """
         HEADER (default: SessionHeader.starting_now()) with MEMBERS (keyword arguments named as SessionHeader's members) set on it is what the file's header says. header_room: spare header bytes (spaces) kept so that add_channel() can rewrite the header in place; 0 writes it exactly as long as its JSON.
         """
@@ -697,7 +697,7 @@ class Recorder:
     Records several ports into one session file, one channel each, on one clock (time 0: the first channel's open). Its ports keep the file open; it is closed at close() (or leaving a with block), or when the recorder and its ports are gone.
     """
 
-    def __init__(self, path: str | os.PathLike[str] | bytes, header: SessionHeader | None = None, *, flush_ms: int = 100, fsync: bool = False, header_room: int = 32768, **members: object) -> None:
+    def __init__(self, path: str | os.PathLike[str] | bytes, header: SessionHeader | None = None, *, flush_ms: int = 100, fsync: bool = False, header_room: int = 32768, compress: str = 'none', **members: object) -> None:
         """
         Creates the session file. HEADER (default: SessionHeader.starting_now()) with MEMBERS set on it is its header; each port adds its channel to it. header_room: the bytes kept for the channels' entries.
         """
@@ -840,9 +840,9 @@ class Bridge:
     Forwards bytes between a device port and a pty, TCP clients or UDP clients, optionally recording them (see wiretape.bridge).
     """
 
-    def __init__(self, device: str, *, client_side: str = 'pty', pty_link: str = '', pty_mode: int = 432, pty_group: str = '', listen_host: str = '127.0.0.1', listen_port: int = 0, listen_backlog: int = 4096, udp_peer_host: str = '', udp_peer_port: int = 0, protocol: str = 'raw', shared: bool = False, max_monitors: int = 16, output: str = '', metadata: Mapping[str, str] = {}, flush_ms: int = 100, mirror_settings: bool = True, reopen: bool = False, restart: bool = False, duration: object | None = None, buffer_limit: int = 1048576, quiet: bool = False, line_channel: str = '', recorder: Recorder | None = None, channel: str = '') -> None:
+    def __init__(self, device: str, *, client_side: str = 'pty', pty_link: str = '', pty_mode: int = 432, pty_group: str = '', listen_host: str = '127.0.0.1', listen_port: int = 0, listen_backlog: int = 4096, udp_peer_host: str = '', udp_peer_port: int = 0, protocol: str = 'raw', shared: bool = False, max_monitors: int = 16, output: str = '', metadata: Mapping[str, str] = {}, flush_ms: int = 100, mirror_settings: bool = True, reopen: bool = False, restart: bool = False, duration: object | None = None, buffer_limit: int = 1048576, quiet: bool = False, line_channel: str = '', recorder: Recorder | None = None, channel: str = '', compress: str = 'none') -> None:
         """
-        recorder: a Recorder whose channel named `channel` the bridge records into (capture=wire) instead of opening `output`.
+        compress: 'zstd' writes `output` in compressed chunks (format 2.0). recorder: a Recorder whose channel named `channel` the bridge records into (capture=wire) instead of opening `output`.
         """
 
     def start(self) -> None:
@@ -1333,6 +1333,16 @@ class RecordCheck:
         """the channel the first such record names, or None"""
 
     @property
+    def index_state(self) -> str:
+        """
+        the per-channel index: 'not needed' (one channel), 'current', 'absent', 'stale' or 'unchecked' (a damaged file, a stream)
+        """
+
+    @property
+    def index_detail(self) -> str:
+        """why the index is absent, stale or unchecked; where it is when current"""
+
+    @property
     def damage(self, /) -> SessionError | None:
         """
         None, or a SessionError (not raised) with .offset and .message: where reading stopped and why
@@ -1341,6 +1351,11 @@ class RecordCheck:
 def check_session_records(path: str) -> RecordCheck:
     """
     Reads every record of the session at PATH as SessionReader does (CRC, length, content), counting them per channel and noting the records of channels the header does not list, which a reader skips. Raises PortError when PATH cannot be opened, SessionError when it is not a session; damage later on is RecordCheck.damage.
+    """
+
+def repair_session_index(path: str) -> tuple[str, str]:
+    """
+    `wiretape verify --repair`: appends the per-channel index to the session at PATH, of several channels, when it has none or a stale one. Returns (state, detail): ('current', 'appended at byte N'), or the state found when nothing was to be done. Raises SessionError when the file is damaged, PortError when it cannot be written.
     """
 
 def parse_start_utc(text: str) -> int | None:

@@ -212,7 +212,7 @@ def record(device: str, output, *, pty=None, listen=None, udp=None,
            meta: Optional[Mapping[str, str]] = None,
            quiet: bool = False, pty_mode: Optional[int] = None,
            pty_group: PtyGroup = None, line_channel: str = "", peer=None,
-           recorder=None, channel: str = "") -> BridgeHandle:
+           recorder=None, channel: str = "", compress: str = "none") -> BridgeHandle:
     """``wiretape record``: a transparent proxy between ``device`` and a pty
     at ``pty`` (a symlink path; True for none) or a TCP listener at
     ``listen`` or a UDP socket at ``udp`` (a datagram proxy: replies go to
@@ -224,7 +224,9 @@ def record(device: str, output, *, pty=None, listen=None, udp=None,
     client's serial lines through (``wiretape.redirect``). ``peer``: with
     ``udp``, where the device's datagrams go from the start. ``recorder``
     (a ``wiretape.Recorder``) and ``channel`` (a name): record into that
-    channel of the recorder's file instead of opening ``output``."""
+    channel of the recorder's file instead of opening ``output`` (whose
+    ``compress`` then applies). ``compress="zstd"``: ``output`` in
+    compressed chunks (format 2.0)."""
     path = os.fspath(output)
     if not path.strip():
         raise ValueError("output: the file name is empty; give the session file to record to")
@@ -237,7 +239,7 @@ def record(device: str, output, *, pty=None, listen=None, udp=None,
     return _start(device_options(device), pty=pty, listen=listen, udp=udp, peer=peer,
                   backlog=backlog, output=path, metadata=dict(meta or {}),
                   duration=duration, quiet=quiet, pty_mode=pty_mode, pty_group=pty_group,
-                  line_channel=line_channel)
+                  line_channel=line_channel, compress=compress)
 
 
 def proxy(device: str, *, pty=None, listen=None, udp=None, quiet: bool = True,
@@ -255,7 +257,7 @@ DEFAULT_MAX_MONITORS = 16
 def serve(device: str, listen, *, output=None, protocol: str = "raw",
           shared: bool = False, max_monitors: int = DEFAULT_MAX_MONITORS,
           reopen: bool = False, backlog: Optional[int] = None,
-          quiet: bool = False) -> BridgeHandle:
+          quiet: bool = False, compress: str = "none") -> BridgeHandle:
     """``wiretape serve``: shares ``device`` with TCP clients at ``listen``
     (127.0.0.1 unless a host is given), raw or RFC 2217, one controlling
     client at a time (``shared``: later ones, up to ``max_monitors``, get
@@ -268,7 +270,7 @@ def serve(device: str, listen, *, output=None, protocol: str = "raw",
     return _start(device_options(device), pty=None, listen=listen,
                   output=os.fspath(output) if output else "", protocol=protocol,
                   shared=shared, max_monitors=max_monitors, reopen=reopen, backlog=backlog,
-                  quiet=quiet)
+                  quiet=quiet, compress=compress)
 
 
 def serve_replay(file, *, pty=None, listen=None, udp=None, peer=None,

@@ -104,7 +104,8 @@ void DeviceSide::open_session_file() {
   header.device_identity = channel.device_identity;
   header.user_metadata = options_.metadata;
   recording_ = single_channel_file(options_.output, header,
-                                   FlushPolicy{std::chrono::milliseconds(options_.flush_ms)});
+                                   FlushPolicy{std::chrono::milliseconds(options_.flush_ms),
+                                               false, options_.compression});
   owns_file_ = true;
   // Time zero is the device's open, which came just before the file.
   record_at(RecordKind::open, 0,

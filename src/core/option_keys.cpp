@@ -110,6 +110,10 @@ std::vector<OptionKey> build_table() {
           .fallback("100")
           .integers(1, 3'600'000),
       Row("fsync", every_type, boolean, "with log: fsync after each flush").fallback("false"),
+      Row("compress", every_type, choice,
+          "with log: zstd stores the records in compressed chunks (format 2.0)")
+          .fallback("none")
+          .choices({"none", "zstd"}),
       Row("log_errors", every_type, choice,
           "with log: a recording failure is raised once, or only printed")
           .fallback("raise")

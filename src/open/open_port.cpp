@@ -102,6 +102,7 @@ bool speed_scales(const Options& options) {
 constexpr KeyDependency key_dependencies[] = {
     {"flush_ms", false, "", "log=FILE (it tunes the recording)", recorded},
     {"fsync", false, "", "log=FILE (it tunes the recording)", recorded},
+    {"compress", false, "", "log=FILE (it tunes the recording)", recorded},
     {"log_errors", false, "", "log=FILE (it tunes the recording)", recorded},
     {"meta_", true, "", "log=FILE (metadata goes into the recording's header)", recorded},
     {"unmatched", false, "replay", "match=request", request_matching},
@@ -195,6 +196,7 @@ CommonKeys take_common_keys(Options& options) {
   common.log = options.take("log");
   common.recording.flush_ms = static_cast<int>(options.take_int("flush_ms"));
   common.recording.fsync = options.take_bool("fsync");
+  common.recording.compress = options.take_choice("compress") == "zstd";
   common.recording.raise_errors = options.take_choice("log_errors") == "raise";
   common.recording.metadata = options.take_prefixed("meta_");
 

@@ -23,6 +23,7 @@ struct RecordingConfig {
   std::string port_type;
   int flush_ms = 100;
   bool fsync = false;
+  bool compress = false;     // compress=zstd
   bool raise_errors = true;  // log_errors=raise (else warn on stderr)
   std::map<std::string, std::string> metadata;  // meta_KEY=VALUE
 };

@@ -372,7 +372,8 @@ std::unique_ptr<Port> record_port(std::unique_ptr<Port> inner, RecordingConfig c
   header.port_options = config.options_text;
   header.port_type = config.port_type.empty() ? inner->type() : config.port_type;
   header.user_metadata = config.metadata;
-  const FlushPolicy flush{std::chrono::milliseconds(config.flush_ms), config.fsync};
+  const FlushPolicy flush{std::chrono::milliseconds(config.flush_ms), config.fsync,
+                          config.compress ? Compression::zstd : Compression::none};
   // The clock starts when the file is made, just after the port opened.
   RecordingChannel channel = single_channel_file(config.path, header, flush);
   return record_port_into(std::move(inner), std::move(channel),

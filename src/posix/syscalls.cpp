@@ -97,6 +97,9 @@ Table make_real() {
   t.pwrite = [](int fd, const void* data, size_t size, off_t offset) {
     return ::pwrite(fd, data, size, offset);
   };
+  t.pread = [](int fd, void* buffer, size_t size, off_t offset) {
+    return ::pread(fd, buffer, size, offset);
+  };
   t.fallocate = [](int fd, int mode, off_t offset, off_t length) {
 #ifdef FALLOC_FL_KEEP_SIZE
     return ::fallocate(fd, mode, offset, length);

@@ -71,6 +71,8 @@ struct Table {
   std::function<int(const char* path, struct stat* info)> lstat;
   std::function<off_t(int fd, off_t offset, int whence)> lseek;
   std::function<ssize_t(int fd, const void* data, size_t size, off_t offset)> pwrite;
+  // A session file read at its offsets: one call where lseek and read are two.
+  std::function<ssize_t(int fd, void* buffer, size_t size, off_t offset)> pread;
   // Room reserved ahead of a growing file (ENOSYS where there is no fallocate).
   std::function<int(int fd, int mode, off_t offset, off_t length)> fallocate;
   std::function<int(int fd)> fsync;
@@ -196,6 +198,9 @@ inline off_t lseek(int fd, off_t offset, int whence) {
 }
 inline ssize_t pwrite(int fd, const void* data, size_t size, off_t offset) {
   return current().pwrite(fd, data, size, offset);
+}
+inline ssize_t pread(int fd, void* buffer, size_t size, off_t offset) {
+  return current().pread(fd, buffer, size, offset);
 }
 inline int fallocate(int fd, int mode, off_t offset, off_t length) {
   return current().fallocate(fd, mode, offset, length);

@@ -119,8 +119,10 @@ BridgeOptions make_options(const std::string& device, const std::string& client_
                            int flush_ms, bool mirror_settings, bool reopen, bool restart,
                            nb::handle duration, std::size_t buffer_limit, bool quiet,
                            const std::string& line_channel, std::shared_ptr<Recorder> recorder,
-                           const std::string& channel) {
+                           const std::string& channel, const std::string& compress) {
   BridgeOptions o;
+  o.compression = one_of<Compression>("compress", compress,
+                                      {{"none", Compression::none}, {"zstd", Compression::zstd}});
   o.device = device;
   o.client_side = one_of<BridgeClientSide>("client_side", client_side,
                                            {{"pty", BridgeClientSide::pty},
@@ -176,7 +178,8 @@ void bind_bridge(nb::module_& m) {
              const std::map<std::string, std::string>& metadata, int flush_ms,
              bool mirror_settings, bool reopen, bool restart, nb::handle duration,
              std::size_t buffer_limit, bool quiet, const std::string& line_channel,
-             std::shared_ptr<Recorder> recorder, const std::string& channel) {
+             std::shared_ptr<Recorder> recorder, const std::string& channel,
+             const std::string& compress) {
             new (self) Bridge(make_options(device, client_side, pty_link, pty_mode,
                                            pty_group, listen_host,
                                            listen_port, listen_backlog, udp_peer_host,
@@ -185,7 +188,7 @@ void bind_bridge(nb::module_& m) {
                                            output, metadata,
                                            flush_ms, mirror_settings, reopen, restart,
                                            duration, buffer_limit, quiet, line_channel,
-                                           std::move(recorder), channel));
+                                           std::move(recorder), channel, compress));
           },
           "device"_a, nb::kw_only(), "client_side"_a = "pty", "pty_link"_a = "",
           "pty_mode"_a = 0660LL, "pty_group"_a = "",
@@ -197,7 +200,8 @@ void bind_bridge(nb::module_& m) {
           "mirror_settings"_a = true, "reopen"_a = false, "restart"_a = false,
           "duration"_a = nb::none(), "buffer_limit"_a = std::size_t{1} << 20,
           "quiet"_a = false, "line_channel"_a = "", "recorder"_a.none() = nb::none(),
-          "channel"_a = "",
+          "channel"_a = "", "compress"_a = "none",
+          "compress: 'zstd' writes `output` in compressed chunks (format 2.0). "
           "recorder: a Recorder whose channel named `channel` the bridge records into "
           "(capture=wire) instead of opening `output`.")
       .def("start", &Bridge::start, nb::call_guard<nb::gil_scoped_release>(),

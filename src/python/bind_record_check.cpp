@@ -10,10 +10,12 @@
 #include <nanobind/nanobind.h>
 #include <nanobind/stl/map.h>
 #include <nanobind/stl/optional.h>
+#include <nanobind/stl/pair.h>
 
 #include "python/bindings.hpp"
 #include "python/text_caster.hpp"
 #include "session/reader.hpp"
+#include "session/session_index.hpp"
 #include "wiretape/session.hpp"
 
 namespace nb = nanobind;
@@ -30,6 +32,7 @@ struct RecordCheck {
   std::uint64_t unlisted_records = 0;
   std::optional<detail::UnlistedRecord> first_unlisted;
   std::optional<SessionError> damage;
+  detail::IndexStatus index;
 };
 
 RecordCheck check_records(const std::string& path) {
@@ -39,15 +42,21 @@ RecordCheck check_records(const std::string& path) {
     ++check.channel_records[record.channel];
     if (!check.first_unlisted) check.first_unlisted = record;
   };
+  detail::IndexCheck index;
   // Pipes and FIFOs are read as every command reads them (DESIGN §6).
   auto source = detail::open_session_source(path, check.header, detail::Streams::read,
-                                            std::nullopt, on_unlisted);
+                                            std::nullopt, on_unlisted, index.sink());
   Record record;
   while (source->next(record)) {
     ++check.records;
     ++check.channel_records[record.channel];
   }
   check.damage = source->damage();
+  if (detail::is_stream(path)) {
+    check.index = {detail::IndexState::unchecked, "a pipe or FIFO is read once"};
+  } else {
+    check.index = index.status(path, check.header.channels.size(), check.damage.has_value());
+  }
   return check;
 }
 
@@ -79,6 +88,14 @@ void bind_record_check(nb::module_& m) {
           },
           "the channel the first such record names, or None")
       .def_prop_ro(
+          "index_state",
+          [](const RecordCheck& c) { return std::string(detail::to_string(c.index.state)); },
+          "the per-channel index: 'not needed' (one channel), 'current', 'absent', 'stale' "
+          "or 'unchecked' (a damaged file, a stream)")
+      .def_prop_ro(
+          "index_detail", [](const RecordCheck& c) { return c.index.detail; },
+          "why the index is absent, stale or unchecked; where it is when current")
+      .def_prop_ro(
           "damage",
           [](const RecordCheck& c) -> nb::object {
             if (!c.damage) return nb::none();
@@ -103,6 +120,19 @@ void bind_record_check(nb::module_& m) {
       "content), counting them per channel and noting the records of channels the header "
       "does not list, which a reader skips. Raises PortError when PATH cannot be opened, "
       "SessionError when it is not a session; damage later on is RecordCheck.damage.");
+
+  m.def(
+      "repair_session_index",
+      [](const std::string& path) {
+        nb::gil_scoped_release release;
+        const detail::IndexStatus status = detail::repair_session_index(path);
+        return std::make_pair(std::string(detail::to_string(status.state)), status.detail);
+      },
+      "path"_a,
+      "`wiretape verify --repair`: appends the per-channel index to the session at PATH, "
+      "of several channels, when it has none or a stale one. Returns (state, detail): "
+      "('current', 'appended at byte N'), or the state found when nothing was to be done. "
+      "Raises SessionError when the file is damaged, PortError when it cannot be written.");
 }
 
 }  // namespace wiretape::python

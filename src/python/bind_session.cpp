@@ -108,9 +108,13 @@ struct PyWriter {
 };
 
 
-FlushPolicy flush_policy(int flush_ms, bool fsync) {
+FlushPolicy flush_policy(int flush_ms, bool fsync, const std::string& compress) {
   if (flush_ms < 0) throw nb::value_error("flush_ms must be >= 0");
-  return FlushPolicy{std::chrono::milliseconds(flush_ms), fsync};
+  if (compress != "none" && compress != "zstd") {
+    throw OptionError("compress", "compress='" + compress + "': expected none or zstd");
+  }
+  return FlushPolicy{std::chrono::milliseconds(flush_ms), fsync,
+                     compress == "zstd" ? Compression::zstd : Compression::none};
 }
 
 // An event's members from a Python dict: bool, int or str values.
@@ -322,8 +326,9 @@ void bind_session(nb::module_& m) {
       .def(
           "__init__",
           [](PyWriter* self, nb::handle path, std::optional<SessionHeader> header,
-             int flush_ms, bool fsync, std::size_t header_room, nb::kwargs members) {
-            const FlushPolicy flush = flush_policy(flush_ms, fsync);
+             int flush_ms, bool fsync, std::size_t header_room, const std::string& compress,
+             nb::kwargs members) {
+            const FlushPolicy flush = flush_policy(flush_ms, fsync, compress);
             const SessionHeader written = header_to_write(header, members);
             const std::string p = path_from_python(path);
             new (self) PyWriter{};
@@ -332,10 +337,12 @@ void bind_session(nb::module_& m) {
             self->writer = std::make_unique<SessionWriter>(p, written, flush, header_room);
           },
           "path"_a, "header"_a = nb::none(), nb::kw_only(), "flush_ms"_a = 100,
-          "fsync"_a = false, "header_room"_a = std::size_t{0}, "members"_a,
+          "fsync"_a = false, "header_room"_a = std::size_t{0}, "compress"_a = "none",
+          "members"_a,
           nb::sig("def __init__(self, path: str | os.PathLike[str] | bytes, "
                   "header: SessionHeader | None = None, *, flush_ms: int = 100, "
-                  "fsync: bool = False, header_room: int = 0, **members: object) -> None"),
+                  "fsync: bool = False, header_room: int = 0, compress: str = 'none', "
+                  "**members: object) -> None"),
           "HEADER (default: SessionHeader.starting_now()) with MEMBERS (keyword arguments "
           "named as SessionHeader's members) set on it is what the file's header says. "
           "header_room: spare header bytes (spaces) kept so that add_channel() can rewrite "
@@ -385,18 +392,20 @@ void bind_session(nb::module_& m) {
       .def(
           "__init__",
           [](Recorder* self, nb::handle path, std::optional<SessionHeader> header,
-             int flush_ms, bool fsync, std::size_t header_room, nb::kwargs members) {
-            const FlushPolicy flush = flush_policy(flush_ms, fsync);
+             int flush_ms, bool fsync, std::size_t header_room, const std::string& compress,
+             nb::kwargs members) {
+            const FlushPolicy flush = flush_policy(flush_ms, fsync, compress);
             const SessionHeader written = header_to_write(header, members);
             const std::string p = path_from_python(path);
             nb::gil_scoped_release release;
             new (self) Recorder(p, written, flush, header_room);
           },
           "path"_a, "header"_a = nb::none(), nb::kw_only(), "flush_ms"_a = 100,
-          "fsync"_a = false, "header_room"_a = Recorder::default_header_room, "members"_a,
+          "fsync"_a = false, "header_room"_a = Recorder::default_header_room,
+          "compress"_a = "none", "members"_a,
           nb::sig("def __init__(self, path: str | os.PathLike[str] | bytes, "
                   "header: SessionHeader | None = None, *, flush_ms: int = 100, "
-                  "fsync: bool = False, header_room: int = 32768, "
+                  "fsync: bool = False, header_room: int = 32768, compress: str = 'none', "
                   "**members: object) -> None"),
           "Creates the session file. HEADER (default: SessionHeader.starting_now()) with "
           "MEMBERS set on it is its header; each port adds its channel to it. header_room: "

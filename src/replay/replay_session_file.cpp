@@ -24,25 +24,15 @@ class SessionRecordSource final : public RecordSource {
   SessionRecordSource(const std::string& path, std::uint16_t channel,
                       std::shared_ptr<bool> warned)
       : path_(path), source_(open_session_source(path, header_, Streams::refused, channel)),
-        several_channels_(header_.channel_list().size() > 1), warned_(std::move(warned)) {}
+        warned_(std::move(warned)) {}
   bool next(Record& record) override {
     if (source_->next(record)) return true;
     warn_of_damage();
     return false;
   }
   bool next(Record& record, PayloadView& view) override {
-    if (source_->next(record, view)) {
-      // In a file of several channels a read buffer holds mostly other
-      // channels' records: a view would pin a whole buffer for the few
-      // bytes of this channel's, so the look-ahead's memory would grow
-      // with the number of channels. A copy of this record's bytes costs
-      // less than the buffers it would pin.
-      if (view && several_channels_) {
-        record.data.assign(view.bytes.data(), view.bytes.size());
-        view = PayloadView{};
-      }
-      return true;
-    }
+    // Views only where they pin this channel's bytes (the reader decides).
+    if (source_->next(record, view)) return true;
     warn_of_damage();
     return false;
   }
@@ -65,7 +55,6 @@ class SessionRecordSource final : public RecordSource {
   std::string path_;
   SessionHeader header_;
   std::unique_ptr<RecordSource> source_;
-  bool several_channels_;
   std::shared_ptr<bool> warned_;
 };
 

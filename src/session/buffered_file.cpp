@@ -64,7 +64,12 @@ std::size_t BufferedFile::fill() {
     end_ -= begin_;
     begin_ = 0;
   }
-  if (end_ < buffer_size) end_ += file_.read_some(buffer_.get() + end_, buffer_size - end_);
+  std::size_t room = buffer_size - end_;
+  const std::uint64_t buffered_end = position_ + (end_ - begin_);
+  if (read_ahead_end_ > buffered_end) {
+    room = static_cast<std::size_t>(std::min<std::uint64_t>(room, read_ahead_end_ - buffered_end));
+  }
+  if (room > 0) end_ += read_some(buffer_.get() + end_, room, buffered_end);
   return end_ - begin_;
 }
 
@@ -85,7 +90,7 @@ bool BufferedFile::read(void* out, std::size_t size) {
   begin_ = end_ = 0;
   if (size - done >= buffer_size) {
     while (done < size) {
-      const std::size_t n = file_.read_some(dst + done, size - done);
+      const std::size_t n = read_some(dst + done, size - done, position_ + done);
       if (n == 0) {
         seek(position_);
         return false;
@@ -95,17 +100,20 @@ bool BufferedFile::read(void* out, std::size_t size) {
     position_ += size;
     return true;
   }
+  // position_ follows what was taken: fill() reads at the buffer's end.
+  const std::uint64_t start = position_;
+  position_ += done;
   while (done < size) {
     if (fill() == 0) {
-      seek(position_);
+      seek(start);
       return false;
     }
     const std::size_t take = std::min(size - done, end_ - begin_);
     std::memcpy(dst + done, buffer_.get() + begin_, take);
     begin_ += take;
+    position_ += take;
     done += take;
   }
-  position_ += size;
   return true;
 }
 
@@ -200,9 +208,18 @@ bool BufferedFile::skip(std::uint64_t size) {
   return true;
 }
 
+std::size_t BufferedFile::read_some(char* out, std::size_t size, std::uint64_t offset) {
+  if (is_stream()) return file_.read_some(out, size);
+  // A regular file is read at its offsets, so that a seek costs no call.
+  for (;;) {
+    const ssize_t n = sys::pread(file_.fd(), out, size, static_cast<off_t>(offset));
+    if (n >= 0) return static_cast<std::size_t>(n);
+    if (errno != EINTR) return 0;
+  }
+}
+
 void BufferedFile::seek(std::uint64_t position) {
   if (is_stream()) throw PortError(ESPIPE, path() + ": a pipe or FIFO cannot be read again");
-  sys::lseek(file_.fd(), static_cast<off_t>(position), SEEK_SET);
   position_ = position;
   begin_ = end_ = 0;
 }

@@ -48,10 +48,17 @@ class BufferedFile {
   // Throws PortError on a stream, which cannot go back.
   void seek(std::uint64_t position);
   bool is_stream() const { return file_.is_stream(); }
+  int fd() const { return file_.fd(); }
+  // Reads ahead no further than `end` (a file offset) while short of it, so
+  // that a reader of some spans of a file does not read the bytes between
+  // them; 0: as far as the buffer holds. Reads that need more still get it.
+  void limit_read_ahead(std::uint64_t end) { read_ahead_end_ = end; }
   const std::string& path() const { return file_.path(); }
 
  private:
   std::size_t fill();
+  // Up to `size` bytes at file offset `offset` (a stream: its next bytes).
+  std::size_t read_some(char* out, std::size_t size, std::uint64_t offset);
   void refresh_size();
   bool read_stream(char* out, std::size_t size);
 
@@ -64,6 +71,7 @@ class BufferedFile {
   std::size_t end_ = 0;
   std::uint64_t position_ = 0;  // file offset of buffer_[begin_]
   std::uint64_t size_ = 0;
+  std::uint64_t read_ahead_end_ = 0;
 };
 
 }  // namespace wiretape::detail

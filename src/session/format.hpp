@@ -5,6 +5,8 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
+#include <string_view>
 
 namespace wiretape::detail {
 
@@ -12,7 +14,8 @@ namespace wiretape::detail {
 // newline translation.
 inline constexpr char session_magic[8] = {'\x89', 'W', 'T', 'A', 'P', 'E', '\r', '\n'};
 inline constexpr std::uint16_t session_version_major = 1;
-inline constexpr std::uint16_t session_version_minor = 2;
+// 1.3: the per-channel index at the end of a file of several channels.
+inline constexpr std::uint16_t session_version_minor = 3;
 // magic, major, minor, JSON length
 inline constexpr std::size_t file_header_fixed_size = 16;
 // A header larger than this is corrupt, whatever the file holds.
@@ -57,6 +60,29 @@ inline std::uint32_t get_u32be(const char* in) {
 }
 inline void put_u32be(char* out, std::uint32_t v) {
   for (int i = 0; i < 4; ++i) out[i] = static_cast<char>((v >> (24 - 8 * i)) & 0xFF);
+}
+
+// Unsigned LEB128: 7 bits a byte, low bits first, the high bit set on every
+// byte but the last (the index's spans, the records inside a chunk).
+inline void put_varint(std::string& out, std::uint64_t v) {
+  while (v >= 0x80) {
+    out.push_back(static_cast<char>((v & 0x7F) | 0x80));
+    v >>= 7;
+  }
+  out.push_back(static_cast<char>(v));
+}
+// Reads a varint at `at` of `in`, advancing `at`; false when `in` ends
+// inside it or it is longer than a 64-bit value can be.
+inline bool get_varint(std::string_view in, std::size_t& at, std::uint64_t& v) {
+  v = 0;
+  for (int shift = 0; shift < 64; shift += 7) {
+    if (at >= in.size()) return false;
+    const auto byte = static_cast<unsigned char>(in[at++]);
+    if (shift == 63 && byte > 1) return false;
+    v |= static_cast<std::uint64_t>(byte & 0x7F) << shift;
+    if ((byte & 0x80) == 0) return true;
+  }
+  return false;
 }
 
 }  // namespace wiretape::detail

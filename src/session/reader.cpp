@@ -12,11 +12,13 @@
 #include "posix/file_checks.hpp"
 #include "posix/syscalls.hpp"
 #include "session/buffered_file.hpp"
+#include "session/chunks.hpp"
 #include "session/flexiport.hpp"
 #include "session/format.hpp"
 #include "session/header.hpp"
 #include "session/reader.hpp"
 #include "session/record_kinds.hpp"
+#include "session/session_index.hpp"
 #include "util/json.hpp"
 #include "wiretape/session.hpp"
 
@@ -56,11 +58,19 @@ std::string hex32(std::uint32_t value) {
 class WtapeSource final : public RecordSource {
  public:
   WtapeSource(const std::string& path, SessionHeader& header, Streams streams,
-              std::optional<std::uint16_t> channel, UnlistedRecordSink on_unlisted)
-      : file_(path, streams), channel_(channel), on_unlisted_(std::move(on_unlisted)) {
+              std::optional<std::uint16_t> channel, UnlistedRecordSink on_unlisted,
+              RecordPlaceSink on_place)
+      : file_(path, streams), channel_(channel), on_unlisted_(std::move(on_unlisted)),
+        on_place_(std::move(on_place)) {
     read_header(header);
     channel_count_ = header.channels.empty() ? 1 : header.channels.size();
     first_record_ = file_.position();
+    // One channel of several: its spans, if the file's index describes it;
+    // every record otherwise (a file still being written has none yet).
+    if (channel_ && channel_count_ > 1 && !file_.is_stream()) {
+      spans_ = find_channel_spans(file_.fd(), file_.size(), first_record_, channel_count_,
+                                  *channel_, nullptr);
+    }
   }
 
   bool next(Record& record) override { return next_record(record, nullptr); }
@@ -74,6 +84,12 @@ class WtapeSource final : public RecordSource {
     file_.seek(first_record_);
     damage_.reset();
     records_ = 0;
+    if (chunk_) chunk_->reset();
+    if (spans_) {
+      spans_->rewind();
+      span_ = IndexSpan{};
+      file_.limit_read_ahead(0);
+    }
   }
 
   const std::optional<SessionError>& damage() const override { return damage_; }
@@ -84,9 +100,40 @@ class WtapeSource final : public RecordSource {
     for (;;) {
       if (view) *view = PayloadView{};
       if (damage_) return false;
+      if (chunk_) {
+        std::string problem;
+        if (chunk_->next(record, &problem)) {
+          if (!wanted(record.channel, static_cast<std::uint8_t>(record.kind),
+                      chunk_->chunk_offset())) {
+            continue;
+          }
+          if (const auto unusable = record_content_problem(record.kind, record.t_ns, record.data)) {
+            return stop(chunk_->chunk_offset(), "a record of the chunk at byte " +
+                                                    std::to_string(chunk_->chunk_offset()) +
+                                                    " is unusable: " + *unusable);
+          }
+          ++records_;
+          return true;
+        }
+        if (!problem.empty()) {
+          return stop(chunk_->chunk_offset(), "the chunk at byte " +
+                                                  std::to_string(chunk_->chunk_offset()) +
+                                                  " is damaged: " + problem);
+        }
+      }
+      if (spans_ && !enter_span()) return false;
       const std::uint64_t offset = file_.position();
       char head[record_header_size];
-      if (file_.remaining() == 0) return false;
+      if (file_.remaining() == 0) {
+        if (chunk_ && chunk_->open()) {
+          // What a recorder killed inside a chunk leaves: its flushed parts
+          // were read; the records after its last flush are lost.
+          return stop(chunk_->chunk_offset(),
+                      "the chunk at byte " + std::to_string(chunk_->chunk_offset()) +
+                          " has no last part (the recording stopped inside it)");
+        }
+        return false;
+      }
       if (!file_.read(head, sizeof head)) {
         // What is left now: a stream's bytes are known only once they came.
         return stop(offset, "truncated record at byte " + std::to_string(offset) +
@@ -107,7 +154,7 @@ class WtapeSource final : public RecordSource {
       }
       std::uint32_t crc = crc32c(head, sizeof head);
       const char* payload = nullptr;
-      if (view && !file_.is_stream() && length >= min_view_payload &&
+      if (view && views_pin_own_records() && length >= min_view_payload &&
           length <= BufferedFile::max_view_size()) {
         if (!file_.read_view(length, *view)) {
           return stop(offset, "truncated record at byte " + std::to_string(offset));
@@ -135,13 +182,24 @@ class WtapeSource final : public RecordSource {
       // A channel the header does not list (a newer writer's), a kind not
       // known or a channel not asked for: skipped.
       const std::uint16_t channel = get_u16le(head + 6);
-      if (channel >= channel_count_) {
-        if (on_unlisted_) on_unlisted_(UnlistedRecord{offset, channel});
+      const auto kind_byte = static_cast<std::uint8_t>(head[4]);
+      if (on_place_) on_place_(RecordPlace{offset, file_.position(), channel, kind_byte});
+      if (kind_byte == chunk_record_code) {
+        if (!chunk_) chunk_ = std::make_unique<ChunkDecoder>();
+        const bool last = (static_cast<std::uint8_t>(head[5]) & chunk_last_part) != 0;
+        if (const auto problem = chunk_->feed(offset, std::string_view(payload, length), last)) {
+          return stop(offset, "the chunk at byte " + std::to_string(chunk_->chunk_offset()) +
+                                  " is damaged in its part at byte " + std::to_string(offset) +
+                                  ": " + *problem);
+        }
         continue;
       }
-      const auto kind_byte = static_cast<std::uint8_t>(head[4]);
-      if (find_record_kind(static_cast<RecordKind>(kind_byte)) == nullptr) continue;
-      if (channel_ && channel != *channel_) continue;
+      if (chunk_ && chunk_->open()) {
+        return stop(offset, "record at byte " + std::to_string(offset) +
+                                " lies inside the unfinished chunk at byte " +
+                                std::to_string(chunk_->chunk_offset()));
+      }
+      if (!wanted(channel, kind_byte, offset)) continue;
       record.channel = channel;
       record.kind = static_cast<RecordKind>(kind_byte);
       record.t_ns = get_u64le(head + 8);
@@ -155,6 +213,40 @@ class WtapeSource final : public RecordSource {
       ++records_;
       return true;
     }
+  }
+
+  // A channel the header does not list (a newer writer's, reported), a kind
+  // not known or a channel not asked for: skipped.
+  bool wanted(std::uint16_t channel, std::uint8_t kind_byte, std::uint64_t offset) {
+    if (channel >= channel_count_) {
+      if (on_unlisted_) on_unlisted_(UnlistedRecord{offset, channel});
+      return false;
+    }
+    if (find_record_kind(static_cast<RecordKind>(kind_byte)) == nullptr) return false;
+    return !channel_ || channel == *channel_;
+  }
+
+  // A view pins its read buffer. Reading one channel of several without an
+  // index, a buffer holds mostly other channels' records: a view would pin
+  // a whole buffer for the few bytes of this channel's, so the look-ahead's
+  // memory would grow with the number of channels, and a copy costs less.
+  // Through the index, the reads hold this channel's spans.
+  bool views_pin_own_records() const {
+    if (file_.is_stream()) return false;
+    return !channel_ || channel_count_ == 1 || spans_.has_value();
+  }
+
+  // Moves to the next span of the channel when the reader is past the
+  // current one; false after the last.
+  bool enter_span() {
+    while (file_.position() >= span_.end) {
+      if (!spans_->next(span_)) return false;
+      if (span_.begin > file_.position() && !file_.skip(span_.begin - file_.position())) {
+        return false;  // the file is shorter than its index says: not a span of it
+      }
+      file_.limit_read_ahead(span_.end);
+    }
+    return true;
   }
 
   bool stop(std::uint64_t offset, const std::string& what) {
@@ -187,12 +279,12 @@ class WtapeSource final : public RecordSource {
     }
     header.version_major = get_u16le(fixed + 8);
     header.version_minor = get_u16le(fixed + 10);
-    if (header.version_major > session_version_major) {
+    if (header.version_major > compressed_version_major) {
       fail(8, "written in session format " + std::to_string(header.version_major) +
                   "." + std::to_string(header.version_minor) +
                   ", newer than this reader's " +
-                  std::to_string(session_version_major) + "." +
-                  std::to_string(session_version_minor) +
+                  std::to_string(compressed_version_major) + "." +
+                  std::to_string(compressed_version_minor) +
                   ": upgrade wiretape to read it");
     }
     if (header.version_major == 0) fail(8, "invalid format version 0");
@@ -225,8 +317,12 @@ class WtapeSource final : public RecordSource {
   BufferedFile file_;
   std::optional<std::uint16_t> channel_;  // std::nullopt: every channel
   UnlistedRecordSink on_unlisted_;
+  RecordPlaceSink on_place_;
   std::size_t channel_count_ = 1;
   std::uint64_t first_record_ = 0;
+  std::optional<ChannelSpans> spans_;  // the channel's, from the file's index
+  std::unique_ptr<ChunkDecoder> chunk_;  // once a file shows it has chunks (2.0)
+  IndexSpan span_;                     // the one being read
   std::uint64_t records_ = 0;
   std::optional<SessionError> damage_;
 };
@@ -255,7 +351,8 @@ bool starts_with_magic(const std::string& path, Streams streams) {
 std::unique_ptr<RecordSource> open_session_source(const std::string& path,
                                                   SessionHeader& header, Streams streams,
                                                   std::optional<std::uint16_t> channel,
-                                                  UnlistedRecordSink on_unlisted) {
+                                                  UnlistedRecordSink on_unlisted,
+                                                  RecordPlaceSink on_place) {
   if (!starts_with_magic(path, streams)) {
     // A flexiport log is one port: channel 0.
     if (auto prefix = flexiport_prefix(path)) {
@@ -268,7 +365,7 @@ std::unique_ptr<RecordSource> open_session_source(const std::string& path,
     }
   }
   return std::make_unique<WtapeSource>(path, header, streams, channel,
-                                       std::move(on_unlisted));
+                                       std::move(on_unlisted), std::move(on_place));
 }
 
 }  // namespace detail

@@ -30,9 +30,20 @@ struct UnlistedRecord {
   std::uint16_t channel = 0;
 };
 using UnlistedRecordSink = std::function<void(const UnlistedRecord&)>;
+// `on_place` is told where each record with a good CRC lies (any kind, any
+// channel, before the channel filter): what the index of the file is made
+// of, for verify and `verify --repair`.
+struct RecordPlace {
+  std::uint64_t offset = 0;  // its record header
+  std::uint64_t end = 0;     // past its CRC
+  std::uint16_t channel = 0;
+  std::uint8_t kind_code = 0;
+};
+using RecordPlaceSink = std::function<void(const RecordPlace&)>;
 std::unique_ptr<RecordSource> open_session_source(
     const std::string& path, SessionHeader& header, Streams streams = Streams::refused,
-    std::optional<std::uint16_t> channel = std::nullopt, UnlistedRecordSink on_unlisted = {});
+    std::optional<std::uint16_t> channel = std::nullopt, UnlistedRecordSink on_unlisted = {},
+    RecordPlaceSink on_place = {});
 
 // Why a record whose CRC is good still cannot be handed to the commands that
 // read it, or std::nullopt. What verify accepts, every consumer (Python's

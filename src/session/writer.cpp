@@ -22,9 +22,11 @@
 #include "posix/file_checks.hpp"
 #include "posix/file_size_limit.hpp"
 #include "posix/syscalls.hpp"
+#include "session/chunks.hpp"
 #include "session/format.hpp"
 #include "session/header.hpp"
 #include "session/reader.hpp"
+#include "session/session_index.hpp"
 #include "wiretape/session.hpp"
 
 namespace wiretape {
@@ -78,6 +80,12 @@ struct SessionWriter::Impl {
   bool closing = false;
   bool closed = false;
   std::thread flusher;
+  // compress=zstd: records go into chunks as they are flushed (io_mutex).
+  std::unique_ptr<detail::ChunkEncoder> chunks;
+  // Where each channel's records are, for the index written at close.
+  detail::SessionIndexBuilder index;
+  std::uint64_t index_end = 0;  // where the index, once buffered, ends
+  bool index_committed = false;  // the last record in the file is the index
 
   // The header JSON's length in the file: the JSON, then spaces up to it.
   std::size_t header_json_room = 0;
@@ -121,13 +129,15 @@ struct SessionWriter::Impl {
 
   // Writes what is buffered. On a failure the file is cut back to the last
   // whole record, so a half-written record never hides good ones.
-  void flush_now() {
+  // `final`: the last flush, which ends an open chunk.
+  void flush_now(bool final = false) {
     std::lock_guard<std::mutex> io(io_mutex);
     std::string data;
     std::vector<std::size_t> ends;
     {
       std::lock_guard<std::mutex> lock(mutex);
-      if (failure || buffer.empty()) {
+      const bool chunk_to_end = final && chunks && chunks->chunk_open();
+      if (failure || (buffer.empty() && !chunk_to_end)) {
         // Nothing more will reach the file after a failure.
         buffer.clear();
         record_ends.clear();
@@ -142,6 +152,11 @@ struct SessionWriter::Impl {
       flush_requested = false;
     }
     seal(data, ends);
+    const std::size_t records_in = ends.size();
+    if (chunks) {
+      data = chunked(data, ends, final);
+      ends.assign(1, data.size());  // whole or not at all (see below)
+    }
     // Past RLIMIT_FSIZE the write must fail (EFBIG) rather than the process
     // die between two pages of a record.
     const detail::FileSizeSignalBlocked no_file_size_signal;
@@ -168,23 +183,61 @@ struct SessionWriter::Impl {
     if (error == 0) {
       committed += data.size();
       std::lock_guard<std::mutex> count(mutex);
-      committed_records += ends.size();
+      committed_records += records_in;
+      index_committed = index_end != 0 && committed >= index_end;
       data.clear();
       if (spare.capacity() < data.capacity()) spare.swap(data);
       return;
     }
-    // Keep the records that made it whole.
+    // Keep the records that made it whole. A flush of chunks is kept whole
+    // or not at all: its records are in its parts, not at their ends.
     std::size_t whole = 0;
     std::uint64_t whole_records = 0;
     for (const std::size_t end : ends) {
-      if (end <= written) whole = end, ++whole_records;
+      if (!chunks && end <= written) whole = end, ++whole_records;
     }
     committed += whole;
     {
       std::lock_guard<std::mutex> count(mutex);
       committed_records += whole_records;
+      index_committed = index_end != 0 && committed >= index_end;
     }
     fail_and_release(error);
+  }
+
+  // The flushed bytes as chunk records: the file header as it is, each
+  // record an entry of the open chunk (or, too large for one, as it is
+  // between chunks), then the chunk's part up to here (ZSTD_e_flush), or
+  // its last part when `final`.
+  std::string chunked(const std::string& data, const std::vector<std::size_t>& ends,
+                      bool final) {
+    std::string out;
+    std::size_t start = 0;
+    for (std::size_t i = 0; i < ends.size(); ++i) {
+      const std::size_t end = ends[i];
+      if (committed == 0 && i == 0) {  // the file header
+        out.append(data, 0, end);
+        start = end;
+        continue;
+      }
+      const char* record = &data[start];
+      const std::uint32_t length = detail::get_u32le(record);
+      if (detail::ChunkEncoder::fits(length)) {
+        chunks->add(static_cast<std::uint8_t>(record[4]), detail::get_u16le(record + 6),
+                    detail::get_u64le(record + 8),
+                    std::string_view(record + detail::record_header_size, length), out);
+      } else {
+        chunks->end_chunk(out);
+        out.append(data, start, end - start);
+      }
+      start = end;
+    }
+    if (final) {
+      chunks->end_chunk(out);
+    } else {
+      chunks->flush_part(out);
+    }
+    return out;
   }
 
   // Fills each record's CRC slot with the CRC32C of the bytes before it (the
@@ -216,6 +269,22 @@ struct SessionWriter::Impl {
 #else
     (void)end;
 #endif
+  }
+
+  // A file of several channels ends with their index (format 1.3), so that
+  // a reader of one reads only its spans; a file of one is read whole
+  // anyway. Called once the last records are in the file.
+  void append_index() {
+    std::lock_guard<std::mutex> io(io_mutex);  // header.channels
+    // A compressed file has none: its channels share chunks (format 2.0).
+    if (header.channels.size() < 2 || chunks) return;
+    std::lock_guard<std::mutex> lock(mutex);
+    if (failure || fd < 0) return;
+    const std::string bytes = index.record_bytes(buffered_total, header.channels.size());
+    buffer += bytes;
+    record_ends.push_back(buffer.size());
+    buffered_total += bytes.size();
+    index_end = buffered_total;
   }
 
   // Gives back the blocks reserved past the end of the file.
@@ -252,11 +321,12 @@ namespace {
 
 // The fixed part of the file header and its JSON, padded with spaces to
 // `room` bytes, followed by a zeroed CRC slot.
-std::string file_header_bytes(const std::string& json, std::size_t room) {
+std::string file_header_bytes(const SessionHeader& header, const std::string& json,
+                              std::size_t room) {
   std::string file_header(detail::file_header_fixed_size, '\0');
   std::memcpy(&file_header[0], detail::session_magic, sizeof detail::session_magic);
-  detail::put_u16le(&file_header[8], detail::session_version_major);
-  detail::put_u16le(&file_header[10], detail::session_version_minor);
+  detail::put_u16le(&file_header[8], header.version_major);
+  detail::put_u16le(&file_header[10], header.version_minor);
   detail::put_u32le(&file_header[12], static_cast<std::uint32_t>(room));
   file_header += json;
   file_header.append(room - json.size(), ' ');
@@ -275,8 +345,12 @@ SessionWriter::SessionWriter(const std::string& path, const SessionHeader& heade
   // A header the reader would refuse is refused before the file is created.
   const std::string json = detail::header_json(header);
   impl_->header = header;
-  impl_->header.version_major = detail::session_version_major;
-  impl_->header.version_minor = detail::session_version_minor;
+  const bool compressed = impl_->flush.compression == Compression::zstd;
+  impl_->header.version_major =
+      compressed ? detail::compressed_version_major : detail::session_version_major;
+  impl_->header.version_minor =
+      compressed ? detail::compressed_version_minor : detail::session_version_minor;
+  if (compressed) impl_->chunks = std::make_unique<detail::ChunkEncoder>();
   impl_->header.metadata_json = json;
   if (impl_->header.source_format.empty()) impl_->header.source_format = "wiretape";
   const std::size_t json_size = std::min<std::size_t>(json.size(), detail::max_header_json);
@@ -289,7 +363,7 @@ SessionWriter::SessionWriter(const std::string& path, const SessionHeader& heade
   impl_->header_json_room = json.size() + header_room;
   impl_->fd = detail::open_output_file(path).release();
   // The CRC slot is sealed by the first flush.
-  std::string file_header = file_header_bytes(json, impl_->header_json_room);
+  std::string file_header = file_header_bytes(impl_->header, json, impl_->header_json_room);
   // The header reaches the OS at once: a file that exists is readable.
   impl_->buffer = file_header;
   impl_->record_ends.push_back(file_header.size());
@@ -337,7 +411,9 @@ void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view 
     buffer.append(data.data(), data.size());
     buffer.append(tail, sizeof tail);
     impl_->record_ends.push_back(buffer.size());
+    const std::uint64_t offset = impl_->buffered_total;
     impl_->buffered_total += sizeof head + data.size() + sizeof tail;
+    impl_->index.add(offset, impl_->buffered_total, channel);
     if (!impl_->oldest_unflushed) {
       impl_->oldest_unflushed = Clock::now();
       impl_->wake.notify_one();
@@ -390,7 +466,7 @@ std::uint16_t SessionWriter::add_channel(Channel channel) {
                            " (reserve more header room)",
                        detail::file_header_fixed_size);
   }
-  std::string bytes = file_header_bytes(json, impl_->header_json_room);
+  std::string bytes = file_header_bytes(header, json, impl_->header_json_room);
   const std::size_t covered = bytes.size() - detail::crc_size;
   detail::put_u32le(&bytes[covered], crc32c(bytes.data(), covered));
   // The fixed part never changes: only the JSON and its CRC are rewritten.
@@ -431,6 +507,8 @@ void SessionWriter::close() {
     impl_->wake.notify_all();
   }
   if (impl_->flusher.joinable()) impl_->flusher.join();
+  impl_->flush_now(true);
+  impl_->append_index();
   impl_->flush_now();
   std::optional<PortError> failure;
   {
@@ -459,8 +537,10 @@ std::optional<PortError> SessionWriter::failure() const {
 
 std::uint64_t SessionWriter::records_written() const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
-  // The file header, in the file since the constructor, is not a record.
-  return impl_->committed_records == 0 ? 0 : impl_->committed_records - 1;
+  // The file header, in the file since the constructor, is not a record,
+  // nor is the index.
+  const std::uint64_t structure = 1 + (impl_->index_committed ? 1 : 0);
+  return impl_->committed_records < structure ? 0 : impl_->committed_records - structure;
 }
 
 std::uint64_t SessionWriter::size() const {

@@ -94,7 +94,8 @@ def channels_recorder(args, endpoints: List[Endpoint]) -> Iterator[object]:
     _check_shared_flags(args, endpoints)
     header = _core.SessionHeader.starting_now()
     header.metadata = meta_pairs(args.meta)
-    recorder = _core.Recorder(args.output, header)  # type: ignore[attr-defined]
+    recorder = _core.Recorder(args.output, header,  # type: ignore[attr-defined]
+                              compress=args.compress)
     try:
         yield recorder
     finally:

@@ -54,7 +54,7 @@ def record_with_command(args, out: Output) -> int:
         handle = bridge.record(args.device, args.output, pty=pty, duration=args.duration,
                                meta=meta_pairs(args.meta), quiet=True,
                                pty_mode=args.pty_mode, pty_group=args.pty_group,
-                               line_channel=lines.path)
+                               line_channel=lines.path, compress=args.compress)
         return _run_bridge_with_command(
             handle, out, "record", args.command_argv, path,
             lambda: announce_clients(handle, out,

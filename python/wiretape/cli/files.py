@@ -166,11 +166,22 @@ def cmd_verify(args, out: Output) -> int:
 
     require_session(args.file)
     result = verify(args.file)
+    if args.repair and result.ok and result.index in ("absent", "stale"):
+        from ..tools.verify import repair_index
+
+        appended = repair_index(args.file)
+        result = verify(args.file)
+        if not args.json:
+            out.print(f"{args.file}: index {appended}")
     if args.json:
         print(json.dumps(result.to_json(), indent=2, sort_keys=True, default=str))
     elif result.ok:
         out.print(f"{args.file}: ok, {result.records} records{_per_channel(result)}",
                   style="green")
+        if result.index in ("absent", "stale"):
+            # Not damage: a recorder that did not close its file leaves none.
+            out.print(f"{args.file}: index {result.index} ({result.index_detail}): a reader of "
+                      f"one channel reads every record; `wiretape verify --repair` appends it")
     elif result.unlisted_channel is not None:
         out.print(f"{args.file}: BAD {result.message}{_per_channel(result)}", style="bold red")
     else:
@@ -199,7 +210,7 @@ def cmd_convert(args, out: Output) -> int:
                      to_format=args.to_format, progress=progress,
                      flexiport_format=args.flexiport_format,
                      stream=args.stream, device_addr=args.device_addr, test=args.test,
-                     allow_gaps=args.allow_gaps)
+                     allow_gaps=args.allow_gaps, compress=args.compress)
     if not args.quiet:
         out.note(f"converted {result.records} records: {args.input} "
                  f"({result.from_format}) -> {args.output} ({result.to_format})")
@@ -235,7 +246,8 @@ def cmd_edit(args, out: Output) -> int:
     profile = {None: "", "none": None}.get(args.profile, args.profile)
     # In a child process: a signal ends a catastrophic pattern's matching too.
     result = edit_in_child(args.input, args.output, cut=cut, redact=redactions,
-                           drop_meta=args.drop_meta, profile=profile, channels=args.channel)
+                           drop_meta=args.drop_meta, profile=profile, channels=args.channel,
+                           compress=args.compress)
     if not args.quiet:
         done = "; ".join(result.edits)
         matches = (f", {result.matches} matches redacted in {result.redacted_records} records"

@@ -413,6 +413,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help="the session file to write (.wtape)")
     record.add_argument("--duration", type=_positive_seconds, metavar="S",
                         help="stop after S seconds (default: until Ctrl-C)")
+    record.add_argument("--compress", choices=("none", "zstd"), default="none",
+                        help="record in zstd chunks (format 2.0; docs/session-format.md)")
     record.add_argument("--meta", action="append", metavar="KEY=VALUE",
                         help="free metadata for the session header (repeatable)")
     record.add_argument("-q", "--quiet", action="store_true", help="no client/device messages")
@@ -524,6 +526,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="the device: a port option string or a serial device path")
     serve.add_argument("--listen", required=True, metavar="HOST:PORT",
                        help="where clients connect (PORT alone means 127.0.0.1:PORT)")
+    serve.add_argument("--compress", choices=("none", "zstd"), default="none",
+                       help="with -o: record in zstd chunks (format 2.0)")
     serve.add_argument("-o", "--output", metavar="FILE", type=_session_output,
                        help="record the session to FILE")
     serve.add_argument("--protocol", choices=("raw", "rfc2217"), default="raw",
@@ -624,11 +628,16 @@ def build_parser() -> argparse.ArgumentParser:
                            "the other channels' records are kept as they are")
     edit.add_argument("--drop-meta", metavar="KEY", action="append", default=[],
                       help="remove this --meta key (may be repeated)")
+    edit.add_argument("--compress", choices=("none", "zstd"), default="none",
+                      help="write OUT in zstd chunks (format 2.0; docs/session-format.md)")
     edit.add_argument("-q", "--quiet", action="store_true", help="no summary")
 
     verify = command("verify", cmd_verify, "check every record of a session (exit 1 if damaged)")
     verify.add_argument("file", metavar="FILE", help="the session (.wtape or flexiport name.log)")
     verify.add_argument("--json", action="store_true", help="print JSON")
+    verify.add_argument("--repair", action="store_true",
+                        help="append the per-channel index to a session of several channels "
+                             "that lacks it (an intact file only)")
 
     convert = command(
         "convert", cmd_convert, "convert between session formats",
@@ -661,6 +670,8 @@ def build_parser() -> argparse.ArgumentParser:
                          help="--from pcap: the device's side of the conversation (default: "
                               "the TCP server; for UDP the lower port); with named streams, "
                               "NAME=IP:PORT for the channel NAME (repeatable)")
+    convert.add_argument("--compress", choices=("none", "zstd"), default="none",
+                         help="a .wtape output in zstd chunks (format 2.0; docs/session-format.md)")
     convert.add_argument("--allow-gaps", dest="allow_gaps", action="store_true",
                          help="--from pcap: import a capture that lost bytes, with a "
                               "capture_gap event where they are missing (default: refuse it)")

@@ -52,7 +52,7 @@ def cmd_record(args, out: Output) -> int:
                            peer=args.peer,
                            backlog=args.backlog, duration=args.duration, meta=meta_pairs(args.meta),
                            quiet=True, pty_mode=args.pty_mode,
-                           pty_group=args.pty_group)
+                           pty_group=args.pty_group, compress=args.compress)
     return run_bridge(handle, out, "record",
                       lambda: announce_clients(handle, out,
                                                f"wiretape record: recording to {args.output}", pty,
@@ -111,7 +111,7 @@ def cmd_serve(args, out: Output) -> int:
     handle = bridge.serve(args.device, args.listen, output=args.output,
                           protocol=args.protocol, shared=args.shared,
                           max_monitors=max_monitors, reopen=args.reopen,
-                          backlog=args.backlog, quiet=True)
+                          backlog=args.backlog, quiet=True, compress=args.compress)
     return run_bridge(handle, out, "serve",
                       lambda: announce_clients(handle, out, "wiretape serve: serving"),
                       relay=MessageRelay(handle, out, "serve", args.quiet))

@@ -235,15 +235,18 @@ def _records_of(src: str, fmt: str, choice: Optional[dict] = None):
     return reader.header, records(), lambda: raise_damage(reader)
 
 
-def session_writer(dst: str, header: _core.SessionHeader) -> _core.SessionWriter:
+def session_writer(dst: str, header: _core.SessionHeader,
+                   compress: str = "none") -> _core.SessionWriter:
     """A SessionWriter for `dst` writing `header` as it is: a time or host
     the source does not know stays unknown (an import never invents them
-    from the converting machine)."""
-    return _core.SessionWriter(dst, header, flush_ms=1000)
+    from the converting machine). ``compress="zstd"``: in compressed
+    chunks (format 2.0)."""
+    return _core.SessionWriter(dst, header, flush_ms=1000, compress=compress)
 
 
-def _write_wiretape(dst: str, header: _core.SessionHeader, records, progress: _Progress) -> int:
-    with session_writer(dst, header) as writer:
+def _write_wiretape(dst: str, header: _core.SessionHeader, records, progress: _Progress,
+                    compress: str = "none") -> int:
+    with session_writer(dst, header, compress) as writer:
         for kind, t_ns, data, channel in records:
             writer.write(kind, t_ns, data, channel=channel)
             progress.step(len(data))
@@ -334,7 +337,7 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
             flexiport_format: str = "new",
             stream: Union[None, str, Sequence[str]] = None,
             device_addr: Union[None, str, Sequence[str]] = None, test: Optional[str] = None,
-            allow_gaps: bool = False) -> ConvertResult:
+            allow_gaps: bool = False, compress: str = "none") -> ConvertResult:
     """Converts the session `src` into `dst`.
 
     Returns the number of records written and both formats. A damaged
@@ -379,7 +382,7 @@ def convert(src: SessionPath, dst: SessionPath, from_format: Optional[str] = Non
                          "capture: they need --from pcap")
     choice = {"stream": streams[0] if streams else None,
               "device_addr": device_addrs[0] if device_addrs else None, "test": test,
-              "allow_gaps": allow_gaps}
+              "allow_gaps": allow_gaps, "compress": compress}
     named = _named_streams(streams, device_addrs)
     if named is not None:
         choice["channels"], choice["device_addrs"] = named
@@ -561,7 +564,7 @@ def _convert_reporting(src: str, dst: str, source_format: str, target_format: st
 
     header, records, raise_source_damage = _records_of(src, source_format, choice)
     if target_format == "wiretape":
-        written = _write_wiretape(dst, header, records, report)
+        written = _write_wiretape(dst, header, records, report, choice.get("compress", "none"))
     else:
         written = _write_jsonl(dst, header, records, report)
     report.finish()

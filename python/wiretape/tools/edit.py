@@ -112,8 +112,10 @@ def _stat_or_none(path: str) -> Optional[os.stat_result]:
 
 def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
          redact: Iterable[Redaction] = (), drop_meta: Iterable[str] = (),
-         profile: Optional[str] = "", channels: Iterable[str] = ()) -> EditResult:
-    """Writes an edited copy of the session `src` to `dst` (a .wtape).
+         profile: Optional[str] = "", channels: Iterable[str] = (),
+         compress: str = "none") -> EditResult:
+    """Writes an edited copy of the session `src` to `dst` (a .wtape;
+    ``compress="zstd"``: in compressed chunks, format 2.0).
     `profile`: the protocol profile whose checksums are recomputed over
     scrubbed bytes and by whose frames the exchanges of a ``Ne`` cut are
     numbered (as a replay with it numbers them), a name or a declared
@@ -188,7 +190,7 @@ def edit(src: SessionPath, dst: SessionPath, cut: Optional[Cut] = None,
     before = _stat_or_none(dst)
     counts = {"records": 0, "marked": 0}
     try:
-        with session_writer(dst, header) as writer:
+        with session_writer(dst, header, compress) as writer:
             def emit(entry: Entry) -> None:
                 marks = merged_marks(entry.marks)
                 for offset, length in marks:

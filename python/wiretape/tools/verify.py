@@ -12,7 +12,7 @@ from .. import _core
 from ..session import SessionPath
 from .channels import channel_label, channel_names
 
-__all__ = ["verify", "VerifyResult"]
+__all__ = ["verify", "repair_index", "VerifyResult"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -29,6 +29,10 @@ class VerifyResult:
     channel_records: Dict[str, int] = dataclasses.field(default_factory=dict)
     # the channel of the first record that names one the header does not list
     unlisted_channel: Optional[int] = None
+    # the per-channel index (format 1.3) of a session of several channels:
+    # "not needed" (one channel), "current", "absent", "stale", "unchecked"
+    index: str = "not needed"
+    index_detail: str = ""
 
     def to_json(self) -> Dict[str, Any]:
         return dataclasses.asdict(self)
@@ -47,6 +51,7 @@ def verify(path: SessionPath) -> VerifyResult:
     except _core.SessionError as error:
         return VerifyResult(ok=False, path=name, records=0, offset=error.offset,
                             message=str(error))
+    index = {"index": check.index_state, "index_detail": check.index_detail}
     names = channel_names(check.header)
     counts = dict(check.channel_records)
     records = check.records
@@ -65,9 +70,19 @@ def verify(path: SessionPath) -> VerifyResult:
             message += f"; and damaged at byte {damage.offset}: {damage.message}"
         return VerifyResult(ok=False, path=name, records=records + strays, offset=offset,
                             message=message, channel_records=per_channel,
-                            unlisted_channel=channel)
+                            unlisted_channel=channel, **index)
     if damage is not None:
         return VerifyResult(ok=False, path=name, records=records, offset=damage.offset,
-                            message=damage.message, channel_records=per_channel)
+                            message=damage.message, channel_records=per_channel, **index)
     return VerifyResult(ok=True, path=name, records=records, offset=None, message=None,
-                        channel_records=per_channel)
+                        channel_records=per_channel, **index)
+
+
+def repair_index(path: SessionPath) -> str:
+    """``verify --repair``: appends the per-channel index to a session of
+    several channels whose index is absent or stale (the reader's scan, in
+    C++, finds the records). Returns where it was appended, or "" when the
+    index was current or is not needed. Raises ``_core.SessionError`` for a
+    damaged file."""
+    state, detail = _core.repair_session_index(os.fspath(path))
+    return detail if detail.startswith("appended") else ""

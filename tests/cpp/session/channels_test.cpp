@@ -87,7 +87,7 @@ TEST(Channels, RoundTripThroughTheHeader) {
   const std::string path = write_two_channels(dir);
   SessionReader reader(path);
   const SessionHeader& header = reader.header();
-  EXPECT_EQ(header.version_minor, 2);
+  EXPECT_EQ(header.version_minor, 3);
   ASSERT_EQ(header.channels.size(), 2u);
   EXPECT_EQ(header.channels, two_channel_header().channels);
   // The port members are channel 0's: what a reader of format 1.1 replays.

@@ -220,7 +220,7 @@ void expect_reads_as_golden(const std::string& name, std::uint16_t version_minor
 
 }  // namespace
 
-TEST_P(GoldenFile, ReaderReturnsTheExpectedRecords) { expect_reads_as_golden(GetParam(), 2); }
+TEST_P(GoldenFile, ReaderReturnsTheExpectedRecords) { expect_reads_as_golden(GetParam(), 3); }
 
 // Files an older version of the format wrote: still read, no longer written.
 // Each is named v1_MINOR.
@@ -232,4 +232,4 @@ TEST_P(ReadOnlyGoldenFile, ReaderReturnsTheExpectedRecords) {
 INSTANTIATE_TEST_SUITE_P(Golden, GoldenFile,
                          ::testing::Values("all_kinds", "wire", "unknown_kind", "damaged",
                                            "v1_1_additions", "v1_2_channels"));
-INSTANTIATE_TEST_SUITE_P(Golden, ReadOnlyGoldenFile, ::testing::Values("v1_0", "v1_1"));
+INSTANTIATE_TEST_SUITE_P(Golden, ReadOnlyGoldenFile, ::testing::Values("v1_0", "v1_1", "v1_2"));

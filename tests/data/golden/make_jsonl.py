@@ -25,7 +25,12 @@ format change). Each .jsonl holds:
 
 v1_0.wtape/.jsonl is a file written by format version 1.0 (all_kinds as it
 was then): readers must still read it; the writer, now at 1.1, no longer
-writes it, so it is not regenerated (this script leaves it alone).
+writes it, so it is not regenerated (this script leaves it alone). So are
+v1_1 and v1_2 (v1_2_channels as format 1.2 wrote it: two channels, no
+index; a reader of one channel scans it). v2_0.wtape and v2_0_channels.wtape
+are all_kinds and v1_2_channels converted with `wiretape convert --compress
+zstd` (format 2.0): read, compared with those, never re-created byte for byte
+(zstd's output may change with its version).
 """
 import json
 import pathlib

@@ -32,7 +32,11 @@ def test_it_counts_per_channel_and_notes_the_first_stray(tmp_path):
 
 def test_damage_is_reported_not_raised(tmp_path):
     session = write_channel_session(tmp_path / "s.wtape", CHANNELS, gnss_records())
-    os.truncate(session.path, os.path.getsize(session.path) - 1)
+    # Into the last record, before the index (its trailer: own offset, mark, CRC).
+    with open(session.path, "rb") as file:
+        file.seek(-20, os.SEEK_END)
+        index_offset = int.from_bytes(file.read(8), "little")
+    os.truncate(session.path, index_offset - 1)
     check = _core.check_session_records(session.path)
     assert isinstance(check.damage, _core.SessionError)
     assert check.records == len(session.records) - 1

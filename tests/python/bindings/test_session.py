@@ -15,7 +15,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[3]
 GOLDEN = ROOT / "tests" / "data" / "golden"
 GOLDEN_NAMES = ["all_kinds", "wire", "unknown_kind", "damaged", "v1_1_additions"]
 # Written by an older format version: read, no longer written.
-READ_ONLY_GOLDEN = {"v1_0": 0, "v1_1": 1}
+READ_ONLY_GOLDEN = {"v1_0": 0, "v1_1": 1, "v1_2": 2}
 PROVENANCE = ("source_format", "source_files", "source_details", "device_address", "edits")
 
 
@@ -32,7 +32,7 @@ def test_golden_file_reads_as_its_jsonl_says(name):
     header, records, corrupt = load_jsonl(name)
     reader = _core.SessionReader(GOLDEN / f"{name}.wtape")
     got = reader.header
-    assert (got.version_major, got.version_minor) == (1, READ_ONLY_GOLDEN.get(name, 2))
+    assert (got.version_major, got.version_minor) == (1, READ_ONLY_GOLDEN.get(name, 3))
     # The golden .jsonl name the writer's members by attribute (make_jsonl.py).
     for key in ("port_options", "port_type", "start_utc", "wiretape_version", "host", "capture",
                 "metadata"):
@@ -122,7 +122,7 @@ def test_bad_arguments_are_clear_errors(tmp_path):
         (b"", "empty file", 0),
         (b"not a session at all, just text\n", "wrong magic", 0),
         (b"\x89WTAPE\r\n\x01\x00", "truncated header", 10),
-        (b"\x89WTAPE\r\n\x02\x00\x00\x00\x02\x00\x00\x00{}\x00\x00\x00\x00", "newer than this reader", 8),
+        (b"\x89WTAPE\r\n\x03\x00\x00\x00\x02\x00\x00\x00{}\x00\x00\x00\x00", "newer than this reader", 8),
     ],
 )
 def test_unusable_files_raise_session_error_with_offset(tmp_path, content, words, offset):
@@ -281,3 +281,17 @@ def test_flexiport_prefix_is_the_library_rule(tmp_path):
     assert _core.flexiport_prefix(str(tmp_path / "scan.logr")) == prefix
     assert _core.flexiport_prefix(str(tmp_path / "scan.logw")) == prefix
     assert _core.flexiport_prefix(str(tmp_path / "other.wtape")) is None
+
+
+@pytest.mark.parametrize("packed, plain", [("v2_0", "all_kinds"), ("v2_0_channels", "v1_2_channels")])
+def test_a_compressed_golden_file_reads_as_the_file_it_was_made_from(packed, plain):
+    """Format 2.0 (zstd chunks), made by ``convert --compress zstd``: read,
+    not re-created byte for byte (zstd's output may change with its version)."""
+    reader = _core.SessionReader(GOLDEN / f"{packed}.wtape")
+    assert (reader.header.version_major, reader.header.version_minor) == (2, 0)
+
+    def records(r):
+        return [(x.t_ns, x.kind, x.data, x.channel) for x in r]
+
+    assert records(reader) == records(_core.SessionReader(GOLDEN / f"{plain}.wtape"))
+    assert reader.damage is None

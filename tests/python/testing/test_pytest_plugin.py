@@ -425,3 +425,19 @@ def test_a_wiretape_config_that_is_not_a_dict_is_a_clear_error(pytester):
     result = pytester.runpytest()
     result.assert_outcomes(errors=1)
     result.stdout.fnmatch_lines(["*wiretape_config fixture must return a dict of settings, not str*"])
+
+
+def test_a_compressed_cassette_replays_as_the_plain_one(pytester):
+    """A cassette converted with ``--compress zstd`` (format 2.0) replays: the
+    plugin reads it through the one C++ reader."""
+    from wiretape import cli
+
+    pytester.makepyfile(test_echo=ECHO_TEST)
+    pytester.runpytest("--wiretape-record=once", LOOPBACK).assert_outcomes(passed=1)
+    cassette = cassette_of(pytester, "test_echo", "test_echo")
+    packed = cassette.with_name("packed.wtape")
+    assert cli.main(["convert", "-q", "--compress", "zstd", str(cassette), str(packed)]) == 0
+    packed.replace(cassette)
+    assert wiretape.SessionReader(str(cassette)).header.version_major == 2
+    result = pytester.runpytest()
+    result.assert_outcomes(passed=1)

@@ -281,5 +281,5 @@ def test_stats_reports_format_1_1_provenance():
     assert document["source"] == {"format": "pcap", "files": ["plc.pcapng"],
                                   "stream": "tcp.stream eq 0"}
     assert "source_format" not in document and "source_files" not in document
-    assert (document["version_major"], document["version_minor"]) == (1, 2)
+    assert (document["version_major"], document["version_minor"]) == (1, 3)
     assert result.rx_records == 1  # the record of channel 1 is not this port's
