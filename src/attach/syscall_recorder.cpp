@@ -229,7 +229,11 @@ void SyscallRecorder::on_read(const SyscallCall& call, std::int64_t result, std:
     return;  // EAGAIN, EINTR...: no data
   }
   if (result == 0) {
-    if (target_.device.kind != DeviceKind::udp && !at_end_) {
+    // A stream's end. A terminal's read returns 0 when VMIN=0 found nothing
+    // (gpsd polls so): no data, and no end (a hung-up pty reads EIO).
+    const bool stream_end = target_.device.kind != DeviceKind::udp &&
+                            target_.device.kind != DeviceKind::tty;
+    if (stream_end && !at_end_) {
       at_end_ = true;
       emit(RecordKind::device_lost, now,
            event_payload(RecordKind::device_lost,
