@@ -313,6 +313,26 @@ TEST(Attach, ACloseIsRecordedAndAReopenOrADupIsFollowed) {
   EXPECT_NE(opens[1].find("\"reopened\":true"), std::string::npos) << opens[1];
 }
 
+TEST(Attach, BytesMovedBySpliceAreAWarningInTheSummaryAndTheHeader) {
+  test::TempDir dir;
+  test::PtyPair pty;
+  Program program({"tty", pty.path});
+  ASSERT_EQ(program.line(), "ready");
+  const std::string file = dir.file("splice.wtape");
+  AttachSummary summary;
+  {
+    Attachment attachment(options_for(program.pid), file);
+    EXPECT_EQ(ask(pty, "splice\n", 10), "ok:splice\n");
+    attachment.stop();
+    summary = attachment.summary();
+  }
+  ASSERT_EQ(summary.warnings.size(), 1u);
+  EXPECT_NE(summary.warnings[0].find("splice"), std::string::npos) << summary.warnings[0];
+  const SessionHeader header = SessionReader(file).header();
+  ASSERT_TRUE(header.attached.has_value());
+  EXPECT_EQ(header.attached->warnings, summary.warnings);
+}
+
 TEST(Attach, AKilledTracerLeavesTheProgramRunning) {
   test::TempDir dir;
   test::PtyPair pty;

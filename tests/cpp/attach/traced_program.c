@@ -13,7 +13,7 @@
  * Commands (a read that starts with one): "baud N" (TCSETS2, any rate),
  * "dtr" (a DTR pulse: TIOCMBIC then TIOCMBIS), "break", "flush" (TCIOFLUSH),
  * "reopen" (close and open PATH again), "dup" (move to a dup of the
- * descriptor), "signals" (answers usr1=COUNT), "exit N", "exec" (executes
+ * descriptor), "splice" (a splice from it), "signals" (answers usr1=COUNT), "exit N", "exec" (executes
  * itself again with the same arguments).
  * It prints "ready" on stdout once serving (with its port for udp). */
 #define _GNU_SOURCE
@@ -138,6 +138,17 @@ static void serve(enum kind kind, int fd, const char* path) {
     } else if (starts(buffer, "reopen")) {
       close(fd);
       fd = open_tty(path);
+    } else if (starts(buffer, "splice")) {
+      /* Bytes moved in the kernel, which an attached recording cannot see:
+       * its warning is the point, whether the terminal splices or not. */
+      int pipe_fds[2];
+      if (pipe(pipe_fds) != 0) fail("pipe");
+      const int flags = fcntl(fd, F_GETFL);
+      fcntl(fd, F_SETFL, flags | O_NONBLOCK);  /* nothing to read: EAGAIN, not a wait */
+      (void)splice(fd, NULL, pipe_fds[1], NULL, 1, SPLICE_F_NONBLOCK);
+      fcntl(fd, F_SETFL, flags);
+      close(pipe_fds[0]);
+      close(pipe_fds[1]);
     } else if (starts(buffer, "dup")) {
       const int moved = dup(fd);
       if (moved < 0) fail("dup");
