@@ -82,4 +82,13 @@ TARGETS = {
     "record_4_channels_vs_4_single_cpu_ratio": (1.1, "lower",
                                                 "record of 4 channels CPU s/MB / 4 single-port "
                                                 "records of the same traffic"),
+    # --- attach (issue 39, docs/recording.md "Attaching to a running program") ---
+    "attach_syscall_ns": (None, "info", "ns per read/write system call, untraced"),
+    "attach_syscall_attached_ns": (None, "info", "same, while record --attach records it"),
+    "attach_syscall_strace_ns": (None, "info", "same, under strace -o /dev/null (the anchor)"),
+    "attach_attached_vs_strace_ratio": (1.5, "lower", "attached per-call time / strace's"),
+    "attach_attach_ms": (None, "info", "ms from attach() until every thread is traced"),
+    "attach_detach_ms": (None, "info", "ms from stop() until every thread is detached"),
+    "attach_relay_p99_ms": (None, "info", "ms late at p99, socat relaying 1 MB/s pty, untraced"),
+    "attach_relay_attached_p99_ms": (10, "lower", "same, socat attached"),
 }

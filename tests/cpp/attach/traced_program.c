@@ -9,6 +9,10 @@
  *                                  thread (writev, one line per byte on stdin)
  *   traced_program tcp HOST PORT   recv/send on a TCP connection
  *   traced_program udp HOST PORT   recvmsg/sendmsg on a connected UDP socket
+ *   traced_program bench N         (bench/attach_bench.py) prints "ready FD" (a pipe's
+ *                                  write end), then at each line on stdin writes
+ *                                  and reads one byte through the pipe N times and
+ *                                  prints the ns per system call
  *
  * Commands (a read that starts with one): "baud N" (TCSETS2, any rate),
  * "dtr" (a DTR pulse: TIOCMBIC then TIOCMBIS), "break", "flush" (TCIOFLUSH),
@@ -30,6 +34,7 @@
 #include <sys/ioctl.h>
 #include <sys/socket.h>
 #include <sys/uio.h>
+#include <time.h>
 #include <unistd.h>
 
 static volatile sig_atomic_t usr1_count = 0;
@@ -203,6 +208,26 @@ static void* writer(void* unused) {
   return NULL;
 }
 
+static void bench(long rounds) {
+  int fds[2];
+  if (pipe(fds) != 0) fail("pipe");
+  printf("ready %d\n", fds[1]);
+  fflush(stdout);
+  char line[16];
+  while (fgets(line, sizeof line, stdin) != NULL) {
+    struct timespec start, end;
+    char byte = 'x';
+    clock_gettime(CLOCK_MONOTONIC, &start);
+    for (long i = 0; i < rounds; ++i) {
+      if (write(fds[1], &byte, 1) != 1 || read(fds[0], &byte, 1) != 1) fail("bench");
+    }
+    clock_gettime(CLOCK_MONOTONIC, &end);
+    const double ns = (double)(end.tv_sec - start.tv_sec) * 1e9 + (double)(end.tv_nsec - start.tv_nsec);
+    printf("%.1f\n", ns / (2.0 * (double)rounds));
+    fflush(stdout);
+  }
+}
+
 int main(int argc, char** argv) {
   program_argv = argv;
   struct sigaction action = {0};
@@ -225,6 +250,8 @@ int main(int argc, char** argv) {
     printf("ready\n");
     fflush(stdout);
     pthread_join(threads[0], NULL);
+  } else if (argc == 3 && strcmp(argv[1], "bench") == 0) {
+    bench(atol(argv[2]));
   } else if (argc == 4 && (strcmp(argv[1], "tcp") == 0 || strcmp(argv[1], "udp") == 0)) {
     const int udp = strcmp(argv[1], "udp") == 0;
     const int fd = connect_to(udp ? SOCK_DGRAM : SOCK_STREAM, argv[2], argv[3]);
