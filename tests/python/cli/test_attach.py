@@ -404,3 +404,74 @@ def _listening(port):
         return True
     except OSError:
         return False
+
+
+# --- the C program's recordings replay to a fresh instance of it ---------------------------
+
+def replay_to_fresh_program(recording, argv_for, listen=None, pty_link=None):
+    """Serves `recording` and runs a fresh traced_program against it
+    (argv_for(address)); once the program wrote all the recorded tx, the
+    replay is stopped: its verdict."""
+    expected_tx = len(directions(recording)[1])
+    handle = bridge.serve_replay(str(recording), pty=pty_link, listen=listen, quiet=True)
+    program = None
+    try:
+        address = pty_link if pty_link else listen
+        program = subprocess.Popen([str(TRACED_PROGRAM), *argv_for(address)],
+                                   stdout=subprocess.PIPE, stdin=subprocess.DEVNULL)
+        assert program.stdout.readline().startswith(b"ready")
+        wait_until(lambda: handle.stats().bytes_to_device >= expected_tx,
+                   what="the fresh program's answers")
+    finally:
+        if program is not None:
+            program.kill()
+            program.wait()
+        handle.stop()
+        handle.wait()
+    result = handle.result()
+    assert result.ok, result.message
+    assert handle.stats().bytes_to_device == expected_tx
+
+
+def test_a_tty_programs_recording_replays_to_a_fresh_instance(traced_program, tmp_path):
+    program, master, path = traced_program
+    assert exchange(master, b"early\n") == b"ok:early\n"
+    output = tmp_path / "tty.wtape"
+    attachment = wiretape.attach(program.pid, str(output))
+    for request in (b"one\n", b"baud 57600\n", b"two\n"):
+        assert exchange(master, request) == b"ok:" + request
+    attachment.stop()
+    replay_to_fresh_program(output, lambda link: ["tty", link],
+                            pty_link=str(tmp_path / "ttyReplay"))
+
+
+def test_a_tcp_programs_recording_replays_to_a_fresh_instance(tmp_path):
+    if not TRACED_PROGRAM.exists():
+        pytest.skip("SKIPPED LOUDLY: build/bin/traced_program is not built (make)")
+    with socket.socket() as listener:
+        listener.bind(("127.0.0.1", 0))
+        listener.listen(1)
+        port = listener.getsockname()[1]
+        program = subprocess.Popen([str(TRACED_PROGRAM), "tcp", "127.0.0.1", str(port)],
+                                   stdout=subprocess.PIPE, stdin=subprocess.DEVNULL)
+        peer, _ = listener.accept()
+    output = tmp_path / "tcp.wtape"
+    try:
+        assert program.stdout.readline().startswith(b"ready")
+        peer.sendall(b"early")
+        assert peer.recv(100) == b"ok:early"
+        attachment = wiretape.attach(program.pid, str(output))
+        for request in (b"hello", b"world"):
+            peer.sendall(request)
+            assert peer.recv(100) == b"ok:" + request
+        attachment.stop()
+    finally:
+        peer.close()
+        program.kill()
+        program.wait()
+    assert wiretape.SessionReader(str(output)).header.port_type == "tcp"
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        free = probe.getsockname()[1]
+    replay_to_fresh_program(output, lambda address: ["tcp", "127.0.0.1", str(free)],
+                            listen=f"127.0.0.1:{free}")
