@@ -222,6 +222,9 @@ def test_sigterm_and_duration_end_the_recording_and_the_program_goes_on(traced_p
     assert_unharmed(program)
     assert directions(tmp_path / "term.wtape") == (b"one\n", b"ok:one\n")
     assert directions(tmp_path / "timed.wtape") == (b"three\n", b"ok:three\n")
+    shown = subprocess.run([sys.executable, "-m", "wiretape.cli", "show",
+                            str(tmp_path / "term.wtape")], capture_output=True, text=True)
+    assert f"attached     to process {program.pid} (traced_program)" in shown.stdout
 
 
 def test_kill_9_of_wiretape_keeps_what_was_flushed_and_the_program_running(traced_program,
