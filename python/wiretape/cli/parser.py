@@ -250,7 +250,7 @@ _EXAMPLES = {
   wiretape record --device /dev/ttyUSB0 --pty /tmp/ttyLidar -o scan.wtape
   wiretape record --device type=tcp,host=10.0.0.5,port=10940 --listen 127.0.0.1:10940 -o scan.wtape
   wiretape record --device /dev/ttyUSB0 -o scan.wtape -- ./driver --port /dev/ttyUSB0
-  wiretape record --attach 4242 --path /dev/ttyUSB0 -o driver.wtape   # a running driver
+  wiretape record --attach 4242 --path /dev/ttyUSB0 -o driver.wtape
   wiretape record -o nav.wtape --device gps=/dev/ttyUSB0 --pty gps=/tmp/gps \\
       --device rtk=type=tcp,host=caster,port=2101 --listen rtk=127.0.0.1:2101""",
     "replay": """examples:
