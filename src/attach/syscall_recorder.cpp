@@ -413,6 +413,18 @@ void SyscallRecorder::on_descriptors(const SyscallCall& call, std::int64_t resul
     if (result != -EBADF) untrack(first, now);
     return;
   }
+  if (n == SYS_close_range) {
+    constexpr std::uint64_t cloexec_only = 1u << 2;  // CLOSE_RANGE_CLOEXEC
+    if (result != 0 || (call.args[2] & cloexec_only) != 0) return;
+    const std::vector<int> held(fds_.begin(), fds_.end());
+    for (const int fd : held) {
+      if (static_cast<std::uint64_t>(fd) >= call.args[0] &&
+          static_cast<std::uint64_t>(fd) <= call.args[1]) {
+        untrack(fd, now);
+      }
+    }
+    return;
+  }
   if (result < 0) return;
   const int made = static_cast<int>(result);
   if (n == SYS_dup || (n == SYS_fcntl && (call.args[1] == F_DUPFD || call.args[1] == F_DUPFD_CLOEXEC))) {

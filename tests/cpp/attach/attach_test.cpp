@@ -19,6 +19,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "session/record_kinds.hpp"
@@ -262,6 +263,34 @@ TEST(Attach, ASignalSentWhileAttachedArrivesOnce) {
   expect_unharmed(program);
 }
 
+TEST(Attach, AStopAndAContinueWhileAttachedAreTheProgramsOwn) {
+  test::TempDir dir;
+  test::PtyPair pty;
+  Program program({"tty", pty.path});
+  ASSERT_EQ(program.line(), "ready");
+  const std::string file = dir.file("stopped.wtape");
+  {
+    Attachment attachment(options_for(program.pid), file);
+    EXPECT_EQ(ask(pty, "a\n", 5), "ok:a\n");
+    ASSERT_EQ(::kill(program.pid, SIGSTOP), 0);
+    // Stopped (its group stop, seen by the tracer and listened to).
+    const auto deadline = std::chrono::steady_clock::now() + kEventDeadline;
+    while (program.proc_status("State").rfind("t", 0) != 0 &&
+           program.proc_status("State").rfind("T", 0) != 0 &&
+           std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::yield();
+    }
+    EXPECT_TRUE(program.proc_status("State").rfind("t", 0) == 0 ||
+                program.proc_status("State").rfind("T", 0) == 0)
+        << program.proc_status("State");
+    ASSERT_EQ(::kill(program.pid, SIGCONT), 0);
+    EXPECT_EQ(ask(pty, "b\n", 5), "ok:b\n");
+  }
+  EXPECT_EQ(ask(pty, "c\n", 5), "ok:c\n");
+  expect_unharmed(program);
+  EXPECT_EQ(directions(file).rx, "a\nb\n");
+}
+
 TEST(Attach, TheProgramsExitEndsTheRecordingWithItsOwnStatus) {
   test::TempDir dir;
   test::PtyPair pty;
@@ -302,14 +331,15 @@ TEST(Attach, ACloseIsRecordedAndAReopenOrADupIsFollowed) {
     Attachment attachment(options_for(program.pid), file);
     EXPECT_EQ(ask(pty, "reopen\n", 10), "ok:reopen\n");
     EXPECT_EQ(ask(pty, "dup\n", 7), "ok:dup\n");
+    EXPECT_EQ(ask(pty, "closerange\n", 14), "ok:closerange\n");
     EXPECT_EQ(ask(pty, "last\n", 8), "ok:last\n");
   }
   const Directions d = directions(file);
-  EXPECT_EQ(d.rx, "reopen\ndup\nlast\n");
-  EXPECT_EQ(d.tx, "ok:reopen\nok:dup\nok:last\n");
-  EXPECT_EQ(event_texts(d, RecordKind::close).size(), 1u);
+  EXPECT_EQ(d.rx, "reopen\ndup\ncloserange\nlast\n");
+  EXPECT_EQ(d.tx, "ok:reopen\nok:dup\nok:closerange\nok:last\n");
+  EXPECT_EQ(event_texts(d, RecordKind::close).size(), 2u);
   const auto opens = event_texts(d, RecordKind::open);
-  ASSERT_EQ(opens.size(), 2u);  // the attach, and the reopen
+  ASSERT_EQ(opens.size(), 3u);  // the attach, and the two reopens
   EXPECT_NE(opens[1].find("\"reopened\":true"), std::string::npos) << opens[1];
 }
 

@@ -16,7 +16,7 @@
  *
  * Commands (a read that starts with one): "baud N" (TCSETS2, any rate),
  * "dtr" (a DTR pulse: TIOCMBIC then TIOCMBIS), "break", "flush" (TCIOFLUSH),
- * "reopen" (close and open PATH again), "dup" (move to a dup of the
+ * "reopen" (close and open PATH again), "closerange" (the same with close_range), "dup" (move to a dup of the
  * descriptor), "splice" (a splice from it), "signals" (answers usr1=COUNT), "exit N", "exec" (executes
  * itself again with the same arguments).
  * It prints "ready" on stdout once serving (with its port for udp). */
@@ -33,6 +33,7 @@
 #include <string.h>
 #include <sys/ioctl.h>
 #include <sys/socket.h>
+#include <sys/syscall.h>
 #include <sys/uio.h>
 #include <time.h>
 #include <unistd.h>
@@ -142,6 +143,10 @@ static void serve(enum kind kind, int fd, const char* path) {
       if (ioctl(fd, TCFLSH, TCIOFLUSH) != 0) fail("TCFLSH");
     } else if (starts(buffer, "reopen")) {
       close(fd);
+      fd = open_tty(path);
+    } else if (starts(buffer, "closerange")) {
+      /* closed by close_range (as glibc's closefrom), then opened again */
+      if (syscall(SYS_close_range, fd, fd, 0) != 0) fail("close_range");
       fd = open_tty(path);
     } else if (starts(buffer, "splice")) {
       /* Bytes moved in the kernel, which an attached recording cannot see:
