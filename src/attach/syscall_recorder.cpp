@@ -222,7 +222,8 @@ void SyscallRecorder::on_read(const SyscallCall& call, std::int64_t result, std:
         at_end_ = true;
         emit(RecordKind::device_lost, now,
              event_payload(RecordKind::device_lost,
-                           {{event_field::error, std::string(std::strerror(static_cast<int>(-result)))},
+                           {{event_field::error,
+                             system_error_message("read", static_cast<int>(-result))},
                             {event_field::error_number, std::int64_t{-result}}}));
       }
     }
