@@ -29,7 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_devices  # noqa: E402  (bench/bench_devices.py)
 from bench_devices import Skip  # noqa: E402
-from targets import TARGETS  # noqa: E402  (bench/targets.py: key -> (target, better, what))
+from report import print_table  # noqa: E402  (bench/report.py)
 
 MiB = 1 << 20
 GiB = 1 << 30
@@ -522,17 +522,26 @@ class Bench:
             for key in best["with"]) + (" (unrelated_close is a dup and a close: two "
                                           "wrapped calls)")
 
+    def script_figures(self, script: str, timeout: int, *args: str) -> dict:
+        """The JSON line bench/SCRIPT ARGS... WORKDIR prints last."""
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / script), *args,
+                               str(self.work)], capture_output=True, text=True,
+                              timeout=timeout, env=self.env)
+        if proc.returncode != 0:
+            raise Skip(f"{script}: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        return json.loads(proc.stdout.strip().splitlines()[-1])
+
+    def attach(self) -> None:
+        """What attaching to a running program costs (bench/attach_bench.py)."""
+        for key, value in self.script_figures("attach_bench.py", 900, str(self.build)).items():
+            self.results["attach_" + key] = value
+
     # --- show ----------------------------------------------------------------
     def show(self) -> None:
         """`wiretape show` of 10 MB sessions with colour (bench/show_bench.py):
         the whole command line run (best of three), and show's loop against
         its loop before issue 26."""
-        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "show_bench.py"),
-                               str(self.work)], capture_output=True, text=True,
-                              timeout=600, env=self.env)
-        if proc.returncode != 0:
-            raise Skip("show_bench.py: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
-        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        figures = self.script_figures("show_bench.py", 600)
         self.results["show_sensor_s"] = figures["sensor_show_s"]
         self.results["show_bulk_s"] = figures["bulk_show_s"]
         self.results["show_vs_anchor_ratio"] = round(
@@ -571,12 +580,7 @@ class Bench:
     def diff(self) -> None:
         """`wiretape diff` of two long sessions (bench/diff_bench.py): the
         exchanges aligned against the comparison by position before issue 38."""
-        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "diff_bench.py"),
-                               str(self.work)], capture_output=True, text=True,
-                              timeout=900, env=self.env)
-        if proc.returncode != 0:
-            raise Skip("diff_bench.py: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
-        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        figures = self.script_figures("diff_bench.py", 900)
         self.results["diff_aligned_s"] = figures["aligned_s"]
         self.results["diff_worst_s"] = figures["worst_s"]
         self.results["diff_aligned_vs_anchor_ratio"] = round(
@@ -616,7 +620,7 @@ class Bench:
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
            "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "speed", "view", "show", "diff",
-           "shim", "channels", "record_channels", "rfc2217", "compress"]
+           "shim", "channels", "record_channels", "rfc2217", "compress", "attach"]
 
 
 def machine_note() -> dict:
@@ -642,47 +646,14 @@ def machine_note() -> dict:
 def build_programs(build: Path) -> None:
     subprocess.run(["cmake", "-S", str(ROOT), "-B", str(build), "-DWIRETAPE_BENCH=ON"],
                    check=True, stdout=subprocess.DEVNULL)
-    targets = ["wiretape_bench_tool", "wiretape_relay_bench", "wiretape_shim_bench"]
+    targets = ["wiretape_bench_tool", "wiretape_relay_bench", "wiretape_shim_bench",
+               "traced_program"]
     # wiretape_bench exists only when Google Benchmark was found.
     listing = subprocess.run(["cmake", "--build", str(build), "--target", "help"],
                              capture_output=True, text=True).stdout
     if "wiretape_bench:" in listing or "wiretape_bench " in listing:
         targets.append("wiretape_bench")
     subprocess.run(["cmake", "--build", str(build), "--target", *targets], check=True)
-
-
-def print_table(results: dict, notes: dict, skipped: dict) -> None:
-    rows = []
-    for key, (target, better, what) in TARGETS.items():
-        value = results.get(key)
-        if value is None:
-            verdict = "skipped"
-        elif target is None or better == "info":
-            verdict = ""
-        elif better == "higher":
-            verdict = "ok" if value >= target else "MISSED"
-        else:
-            verdict = "ok" if value <= target else "MISSED"
-        goal = "" if target is None else (f"≥ {target}" if better == "higher" else f"≤ {target}")
-        rows.append((key, "-" if value is None else f"{value:g}", goal, verdict, what))
-    try:
-        from rich.console import Console
-        from rich.table import Table
-    except ImportError:
-        for row in rows:
-            print("  ".join(f"{cell:<36}" if i == 0 else f"{cell:<10}" for i, cell in enumerate(row)))
-    else:
-        table = Table(title="wiretape benchmarks")
-        for column in ("figure", "value", "target", "", "what"):
-            table.add_column(column)
-        for key, value, goal, verdict, what in rows:
-            style = {"ok": "green", "MISSED": "red", "skipped": "yellow"}.get(verdict, "")
-            table.add_row(key, value, goal, f"[{style}]{verdict}[/]" if style else verdict, what)
-        Console(width=max(130, shutil.get_terminal_size().columns)).print(table)
-    for key, note in notes.items():
-        print(f"  {key}: {note}")
-    for name, reason in skipped.items():
-        print(f"  skipped {name}: {reason}")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -96,4 +96,13 @@ TARGETS = {
     "compressed_replay_vs_plain_ratio": (0.5, "higher",
                                          "timing=none replay throughput, compressed / plain"),
     "compressed_write_MBps": (10, "higher", "MB/s the writer compresses (10 MB/s of traffic)"),
+    # --- attach (issue 39, docs/recording.md "Attaching to a running program") ---
+    "attach_syscall_ns": (None, "info", "ns per read/write system call, untraced"),
+    "attach_syscall_attached_ns": (None, "info", "same, while record --attach records it"),
+    "attach_syscall_strace_ns": (None, "info", "same, under strace -o /dev/null (the anchor)"),
+    "attach_attached_vs_strace_ratio": (1.5, "lower", "attached per-call time / strace's"),
+    "attach_attach_ms": (None, "info", "ms from attach() until every thread is traced"),
+    "attach_detach_ms": (None, "info", "ms from stop() until every thread is detached"),
+    "attach_relay_p99_ms": (None, "info", "ms late at p99, socat relaying 1 MB/s pty, untraced"),
+    "attach_relay_attached_p99_ms": (10, "lower", "same, socat attached"),
 }

@@ -82,6 +82,22 @@ struct Channel {
 // or std::nullopt when it can.
 std::optional<std::string> channel_name_problem(std::string_view name);
 
+// A recording made by attaching to a running program (`record --attach`,
+// DESIGN §26): which program, when, and what of it was followed.
+struct AttachedProgram {
+  std::int64_t pid = 0;
+  std::string command;  // its command name (/proc/PID/comm)
+  std::string utc;      // when the attach began, ISO 8601 UTC like start_utc
+  std::vector<int> descriptors;  // the device's descriptors at the attach
+  std::string device;            // what they are: /dev/pts/3, socket:[1234]
+  // What the recording cannot hold (bytes moved by splice, sendfile,
+  // io_uring...), said rather than left a silent gap.
+  std::vector<std::string> warnings;
+
+  bool operator==(const AttachedProgram& other) const;
+  bool operator!=(const AttachedProgram& other) const { return !(*this == other); }
+};
+
 // A session's header: what was recorded, where, when and how. The one type
 // for reading (SessionReader::header) and writing (SessionWriter): what a
 // writer is given is what the file says, nothing is filled in behind it.
@@ -118,6 +134,8 @@ struct SessionHeader {
   // from channels[0], so that a reader of format 1.1 (which skips records of
   // other channels) reads the session as its channel 0.
   std::vector<Channel> channels;
+  // Set when the session was recorded by attaching to a running program.
+  std::optional<AttachedProgram> attached;
 
   // Every channel of the session: `channels`, or the one unnamed channel 0
   // that the port members describe. Never empty.
@@ -221,6 +239,10 @@ class SessionWriter {
   // written. A channel named "" is refused: the unnamed channel is the one
   // of a file without `channels`.
   std::uint16_t add_channel(Channel channel);
+  // Rewrites the header in place with `updated`'s members (its channels
+  // stay the ones added), as add_channel() does: an attached recording's
+  // warnings are added so. Throws as add_channel().
+  void rewrite_header(SessionHeader updated);
   // Hands everything buffered to the OS now (and fsyncs if asked).
   void flush();
   // Flushes and closes; throws PortError if the last data could not be
@@ -242,6 +264,8 @@ class SessionWriter {
   std::uint64_t records_written() const;
 
  private:
+  std::string rewrite_in_place(const SessionHeader& updated, const std::string& what,
+                               const std::string& fit, const std::string& why);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

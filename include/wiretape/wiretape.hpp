@@ -2,6 +2,7 @@
 // wiretape/testing.hpp are included on their own, by tests).
 #pragma once
 
+#include "wiretape/attach.hpp"
 #include "wiretape/bridge.hpp"
 #include "wiretape/device_identity.hpp"
 #include "wiretape/errors.hpp"

@@ -9,7 +9,9 @@ The C++ core (``wiretape._core``) does the work; this package re-exports it:
 * session files: :class:`SessionReader`, :class:`SessionWriter`, :class:`SessionHeader`,
   :class:`Channel` (one port of a session of several), :class:`Record`, and the
   flexiport export :func:`export_flexiport`;
-* :class:`Recorder` -- several ports recorded into one session file.
+* :class:`Recorder` -- several ports recorded into one session file;
+* :func:`attach` -- a running program's session recorded through ptrace
+  (an :class:`Attachment`, ended with its :class:`AttachSummary`).
 
 The commands that read session files are in :mod:`wiretape.tools`, the
 exports in :mod:`wiretape.exports`, the pytest plugin in
@@ -20,6 +22,8 @@ exports in :mod:`wiretape.exports`, the pytest plugin in
 """
 
 from ._core import (
+    Attachment,
+    AttachSummary,
     Channel,
     OptionError,
     Port,
@@ -33,6 +37,7 @@ from ._core import (
     SessionReader,
     SessionWriter,
     __version__,
+    attach,
     export_flexiport,
     open_port,
 )
@@ -53,6 +58,9 @@ __all__ = [
     "SessionWriter",
     "Record",
     "Recorder",
+    "attach",
+    "Attachment",
+    "AttachSummary",
     "export_flexiport",
 ]
 

@@ -494,6 +494,15 @@ class SessionHeader:
     @device_identity.setter
     def device_identity(self, arg: dict, /) -> None: ...
 
+    @property
+    def attached(self, /) -> dict[str, object] | None:
+        """
+        a recording made by attaching to a running program (record --attach): a dict of pid, command, utc, descriptors, device and warnings; None otherwise
+        """
+
+    @attached.setter
+    def attached(self, value: dict[str, object] | None, /) -> None: ...
+
     def clear_device_serial(self) -> None:
         """
         Clears the device identity's serial number and its part of the by-id name (what edit --redact does).
@@ -879,6 +888,74 @@ class Bridge:
     def device_description(self) -> str: ...
 
     def messages(self) -> list[str]: ...
+
+class AttachSummary:
+    """How an attached recording ended (read-only)."""
+
+    @property
+    def ended_by(self) -> str:
+        """
+        stopped (stop(), Ctrl-C, a duration), exited (the program ended) or execed (it executed another program, which is not followed)
+        """
+
+    @property
+    def exit_status(self) -> int | None:
+        """the program's exit status as waitpid reports it, when it exited"""
+
+    @property
+    def rx_bytes(self) -> int:
+        """bytes the program read from the device"""
+
+    @property
+    def tx_bytes(self) -> int:
+        """bytes the program wrote to the device"""
+
+    @property
+    def records(self) -> int:
+        """records written"""
+
+    @property
+    def warnings(self) -> list[str]:
+        """what the recording cannot hold (splice, sendfile, io_uring...)"""
+
+class Attachment:
+    """
+    Records a running program's session with its device through ptrace into an ordinary session file, and lets it go as it was (docs/recording.md, "Attaching to a running program"). A refusal raises OptionError naming why; nothing is written.
+    """
+
+    def __init__(self, pid: int, output: str, path: str = '', fd: int | None = None, meta: Mapping[str, str] = {}, flush_ms: int = 100) -> None:
+        """
+        Attaches to process PID and records the device (PATH, matched by stat; descriptor FD; or its only tty or socket) into OUTPUT.
+        """
+
+    def stop(self) -> None:
+        """Ends the recording: every thread is detached (returns once done)."""
+
+    def wait(self, timeout: object | None = None) -> bool:
+        """
+        True once the recording ended (stop(), the program's exit or exec); False if `timeout` (seconds) expired first.
+        """
+
+    @property
+    def finished(self) -> bool: ...
+
+    def summary(self) -> AttachSummary:
+        """
+        An AttachSummary; raises the write failure that ended the recording early.
+        """
+
+    @property
+    def header(self) -> SessionHeader:
+        """The session header as written."""
+
+    @property
+    def path(self) -> str:
+        """The session file."""
+
+def attach(pid: int, output: str, path: str = '', fd: int | None = None, meta: Mapping[str, str] = {}, flush_ms: int = 100) -> Attachment:
+    """
+    Attaches to running process PID and records its session with the device (PATH, matched by stat; descriptor FD; or its only tty or socket) into OUTPUT, an ordinary session file; returns the Attachment (stop() it, or wait() for the program's end). A refusal raises OptionError saying why (no such process, permission, kernel.yama.ptrace_scope, already traced, a descriptor or path it does not hold); nothing is written then.
+    """
 
 class Profile:
     """

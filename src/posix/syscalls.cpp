@@ -2,6 +2,8 @@
 
 #include <sys/file.h>
 #include <sys/ioctl.h>
+#include <sys/ptrace.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -118,6 +120,18 @@ Table make_real() {
   t.symlink = [](const char* target, const char* link) { return ::symlink(target, link); };
   t.readlink = [](const char* path, char* buffer, size_t size) {
     return ::readlink(path, buffer, size);
+  };
+  t.ptrace = [](int request, pid_t tid, void* address, void* data) {
+    return ::ptrace(static_cast<__ptrace_request>(request), tid, address, data);
+  };
+  t.waitpid = [](pid_t tid, int* status, int options) { return ::waitpid(tid, status, options); };
+  t.process_vm_readv = [](pid_t pid, const iovec* local, unsigned long local_count,
+                          const iovec* remote, unsigned long remote_count) {
+    return ::process_vm_readv(pid, local, local_count, remote, remote_count, 0);
+  };
+  t.process_vm_writev = [](pid_t pid, const iovec* local, unsigned long local_count,
+                           const iovec* remote, unsigned long remote_count) {
+    return ::process_vm_writev(pid, local, local_count, remote, remote_count, 0);
   };
   return t;
 }

@@ -14,6 +14,7 @@
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/types.h>
+#include <sys/uio.h>
 #include <termios.h>
 
 #include <functional>
@@ -87,6 +88,17 @@ struct Table {
   // appears is when a client may open the terminal.
   std::function<int(const char* target, const char* link)> symlink;
   std::function<ssize_t(const char* path, char* buffer, size_t size)> readlink;
+  // Attaching to a running program (src/attach, DESIGN §26). ptrace's
+  // arguments as the raw system call takes them; the result and errno as
+  // libc gives them (PTRACE_PEEK* are not used).
+  std::function<long(int request, pid_t tid, void* address, void* data)> ptrace;
+  std::function<pid_t(pid_t tid, int* status, int options)> waitpid;
+  std::function<ssize_t(pid_t pid, const iovec* local, unsigned long local_count,
+                        const iovec* remote, unsigned long remote_count)>
+      process_vm_readv;
+  std::function<ssize_t(pid_t pid, const iovec* local, unsigned long local_count,
+                        const iovec* remote, unsigned long remote_count)>
+      process_vm_writev;
 };
 
 // The real libc calls.
@@ -218,6 +230,21 @@ inline int symlink(const char* target, const char* link) {
 }
 inline ssize_t readlink(const char* path, char* buffer, size_t size) {
   return current().readlink(path, buffer, size);
+}
+
+inline long ptrace(int request, pid_t tid, void* address = nullptr, void* data = nullptr) {
+  return current().ptrace(request, tid, address, data);
+}
+inline pid_t waitpid(pid_t tid, int* status, int options) {
+  return current().waitpid(tid, status, options);
+}
+inline ssize_t process_vm_readv(pid_t pid, const iovec* local, unsigned long local_count,
+                                const iovec* remote, unsigned long remote_count) {
+  return current().process_vm_readv(pid, local, local_count, remote, remote_count);
+}
+inline ssize_t process_vm_writev(pid_t pid, const iovec* local, unsigned long local_count,
+                                 const iovec* remote, unsigned long remote_count) {
+  return current().process_vm_writev(pid, local, local_count, remote, remote_count);
 }
 
 // Closes a descriptor once, keeping errno (for clean-up paths).

@@ -138,6 +138,46 @@ Channel channel_from_python(nb::handle value) {
   return channel;
 }
 
+// An attached recording's program (DESIGN §26) as a dict of the header
+// JSON's member names, or None.
+nb::object attached_dict(const std::optional<AttachedProgram>& attached) {
+  if (!attached) return nb::none();
+  namespace field = detail::header_field;
+  nb::dict out;
+  out[field::attached_pid] = attached->pid;
+  out[field::attached_command] = attached->command;
+  out[field::attached_utc] = attached->utc;
+  out[field::attached_descriptors] = attached->descriptors;
+  out[field::attached_device] = attached->device;
+  out[field::attached_warnings] = attached->warnings;
+  return out;
+}
+
+std::optional<AttachedProgram> attached_from_python(nb::handle value) {
+  if (value.is_none()) return std::nullopt;
+  if (!nb::isinstance<nb::dict>(value)) {
+    throw nb::type_error("SessionHeader member 'attached' must be a dict or None");
+  }
+  namespace field = detail::header_field;
+  nb::dict members = nb::borrow<nb::dict>(value);
+  AttachedProgram attached;
+  const auto member = [&](const char* name) -> nb::object {
+    return members.contains(name) ? nb::object(members[name]) : nb::object(nb::none());
+  };
+  try {
+    if (!member(field::attached_pid).is_none()) attached.pid = nb::cast<std::int64_t>(member(field::attached_pid));
+    if (!member(field::attached_command).is_none()) attached.command = nb::cast<std::string>(member(field::attached_command));
+    if (!member(field::attached_utc).is_none()) attached.utc = nb::cast<std::string>(member(field::attached_utc));
+    if (!member(field::attached_descriptors).is_none()) attached.descriptors = nb::cast<std::vector<int>>(member(field::attached_descriptors));
+    if (!member(field::attached_device).is_none()) attached.device = nb::cast<std::string>(member(field::attached_device));
+    if (!member(field::attached_warnings).is_none()) attached.warnings = nb::cast<std::vector<std::string>>(member(field::attached_warnings));
+  } catch (const nb::cast_error&) {
+    throw nb::type_error("SessionHeader member 'attached' holds pid (int), command, utc, "
+                         "device (str), descriptors (list of int) and warnings (list of str)");
+  }
+  return attached;
+}
+
 // The header's members by their attribute names (SessionHeader(**members)
 // takes them): what == compares and repr shows. Not a layout for output:
 // that is the file's JSON (to_dict).
@@ -169,6 +209,7 @@ nb::dict header_members(const SessionHeader& header) {
   nb::list channels;
   for (const Channel& channel : header.channels) channels.append(channel_dict(channel));
   out["channels"] = channels;
+  out["attached"] = attached_dict(header.attached);
   return out;
 }
 
@@ -235,7 +276,7 @@ void set_header_members(nb::handle header, nb::handle fields) {
                                 .c_str());
     }
     if (value.is_none()) continue;
-    if (name == "channels") {  // its setter checks each channel
+    if (name == "channels" || name == "attached") {  // their setters check them
       nb::setattr(header, key, value);
       continue;
     }
@@ -306,6 +347,7 @@ constexpr const char* layout_members[] = {
     detail::header_field::metadata,     detail::header_field::source,
     detail::header_field::device_address, detail::header_field::edits,
     detail::header_field::device_identity, detail::header_field::channels,
+    detail::header_field::attached,
 };
 
 // Adds to `members` the attributes the header JSON's `source` object holds:
@@ -508,6 +550,14 @@ void bind_header(nb::module_& m) {
           "kernel_name, subsystem, vendor_id, product_id, serial_number, manufacturer, "
           "product, interface, location, by_id ('' when not known); {} when the "
           "recording has none (a pty, a network device)")
+      .def_prop_rw(
+          "attached",
+          [](const SessionHeader& h) { return attached_dict(h.attached); },
+          [](SessionHeader& h, nb::handle value) { h.attached = attached_from_python(value); },
+          nb::for_getter(nb::sig("def attached(self, /) -> dict[str, object] | None")),
+          nb::for_setter(nb::sig("def attached(self, value: dict[str, object] | None, /) -> None")),
+          "a recording made by attaching to a running program (record --attach): a dict of "
+          "pid, command, utc, descriptors, device and warnings; None otherwise")
       .def(
           "clear_device_serial",
           [](SessionHeader& h) {

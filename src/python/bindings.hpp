@@ -13,6 +13,7 @@ void bind_port(nanobind::module_& m);     // bind_port.cpp
 void bind_session(nanobind::module_& m);  // bind_session.cpp: reader, writer, recorder
 void bind_header(nanobind::module_& m);   // bind_header.cpp: SessionHeader, Channel
 void bind_bridge(nanobind::module_& m);   // bind_bridge.cpp: proxy, serve, virtual devices
+void bind_attach(nanobind::module_& m);   // bind_attach.cpp: recording a running program
 void bind_profile(nanobind::module_& m);  // bind_profile.cpp: protocol profiles
 void bind_util(nanobind::module_& m);     // bind_util.cpp: hex_ascii, escape_bytes
 void bind_exchanges(nanobind::module_& m);  // bind_exchanges.cpp: session_exchanges

@@ -21,6 +21,7 @@ NB_MODULE(_core, m) {
   wiretape::python::bind_header(m);
   wiretape::python::bind_session(m);
   wiretape::python::bind_bridge(m);
+  wiretape::python::bind_attach(m);
   wiretape::python::bind_profile(m);
   wiretape::python::bind_util(m);
   wiretape::python::bind_exchanges(m);

@@ -276,6 +276,65 @@ std::string channels_json(const std::vector<Channel>& channels) {
   return out + "]";
 }
 
+std::string string_array(const std::vector<std::string>& items) {
+  std::string out = "[";
+  for (const auto& item : items) {
+    if (out.size() > 1) out += ",";
+    json::append_string(out, item);
+  }
+  return out + "]";
+}
+
+std::string attached_json(const AttachedProgram& attached) {
+  namespace field = header_field;
+  require_utf8(std::string(field::attached) + "." + field::attached_command, attached.command);
+  require_utf8(std::string(field::attached) + "." + field::attached_device, attached.device);
+  for (const auto& warning : attached.warnings) {
+    require_utf8(std::string(field::attached) + "." + field::attached_warnings, warning);
+  }
+  if (const auto problem = start_utc_problem(attached.utc)) {
+    throw OptionError(field::attached, "the session header's attached." + *problem);
+  }
+  std::string descriptors = "[";
+  for (const int fd : attached.descriptors) {
+    if (descriptors.size() > 1) descriptors += ",";
+    descriptors += std::to_string(fd);
+  }
+  json::ObjectWriter object;
+  object.add(field::attached_pid, attached.pid)
+      .add(field::attached_command, attached.command)
+      .add(field::attached_utc, attached.utc)
+      .add_raw(field::attached_descriptors, descriptors + "]")
+      .add(field::attached_device, attached.device)
+      .add_raw(field::attached_warnings, string_array(attached.warnings));
+  return object.str();
+}
+
+std::optional<AttachedProgram> read_attached(const json::Value& root) {
+  namespace field = header_field;
+  const json::Value* member = root.find(field::attached);
+  if (member == nullptr || !member->is_object()) return std::nullopt;
+  AttachedProgram attached;
+  if (const json::Value* pid = member->find(field::attached_pid);
+      pid != nullptr && pid->type == json::Value::Type::number) {
+    attached.pid = static_cast<std::int64_t>(pid->number);
+  }
+  attached.command = member->string_member(field::attached_command).value_or("");
+  attached.utc = member->string_member(field::attached_utc).value_or("");
+  attached.device = member->string_member(field::attached_device).value_or("");
+  if (const json::Value* fds = member->find(field::attached_descriptors)) {
+    for (const json::Value& item : fds->items) {
+      if (item.type == json::Value::Type::number) attached.descriptors.push_back(static_cast<int>(item.number));
+    }
+  }
+  if (const json::Value* warnings = member->find(field::attached_warnings)) {
+    for (const json::Value& item : warnings->items) {
+      if (item.is_string()) attached.warnings.push_back(item.text);
+    }
+  }
+  return attached;
+}
+
 }  // namespace
 
 std::string header_json(const SessionHeader& given) {
@@ -359,6 +418,7 @@ std::string header_json(const SessionHeader& given) {
     object.add_raw(field::device_identity, device_identity_json(*header.device_identity));
   }
   if (!header.channels.empty()) object.add_raw(field::channels, channels_json(header.channels));
+  if (header.attached) object.add_raw(field::attached, attached_json(*header.attached));
   return object.str();
 }
 
@@ -494,6 +554,7 @@ void parse_header_json(const std::string& text, const std::string& path,
   // Like provenance: members of another type are ignored.
   header.device_identity = read_device_identity(root);
   header.channels = read_channels(root, path, offset);
+  header.attached = read_attached(root);
   header.user_metadata.clear();
   if (const json::Value* metadata = root.find(field::metadata);
       metadata != nullptr && metadata->is_object()) {
@@ -572,6 +633,12 @@ std::optional<Channel> SessionHeader::find_channel(std::string_view name) const 
     if (channel.name == name) return channel;
   }
   return std::nullopt;
+}
+
+bool AttachedProgram::operator==(const AttachedProgram& other) const {
+  return pid == other.pid && command == other.command && utc == other.utc &&
+         descriptors == other.descriptors && device == other.device &&
+         warnings == other.warnings;
 }
 
 bool Channel::operator==(const Channel& other) const {

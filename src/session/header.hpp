@@ -34,6 +34,15 @@ inline constexpr char device_identity[] = "device_identity";
 inline constexpr char channels[] = "channels";
 inline constexpr char channel_id[] = "id";
 inline constexpr char channel_name[] = "name";
+// A recording made by attaching to a running program (DESIGN §26): an
+// object of these members.
+inline constexpr char attached[] = "attached";
+inline constexpr char attached_pid[] = "pid";
+inline constexpr char attached_command[] = "command";
+inline constexpr char attached_utc[] = "utc";
+inline constexpr char attached_descriptors[] = "descriptors";
+inline constexpr char attached_device[] = "device";
+inline constexpr char attached_warnings[] = "warnings";
 }  // namespace header_field
 
 // The most channels a session has: ids are u16, and a header lists them all.

@@ -431,6 +431,58 @@ void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view 
   }
 }
 
+// Writes `updated`'s JSON over the header's (its fixed part never changes),
+// padded to the room reserved at construction. The caller holds io_mutex.
+std::string SessionWriter::rewrite_in_place(const SessionHeader& updated, const std::string& what,
+                                            const std::string& fit, const std::string& why) {
+  const std::string json = detail::header_json(updated);  // OptionError names the member
+  if (json.size() > impl_->header_json_room) {
+    throw SessionError(impl_->path + ": the header has no room " + what +
+                           ": its JSON would take " + std::to_string(json.size()) +
+                           " bytes of the " + std::to_string(impl_->header_json_room) +
+                           " reserved when the file was created, " + fit +
+                           " (reserve more header room)",
+                       detail::file_header_fixed_size);
+  }
+  std::string bytes = file_header_bytes(updated, json, impl_->header_json_room);
+  const std::size_t covered = bytes.size() - detail::crc_size;
+  detail::put_u32le(&bytes[covered], crc32c(bytes.data(), covered));
+  // The fixed part never changes: only the JSON and its CRC are rewritten.
+  const std::size_t at = detail::file_header_fixed_size;
+  std::size_t written = 0;
+  while (written < bytes.size() - at) {
+    const ssize_t n = sys::pwrite(impl_->fd, bytes.data() + at + written,
+                               bytes.size() - at - written, static_cast<off_t>(at + written));
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      const int error = n < 0 ? errno : ENOSPC;
+      throw PortError(error, impl_->path + ": cannot rewrite the session header " + why);
+    }
+    written += static_cast<std::size_t>(n);
+  }
+  if (impl_->flush.fsync) (void)sys::fsync(impl_->fd);
+  return json;
+}
+
+void SessionWriter::rewrite_header(SessionHeader updated) {
+  std::lock_guard<std::mutex> io(impl_->io_mutex);
+  SessionHeader& header = impl_->header;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    if (impl_->failure) throw *impl_->failure;
+    if (impl_->closed) {
+      throw PortError(EBADF, impl_->path + ": the session writer is closed; its header was "
+                                           "not rewritten");
+    }
+  }
+  updated.channels = header.channels;
+  updated.version_major = header.version_major;
+  updated.version_minor = header.version_minor;
+  updated.metadata_json = rewrite_in_place(updated, "for its update", "which held the header as first written",
+                                           "in place");
+  header = std::move(updated);
+}
+
 std::uint16_t SessionWriter::add_channel(Channel channel) {
   if (const auto problem = channel_name_problem(channel.name)) {
     throw OptionError("name", impl_->path + ": cannot add channel \"" + channel.name +
@@ -455,35 +507,11 @@ std::uint16_t SessionWriter::add_channel(Channel channel) {
   SessionHeader updated = header;
   channel.id = static_cast<std::uint16_t>(header.channels.size());
   updated.channels.push_back(channel);
-  const std::string json = detail::header_json(updated);  // OptionError names the member
-  if (json.size() > impl_->header_json_room) {
-    const std::size_t count = header.channels.size();
-    throw SessionError(impl_->path + ": the header has no room for channel \"" + channel.name +
-                           "\": its JSON would take " + std::to_string(json.size()) +
-                           " bytes of the " + std::to_string(impl_->header_json_room) +
-                           " reserved when the file was created, which fit " +
-                           std::to_string(count) + (count == 1 ? " channel" : " channels") +
-                           " (reserve more header room)",
-                       detail::file_header_fixed_size);
-  }
-  std::string bytes = file_header_bytes(header, json, impl_->header_json_room);
-  const std::size_t covered = bytes.size() - detail::crc_size;
-  detail::put_u32le(&bytes[covered], crc32c(bytes.data(), covered));
-  // The fixed part never changes: only the JSON and its CRC are rewritten.
-  const std::size_t at = detail::file_header_fixed_size;
-  std::size_t written = 0;
-  while (written < bytes.size() - at) {
-    const ssize_t n = sys::pwrite(impl_->fd, bytes.data() + at + written,
-                               bytes.size() - at - written, static_cast<off_t>(at + written));
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) {
-      const int error = n < 0 ? errno : ENOSPC;
-      throw PortError(error, impl_->path + ": cannot rewrite the session header to add "
-                                 "channel \"" + channel.name + "\"");
-    }
-    written += static_cast<std::size_t>(n);
-  }
-  if (impl_->flush.fsync) (void)sys::fsync(impl_->fd);
+  const std::size_t count = header.channels.size();
+  const std::string json = rewrite_in_place(
+      updated, "for channel \"" + channel.name + "\"",
+      "which fit " + std::to_string(count) + (count == 1 ? " channel" : " channels"),
+      "to add channel \"" + channel.name + "\"");
   header.channels.push_back(std::move(channel));
   header.metadata_json = json;
   return header.channels.back().id;

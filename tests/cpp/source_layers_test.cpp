@@ -3,7 +3,7 @@
 // nothing outside src/posix/ calls the operating system.
 //
 // The layers, lowest first:
-//   util ← core ← posix ← session ← ports ← replay ← open ← bridge ← python
+//   util ← core ← posix ← session ← ports ← replay ← open ← bridge, attach ← python
 // core and posix are one level in the design; of the two, posix uses core's
 // public API (Port, Options, errors: ports are Ports) and core uses nothing
 // of posix, so core is held below posix. A public header in
@@ -27,13 +27,13 @@ const fs::path source_root = WIRETAPE_SOURCE_DIR;
 // The level of each folder of src/, and of each public header.
 const std::map<std::string, int> folder_levels = {
     {"util", 0},   {"core", 1},  {"posix", 2}, {"session", 3}, {"ports", 4},
-    {"replay", 5}, {"open", 6},  {"bridge", 7}, {"python", 8},
+    {"replay", 5}, {"open", 6},  {"bridge", 7}, {"attach", 7}, {"python", 8},
 };
 const std::map<std::string, int> public_header_levels = {
     {"timeout.hpp", 1},        {"errors.hpp", 1},  {"port.hpp", 1},
     {"options.hpp", 1},        {"version.hpp", 1}, {"device_identity.hpp", 1},
     {"fuzzing.hpp", 6},       {"session.hpp", 3},        {"recorder.hpp", 3}, {"profile.hpp", 5},
-    {"bridge.hpp", 7},         {"cassette_names.hpp", 8}, {"testing.hpp", 8},
+    {"bridge.hpp", 7},         {"attach.hpp", 7},  {"cassette_names.hpp", 8}, {"testing.hpp", 8},
     {"wiretape.hpp", 8},
 };
 // The shim is a C library loaded into other programs: it includes nothing

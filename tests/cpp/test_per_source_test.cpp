@@ -31,6 +31,12 @@ struct TestedElsewhere {
 
 // Kept in the order of the source tree.
 const std::vector<TestedElsewhere> tested_elsewhere = {
+    {"src/attach/syscall_recorder.cpp",
+     {"tests/cpp/attach/attach_test.cpp"},
+     "what a system call means is seen only in a traced program's calls, end to end"},
+    {"src/attach/tracer.cpp",
+     {"tests/cpp/attach/attach_test.cpp", "tests/cpp/attach/process_test.cpp"},
+     "ptrace is tested on a real traced program; its refusals through the seam"},
     {"src/bridge/com_port_adapter.cpp",
      {"tests/cpp/core/rfc2217_test.cpp", "tests/python/cli/test_rfc2217.py"},
      "RFC 2217's view of the device is what a Telnet client sees of the bridge"},

@@ -15,6 +15,7 @@ from ..session import NO_PROFILE
 from .files import cmd_convert, cmd_diff, cmd_edit, cmd_show, cmd_stats, cmd_verify, cmd_view
 from .fuzz_command import add_fuzz_parser
 from .ports import cmd_ports
+from .attach import add_attach_arguments
 from .run import cmd_demo, cmd_faults, cmd_faults_merge, cmd_record, cmd_replay, cmd_serve
 
 
@@ -253,6 +254,7 @@ _EXAMPLES = {
   wiretape record --device /dev/ttyUSB0 --pty /tmp/ttyLidar -o scan.wtape
   wiretape record --device type=tcp,host=10.0.0.5,port=10940 --listen 127.0.0.1:10940 -o scan.wtape
   wiretape record --device /dev/ttyUSB0 -o scan.wtape -- ./driver --port /dev/ttyUSB0
+  wiretape record --attach 4242 --path /dev/ttyUSB0 -o driver.wtape
   wiretape record -o nav.wtape --device gps=/dev/ttyUSB0 --pty gps=/tmp/gps \\
       --device rtk=type=tcp,host=caster,port=2101 --listen rtk=127.0.0.1:2101""",
     "replay": """examples:
@@ -419,6 +421,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help="free metadata for the session header (repeatable)")
     record.add_argument("-q", "--quiet", action="store_true", help="no client/device messages")
     _add_redirect(record, "default: the --device's path")
+    add_attach_arguments(record)
 
     replay = command(
         "replay", cmd_replay, "replay a recording as a virtual device (pty, TCP or UDP)",

@@ -8,6 +8,7 @@ import os
 import sys
 from typing import Optional
 
+from .attach import cmd_record_attached, refuse_attach_options
 from .bridges import (MessageRelay, announce_clients, check_fault_places, client_side,
                       meta_pairs, replay_options_of, run_bridge)
 from .channels import (channel_names, record_channels, refuse_unnamed_on_several,
@@ -31,6 +32,9 @@ FAULTS_PROGRESS_EVERY_S = 5.0
 def cmd_record(args, out: Output) -> int:
     from .. import bridge
 
+    if getattr(args, "attach", None) is not None:
+        return cmd_record_attached(args, out)
+    refuse_attach_options(args)
     endpoints = collect(args, ("device", "pty", "listen", "udp", "peer", "redirect_path"))
     if not is_single(endpoints):
         check_record(endpoints, with_command=args.command_argv is not None)

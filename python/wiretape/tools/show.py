@@ -65,6 +65,14 @@ def _header_lines(reader: _core.SessionReader, path: SessionPath) -> Iterator[st
     if identity:
         yield f"  identity     {identity}"
     yield f"  capture      {header_text(header.capture)}"
+    attached = header.attached
+    if attached:
+        fds = ", ".join(str(fd) for fd in attached["descriptors"])
+        yield (f"  attached     to process {attached['pid']} "
+               f"({header_text(attached['command'])}) at {header_text(attached['utc'])}, "
+               f"descriptors {fds}: {header_text(attached['device'])}")
+        for warning in attached["warnings"]:
+            yield f"  warning      {header_text(warning)}"
     started = header_text(header.start_utc) if header.start_utc else "at a time not recorded"
     host = f" on {header_text(header.host)}" if header.host else ""
     yield f"  started      {started}{host}"

@@ -217,3 +217,43 @@ TEST(StartUtc, FormatsWhatItParses) {
   ASSERT_TRUE(detail::format_start_utc(last).has_value());
   EXPECT_EQ(detail::start_utc_epoch_ns(*detail::format_start_utc(last)), last);
 }
+
+// An attached recording (DESIGN §26): its member reads back, and warnings
+// found while recording are written into the header in place.
+TEST(SessionHeader, AttachedRoundTripsAndItsWarningsAreRewrittenInPlace) {
+  TempDir dir;
+  SessionHeader header = full_header();
+  AttachedProgram& attached = header.attached.emplace();
+  attached.pid = 4242;
+  attached.command = "driver";
+  attached.utc = "2026-01-02T03:04:05.000006Z";
+  attached.descriptors = {3, 7};
+  attached.device = "/dev/ttyUSB0";
+  EXPECT_NE(header.to_json().find("\"attached\":{\"pid\":4242,\"command\":\"driver\""),
+            std::string::npos)
+      << header.to_json();
+  {
+    SessionWriter writer(dir.file("a.wtape"), header, FlushPolicy{}, 4096);
+    writer.write(RecordKind::rx, 5, "x");
+    SessionHeader updated = writer.header();
+    updated.attached->warnings = {"the program used splice"};
+    writer.rewrite_header(updated);
+    writer.write(RecordKind::tx, 6, "y");
+    writer.close();
+  }
+  SessionReader reader(dir.file("a.wtape"));
+  ASSERT_TRUE(reader.header().attached.has_value());
+  attached.warnings = {"the program used splice"};
+  EXPECT_EQ(*reader.header().attached, attached);
+  expect_same_members(reader.header(), header);
+  Record record;
+  ASSERT_TRUE(reader.next(record));
+  EXPECT_EQ(record.data, "x");
+  ASSERT_TRUE(reader.next(record));
+  EXPECT_EQ(record.data, "y");
+  // A header without room for the rewrite says so; the file stays readable.
+  SessionWriter tight(dir.file("tight.wtape"), SessionHeader{});
+  SessionHeader grown = tight.header();
+  grown.attached = attached;
+  EXPECT_THROW(tight.rewrite_header(grown), SessionError);
+}
