@@ -24,6 +24,21 @@ class Skip(Exception):
     """A figure that cannot be measured here; the message says why."""
 
 
+GiB = 1 << 30
+
+
+def free_bytes(path: Path) -> int:
+    stat = os.statvfs(path)
+    return stat.f_bavail * stat.f_frsize
+
+
+def need_disk(path: Path, needed: int, what: str) -> None:
+    free = free_bytes(path)
+    if free < needed:
+        raise Skip(f"{what}: needs {needed / GiB:.1f} GiB free in {path}, "
+                   f"only {free / GiB:.1f} GiB")
+
+
 # --- relays: wiretape record --pty / --listen / --udp against socat -----------
 USED_RUNNER: set[str] = set()
 
