@@ -94,8 +94,15 @@ def relay_figures(program: Path, kind: str, client: str, first: int, second: int
     {"bytes_per_s", "cpu_s_per_MB", "one_way_p99_us", ...}. udp: first =
     datagrams a second, second = milliseconds; {"sent", "received", "lost",
     ...}."""
-    command = [str(program), client, str(first), str(second), str(work), "--",
-               *relay_command(kind, client, python, work)]
+    return run_relay(program, client, first, second, work,
+                     relay_command(kind, client, python, work), kind)
+
+
+def run_relay(program: Path, client: str, first: int, second: int, work: Path,
+              relay: list[str], kind: str) -> dict:
+    """wiretape_relay_bench running `relay` (a relay_command, perhaps
+    wrapped); see relay_figures."""
+    command = [str(program), client, str(first), str(second), str(work), "--", *relay]
     try:
         proc = subprocess.run(command, capture_output=True, text=True, timeout=600)
     finally:
