@@ -4,10 +4,10 @@ relay, each run by wiretape_relay_bench under `strace -c -f`
 (bench/strace_relay.py). A count does not depend on the machine's load the
 way a time does, so these figures can be compared from run to run.
 
-Each relay runs three times: with no traffic beyond the bench's two warm-up
-messages (the baseline: start-up, imports, shutdown), with MESSAGES single
-messages, and with BULK bytes streamed from the device; the baseline is
-subtracted from the other two. pty and tcp messages are 64 bytes, one at a
+Each relay runs three times: with no traffic beyond the bench's warm-up
+(the baseline: start-up, imports, shutdown), with MESSAGE_COUNT single
+messages more, and with BULK_BYTES more streamed from the device; the
+baseline is subtracted from the other two. pty and tcp messages are 64 bytes, one at a
 time, alternating direction; udp ones are 1,200-byte datagrams at a rate low
 enough that each arrives alone.
 """
@@ -98,19 +98,21 @@ class CountJobs:
 
     def relay_counts_of(self, kind: str, client: str) -> dict[str, dict[str, float]]:
         """Calls per message and per MB of one relay, baseline subtracted."""
+        # wiretape_relay_bench takes no zero counts: the baseline relays one
+        # byte, one message (UDP: one millisecond, a datagram), and the runs
+        # that count add to it.
         if client == "udp":
             milliseconds = MESSAGE_COUNT * 1000 // UDP_RATE
-            _, baseline = self.counted_relay(kind, client, UDP_RATE, 0)
-            figures, loaded = self.counted_relay(kind, client, UDP_RATE, milliseconds)
-            messages = figures["received"]
-            if messages == 0:
+            alone, baseline = self.counted_relay(kind, client, UDP_RATE, 1)
+            figures, loaded = self.counted_relay(kind, client, UDP_RATE, 1 + milliseconds)
+            messages = figures["received"] - alone["received"]
+            if messages <= 0:
                 raise Skip(f"no datagram reached the device through {kind} under strace")
-            per_message = per_unit(loaded, baseline, messages)
-            per_mb = per_unit(loaded, baseline, messages * UDP_DATAGRAM / 1e6)
-            return {"per_msg": per_message, "per_MB": per_mb}
-        _, baseline = self.counted_relay(kind, client, 0, 0)
-        _, loaded = self.counted_relay(kind, client, 0, MESSAGE_COUNT)
-        _, bulk = self.counted_relay(kind, client, BULK_BYTES, 0)
+            return {"per_msg": per_unit(loaded, baseline, messages),
+                    "per_MB": per_unit(loaded, baseline, messages * UDP_DATAGRAM / 1e6)}
+        _, baseline = self.counted_relay(kind, client, 1, 1)
+        _, loaded = self.counted_relay(kind, client, 1, 1 + MESSAGE_COUNT)
+        _, bulk = self.counted_relay(kind, client, 1 + BULK_BYTES, 1)
         return {"per_msg": per_unit(loaded, baseline, MESSAGE_COUNT),
                 "per_MB": per_unit(bulk, baseline, BULK_BYTES / 1e6)}
 
