@@ -259,6 +259,23 @@ class Bench(RelayJobs, CountJobs):
             f"{median['wiretape_wall']:.2f} s (wiretape) and {median['reserial_wall']:.2f} s "
             "(reserial)")
 
+    def replay_ready(self) -> None:
+        """`wiretape replay FILE --pty LINK`: start to the first answer."""
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "replay_ready_bench.py"),
+                               str(self.work / "ready"), "5" if self.quick else "15"],
+                              capture_output=True, text=True, timeout=600, env=self.env)
+        if proc.returncode != 0:
+            raise Skip("replay_ready_bench.py: "
+                       + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        self.results["replay_pty_ready_ms"] = round(figures["ready_ms"], 1)
+        self.notes["replay_pty_ready"] = (
+            f"median of {len(figures['runs_ms'])} (range {min(figures['runs_ms']):.0f}–"
+            f"{max(figures['runs_ms']):.0f} ms); the link after {figures['linked_ms']:.0f} ms; "
+            f"the interpreter alone {figures['python_ms']:.0f} ms, `import wiretape.cli` "
+            f"{figures['import_cli_ms']:.0f} ms (best of 5); slowest imports: "
+            + ", ".join(f"{name} {ms:.0f} ms" for name, ms in figures["slowest_imports"]))
+
     # --- --speed K: the Hokuyo campaign on a scaled clock ----------------
     def speed(self) -> None:
         """The Hokuyo campaign at --speed 10 against --speed 1 (hokuyo-scan's
@@ -473,7 +490,7 @@ class Bench(RelayJobs, CountJobs):
 
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
-           "tcp_proxy", "udp_proxy", "relay_counts", "reserial", "gbench", "faults", "speed", "view", "show", "diff",
+           "tcp_proxy", "udp_proxy", "relay_counts", "replay_ready", "reserial", "gbench", "faults", "speed", "view", "show", "diff",
            "shim", "channels", "record_channels"]
 
 

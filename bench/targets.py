@@ -40,6 +40,7 @@ TARGETS = {
     "record_udp_syscalls_per_msg": (None, "lower", "calls a 1,200-byte datagram, record --udp"),
     "record_udp_syscalls_per_MB": (None, "lower", "calls a MB of datagrams, record --udp"),
     "record_udp_vs_socat_syscalls_ratio": (1.0, "lower", "record --udp calls a datagram / socat's"),
+    "replay_pty_ready_ms": (50, "lower", "ms from `wiretape replay --pty` to its first answer"),
     "reserial_replay_s": (None, "info", "s, 10,000 exchanges, pytest-reserial"),
     "wiretape_pyserial_replay_s": (None, "info", "s, same, wiretape:// URL"),
     "wiretape_vs_reserial_time_ratio": (0.5, "lower", "wiretape time / reserial"),
