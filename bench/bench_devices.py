@@ -99,12 +99,12 @@ def relay_figures(program: Path, kind: str, client: str, first: int, second: int
 
 
 def run_relay(program: Path, client: str, first: int, second: int, work: Path,
-              relay: list[str], kind: str) -> dict:
+              relay: list[str], kind: str, env: dict | None = None) -> dict:
     """wiretape_relay_bench running `relay` (a relay_command, perhaps
-    wrapped); see relay_figures."""
+    wrapped) in `env` (default: this process's); see relay_figures."""
     command = [str(program), client, str(first), str(second), str(work), "--", *relay]
     try:
-        proc = subprocess.run(command, capture_output=True, text=True, timeout=600)
+        proc = subprocess.run(command, capture_output=True, text=True, timeout=1800, env=env)
     finally:
         (work / "relay.wtape").unlink(missing_ok=True)
     if proc.returncode != 0:

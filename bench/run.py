@@ -31,6 +31,7 @@ import bench_devices  # noqa: E402  (bench/bench_devices.py)
 from bench_devices import Skip, need_disk  # noqa: E402
 from relay_jobs import RelayJobs  # noqa: E402  (bench/relay_jobs.py: pty/tcp/udp_proxy)
 from syscall_counts import CountJobs  # noqa: E402  (bench/syscall_counts.py: relay_counts)
+from instruction_counts import InstructionJobs  # noqa: E402  (relay_instructions)
 from targets import TARGETS  # noqa: E402  (bench/targets.py: key -> (target, better, what))
 
 MiB = 1 << 20
@@ -50,7 +51,7 @@ GBENCH_FIGURES = {
 }
 
 
-class Bench(RelayJobs, CountJobs):
+class Bench(RelayJobs, CountJobs, InstructionJobs):
     def __init__(self, build: Path, quick: bool, udp_seconds: float | None = None):
         self.build = build
         self.quick = quick
@@ -490,7 +491,7 @@ class Bench(RelayJobs, CountJobs):
 
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
-           "tcp_proxy", "udp_proxy", "relay_counts", "replay_ready", "reserial", "gbench", "faults", "speed", "view", "show", "diff",
+           "tcp_proxy", "udp_proxy", "relay_counts", "relay_instructions", "replay_ready", "reserial", "gbench", "faults", "speed", "view", "show", "diff",
            "shim", "channels", "record_channels"]
 
 
