@@ -277,6 +277,22 @@ class Bench(RelayJobs, CountJobs, InstructionJobs):
             f"{figures['import_cli_ms']:.0f} ms (best of 5); slowest imports: "
             + ", ".join(f"{name} {ms:.0f} ms" for name, ms in figures["slowest_imports"]))
 
+    def cassette_suite(self) -> None:
+        """1,000 cassette tests: wiretape's pytest plugin vs pytest-reserial."""
+        tests = 200 if self.quick else 1000
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "cassette_suite_bench.py"),
+                               str(self.work / "suites"), str(tests), "3" if self.quick else "5"],
+                              capture_output=True, text=True, timeout=3600, env=self.env)
+        if proc.returncode != 0:
+            raise Skip("cassette_suite_bench.py: "
+                       + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        self.results["cassette_suite_vs_reserial_time_ratio"] = round(figures["ratio"], 3)
+        self.notes["cassette_suite"] = (
+            f"{figures['tests']} tests, whole pytest runs: wiretape {figures['wiretape_s']:.2f} s, "
+            f"pytest-reserial {figures['reserial_s']:.2f} s (medians; ratio "
+            f"{self.spread(figures['ratios'])})")
+
     # --- --speed K: the Hokuyo campaign on a scaled clock ----------------
     def speed(self) -> None:
         """The Hokuyo campaign at --speed 10 against --speed 1 (hokuyo-scan's
@@ -491,7 +507,7 @@ class Bench(RelayJobs, CountJobs, InstructionJobs):
 
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
-           "tcp_proxy", "udp_proxy", "relay_counts", "relay_instructions", "replay_ready", "reserial", "gbench", "faults", "speed", "view", "show", "diff",
+           "tcp_proxy", "udp_proxy", "relay_counts", "relay_instructions", "replay_ready", "cassette_suite", "reserial", "gbench", "faults", "speed", "view", "show", "diff",
            "shim", "channels", "record_channels"]
 
 

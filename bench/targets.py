@@ -48,6 +48,8 @@ TARGETS = {
     "record_udp_instructions_per_MB": (None, "lower", "instructions a MB of datagrams, record --udp"),
     "record_udp_vs_socat_instructions_ratio": (1.0, "lower", "record --udp instructions a MB / socat's"),
     "replay_pty_ready_ms": (50, "lower", "ms from `wiretape replay --pty` to its first answer"),
+    "cassette_suite_vs_reserial_time_ratio": (1.0, "lower",
+                                              "1,000 cassette tests, wiretape plugin / reserial"),
     "reserial_replay_s": (None, "info", "s, 10,000 exchanges, pytest-reserial"),
     "wiretape_pyserial_replay_s": (None, "info", "s, same, wiretape:// URL"),
     "wiretape_vs_reserial_time_ratio": (0.5, "lower", "wiretape time / reserial"),
