@@ -293,6 +293,24 @@ class Bench(RelayJobs, CountJobs, InstructionJobs):
             f"pytest-reserial {figures['reserial_s']:.2f} s (medians; ratio "
             f"{self.spread(figures['ratios'])})")
 
+    def replay_as(self) -> None:
+        """`replay --as PATH -- hokuyo-scan` vs hokuyo-scan on its simulator."""
+        program = self.build / "bin" / "hokuyo-scan"
+        if not program.exists():
+            raise Skip(f"{program} not built")
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "replay_as_bench.py"),
+                               str(program), str(self.work / "replay-as"),
+                               "5" if self.quick else "15"],
+                              capture_output=True, text=True, timeout=1800, env=self.env)
+        if proc.returncode != 0:
+            raise Skip("replay_as_bench.py: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        self.results["replay_as_overhead_ratio"] = round(figures["ratio"], 3)
+        self.notes["replay_as"] = (
+            f"hokuyo-scan --json on the simulator {figures['simulator_s'] * 1e3:.0f} ms, "
+            f"the whole `wiretape replay --as` {figures['replay_s'] * 1e3:.0f} ms (medians; "
+            f"ratio {self.spread(figures['ratios'])})")
+
     # --- --speed K: the Hokuyo campaign on a scaled clock ----------------
     def speed(self) -> None:
         """The Hokuyo campaign at --speed 10 against --speed 1 (hokuyo-scan's
@@ -507,7 +525,7 @@ class Bench(RelayJobs, CountJobs, InstructionJobs):
 
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
-           "tcp_proxy", "udp_proxy", "relay_counts", "relay_instructions", "replay_ready", "cassette_suite", "reserial", "gbench", "faults", "speed", "view", "show", "diff",
+           "tcp_proxy", "udp_proxy", "relay_counts", "relay_instructions", "replay_ready", "cassette_suite", "replay_as", "reserial", "gbench", "faults", "speed", "view", "show", "diff",
            "shim", "channels", "record_channels"]
 
 

@@ -50,6 +50,8 @@ TARGETS = {
     "replay_pty_ready_ms": (50, "lower", "ms from `wiretape replay --pty` to its first answer"),
     "cassette_suite_vs_reserial_time_ratio": (1.0, "lower",
                                               "1,000 cassette tests, wiretape plugin / reserial"),
+    "replay_as_overhead_ratio": (1.2, "lower",
+                                 "`replay --as -- hokuyo-scan` / hokuyo-scan on its simulator"),
     "reserial_replay_s": (None, "info", "s, 10,000 exchanges, pytest-reserial"),
     "wiretape_pyserial_replay_s": (None, "info", "s, same, wiretape:// URL"),
     "wiretape_vs_reserial_time_ratio": (0.5, "lower", "wiretape time / reserial"),
