@@ -24,6 +24,21 @@ class Skip(Exception):
     """A figure that cannot be measured here; the message says why."""
 
 
+GiB = 1 << 30
+
+
+def free_bytes(path: Path) -> int:
+    stat = os.statvfs(path)
+    return stat.f_bavail * stat.f_frsize
+
+
+def need_disk(path: Path, needed: int, what: str) -> None:
+    free = free_bytes(path)
+    if free < needed:
+        raise Skip(f"{what}: needs {needed / GiB:.1f} GiB free in {path}, "
+                   f"only {free / GiB:.1f} GiB")
+
+
 # --- relays: wiretape record --pty / --listen / --udp against socat -----------
 USED_RUNNER: set[str] = set()
 
@@ -79,10 +94,17 @@ def relay_figures(program: Path, kind: str, client: str, first: int, second: int
     {"bytes_per_s", "cpu_s_per_MB", "one_way_p99_us", ...}. udp: first =
     datagrams a second, second = milliseconds; {"sent", "received", "lost",
     ...}."""
-    command = [str(program), client, str(first), str(second), str(work), "--",
-               *relay_command(kind, client, python, work)]
+    return run_relay(program, client, first, second, work,
+                     relay_command(kind, client, python, work), kind)
+
+
+def run_relay(program: Path, client: str, first: int, second: int, work: Path,
+              relay: list[str], kind: str, env: dict | None = None) -> dict:
+    """wiretape_relay_bench running `relay` (a relay_command, perhaps
+    wrapped) in `env` (default: this process's); see relay_figures."""
+    command = [str(program), client, str(first), str(second), str(work), "--", *relay]
     try:
-        proc = subprocess.run(command, capture_output=True, text=True, timeout=600)
+        proc = subprocess.run(command, capture_output=True, text=True, timeout=1800, env=env)
     finally:
         (work / "relay.wtape").unlink(missing_ok=True)
     if proc.returncode != 0:

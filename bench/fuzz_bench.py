@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """The fuzzing figures (DESIGN §27, docs/fuzzing.md "Figures so far"):
-prints one JSON line. Usage: fuzz_bench.py BUILD_DIR [RUNS]
+prints one JSON line. Usage: fuzz_bench.py BUILD_DIR [RUNS [WORKDIR]]
+(make bench: bench/run.py group `fuzz`; the scratch files go under WORKDIR)
 
 - in_process_runs_per_cpu_s: BUILD_DIR/bin/hokuyo_scan_fuzz (built with gcc:
   the corpus-replay program) over RUNS plans, half the recording unchanged,
@@ -64,14 +65,18 @@ def as_processes(build: Path, runs: int, scratch: Path) -> dict:
     seconds = time.monotonic() - started
     return {"processes_runs": runs, "processes_s": round(seconds, 2),
             "processes_runs_per_s_speed10": round(runs / seconds, 2),
-            "processes_outcomes": dict(Counter(run.outcome for run in result.runs)),
+            "processes_outcomes": ", ".join(f"{outcome} {count}" for outcome, count in
+                                            sorted(Counter(run.outcome for run in result.runs).items())),
             "processes_findings": len(result.findings)}
 
 
 def main() -> int:
     build = Path(sys.argv[1])
     runs = int(sys.argv[2]) if len(sys.argv) > 2 else 2000
-    with tempfile.TemporaryDirectory(prefix="wiretape-fuzz-bench-") as scratch:
+    workdir = sys.argv[3] if len(sys.argv) > 3 else None
+    if workdir:
+        os.makedirs(workdir, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="wiretape-fuzz-bench-", dir=workdir) as scratch:
         figures = in_process(build, runs, Path(scratch))
         figures.update(as_processes(build, max(runs // 100, 10), Path(scratch)))
     figures["cpus"] = os.cpu_count()

@@ -28,15 +28,14 @@ ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import bench_devices  # noqa: E402  (bench/bench_devices.py)
-from bench_devices import Skip  # noqa: E402
+from bench_devices import Skip, need_disk  # noqa: E402
+from relay_jobs import RelayJobs  # noqa: E402  (bench/relay_jobs.py: pty/tcp/udp_proxy)
+from syscall_counts import CountJobs  # noqa: E402  (bench/syscall_counts.py: relay_counts)
+from instruction_counts import InstructionJobs  # noqa: E402  (relay_instructions)
 from report import print_table  # noqa: E402  (bench/report.py)
 
 MiB = 1 << 20
 GiB = 1 << 30
-# The UDP proxy's load: datagrams a second, and their size (relay_bench.cpp).
-UDP_RATE = 100_000
-UDP_DATAGRAM = 1200
-
 # The 4-channel file of `channels`: 1 GiB (256 MiB a channel), smaller with
 # --quick or WIRETAPE_BENCH_CHANNELS_MIB (the whole file's MiB).
 CHANNELS_FILE_MIB = int(os.environ.get("WIRETAPE_BENCH_CHANNELS_MIB", "1024"))
@@ -52,19 +51,7 @@ GBENCH_FIGURES = {
 }
 
 
-def free_bytes(path: Path) -> int:
-    stat = os.statvfs(path)
-    return stat.f_bavail * stat.f_frsize
-
-
-def need_disk(path: Path, needed: int, what: str) -> None:
-    free = free_bytes(path)
-    if free < needed:
-        raise Skip(f"{what}: needs {needed / GiB:.1f} GiB free in {path}, "
-                   f"only {free / GiB:.1f} GiB")
-
-
-class Bench:
+class Bench(RelayJobs, CountJobs, InstructionJobs):
     def __init__(self, build: Path, quick: bool, udp_seconds: float | None = None):
         self.build = build
         self.quick = quick
@@ -255,94 +242,6 @@ class Bench:
         finally:
             path.unlink(missing_ok=True)
 
-    def relay_rounds(self, client: str, first: int, second: int, rounds: int) -> dict[str, list]:
-        """wiretape and socat as the same relay on the same kind of device,
-        interleaved in alternating order; per-pair ratios, so that the
-        machine's drift from round to round cancels out."""
-        figures: dict[str, list] = {"wiretape": [], "socat": []}
-        for index in range(rounds):
-            order = ("wiretape", "socat") if index % 2 == 0 else ("socat", "wiretape")
-            for kind in order:
-                figures[kind].append(bench_devices.relay_figures(
-                    self.relay_program, kind, client, first, second, self.work, self.python))
-        return figures
-
-    @staticmethod
-    def pair_ratios(figures: dict[str, list], key: str) -> list[float]:
-        return [ours[key] / theirs[key]
-                for ours, theirs in zip(figures["wiretape"], figures["socat"])]
-
-    @staticmethod
-    def spread(values: list[float]) -> str:
-        return f"range {min(values):.2f}–{max(values):.2f} over {len(values)} pairs"
-
-    def stream_proxy(self, client: str, prefix: str) -> None:
-        """wiretape record (--pty or --listen) vs socat relaying the same pty
-        device: the relay's CPU seconds per MB while the device streams to
-        the client, and the one-way latency p99 of single messages."""
-        size = (16 if self.quick else 64) * MiB
-        # 15 pairs: a p99 of 2000 messages on a shared machine moves ±30 %
-        # from run to run for socat and wiretape alike.
-        figures = self.relay_rounds(client, size, 500 if self.quick else 2000,
-                                    3 if self.quick else 15)
-        cpu = self.pair_ratios(figures, "cpu_s_per_MB")
-        latency = self.pair_ratios(figures, "one_way_p99_us")
-        self.results[f"{prefix}_vs_socat_cpu_ratio"] = round(statistics.median(cpu), 3)
-        self.results[f"{prefix}_vs_socat_latency_p99_ratio"] = round(statistics.median(latency), 3)
-        best = {kind: {key: statistics.median(f[key] for f in runs)
-                         for key in ("bytes_per_s", "cpu_s_per_MB", "one_way_p50_us",
-                                     "one_way_p99_us", "to_client_p50_us", "to_device_p50_us",
-                                     "message_cpu_us")}
-                  for kind, runs in figures.items()}
-        self.notes[prefix] = "; ".join(
-            f"{kind} {m['cpu_s_per_MB'] * 1e3:.2f} ms CPU/MB at {m['bytes_per_s'] / 1e6:.0f} MB/s, "
-            f"one-way p50 {m['one_way_p50_us']:.0f} µs p99 {m['one_way_p99_us']:.0f} µs "
-            f"(p50 to the client {m['to_client_p50_us']:.0f}, to the device "
-            f"{m['to_device_p50_us']:.0f}; {m['message_cpu_us']:.1f} µs of CPU a message)"
-            for kind, m in best.items()) + (
-            f" (medians of {len(cpu)} pairs; CPU ratio {self.spread(cpu)}, "
-            f"p99 ratio {self.spread(latency)})")
-
-    def pty_proxy(self) -> None:
-        """wiretape record --pty vs socat PTY ... FILE:device."""
-        self.stream_proxy("pty", "pty_proxy")
-
-    def tcp_proxy(self) -> None:
-        """wiretape record --listen vs socat TCP-LISTEN ... FILE:device."""
-        self.stream_proxy("tcp", "tcp_proxy")
-
-    def udp_proxy(self) -> None:
-        """wiretape record --udp vs socat UDP-LISTEN ... UDP:device: 100,000
-        datagrams/s of 1,200 bytes for udp_seconds, what reaches the device."""
-        seconds = self.udp_seconds if self.udp_seconds else (2.0 if self.quick else 10.0)
-        need_disk(self.work, int(2 * UDP_RATE * UDP_DATAGRAM * seconds),
-                  "udp_proxy (the recording of the flood)")
-        # Two rounds: each relay once first and once second.
-        figures = self.relay_rounds("udp", UDP_RATE, int(seconds * 1000), 2)
-        totals = {kind: {key: sum(f[key] for f in runs) for key in ("offered", "received", "lost")}
-                  for kind, runs in figures.items()}
-        loss = {kind: 100.0 * t["lost"] / t["offered"] for kind, t in totals.items()}
-        for kind, prefix in (("wiretape", "udp_proxy"), ("socat", "udp_socat")):
-            self.results[f"{prefix}_datagrams_sent"] = totals[kind]["offered"]
-            self.results[f"{prefix}_datagrams_received"] = totals[kind]["received"]
-            self.results[f"{prefix}_datagrams_lost"] = totals[kind]["lost"]
-        self.results["udp_proxy_loss_pct"] = round(loss["wiretape"], 4)
-        self.results["udp_socat_loss_pct"] = round(loss["socat"], 4)
-        delivered = {kind: t["received"] / t["offered"] for kind, t in totals.items()}
-        self.results["udp_proxy_vs_socat_delivered_ratio"] = round(
-            delivered["wiretape"] / delivered["socat"], 5)
-        rates = {kind: statistics.median(f["send_rate"] for f in runs)
-                 for kind, runs in figures.items()}
-        cpu = {kind: statistics.median(f["cpu_s"] / f["seconds"] for f in runs)
-               for kind, runs in figures.items()}
-        self.notes["udp_proxy"] = "; ".join(
-            f"{kind} sent {t['offered']}, received {t['received']}, lost {t['lost']} "
-            f"({loss[kind]:.3f} %) at {rates[kind]:.0f} datagrams/s, "
-            f"relay CPU {cpu[kind]:.2f} s/s"
-            for kind, t in totals.items()) + (
-            f" ({len(figures['socat'])} rounds of {seconds:g} s each, "
-            f"{UDP_DATAGRAM}-byte datagrams)")
-
     def reserial(self) -> None:
         """10,000 request/response exchanges through pyserial: wiretape:// vs
         pytest-reserial, in one pytest run of a bench-only venv."""
@@ -360,6 +259,57 @@ class Bench:
             f"(ratio {self.spread(ratios)}); whole pytest runs took "
             f"{median['wiretape_wall']:.2f} s (wiretape) and {median['reserial_wall']:.2f} s "
             "(reserial)")
+
+    def replay_ready(self) -> None:
+        """`wiretape replay FILE --pty LINK`: start to the first answer."""
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "replay_ready_bench.py"),
+                               str(self.work / "ready"), "5" if self.quick else "15"],
+                              capture_output=True, text=True, timeout=600, env=self.env)
+        if proc.returncode != 0:
+            raise Skip("replay_ready_bench.py: "
+                       + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        self.results["replay_pty_ready_ms"] = round(figures["ready_ms"], 1)
+        self.notes["replay_pty_ready"] = (
+            f"median of {len(figures['runs_ms'])} (range {min(figures['runs_ms']):.0f}–"
+            f"{max(figures['runs_ms']):.0f} ms); the link after {figures['linked_ms']:.0f} ms; "
+            f"the interpreter alone {figures['python_ms']:.0f} ms, `import wiretape.cli` "
+            f"{figures['import_cli_ms']:.0f} ms (best of 5); slowest imports: "
+            + ", ".join(f"{name} {ms:.0f} ms" for name, ms in figures["slowest_imports"]))
+
+    def cassette_suite(self) -> None:
+        """1,000 cassette tests: wiretape's pytest plugin vs pytest-reserial."""
+        tests = 200 if self.quick else 1000
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "cassette_suite_bench.py"),
+                               str(self.work / "suites"), str(tests), "3" if self.quick else "5"],
+                              capture_output=True, text=True, timeout=3600, env=self.env)
+        if proc.returncode != 0:
+            raise Skip("cassette_suite_bench.py: "
+                       + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        self.results["cassette_suite_vs_reserial_time_ratio"] = round(figures["ratio"], 3)
+        self.notes["cassette_suite"] = (
+            f"{figures['tests']} tests, whole pytest runs: wiretape {figures['wiretape_s']:.2f} s, "
+            f"pytest-reserial {figures['reserial_s']:.2f} s (medians; ratio "
+            f"{self.spread(figures['ratios'])})")
+
+    def replay_as(self) -> None:
+        """`replay --as PATH -- hokuyo-scan` vs hokuyo-scan on its simulator."""
+        program = self.build / "bin" / "hokuyo-scan"
+        if not program.exists():
+            raise Skip(f"{program} not built")
+        proc = subprocess.run([str(self.python), str(ROOT / "bench" / "replay_as_bench.py"),
+                               str(program), str(self.work / "replay-as"),
+                               "5" if self.quick else "15"],
+                              capture_output=True, text=True, timeout=1800, env=self.env)
+        if proc.returncode != 0:
+            raise Skip("replay_as_bench.py: " + (proc.stderr.strip().splitlines() or ["failed"])[-1])
+        figures = json.loads(proc.stdout.strip().splitlines()[-1])
+        self.results["replay_as_overhead_ratio"] = round(figures["ratio"], 3)
+        self.notes["replay_as"] = (
+            f"hokuyo-scan --json on the simulator {figures['simulator_s'] * 1e3:.0f} ms, "
+            f"the whole `wiretape replay --as` {figures['replay_s'] * 1e3:.0f} ms (medians; "
+            f"ratio {self.spread(figures['ratios'])})")
 
     # --- --speed K: the Hokuyo campaign on a scaled clock ----------------
     def speed(self) -> None:
@@ -536,6 +486,12 @@ class Bench:
         for key, value in self.script_figures("attach_bench.py", 900, str(self.build)).items():
             self.results["attach_" + key] = value
 
+    def fuzz(self) -> None:
+        """Fuzzing runs per second, in process and as processes (bench/fuzz_bench.py)."""
+        runs = "400" if self.quick else "2000"
+        for key, value in self.script_figures("fuzz_bench.py", 900, str(self.build), runs).items():
+            self.results["fuzz_" + key] = value
+
     # --- show ----------------------------------------------------------------
     def show(self) -> None:
         """`wiretape show` of 10 MB sessions with colour (bench/show_bench.py):
@@ -619,8 +575,9 @@ class Bench:
 
 
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
-           "tcp_proxy", "udp_proxy", "reserial", "gbench", "faults", "speed", "view", "show", "diff",
-           "shim", "channels", "record_channels", "rfc2217", "compress", "attach"]
+           "tcp_proxy", "udp_proxy", "relay_counts", "relay_instructions", "replay_ready",
+           "cassette_suite", "replay_as", "reserial", "gbench", "faults", "speed", "view", "show",
+           "diff", "shim", "channels", "record_channels", "rfc2217", "compress", "attach", "fuzz"]
 
 
 def machine_note() -> dict:

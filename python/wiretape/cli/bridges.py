@@ -220,11 +220,13 @@ def replay_options_of(args) -> str:
 
 def check_fault_places(args) -> None:
     """--fault KIND@WHERE past the session's end is a usage error."""
-    from ..faults import FaultInputError, check_where
-
     specs = ";".join(getattr(args, "fault", None) or [])
     if not specs:
         return
+    # Imported only for --fault: wiretape.faults is a fifth of a replay's
+    # start-up (replay_pty_ready_ms, docs/benchmarks.md).
+    from ..faults import FaultInputError, check_where
+
     try:
         # Exchanges counted as this replay counts them (--profile, --match, --options).
         check_where(args.file, specs, options=replay_options_of(args))

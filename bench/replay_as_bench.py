@@ -1,0 +1,82 @@
+"""`wiretape replay FILE --as PATH -- CMD` against CMD on the device's
+simulator (issue 42, replay_as_overhead_ratio): hokuyo-scan --json, once
+against examples/hokuyo/sim on a pty (started before, so that its start-up
+is not counted), once through the replay of the recording made from that
+simulator (examples/hokuyo/recordings/urg04lx_gd.wtape), the whole command
+line timed; interleaved, the median of the per-pair ratios.
+
+Prints one JSON line: {"ratio": median, "ratios": [...], "simulator_s":
+median, "replay_s": median}.
+
+Usage: python replay_as_bench.py HOKUYO_SCAN WORKDIR ROUNDS
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+RECORDINGS = ROOT / "examples" / "hokuyo" / "recordings"
+DEADLINE_S = 60.0
+
+
+def timed(command: list[str]) -> float:
+    start = time.perf_counter()
+    proc = subprocess.run(command, capture_output=True, text=True, timeout=DEADLINE_S)
+    seconds = time.perf_counter() - start
+    if proc.returncode != 0:
+        raise SystemExit(f"{' '.join(command)} failed: "
+                         + (proc.stderr.strip().splitlines() or ["?"])[-1])
+    return seconds
+
+
+def main() -> int:
+    program, work, rounds = sys.argv[1], Path(sys.argv[2]), int(sys.argv[3])
+    work.mkdir(parents=True, exist_ok=True)
+    meta = json.loads((RECORDINGS / "urg04lx_gd.json").read_text())
+    link = work / f"sim-{os.getpid()}.pty"
+    simulator = subprocess.Popen([sys.executable, str(ROOT / "examples" / "hokuyo" / "sim"),
+                                  *meta["simulator"], "--pty", str(link)],
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        start = time.perf_counter()
+        while not link.exists():
+            if simulator.poll() is not None:
+                raise SystemExit("the simulator ended: " + simulator.stderr.read().decode())
+            if time.perf_counter() - start > DEADLINE_S:
+                raise SystemExit(f"the simulator made no {link} in {DEADLINE_S:.0f} s")
+            time.sleep(0.01)  # waiting for another process's link
+        script = Path(sys.executable).parent / "wiretape"
+        wiretape = [str(script)] if script.exists() else [sys.executable, "-m", "wiretape.cli"]
+        against_simulator = [program, "--port", str(link), *meta["args"]]
+        through_replay = [*wiretape, "replay", str(RECORDINGS / "urg04lx_gd.wtape"), "-q",
+                          "--as", "/dev/ttyBENCH0", "--", program, "--port", "/dev/ttyBENCH0",
+                          *meta["args"]]
+        times: dict[str, list[float]] = {"simulator": [], "replay": []}
+        for index in range(rounds):
+            order = ("simulator", "replay") if index % 2 == 0 else ("replay", "simulator")
+            for kind in order:
+                times[kind].append(timed(against_simulator if kind == "simulator"
+                                         else through_replay))
+    finally:
+        simulator.send_signal(signal.SIGINT)
+        try:
+            simulator.wait(10)
+        except subprocess.TimeoutExpired:
+            simulator.kill()
+    ratios = [r / s for r, s in zip(times["replay"], times["simulator"])]
+    print(json.dumps({"ratio": statistics.median(ratios), "ratios": ratios,
+                      "simulator_s": statistics.median(times["simulator"]),
+                      "replay_s": statistics.median(times["replay"])}))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
