@@ -29,6 +29,20 @@ FAULTS_PROGRESS_EVERY_S = 5.0
 
 
 def cmd_record(args, out: Output) -> int:
+    if args.against is not None:
+        from .drift import record_against
+
+        return record_against(args, out, _record)
+    for flag, given in (("--profile", args.profile is not None), ("--update", args.update)):
+        if given:
+            raise UsageError(f"{flag} goes with --against OLD (drift): without it nothing "
+                             "is compared")
+    if args.output is None:
+        raise UsageError("the following arguments are required: -o/--output")
+    return _record(args, out)
+
+
+def _record(args, out: Output) -> int:
     from .. import bridge
 
     endpoints = collect(args, ("device", "pty", "listen", "udp", "peer", "redirect_path"))
