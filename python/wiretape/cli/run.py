@@ -38,7 +38,8 @@ def cmd_record(args, out: Output) -> int:
             raise UsageError(f"{flag} goes with --against OLD (drift): without it nothing "
                              "is compared")
     if args.output is None:
-        raise UsageError("the following arguments are required: -o/--output")
+        raise UsageError("the following arguments are required: -o/--output "
+                         "(see wiretape record --help)")
     return _record(args, out)
 
 

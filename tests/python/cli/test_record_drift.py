@@ -19,13 +19,10 @@ import pytest
 
 import wiretape
 from devices import TcpDevice
+from firmware_device import MASKED_TIME, FirmwareDevice
 
 WIRETAPE = [sys.executable, "-m", "wiretape.cli"]
 DEVICE_PATH = "/dev/ttyWIRETAPEDRIFT0"
-
-# The answers are lines ending in "T=NNNNN\n": the time stamp's five digits
-# are the 6th to 2nd bytes from the frame's end.
-MASKED_TIME = "framing=delimiter:0a,ignore=-6:5"
 
 DRIVER = textwrap.dedent("""
     import os, sys, tty
@@ -46,31 +43,6 @@ DRIVER = textwrap.dedent("""
     ask(b"READ\\n")
     sys.exit(int(sys.argv[2]) if len(sys.argv) > 2 else 0)
 """)
-
-
-class LineDevice:
-    """Answers whole lines: ``ID?`` with its firmware and a time stamp,
-    ``READ`` with a value and a time stamp (one tick an answer from
-    `clock`)."""
-
-    def __init__(self, firmware: str, clock: int):
-        self.firmware = firmware
-        self.clock = clock
-        self._pending = b""
-
-    def __call__(self, data: bytes) -> bytes:
-        self._pending += data
-        answers = b""
-        while b"\n" in self._pending:
-            line, self._pending = self._pending.split(b"\n", 1)
-            self.clock += 1
-            if line == b"ID?":
-                answers += f"ID ACME FW{self.firmware} T={self.clock:05d}\n".encode()
-            elif line == b"READ":
-                answers += f"VAL 17 T={self.clock:05d}\n".encode()
-            else:
-                answers += b"ERR\n"
-        return answers
 
 
 @pytest.fixture(autouse=True)
@@ -102,7 +74,7 @@ def record(device: TcpDevice, driver: Path, *args, status: int = 0):
 def old(tmp_path: Path, driver: Path) -> Path:
     """The stored recording: firmware 1.2, its clock from 100."""
     path = tmp_path / "ident.wtape"
-    with TcpDevice(respond=LineDevice("1.2", 100)) as device:
+    with TcpDevice(respond=FirmwareDevice("1.2", 100)) as device:
         result = record(device, driver, "-o", str(path))
     assert result.returncode == 0, result.stdout + result.stderr
     return path
@@ -114,7 +86,7 @@ def rx_of(path: Path) -> bytes:
 
 
 def test_a_masked_field_that_changes_is_not_drift(old, driver, tmp_path):
-    with TcpDevice(respond=LineDevice("1.2", 500)) as device:
+    with TcpDevice(respond=FirmwareDevice("1.2", 500)) as device:
         masked = record(device, driver, "--against", str(old), "--profile", MASKED_TIME)
         unmasked = record(device, driver, "--against", str(old), "-o",
                           str(tmp_path / "unmasked.wtape"))
@@ -128,7 +100,7 @@ def test_a_masked_field_that_changes_is_not_drift(old, driver, tmp_path):
 
 def test_a_changed_firmware_is_drift_named_where_it_is(old, driver, tmp_path):
     stored = old.read_bytes()
-    with TcpDevice(respond=LineDevice("1.3", 500)) as device:
+    with TcpDevice(respond=FirmwareDevice("1.3", 500)) as device:
         result = record(device, driver, "--against", str(old), "--profile", MASKED_TIME)
     assert result.returncode == 1, result.stdout + result.stderr
     report = result.stdout
@@ -145,10 +117,10 @@ def test_a_changed_firmware_is_drift_named_where_it_is(old, driver, tmp_path):
 
 def test_the_stored_recordings_profile_is_the_default(tmp_path, driver):
     old = tmp_path / "meta.wtape"
-    with TcpDevice(respond=LineDevice("1.2", 100)) as device:
+    with TcpDevice(respond=FirmwareDevice("1.2", 100)) as device:
         made = record(device, driver, "-o", str(old), "--meta", f"profile={MASKED_TIME}")
         assert made.returncode == 0, made.stdout + made.stderr
-        device.respond = LineDevice("1.2", 900)
+        device.respond = FirmwareDevice("1.2", 900)
         result = record(device, driver, "--against", str(old))
     assert result.returncode == 0, result.stdout + result.stderr
     assert "no drift" in result.stdout
@@ -160,7 +132,7 @@ def test_the_stored_recordings_profile_is_the_default(tmp_path, driver):
 def test_update_replaces_old_only_when_the_run_passed(old, driver, tmp_path):
     stored = old.read_bytes()
     new = tmp_path / "new.wtape"
-    with TcpDevice(respond=LineDevice("1.3", 500)) as device:
+    with TcpDevice(respond=FirmwareDevice("1.3", 500)) as device:
         failed = record(device, driver, "--against", str(old), "--profile", MASKED_TIME,
                         "--update", "-o", str(new), status=4)
         assert failed.returncode == 4, failed.stdout + failed.stderr
@@ -182,7 +154,7 @@ def test_against_a_recording_of_another_device_type_is_exit_2(tmp_path, driver):
     with wiretape.SessionWriter(str(other), port_type="serial") as writer:
         writer.write("tx", 0, b"ID?\n")
         writer.write("rx", 1_000_000, b"ID ACME FW1.2 T=00001\n")
-    with TcpDevice(respond=LineDevice("1.2", 100)) as device:
+    with TcpDevice(respond=FirmwareDevice("1.2", 100)) as device:
         result = record(device, driver, "--against", str(other))
         assert device.connections == 0  # refused before anything ran
     assert result.returncode == 2, result.stdout + result.stderr
