@@ -60,8 +60,16 @@ def _device_type(args) -> str:
     return dict(_core.parse_options(_core.device_options(device))).get("type", "")
 
 
+#: Port types that reach one kind of device: a serial device exported over
+#: RFC 2217 (DESIGN §28) is recorded as a serial port's session.
+_SAME_DEVICE_KIND = {"rfc2217": "serial"}
+
+
 def _check_same_type(old: str, old_type: str, new_type: str, what: str) -> None:
-    if old_type != new_type:
+    def kind(port_type: str) -> str:
+        return _SAME_DEVICE_KIND.get(port_type, port_type)
+
+    if kind(old_type) != kind(new_type):
         raise UsageError(f"--against {old}: it is a recording of a device of type "
                          f"{old_type!r}, {what} is of type {new_type!r}: drift compares "
                          "recordings of one device")

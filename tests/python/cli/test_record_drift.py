@@ -175,3 +175,17 @@ def test_against_a_missing_file_is_exit_3(tmp_path, driver):
         result = record(device, driver, "--against", str(tmp_path / "none.wtape"))
     assert result.returncode == 3
     assert "none.wtape: no such file" in result.stderr
+
+
+def test_a_serial_device_exported_over_rfc2217_is_the_same_device_type(tmp_path, driver):
+    # OLD recorded through RFC 2217 against a local serial device: no type
+    # error (exit 2); the missing device itself is the failure (exit 3).
+    exported = tmp_path / "exported.wtape"
+    with wiretape.SessionWriter(str(exported), port_type="rfc2217") as writer:
+        writer.write("tx", 0, b"ID?\n")
+    result = subprocess.run(
+        [*WIRETAPE, "record", "--device", str(tmp_path / "ttyMissing"), "--against",
+         str(exported), "--", sys.executable, str(driver), str(tmp_path / "ttyMissing")],
+        capture_output=True, text=True, timeout=120)
+    assert result.returncode == 3, result.stdout + result.stderr
+    assert "of type" not in result.stderr
