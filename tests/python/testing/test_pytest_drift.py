@@ -127,3 +127,15 @@ def test_the_recording_is_kept_next_to_the_junit_report(pytester, device):
     result = pytester.runpytest("--wiretape-live", device_flag(device), f"--junitxml={report}")
     result.assert_outcomes(failed=1)
     assert (report.parent / "wiretape-failures" / "test_ident" / "test_ident.wtape").exists()
+
+
+def test_wiretape_failures_names_where_the_recording_is_kept(pytester, device, tmp_path):
+    pytester.makepyfile(test_ident=FIRMWARE_12)
+    device.respond = FirmwareDevice("1.3", 700)
+    chosen = tmp_path / "kept"
+    result = pytester.runpytest("--wiretape-live", device_flag(device),
+                                f"--wiretape-failures={chosen}",
+                                f"--junitxml={pytester.path / 'junit.xml'}")
+    result.assert_outcomes(failed=1)
+    assert (chosen / "test_ident" / "test_ident.wtape").exists()
+    assert not (pytester.path / "wiretape-failures").exists()
