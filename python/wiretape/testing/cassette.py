@@ -645,7 +645,8 @@ class WiretapeCassette:
 
     def _describe_live(self) -> str:
         flag = "--wiretape-drift" if self.drift else "--wiretape-live"
-        if self.live_recording is None:
+        recording = self.live_recording
+        if recording is None or not (recording.scratch.exists() or recording.was_kept):
             return f"live ({flag}): nothing recorded\noptions: {self.options}"
         from .live import replay_command
 
