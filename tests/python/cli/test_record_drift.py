@@ -8,7 +8,8 @@ The device is a small line device on TCP whose identity answer carries a
 firmware string and a time stamp; the driver (a real program, reached
 through the shim at a fixed device path) asks for it and for a reading.
 A firmware that changed is drift; a time stamp that changed is drift only
-when no profile masks it."""
+when no profile masks it. Last, examples/hokuyo's simulator given another
+firmware string drifts by SCIP frames (the profile from OLD's metadata)."""
 
 import subprocess
 import sys
@@ -189,3 +190,84 @@ def test_a_serial_device_exported_over_rfc2217_is_the_same_device_type(tmp_path,
         capture_output=True, text=True, timeout=120)
     assert result.returncode == 3, result.stdout + result.stderr
     assert "of type" not in result.stderr
+
+
+# --- the Hokuyo simulator (examples/hokuyo) with another firmware -------------------
+
+HOKUYO_SIM = Path(__file__).resolve().parents[3] / "examples" / "hokuyo" / "sim"
+
+# The simulator as it is, its URG-04LX's firmware string given first.
+SIM_WITH_FIRMWARE = textwrap.dedent(f"""
+    import runpy, sys
+    sys.path.insert(0, {str(HOKUYO_SIM)!r})
+    import scip_sim
+    scip_sim.MODELS["urg04lx"]["firm"] = sys.argv.pop(1)
+    runpy.run_path({str(HOKUYO_SIM / "__main__.py")!r}, run_name="__main__")
+""")
+
+# A SCIP 2.0 driver: version and parameters, each reply up to its blank line.
+SCIP_DRIVER = textwrap.dedent("""
+    import os, sys, tty
+    fd = os.open(sys.argv[1], os.O_RDWR | os.O_NOCTTY)
+    tty.setraw(fd)
+    for command in (b"VV\\n", b"PP\\n"):
+        os.write(fd, command)
+        reply = b""
+        while not reply.endswith(b"\\n\\n"):
+            chunk = os.read(fd, 256)
+            if not chunk:
+                sys.exit(3)
+            reply += chunk
+""")
+
+
+class HokuyoSimulator:
+    """examples/hokuyo's simulator on TCP with the firmware string given."""
+
+    def __init__(self, tmp_path: Path, firmware: str):
+        script = tmp_path / "sim_with_firmware.py"
+        script.write_text(SIM_WITH_FIRMWARE)
+        self.child = subprocess.Popen(
+            [sys.executable, str(script), firmware, "--scip2", "--listen", "127.0.0.1:0"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        ready = self.child.stdout.readline().split()  # blocks until it listens
+        assert ready[:1] == ["ready"], (ready, self.child.stderr.read())
+        host, _, port = ready[1].split("=", 1)[1].rpartition(":")
+        self.options = f"type=tcp,host={host},port={port}"
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc_info):
+        self.child.terminate()
+        self.child.wait(30)
+        self.child.stdout.close()
+        self.child.stderr.close()
+
+
+def test_the_hokuyo_simulator_with_another_firmware_drifts_by_scip_frames(tmp_path):
+    driver = tmp_path / "scip_driver.py"
+    driver.write_text(SCIP_DRIVER)
+    old = tmp_path / "urg.wtape"
+
+    def record_scip(simulator, *args):
+        return subprocess.run(
+            [*WIRETAPE, "record", "--device", simulator.options, "--as", DEVICE_PATH, *args,
+             "--", sys.executable, str(driver), DEVICE_PATH],
+            capture_output=True, text=True, timeout=120)
+
+    # a simulator powered on for each recording, as the device on a bench
+    with HokuyoSimulator(tmp_path, "3.1.04(02/Aug./2007)") as simulator:
+        made = record_scip(simulator, "-o", str(old), "--meta", "profile=scip")
+    assert made.returncode == 0, made.stdout + made.stderr
+    with HokuyoSimulator(tmp_path, "3.1.04(02/Aug./2007)") as simulator:
+        same = record_scip(simulator, "--against", str(old))
+    assert same.returncode == 0, same.stdout + same.stderr
+    assert "no drift" in same.stdout and "through profile scip" in same.stdout
+
+    with HokuyoSimulator(tmp_path, "3.1.05(09/Dec./2026)") as simulator:
+        newer = record_scip(simulator, "--against", str(old))
+    assert newer.returncode == 1, newer.stdout + newer.stderr
+    assert "1 divergence by exchange" in newer.stdout
+    assert "exchange 0 response (rx) differs at byte" in newer.stdout
+    assert "3.1.05" in newer.stdout  # the new firmware shown where it differs
