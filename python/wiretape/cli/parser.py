@@ -411,8 +411,9 @@ def build_parser() -> argparse.ArgumentParser:
                              "streams datagrams to --udp and each is forwarded to "
                              "HOST:PORT and recorded as rx" + _NAMED)
     _add_backlog(record)
-    record.add_argument("-o", "--output", required=True, metavar="FILE", type=_session_output,
-                        help="the session file to write (.wtape)")
+    record.add_argument("-o", "--output", metavar="FILE", type=_session_output,
+                        help="the session file to write (.wtape); required but with "
+                             "--against (default there: OLD's name with .new before .wtape)")
     record.add_argument("--duration", type=_positive_seconds, metavar="S",
                         help="stop after S seconds (default: until Ctrl-C)")
     record.add_argument("--compress", choices=("none", "zstd"), default="none",
@@ -422,6 +423,19 @@ def build_parser() -> argparse.ArgumentParser:
     record.add_argument("-q", "--quiet", action="store_true", help="no client/device messages")
     _add_redirect(record, "default: the --device's path")
     add_attach_arguments(record)
+    record.add_argument("--against", metavar="OLD", type=_session_output,
+                        help="drift: once recorded, compare the new recording with the stored "
+                             "recording OLD by exchange and report every place the device "
+                             "now answers differently (exit 1 on drift, 0 when it answers "
+                             "as recorded; docs/cli.md \"Drift\")")
+    record.add_argument("--profile", type=_profile_spec, metavar="PROFILE",
+                        help="with --against: compare through the profile's match key, so "
+                             "the fields it leaves out (masks) never drift (default: OLD's "
+                             f"--meta profile=NAME, else none): {_PROFILE_HELP}")
+    record.add_argument("--update", action="store_true",
+                        help="with --against: when the run passed (the recording and any "
+                             "-- CMD succeeded), write the new recording in OLD's place "
+                             "atomically, drift or not")
 
     replay = command(
         "replay", cmd_replay, "replay a recording as a virtual device (pty, TCP or UDP)",

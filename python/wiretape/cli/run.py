@@ -30,6 +30,21 @@ FAULTS_PROGRESS_EVERY_S = 5.0
 
 
 def cmd_record(args, out: Output) -> int:
+    if args.against is not None:
+        from .drift import record_against
+
+        return record_against(args, out, _record)
+    for flag, given in (("--profile", args.profile is not None), ("--update", args.update)):
+        if given:
+            raise UsageError(f"{flag} goes with --against OLD (drift): without it nothing "
+                             "is compared")
+    if args.output is None:
+        raise UsageError("the following arguments are required: -o/--output "
+                         "(see wiretape record --help)")
+    return _record(args, out)
+
+
+def _record(args, out: Output) -> int:
     from .. import bridge
 
     if getattr(args, "attach", None) is not None:

@@ -229,6 +229,10 @@ class WiretapeCassette:
                  "marker": marker.pop("record", None),
                  "wiretape_config fixture": defaults.pop("record", None),
                  "ini": config.getini("wiretape_record")}
+        # A kept recording replayed as the test's cassette (live.replay_command).
+        replayed_file = config.getoption("wiretape_cassette", None)
+        if replayed_file:
+            where["command line"] = "none"
         record = _first_given(*where.values()) or "none"
         if record not in RECORD_MODES:
             source = next(k for k, v in where.items() if v not in (None, ""))
@@ -238,6 +242,11 @@ class WiretapeCassette:
         self.record_mode = RECORD_MODE_ALIASES.get(record, record)
         # Hardware in the loop: the real device, nothing recorded or replayed.
         self.live = bool(config.getoption("wiretape_live")) or _ini_flag(config, "wiretape_live")
+        # Drift: live, and the recording compared with the cassette (live.py).
+        self.drift = bool(config.getoption("wiretape_drift", False)) and not replayed_file
+        self.live = (self.live or self.drift) and not replayed_file
+        self.live_recording = None  # a live.LiveRecording once record_live() is called
+        self.drift_found = None  # the drift report, when the device answered otherwise
         self.device = _first_given(config.getoption("wiretape_device"),
                                    marker.pop("device", None),
                                    defaults.pop("device", None),
@@ -251,7 +260,9 @@ class WiretapeCassette:
                                                  defaults.pop("ports", None)), item.nodeid)
 
         cassette = _first_given(marker.pop("cassette", None), defaults.pop("cassette", None))
-        if cassette is None:
+        if replayed_file:
+            self.path = Path(replayed_file).absolute()
+        elif cassette is None:
             self.path = Path(cassette_dir) / cassette_file_name(item)
         else:
             self.path = Path(os.fspath(cassette))
@@ -311,7 +322,11 @@ class WiretapeCassette:
         if self.live:
             if not device:
                 return "(none yet: the device is the path the driver opens)"
-            return device_options(device)
+            if self.live_recording is None:
+                return device_options(device)
+            return join_options(device_options(device),
+                                option_string([("log", self.live_recording.scratch),
+                                               ("meta_pytest_node", self.item.nodeid)]))
         if self.recording:
             if not device:
                 return "(none yet: the device is the path the driver opens)"
@@ -478,11 +493,17 @@ class WiretapeCassette:
                     self.partial_path.unlink()
             return
         if self.live:
+            flag = "--wiretape-drift" if self.drift else "--wiretape-live"
             if not self.device and not device_from_driver:
                 pytest.fail(
-                    f"wiretape: {self.item.nodeid} runs live (--wiretape-live) but no device "
+                    f"wiretape: {self.item.nodeid} runs live ({flag}) but no device "
                     "is given: pass --wiretape-device=OPTS, the marker's device=, or set "
                     "wiretape_device in the ini file", pytrace=False)
+            if self.drift and not self.path.exists():
+                pytest.fail(
+                    f"wiretape: {self.item.nodeid}: --wiretape-drift compares with the "
+                    f"cassette {self.path}, which does not exist.\nRecord it from the "
+                    f"device with:\n    {self.record_command()}", pytrace=False)
             return
         if self.recording:
             if not self.device and not device_from_driver:
@@ -558,6 +579,9 @@ class WiretapeCassette:
         """Keeps a recording made by a passing test; otherwise throws it away
         and leaves any previous cassette as it was."""
         self.close_ports_quietly()
+        if self.live_recording is not None:
+            self.live_recording.finish(keep=not passed or self.drift_found is not None)
+            return
         if self.appending:
             self._finish_appending(passed)
             return
@@ -599,7 +623,7 @@ class WiretapeCassette:
 
     def describe(self) -> str:
         if self.live:
-            return f"live (--wiretape-live): nothing recorded\noptions: {self.options}"
+            return self._describe_live()
         lines = [f"cassette: {self.path}",
                  f"mode: {self.mode} (--wiretape-record={self.record_mode})"]
         if self.ports is None:
@@ -617,4 +641,19 @@ class WiretapeCassette:
                              "and is never re-recorded")
         if not self.recording:
             lines.append(f"to record it again: {self.record_command().replace('=once', '=rewrite')}")
+        return "\n".join(lines)
+
+    def _describe_live(self) -> str:
+        flag = "--wiretape-drift" if self.drift else "--wiretape-live"
+        recording = self.live_recording
+        if recording is None or not (recording.scratch.exists() or recording.was_kept):
+            return f"live ({flag}): nothing recorded\noptions: {self.options}"
+        from .live import replay_command
+
+        kept = self.live_recording.kept
+        lines = [f"live ({flag}): recorded, kept as {kept} (the test failed)",
+                 f"options: {self.options}",
+                 f"replay it: {replay_command(self.item.nodeid, kept)}"]
+        if self.drift_found:
+            lines.append(self.drift_found)
         return "\n".join(lines)

@@ -22,7 +22,16 @@ it from the real device or replays it:
 ``--wiretape-live``
     hardware in the loop: every test talks to the real device
     (``--wiretape-device``, or the path a ``wiretape_serial`` driver opens);
-    nothing is replayed or recorded, cassettes are neither needed nor touched.
+    nothing is replayed, cassettes are neither needed nor touched. Its
+    session is recorded to a scratch file: a failing test keeps it under
+    ``--wiretape-failures=DIR`` and its report prints the one command that
+    replays it (``pytest NODE --wiretape-cassette=FILE``); live.py.
+``--wiretape-drift``
+    live, and each test's recording is compared with its cassette through
+    the profile's masks: a test whose device now answers differently fails
+    with where, and keeps its recording as a failing live test does.
+``--wiretape-cassette=FILE``
+    replay FILE as the cassette of the tests run (a kept recording).
 
 The run ends with a summary: cassettes replayed, recorded, appended to
 (new_episodes), not kept (the test failed while recording), run live, and the cassettes in the test
@@ -95,7 +104,8 @@ from wiretape import bridge, urlhandler
 
 from .._core import device_options, option_string, parse_options
 from ..options import join_options
-from .cassette import RECORD_MODES, WiretapeCassette, default_cassette_dir
+from .cassette import RECORD_MODES, WiretapeCassette, cassette_file_name, default_cassette_dir
+from .live import LiveRecording, failures_dir
 from .summary import CassetteSummary
 from .serial_patch import SerialPatch, fail_test, served_paths
 
@@ -127,6 +137,18 @@ def pytest_addoption(parser):
         help="hardware in the loop: every test talks to the real device "
              "(--wiretape-device); nothing is replayed or recorded")
     group.addoption(
+        "--wiretape-drift", dest="wiretape_drift", action="store_true", default=False,
+        help="drift: run live on the real device and fail each test whose device now "
+             "answers differently from its cassette (through the profile's masks)")
+    group.addoption(
+        "--wiretape-cassette", dest="wiretape_cassette", default=None, metavar="FILE",
+        help="replay FILE as the cassette of the tests run (the recording a failing "
+             "live test kept)")
+    group.addoption(
+        "--wiretape-failures", dest="wiretape_failures", default=None, metavar="DIR",
+        help="where a failing live or drift test keeps its recording (default: "
+             "wiretape-failures next to the --junitxml report, else in the rootdir)")
+    group.addoption(
         "--wiretape-device", dest="wiretape_device", default=None, metavar="OPTS",
         help="the device to record from: a wiretape option string "
              "(e.g. type=serial,device=/dev/ttyACM0,baud=115200) or a serial device path")
@@ -135,6 +157,8 @@ def pytest_addoption(parser):
     parser.addini("wiretape_live", "true: run against the real device, record nothing",
                   default="")
     parser.addini("wiretape_device", "wiretape device option string to record from", default="")
+    parser.addini("wiretape_failures", "where failing live tests keep their recordings",
+                  default="")
 
 
 def pytest_configure(config):
@@ -191,7 +215,27 @@ def pytest_runtest_call(item):
         # Closing may raise (unused recorded data under unused=error): that
         # belongs to the test's result, not to its teardown.
         cassette.close_ports()
+        if cassette.drift:
+            _check_drift(cassette)
     return result
+
+
+def _check_drift(cassette: WiretapeCassette) -> None:
+    """--wiretape-drift: the test's recording against its cassette; a drift
+    fails the test with the report (and the command that replays it)."""
+    __tracebackhide__ = True  # wiretape's frames, not the test's
+    from .live import drift_report, profile_spec, replay_command
+
+    recording = cassette.live_recording
+    if recording is None or not recording.scratch.exists():
+        pytest.fail(f"{cassette.item.nodeid}: --wiretape-drift: the test opened no wiretape "
+                    "port, so nothing was recorded to compare with its cassette", pytrace=False)
+    profile = profile_spec(cassette.replay_keys, cassette.path)
+    cassette.drift_found = drift_report(cassette.path, recording.scratch, profile)
+    if cassette.drift_found is not None:
+        pytest.fail(f"{cassette.drift_found}\nthe recording is kept as {recording.kept}; "
+                    f"replay it: {replay_command(cassette.item.nodeid, recording.kept)}",
+                    pytrace=False)
 
 
 def _test_passed(item) -> bool:
@@ -221,9 +265,16 @@ def wiretape_cassette_dir(request: pytest.FixtureRequest) -> Path:
 
 @pytest.fixture
 def wiretape_cassette(request: pytest.FixtureRequest, wiretape_config: Dict[str, Any],
-                      wiretape_cassette_dir: Path) -> Iterator[WiretapeCassette]:
+                      wiretape_cassette_dir: Path,
+                      tmp_path_factory: pytest.TempPathFactory) -> Iterator[WiretapeCassette]:
     """The cassette of this test: path, recording or replay, option string."""
     cassette = WiretapeCassette(request.node, wiretape_config, Path(wiretape_cassette_dir))
+    if cassette.live and cassette.ports is None:
+        # live.py: recorded to scratch, kept if the test fails
+        name = cassette_file_name(request.node)
+        cassette.live_recording = LiveRecording(
+            tmp_path_factory.mktemp("wiretape-live") / name,
+            failures_dir(request.config) / default_cassette_dir(request.node).name / name)
     # wiretape_serial records from the path the driver opens: no device needed.
     cassette.prepare(device_from_driver="wiretape_serial" in request.fixturenames)
     request.node.stash[_CASSETTE_KEY] = cassette
@@ -324,7 +375,10 @@ def wiretape_udp(wiretape_cassette: WiretapeCassette) -> str:
 def _virtual_device(cassette: WiretapeCassette, fixture: str, **client_side):
     """A bridge serving the cassette's replay, or recording its device, on
     `client_side`; stopped, and its verdict checked, when the test ends."""
-    if cassette.live:
+    if cassette.live and cassette.live_recording is not None:
+        handle = bridge.record(device_options(cassette.device),
+                               str(cassette.live_recording.scratch), **client_side)
+    elif cassette.live:
         handle = bridge.proxy(device_options(cassette.device), **client_side)
     elif cassette.recording:
         handle = bridge.record(device_options(cassette.device), str(cassette.partial_path),

@@ -38,6 +38,7 @@ class CassetteSummary:
         self._folders: Set[Path] = set()
         self._named: Set[Path] = set()
         self._cassette_folders: Set[Path] = set()  # of the cassettes used, wherever
+        self._kept: List[str] = []  # the replay commands of failing live tests' recordings
 
     @property
     def counts(self) -> Dict[str, int]:
@@ -62,6 +63,11 @@ class CassetteSummary:
             self._named.add(path)
 
     def note(self, cassette, passed: bool) -> None:
+        recording = getattr(cassette, "live_recording", None)
+        if recording is not None and recording.was_kept:
+            from .live import replay_command
+
+            self._kept.append(replay_command(cassette.item.nodeid, recording.kept))
         self._cassette_folders.add(cassette.path.parent)
         if cassette.live:
             outcome = "live"
@@ -108,7 +114,7 @@ class CassetteSummary:
         used = sum(counts.values())
         orphans = self.orphans()
         stale = self.stale_recordings()
-        if not used and not orphans and not stale:
+        if not used and not orphans and not stale and not self._kept:
             return []
         lines = []
         if used:
@@ -126,6 +132,10 @@ class CassetteSummary:
             lines.append(f"{_plural(len(orphans), 'cassette')} no collected test names "
                          "(a renamed or removed test?):")
             lines += [f"    {path}" for path in orphans]
+        if self._kept:
+            lines.append(f"{_plural(len(self._kept), 'failing live test')} kept "
+                         "its recording; replay each with:")
+            lines += [f"    {command}" for command in self._kept]
         if stale:
             lines.append(f"removed {_plural(len(stale), 'recording')} left in progress by a "
                          "pytest that was killed (its process is gone):")
