@@ -22,7 +22,7 @@ $(VENV)/.deps: pyproject.toml
 	$(PYTHON) -m pip install -q "scikit-build-core>=0.10" "nanobind==3.1.0" \
 	  "pyserial>=3.5" "rich>=13" "mcap>=1.1" "pytest>=7" "hypothesis>=6" "mypy==2.4.1" \
 	  "pymodbus>=3" "pytest-reserial>=0.4" "pymavlink>=2.4" "pytest-xdist>=3" "pyyaml>=6" \
-	  "junitparser==3.2.0"
+	  "junitparser==3.2.0" "pytest-embedded==2.9.3" "pytest-embedded-serial==2.9.3"
 	touch $@
 
 $(BUILD)/build.ninja: $(VENV)/.deps CMakeLists.txt
