@@ -9,7 +9,7 @@ CMAKE_ARGS ?=
 export PATH := $(abspath $(VENV))/bin:$(PATH)
 
 .PHONY: all cpp python stubs test test-cpp test-python test-odr demo demo-build install bench fuzz \
-	test-sanitize soak clean wheel wheel-smoke
+	test-sanitize soak clean wheel wheel-smoke labgrid-venv
 
 all: python
 
@@ -31,6 +31,21 @@ $(BUILD)/build.ninja: $(VENV)/.deps CMakeLists.txt
 
 cpp: $(BUILD)/build.ninja
 	cmake --build $(BUILD)
+
+# labgrid in a venv of its own (docs/testing.md, "With labgrid"): it pulls
+# in pyserial-labgrid, which installs its own `serial` package over
+# pyserial's, so it stays out of .venv. tests/python/lab/test_labgrid.py
+# makes it (and skips, saying why, when PyPI cannot be reached). The stamp is
+# touched only once every pin installed.
+LABGRID_VENV := $(BUILD)/labgrid-venv
+LABGRID_PINS := "labgrid==26.0.1" "pyserial-labgrid==3.5.0.2" "pytest==9.2.0"
+
+$(LABGRID_VENV)/.installed: Makefile
+	test -x $(LABGRID_VENV)/bin/python || python3 -m venv $(LABGRID_VENV)
+	$(LABGRID_VENV)/bin/python -m pip install -q $(LABGRID_PINS)
+	touch $@
+
+labgrid-venv: $(LABGRID_VENV)/.installed
 
 # The editable install reuses the extension that $(BUILD) writes into
 # python/wiretape (see pyproject): python/ on sys.path by a .pth line, with
