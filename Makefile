@@ -9,7 +9,7 @@ CMAKE_ARGS ?=
 export PATH := $(abspath $(VENV))/bin:$(PATH)
 
 .PHONY: all cpp python stubs test test-cpp test-python test-odr demo demo-build install bench fuzz \
-	test-sanitize soak clean wheel wheel-smoke
+	test-sanitize soak clean wheel wheel-smoke labgrid-venv
 
 all: python
 
@@ -28,7 +28,8 @@ $(VENV)/.build-deps: pyproject.toml
 $(VENV)/.deps: $(VENV)/.build-deps
 	$(PYTHON) -m pip install -q "pytest>=7" "hypothesis>=6" "mypy==2.4.1" \
 	  "pymodbus>=3" "pytest-reserial>=0.4" "pymavlink>=2.4" "pytest-xdist>=3" "pyyaml>=6" \
-	  "junitparser==3.2.0" "pyelftools==0.33"
+	  "junitparser==3.2.0" "pyelftools==0.33" "pytest-embedded==2.9.3" \
+	  "pytest-embedded-serial==2.9.3"
 	touch $@
 
 $(BUILD)/build.ninja: $(VENV)/.build-deps CMakeLists.txt
@@ -37,6 +38,21 @@ $(BUILD)/build.ninja: $(VENV)/.build-deps CMakeLists.txt
 
 cpp: $(BUILD)/build.ninja
 	cmake --build $(BUILD)
+
+# labgrid in a venv of its own (docs/testing.md, "With labgrid"): it pulls
+# in pyserial-labgrid, which installs its own `serial` package over
+# pyserial's, so it stays out of .venv. tests/python/lab/test_labgrid.py
+# makes it (and skips, saying why, when PyPI cannot be reached). The stamp is
+# touched only once every pin installed.
+LABGRID_VENV := $(BUILD)/labgrid-venv
+LABGRID_PINS := "labgrid==26.0.1" "pyserial-labgrid==3.5.0.2" "pytest==9.2.0"
+
+$(LABGRID_VENV)/.installed: Makefile
+	test -x $(LABGRID_VENV)/bin/python || python3 -m venv $(LABGRID_VENV)
+	$(LABGRID_VENV)/bin/python -m pip install -q $(LABGRID_PINS)
+	touch $@
+
+labgrid-venv: $(LABGRID_VENV)/.installed
 
 # The editable install reuses the extension that $(BUILD) writes into
 # python/wiretape (see pyproject): python/ on sys.path by a .pth line, with

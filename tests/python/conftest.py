@@ -210,3 +210,17 @@ def endpoint_factory(tmp_path):
     yield make
     for endpoint in made:
         endpoint.close()
+
+
+# The lab tools' plugins that pyproject's addopts turn off (pytest-embedded,
+# which the test extra installs; labgrid): the runs of pytester have their
+# own config, so they would load them, with pytest-embedded's multiprocessing
+# lock in this very process. Off there too (pytester clears PYTEST_ADDOPTS
+# when it starts, hence after it).
+LAB_PLUGINS_OFF = "-p no:pytest_embedded -p no:labgrid"
+
+
+@pytest.fixture
+def pytester(pytester, monkeypatch):
+    monkeypatch.setenv("PYTEST_ADDOPTS", LAB_PLUGINS_OFF)
+    return pytester
