@@ -36,7 +36,13 @@ $(VENV)/.deps: $(VENV)/.build-deps
 	  "pytest-embedded-serial==2.9.3"
 	touch $@
 
+# The library's one outside dependency (zstd compresses session chunks): apt
+# installs it where it is missing and make may (root or sudo), else CMake
+# says it is missing.
+BUILD_PACKAGES := libzstd-dev
+
 $(BUILD)/build.ninja: $(VENV)/.build-deps CMakeLists.txt
+	bench/install-tools.sh $(BUILD_PACKAGES)
 	cmake -S . -B $(BUILD) -G $(GENERATOR) -DWIRETAPE_PYTHON=ON \
 	  -DCMAKE_BUILD_TYPE=$(BUILD_TYPE) -DPython_EXECUTABLE=$(abspath $(PYTHON)) $(CMAKE_ARGS)
 

@@ -60,3 +60,12 @@ def test_make_demo_installs_only_what_the_demo_runs_and_make_test_the_test_tools
     assert not demo & {"pytest", "mypy", "pymavlink", "pymodbus", "hypothesis"}, demo
     test = pip_installs(dry_run("test", fresh))
     assert {"pytest", "mypy", "pymavlink", "pymodbus", "hypothesis", "nanobind"} <= test
+
+
+def test_make_demo_installs_libzstd_before_it_configures():
+    lines = dry_run("demo")
+    installs = [n for n, line in enumerate(lines) if line.startswith("bench/install-tools.sh")
+                and "libzstd-dev" in line.split()]
+    configures = [n for n, line in enumerate(lines) if line.startswith("cmake -S . -B")]
+    assert installs and configures, lines
+    assert installs[0] < configures[0]
