@@ -424,7 +424,7 @@ def run_cpp_program(block, sandbox):
         source = FRAGMENT_PROGRAM.replace("BODY", textwrap.indent(source, "  "))
     (sandbox.root / "example.cpp").write_text(source)
     compiled = sandbox.run([compiler, "-std=c++17", f"-I{REPO / 'include'}",
-                            "example.cpp", str(library), "-pthread", "-o", "example"])
+                            "example.cpp", str(library), "-lzstd", "-pthread", "-o", "example"])
     assert compiled.returncode == 0, explain(block, compiled)
     result = sandbox.run([str(sandbox.root / "example")])
     assert result.returncode == 0, explain(block, result)
