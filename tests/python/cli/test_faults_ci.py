@@ -9,11 +9,10 @@ import json
 import os
 import subprocess
 import sys
-import textwrap
 
 import pytest
+from campaign_driver import write_campaign_files
 
-import wiretape
 
 junitparser = pytest.importorskip("junitparser", reason="junitparser is in the test extra "
                                   "(make installs it into .venv)")
@@ -21,24 +20,6 @@ junitparser = pytest.importorskip("junitparser", reason="junitparser is in the t
 WIRETAPE = [sys.executable, "-m", "wiretape.cli"]
 KINDS = "drop,corrupt"
 
-# Two exchanges; aborts on an answer it did not expect (crash), waits for one
-# that does not come (hang).
-DRIVER = textwrap.dedent("""
-    import os, sys, tty
-    fd = os.open(sys.argv[1], os.O_RDWR | os.O_NOCTTY)
-    tty.setraw(fd)
-    for n in range(2):
-        os.write(fd, f"Q{n}\\n".encode())
-        line = b""
-        while not line.endswith(b"\\n"):
-            chunk = os.read(fd, 1)
-            if not chunk:
-                sys.exit(3)
-            line += chunk
-        if line != f"R{n}\\n".encode():
-            print("driver: unexpected answer <&>", line, flush=True)
-            os.abort()
-""")
 
 ENGINE_VARIABLES = ("TEST_SHARD_INDEX", "TEST_TOTAL_SHARDS", "TEST_SHARD_STATUS_FILE",
                     "JOB_COMPLETION_INDEX", "CI_NODE_INDEX", "CI_NODE_TOTAL")
@@ -54,13 +35,7 @@ def run_cli(*args, environ=None, timeout=300):
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):
     folder = tmp_path_factory.mktemp("ci")
-    session = folder / "lines.wtape"
-    with wiretape.SessionWriter(str(session), port_type="serial") as writer:
-        for n in range(2):
-            writer.write("tx", n * 10_000_000, f"Q{n}\n".encode())
-            writer.write("rx", n * 10_000_000 + 1_000_000, f"R{n}\n".encode())
-    driver = folder / "driver.py"
-    driver.write_text(DRIVER)
+    session, driver = write_campaign_files(folder, 2)
     command = ["--kinds", KINDS, "--options", "timing=none", "--timeout", "2", "--jobs", "2"]
     argv = ["--", sys.executable, str(driver), "{port}"]
     return folder, session, command, argv

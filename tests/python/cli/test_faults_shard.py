@@ -8,12 +8,11 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-import textwrap
 from pathlib import Path
 
 import pytest
+from campaign_driver import write_campaign_files
 
-import wiretape
 from wiretape import faults
 
 WIRETAPE = [sys.executable, "-m", "wiretape.cli"]
@@ -21,23 +20,6 @@ pytest_plugins = ["pytester"]
 
 KINDS = "drop,corrupt,duplicate"
 
-# Three exchanges; the driver aborts on an answer it did not expect (crash)
-# and waits forever for one that does not come (hang): every outcome shows.
-DRIVER = textwrap.dedent("""
-    import os, sys, tty
-    fd = os.open(sys.argv[1], os.O_RDWR | os.O_NOCTTY)
-    tty.setraw(fd)
-    for n in range(3):
-        os.write(fd, f"Q{n}\\n".encode())
-        line = b""
-        while not line.endswith(b"\\n"):
-            chunk = os.read(fd, 1)
-            if not chunk:
-                sys.exit(3)
-            line += chunk
-        if line != f"R{n}\\n".encode():
-            os.abort()
-""")
 
 
 def run_cli(*args, timeout=300):
@@ -48,13 +30,7 @@ def run_cli(*args, timeout=300):
 def campaign_files(tmp_path_factory):
     """The session, the driver, and the campaign run whole and in 3 shards."""
     folder = tmp_path_factory.mktemp("shards")
-    session = folder / "lines.wtape"
-    with wiretape.SessionWriter(str(session), port_type="serial") as writer:
-        for n in range(3):
-            writer.write("tx", n * 10_000_000, f"Q{n}\n".encode())
-            writer.write("rx", n * 10_000_000 + 1_000_000, f"R{n}\n".encode())
-    driver = folder / "driver.py"
-    driver.write_text(DRIVER)
+    session, driver = write_campaign_files(folder, 3)
     command = ["--kinds", KINDS, "--options", "timing=none", "--timeout", "2", "--jobs", "2"]
     argv = ["--", sys.executable, str(driver), "{port}"]
     whole = run_cli("faults", str(session), *command, "--json", str(folder / "whole.json"), *argv)
