@@ -11,8 +11,8 @@ from typing import Dict, List, Optional, Tuple
 
 from . import _core
 
-__all__ = ["default_of", "join_options", "option_keys", "option_string", "option_values",
-           "parse_options", "replay_keys"]
+__all__ = ["default_of", "has_line_settings", "join_options", "option_keys", "option_string",
+           "option_values", "parse_options", "replay_keys"]
 
 parse_options = _core.parse_options
 option_string = _core.option_string
@@ -29,6 +29,15 @@ def option_keys(port_type: Optional[str] = None) -> List[_core.OptionKey]:
     """The rows of the key table, or those that apply to ``port_type``."""
     return [key for key in _core.option_keys()
             if port_type is None or key.applies_to(port_type)]
+
+
+def has_line_settings(port_type: str) -> bool:
+    """Whether a port of ``port_type`` is a serial line whose settings a
+    driver sets (rate, framing, flow; lines and break come with them): the
+    types the key table gives ``baud`` to, a local one (serial) or one
+    exported over the network (rfc2217). A driver's rate and settings are
+    passed on to these, and their recordings are of one kind of device."""
+    return any(key.name == "baud" and not key.prefix for key in option_keys(port_type))
 
 
 def default_of(name: str, port_type: str) -> Optional[str]:

@@ -60,14 +60,12 @@ def _device_type(args) -> str:
     return dict(_core.parse_options(_core.device_options(device))).get("type", "")
 
 
-#: Port types that reach one kind of device: a serial device exported over
-#: RFC 2217 (DESIGN §28) is recorded as a serial port's session.
-_SAME_DEVICE_KIND = {"rfc2217": "serial"}
-
-
 def _check_same_type(old: str, old_type: str, new_type: str, what: str) -> None:
+    from ..options import has_line_settings
+
     def kind(port_type: str) -> str:
-        return _SAME_DEVICE_KIND.get(port_type, port_type)
+        # A serial device exported over RFC 2217 (DESIGN §28) is a serial line.
+        return "serial line" if has_line_settings(port_type) else port_type
 
     if kind(old_type) != kind(new_type):
         raise UsageError(f"--against {old}: it is a recording of a device of type "

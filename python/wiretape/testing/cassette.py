@@ -173,16 +173,19 @@ def _ini_flag(config, name: str) -> bool:
 
 
 def _live_url(device: str, nodeid: str) -> str:
-    """pyserial's own URL for a device wiretape_url opens live."""
+    """pyserial's own URL for a device wiretape_url opens live (pyserial's
+    clients apply the driver's settings to the serial lines)."""
     options = dict(_core.parse_options(device))
     kind = options.get("type")
     if kind == "serial" and options.get("device"):
         return options["device"]
-    if kind == "tcp" and options.get("host") and options.get("port"):
-        return f"socket://{options['host']}:{options['port']}"
-    pytest.fail(f"{nodeid}: wiretape_url under --wiretape-live opens serial and TCP devices "
-                f"(pyserial's own URLs); {device!r} is neither: use wiretape_port",
-                pytrace=False)
+    if kind in ("rfc2217", "tcp") and options.get("host") and options.get("port"):
+        host = f"[{options['host']}]" if ":" in options["host"] else options["host"]
+        scheme = "rfc2217" if kind == "rfc2217" else "socket"
+        return f"{scheme}://{host}:{options['port']}"
+    pytest.fail(f"{nodeid}: wiretape_url under --wiretape-live opens serial, RFC 2217 and TCP "
+                f"devices (pyserial's own URLs); {device!r} is none of them: use "
+                "wiretape_port", pytrace=False)
 
 
 def _checked_ports(ports: Any, nodeid: str):

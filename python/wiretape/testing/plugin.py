@@ -103,7 +103,7 @@ import wiretape
 from wiretape import bridge, urlhandler
 
 from .._core import device_options, option_string, parse_options
-from ..options import join_options
+from ..options import has_line_settings, join_options
 from .cassette import RECORD_MODES, WiretapeCassette, cassette_file_name, default_cassette_dir
 from .live import LiveRecording, failures_dir
 from .summary import CassetteSummary
@@ -341,7 +341,7 @@ def wiretape_serial(wiretape_cassette: WiretapeCassette) -> Iterator[SerialPatch
             return cassette.open_port()
         device = device_options(cassette.device or path)
         keys = dict(parse_options(device))
-        if baud and keys.get("type") == "serial" and "baud" not in keys:
+        if baud and has_line_settings(keys.get("type", "")) and "baud" not in keys:
             # The rate the driver opens at, not a settings change after open.
             device = join_options(device, option_string([("baud", int(baud))]))
         return cassette.open_port(device)

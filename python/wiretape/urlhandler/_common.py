@@ -13,6 +13,7 @@ from serial.serialutil import (
 
 # _core, not the package: ``import wiretape`` imports this module.
 from .. import _core
+from ..options import has_line_settings
 
 #: The wiretape errors a pyserial caller sees as SerialException.
 #: ReplayMismatch passes through: it is the report a test must show.
@@ -102,10 +103,11 @@ class PortSerial(SerialBase):
         port = self._wiretape_port
         if port is None:
             return
-        # Line settings mean nothing to a replay; a real serial port follows
-        # them. Only what changed is applied (a recording shows a settings
-        # event where the driver changed something, not at every open).
-        if port.type != "serial" or not self._baudrate:
+        # Line settings mean nothing to a replay; a serial line (local or
+        # over RFC 2217) follows them. Only what changed is applied (a
+        # recording shows a settings event where the driver changed
+        # something, not at every open).
+        if not has_line_settings(port.type) or not self._baudrate:
             return
         wanted = {
             "baud": int(self._baudrate),

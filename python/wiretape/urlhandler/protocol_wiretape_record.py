@@ -9,10 +9,12 @@ is one record), ``tx`` when a write is called, and the same events (open,
 close, settings, buffer flushes, modem lines, breaks, device loss).
 
 ``device=`` takes a device path (``/dev/ttyUSB0``, which means
-``type=serial,device=PATH``) or a wiretape option string; ``options=`` takes
-an option string (a bare path works there too). pyserial's own URLs
+``type=serial,device=PATH``), ``rfc2217://HOST:PORT`` (a serial line
+exported over RFC 2217) or a wiretape option string; ``options=`` takes an
+option string (a bare path works there too). pyserial's other URLs
 (``loop://``, ``socket://``...) are not devices wiretape opens: use the
 matching option string (``type=loopback``, ``type=tcp,host=H,port=P``).
+Serial lines, local or over RFC 2217, follow the driver's settings.
 """
 
 from serial.serialutil import SerialException
@@ -59,15 +61,18 @@ class _Request:
                 f"{url!r}: give exactly one of device= (a device path or a wiretape "
                 "option string) or options= (a wiretape option string)")
         setting = device if device is not None else options
-        if device is not None and "://" in device and "=" not in device:
-            raise SerialException(
-                f"{url!r}: device={device!r} is a pyserial URL; wiretape records its own "
-                "ports: give a device path or an option string (type=loopback, "
-                "type=tcp,host=H,port=P)")
         try:
             self.options = _core.device_options(setting)
         except _core.OptionError as error:
             raise SerialException(f"{url!r}: {error}") from error
+        # rfc2217://HOST:PORT is a wiretape device too; another URL read as
+        # a device path is pyserial's own.
+        if device is not None and "://" in device and \
+                dict(_core.parse_options(self.options)).get("device") == device:
+            raise SerialException(
+                f"{url!r}: device={device!r} is a pyserial URL; wiretape records its own "
+                "ports: give a device path, rfc2217://HOST:PORT or an option string "
+                "(type=loopback, type=tcp,host=H,port=P)")
 
     def port_options(self, baud):
         """The option string of the recorded port."""

@@ -12,7 +12,7 @@ import pytest
 import wiretape
 from wiretape import _core
 from wiretape.cli import build_parser
-from wiretape.options import option_values, replay_keys
+from wiretape.options import has_line_settings, option_values, replay_keys
 
 DOCS = pathlib.Path(__file__).resolve().parents[3] / "docs" / "options.md"
 
@@ -149,3 +149,8 @@ def test_the_table_is_bound_with_types_ranges_and_flags():
                                                                       100_000_000)
     at_end = next(key for key in _core.option_keys() if key.name == "at_end")
     assert (at_end.flag, at_end.choices) == ("--at-end", ["silent", "closed"])
+
+
+def test_the_types_with_line_settings_are_the_serial_lines_local_or_exported():
+    assert [name for name in _core.port_types() if has_line_settings(name)] == \
+        ["serial", "rfc2217"]
