@@ -436,6 +436,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="with --against: when the run passed (the recording and any "
                              "-- CMD succeeded), write the new recording in OLD's place "
                              "atomically, drift or not")
+    record.add_argument("--json", action="store_true",
+                        help="with --against: print one JSON document of the places that "
+                             "drifted instead of the report (the run's output goes to "
+                             "stderr); the same exit status")
 
     replay = command(
         "replay", cmd_replay, "replay a recording as a virtual device (pty, TCP or UDP)",

@@ -34,7 +34,8 @@ def cmd_record(args, out: Output) -> int:
         from .drift import record_against
 
         return record_against(args, out, _record)
-    for flag, given in (("--profile", args.profile is not None), ("--update", args.update)):
+    for flag, given in (("--profile", args.profile is not None), ("--update", args.update),
+                        ("--json", args.json)):
         if given:
             raise UsageError(f"{flag} goes with --against OLD (drift): without it nothing "
                              "is compared")
