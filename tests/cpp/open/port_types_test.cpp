@@ -96,6 +96,15 @@ TEST(PortTypes, CapabilitiesAreWhatTheOpenedPortsSay) {
   EXPECT_EQ(datagram_port_types(), std::vector<std::string>{"udp"});
 }
 
+// One concept, "a serial line": the registry's capability and the types the
+// key table gives the line settings (what Python's has_line_settings reads).
+TEST(PortTypes, TheSerialLinesAreTheTypesTheLineSettingsApplyTo) {
+  for (const PortType& type : registered_port_types()) {
+    SCOPED_TRACE(std::string(type.name));
+    EXPECT_EQ(type.capabilities.modem_lines, find_option_key("baud", type.name) != nullptr);
+  }
+}
+
 TEST(PortTypes, AnUnknownTypeIsRefusedListingTheRegisteredOnes) {
   try {
     open_port("type=carrier-pigeon");
