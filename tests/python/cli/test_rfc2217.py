@@ -3,12 +3,9 @@ client sets baud, data bits, parity, stop bits, modem lines and purges
 buffers on a device; settings reach the device and are recorded."""
 
 import json
-import os
-import select
 import socket
 import termios
 import time
-import tty
 
 import pytest
 import serial
@@ -16,44 +13,12 @@ import serial
 from wiretape import _core, bridge
 
 from devices import skip_unless_serial_opens_on_a_pty, wait_until
+from pty_device import PtyDevice
 
 DEADLINE = 10.0
 
 # pyserial's rfc2217 client uses threading names deprecated in Python 3.10.
 pytestmark = pytest.mark.filterwarnings("ignore:set.*is deprecated:DeprecationWarning")
-
-
-class PtyDevice:
-    """A device on a pseudo-terminal: the server opens its terminal as a
-    serial port; the test plays the device on the master side."""
-
-    def __init__(self):
-        self.master, self.slave = os.openpty()
-        tty.setraw(self.slave)
-        self.path = os.ttyname(self.slave)
-        self.options = f"type=serial,device={self.path},baud=9600,exclusive=false"
-
-    def read(self, count):
-        data = bytearray()
-        deadline = time.monotonic() + DEADLINE
-        while len(data) < count and time.monotonic() < deadline:
-            ready, _, _ = select.select([self.master], [], [], 0.1)
-            if ready:
-                data += os.read(self.master, count - len(data))
-        return bytes(data)
-
-    def write(self, data):
-        os.write(self.master, data)
-
-    def speed(self):
-        return termios.tcgetattr(self.slave)[5]
-
-    def stop_bits(self):
-        return 2 if termios.tcgetattr(self.slave)[2] & termios.CSTOPB else 1
-
-    def close(self):
-        os.close(self.master)
-        os.close(self.slave)
 
 
 @pytest.fixture

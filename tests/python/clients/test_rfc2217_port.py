@@ -7,14 +7,11 @@ session, which a replay checks as it would a local port's."""
 
 import json
 import os
-import select
 import shutil
 import socket
 import subprocess
 import termios
 import threading
-import time
-import tty
 
 import pytest
 
@@ -24,39 +21,11 @@ from wiretape import _core, bridge
 from devices import (announced_address, interrupt, skip_unless_serial_opens_on_a_pty,
                      start_cli, wait_until)
 from line_devices import AFTER, BEFORE, line_device_session
+from pty_device import PtyDevice
 
 DEADLINE = 10.0
 SER2NET = shutil.which("ser2net") or ("/usr/sbin/ser2net"
                                       if os.path.exists("/usr/sbin/ser2net") else None)
-
-
-class PtyDevice:
-    """A device on a pseudo-terminal: the server opens its terminal; the
-    test plays the device on the master side."""
-
-    def __init__(self):
-        self.master, self.slave = os.openpty()
-        tty.setraw(self.slave)
-        self.path = os.ttyname(self.slave)
-
-    def read(self, count):
-        data = bytearray()
-        deadline = time.monotonic() + DEADLINE
-        while len(data) < count and time.monotonic() < deadline:
-            ready, _, _ = select.select([self.master], [], [], 0.1)
-            if ready:
-                data += os.read(self.master, count - len(data))
-        return bytes(data)
-
-    def write(self, data):
-        os.write(self.master, data)
-
-    def speed(self):
-        return termios.tcgetattr(self.slave)[5]
-
-    def close(self):
-        os.close(self.master)
-        os.close(self.slave)
 
 
 @pytest.fixture
