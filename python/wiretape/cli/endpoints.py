@@ -12,7 +12,6 @@ single-port form; named ones are a channel each; the two do not mix.
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Sequence, Tuple
 
@@ -166,6 +165,8 @@ def check_replay(endpoints: List[Endpoint], with_command: bool,
         if endpoint.name not in named_channels:
             first = next(iter(endpoint.values))
             if named_channels:
+                import difflib  # only a usage error needs it
+
                 close = difflib.get_close_matches(endpoint.name, named_channels, n=1)
                 hint = f" (did you mean {close[0]!r}?)" if close else ""
                 has = f"its channels are {', '.join(named_channels)}"
