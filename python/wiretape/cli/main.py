@@ -12,7 +12,7 @@ from typing import Optional, Sequence
 
 from .console import Output, describe, silence_stdout, undecodable_text_escaped
 from .errors import EXIT_OK, EXIT_USAGE, Interrupted, exit_code_for, exit_for_signal
-from .parser import COMMAND_NAMES, ParserError, ParserExit, build_parser, command_named, split_command
+from .parser import ParserError, ParserExit, build_parser, command_run_alone, split_command
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
@@ -24,10 +24,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 def _main(argv: Optional[Sequence[str]]) -> int:
     out = Output()
     own_arguments, command_argv = split_command(sys.argv[1:] if argv is None else argv)
-    named = command_named(own_arguments)
-    # Only the command run needs its arguments declared; anything else (no
-    # command, a mistyped one, an option before it) is answered from them all.
-    parser = build_parser(only=named if named in COMMAND_NAMES else None)
+    # Only the command run needs its parser; anything else (no command, a
+    # mistyped one, an option before it) is answered from them all.
+    parser = build_parser(only=command_run_alone(own_arguments))
     try:
         args = parser.parse_args(own_arguments)
     except ParserError as error:

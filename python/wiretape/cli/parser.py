@@ -381,8 +381,8 @@ def split_command(argv: Sequence[str]) -> Tuple[List[str], Optional[List[str]]]:
 
 class _UndeclaredArguments:
     """Stands for the parser of a command that is not run: its arguments are
-    taken and dropped. Declaring every command's arguments (and laying out
-    their usage) is most of the parser's cost, paid at every start."""
+    taken and dropped. Making every command's parser and declaring its
+    arguments is most of the parser's cost, paid at every start."""
 
     def add_argument(self, *args, **kwargs) -> None:
         pass
@@ -397,17 +397,19 @@ class _UndeclaredArguments:
         return self
 
 
-def command_named(arguments: Sequence[str]) -> Optional[str]:
-    """The command `arguments` (wiretape's own, after split_command) run:
-    wiretape's own options (--help, --version) take no value, so it is the
-    first argument that is not one; None when there is none."""
-    return next((argument for argument in arguments if not argument.startswith("-")), None)
+def command_run_alone(arguments: Sequence[str]) -> Optional[str]:
+    """The command whose parser alone parses `arguments`: a known command
+    given first (before it, ``--help`` or ``--version`` is wiretape's own
+    and needs every command); None else."""
+    first = arguments[0] if arguments else None
+    return first if first in COMMAND_NAMES else None
 
 
 def build_parser(only: Optional[str] = None) -> argparse.ArgumentParser:
-    """The command line's parser. With `only`, a command's name, the other
-    commands are there by name and help line (for wiretape --help and a
-    mistyped command's "did you mean") but without their arguments."""
+    """The command line's parser. With `only`, a command's name, that
+    command alone: for a command line that names it first, which needs no
+    other (wiretape --help and a mistyped command's "did you mean" need
+    them all)."""
     parser = _Parser(prog="wiretape", description=_DESCRIPTION, epilog=_EPILOG,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"wiretape {__version__}")
@@ -416,11 +418,11 @@ def build_parser(only: Optional[str] = None) -> argparse.ArgumentParser:
 
     def command(name: str, handler: Callable, help_text: str, description: str = ""):
         assert name in COMMAND_NAMES, name
+        if only is not None and name != only:
+            return _UndeclaredArguments()
         sub = commands.add_parser(name, help=help_text, description=description or help_text,
                                   epilog=_EPILOG,
                                   formatter_class=argparse.RawDescriptionHelpFormatter)
-        if only is not None and name != only:
-            return _UndeclaredArguments()
         sub.set_defaults(handler=handler)
         declared.append(name)
         return sub
