@@ -7,7 +7,6 @@ from __future__ import annotations
 import os
 import threading
 import time
-from dataclasses import dataclass
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 from .bridges import (POLL_S, MessageRelay, announce_clients, check_fault_places, meta_pairs,
@@ -101,18 +100,18 @@ def replay_with_command(args, out: Output) -> int:
             line_channel=lines.path, speed=args.speed or 1.0, quiet=args.quiet)
 
 
-@dataclass
 class _CommandChannel:
     """One channel of a command's session: its bridge and the path CMD opens
-    for it."""
+    for it. (Not a dataclass: see session.ProfileChoice.)"""
 
-    name: str
-    path: str
-    link: Optional[str]
-    device: Optional[str]  # the endpoint's --device NAME=OPTS (recording)
-    line_channel: Any = None  # redirect.LineChannelPath
-    identity: Optional[Dict[str, str]] = None
-    handle: Any = None  # bridge.BridgeHandle
+    def __init__(self, name: str, path: str, link: Optional[str], device: Optional[str]):
+        self.name = name
+        self.path = path
+        self.link = link
+        self.device = device  # the endpoint's --device NAME=OPTS (recording)
+        self.line_channel: Any = None  # redirect.LineChannelPath
+        self.identity: Optional[Dict[str, str]] = None
+        self.handle: Any = None  # bridge.BridgeHandle
 
 
 def _command_channels(endpoints, path_of: Callable[[Any], Optional[str]],
