@@ -5,7 +5,6 @@ wiretape.children.Child) and ends when the command does."""
 from __future__ import annotations
 
 import os
-import threading
 import time
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
@@ -319,6 +318,8 @@ class _BridgeEnds:
     the threads."""
 
     def __init__(self, handles):
+        import threading  # only a command's bridge needs it, not every start-up
+
         self._read_fd, self._write_fd = os.pipe()
         os.set_blocking(self._read_fd, False)
         self._threads = [threading.Thread(target=self._wait_for, args=(handle,),
