@@ -1,6 +1,8 @@
-"""`wiretape replay --pty` answers soon after it starts (issue 42,
-replay_pty_ready_ms in docs/benchmarks.md): most of its start-up is
-imports, and wiretape.faults, a fifth of them, is for --fault only."""
+"""`wiretape replay --pty` answers soon after it starts
+(replay_pty_ready_ms in docs/benchmarks.md): most of its start-up is
+imports and the parser, so what a replay does not use is not imported
+(wiretape.faults, pyserial and the URL handlers, difflib) and only the
+command run gets a parser."""
 
 import json
 import subprocess
