@@ -171,8 +171,12 @@ def test_a_grandchild_of_another_session_holding_stdout_does_not_stall_it():
 def test_a_grandchild_of_another_session_writing_on_does_not_stall_it():
     child = Child(_python("""
         import subprocess
+        import sys
         writer = subprocess.Popen(["yes"], start_new_session=True)
-        print("writer", writer.pid, flush=True)
+        # One write (print writes each part apart under PYTHONUNBUFFERED):
+        # yes's lines cannot split it.
+        sys.stdout.write(f"writer {writer.pid}\\n")
+        sys.stdout.flush()
     """))
     outcome = child.run(DEADLINE_S)
     # yes may have written before the line with its pid.
