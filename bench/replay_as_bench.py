@@ -1,12 +1,19 @@
 """`wiretape replay FILE --as PATH -- CMD` against CMD on the device's
 simulator (issue 42, replay_as_overhead_ratio): hokuyo-scan --json, once
 against examples/hokuyo/sim on a pty (started before, so that its start-up
-is not counted), once through the replay of the recording made from that
-simulator (examples/hokuyo/recordings/urg04lx_gd.wtape), the whole command
-line timed; interleaved, the median of the per-pair ratios.
+is not counted), once through the replay of a recording of that very
+conversation, the whole command line timed; interleaved, the median of the
+per-pair ratios. The recording is made here, before the rounds, by
+`wiretape record --device LINK -- hokuyo-scan --port LINK --json` against
+the same running simulator, after one run that puts it in the state every
+timed run finds (SCIP 2.0, as a first run leaves it): the replay then plays the simulator's own
+answers at their own pace, so the ratio is the replay's cost alone (a
+recording made elsewhere may hold another conversation: the checked-in
+urg04lx_gd.wtape answers the first two VV with an error, which costs the
+driver its own quiet-line waits).
 
 Prints one JSON line: {"ratio": median, "ratios": [...], "simulator_s":
-median, "replay_s": median}.
+median, "replay_s": median, "recorded_s": the recording run's time}.
 
 Usage: python replay_as_bench.py HOKUYO_SCAN WORKDIR ROUNDS
 """
@@ -56,7 +63,16 @@ def main() -> int:
         script = Path(sys.executable).parent / "wiretape"
         wiretape = [str(script)] if script.exists() else [sys.executable, "-m", "wiretape.cli"]
         against_simulator = [program, "--port", str(link), *meta["args"]]
-        through_replay = [*wiretape, "replay", str(RECORDINGS / "urg04lx_gd.wtape"), "-q",
+        # The simulator keeps its mode from one client to the next, as the
+        # device does: the first run switches it to SCIP 2.0 (its VV and QT
+        # are answered with an error until then), every later one finds it
+        # there. One run first, so that the recording holds the conversation
+        # the timed runs have.
+        timed(against_simulator)
+        recording = work / f"conversation-{os.getpid()}.wtape"
+        recorded_s = timed([*wiretape, "record", "--device", str(link), "-o", str(recording),
+                            "-q", "--", program, "--port", str(link), *meta["args"]])
+        through_replay = [*wiretape, "replay", str(recording), "-q",
                           "--as", "/dev/ttyBENCH0", "--", program, "--port", "/dev/ttyBENCH0",
                           *meta["args"]]
         times: dict[str, list[float]] = {"simulator": [], "replay": []}
@@ -74,7 +90,8 @@ def main() -> int:
     ratios = [r / s for r, s in zip(times["replay"], times["simulator"])]
     print(json.dumps({"ratio": statistics.median(ratios), "ratios": ratios,
                       "simulator_s": statistics.median(times["simulator"]),
-                      "replay_s": statistics.median(times["replay"])}))
+                      "replay_s": statistics.median(times["replay"]),
+                      "recorded_s": recorded_s}))
     return 0
 
 

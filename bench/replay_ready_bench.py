@@ -6,7 +6,10 @@ of `-X importtime`.
 
 Prints one JSON line: {"ready_ms": median, "runs_ms": [...], "linked_ms":
 median time until LINK exists, "python_ms":
-..., "import_cli_ms": ..., "slowest_imports": [[module, ms], ...]}.
+..., "import_cli_ms": ..., "slowest_imports": [[module, ms], ...],
+"startup_instructions": the command line's start-up (imports, parser,
+parse) in user-space instructions beyond the interpreter's, by valgrind,
+or null without it}.
 
 Usage: python replay_ready_bench.py WORKDIR ROUNDS
 """
@@ -15,7 +18,9 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import select
+import shutil
 import signal
 import statistics
 import subprocess
@@ -24,6 +29,7 @@ import termios
 import time
 import tty
 from pathlib import Path
+from typing import Optional
 
 import wiretape
 
@@ -108,6 +114,37 @@ def slowest_imports(count: int = 8) -> list[list]:
     return sorted(rows, key=lambda row: -row[1])[:count]
 
 
+# The command line's start-up up to the replay's own work: its imports, its
+# parser, the parse. Counted, not timed: a count does not move with the
+# machine's load.
+STARTUP = ("import sys\n"
+           "from wiretape.cli.main import build_parser, command_run_alone, split_command\n"
+           "import wiretape.cli.run\n"
+           "own, _ = split_command(sys.argv[1:])\n"
+           "build_parser(only=command_run_alone(own)).parse_args(own)\n")
+
+
+def instructions(code: str, *args: str) -> Optional[int]:
+    """User-space instructions of `python -c code args` (valgrind's lackey),
+    or None without valgrind."""
+    if shutil.which("valgrind") is None:
+        return None
+    proc = subprocess.run(["valgrind", "--tool=lackey", "--basic-counts=yes", sys.executable,
+                           "-c", code, *args], capture_output=True, text=True, env=CHILD_ENV)
+    found = re.search(r"guest instrs:\s+([\d,]+)", proc.stderr)
+    if proc.returncode != 0 or found is None:
+        return None
+    return int(found.group(1).replace(",", ""))
+
+
+def startup_instructions(recording: Path, link: Path) -> Optional[int]:
+    """The start-up's instructions beyond the interpreter's own (`-c pass`)."""
+    with_cli = instructions(STARTUP, "replay", str(recording), "--pty", str(link),
+                            "--timing", "none", "-q")
+    alone = instructions("pass")
+    return None if with_cli is None or alone is None else with_cli - alone
+
+
 def main() -> int:
     work = Path(sys.argv[1])
     rounds = int(sys.argv[2])
@@ -124,7 +161,8 @@ def main() -> int:
         "linked_ms": statistics.median(run[0] for run in runs),
         "python_ms": command_ms([sys.executable, "-c", "pass"]),
         "import_cli_ms": command_ms([sys.executable, "-c", "import wiretape.cli"]),
-        "slowest_imports": slowest_imports()}))
+        "slowest_imports": slowest_imports(),
+        "startup_instructions": startup_instructions(recording, link)}))
     return 0
 
 

@@ -275,7 +275,10 @@ class Bench(RelayJobs, CountJobs, InstructionJobs):
             f"{max(figures['runs_ms']):.0f} ms); the link after {figures['linked_ms']:.0f} ms; "
             f"the interpreter alone {figures['python_ms']:.0f} ms, `import wiretape.cli` "
             f"{figures['import_cli_ms']:.0f} ms (best of 5); slowest imports: "
-            + ", ".join(f"{name} {ms:.0f} ms" for name, ms in figures["slowest_imports"]))
+            + ", ".join(f"{name} {ms:.0f} ms" for name, ms in figures["slowest_imports"])
+            + ("" if figures.get("startup_instructions") is None else
+               f"; the CLI's start-up {figures['startup_instructions'] / 1e6:.0f} M "
+               "instructions beyond the interpreter's"))
 
     def cassette_suite(self) -> None:
         """1,000 cassette tests: wiretape's pytest plugin vs pytest-reserial."""

@@ -38,7 +38,6 @@ that floods faster than the device takes its datagrams loses the excess:
 from __future__ import annotations
 
 import os
-import socket
 from typing import List, Mapping, Optional, Tuple, Union
 
 from . import _core
@@ -105,6 +104,8 @@ def parse_udp_address(address: str, what: str = "udp", minimum_port: int = 0) ->
     parts are needed and the host must resolve. ``what`` names the option in
     the error (a ValueError). Port 0 (where ``minimum_port`` allows it)
     picks a free port."""
+    import socket  # UDP only: not on every command's start-up
+
     text = str(address).strip()
     host, port = _split_address(text, what, None, minimum_port)
     try:

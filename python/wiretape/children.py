@@ -40,6 +40,9 @@ EXIT_COMMAND_NOT_FOUND = 127
 _GROUP_POLL_S = 0.01
 # How often a running child's caller looks at its stop event.
 _STOP_POLL_S = 0.05
+# Without a pidfd (a kernel before 5.3), how often a wait that also watches
+# a descriptor looks at the exit.
+_NO_PIDFD_POLL_S = 0.01
 _CHUNK = 65536
 # A pipe holds at most 1 MiB (Linux's default pipe-max-size): so many reads
 # take all it held when the reading stops.
@@ -373,11 +376,14 @@ class Child:
             return None
         return 128 - code if code < 0 else code
 
-    def wait(self, timeout: Optional[float] = None) -> Optional[int]:
+    def wait(self, timeout: Optional[float] = None,
+             wake_fd: Optional[int] = None) -> Optional[int]:
         """Waits up to `timeout` seconds (None: for ever) for the direct
-        child to exit; its return code, or None if it still runs. Its
-        group is left alone (see :meth:`end`)."""
-        if self._exit_event.wait(timeout):
+        child to exit, or, when `wake_fd` is given, for that descriptor to
+        become readable (another event to wait for together with the exit);
+        its return code, or None if it still runs. Its group is left alone
+        (see :meth:`end`)."""
+        if self._exit_event.wait(timeout, wake_fd):
             self.process.wait()
         return self.poll()
 
@@ -503,24 +509,35 @@ class _ExitEvent:
             except OSError:  # an older kernel
                 self._pidfd = None
 
-    def wait(self, timeout: Optional[float]) -> bool:
+    def wait(self, timeout: Optional[float], wake_fd: Optional[int] = None) -> bool:
         """True once the child has exited (it may be unreaped), False at
-        `timeout`."""
+        `timeout` or as soon as `wake_fd` (when given) is readable."""
         if self._process.returncode is not None:
             return True
-        if self._pidfd is None:
+        if self._pidfd is None and wake_fd is None:
             try:
                 self._process.wait(timeout)
                 return True
             except subprocess.TimeoutExpired:
                 return False
         poller = select.poll()
-        poller.register(self._pidfd, select.POLLIN)
+        if self._pidfd is not None:
+            poller.register(self._pidfd, select.POLLIN)
+        if wake_fd is not None:
+            poller.register(wake_fd, select.POLLIN)
         end = None if timeout is None else time.monotonic() + timeout
         while True:
             left = None if end is None else max(end - time.monotonic(), 0)
-            if poller.poll(None if left is None else left * 1000):
+            step = left
+            if self._pidfd is None:  # no descriptor for the exit: looked at this often
+                step = _NO_PIDFD_POLL_S if left is None else min(left, _NO_PIDFD_POLL_S)
+            ready = {fd for fd, _ in poller.poll(None if step is None else step * 1000)}
+            if self._pidfd is not None and self._pidfd in ready:
                 return True
+            if self._pidfd is None and self._process.poll() is not None:
+                return True
+            if wake_fd is not None and wake_fd in ready:
+                return False
             if left is not None and left <= 0:
                 return False
 

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import socket
 import stat
 from typing import Callable, Iterator, List, Optional, Sequence, Tuple
 
@@ -59,6 +58,8 @@ def stream_device(endpoint: Endpoint) -> Tuple[str, str]:
     host, port = bridge.parse_udp_address(endpoint.udp or "", "udp")
     peer_host, _ = bridge.parse_udp_address(endpoint.peer or "", "peer", 1)
     device = option_string([("type", "udp"), ("bind_host", host), ("bind_port", port)])
+    import socket  # UDP only: not on every command's start-up
+
     family = socket.getaddrinfo(peer_host, None, type=socket.SOCK_DGRAM)[0][0]
     client = "[::]:0" if family == socket.AF_INET6 else "0.0.0.0:0"
     return device, client

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import os
 import time
-from dataclasses import dataclass
 from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple
 
 from .bridges import (POLL_S, MessageRelay, announce_clients, check_fault_places, meta_pairs,
@@ -100,18 +99,18 @@ def replay_with_command(args, out: Output) -> int:
             line_channel=lines.path, speed=args.speed or 1.0, quiet=args.quiet)
 
 
-@dataclass
 class _CommandChannel:
     """One channel of a command's session: its bridge and the path CMD opens
-    for it."""
+    for it. (Not a dataclass: see session.ProfileChoice.)"""
 
-    name: str
-    path: str
-    link: Optional[str]
-    device: Optional[str]  # the endpoint's --device NAME=OPTS (recording)
-    line_channel: Any = None  # redirect.LineChannelPath
-    identity: Optional[Dict[str, str]] = None
-    handle: Any = None  # bridge.BridgeHandle
+    def __init__(self, name: str, path: str, link: Optional[str], device: Optional[str]):
+        self.name = name
+        self.path = path
+        self.link = link
+        self.device = device  # the endpoint's --device NAME=OPTS (recording)
+        self.line_channel: Any = None  # redirect.LineChannelPath
+        self.identity: Optional[Dict[str, str]] = None
+        self.handle: Any = None  # bridge.BridgeHandle
 
 
 def _command_channels(endpoints, path_of: Callable[[Any], Optional[str]],
@@ -257,6 +256,7 @@ def _run_bridges_with_command(channels: List[_CommandChannel], out: Output, what
         _stop_channels(channels)
         raise
     ended_by_us = False
+    ends = _BridgeEnds([channel.handle for channel in channels])
     try:
         bridges_ended = False
         while command.poll() is None:
@@ -269,7 +269,7 @@ def _run_bridges_with_command(channels: List[_CommandChannel], out: Output, what
             ended = [channel for channel in channels if channel not in running]
             failed = [channel for channel in ended if not channel.handle.result().ok]
             if running and not failed:
-                running[0].handle.wait(POLL_S)
+                ends.wait_with(command.child, POLL_S)
                 continue
             bridges_ended = True
             if outlive_injected_loss and any(channel.handle.result().ended_by_fault
@@ -290,6 +290,7 @@ def _run_bridges_with_command(channels: List[_CommandChannel], out: Output, what
         command.end()
     finally:
         _stop_channels(channels)
+        ends.close()
     for relay in relays:
         relay.poll()
     status = command.exit_status()
@@ -307,6 +308,44 @@ def _run_bridges_with_command(channels: List[_CommandChannel], out: Output, what
         out, what, command.name, status, sanitizer, ended_by_us, never_opened,
         lambda: report_channels([(channel, channel.handle) for channel in channels], out,
                                 what, must_serve))
+
+
+class _BridgeEnds:
+    """The ends of some bridges as a pipe that becomes readable, to wait for
+    them and CMD's exit together (Child.wait's `wake_fd`) instead of in
+    steps: a thread per bridge waits for its end (a bridge has no
+    descriptor of its own). close() once the bridges are stopped: it joins
+    the threads."""
+
+    def __init__(self, handles):
+        import threading  # only a command's bridge needs it, not every start-up
+
+        self._read_fd, self._write_fd = os.pipe()
+        os.set_blocking(self._read_fd, False)
+        self._threads = [threading.Thread(target=self._wait_for, args=(handle,),
+                                          name="wiretape-bridge-end", daemon=True)
+                         for handle in handles]
+        for thread in self._threads:
+            thread.start()
+
+    def wait_with(self, child, timeout: float) -> None:
+        """Waits up to `timeout` seconds for `child`'s exit or a bridge's
+        end; each end wakes one wait."""
+        child.wait(timeout, self._read_fd)
+        try:
+            os.read(self._read_fd, 1)
+        except BlockingIOError:
+            pass
+
+    def _wait_for(self, handle) -> None:
+        handle.wait()
+        os.write(self._write_fd, b"x")
+
+    def close(self) -> None:
+        for thread in self._threads:
+            thread.join()
+        os.close(self._read_fd)
+        os.close(self._write_fd)
 
 
 def _require_command(args) -> None:
@@ -370,13 +409,16 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
     # CMD's status counts only when CMD ended by itself: not when Ctrl-C, or
     # the bridge ending first, ended it.
     ended_by_us = False
+    ends = _BridgeEnds([handle])
     try:
         bridge_ended = False
         while command.poll() is None:
             relay.poll()
             if bridge_ended:
                 command.child.wait(POLL_S)
-            elif handle.wait(POLL_S):
+                continue
+            ends.wait_with(command.child, POLL_S)
+            if handle.wait(0):
                 bridge_ended = True
                 if outlive_injected_loss and handle.result().ended_by_fault:
                     out.note(f"wiretape {what}: an injected fault lost the device; {command.name} "
@@ -398,6 +440,7 @@ def _run_bridge_with_command(handle, out: Output, what: str, argv: Sequence[str]
     finally:
         handle.stop()
         handle.wait()
+        ends.close()
     status = command.exit_status()
     # The shim notes each use of the path; a bind mount is seen as the pty's
     # client arriving.

@@ -12,8 +12,6 @@ single-port form; named ones are a channel each; the two do not mix.
 
 from __future__ import annotations
 
-import difflib
-from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Sequence, Tuple
 
 from .errors import UsageError
@@ -46,13 +44,23 @@ def split_name(value: str) -> Tuple[str, str]:
     return "", value
 
 
-@dataclass
 class Endpoint:
     """One channel's flags (each None when not given); ``name`` "" is the
-    single unnamed channel."""
+    single unnamed channel. (Not a dataclass: see session.ProfileChoice.)"""
 
-    name: str
-    values: Dict[str, str] = field(default_factory=dict)
+    def __init__(self, name: str, values: Optional[Dict[str, str]] = None):
+        self.name = name
+        self.values: Dict[str, str] = {} if values is None else values
+
+    def __repr__(self) -> str:
+        return f"Endpoint({self.name!r}, {self.values!r})"
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Endpoint):
+            return NotImplemented
+        return (self.name, self.values) == (other.name, other.values)
+
+    __hash__ = None  # type: ignore[assignment]  # mutable, as the dataclass was
 
     def get(self, dest: str) -> Optional[str]:
         return self.values.get(dest)
@@ -166,6 +174,8 @@ def check_replay(endpoints: List[Endpoint], with_command: bool,
         if endpoint.name not in named_channels:
             first = next(iter(endpoint.values))
             if named_channels:
+                import difflib  # only a usage error needs it
+
                 close = difflib.get_close_matches(endpoint.name, named_channels, n=1)
                 hint = f" (did you mean {close[0]!r}?)" if close else ""
                 has = f"its channels are {', '.join(named_channels)}"

@@ -5,7 +5,6 @@ command, prints a failure as one line and returns its exit code
 from __future__ import annotations
 
 import argparse
-import difflib
 import os
 import signal
 import sys
@@ -13,7 +12,7 @@ from typing import Optional, Sequence
 
 from .console import Output, describe, silence_stdout, undecodable_text_escaped
 from .errors import EXIT_OK, EXIT_USAGE, Interrupted, exit_code_for, exit_for_signal
-from .parser import ParserError, ParserExit, build_parser, split_command
+from .parser import ParserError, ParserExit, build_parser, command_run_alone, split_command
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
@@ -24,8 +23,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
 def _main(argv: Optional[Sequence[str]]) -> int:
     out = Output()
-    parser = build_parser()
     own_arguments, command_argv = split_command(sys.argv[1:] if argv is None else argv)
+    # Only the command run needs its parser; anything else (no command, a
+    # mistyped one, an option before it) is answered from them all.
+    parser = build_parser(only=command_run_alone(own_arguments))
     try:
         args = parser.parse_args(own_arguments)
     except ParserError as error:
@@ -67,6 +68,7 @@ def unknown_option_message(parser, arguments: Sequence[str], message: str):
     if named in commands:
         return commands[named], _unknown_of(commands[named], unknown)
     own = _option_strings(parser)
+    import difflib  # only a usage error needs it
     close = difflib.get_close_matches(flag, own, n=1, cutoff=0.6)
     if close:
         return parser, f"unknown option {unknown!r} (did you mean {close[0]}?)"
@@ -85,6 +87,7 @@ def _unknown_of(sub, unknown: str) -> str:
     """One line naming the argument `unknown` a command does not take, and
     the option it was probably meant to be."""
     flag = unknown.split("=", 1)[0]
+    import difflib  # only a usage error needs it
     close = difflib.get_close_matches(flag, _option_strings(sub), n=1, cutoff=0.6)
     hint = f" (did you mean {close[0]}?)" if close else f" (see {sub.prog} --help)"
     what = "unknown option" if flag.startswith("-") else "unexpected argument"

@@ -5,7 +5,6 @@ split_command() for the CMD after ``--``."""
 from __future__ import annotations
 
 import argparse
-import difflib
 import sys
 from typing import Callable, List, Optional, Sequence, Tuple
 
@@ -291,6 +290,7 @@ class _Parser(argparse.ArgumentParser):
         # the list of every command (argparse's own message).
         if isinstance(action, argparse._SubParsersAction) and value not in action.choices:
             # 0.7: "shwo" is show and "replya" replay, "teleport" is not ports
+            import difflib  # only a usage error needs it
             near = difflib.get_close_matches(value, list(action.choices), n=1, cutoff=0.7)
             hint = f" (did you mean {near[0]}?)" if near else f" (see {self.prog} --help)"
             raise argparse.ArgumentError(None, f"unknown command {value!r}{hint}")
@@ -361,6 +361,10 @@ def _add_redirect(parser, default: str) -> None:
 
 _COMMANDS_WITH_CMD = ("record", "replay", "faults", "fuzz")
 
+# Every command build_parser() declares, in its order.
+COMMAND_NAMES = ("record", "replay", "faults", "fuzz", "faults merge", "serve", "ports", "show",
+                 "stats", "view", "edit", "verify", "convert", "diff", "demo")
+
 
 def split_command(argv: Sequence[str]) -> Tuple[List[str], Optional[List[str]]]:
     """wiretape's own arguments and the CMD after ``--`` of ``record`` and
@@ -375,17 +379,52 @@ def split_command(argv: Sequence[str]) -> Tuple[List[str], Optional[List[str]]]:
     return arguments, None
 
 
-def build_parser() -> argparse.ArgumentParser:
+class _UndeclaredArguments:
+    """Stands for the parser of a command that is not run: its arguments are
+    taken and dropped. Making every command's parser and declaring its
+    arguments is most of the parser's cost, paid at every start."""
+
+    def add_argument(self, *args, **kwargs) -> None:
+        pass
+
+    def set_defaults(self, **kwargs) -> None:
+        pass
+
+    def add_argument_group(self, *args, **kwargs) -> "_UndeclaredArguments":
+        return self
+
+    def add_mutually_exclusive_group(self, *args, **kwargs) -> "_UndeclaredArguments":
+        return self
+
+
+def command_run_alone(arguments: Sequence[str]) -> Optional[str]:
+    """The command whose parser alone parses `arguments`: a known command
+    given first (before it, ``--help`` or ``--version`` is wiretape's own
+    and needs every command); None else."""
+    first = arguments[0] if arguments else None
+    return first if first in COMMAND_NAMES else None
+
+
+def build_parser(only: Optional[str] = None) -> argparse.ArgumentParser:
+    """The command line's parser. With `only`, a command's name, that
+    command alone: for a command line that names it first, which needs no
+    other (wiretape --help and a mistyped command's "did you mean" need
+    them all)."""
     parser = _Parser(prog="wiretape", description=_DESCRIPTION, epilog=_EPILOG,
                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"wiretape {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    declared = []
 
     def command(name: str, handler: Callable, help_text: str, description: str = ""):
+        assert name in COMMAND_NAMES, name
+        if only is not None and name != only:
+            return _UndeclaredArguments()
         sub = commands.add_parser(name, help=help_text, description=description or help_text,
                                   epilog=_EPILOG,
                                   formatter_class=argparse.RawDescriptionHelpFormatter)
         sub.set_defaults(handler=handler)
+        declared.append(name)
         return sub
 
     record = command(
@@ -717,6 +756,6 @@ def build_parser() -> argparse.ArgumentParser:
 
     command("demo", cmd_demo,
             "record a simulated Hokuyo scanner, replay it without it, compare (make demo)")
-    for name, sub in commands.choices.items():
-        _finish_help(name, sub)
+    for name in declared:
+        _finish_help(name, commands.choices[name])
     return parser

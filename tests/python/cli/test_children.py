@@ -171,8 +171,12 @@ def test_a_grandchild_of_another_session_holding_stdout_does_not_stall_it():
 def test_a_grandchild_of_another_session_writing_on_does_not_stall_it():
     child = Child(_python("""
         import subprocess
+        import sys
         writer = subprocess.Popen(["yes"], start_new_session=True)
-        print("writer", writer.pid, flush=True)
+        # One write (print writes each part apart under PYTHONUNBUFFERED):
+        # yes's lines cannot split it.
+        sys.stdout.write(f"writer {writer.pid}\\n")
+        sys.stdout.flush()
     """))
     outcome = child.run(DEADLINE_S)
     # yes may have written before the line with its pid.
@@ -230,3 +234,27 @@ def test_a_sanitizer_watch_relays_and_finds_a_report_among_much_output():
 def test_keep_holds_only_the_end_of_the_output():
     outcome = Child(["sh", "-c", "seq 1 100000"], keep=16).run(DEADLINE_S)
     assert outcome.stdout == b"\n".join(b"%d" % n for n in range(99997, 100001))[-15:] + b"\n"
+
+
+def test_a_wait_ends_when_its_wake_descriptor_is_readable_and_the_child_runs_on():
+    read_fd, write_fd = os.pipe()
+    try:
+        with Child([sys.executable, "-c", "import time; time.sleep(600)"]) as child:
+            os.write(write_fd, b"x")  # another event, as a bridge's end
+            # Without the wake descriptor this wait would last its whole timeout.
+            assert child.wait(600, read_fd) is None
+            assert child.running
+    finally:
+        os.close(read_fd)
+        os.close(write_fd)
+
+
+def test_a_wait_with_a_wake_descriptor_still_ends_at_the_childs_exit():
+    read_fd, write_fd = os.pipe()
+    try:
+        child = Child(["sh", "-c", "exit 3"])
+        assert child.wait(600, read_fd) == 3  # nothing written: the exit woke it
+        child.end()
+    finally:
+        os.close(read_fd)
+        os.close(write_fd)

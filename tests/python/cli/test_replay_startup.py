@@ -1,6 +1,8 @@
-"""`wiretape replay --pty` answers soon after it starts (issue 42,
-replay_pty_ready_ms in docs/benchmarks.md): most of its start-up is
-imports, and wiretape.faults, a fifth of them, is for --fault only."""
+"""`wiretape replay --pty` answers soon after it starts
+(replay_pty_ready_ms in docs/benchmarks.md): most of its start-up is
+imports and the parser, so what a replay does not use is not imported
+(wiretape.faults, pyserial and the URL handlers, difflib) and only the
+command run gets a parser."""
 
 import json
 import subprocess
@@ -46,3 +48,56 @@ def test_a_fault_past_the_end_is_still_refused_before_the_replay(tmp_path):
     code, modules, err = _modules_of_a_replay(tmp_path, "--fault", "drop@rx:99")
     assert code == 2, err
     assert "rx:99" in err, err
+
+
+def test_a_replay_imports_neither_pyserial_nor_the_url_handlers_nor_difflib(tmp_path):
+    code, modules, err = _modules_of_a_replay(tmp_path)
+    assert "wiretape.cli.run" in modules, err
+    assert not {m for m in modules if m == "serial" or m.startswith(("serial.", "wiretape.urlhandler"))}, \
+        sorted(modules)
+    assert "difflib" not in modules, sorted(modules)  # a usage error's hint needs it, nothing else
+
+
+def test_import_wiretape_registers_the_url_handlers_only_once_pyserial_is_imported():
+    program = ("import sys, wiretape\n"
+               "before = 'serial' in sys.modules or 'wiretape.urlhandler' in sys.modules\n"
+               "import serial\n"
+               "print(before, 'wiretape.urlhandler' in serial.protocol_handler_packages,\n"
+               "      wiretape.SessionReader.__module__)")
+    done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True,
+                          timeout=60)
+    assert done.stdout.split() == ["False", "True", "wiretape._core"], done.stderr
+
+
+def test_the_command_run_is_the_only_one_whose_parser_is_made(monkeypatch):
+    import importlib
+
+    from wiretape.cli.parser import build_parser
+
+    cli_main = importlib.import_module("wiretape.cli.main")  # the module, not main()
+
+    built = []
+
+    def recording_build_parser(only=None):
+        built.append(only)
+        return build_parser(only)
+
+    monkeypatch.setattr(cli_main, "build_parser", recording_build_parser)
+    assert cli_main.main(["replay", "--help"]) == 0
+    assert cli_main.main(["shwo"]) == 2  # a mistyped command: every command is declared
+    assert cli_main.main(["--help", "replay"]) == 0  # wiretape's own --help lists them all
+    assert built == ["replay", None, None]
+
+
+def test_each_commands_help_is_the_same_when_only_its_parser_is_made(capsys):
+    from wiretape.cli.parser import COMMAND_NAMES, build_parser
+
+    every = build_parser()
+    commands = next(action for action in every._actions if hasattr(action, "choices")
+                    and isinstance(action.choices, dict)).choices
+    assert tuple(commands) == COMMAND_NAMES
+    for name in COMMAND_NAMES:
+        alone = build_parser(only=name)
+        sub = next(action for action in alone._actions if hasattr(action, "choices")
+                   and isinstance(action.choices, dict)).choices[name]
+        assert sub.format_help() == commands[name].format_help(), name
