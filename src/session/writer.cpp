@@ -43,6 +43,10 @@ constexpr std::size_t flush_threshold = 256 * 1024;
 // the buffer to the OS itself: memory stays bounded and the recording runs
 // at the disk's pace.
 constexpr std::size_t max_buffered = 1024 * 1024;
+// A buffer is given room for that much and a record past it at once, so
+// that recording at full rate never moves the records already buffered
+// (the pages are only touched as records fill them).
+constexpr std::size_t buffer_room = max_buffered + 64 * 1024;
 // The file's blocks are reserved this far ahead of its end (without changing
 // its size): writes into reserved blocks cost the file system much less than
 // growing the file write by write.
@@ -73,6 +77,7 @@ struct SessionWriter::Impl {
   // End offset of each buffered record (the file header counts as one); its
   // last 4 bytes are the CRC slot, filled in by seal() before the write.
   std::vector<std::size_t> record_ends;
+  std::vector<std::size_t> spare_ends;  // kept for its capacity, as spare
   std::uint64_t buffered_total = 0;      // committed + buffer.size() + in flight
   std::optional<Clock::time_point> oldest_unflushed;
   bool flush_requested = false;  // the buffer passed flush_threshold
@@ -148,6 +153,7 @@ struct SessionWriter::Impl {
       data.swap(buffer);
       buffer.swap(spare);
       ends.swap(record_ends);
+      record_ends.swap(spare_ends);
       oldest_unflushed.reset();
       flush_requested = false;
     }
@@ -187,6 +193,8 @@ struct SessionWriter::Impl {
       index_committed = index_end != 0 && committed >= index_end;
       data.clear();
       if (spare.capacity() < data.capacity()) spare.swap(data);
+      ends.clear();
+      if (spare_ends.capacity() < ends.capacity()) spare_ends.swap(ends);
       return;
     }
     // Keep the records that made it whole. A flush of chunks is kept whole
@@ -407,12 +415,16 @@ void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view 
                                  ": the session writer is closed; the record was not written");
     }
     std::string& buffer = impl_->buffer;
+    const std::size_t framed = sizeof head + data.size() + sizeof tail;
+    if (buffer.capacity() - buffer.size() < framed) {
+      buffer.reserve(std::max(buffer.size() + framed, buffer_room));
+    }
     buffer.append(head, sizeof head);
     buffer.append(data.data(), data.size());
     buffer.append(tail, sizeof tail);
     impl_->record_ends.push_back(buffer.size());
     const std::uint64_t offset = impl_->buffered_total;
-    impl_->buffered_total += sizeof head + data.size() + sizeof tail;
+    impl_->buffered_total += framed;
     impl_->index.add(offset, impl_->buffered_total, channel);
     if (!impl_->oldest_unflushed) {
       impl_->oldest_unflushed = Clock::now();
