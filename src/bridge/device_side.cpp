@@ -250,7 +250,11 @@ void DeviceSide::append_record(RecordKind kind, std::optional<std::uint64_t> t_n
     count_records_written(status_, *recording_);
     return;
   }
-  count_records_written(status_, *recording_);
+  const std::uint64_t in_file = recording_->records_written();
+  if (in_file != records_in_status_) {
+    records_in_status_ = in_file;
+    status_.update_stats([in_file](BridgeStats& s) { s.records_written = in_file; });
+  }
 }
 
 void DeviceSide::recording_stopped(const PortError& error) {

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <condition_variable>
@@ -91,6 +92,9 @@ struct SessionWriter::Impl {
   detail::SessionIndexBuilder index;
   std::uint64_t index_end = 0;  // where the index, once buffered, ends
   bool index_committed = false;  // the last record in the file is the index
+  // records_written()'s answer, read without the lock: a recording bridge
+  // asks for it after every record.
+  std::atomic<std::uint64_t> records_in_file{0};
 
   // The header JSON's length in the file: the JSON, then spaces up to it.
   std::size_t header_json_room = 0;
@@ -115,6 +119,17 @@ struct SessionWriter::Impl {
     }
     return message + "; its " + std::to_string(committed) +
            " bytes are whole records and stay readable, nothing more is recorded";
+  }
+
+  // Called with mutex held, once `committed` includes the records.
+  void count_committed(std::uint64_t records) {
+    committed_records += records;
+    index_committed = index_end != 0 && committed >= index_end;
+    // The file header, in the file since the constructor, is not a record,
+    // nor is the index.
+    const std::uint64_t structure = 1 + (index_committed ? 1 : 0);
+    records_in_file.store(committed_records < structure ? 0 : committed_records - structure,
+                          std::memory_order_release);
   }
 
   // Called with io_mutex held. The file is cut back to its last whole
@@ -189,8 +204,7 @@ struct SessionWriter::Impl {
     if (error == 0) {
       committed += data.size();
       std::lock_guard<std::mutex> count(mutex);
-      committed_records += records_in;
-      index_committed = index_end != 0 && committed >= index_end;
+      count_committed(records_in);
       data.clear();
       if (spare.capacity() < data.capacity()) spare.swap(data);
       ends.clear();
@@ -207,8 +221,7 @@ struct SessionWriter::Impl {
     committed += whole;
     {
       std::lock_guard<std::mutex> count(mutex);
-      committed_records += whole_records;
-      index_committed = index_end != 0 && committed >= index_end;
+      count_committed(whole_records);
     }
     fail_and_release(error);
   }
@@ -576,11 +589,7 @@ std::optional<PortError> SessionWriter::failure() const {
 }
 
 std::uint64_t SessionWriter::records_written() const {
-  std::lock_guard<std::mutex> lock(impl_->mutex);
-  // The file header, in the file since the constructor, is not a record,
-  // nor is the index.
-  const std::uint64_t structure = 1 + (impl_->index_committed ? 1 : 0);
-  return impl_->committed_records < structure ? 0 : impl_->committed_records - structure;
+  return impl_->records_in_file.load(std::memory_order_acquire);
 }
 
 std::uint64_t SessionWriter::size() const {
