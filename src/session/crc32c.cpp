@@ -224,7 +224,7 @@ WIRETAPE_CRC32C_TARGET std::uint32_t crc32c_instructions(const void* data, std::
     p += 3 * crc_long_block;
     size -= 3 * crc_long_block;
   }
-  if (size >= 3 * crc_middle_block) {
+  while (size >= 3 * crc_middle_block) {
     crc = crc_three_blocks<crc_middle_block>(crc, p, crc_middle_shift());
     p += 3 * crc_middle_block;
     size -= 3 * crc_middle_block;
