@@ -151,6 +151,9 @@ class DeviceSide {
   std::optional<RecordingChannel> recording_;
   bool owns_file_ = false;
   bool recording_failed_ = false;
+  // The records_written last put in the status, which is locked only when
+  // the file's count has moved (at a flush, not at every record).
+  std::uint64_t records_in_status_ = 0;
   Clock::time_point t0_;
   ByteQueue to_device_{options_.buffer_limit};
   LostHandler on_lost_;

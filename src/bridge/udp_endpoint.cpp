@@ -101,6 +101,13 @@ class DatagramQueue {
     bytes_ -= datagrams_.front().size();
     datagrams_.pop_front();
   }
+  // The front datagram, moved out of the queue rather than copied.
+  std::string take() {
+    std::string datagram = std::move(datagrams_.front());
+    bytes_ -= datagram.size();
+    datagrams_.pop_front();
+    return datagram;
+  }
   void clear() {
     datagrams_.clear();
     bytes_ = 0;
@@ -369,8 +376,7 @@ class UdpEndpoint final : public ClientEndpoint {
   // would join two datagrams into one.
   void pass_to_device() {
     while (!to_device_.empty() && device_.is_open() && !device_.has_data_for_device()) {
-      const std::string datagram = to_device_.front();
-      to_device_.pop();
+      const std::string datagram = to_device_.take();
       device_.send_datagram(datagram.data(), datagram.size());
     }
   }

@@ -48,10 +48,18 @@ namespace {
 // The hardware paths run three independent streams over consecutive blocks
 // (the crc32 instruction's latency is three times its issue interval) and
 // join them by advancing a stream's register over the blocks that follow it.
+// Each join costs about as much as 64 bytes of streaming, so a buffer takes
+// the longest blocks it holds three of: a recorded read of a pty (4095 bytes)
+// is one round of the middle length, one of the short, and a 255-byte tail.
 constexpr std::size_t crc_long_block = 8192;
+constexpr std::size_t crc_middle_block = 1024;
 constexpr std::size_t crc_short_block = 256;
-static_assert(crc_long_block % 8 == 0 && crc_short_block % 8 == 0,
-              "the streams advance eight bytes a step");
+// Each stream takes this many bytes a loop step: four crc32 instructions
+// per loop test.
+constexpr std::size_t crc_stride = 32;
+static_assert(crc_long_block % crc_stride == 0 && crc_middle_block % crc_stride == 0 &&
+                  crc_short_block % crc_stride == 0,
+              "the streams advance a stride a step");
 
 // Advancing a raw CRC register over n zero bytes is linear over GF(2): one
 // table per byte of the register.
@@ -92,6 +100,10 @@ const CrcShiftTable& crc_long_shift() {
   static const CrcShiftTable table = make_crc_shift_table(crc_long_block);
   return table;
 }
+const CrcShiftTable& crc_middle_shift() {
+  static const CrcShiftTable table = make_crc_shift_table(crc_middle_block);
+  return table;
+}
 const CrcShiftTable& crc_short_shift() {
   static const CrcShiftTable table = make_crc_shift_table(crc_short_block);
   return table;
@@ -110,11 +122,15 @@ inline std::uint64_t load_u64(const unsigned char* p) {
 // gcc accepts the name too, so both are named wherever the instruction is used.
 #define WIRETAPE_CRC32C_TARGET __attribute__((target("sse4.2,crc32")))
 
-WIRETAPE_CRC32C_TARGET inline std::uint32_t crc_step(std::uint32_t crc, const unsigned char* p) {
-  return static_cast<std::uint32_t>(_mm_crc32_u64(crc, load_u64(p)));
+// The register is kept 64 bits wide between steps, as the instruction
+// writes it (upper half zero): a 32-bit one costs a zero-extending move a step.
+using CrcRegister = std::uint64_t;
+
+WIRETAPE_CRC32C_TARGET inline CrcRegister crc_step(CrcRegister crc, const unsigned char* p) {
+  return _mm_crc32_u64(crc, load_u64(p));
 }
-WIRETAPE_CRC32C_TARGET inline std::uint32_t crc_step_byte(std::uint32_t crc, unsigned char byte) {
-  return _mm_crc32_u8(crc, byte);
+WIRETAPE_CRC32C_TARGET inline CrcRegister crc_step_byte(CrcRegister crc, unsigned char byte) {
+  return _mm_crc32_u8(static_cast<std::uint32_t>(crc), byte);
 }
 
 // CPUID read directly, not __builtin_cpu_supports: that needs the compiler
@@ -157,10 +173,12 @@ bool cpu_has_crc32c() { return cpu_features().sse42; }
 #elif defined(__aarch64__) && defined(__ARM_FEATURE_CRC32)
 #define WIRETAPE_CRC32C_HARDWARE 1
 
-inline std::uint32_t crc_step(std::uint32_t crc, const unsigned char* p) {
+using CrcRegister = std::uint32_t;
+
+inline CrcRegister crc_step(CrcRegister crc, const unsigned char* p) {
   return __crc32cd(crc, load_u64(p));
 }
-inline std::uint32_t crc_step_byte(std::uint32_t crc, unsigned char byte) {
+inline CrcRegister crc_step_byte(CrcRegister crc, unsigned char byte) {
   return __crc32cb(crc, byte);
 }
 #define WIRETAPE_CRC32C_TARGET
@@ -169,35 +187,57 @@ bool cpu_has_crc32c() { return true; }
 #endif
 
 #ifdef WIRETAPE_CRC32C_HARDWARE
+// Four steps of one stream, from p.
+WIRETAPE_CRC32C_TARGET inline CrcRegister crc_stride_steps(CrcRegister crc,
+                                                           const unsigned char* p) {
+  crc = crc_step(crc, p);
+  crc = crc_step(crc, p + 8);
+  crc = crc_step(crc, p + 16);
+  return crc_step(crc, p + 24);
+}
+
+inline CrcRegister crc_join(const CrcShiftTable& shift, CrcRegister crc, CrcRegister next) {
+  return crc_shift(shift, static_cast<std::uint32_t>(crc)) ^ next;
+}
+
 // Three streams over [p, p + 3 * block), joined into `crc`.
 template <std::size_t block>
-WIRETAPE_CRC32C_TARGET inline std::uint32_t crc_three_blocks(std::uint32_t crc,
-                                                             const unsigned char* p,
-                                                             const CrcShiftTable& shift) {
-  std::uint32_t crc1 = 0;
-  std::uint32_t crc2 = 0;
-  for (std::size_t i = 0; i < block; i += 8) {
-    crc = crc_step(crc, p + i);
-    crc1 = crc_step(crc1, p + block + i);
-    crc2 = crc_step(crc2, p + 2 * block + i);
+WIRETAPE_CRC32C_TARGET inline CrcRegister crc_three_blocks(CrcRegister crc,
+                                                           const unsigned char* p,
+                                                           const CrcShiftTable& shift) {
+  CrcRegister crc1 = 0;
+  CrcRegister crc2 = 0;
+  for (std::size_t i = 0; i < block; i += crc_stride) {
+    crc = crc_stride_steps(crc, p + i);
+    crc1 = crc_stride_steps(crc1, p + block + i);
+    crc2 = crc_stride_steps(crc2, p + 2 * block + i);
   }
-  crc = crc_shift(shift, crc) ^ crc1;
-  return crc_shift(shift, crc) ^ crc2;
+  return crc_join(shift, crc_join(shift, crc, crc1), crc2);
 }
 
 WIRETAPE_CRC32C_TARGET std::uint32_t crc32c_instructions(const void* data, std::size_t size,
-                                                         std::uint32_t crc) {
+                                                         std::uint32_t initial) {
   const auto* p = static_cast<const unsigned char*>(data);
-  crc = ~crc;
+  CrcRegister crc = ~initial;
   while (size >= 3 * crc_long_block) {
     crc = crc_three_blocks<crc_long_block>(crc, p, crc_long_shift());
     p += 3 * crc_long_block;
     size -= 3 * crc_long_block;
   }
+  while (size >= 3 * crc_middle_block) {
+    crc = crc_three_blocks<crc_middle_block>(crc, p, crc_middle_shift());
+    p += 3 * crc_middle_block;
+    size -= 3 * crc_middle_block;
+  }
   while (size >= 3 * crc_short_block) {
     crc = crc_three_blocks<crc_short_block>(crc, p, crc_short_shift());
     p += 3 * crc_short_block;
     size -= 3 * crc_short_block;
+  }
+  while (size >= crc_stride) {
+    crc = crc_stride_steps(crc, p);
+    p += crc_stride;
+    size -= crc_stride;
   }
   while (size >= 8) {
     crc = crc_step(crc, p);
@@ -205,7 +245,7 @@ WIRETAPE_CRC32C_TARGET std::uint32_t crc32c_instructions(const void* data, std::
     size -= 8;
   }
   while (size-- > 0) crc = crc_step_byte(crc, *p++);
-  return ~crc;
+  return ~static_cast<std::uint32_t>(crc);
 }
 #endif
 
@@ -352,6 +392,7 @@ Crc32cFunction pick_crc32c() {
   if (cpu_has_crc32c()) {
     // Built now so that the first checksum on a recording thread does not.
     crc_long_shift();
+    crc_middle_shift();
     crc_short_shift();
 #ifdef WIRETAPE_CRC32C_FOLDING
     if (cpu_has_crc_folding()) {

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <chrono>
 #include <condition_variable>
@@ -43,6 +44,10 @@ constexpr std::size_t flush_threshold = 256 * 1024;
 // the buffer to the OS itself: memory stays bounded and the recording runs
 // at the disk's pace.
 constexpr std::size_t max_buffered = 1024 * 1024;
+// A buffer is given room for that much and a record past it at once, so
+// that recording at full rate never moves the records already buffered
+// (the pages are only touched as records fill them).
+constexpr std::size_t buffer_room = max_buffered + 64 * 1024;
 // The file's blocks are reserved this far ahead of its end (without changing
 // its size): writes into reserved blocks cost the file system much less than
 // growing the file write by write.
@@ -73,6 +78,7 @@ struct SessionWriter::Impl {
   // End offset of each buffered record (the file header counts as one); its
   // last 4 bytes are the CRC slot, filled in by seal() before the write.
   std::vector<std::size_t> record_ends;
+  std::vector<std::size_t> spare_ends;  // kept for its capacity, as spare
   std::uint64_t buffered_total = 0;      // committed + buffer.size() + in flight
   std::optional<Clock::time_point> oldest_unflushed;
   bool flush_requested = false;  // the buffer passed flush_threshold
@@ -86,6 +92,9 @@ struct SessionWriter::Impl {
   detail::SessionIndexBuilder index;
   std::uint64_t index_end = 0;  // where the index, once buffered, ends
   bool index_committed = false;  // the last record in the file is the index
+  // records_written()'s answer, read without the lock: a recording bridge
+  // asks for it after every record.
+  std::atomic<std::uint64_t> records_in_file{0};
 
   // The header JSON's length in the file: the JSON, then spaces up to it.
   std::size_t header_json_room = 0;
@@ -110,6 +119,17 @@ struct SessionWriter::Impl {
     }
     return message + "; its " + std::to_string(committed) +
            " bytes are whole records and stay readable, nothing more is recorded";
+  }
+
+  // Called with mutex held, once `committed` includes the records.
+  void count_committed(std::uint64_t records) {
+    committed_records += records;
+    index_committed = index_end != 0 && committed >= index_end;
+    // The file header, in the file since the constructor, is not a record,
+    // nor is the index.
+    const std::uint64_t structure = 1 + (index_committed ? 1 : 0);
+    records_in_file.store(committed_records < structure ? 0 : committed_records - structure,
+                          std::memory_order_release);
   }
 
   // Called with io_mutex held. The file is cut back to its last whole
@@ -148,6 +168,7 @@ struct SessionWriter::Impl {
       data.swap(buffer);
       buffer.swap(spare);
       ends.swap(record_ends);
+      record_ends.swap(spare_ends);
       oldest_unflushed.reset();
       flush_requested = false;
     }
@@ -183,10 +204,11 @@ struct SessionWriter::Impl {
     if (error == 0) {
       committed += data.size();
       std::lock_guard<std::mutex> count(mutex);
-      committed_records += records_in;
-      index_committed = index_end != 0 && committed >= index_end;
+      count_committed(records_in);
       data.clear();
       if (spare.capacity() < data.capacity()) spare.swap(data);
+      ends.clear();
+      if (spare_ends.capacity() < ends.capacity()) spare_ends.swap(ends);
       return;
     }
     // Keep the records that made it whole. A flush of chunks is kept whole
@@ -199,8 +221,7 @@ struct SessionWriter::Impl {
     committed += whole;
     {
       std::lock_guard<std::mutex> count(mutex);
-      committed_records += whole_records;
-      index_committed = index_end != 0 && committed >= index_end;
+      count_committed(whole_records);
     }
     fail_and_release(error);
   }
@@ -407,12 +428,16 @@ void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view 
                                  ": the session writer is closed; the record was not written");
     }
     std::string& buffer = impl_->buffer;
+    const std::size_t framed = sizeof head + data.size() + sizeof tail;
+    if (buffer.capacity() - buffer.size() < framed) {
+      buffer.reserve(std::max(buffer.size() + framed, buffer_room));
+    }
     buffer.append(head, sizeof head);
     buffer.append(data.data(), data.size());
     buffer.append(tail, sizeof tail);
     impl_->record_ends.push_back(buffer.size());
     const std::uint64_t offset = impl_->buffered_total;
-    impl_->buffered_total += sizeof head + data.size() + sizeof tail;
+    impl_->buffered_total += framed;
     impl_->index.add(offset, impl_->buffered_total, channel);
     if (!impl_->oldest_unflushed) {
       impl_->oldest_unflushed = Clock::now();
@@ -564,11 +589,7 @@ std::optional<PortError> SessionWriter::failure() const {
 }
 
 std::uint64_t SessionWriter::records_written() const {
-  std::lock_guard<std::mutex> lock(impl_->mutex);
-  // The file header, in the file since the constructor, is not a record,
-  // nor is the index.
-  const std::uint64_t structure = 1 + (impl_->index_committed ? 1 : 0);
-  return impl_->committed_records < structure ? 0 : impl_->committed_records - structure;
+  return impl_->records_in_file.load(std::memory_order_acquire);
 }
 
 std::uint64_t SessionWriter::size() const {

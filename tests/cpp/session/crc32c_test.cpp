@@ -47,13 +47,31 @@ TEST(Crc32c, HardwarePathMatchesTablesForEveryShortLengthAndAlignment) {
   }
 }
 
+TEST(Crc32c, HardwarePathMatchesTablesAcrossTheBlockLengths) {
+  if (!crc32c_hardware_available()) {
+    GTEST_SKIP() << "no CRC32C instructions on this CPU or build: only the table path runs";
+  }
+  // Every length through three middle blocks, three short ones and the
+  // stride loop after them, from aligned and unaligned starts.
+  const std::size_t longest = 3 * 1024 + 3 * 256 + 40;
+  const auto bytes = random_bytes(longest + 8, 6);
+  for (std::size_t start : {0u, 3u}) {
+    for (std::size_t length = 0; length <= longest; ++length) {
+      ASSERT_EQ(crc32c_hardware(bytes.data() + start, length, 0x9E3779B9u),
+                crc32c_table(bytes.data() + start, length, 0x9E3779B9u))
+          << "start " << start << " length " << length;
+    }
+  }
+}
+
 TEST(Crc32c, HardwarePathMatchesTablesOnLargeRandomBuffers) {
   if (!crc32c_hardware_available()) {
     GTEST_SKIP() << "no CRC32C instructions on this CPU or build: only the table path runs";
   }
   std::mt19937 generator(2);
   // Sizes around the three-block boundaries of both block lengths.
-  const std::vector<std::size_t> sizes = {767,   768,   769,   1000,  3 * 8192 - 1,
+  const std::vector<std::size_t> sizes = {767,   768,   769,   1000,  3071, 3072, 3073, 4095,
+                                          3 * 8192 - 1,
                                           3 * 8192, 3 * 8192 + 1, 3 * 8192 + 768 + 7,
                                           65536, 1 << 20, 1000003};
   for (std::size_t size : sizes) {
