@@ -41,6 +41,8 @@ void ChunkEncoder::add(std::uint8_t kind, std::uint16_t channel, std::uint64_t t
   constexpr std::size_t max_entry_head = 24;
   if (open_ && decoded_ + max_entry_head + payload.size() > chunk_target_bytes) end_chunk(out);
   open_ = true;
+  if (place_.records.size() <= channel) place_.records.resize(channel + std::size_t{1});
+  ++place_.records[channel];
   std::string entry;
   entry.push_back(static_cast<char>(kind));
   put_varint(entry, channel);
@@ -65,6 +67,10 @@ void ChunkEncoder::end_chunk(std::string& out) {
 
 void ChunkEncoder::emit(std::string& out, bool last) {
   const std::size_t start = out.size();
+  if (!placed_) {
+    place_.begin = file_offset_ + start;
+    placed_ = true;
+  }
   out.append(record_header_size, '\0');
   ZSTD_inBuffer in{pending_.data(), pending_.size(), 0};
   const ZSTD_EndDirective mode = last ? ZSTD_e_end : ZSTD_e_flush;
@@ -98,6 +104,12 @@ void ChunkEncoder::emit(std::string& out, bool last) {
   char crc[crc_size];
   put_u32le(crc, crc32c(&out[start], out.size() - start));
   out.append(crc, sizeof crc);
+  if (last) {
+    place_.end = file_offset_ + out.size();
+    ended_.push_back(std::move(place_));
+    place_ = ChunkPlace{};
+    placed_ = false;
+  }
 }
 
 struct ChunkDecoder::Zstd {
@@ -119,13 +131,17 @@ void ChunkDecoder::reset() {
   total_ = 0;
   crc_ = 0;
   previous_t_ = 0;
+  place_ = ChunkPlace{};
+  finished_ = false;
 }
 
-std::optional<std::string> ChunkDecoder::feed(std::uint64_t offset, std::string_view payload,
-                                              bool last) {
+std::optional<std::string> ChunkDecoder::feed(std::uint64_t offset, std::uint64_t end,
+                                              std::string_view payload, bool last) {
   if (!open_) {
     open_ = true;
     chunk_offset_ = offset;
+    place_ = ChunkPlace{offset, 0, {}};
+    finished_ = false;
   }
   if (last && payload.size() < chunk_trailer_size) {
     return "its last part is shorter than its trailer";
@@ -170,38 +186,52 @@ std::optional<std::string> ChunkDecoder::feed(std::uint64_t offset, std::string_
     open_ = false;
     total_ = 0;
     crc_ = 0;
+    place_.end = end;
+    finished_ = true;
   }
   return std::nullopt;
 }
 
-bool ChunkDecoder::next(Record& record, std::string* problem) {
+std::optional<ChunkPlace> ChunkDecoder::take_finished() {
+  if (!finished_ || at_ < decoded_.size()) return std::nullopt;
+  finished_ = false;
+  return std::exchange(place_, ChunkPlace{});
+}
+
+bool ChunkDecoder::next(Record& record, std::string* problem,
+                        std::optional<std::uint16_t> only) {
   const std::string_view bytes(decoded_);
-  std::size_t at = at_;
-  if (at >= bytes.size()) return false;
-  const auto kind = static_cast<std::uint8_t>(bytes[at++]);
-  std::uint64_t channel = 0;
-  std::uint64_t delta = 0;
-  std::uint64_t length = 0;
-  if (!get_varint(bytes, at, channel) || !get_varint(bytes, at, delta) ||
-      !get_varint(bytes, at, length) || bytes.size() - at < length) {
-    // An entry not whole yet is whole once its chunk's next part came.
-    if (!open_ && problem) *problem = "an entry is cut short at its chunk's end";
-    return false;
+  for (;;) {
+    std::size_t at = at_;
+    if (at >= bytes.size()) return false;
+    const auto kind = static_cast<std::uint8_t>(bytes[at++]);
+    std::uint64_t channel = 0;
+    std::uint64_t delta = 0;
+    std::uint64_t length = 0;
+    if (!get_varint(bytes, at, channel) || !get_varint(bytes, at, delta) ||
+        !get_varint(bytes, at, length) || bytes.size() - at < length) {
+      // An entry not whole yet is whole once its chunk's next part came.
+      if (!open_ && problem) *problem = "an entry is cut short at its chunk's end";
+      return false;
+    }
+    if (channel > 0xFFFF) {
+      if (problem) *problem = "an entry names channel " + std::to_string(channel);
+      return false;
+    }
+    // The first entry of a chunk counts from 0 (previous_t_ reset below).
+    const std::uint64_t t = previous_t_ + static_cast<std::uint64_t>(unzigzag(delta));
+    at_ = at + static_cast<std::size_t>(length);
+    previous_t_ = t;
+    if (!open_ && at_ >= decoded_.size()) previous_t_ = 0;  // the chunk is done
+    if (place_.records.size() <= channel) place_.records.resize(channel + std::size_t{1});
+    ++place_.records[channel];
+    if (only && channel != *only) continue;
+    record.kind = static_cast<RecordKind>(kind);
+    record.channel = static_cast<std::uint16_t>(channel);
+    record.t_ns = t;
+    record.data.assign(bytes.data() + at, static_cast<std::size_t>(length));
+    return true;
   }
-  if (channel > 0xFFFF) {
-    if (problem) *problem = "an entry names channel " + std::to_string(channel);
-    return false;
-  }
-  // The first entry of a chunk counts from 0 (previous_t_ reset below).
-  const std::uint64_t t = previous_t_ + static_cast<std::uint64_t>(unzigzag(delta));
-  record.kind = static_cast<RecordKind>(kind);
-  record.channel = static_cast<std::uint16_t>(channel);
-  record.t_ns = t;
-  record.data.assign(bytes.data() + at, static_cast<std::size_t>(length));
-  at_ = at + static_cast<std::size_t>(length);
-  previous_t_ = t;
-  if (!open_ && at_ >= decoded_.size()) previous_t_ = 0;  // the chunk is done
-  return true;
 }
 
 }  // namespace wiretape::detail

@@ -14,6 +14,8 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 #include "wiretape/session.hpp"
 
@@ -32,6 +34,16 @@ inline constexpr std::size_t chunk_trailer_size = 8;
 // A compressed file's version: older readers refuse it by its major version.
 inline constexpr std::uint16_t compressed_version_major = 2;
 inline constexpr std::uint16_t compressed_version_minor = 0;
+
+// Where a whole chunk lies in the file, from its first part's record header
+// to past its last part's CRC, and how many records of each channel it
+// holds (by channel id; 0 for a channel it lacks): what the index of a
+// compressed file lists.
+struct ChunkPlace {
+  std::uint64_t begin = 0;
+  std::uint64_t end = 0;
+  std::vector<std::uint64_t> records;
+};
 
 // The writer's side: entries in, whole chunk records (header, payload, CRC)
 // out. Not thread-safe (the writer's flush holds its io mutex).
@@ -55,6 +67,11 @@ class ChunkEncoder {
   // Appends the chunk's last part (if a chunk is open).
   void end_chunk(std::string& out);
   bool chunk_open() const { return open_; }
+  // The file offset where the `out` of the calls that follow begins (so
+  // that the places of the chunks they end are known).
+  void set_file_offset(std::uint64_t offset) { file_offset_ = offset; }
+  // The chunks ended since the last call.
+  std::vector<ChunkPlace> take_ended() { return std::exchange(ended_, {}); }
 
  private:
   void emit(std::string& out, bool last);
@@ -66,6 +83,10 @@ class ChunkEncoder {
   std::uint64_t previous_t_ = 0;
   std::uint64_t decoded_ = 0;  // bytes of the chunk's entries
   std::uint32_t crc_ = 0;      // CRC32C of them
+  std::uint64_t file_offset_ = 0;
+  ChunkPlace place_;  // of the open chunk, once its first part is out
+  bool placed_ = false;
+  std::vector<ChunkPlace> ended_;
 };
 
 // The reader's side: parts in (their payloads, CRC-checked by the reader),
@@ -80,9 +101,17 @@ class ChunkDecoder {
   // Decodes a part found at `offset`; std::nullopt, or why the chunk is
   // damaged (not zstd, larger than max_chunk_decoded, a last part whose
   // length or CRC does not match, an entry that does not parse).
-  std::optional<std::string> feed(std::uint64_t offset, std::string_view payload, bool last);
-  // The next whole record decoded, or false until more is fed.
-  bool next(Record& record, std::string* problem);
+  // `end`: past the part's CRC.
+  std::optional<std::string> feed(std::uint64_t offset, std::uint64_t end,
+                                  std::string_view payload, bool last);
+  // The next whole record decoded, or false until more is fed. With `only`,
+  // entries of other channels are passed over without copying their
+  // payloads.
+  bool next(Record& record, std::string* problem,
+            std::optional<std::uint16_t> only = std::nullopt);
+  // Once every entry of a chunk was handed out or passed over: where the
+  // chunk lay and its records by channel (once per chunk).
+  std::optional<ChunkPlace> take_finished();
   // Inside a chunk whose last part has not come.
   bool open() const { return open_; }
   // Where the open chunk began.
@@ -99,6 +128,8 @@ class ChunkDecoder {
   std::uint64_t total_ = 0;  // decoded bytes of the chunk so far
   std::uint32_t crc_ = 0;
   std::uint64_t previous_t_ = 0;
+  ChunkPlace place_;  // of the chunk being decoded
+  bool finished_ = false;  // its last part came and every entry was read
 };
 
 }  // namespace wiretape::detail
