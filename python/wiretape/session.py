@@ -22,6 +22,7 @@ import json
 import os
 import select
 import stat
+import sys
 from dataclasses import dataclass
 from typing import IO, Any, Dict, Iterable, List, Optional, Union
 
@@ -111,10 +112,15 @@ def chosen_profile(given: Optional[str], *headers: Any) -> ProfileChoice:
 
 def raise_damage(reader: _core.SessionReader) -> None:
     """Raises the session's damage (SessionError, exit 1), if reading it
-    stopped at some; call it once the records before the damage are used."""
+    stopped at some; call it once the records before the damage are used.
+    A file still being written (a recorder has it open) is not damaged: its
+    unfinished end is a warning on stderr, and the command goes on."""
     damage = reader.damage
     if damage is not None:
         raise damage
+    unfinished = reader.unfinished
+    if unfinished is not None:
+        print(f"wiretape: warning: {unfinished.message}", file=sys.stderr, flush=True)
 
 
 def header_fields(reader: _core.SessionReader) -> Dict[str, Any]:

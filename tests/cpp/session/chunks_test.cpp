@@ -490,12 +490,15 @@ TEST(Unfinished, DamageInTheMiddleOfAFileStillBeingWrittenIsDamage) {
 }
 
 // Golden files of format 2.0 (tests/data/golden/v2_0*.wtape, made by
-// `convert --compress zstd` of all_kinds and v1_2_channels): read, never
+// `convert --compress zstd` of all_kinds and v1_2_channels; v2_0_channels
+// before compressed files had an index, v2_0_index with it): read, never
 // re-created byte for byte (zstd's output may change with its version).
 TEST(Chunks, TheCompressedGoldenFilesReadAsTheFilesTheyWereMadeFrom) {
   const std::string golden = std::string(WIRETAPE_TEST_DATA_DIR) + "/golden/";
   for (const auto& [packed, plain] :
-       {std::pair<std::string, std::string>{"v2_0", "all_kinds"}, {"v2_0_channels", "v1_2_channels"}}) {
+       {std::pair<std::string, std::string>{"v2_0", "all_kinds"},
+        {"v2_0_channels", "v1_2_channels"},
+        {"v2_0_index", "v1_2_channels"}}) {
     SCOPED_TRACE(packed);
     EXPECT_EQ(SessionReader(golden + packed + ".wtape").header().version_major, 2);
     std::optional<SessionError> damage;
@@ -505,6 +508,22 @@ TEST(Chunks, TheCompressedGoldenFilesReadAsTheFilesTheyWereMadeFrom) {
   }
   expect_same(read_all(golden + "v2_0_channels.wtape", 1),
               read_all(golden + "v1_2_channels.wtape", 1));
+  // v2_0_index ends with its index (its one chunk holds both channels),
+  // read through it by a reader of one channel.
+  std::string why;
+  const int fd = ::open((golden + "v2_0_index.wtape").c_str(), O_RDONLY | O_CLOEXEC);
+  const auto spans = detail::find_channel_spans(
+      fd, file_bytes(golden + "v2_0_index.wtape").size(), detail::file_header_fixed_size, 2, 1,
+      &why);
+  ::close(fd);
+  ASSERT_TRUE(spans) << why;
+  EXPECT_EQ(spans->records(), 4u);
+  EXPECT_EQ(verify_index(golden + "v2_0_index.wtape").state, detail::IndexState::current);
+  EXPECT_EQ(verify_index(golden + "v2_0_channels.wtape").state, detail::IndexState::absent);
+  for (std::uint16_t channel = 0; channel < 2; ++channel) {
+    expect_same(read_all(golden + "v2_0_index.wtape", channel),
+                read_all(golden + "v1_2_channels.wtape", channel));
+  }
 }
 
 }  // namespace
