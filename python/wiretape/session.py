@@ -28,7 +28,7 @@ from typing import IO, Any, Dict, Iterable, List, Optional, Union
 
 from . import _core
 
-__all__ = ["SessionPath", "DIRECTIONS", "open_session", "raise_damage", "header_fields",
+__all__ = ["SessionPath", "DIRECTIONS", "open_session", "raise_damage", "warn_if_unfinished", "header_fields",
            "event_of", "event_payload", "escape_bytes", "header_text", "printable",
            "FileRefused", "open_input", "open_output", "check_output",
            "is_stream", "is_written_through", "open_regular_output",
@@ -118,6 +118,13 @@ def raise_damage(reader: _core.SessionReader) -> None:
     damage = reader.damage
     if damage is not None:
         raise damage
+    warn_if_unfinished(reader)
+
+
+def warn_if_unfinished(reader: _core.SessionReader) -> None:
+    """Says on stderr, once reading ended, that it ended at the unfinished
+    end of a file still being written (a recorder has it open): a warning,
+    not damage."""
     unfinished = reader.unfinished
     if unfinished is not None:
         print(f"wiretape: warning: {unfinished.message}", file=sys.stderr, flush=True)

@@ -181,8 +181,8 @@ def cmd_verify(args, out: Output) -> int:
                   style="green")
         if result.unfinished is not None:
             # Not damage: a recorder is writing the file; its end is checked once it closed.
-            out.print(f"{args.file}: still being written, the records up to byte "
-                      f"{result.unfinished_offset} checked: {result.unfinished}")
+            out.print(f"{result.unfinished} (checked up to there; verify again once it "
+                      f"is closed)")
         if result.index in ("absent", "stale"):
             # Not damage: a recorder that did not close its file leaves none.
             out.print(f"{args.file}: index {result.index} ({result.index_detail}): a reader of "
