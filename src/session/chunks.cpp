@@ -2,6 +2,8 @@
 
 #include <zstd.h>
 
+#include <algorithm>
+#include <cstring>
 #include <stdexcept>
 
 #include "session/format.hpp"
@@ -112,6 +114,23 @@ void ChunkEncoder::emit(std::string& out, bool last) {
   }
 }
 
+void ChunkDecoder::Bytes::discard_front(std::size_t count) {
+  if (count == 0) return;
+  std::memmove(data_.get(), data_.get() + count, size_ - count);
+  size_ -= count;
+}
+
+char* ChunkDecoder::Bytes::room(std::size_t more) {
+  if (capacity_ - size_ < more) {
+    const std::size_t capacity = std::max(capacity_ * 2, size_ + more);
+    std::unique_ptr<char[]> bigger(new char[capacity]);
+    if (size_ != 0) std::memcpy(bigger.get(), data_.get(), size_);
+    data_ = std::move(bigger);
+    capacity_ = capacity;
+  }
+  return data_.get() + size_;
+}
+
 struct ChunkDecoder::Zstd {
   ZSTD_DCtx* context = ZSTD_createDCtx();
   ~Zstd() { ZSTD_freeDCtx(context); }
@@ -149,12 +168,13 @@ std::optional<std::string> ChunkDecoder::feed(std::uint64_t offset, std::uint64_
   const std::string_view frame =
       last ? payload.substr(0, payload.size() - chunk_trailer_size) : payload;
   // What was handed out goes: the buffer holds at most a chunk.
-  decoded_.erase(0, at_);
+  decoded_.discard_front(at_);
   at_ = 0;
   ZSTD_inBuffer in{frame.data(), frame.size(), 0};
-  char block[1 << 16];
+  constexpr std::size_t block = 1 << 16;
   while (in.pos < in.size || last) {
-    ZSTD_outBuffer out{block, sizeof block, 0};
+    // zstd decodes into the buffer itself: one copy of the bytes fewer.
+    ZSTD_outBuffer out{decoded_.room(block), block, 0};
     const std::size_t left = ZSTD_decompressStream(zstd_->context, &out, &in);
     if (ZSTD_isError(left)) return std::string("its zstd data is corrupt (") +
                                    ZSTD_getErrorName(left) + ")";
@@ -163,13 +183,13 @@ std::optional<std::string> ChunkDecoder::feed(std::uint64_t offset, std::uint64_
       return "it decodes to more than the " + std::to_string(max_chunk_decoded >> 20) +
              " MiB a chunk may hold";
     }
-    crc_ = crc32c(block, out.pos, crc_);
-    decoded_.append(block, out.pos);
+    crc_ = crc32c(static_cast<const char*>(out.dst), out.pos, crc_);
+    decoded_.grow(out.pos);
     if (left == 0) {  // the frame ended
       if (!last || in.pos < in.size) return "its zstd frame ends before its last part";
       break;
     }
-    if (out.pos < sizeof block && in.pos == in.size) {
+    if (out.pos < block && in.pos == in.size) {
       if (last) return "its zstd frame does not end with its last part";
       break;
     }
@@ -200,7 +220,7 @@ std::optional<ChunkPlace> ChunkDecoder::take_finished() {
 
 bool ChunkDecoder::next(Record& record, std::string* problem,
                         std::optional<std::uint16_t> only) {
-  const std::string_view bytes(decoded_);
+  const std::string_view bytes = decoded_.view();
   for (;;) {
     std::size_t at = at_;
     if (at >= bytes.size()) return false;

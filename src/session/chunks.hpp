@@ -121,7 +121,24 @@ class ChunkDecoder {
  private:
   struct Zstd;
   std::unique_ptr<Zstd> zstd_;
-  std::string decoded_;  // decoded bytes not yet handed out, from at_
+  // Decoded bytes, written by zstd in place (a std::string would be filled
+  // with zeros before each write into it).
+  class Bytes {
+   public:
+    std::size_t size() const { return size_; }
+    std::string_view view() const { return {data_.get(), size_}; }
+    void clear() { size_ = 0; }
+    void discard_front(std::size_t count);
+    // At least `more` writable bytes past the end; grow() then counts them.
+    char* room(std::size_t more);
+    void grow(std::size_t count) { size_ += count; }
+
+   private:
+    std::unique_ptr<char[]> data_;
+    std::size_t size_ = 0;
+    std::size_t capacity_ = 0;
+  };
+  Bytes decoded_;  // decoded bytes not yet handed out, from at_
   std::size_t at_ = 0;
   bool open_ = false;
   std::uint64_t chunk_offset_ = 0;
