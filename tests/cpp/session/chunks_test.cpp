@@ -275,10 +275,11 @@ std::vector<Record> of_channel(const std::vector<Record>& records, std::uint16_t
   return kept;
 }
 
-std::optional<detail::IndexFound> index_of(const std::string& path, std::string* why = nullptr) {
+std::optional<detail::IndexFound> index_of(const std::string& path, std::string* why = nullptr,
+                                           std::size_t channels = 4) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   auto found = detail::find_session_index(fd, file_bytes(path).size(),
-                                          detail::file_header_fixed_size, 4, why);
+                                          detail::file_header_fixed_size, channels, why);
   ::close(fd);
   return found;
 }
@@ -392,6 +393,35 @@ TEST(CompressedIndex, ADamagedIndexIsReportedWithItsOffsetAndTheFileIsScanned) {
   }
   EXPECT_EQ(verify_index(path).state, detail::IndexState::unchecked);
   EXPECT_THROW(detail::repair_session_index(path), SessionError);
+}
+
+TEST(CompressedIndex, ARecordWrittenBetweenChunksIsASpanOfItsOwn) {
+  TempDir dir;
+  const std::string path = dir.file("big.wtape");
+  std::vector<Record> written;
+  {
+    SessionWriter writer(path, two_channels(), zstd_policy);
+    const std::string big(3u << 19, 'x');  // over the 512 KiB a chunk takes
+    for (int n = 0; n < 4; ++n) {
+      written.push_back(Record{static_cast<std::uint64_t>(10 * n), RecordKind::rx, sentence(n), 0});
+      written.push_back(Record{static_cast<std::uint64_t>(10 * n + 5), RecordKind::rx, big, 1});
+      writer.write(written[written.size() - 2]);
+      writer.write(written.back());
+    }
+    writer.close();
+  }
+  EXPECT_EQ(verify_index(path).state, detail::IndexState::current);
+  for (std::uint16_t channel = 0; channel < 2; ++channel) {
+    std::optional<SessionError> damage;
+    expect_same(read_all(path, channel, &damage), of_channel(written, channel));
+    EXPECT_FALSE(damage) << damage->what();
+  }
+  const std::string whole = file_bytes(path);
+  const auto found = index_of(path, nullptr, 2);
+  ASSERT_TRUE(found);
+  write_bytes(path, whole.substr(0, found->offset));
+  EXPECT_EQ(detail::repair_session_index(path).state, detail::IndexState::current);
+  EXPECT_EQ(file_bytes(path), whole);
 }
 
 // A reader of a file its writer still holds (a recorder running): the end
