@@ -429,7 +429,8 @@ class Bench(RelayJobs, CountJobs, InstructionJobs):
         self.notes["compressed_channel_replay"] = (
             f"c1 of 4 channels / c1 alone: compressed {self.spread(figures['channel_ratios'])}, "
             f"uncompressed {self.spread(figures['plain_channel_ratios'])}")
-        # record --pty at 10 MB/s offered: received rate / offered rate.
+        # record --pty at 10 MB/s offered: received rate / offered rate, the
+        # best round of each.
         self.results["record_pty_compressed_10MBps_ratio"] = round(figures["pty_zstd_ratio"], 3)
         self.results["record_pty_plain_10MBps_ratio"] = round(figures["pty_plain_ratio"], 3)
         self.notes["record_pty_10MBps"] = (
