@@ -11,7 +11,7 @@ from pathlib import Path
 
 from devices import DEADLINE_S, announced_address, interrupt, start_cli, wait_until
 
-from wiretape import cli
+from wiretape import _core, cli
 
 CHUNK_CODE = 0x21  # docs/session-format.md, "The chunk record"
 
@@ -108,3 +108,26 @@ def test_the_same_bytes_left_by_a_killed_recorder_are_damage(tmp_path, capsys):
     code, out, err = run(capsys, "verify", copy)
     assert code == 1, out
     assert "has no last part" in out and "still being written" not in out, out
+
+
+def test_a_replay_of_a_file_being_written_serves_what_was_written(tmp_path, capfd):
+    """The replay engine reads through the same reader: a file its writer
+    holds (here a SessionWriter of this process, flushed inside its open
+    chunk) is replayed up to there with a warning, not as damage."""
+    path = tmp_path / "live.wtape"
+    with _core.SessionWriter(path, compress="zstd") as writer:
+        writer.write("rx", 1000, b"$GPGGA,1\r\n")
+        writer.write("rx", 2000, b"$GPGGA,2\r\n")
+        writer.flush()
+        port = _core.open_port(f"type=replay,file={path},timing=none,unused=ignore,timeout=5")
+        got = b""
+        while len(got) < 20:
+            chunk = port.read(64)
+            if not chunk:
+                break
+            got += chunk
+        port.close()
+        assert got == b"$GPGGA,1\r\n$GPGGA,2\r\n"
+        err = capfd.readouterr().err
+        assert "warning" in err and "still being written" in err, err
+        assert "damaged" not in err, err
