@@ -61,6 +61,10 @@ def test_a_file_being_recorded_compressed_reads_up_to_its_open_chunk(tmp_path, c
             assert "GPGGA" in out
             assert "still being written" in err and f"unfinished chunk at byte {chunk}" in err, err
 
+            code, out, err = run(capsys, "stats", output)
+            assert code == 0, out + err
+            assert "still being written" in err, err
+
             code, out, err = run(capsys, "verify", output)
             assert code == 0, out + err
             assert re.search(r"ok, \d+ records", out), out
