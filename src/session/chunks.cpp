@@ -43,8 +43,7 @@ void ChunkEncoder::add(std::uint8_t kind, std::uint16_t channel, std::uint64_t t
   constexpr std::size_t max_entry_head = 24;
   if (open_ && decoded_ + max_entry_head + payload.size() > chunk_target_bytes) end_chunk(out);
   open_ = true;
-  if (place_.records.size() <= channel) place_.records.resize(channel + std::size_t{1});
-  ++place_.records[channel];
+  counts_.add(channel);
   std::string entry;
   entry.push_back(static_cast<char>(kind));
   put_varint(entry, channel);
@@ -108,10 +107,28 @@ void ChunkEncoder::emit(std::string& out, bool last) {
   out.append(crc, sizeof crc);
   if (last) {
     place_.end = file_offset_ + out.size();
+    place_.records = counts_.take();
     ended_.push_back(std::move(place_));
     place_ = ChunkPlace{};
     placed_ = false;
   }
+}
+
+std::vector<std::pair<std::uint16_t, std::uint64_t>> ChannelCounts::take() {
+  std::sort(touched_.begin(), touched_.end());
+  std::vector<std::pair<std::uint16_t, std::uint64_t>> counted;
+  counted.reserve(touched_.size());
+  for (const std::uint16_t channel : touched_) {
+    counted.emplace_back(channel, counts_[channel]);
+    counts_[channel] = 0;
+  }
+  touched_.clear();
+  return counted;
+}
+
+void ChannelCounts::clear() {
+  for (const std::uint16_t channel : touched_) counts_[channel] = 0;
+  touched_.clear();
 }
 
 void ChunkDecoder::Bytes::discard_front(std::size_t count) {
@@ -151,6 +168,7 @@ void ChunkDecoder::reset() {
   crc_ = 0;
   previous_t_ = 0;
   place_ = ChunkPlace{};
+  counts_.clear();
   finished_ = false;
 }
 
@@ -160,6 +178,7 @@ std::optional<std::string> ChunkDecoder::feed(std::uint64_t offset, std::uint64_
     open_ = true;
     chunk_offset_ = offset;
     place_ = ChunkPlace{offset, 0, {}};
+    counts_.clear();
     finished_ = false;
   }
   if (last && payload.size() < chunk_trailer_size) {
@@ -215,6 +234,7 @@ std::optional<std::string> ChunkDecoder::feed(std::uint64_t offset, std::uint64_
 std::optional<ChunkPlace> ChunkDecoder::take_finished() {
   if (!finished_ || at_ < decoded_.size()) return std::nullopt;
   finished_ = false;
+  place_.records = counts_.take();
   return std::exchange(place_, ChunkPlace{});
 }
 
@@ -243,8 +263,7 @@ bool ChunkDecoder::next(Record& record, std::string* problem,
     at_ = at + static_cast<std::size_t>(length);
     previous_t_ = t;
     if (!open_ && at_ >= decoded_.size()) previous_t_ = 0;  // the chunk is done
-    if (place_.records.size() <= channel) place_.records.resize(channel + std::size_t{1});
-    ++place_.records[channel];
+    counts_.add(static_cast<std::uint16_t>(channel));
     if (only && channel != *only) continue;
     record.kind = static_cast<RecordKind>(kind);
     record.channel = static_cast<std::uint16_t>(channel);

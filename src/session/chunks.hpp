@@ -37,12 +37,30 @@ inline constexpr std::uint16_t compressed_version_minor = 0;
 
 // Where a whole chunk lies in the file, from its first part's record header
 // to past its last part's CRC, and how many records of each channel it
-// holds (by channel id; 0 for a channel it lacks): what the index of a
-// compressed file lists.
+// holds ((channel, records), in channel order, only the channels it
+// holds): what the index of a compressed file lists.
 struct ChunkPlace {
   std::uint64_t begin = 0;
   std::uint64_t end = 0;
-  std::vector<std::uint64_t> records;
+  std::vector<std::pair<std::uint16_t, std::uint64_t>> records;
+};
+
+// Records counted by channel, chunk after chunk: the counts of one are
+// taken in the time of the channels it held, not of every id up to the
+// largest (a chunk may name any of 65536).
+class ChannelCounts {
+ public:
+  void add(std::uint16_t channel) {
+    if (channel >= counts_.size()) counts_.resize(channel + std::size_t{1});
+    if (counts_[channel]++ == 0) touched_.push_back(channel);
+  }
+  // The counts so far, in channel order; back to none.
+  std::vector<std::pair<std::uint16_t, std::uint64_t>> take();
+  void clear();
+
+ private:
+  std::vector<std::uint64_t> counts_;
+  std::vector<std::uint16_t> touched_;
 };
 
 // The writer's side: entries in, whole chunk records (header, payload, CRC)
@@ -85,6 +103,7 @@ class ChunkEncoder {
   std::uint32_t crc_ = 0;      // CRC32C of them
   std::uint64_t file_offset_ = 0;
   ChunkPlace place_;  // of the open chunk, once its first part is out
+  ChannelCounts counts_;  // of the open chunk
   bool placed_ = false;
   std::vector<ChunkPlace> ended_;
 };
@@ -146,6 +165,7 @@ class ChunkDecoder {
   std::uint32_t crc_ = 0;
   std::uint64_t previous_t_ = 0;
   ChunkPlace place_;  // of the chunk being decoded
+  ChannelCounts counts_;  // of its entries read so far
   bool finished_ = false;  // its last part came and every entry was read
 };
 

@@ -129,10 +129,9 @@ class WtapeSource final : public RecordSource {
         }
         if (on_place_) {
           if (const auto place = chunk_->take_finished()) {
-            for (std::size_t id = 0; id < place->records.size(); ++id) {
-              if (place->records[id] == 0) continue;
-              on_place_(RecordPlace{place->begin, place->end, static_cast<std::uint16_t>(id),
-                                    chunk_record_code, place->records[id]});
+            for (const auto& [channel, records] : place->records) {
+              on_place_(
+                  RecordPlace{place->begin, place->end, channel, chunk_record_code, records});
             }
           }
         }

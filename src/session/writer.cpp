@@ -247,10 +247,8 @@ struct SessionWriter::Impl {
     }
     // A compressed file's index lists whole chunks (they are read whole).
     for (const detail::ChunkPlace& place : chunks->take_ended()) {
-      for (std::size_t id = 0; id < place.records.size(); ++id) {
-        if (place.records[id] != 0) {
-          index.add(place.begin, place.end, static_cast<std::uint16_t>(id), place.records[id]);
-        }
+      for (const auto& [channel, records] : place.records) {
+        index.add(place.begin, place.end, channel, records);
       }
     }
     return out;

@@ -424,6 +424,28 @@ TEST(CompressedIndex, ARecordWrittenBetweenChunksIsASpanOfItsOwn) {
   EXPECT_EQ(file_bytes(path), whole);
 }
 
+// Records of a channel the header does not list (65535, the largest id)
+// are in chunks like the others, and not in the index, which lists the
+// header's channels.
+TEST(CompressedIndex, AnUnlistedChannelInAChunkIsLeftOutOfTheIndex) {
+  TempDir dir;
+  const std::string path = dir.file("stray.wtape");
+  std::vector<Record> listed;
+  {
+    SessionWriter writer(path, two_channels(), zstd_policy);
+    for (int n = 0; n < 10; ++n) {
+      listed.push_back(Record{static_cast<std::uint64_t>(n), RecordKind::rx, sentence(n),
+                              static_cast<std::uint16_t>(n % 2)});
+      writer.write(listed.back());
+      writer.write(RecordKind::rx, static_cast<std::uint64_t>(n), "stray", 0xFFFF);
+    }
+    writer.close();
+  }
+  EXPECT_EQ(verify_index(path).state, detail::IndexState::current);
+  expect_same(read_all(path, std::nullopt), listed);
+  expect_same(read_all(path, 1), of_channel(listed, 1));
+}
+
 // A reader of a file its writer still holds (a recorder running): the end
 // is where the writer is, a warning, not damage.
 TEST(Unfinished, AFileStillBeingWrittenEndsInAnUnfinishedChunkNotInDamage) {
