@@ -424,6 +424,24 @@ class Bench(RelayJobs, CountJobs, InstructionJobs):
         self.notes["compress"] = (f"replay throughput compressed/plain "
                                   f"{self.spread(figures['replay_ratios'])}; the replayed file "
                                   f"compressed to {figures['replay_file_ratio']:.3f}")
+        # One channel of 4, compressed, beside the same pair uncompressed
+        # measured in the same run (the anchor of channel_replay_time_ratio).
+        self.results["compressed_channel_replay_time_ratio"] = round(figures["channel_ratio"], 3)
+        self.results["compressed_channel_replay_plain_anchor_ratio"] = round(
+            figures["plain_channel_ratio"], 3)
+        self.notes["compressed_channel_replay"] = (
+            f"c1 of 4 channels / c1 alone: compressed {self.spread(figures['channel_ratios'])}, "
+            f"uncompressed {self.spread(figures['plain_channel_ratios'])}")
+        # record --pty at 10 MB/s offered: received rate / offered rate, the
+        # best round of each.
+        self.results["record_pty_compressed_10MBps_ratio"] = round(figures["pty_zstd_ratio"], 3)
+        self.results["record_pty_plain_10MBps_ratio"] = round(figures["pty_plain_ratio"], 3)
+        self.notes["record_pty_10MBps"] = (
+            f"{figures['pty_MB']:.0f} MB offered at 10 MB/s: compressed "
+            f"{self.spread(figures['pty_zstd_ratios'])} (every byte recorded: "
+            f"{figures['pty_zstd_recorded_all']}), uncompressed "
+            f"{self.spread(figures['pty_plain_ratios'])} (every byte recorded: "
+            f"{figures['pty_plain_recorded_all']})")
 
     # --- the --as shim -------------------------------------------------------
     def shim(self) -> None:

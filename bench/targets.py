@@ -119,6 +119,15 @@ TARGETS = {
     "compressed_replay_vs_plain_ratio": (0.5, "higher",
                                          "timing=none replay throughput, compressed / plain"),
     "compressed_write_MBps": (10, "higher", "MB/s the writer compresses (10 MB/s of traffic)"),
+    "compressed_channel_replay_time_ratio": (2.0, "lower",
+                                             "1 channel of a compressed 4-channel file / the "
+                                             "channel alone, compressed, time"),
+    "compressed_channel_replay_plain_anchor_ratio": (None, "info",
+                                                     "the same pair uncompressed, same run"),
+    "record_pty_compressed_10MBps_ratio": (1.0, "higher",
+                                           "record --pty --compress zstd: rate relayed / 10 MB/s "
+                                           "offered"),
+    "record_pty_plain_10MBps_ratio": (None, "info", "the same, uncompressed, same run"),
     # --- attach (issue 39, docs/recording.md "Attaching to a running program") ---
     # --- fuzzing (issue 40, bench/fuzz_bench.py, docs/fuzzing.md) ---
     "fuzz_in_process_runs_per_cpu_s": (10000, "higher",

@@ -176,6 +176,12 @@ class SessionReader {
   // Set once reading stopped at a damaged record: everything before it was
   // returned.
   const std::optional<SessionError>& damage() const;
+  // Set instead of damage() when reading stopped at the end of a file that
+  // is still being written (its writer, a SessionWriter of this or another
+  // process, holds it open): it ends in a chunk or record not written
+  // whole yet. Every record before it was returned; reading it again later
+  // returns more.
+  const std::optional<SessionError>& unfinished() const;
   // Back to the first record.
   void rewind();
   const std::string& path() const;

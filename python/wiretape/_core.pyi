@@ -654,6 +654,12 @@ class SessionReader:
         None, or a SessionError (not raised) with .offset and .message: where reading stopped and why
         """
 
+    @property
+    def unfinished(self, /) -> SessionError | None:
+        """
+        None, or (not damage: a warning) a SessionError with .offset and .message when reading stopped at the end of a file still being written: every record before it was read
+        """
+
     def rewind(self) -> None:
         """back to the first record"""
 
@@ -1424,6 +1430,16 @@ class RecordCheck:
         """
         None, or a SessionError (not raised) with .offset and .message: where reading stopped and why
         """
+
+    @property
+    def unfinished(self) -> str | None:
+        """
+        None, or why reading stopped at the end of a file still being written (not damage)
+        """
+
+    @property
+    def unfinished_offset(self) -> int | None:
+        """where the unfinished chunk or record begins, or None"""
 
 def check_session_records(path: str) -> RecordCheck:
     """

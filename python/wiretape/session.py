@@ -22,11 +22,12 @@ import json
 import os
 import select
 import stat
+import sys
 from typing import IO, Any, Dict, Iterable, List, NamedTuple, Optional, Union
 
 from . import _core
 
-__all__ = ["SessionPath", "DIRECTIONS", "open_session", "raise_damage", "header_fields",
+__all__ = ["SessionPath", "DIRECTIONS", "open_session", "raise_damage", "warn_if_unfinished", "header_fields",
            "event_of", "event_payload", "escape_bytes", "header_text", "printable",
            "FileRefused", "open_input", "open_output", "check_output",
            "is_stream", "is_written_through", "open_regular_output",
@@ -111,10 +112,22 @@ def chosen_profile(given: Optional[str], *headers: Any) -> ProfileChoice:
 
 def raise_damage(reader: _core.SessionReader) -> None:
     """Raises the session's damage (SessionError, exit 1), if reading it
-    stopped at some; call it once the records before the damage are used."""
+    stopped at some; call it once the records before the damage are used.
+    A file still being written (a recorder has it open) is not damaged: its
+    unfinished end is a warning on stderr, and the command goes on."""
     damage = reader.damage
     if damage is not None:
         raise damage
+    warn_if_unfinished(reader)
+
+
+def warn_if_unfinished(reader: _core.SessionReader) -> None:
+    """Says on stderr, once reading ended, that it ended at the unfinished
+    end of a file still being written (a recorder has it open): a warning,
+    not damage."""
+    unfinished = reader.unfinished
+    if unfinished is not None:
+        print(f"wiretape: warning: {unfinished.message}", file=sys.stderr, flush=True)
 
 
 def header_fields(reader: _core.SessionReader) -> Dict[str, Any]:

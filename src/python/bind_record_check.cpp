@@ -32,6 +32,7 @@ struct RecordCheck {
   std::uint64_t unlisted_records = 0;
   std::optional<detail::UnlistedRecord> first_unlisted;
   std::optional<SessionError> damage;
+  std::optional<SessionError> unfinished;  // the file is still being written
   detail::IndexStatus index;
 };
 
@@ -52,8 +53,11 @@ RecordCheck check_records(const std::string& path) {
     ++check.channel_records[record.channel];
   }
   check.damage = source->damage();
+  check.unfinished = source->unfinished();
   if (detail::is_stream(path)) {
     check.index = {detail::IndexState::unchecked, "a pipe or FIFO is read once"};
+  } else if (check.unfinished) {
+    check.index = {detail::IndexState::unchecked, "the file is still being written"};
   } else {
     check.index = index.status(path, check.header.channels.size(), check.damage.has_value());
   }
@@ -107,7 +111,22 @@ void bind_record_check(nb::module_& m) {
           },
           nb::for_getter(nb::sig("def damage(self, /) -> SessionError | None")),
           "None, or a SessionError (not raised) with .offset and .message: where "
-          "reading stopped and why");
+          "reading stopped and why")
+      .def_prop_ro(
+          "unfinished",
+          [](const RecordCheck& c) -> std::optional<std::string> {
+            if (!c.unfinished) return std::nullopt;
+            return std::string(c.unfinished->what());
+          },
+          "None, or why reading stopped at the end of a file still being written (not "
+          "damage)")
+      .def_prop_ro(
+          "unfinished_offset",
+          [](const RecordCheck& c) -> std::optional<std::uint64_t> {
+            if (!c.unfinished) return std::nullopt;
+            return c.unfinished->offset();
+          },
+          "where the unfinished chunk or record begins, or None");
 
   m.def(
       "check_session_records",

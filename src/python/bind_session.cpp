@@ -311,6 +311,20 @@ void bind_session(nb::module_& m) {
           nb::for_getter(nb::sig("def damage(self, /) -> SessionError | None")),
           "None, or a SessionError (not raised) with .offset and .message: where "
           "reading stopped and why")
+      .def_prop_ro(
+          "unfinished",
+          [](PyReader& self) -> nb::object {
+            const auto& unfinished = self.get().unfinished();
+            if (!unfinished) return nb::none();
+            nb::object cls = nb::module_::import_("wiretape._core").attr("SessionError");
+            nb::object error = cls(std::string(unfinished->what()), unfinished->offset());
+            error.attr("message") = std::string(unfinished->what());
+            return error;
+          },
+          nb::for_getter(nb::sig("def unfinished(self, /) -> SessionError | None")),
+          "None, or (not damage: a warning) a SessionError with .offset and .message when "
+          "reading stopped at the end of a file still being written: every record before "
+          "it was read")
       .def("rewind", [](PyReader& self) { self.get().rewind(); }, "back to the first record")
       .def_prop_ro("path", [](PyReader& self) { return self.get().path(); })
       .def("close", [](PyReader& self) { self.reader.reset(); })

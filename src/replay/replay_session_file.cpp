@@ -40,6 +40,9 @@ class SessionRecordSource final : public RecordSource {
   const std::optional<SessionError>& damage() const override {
     return source_->damage();
   }
+  const std::optional<SessionError>& unfinished() const override {
+    return source_->unfinished();
+  }
 
  private:
   void warn_of_damage() {
@@ -49,6 +52,10 @@ class SessionRecordSource final : public RecordSource {
                    "wiretape: %s is damaged; replaying what comes before the "
                    "damage: %s\n",
                    path_.c_str(), source_->damage()->what());
+    } else if (source_->unfinished() && !*warned_) {
+      *warned_ = true;  // not damage: a recorder is still writing the file
+      std::fprintf(stderr, "wiretape: warning: %s; replaying what was written\n",
+                   source_->unfinished()->what());
     }
   }
 

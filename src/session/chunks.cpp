@@ -2,6 +2,8 @@
 
 #include <zstd.h>
 
+#include <algorithm>
+#include <cstring>
 #include <stdexcept>
 
 #include "session/format.hpp"
@@ -41,6 +43,7 @@ void ChunkEncoder::add(std::uint8_t kind, std::uint16_t channel, std::uint64_t t
   constexpr std::size_t max_entry_head = 24;
   if (open_ && decoded_ + max_entry_head + payload.size() > chunk_target_bytes) end_chunk(out);
   open_ = true;
+  counts_.add(channel);
   std::string entry;
   entry.push_back(static_cast<char>(kind));
   put_varint(entry, channel);
@@ -65,6 +68,10 @@ void ChunkEncoder::end_chunk(std::string& out) {
 
 void ChunkEncoder::emit(std::string& out, bool last) {
   const std::size_t start = out.size();
+  if (!placed_) {
+    place_.begin = file_offset_ + start;
+    placed_ = true;
+  }
   out.append(record_header_size, '\0');
   ZSTD_inBuffer in{pending_.data(), pending_.size(), 0};
   const ZSTD_EndDirective mode = last ? ZSTD_e_end : ZSTD_e_flush;
@@ -98,6 +105,47 @@ void ChunkEncoder::emit(std::string& out, bool last) {
   char crc[crc_size];
   put_u32le(crc, crc32c(&out[start], out.size() - start));
   out.append(crc, sizeof crc);
+  if (last) {
+    place_.end = file_offset_ + out.size();
+    place_.records = counts_.take();
+    ended_.push_back(std::move(place_));
+    place_ = ChunkPlace{};
+    placed_ = false;
+  }
+}
+
+std::vector<std::pair<std::uint16_t, std::uint64_t>> ChannelCounts::take() {
+  std::sort(touched_.begin(), touched_.end());
+  std::vector<std::pair<std::uint16_t, std::uint64_t>> counted;
+  counted.reserve(touched_.size());
+  for (const std::uint16_t channel : touched_) {
+    counted.emplace_back(channel, counts_[channel]);
+    counts_[channel] = 0;
+  }
+  touched_.clear();
+  return counted;
+}
+
+void ChannelCounts::clear() {
+  for (const std::uint16_t channel : touched_) counts_[channel] = 0;
+  touched_.clear();
+}
+
+void ChunkDecoder::Bytes::discard_front(std::size_t count) {
+  if (count == 0) return;
+  std::memmove(data_.get(), data_.get() + count, size_ - count);
+  size_ -= count;
+}
+
+char* ChunkDecoder::Bytes::room(std::size_t more) {
+  if (capacity_ - size_ < more) {
+    const std::size_t capacity = std::max(capacity_ * 2, size_ + more);
+    std::unique_ptr<char[]> bigger(new char[capacity]);
+    if (size_ != 0) std::memcpy(bigger.get(), data_.get(), size_);
+    data_ = std::move(bigger);
+    capacity_ = capacity;
+  }
+  return data_.get() + size_;
 }
 
 struct ChunkDecoder::Zstd {
@@ -119,13 +167,19 @@ void ChunkDecoder::reset() {
   total_ = 0;
   crc_ = 0;
   previous_t_ = 0;
+  place_ = ChunkPlace{};
+  counts_.clear();
+  finished_ = false;
 }
 
-std::optional<std::string> ChunkDecoder::feed(std::uint64_t offset, std::string_view payload,
-                                              bool last) {
+std::optional<std::string> ChunkDecoder::feed(std::uint64_t offset, std::uint64_t end,
+                                              std::string_view payload, bool last) {
   if (!open_) {
     open_ = true;
     chunk_offset_ = offset;
+    place_ = ChunkPlace{offset, 0, {}};
+    counts_.clear();
+    finished_ = false;
   }
   if (last && payload.size() < chunk_trailer_size) {
     return "its last part is shorter than its trailer";
@@ -133,12 +187,13 @@ std::optional<std::string> ChunkDecoder::feed(std::uint64_t offset, std::string_
   const std::string_view frame =
       last ? payload.substr(0, payload.size() - chunk_trailer_size) : payload;
   // What was handed out goes: the buffer holds at most a chunk.
-  decoded_.erase(0, at_);
+  decoded_.discard_front(at_);
   at_ = 0;
   ZSTD_inBuffer in{frame.data(), frame.size(), 0};
-  char block[1 << 16];
+  constexpr std::size_t block = 1 << 16;
   while (in.pos < in.size || last) {
-    ZSTD_outBuffer out{block, sizeof block, 0};
+    // zstd decodes into the buffer itself: one copy of the bytes fewer.
+    ZSTD_outBuffer out{decoded_.room(block), block, 0};
     const std::size_t left = ZSTD_decompressStream(zstd_->context, &out, &in);
     if (ZSTD_isError(left)) return std::string("its zstd data is corrupt (") +
                                    ZSTD_getErrorName(left) + ")";
@@ -147,13 +202,13 @@ std::optional<std::string> ChunkDecoder::feed(std::uint64_t offset, std::string_
       return "it decodes to more than the " + std::to_string(max_chunk_decoded >> 20) +
              " MiB a chunk may hold";
     }
-    crc_ = crc32c(block, out.pos, crc_);
-    decoded_.append(block, out.pos);
+    crc_ = crc32c(static_cast<const char*>(out.dst), out.pos, crc_);
+    decoded_.grow(out.pos);
     if (left == 0) {  // the frame ended
       if (!last || in.pos < in.size) return "its zstd frame ends before its last part";
       break;
     }
-    if (out.pos < sizeof block && in.pos == in.size) {
+    if (out.pos < block && in.pos == in.size) {
       if (last) return "its zstd frame does not end with its last part";
       break;
     }
@@ -170,38 +225,52 @@ std::optional<std::string> ChunkDecoder::feed(std::uint64_t offset, std::string_
     open_ = false;
     total_ = 0;
     crc_ = 0;
+    place_.end = end;
+    finished_ = true;
   }
   return std::nullopt;
 }
 
-bool ChunkDecoder::next(Record& record, std::string* problem) {
-  const std::string_view bytes(decoded_);
-  std::size_t at = at_;
-  if (at >= bytes.size()) return false;
-  const auto kind = static_cast<std::uint8_t>(bytes[at++]);
-  std::uint64_t channel = 0;
-  std::uint64_t delta = 0;
-  std::uint64_t length = 0;
-  if (!get_varint(bytes, at, channel) || !get_varint(bytes, at, delta) ||
-      !get_varint(bytes, at, length) || bytes.size() - at < length) {
-    // An entry not whole yet is whole once its chunk's next part came.
-    if (!open_ && problem) *problem = "an entry is cut short at its chunk's end";
-    return false;
+std::optional<ChunkPlace> ChunkDecoder::take_finished() {
+  if (!finished_ || at_ < decoded_.size()) return std::nullopt;
+  finished_ = false;
+  place_.records = counts_.take();
+  return std::exchange(place_, ChunkPlace{});
+}
+
+bool ChunkDecoder::next(Record& record, std::string* problem,
+                        std::optional<std::uint16_t> only) {
+  const std::string_view bytes = decoded_.view();
+  for (;;) {
+    std::size_t at = at_;
+    if (at >= bytes.size()) return false;
+    const auto kind = static_cast<std::uint8_t>(bytes[at++]);
+    std::uint64_t channel = 0;
+    std::uint64_t delta = 0;
+    std::uint64_t length = 0;
+    if (!get_varint(bytes, at, channel) || !get_varint(bytes, at, delta) ||
+        !get_varint(bytes, at, length) || bytes.size() - at < length) {
+      // An entry not whole yet is whole once its chunk's next part came.
+      if (!open_ && problem) *problem = "an entry is cut short at its chunk's end";
+      return false;
+    }
+    if (channel > 0xFFFF) {
+      if (problem) *problem = "an entry names channel " + std::to_string(channel);
+      return false;
+    }
+    // The first entry of a chunk counts from 0 (previous_t_ reset below).
+    const std::uint64_t t = previous_t_ + static_cast<std::uint64_t>(unzigzag(delta));
+    at_ = at + static_cast<std::size_t>(length);
+    previous_t_ = t;
+    if (!open_ && at_ >= decoded_.size()) previous_t_ = 0;  // the chunk is done
+    counts_.add(static_cast<std::uint16_t>(channel));
+    if (only && channel != *only) continue;
+    record.kind = static_cast<RecordKind>(kind);
+    record.channel = static_cast<std::uint16_t>(channel);
+    record.t_ns = t;
+    record.data.assign(bytes.data() + at, static_cast<std::size_t>(length));
+    return true;
   }
-  if (channel > 0xFFFF) {
-    if (problem) *problem = "an entry names channel " + std::to_string(channel);
-    return false;
-  }
-  // The first entry of a chunk counts from 0 (previous_t_ reset below).
-  const std::uint64_t t = previous_t_ + static_cast<std::uint64_t>(unzigzag(delta));
-  record.kind = static_cast<RecordKind>(kind);
-  record.channel = static_cast<std::uint16_t>(channel);
-  record.t_ns = t;
-  record.data.assign(bytes.data() + at, static_cast<std::size_t>(length));
-  at_ = at + static_cast<std::size_t>(length);
-  previous_t_ = t;
-  if (!open_ && at_ >= decoded_.size()) previous_t_ = 0;  // the chunk is done
-  return true;
 }
 
 }  // namespace wiretape::detail

@@ -14,6 +14,8 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
+#include <vector>
 
 #include "wiretape/session.hpp"
 
@@ -32,6 +34,34 @@ inline constexpr std::size_t chunk_trailer_size = 8;
 // A compressed file's version: older readers refuse it by its major version.
 inline constexpr std::uint16_t compressed_version_major = 2;
 inline constexpr std::uint16_t compressed_version_minor = 0;
+
+// Where a whole chunk lies in the file, from its first part's record header
+// to past its last part's CRC, and how many records of each channel it
+// holds ((channel, records), in channel order, only the channels it
+// holds): what the index of a compressed file lists.
+struct ChunkPlace {
+  std::uint64_t begin = 0;
+  std::uint64_t end = 0;
+  std::vector<std::pair<std::uint16_t, std::uint64_t>> records;
+};
+
+// Records counted by channel, chunk after chunk: the counts of one are
+// taken in the time of the channels it held, not of every id up to the
+// largest (a chunk may name any of 65536).
+class ChannelCounts {
+ public:
+  void add(std::uint16_t channel) {
+    if (channel >= counts_.size()) counts_.resize(channel + std::size_t{1});
+    if (counts_[channel]++ == 0) touched_.push_back(channel);
+  }
+  // The counts so far, in channel order; back to none.
+  std::vector<std::pair<std::uint16_t, std::uint64_t>> take();
+  void clear();
+
+ private:
+  std::vector<std::uint64_t> counts_;
+  std::vector<std::uint16_t> touched_;
+};
 
 // The writer's side: entries in, whole chunk records (header, payload, CRC)
 // out. Not thread-safe (the writer's flush holds its io mutex).
@@ -55,6 +85,11 @@ class ChunkEncoder {
   // Appends the chunk's last part (if a chunk is open).
   void end_chunk(std::string& out);
   bool chunk_open() const { return open_; }
+  // The file offset where the `out` of the calls that follow begins (so
+  // that the places of the chunks they end are known).
+  void set_file_offset(std::uint64_t offset) { file_offset_ = offset; }
+  // The chunks ended since the last call.
+  std::vector<ChunkPlace> take_ended() { return std::exchange(ended_, {}); }
 
  private:
   void emit(std::string& out, bool last);
@@ -66,6 +101,11 @@ class ChunkEncoder {
   std::uint64_t previous_t_ = 0;
   std::uint64_t decoded_ = 0;  // bytes of the chunk's entries
   std::uint32_t crc_ = 0;      // CRC32C of them
+  std::uint64_t file_offset_ = 0;
+  ChunkPlace place_;  // of the open chunk, once its first part is out
+  ChannelCounts counts_;  // of the open chunk
+  bool placed_ = false;
+  std::vector<ChunkPlace> ended_;
 };
 
 // The reader's side: parts in (their payloads, CRC-checked by the reader),
@@ -80,9 +120,17 @@ class ChunkDecoder {
   // Decodes a part found at `offset`; std::nullopt, or why the chunk is
   // damaged (not zstd, larger than max_chunk_decoded, a last part whose
   // length or CRC does not match, an entry that does not parse).
-  std::optional<std::string> feed(std::uint64_t offset, std::string_view payload, bool last);
-  // The next whole record decoded, or false until more is fed.
-  bool next(Record& record, std::string* problem);
+  // `end`: past the part's CRC.
+  std::optional<std::string> feed(std::uint64_t offset, std::uint64_t end,
+                                  std::string_view payload, bool last);
+  // The next whole record decoded, or false until more is fed. With `only`,
+  // entries of other channels are passed over without copying their
+  // payloads.
+  bool next(Record& record, std::string* problem,
+            std::optional<std::uint16_t> only = std::nullopt);
+  // Once every entry of a chunk was handed out or passed over: where the
+  // chunk lay and its records by channel (once per chunk).
+  std::optional<ChunkPlace> take_finished();
   // Inside a chunk whose last part has not come.
   bool open() const { return open_; }
   // Where the open chunk began.
@@ -92,13 +140,33 @@ class ChunkDecoder {
  private:
   struct Zstd;
   std::unique_ptr<Zstd> zstd_;
-  std::string decoded_;  // decoded bytes not yet handed out, from at_
+  // Decoded bytes, written by zstd in place (a std::string would be filled
+  // with zeros before each write into it).
+  class Bytes {
+   public:
+    std::size_t size() const { return size_; }
+    std::string_view view() const { return {data_.get(), size_}; }
+    void clear() { size_ = 0; }
+    void discard_front(std::size_t count);
+    // At least `more` writable bytes past the end; grow() then counts them.
+    char* room(std::size_t more);
+    void grow(std::size_t count) { size_ += count; }
+
+   private:
+    std::unique_ptr<char[]> data_;
+    std::size_t size_ = 0;
+    std::size_t capacity_ = 0;
+  };
+  Bytes decoded_;  // decoded bytes not yet handed out, from at_
   std::size_t at_ = 0;
   bool open_ = false;
   std::uint64_t chunk_offset_ = 0;
   std::uint64_t total_ = 0;  // decoded bytes of the chunk so far
   std::uint32_t crc_ = 0;
   std::uint64_t previous_t_ = 0;
+  ChunkPlace place_;  // of the chunk being decoded
+  ChannelCounts counts_;  // of its entries read so far
+  bool finished_ = false;  // its last part came and every entry was read
 };
 
 }  // namespace wiretape::detail

@@ -1,6 +1,7 @@
 // Reading sessions: .wtape files (specified in docs/session-format.md) and,
 // through session/flexiport.cpp, flexiport's two-file logs.
 #include <fcntl.h>
+#include <sys/file.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -83,6 +84,7 @@ class WtapeSource final : public RecordSource {
   void rewind() override {
     file_.seek(first_record_);
     damage_.reset();
+    unfinished_.reset();
     records_ = 0;
     if (chunk_) chunk_->reset();
     if (spans_) {
@@ -93,16 +95,21 @@ class WtapeSource final : public RecordSource {
   }
 
   const std::optional<SessionError>& damage() const override { return damage_; }
+  const std::optional<SessionError>& unfinished() const override { return unfinished_; }
 
  private:
   // With `view`, large payloads come as views into the read buffer.
   bool next_record(Record& record, PayloadView* view) {
     for (;;) {
       if (view) *view = PayloadView{};
-      if (damage_) return false;
+      if (damage_ || unfinished_) return false;
       if (chunk_) {
         std::string problem;
-        if (chunk_->next(record, &problem)) {
+        // A reader of one channel passes over the others' entries; verify
+        // (which is told of unlisted channels) sees every entry.
+        const std::optional<std::uint16_t> only =
+            on_unlisted_ ? std::nullopt : channel_;
+        if (chunk_->next(record, &problem, only)) {
           if (!wanted(record.channel, static_cast<std::uint8_t>(record.kind),
                       chunk_->chunk_offset())) {
             continue;
@@ -120,12 +127,21 @@ class WtapeSource final : public RecordSource {
                                                   std::to_string(chunk_->chunk_offset()) +
                                                   " is damaged: " + problem);
         }
+        if (on_place_) {
+          if (const auto place = chunk_->take_finished()) {
+            for (const auto& [channel, records] : place->records) {
+              on_place_(
+                  RecordPlace{place->begin, place->end, channel, chunk_record_code, records});
+            }
+          }
+        }
       }
       if (spans_ && !enter_span()) return false;
       const std::uint64_t offset = file_.position();
       char head[record_header_size];
       if (file_.remaining() == 0) {
         if (chunk_ && chunk_->open()) {
+          if (writer_holds_file()) return stop_unfinished(offset);
           // What a recorder killed inside a chunk leaves: its flushed parts
           // were read; the records after its last flush are lost.
           return stop(chunk_->chunk_offset(),
@@ -135,6 +151,7 @@ class WtapeSource final : public RecordSource {
         return false;
       }
       if (!file_.read(head, sizeof head)) {
+        if (!file_.is_stream() && writer_holds_file()) return stop_unfinished(offset);
         // What is left now: a stream's bytes are known only once they came.
         return stop(offset, "truncated record at byte " + std::to_string(offset) +
                                 ": a record header needs 16 bytes, the file ends " +
@@ -150,6 +167,7 @@ class WtapeSource final : public RecordSource {
       // A stream's length is checked as its bytes arrive (read_into).
       if (!file_.is_stream() &&
           static_cast<std::uint64_t>(length) + crc_size > file_.remaining()) {
+        if (writer_holds_file()) return stop_unfinished(offset);
         return claims_too_much(file_.remaining());
       }
       std::uint32_t crc = crc32c(head, sizeof head);
@@ -187,7 +205,8 @@ class WtapeSource final : public RecordSource {
       if (kind_byte == chunk_record_code) {
         if (!chunk_) chunk_ = std::make_unique<ChunkDecoder>();
         const bool last = (static_cast<std::uint8_t>(head[5]) & chunk_last_part) != 0;
-        if (const auto problem = chunk_->feed(offset, std::string_view(payload, length), last)) {
+        if (const auto problem = chunk_->feed(offset, file_.position(),
+                                                  std::string_view(payload, length), last)) {
           return stop(offset, "the chunk at byte " + std::to_string(chunk_->chunk_offset()) +
                                   " is damaged in its part at byte " + std::to_string(offset) +
                                   ": " + *problem);
@@ -247,6 +266,32 @@ class WtapeSource final : public RecordSource {
       file_.limit_read_ahead(span_.end);
     }
     return true;
+  }
+
+  // Whether a writer holds the file (SessionWriter locks it, flock, until
+  // it closes): the end of the file is then where the writer is, not
+  // damage. A writer that was killed holds nothing, and what it left is
+  // read as damage.
+  bool writer_holds_file() const {
+    if (file_.is_stream()) return false;
+    if (sys::flock(file_.fd(), LOCK_SH | LOCK_NB) == 0) {
+      (void)sys::flock(file_.fd(), LOCK_UN);
+      return false;
+    }
+    return errno == EWOULDBLOCK;
+  }
+
+  // The end of a file still being written, at `offset` (a record not whole
+  // yet), or inside the open chunk.
+  bool stop_unfinished(std::uint64_t offset) {
+    const bool in_chunk = chunk_ && chunk_->open();
+    const std::uint64_t at = in_chunk ? chunk_->chunk_offset() : offset;
+    unfinished_.emplace(file_.path() + ": the file is still being written: it ends in an "
+                            "unfinished " + (in_chunk ? "chunk" : "record") + " at byte " +
+                            std::to_string(at) + "; the " + std::to_string(records_) +
+                            " records before it were read",
+                        at);
+    return false;
   }
 
   bool stop(std::uint64_t offset, const std::string& what) {
@@ -325,6 +370,7 @@ class WtapeSource final : public RecordSource {
   IndexSpan span_;                     // the one being read
   std::uint64_t records_ = 0;
   std::optional<SessionError> damage_;
+  std::optional<SessionError> unfinished_;
 };
 
 // False also when `path` cannot be opened: opening it as a .wtape file then
@@ -392,6 +438,9 @@ const SessionHeader& SessionReader::header() const { return impl_->header; }
 bool SessionReader::next(Record& record) { return impl_->source->next(record); }
 const std::optional<SessionError>& SessionReader::damage() const {
   return impl_->source->damage();
+}
+const std::optional<SessionError>& SessionReader::unfinished() const {
+  return impl_->source->unfinished();
 }
 void SessionReader::rewind() { impl_->source->rewind(); }
 const std::string& SessionReader::path() const { return impl_->path; }

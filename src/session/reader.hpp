@@ -32,12 +32,15 @@ struct UnlistedRecord {
 using UnlistedRecordSink = std::function<void(const UnlistedRecord&)>;
 // `on_place` is told where each record with a good CRC lies (any kind, any
 // channel, before the channel filter): what the index of the file is made
-// of, for verify and `verify --repair`.
+// of, for verify and `verify --repair`. Once a chunk's records were all
+// read, it is told of the whole chunk once per channel the chunk holds,
+// with `records` its records of that channel (0 for every record itself).
 struct RecordPlace {
-  std::uint64_t offset = 0;  // its record header
-  std::uint64_t end = 0;     // past its CRC
+  std::uint64_t offset = 0;  // its record header (a chunk's first part's)
+  std::uint64_t end = 0;     // past its CRC (a chunk's last part's)
   std::uint16_t channel = 0;
   std::uint8_t kind_code = 0;
+  std::uint64_t records = 0;
 };
 using RecordPlaceSink = std::function<void(const RecordPlace&)>;
 std::unique_ptr<RecordSource> open_session_source(

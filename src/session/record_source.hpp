@@ -46,6 +46,12 @@ class RecordSource {
   virtual void rewind() = 0;
   // Why the records ended early, if they did.
   virtual const std::optional<SessionError>& damage() const = 0;
+  // Set when the records ended at the unfinished end of a file its writer
+  // is still writing (not damage: every record before it was read).
+  virtual const std::optional<SessionError>& unfinished() const {
+    static const std::optional<SessionError> none;
+    return none;
+  }
 };
 
 // The replay engine opens several independent sources over one session (one

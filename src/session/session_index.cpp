@@ -89,10 +89,11 @@ void ChannelSpans::rewind() {
   }
 }
 
-void SessionIndexBuilder::add(std::uint64_t offset, std::uint64_t end, std::uint16_t channel) {
+void SessionIndexBuilder::add(std::uint64_t offset, std::uint64_t end, std::uint16_t channel,
+                              std::uint64_t records) {
   if (channel >= channels_.size()) channels_.resize(static_cast<std::size_t>(channel) + 1);
   Channel& state = channels_[channel];
-  ++state.records;
+  state.records += records;
   if (state.open && offset >= state.open->end &&
       offset - state.open->end <= index_span_merge_gap) {
     state.open->end = end;
@@ -318,16 +319,22 @@ std::string_view to_string(IndexState state) {
 
 RecordPlaceSink IndexCheck::sink() {
   return [this](const RecordPlace& place) {
-    // Indexes are the file's structure, not records it indexes.
-    if (place.kind_code == chunk_record_code) chunked_ = true;
-    if (place.kind_code != index_record_code) scanned_.add(place.offset, place.end, place.channel);
+    // Indexes are the file's structure, not records it indexes; a chunk is
+    // indexed as a whole, once its records are known, not by its parts.
+    if (place.kind_code == index_record_code) return;
+    if (place.kind_code == chunk_record_code) {
+      if (place.records != 0) {
+        scanned_.add(place.offset, place.end, place.channel, place.records);
+      }
+      return;
+    }
+    scanned_.add(place.offset, place.end, place.channel);
   };
 }
 
 IndexStatus IndexCheck::status(const std::string& path, std::size_t channel_count,
                                bool damaged) const {
   if (channel_count < 2) return {IndexState::not_needed, ""};
-  if (chunked_) return {IndexState::not_needed, "compressed: the channels share chunks"};
   if (damaged) return {IndexState::unchecked, "the file is damaged"};
   const InputFile file(path);
   struct stat info {};
@@ -355,6 +362,11 @@ IndexStatus repair_session_index(const std::string& path) {
       open_session_source(path, header, Streams::refused, std::nullopt, {}, check.sink());
   Record record;
   while (source->next(record)) {
+  }
+  if (source->unfinished()) {
+    throw SessionError(std::string(source->unfinished()->what()) +
+                           "; no index appended (its writer appends it when it closes)",
+                       source->unfinished()->offset());
   }
   if (source->damage()) {
     throw SessionError(std::string(source->damage()->what()) +

@@ -74,8 +74,10 @@ class ChannelSpans {
 // memory grows with the spans, at most a few bytes per 4 KiB of file.
 class SessionIndexBuilder {
  public:
-  // A record of `channel` at [offset, end).
-  void add(std::uint64_t offset, std::uint64_t end, std::uint16_t channel);
+  // `records` records of `channel` at [offset, end): one record, or in a
+  // compressed file the chunk that holds them.
+  void add(std::uint64_t offset, std::uint64_t end, std::uint16_t channel,
+           std::uint64_t records = 1);
   // The whole index record (header, payload, CRC) for a file whose records
   // end at `at`, where the record goes, listing `channel_count` channels.
   std::string record_bytes(std::uint64_t at, std::size_t channel_count) const;
@@ -146,7 +148,6 @@ class IndexCheck {
 
  private:
   SessionIndexBuilder scanned_;
-  bool chunked_ = false;  // compressed (2.0): no index
 };
 
 // `wiretape verify --repair`: appends the index to a file of several

@@ -6,6 +6,7 @@
 // the machine with the traffic it records, so the work on the port's own
 // thread is kept to the one copy that cannot be avoided.
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -175,6 +176,7 @@ struct SessionWriter::Impl {
     seal(data, ends);
     const std::size_t records_in = ends.size();
     if (chunks) {
+      chunks->set_file_offset(committed);
       data = chunked(data, ends, final);
       ends.assign(1, data.size());  // whole or not at all (see below)
     }
@@ -243,12 +245,18 @@ struct SessionWriter::Impl {
       }
       const char* record = &data[start];
       const std::uint32_t length = detail::get_u32le(record);
-      if (detail::ChunkEncoder::fits(length)) {
+      // The index is the file's structure: read from its end, never chunked.
+      const bool structure = static_cast<std::uint8_t>(record[4]) == detail::index_record_code;
+      if (detail::ChunkEncoder::fits(length) && !structure) {
         chunks->add(static_cast<std::uint8_t>(record[4]), detail::get_u16le(record + 6),
                     detail::get_u64le(record + 8),
                     std::string_view(record + detail::record_header_size, length), out);
       } else {
         chunks->end_chunk(out);
+        if (!structure) {
+          index.add(committed + out.size(), committed + out.size() + (end - start),
+                    detail::get_u16le(record + 6));
+        }
         out.append(data, start, end - start);
       }
       start = end;
@@ -257,6 +265,12 @@ struct SessionWriter::Impl {
       chunks->end_chunk(out);
     } else {
       chunks->flush_part(out);
+    }
+    // A compressed file's index lists whole chunks (they are read whole).
+    for (const detail::ChunkPlace& place : chunks->take_ended()) {
+      for (const auto& [channel, records] : place.records) {
+        index.add(place.begin, place.end, channel, records);
+      }
     }
     return out;
   }
@@ -297,15 +311,17 @@ struct SessionWriter::Impl {
   // anyway. Called once the last records are in the file.
   void append_index() {
     std::lock_guard<std::mutex> io(io_mutex);  // header.channels
-    // A compressed file has none: its channels share chunks (format 2.0).
-    if (header.channels.size() < 2 || chunks) return;
+    if (header.channels.size() < 2) return;
     std::lock_guard<std::mutex> lock(mutex);
     if (failure || fd < 0) return;
-    const std::string bytes = index.record_bytes(buffered_total, header.channels.size());
+    // A compressed file's offsets are its chunks', in the file (all of it
+    // there by now), not the records' as they were buffered.
+    const std::uint64_t at = chunks ? committed : buffered_total;
+    const std::string bytes = index.record_bytes(at, header.channels.size());
     buffer += bytes;
     record_ends.push_back(buffer.size());
     buffered_total += bytes.size();
-    index_end = buffered_total;
+    index_end = at + bytes.size();
   }
 
   // Gives back the blocks reserved past the end of the file.
@@ -383,6 +399,10 @@ SessionWriter::SessionWriter(const std::string& path, const SessionHeader& heade
   }
   impl_->header_json_room = json.size() + header_room;
   impl_->fd = detail::open_output_file(path).release();
+  // Held until close (or the process ends): a reader that reaches the end
+  // of the file while it is held is at the writer's end, not at damage.
+  // Best effort: a file system without flock only loses that distinction.
+  (void)sys::flock(impl_->fd, LOCK_EX | LOCK_NB);
   // The CRC slot is sealed by the first flush.
   std::string file_header = file_header_bytes(impl_->header, json, impl_->header_json_room);
   // The header reaches the OS at once: a file that exists is readable.
@@ -438,7 +458,8 @@ void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view 
     impl_->record_ends.push_back(buffer.size());
     const std::uint64_t offset = impl_->buffered_total;
     impl_->buffered_total += framed;
-    impl_->index.add(offset, impl_->buffered_total, channel);
+    // A compressed file's index is of chunks, built as they are flushed.
+    if (!impl_->chunks) impl_->index.add(offset, impl_->buffered_total, channel);
     if (!impl_->oldest_unflushed) {
       impl_->oldest_unflushed = Clock::now();
       impl_->wake.notify_one();

@@ -166,7 +166,8 @@ def cmd_verify(args, out: Output) -> int:
 
     require_session(args.file)
     result = verify(args.file)
-    if args.repair and result.ok and result.index in ("absent", "stale"):
+    if args.repair and result.ok and result.index in ("absent", "stale") \
+            and result.unfinished is None:
         from ..tools.verify import repair_index
 
         appended = repair_index(args.file)
@@ -178,6 +179,10 @@ def cmd_verify(args, out: Output) -> int:
     elif result.ok:
         out.print(f"{args.file}: ok, {result.records} records{_per_channel(result)}",
                   style="green")
+        if result.unfinished is not None:
+            # Not damage: a recorder is writing the file; its end is checked once it closed.
+            out.print(f"{result.unfinished} (checked up to there; verify again once it "
+                      f"is closed)")
         if result.index in ("absent", "stale"):
             # Not damage: a recorder that did not close its file leaves none.
             out.print(f"{args.file}: index {result.index} ({result.index_detail}): a reader of "

@@ -19,6 +19,7 @@ from typing import IO, Callable, FrozenSet, Iterable, Iterator, Optional, Tuple
 from .. import _core
 from ..session import DIRECTIONS as _DIRECTIONS
 from ..session import NO_PROFILE, SessionPath, event_of, event_payload, header_text, open_session
+from ..session import warn_if_unfinished
 from ..session import printable as _printable
 from .channels import (capture_text, channel_label, channel_names, choose_channels,
                        several_channels)
@@ -252,6 +253,7 @@ def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optiona
         if reader.damage is not None:
             print(f"wiretape show: damaged: {header_text(reader.damage.message)}",
                   file=sys.stderr)
+        warn_if_unfinished(reader)
         return shown, reader.damage
     paint = _painter(color)
     for line in _header_lines(reader, path):
@@ -363,6 +365,7 @@ def show_reporting_damage(path: SessionPath, fmt: str = "text", profile: Optiona
         out.write(f"\n{count} {_plural(count, 'record')}\n")
     else:
         out.write(f"\n{shown} of {count} {_plural(count, 'record')} shown\n")
+    warn_if_unfinished(reader)
     return shown, reader.damage
 
 

@@ -12,7 +12,7 @@ import os
 from typing import Any, Dict, List, Optional, Tuple
 
 from .. import _core
-from ..session import DIRECTIONS, SessionPath, header_text, open_session
+from ..session import DIRECTIONS, SessionPath, header_text, open_session, warn_if_unfinished
 from .channels import channel_names, several_channels
 
 __all__ = ["stats", "SessionStats", "ChannelStats", "Latency"]
@@ -255,6 +255,7 @@ def stats(path: SessionPath, profile: Optional[str] = None) -> SessionStats:
             figures[3] += 1
     header = reader.header
     damage = reader.damage
+    warn_if_unfinished(reader)
     measured = _all_channels(meters)
     channel_stats: List[ChannelStats] = []
     if several_channels(header) or set(per_channel) - {0}:

@@ -33,6 +33,10 @@ class VerifyResult:
     # "not needed" (one channel), "current", "absent", "stale", "unchecked"
     index: str = "not needed"
     index_detail: str = ""
+    # why the records ended early in a file still being written (a recorder
+    # has it open), which is not damage: ok stays True
+    unfinished: Optional[str] = None
+    unfinished_offset: Optional[int] = None
 
     def to_json(self) -> Dict[str, Any]:
         return dataclasses.asdict(self)
@@ -75,7 +79,8 @@ def verify(path: SessionPath) -> VerifyResult:
         return VerifyResult(ok=False, path=name, records=records, offset=damage.offset,
                             message=damage.message, channel_records=per_channel, **index)
     return VerifyResult(ok=True, path=name, records=records, offset=None, message=None,
-                        channel_records=per_channel, **index)
+                        channel_records=per_channel, unfinished=check.unfinished,
+                        unfinished_offset=check.unfinished_offset, **index)
 
 
 def repair_index(path: SessionPath) -> str:

@@ -30,7 +30,9 @@ v1_1 and v1_2 (v1_2_channels as format 1.2 wrote it: two channels, no
 index; a reader of one channel scans it). v2_0.wtape and v2_0_channels.wtape
 are all_kinds and v1_2_channels converted with `wiretape convert --compress
 zstd` (format 2.0): read, compared with those, never re-created byte for byte
-(zstd's output may change with its version).
+(zstd's output may change with its version). v2_0_channels was made before
+compressed files had an index; v2_0_index is v1_2_channels converted the
+same way since, ending with the index of its one chunk.
 """
 import json
 import pathlib

@@ -1,5 +1,5 @@
 """Damage sweep of the session files of format 1.3 (a per-channel index)
-and 2.0 (zstd chunks): each golden file truncated at every byte, and a bit
+and 2.0 (zstd chunks, with and without the index of its chunks): each golden file truncated at every byte, and a bit
 flipped in every byte, is read by the one reader (every channel, and one
 channel: through the index where it holds) and by verify. What comes out
 is always the records the intact file begins with, never another; a
@@ -15,7 +15,7 @@ from wiretape import _core
 from wiretape.tools.verify import verify
 
 GOLDEN = pathlib.Path(__file__).resolve().parents[3] / "tests" / "data" / "golden"
-FILES = ["v1_2_channels", "v2_0", "v2_0_channels"]
+FILES = ["v1_2_channels", "v2_0", "v2_0_channels", "v2_0_index"]
 
 
 def records(path, channel=None):

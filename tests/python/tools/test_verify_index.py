@@ -85,3 +85,20 @@ def test_repair_refuses_a_damaged_session_and_leaves_it_as_it_was(tmp_path, caps
     assert code == 1 and "DAMAGED" in out
     assert Path(session.path).read_bytes() == bytes(raw)
     assert verify(session.path).index == "unchecked"
+
+
+def test_a_compressed_session_of_several_channels_has_the_index_of_its_chunks(tmp_path, capsys):
+    """Format 2.0 (compress=zstd): the same index record, of whole chunks;
+    verify checks it, and --repair appends it again as the writer wrote it."""
+    session = write_channel_session(tmp_path / "s.wtape", CHANNELS, gnss_records())
+    packed = tmp_path / "packed.wtape"
+    assert cli.main(["convert", "-q", "--compress", "zstd", session.path, str(packed)]) == 0
+    result = verify(packed)
+    assert result.ok and result.index == "current", result
+    assert result.index_detail == f"at byte {index_offset(packed)}"
+    closed = packed.read_bytes()
+    os.truncate(packed, index_offset(packed))
+    assert verify(packed).index == "absent"
+    code, out, _ = run(capsys, "verify", "--repair", str(packed))
+    assert code == 0 and "index appended at byte" in out, out
+    assert packed.read_bytes() == closed
