@@ -346,6 +346,29 @@ class ReplayPort : public Port, public FaultSource {
     }
   }
 
+  // What read_some would return, left in place: a compound read (a line)
+  // then takes it in one read instead of a byte at a time. nullopt where
+  // the engine cannot look ahead (a loss or close due, datagrams): the
+  // compound read asks read_some, which says what it is.
+  std::optional<std::size_t> peek_some(void* buffer, std::size_t size,
+                                       Deadline deadline) override {
+    std::unique_lock<std::mutex> lock(mutex_);
+    for (;;) {
+      check_open();
+      const auto now = ReplayClock::now();
+      std::optional<std::size_t> n =
+          awaiting_client_ ? 0 : engine_->peek(static_cast<char*>(buffer), size, now);
+      if (!n) return std::nullopt;
+      const ReplayEngine::Outlook outlook = update_signal(now);
+      if (*n > 0) return n;
+      if (outlook.state == ReplayEngine::ReadState::ended) {
+        if (engine_->config().at_end == ReplayAtEnd::closed || !deadline) return std::nullopt;
+      }
+      if (deadline && now >= *deadline) return 0;
+      wait(lock, now, deadline, outlook);
+    }
+  }
+
   // A datagram session's next due datagram (see DatagramPort): nothing
   // when none is due; at_end=closed raises at the end as read() does.
   std::optional<std::size_t> read_datagram(void* buffer, std::size_t size) {
