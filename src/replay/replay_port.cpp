@@ -1,7 +1,8 @@
 // type=replay: a session file plays the device. The engine decides what may
 // be read when; this port adds blocking with deadlines, close from another
 // thread, and a pollable handle that is readable exactly when available() > 0
-// (a scheduler thread raises it when timed data falls due).
+// (a scheduler thread raises it when timed data falls due; made when first
+// asked for).
 #include <fcntl.h>
 
 #include <cerrno>
@@ -58,16 +59,6 @@ class ReplayPort : public Port, public FaultSource {
         config_(config),
         engine_(std::make_unique<ReplayEngine>(std::move(config), std::move(sources),
                                                open_time(config_))) {
-    int fds[2];
-    if (sys::pipe(fds) != 0) {
-      throw PortError(errno, description_ + ": creating the readiness pipe");
-    }
-    signal_read_.reset(fds[0]);
-    signal_write_.reset(fds[1]);
-    for (int fd : fds) {
-      sys::fcntl(fd, F_SETFL, sys::fcntl(fd, F_GETFL) | O_NONBLOCK);
-      sys::fcntl(fd, F_SETFD, FD_CLOEXEC);
-    }
     {
       std::lock_guard<std::mutex> lock(mutex_);
       update_signal(ReplayClock::now());
@@ -268,6 +259,10 @@ class ReplayPort : public Port, public FaultSource {
   int native_handle() const override {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!handle_handed_out_ && !closed_) {
+      // Made when first asked for: most clients (a fuzzer's run, a
+      // program's reads and writes) never poll, and its system calls
+      // would be a good part of what a short replay costs.
+      const_cast<ReplayPort*>(this)->open_readiness_pipe();
       // From now on someone may poll it: it must tell the truth.
       handle_handed_out_ = true;
       const_cast<ReplayPort*>(this)->update_signal(ReplayClock::now());
@@ -449,6 +444,19 @@ class ReplayPort : public Port, public FaultSource {
     engine_->client_flushed();
     update_signal(ReplayClock::now());
     changed_.notify_all();
+  }
+
+  void open_readiness_pipe() {
+    int fds[2];
+    if (sys::pipe(fds) != 0) {
+      throw PortError(errno, description_ + ": creating the readiness pipe");
+    }
+    signal_read_.reset(fds[0]);
+    signal_write_.reset(fds[1]);
+    for (int fd : fds) {
+      sys::fcntl(fd, F_SETFL, sys::fcntl(fd, F_GETFL) | O_NONBLOCK);
+      sys::fcntl(fd, F_SETFD, FD_CLOEXEC);
+    }
   }
 
   ReplayEngine::Outlook outlook_at(ReplayTime now) {
