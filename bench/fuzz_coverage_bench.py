@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """AFL++ coverage guidance against blind plans (DESIGN §27, docs/fuzzing.md
 "Coverage from AFL++"): prints one JSON line. Usage: fuzz_coverage_bench.py
-[SEEDS [RUNS [WORKDIR]]] (defaults 10 and 100).
+[SEEDS [RUNS [WORKDIR [MODES]]]] (defaults 10, 100, the temporary folder,
+afl,none).
 
 tests/python/fuzz/programs/two_step_driver.c, built with afl-clang-fast,
 crashes only when the device's reply meets two conditions one after the
@@ -48,7 +49,7 @@ def main() -> int:
             writer.write("tx", 0, b"Q\n")
             writer.write("rx", 1_000_000, b"ABC")
         figures = {"seeds": seeds, "runs": runs}
-        for mode in ("afl", "none"):
+        for mode in sys.argv[4].split(",") if len(sys.argv) > 4 else ("afl", "none"):
             found = []
             corpus = []
             per_seed = []

@@ -91,21 +91,28 @@ def _random_step(rng: random.Random, units: int) -> bytes:
 
 
 def mutated_plan(seed: int, index: int, corpus: Sequence[bytes], units: int) -> bytes:
-    """The plan of run `index` of a search with coverage: a mutation of a
-    corpus plan, the newest (what lit edges last) half the time: 1 to 4
+    """The plan of run `index` of a search with coverage: a third of the
+    time a random plan as without coverage (the corpus fills with plans
+    that lit edges by breaking the exchange, whose mutations rarely get
+    further), else a mutation of a corpus plan, the newest (what lit edges
+    last) a third of the time: 1 to 4
     random steps added; a step of its own copied with its record, offset
     or amount changed (the same change elsewhere: what a plan that got
-    past one check most often needs next); one step replaced; or a byte of
-    one changed. Of the recording unchanged, a random plan."""
+    past one check most often needs next); one step replaced; a byte of one
+    changed; or one step removed (what else it changed may be what stops
+    the driver short of the next check). Of the recording unchanged, a
+    random plan."""
     rng = random.Random(f"wiretape-fuzz-afl:{seed}:{index}")
-    if not corpus:
+    if not corpus or rng.randrange(3) == 0:
         return random_plan(seed, index, units)
-    parent = corpus[-1] if rng.randrange(2) else corpus[rng.randrange(len(corpus))]
+    parent = corpus[-1] if rng.randrange(3) == 0 else corpus[rng.randrange(len(corpus))]
     steps = steps_of(parent)
     if not steps:
         return random_plan(seed, index, units)
-    how = rng.randrange(4)
-    if how == 2 or len(steps) >= MAX_CORPUS_STEPS:
+    how = rng.randrange(5)
+    if how == 4 and len(steps) > 1:
+        del steps[rng.randrange(len(steps))]
+    elif how == 2 or len(steps) >= MAX_CORPUS_STEPS:
         steps[rng.randrange(len(steps))] = _random_step(rng, units)
     elif how == 0:
         for _ in range(min(rng.randint(1, MAX_STEPS), MAX_CORPUS_STEPS - len(steps))):
