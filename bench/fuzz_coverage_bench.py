@@ -19,6 +19,7 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+from typing import Dict, List, Optional
 
 import wiretape
 from wiretape import fuzz
@@ -27,7 +28,7 @@ ROOT = Path(__file__).resolve().parent.parent
 DRIVER = ROOT / "tests" / "python" / "fuzz" / "programs" / "two_step_driver.c"
 
 
-def first_crash(result) -> object:
+def first_crash(result: fuzz.Search) -> Optional[int]:
     return next((run.case for run in result.runs if run.outcome == "crash"), None)
 
 
@@ -48,11 +49,11 @@ def main() -> int:
         with wiretape.SessionWriter(str(session), port_type="serial") as writer:
             writer.write("tx", 0, b"Q\n")
             writer.write("rx", 1_000_000, b"ABC")
-        figures = {"seeds": seeds, "runs": runs}
+        figures: Dict[str, object] = {"seeds": seeds, "runs": runs}
         for mode in sys.argv[4].split(",") if len(sys.argv) > 4 else ("afl", "none"):
-            found = []
-            corpus = []
-            per_seed = []
+            found: List[int] = []
+            corpus: List[int] = []
+            per_seed: List[Optional[int]] = []
             for seed in range(seeds):
                 target = fuzz.Target([str(program), "{port}"], timeout=10.0, speed=10.0,
                                      coverage=mode)
