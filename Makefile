@@ -206,7 +206,7 @@ wheel-smoke: wheel
 	test $$tried -gt 0 || { echo "wheel-smoke: no Python of $(SMOKE_PYTHONS) is installed" >&2; exit 1; }
 
 # Benchmarks, sanitizers, fuzzing and soak (docs/benchmarks.md).
-BENCH_TOOLS   := clang-14 libclang-rt-14-dev socat libbenchmark-dev tshark strace valgrind
+BENCH_TOOLS   := clang-14 libclang-rt-14-dev socat libbenchmark-dev tshark strace valgrind afl++
 FUZZ_SECONDS  ?= 300
 SOAK_MINUTES  ?= 30
 SOAK_GPSD_REPEAT ?= 100

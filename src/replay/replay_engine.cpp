@@ -119,6 +119,25 @@ std::optional<std::size_t> ReplayEngine::read_datagram(char* buffer, std::size_t
   }
 }
 
+std::optional<std::size_t> ReplayEngine::peek(char* buffer, std::size_t size, ReplayTime now) {
+  if (config_.datagrams) return std::nullopt;
+  prepare(now);
+  if (stage_.loss(now) != nullptr) return std::nullopt;
+  if (stage_.empty()) return 0;
+  const RxItem& front = stage_.front();
+  if (is_due(front, now) && front.kind != RecordKind::rx) return std::nullopt;
+  std::size_t copied = 0;
+  stage_.visit([&](const RxItem& item) {
+    if (item.kind != RecordKind::rx || !is_due(item, now)) return false;
+    const std::string_view payload = item.payload();
+    const std::size_t n = std::min(size - copied, payload.size() - item.consumed);
+    std::memcpy(buffer + copied, payload.data() + item.consumed, n);
+    copied += n;
+    return copied < size;
+  });
+  return copied;
+}
+
 std::size_t ReplayEngine::available(ReplayTime now) {
   prepare(now);
   std::size_t total = 0;

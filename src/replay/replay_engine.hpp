@@ -49,6 +49,12 @@ class ReplayEngine {
   // recv does (0 for an empty one); nothing when none is due now. Raises as
   // read() does.
   std::optional<std::size_t> read_datagram(char* buffer, std::size_t size, ReplayTime now);
+  // Copies what read() would return now without consuming it: 0 when
+  // nothing is due; nullopt when read() would not return plain bytes (a
+  // loss, a recorded close, a datagram session): the caller reads instead.
+  // Lets a compound read take a whole line in one read() instead of a byte
+  // at a time.
+  std::optional<std::size_t> peek(char* buffer, std::size_t size, ReplayTime now);
   // Bytes read() would return at once.
   std::size_t available(ReplayTime now);
 

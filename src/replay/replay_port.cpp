@@ -1,7 +1,8 @@
 // type=replay: a session file plays the device. The engine decides what may
 // be read when; this port adds blocking with deadlines, close from another
 // thread, and a pollable handle that is readable exactly when available() > 0
-// (a scheduler thread raises it when timed data falls due).
+// (a scheduler thread raises it when timed data falls due; made when first
+// asked for).
 #include <fcntl.h>
 
 #include <cerrno>
@@ -58,16 +59,6 @@ class ReplayPort : public Port, public FaultSource {
         config_(config),
         engine_(std::make_unique<ReplayEngine>(std::move(config), std::move(sources),
                                                open_time(config_))) {
-    int fds[2];
-    if (sys::pipe(fds) != 0) {
-      throw PortError(errno, description_ + ": creating the readiness pipe");
-    }
-    signal_read_.reset(fds[0]);
-    signal_write_.reset(fds[1]);
-    for (int fd : fds) {
-      sys::fcntl(fd, F_SETFL, sys::fcntl(fd, F_GETFL) | O_NONBLOCK);
-      sys::fcntl(fd, F_SETFD, FD_CLOEXEC);
-    }
     {
       std::lock_guard<std::mutex> lock(mutex_);
       update_signal(ReplayClock::now());
@@ -268,6 +259,10 @@ class ReplayPort : public Port, public FaultSource {
   int native_handle() const override {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!handle_handed_out_ && !closed_) {
+      // Made when first asked for: most clients (a fuzzer's run, a
+      // program's reads and writes) never poll, and its system calls
+      // would be a good part of what a short replay costs.
+      const_cast<ReplayPort*>(this)->open_readiness_pipe();
       // From now on someone may poll it: it must tell the truth.
       handle_handed_out_ = true;
       const_cast<ReplayPort*>(this)->update_signal(ReplayClock::now());
@@ -340,6 +335,29 @@ class ReplayPort : public Port, public FaultSource {
                            ": the recording has ended and nothing more will "
                            "come; a read without a timeout would block forever");
         }
+      }
+      if (deadline && now >= *deadline) return 0;
+      wait(lock, now, deadline, outlook);
+    }
+  }
+
+  // What read_some would return, left in place: a compound read (a line)
+  // then takes it in one read instead of a byte at a time. nullopt where
+  // the engine cannot look ahead (a loss or close due, datagrams): the
+  // compound read asks read_some, which says what it is.
+  std::optional<std::size_t> peek_some(void* buffer, std::size_t size,
+                                       Deadline deadline) override {
+    std::unique_lock<std::mutex> lock(mutex_);
+    for (;;) {
+      check_open();
+      const auto now = ReplayClock::now();
+      std::optional<std::size_t> n =
+          awaiting_client_ ? 0 : engine_->peek(static_cast<char*>(buffer), size, now);
+      if (!n) return std::nullopt;
+      const ReplayEngine::Outlook outlook = update_signal(now);
+      if (*n > 0) return n;
+      if (outlook.state == ReplayEngine::ReadState::ended) {
+        if (engine_->config().at_end == ReplayAtEnd::closed || !deadline) return std::nullopt;
       }
       if (deadline && now >= *deadline) return 0;
       wait(lock, now, deadline, outlook);
@@ -426,6 +444,19 @@ class ReplayPort : public Port, public FaultSource {
     engine_->client_flushed();
     update_signal(ReplayClock::now());
     changed_.notify_all();
+  }
+
+  void open_readiness_pipe() {
+    int fds[2];
+    if (sys::pipe(fds) != 0) {
+      throw PortError(errno, description_ + ": creating the readiness pipe");
+    }
+    signal_read_.reset(fds[0]);
+    signal_write_.reset(fds[1]);
+    for (int fd : fds) {
+      sys::fcntl(fd, F_SETFL, sys::fcntl(fd, F_GETFL) | O_NONBLOCK);
+      sys::fcntl(fd, F_SETFD, FD_CLOEXEC);
+    }
   }
 
   ReplayEngine::Outlook outlook_at(ReplayTime now) {

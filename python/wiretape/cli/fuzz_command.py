@@ -59,6 +59,9 @@ def add_fuzz_parser(command, types) -> None:
                       help="run only shard K of N: the runs whose index is K-1 modulo N")
     fuzz.add_argument("--shards", type=_positive_int, metavar="N",
                       help="with --shard auto: the total where the CI engine gives none")
+    fuzz.add_argument("--coverage", choices=("auto", "afl", "none"), default="auto",
+                      help="coverage guidance from AFL++'s map: auto (when CMD's program was "
+                           "built with afl-clang-fast / afl-cc), afl, none (docs/fuzzing.md)")
     fuzz.add_argument("--junit", metavar="FILE",
                       help="write the runs as JUnit XML to FILE (a test case per run)")
 
@@ -72,7 +75,7 @@ def cmd_fuzz(args, out: Output) -> int:
         raise UsageError("no command after --: give the program to run, with {port} where "
                          "the device's path goes")
     target = fuzz.Target(args.command_argv, args.timeout, args.options, args.listen,
-                         args.redirect_path, args.speed)
+                         args.redirect_path, args.speed, args.coverage)
     try:
         if args.replay is not None:
             return _replay(fuzz, args.replay, target, out)
@@ -97,6 +100,10 @@ def cmd_fuzz(args, out: Output) -> int:
     out.print(f"fuzz: {len(result.runs)} runs in {result.seconds:.1f} s: "
               f"{len(result.findings)} finding{'s' if len(result.findings) != 1 else ''}"
               f" ({result.duplicates} duplicate, {result.flaky} flaky dropped)")
+    if result.coverage:
+        out.print(f"fuzz: coverage from AFL++: {result.edges} edges, a corpus of "
+                  f"{len(result.corpus)} plans in "
+                  f"{os.path.join(args.findings, fuzz.CORPUS_DIR)}")
     for finding in result.findings:
         out.print(f"{finding.kind} {os.path.join(args.findings, finding.session)}: "
                   f"{finding.signature}")

@@ -4,12 +4,14 @@ written as findings that ``wiretape replay`` plays back.
 
 One job per module: ``search`` (the runs, minimization, the findings
 written), ``findings`` (a run's verdict and signature, index.json, plan
-files). In-process fuzzing is :mod:`wiretape.fuzzing`.
+files), ``coverage`` (AFL++'s map: instrumented programs, hit-count
+buckets). In-process fuzzing is :mod:`wiretape.fuzzing`.
 """
 
 from .findings import INDEX, Finding, PlanFileError, finding_kind, read_index, read_plan_file
-from .search import DEFAULT_RUNS, Search, Target, random_plan, replay_findings, search
+from .search import (CORPUS_DIR, DEFAULT_RUNS, Search, Target, mutated_plan, random_plan,
+                     replay_findings, search)
 
-__all__ = ["INDEX", "DEFAULT_RUNS", "Finding", "PlanFileError", "Search", "Target",
-           "finding_kind", "random_plan", "read_index", "read_plan_file", "replay_findings",
+__all__ = ["CORPUS_DIR", "INDEX", "DEFAULT_RUNS", "Finding", "PlanFileError", "Search", "Target",
+           "finding_kind", "mutated_plan", "random_plan", "read_index", "read_plan_file", "replay_findings",
            "search"]

@@ -1,7 +1,9 @@
 """``wiretape fuzz SESSION -- CMD ... {port}`` (DESIGN §27, unmodified
 programs): plans run as replays to CMD, each through the fault campaign's
 runner (faults.run.run_case) against a session the plan wrote; what breaks
-CMD is minimized, re-run, deduplicated and written to the findings folder."""
+CMD is minimized, re-run, deduplicated and written to the findings folder.
+With coverage (a CMD built with AFL++'s compiler, coverage.py), a plan whose
+run lit new edges joins the corpus, and later plans are mutations of it."""
 
 from __future__ import annotations
 
@@ -21,6 +23,7 @@ from ..faults.report import Run
 from ..faults.run import (CleanRunFailed, _check_timeout, _quiet_stderr, check_command,
                           replay_reproduction, run_case)
 from ..fuzzing import FuzzedRecording
+from .coverage import AflMap, Coverage, CoverageError, instrumented, map_size
 from .findings import Finding, finding_kind, run_signal, signature, stack, write_index
 
 #: Steps of a plan the search makes (four bytes a step, docs/fuzzing.md).
@@ -29,6 +32,13 @@ MAX_STEPS = 4
 DEFAULT_RUNS = 100
 #: Reproductions tried while minimizing one finding, at most.
 MAX_MINIMIZE_RUNS = 32
+#: Steps a mutation of a corpus plan grows to, at most.
+MAX_CORPUS_STEPS = 16
+#: What --coverage takes: auto (AFL++ when CMD's program holds its runtime),
+#: afl (always: an error when CMD writes nothing into the map), none.
+COVERAGE_MODES = ("auto", "afl", "none")
+#: The corpus a search with coverage writes, under the findings folder.
+CORPUS_DIR = "corpus"
 
 
 @dataclasses.dataclass
@@ -39,6 +49,13 @@ class Search:
     flaky: int = 0
     duplicates: int = 0
     seconds: float = 0.0
+    #: "afl" when AFL++'s coverage guided the search, else "".
+    coverage: str = ""
+    #: With coverage: the recording unchanged (b""), then every plan whose
+    #: run lit new edges, in the order found.
+    corpus: List[bytes] = dataclasses.field(default_factory=list)
+    #: With coverage: the edges the runs lit.
+    edges: int = 0
 
     @property
     def found(self) -> bool:
@@ -54,6 +71,7 @@ class Target:
     listen: bool = False
     as_path: Optional[str] = None
     speed: float = 1.0
+    coverage: str = "auto"
 
 
 def random_plan(seed: int, index: int, units: int) -> bytes:
@@ -65,6 +83,49 @@ def random_plan(seed: int, index: int, units: int) -> bytes:
         plan += bytes([rng.randrange(256), rng.randrange(max(units, 1)) % 256,
                        rng.randrange(256), rng.randrange(256)])
     return bytes(plan)
+
+
+def _random_step(rng: random.Random, units: int) -> bytes:
+    return bytes([rng.randrange(256), rng.randrange(max(units, 1)) % 256,
+                  rng.randrange(256), rng.randrange(256)])
+
+
+def mutated_plan(seed: int, index: int, corpus: Sequence[bytes], units: int) -> bytes:
+    """The plan of run `index` of a search with coverage: a third of the
+    time a random plan as without coverage (the corpus fills with plans
+    that lit edges by breaking the exchange, whose mutations rarely get
+    further), else a mutation of a corpus plan, the newest (what lit edges
+    last) a third of the time: 1 to 4
+    random steps added; a step of its own copied with its record, offset
+    or amount changed (the same change elsewhere: what a plan that got
+    past one check most often needs next); one step replaced; a byte of one
+    changed; or one step removed (what else it changed may be what stops
+    the driver short of the next check). Of the recording unchanged, a
+    random plan."""
+    rng = random.Random(f"wiretape-fuzz-afl:{seed}:{index}")
+    if not corpus or rng.randrange(3) == 0:
+        return random_plan(seed, index, units)
+    parent = corpus[-1] if rng.randrange(3) == 0 else corpus[rng.randrange(len(corpus))]
+    steps = steps_of(parent)
+    if not steps:
+        return random_plan(seed, index, units)
+    how = rng.randrange(5)
+    if how == 4 and len(steps) > 1:
+        del steps[rng.randrange(len(steps))]
+    elif how == 2 or len(steps) >= MAX_CORPUS_STEPS:
+        steps[rng.randrange(len(steps))] = _random_step(rng, units)
+    elif how == 0:
+        for _ in range(min(rng.randint(1, MAX_STEPS), MAX_CORPUS_STEPS - len(steps))):
+            steps.insert(rng.randrange(len(steps) + 1), _random_step(rng, units))
+    else:
+        at = rng.randrange(len(steps))
+        step = bytearray(steps[at])
+        step[rng.randrange(1, 4)] = rng.randrange(256)
+        if how == 1:
+            steps.insert(rng.randrange(len(steps) + 1), bytes(step))
+        else:
+            steps[at] = bytes(step)
+    return b"".join(steps)
 
 
 def _written_options(replay_options: str) -> str:
@@ -82,28 +143,56 @@ def steps_of(plan: bytes) -> List[bytes]:
 
 
 class _Runner:
-    """Runs plans against CMD, each from a session written in a scratch folder."""
+    """Runs plans against CMD, each from a session written in a scratch
+    folder; with coverage, each job (thread) with an AFL++ map of its own."""
 
     def __init__(self, recording: FuzzedRecording, target: Target, scratch: str,
-                 stop: threading.Event):
+                 stop: threading.Event, coverage_map_size: Optional[int] = None):
         self.recording = recording
         self.target = target
         self.scratch = scratch
         self.stop = stop
         self._count = 0
         self._lock = threading.Lock()
+        self._map_size = coverage_map_size
+        self._maps: List[AflMap] = []
+        self._local = threading.local()
+
+    def _map(self) -> Optional[AflMap]:
+        if self._map_size is None:
+            return None
+        coverage_map = getattr(self._local, "map", None)
+        if coverage_map is None:
+            coverage_map = self._local.map = AflMap(self._map_size)
+            with self._lock:
+                self._maps.append(coverage_map)
+        return coverage_map
+
+    def close(self) -> None:
+        for coverage_map in self._maps:
+            coverage_map.close()
 
     def run(self, plan: bytes) -> Run:
+        return self.run_traced(plan)[0]
+
+    def run_traced(self, plan: bytes) -> Tuple[Run, Optional[bytes]]:
+        """The run, and with coverage its bucketed AFL++ trace."""
         with self._lock:
             self._count += 1
             path = os.path.join(self.scratch, f"plan-{self._count}.wtape")
         self.recording.write(path, plan)
+        coverage_map = self._map()
+        target = self.target
+        argv = list(target.argv)
+        if coverage_map is not None:
+            coverage_map.clear()
+            argv = ["env", *coverage_map.environment(), *argv]
         try:
-            target = self.target
-            return run_case(path, None, target.argv, target.timeout, target.replay_options,
-                            target.listen, target.as_path, self.stop, target.speed)
+            run = run_case(path, None, argv, target.timeout, target.replay_options,
+                           target.listen, target.as_path, self.stop, target.speed)
         finally:
             os.unlink(path)
+        return run, coverage_map.trace() if coverage_map is not None else None
 
     def verdict(self, plan: bytes) -> Tuple[Run, Optional[str], str]:
         run = self.run(plan)
@@ -139,16 +228,24 @@ def search(session: str, target: Target, findings_dir: str, profile: Optional[st
     _check_timeout(target.timeout)
     if jobs < 1:
         raise FaultInputError(f"--jobs {jobs}: give 1 or more")
+    if target.coverage not in COVERAGE_MODES:
+        raise FaultInputError(f"--coverage {target.coverage}: give one of "
+                              f"{', '.join(COVERAGE_MODES)}")
     try:
         target.speed = scaled_clock.check_speed(target.speed)
         recording = FuzzedRecording(session, profile, _written_options(target.replay_options))
     except (ValueError, _core.OptionError, _core.SessionError) as error:
         raise FaultInputError(str(error)) from None
+    guided = target.coverage == "afl" or (target.coverage == "auto"
+                                          and instrumented(target.argv))
     budget = runs if runs is not None else (None if seconds is not None else DEFAULT_RUNS)
     started = time.monotonic()
     stop = threading.Event()
     scratch = tempfile.mkdtemp(prefix="wiretape-fuzz-")
-    runner = _Runner(recording, target, scratch, stop)
+    runner = _Runner(recording, target, scratch, stop,
+                     map_size(target.argv) if guided else None)
+    coverage = Coverage()
+    corpus: List[bytes] = [b""]
     done: List[Run] = []
     found: Dict[Tuple[str, str], Tuple[bytes, Run]] = {}
     lock = threading.Lock()
@@ -172,11 +269,22 @@ def search(session: str, target: Target, findings_dir: str, profile: Optional[st
             index = take_index()
             if index is None:
                 return
-            plan = plans[index] if index < len(plans) else random_plan(seed, index, recording.units)
-            run, kind, sign = runner.verdict(plan)
+            if index < len(plans):
+                plan = plans[index]
+            elif guided:
+                with lock:
+                    plan = mutated_plan(seed, index, corpus, recording.units)
+            else:
+                plan = random_plan(seed, index, recording.units)
+            run, trace = runner.run_traced(plan)
+            kind = finding_kind(run, recording.inert(plan))
+            sign = signature(kind, run) if kind else ""
             run.kind, run.where, run.case = "fuzz", plan.hex(), index
             with lock:
                 done.append(run)
+                # A plan that lit new edges (and broke nothing) is mutated further.
+                if trace is not None and not kind and coverage.add(trace):
+                    corpus.append(plan)
                 if kind and (kind, sign) in found:
                     counted["duplicates"] += 1
                 elif kind:
@@ -189,9 +297,13 @@ def search(session: str, target: Target, findings_dir: str, profile: Optional[st
             if progress is None and real_stderr is not None:
                 def progress(text: str, descriptor: int = real_stderr) -> None:
                     os.write(descriptor, (text + "\n").encode())
-            clean = runner.run(b"")
+            clean, trace = runner.run_traced(b"")
             if clean.outcome != "ok":
                 raise CleanRunFailed(clean)
+            if trace is not None and not coverage.add(trace):
+                raise FaultInputError(
+                    f"--coverage afl: {target.argv[0]} wrote nothing into AFL++'s coverage map: "
+                    "build it with afl-clang-fast (or afl-cc), or leave --coverage out")
             pool = ThreadPoolExecutor(max_workers=jobs)
             try:
                 for future in [pool.submit(worker) for _ in range(jobs)]:
@@ -202,15 +314,31 @@ def search(session: str, target: Target, findings_dir: str, profile: Optional[st
             finally:
                 pool.shutdown(wait=True)
             result = _keep_findings(runner, found, findings_dir, session)
+            if guided:
+                _write_corpus(os.path.join(findings_dir, CORPUS_DIR), corpus)
+    except CoverageError as error:
+        stop.set()
+        raise FaultInputError(str(error)) from None
     except BaseException:
         stop.set()
         raise
     finally:
+        runner.close()
         shutil.rmtree(scratch, ignore_errors=True)
     findings, flaky, duplicates = result
     return Search(findings, sorted(done, key=lambda run: run.case), flaky,
                   duplicates + counted["duplicates"],
-                  time.monotonic() - started)
+                  time.monotonic() - started, "afl" if guided else "",
+                  list(corpus) if guided else [], coverage.edges if guided else 0)
+
+
+def _write_corpus(directory: str, corpus: Sequence[bytes]) -> None:
+    """The corpus as plan files (hex, as --plan reads them), the recording
+    unchanged first: plan-0.hex is empty."""
+    os.makedirs(directory, exist_ok=True)
+    for number, plan in enumerate(corpus):
+        with open(os.path.join(directory, f"plan-{number}.hex"), "w") as file:
+            file.write(plan.hex() + "\n")
 
 
 def _keep_findings(runner: _Runner, found: Dict[Tuple[str, str], Tuple[bytes, Run]],

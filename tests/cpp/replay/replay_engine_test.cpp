@@ -1,7 +1,8 @@
 // src/replay/replay_engine.cpp: serving the released rx: reads that copy
 // across records and never past the caller's buffer, datagrams one at a
 // time (an empty one included), a recorded close or device loss where it
-// falls, and flush_input.
+// falls, flush_input, and the peek that lets a compound read take a line
+// at once.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -10,6 +11,7 @@
 #include <string>
 
 #include "posix/transports.hpp"
+#include "replay/replay_engine.hpp"
 #include "replay/replay_port.hpp"
 #include "support/replay_support.hpp"
 #include "wiretape/errors.hpp"
@@ -27,6 +29,51 @@ TEST(ReplaySequence, RecordedCloseReplaysAsPortClosedAtThatPoint) {
   EXPECT_TRUE(port->wait_readable(0s));  // the device is gone
   EXPECT_THROW(read_some(*port), PortClosed);
   EXPECT_THROW(read_some(*port), PortClosed);
+}
+
+TEST(ReplayPeek, PeekShowsTheDueRxAcrossRecordsWithoutConsumingIt) {
+  const detail::ReplayTime start = detail::ReplayTime{} + std::chrono::hours(1);
+  detail::ReplayEngine engine(config_from("timing=session"),
+                              detail::vector_source_factory({rx(0, "AB\nC"), rx(ms(1), "D\n"),
+                                                             rx(ms(5), "later\n")}),
+                              start);
+  char buffer[16];
+  EXPECT_EQ(engine.peek(buffer, sizeof buffer, start), std::optional<std::size_t>(4));
+  EXPECT_EQ(std::string(buffer, 4), "AB\nC");
+  EXPECT_EQ(engine.peek(buffer, sizeof buffer, start + 2ms), std::optional<std::size_t>(6));
+  EXPECT_EQ(std::string(buffer, 6), "AB\nCD\n");  // the second record is due, the third not
+  EXPECT_EQ(engine.peek(buffer, 2, start + 2ms), std::optional<std::size_t>(2));
+  EXPECT_EQ(engine.read(buffer, 3, start + 2ms), 3u);  // the peeks left it all there
+  EXPECT_EQ(std::string(buffer, 3), "AB\n");
+  EXPECT_EQ(engine.peek(buffer, sizeof buffer, start + 2ms), std::optional<std::size_t>(3));
+  EXPECT_EQ(std::string(buffer, 3), "CD\n");
+  EXPECT_EQ(engine.read(buffer, sizeof buffer, start + 2ms), 3u);
+  EXPECT_EQ(engine.peek(buffer, sizeof buffer, start + 2ms), std::optional<std::size_t>(0));
+}
+
+TEST(ReplayPeek, PeekLeavesARecordedCloseAndDatagramsToRead) {
+  const detail::ReplayTime start = detail::ReplayTime{} + std::chrono::hours(1);
+  detail::ReplayEngine closing(config_from("timing=none"),
+                               detail::vector_source_factory({rx(0, "A"), event(ms(1), RecordKind::close), rx(ms(2), "never")}),
+                               start);
+  char buffer[16];
+  EXPECT_EQ(closing.peek(buffer, sizeof buffer, start), std::optional<std::size_t>(1));
+  EXPECT_EQ(closing.read(buffer, sizeof buffer, start), 1u);
+  EXPECT_EQ(closing.peek(buffer, sizeof buffer, start), std::nullopt);
+  EXPECT_THROW(closing.read(buffer, sizeof buffer, start), PortClosed);
+  detail::ReplayConfig datagrams = config_from("timing=none");
+  datagrams.datagrams = true;
+  detail::ReplayEngine datagram(datagrams, detail::vector_source_factory({rx(0, "one")}), start);
+  EXPECT_EQ(datagram.peek(buffer, sizeof buffer, start), std::nullopt);
+}
+
+TEST(ReplayPeek, ReadUntilTakesLinesAcrossRecordsAndStopsAtEachDelimiter) {
+  auto port = replay({rx(0, "one\ntw"), rx(ms(1), "o\nthree"), rx(ms(2), "\n"),
+                      event(ms(3), RecordKind::close), rx(ms(4), "never")});
+  EXPECT_EQ(port->read_until("\n"), "one\n");
+  EXPECT_EQ(port->read_until("\n"), "two\n");
+  EXPECT_EQ(port->read_until("\n"), "three\n");
+  EXPECT_THROW(port->read_until("\n"), PortClosed);  // the recorded close, after the lines
 }
 
 TEST(ReplaySequence, RecordedDeviceLossReplaysAsPortClosed) {

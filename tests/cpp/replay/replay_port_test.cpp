@@ -166,16 +166,25 @@ TEST(ReplayHandle, ReadableExactlyWhenDataIsAvailable) {
   EXPECT_EQ(port->native_handle(), -1);
 }
 
-// The readiness pipe is made and closed through the system-call seam.
+// The readiness pipe is made when native_handle() is first asked for (a
+// client that never polls costs none), and made and closed through the
+// system-call seam.
 TEST(ReplayHandle, ReadinessPipeGoesThroughTheSystemCallSeam) {
   {
     detail::sys::ScopedOverride seam;
-    seam->pipe = [](int*) {
+    int pipes = 0;
+    seam->pipe = [&pipes](int*) {
+      ++pipes;
       errno = EMFILE;
       return -1;
     };
+    auto port = replay(hello_session(), "timing=none,unused=ignore");
+    EXPECT_EQ(port->read_until("\n"), "HELLO\n");
+    port->write("PING\n");
+    EXPECT_EQ(port->read_until("\n"), "PONG\n");
+    EXPECT_EQ(pipes, 0);  // read and written without one
     try {
-      replay(hello_session());
+      port->native_handle();
       FAIL() << "the faked pipe failure was not seen";
     } catch (const PortError& error) {
       EXPECT_EQ(error.code().value(), EMFILE);
@@ -196,8 +205,11 @@ TEST(ReplayHandle, ReadinessPipeGoesThroughTheSystemCallSeam) {
     return detail::sys::real().close(fd);
   };
   auto port = replay(hello_session(), "timing=none,unused=ignore");
+  EXPECT_TRUE(made.empty());
+  const int handle = port->native_handle();
   ASSERT_EQ(made.size(), 2u);
-  EXPECT_EQ(port->native_handle(), made[0]);
+  EXPECT_EQ(handle, made[0]);
+  EXPECT_EQ(port->native_handle(), handle);  // made once
   port->close();
   EXPECT_NE(std::find(closed.begin(), closed.end(), made[0]), closed.end());
   EXPECT_NE(std::find(closed.begin(), closed.end(), made[1]), closed.end());
