@@ -4,6 +4,7 @@ replay; a plan written as a session that plays as it was fuzzed."""
 
 import os
 import pathlib
+import subprocess
 import sys
 
 import pytest
@@ -81,3 +82,24 @@ def test_session_without_device_bytes_is_refused_by_name(tmp_path):
     writer.close()
     with pytest.raises(wiretape.SessionError, match="no device bytes"):
         FuzzedRecording(path)
+
+
+def test_serial_works_where_pytest_cannot_be_imported():
+    # A driver fuzzed with atheris runs without pytest: FuzzedRecording.serial
+    # must not need it (pytest blocked in a fresh interpreter).
+    script = (
+        "import sys\n"
+        "sys.modules['pytest'] = None\n"
+        f"sys.path.insert(0, {str(EXAMPLE)!r})\n"
+        "from wiretape.fuzzing import FuzzedRecording\n"
+        "from thermometer import Thermometer\n"
+        f"recording = FuzzedRecording({str(RECORDING)!r})\n"
+        "with recording.serial(b''):\n"
+        "    thermometer = Thermometer()\n"
+        "    print(thermometer.identify().startswith('ACME THERMO'), thermometer.temperature())\n"
+        "    thermometer.close()\n"
+        "assert 'pytest' not in sys.modules or sys.modules['pytest'] is None\n")
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                            timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["True", "21.5"]
