@@ -27,9 +27,10 @@ _FRAME_LINE = re.compile(r"^\s*(#\d+ 0x[0-9a-f]+ in .*)$", re.MULTILINE)
 #: Frames of a finding's stack kept in index.json.
 STACK_FRAMES = 16
 # What differs between two runs of one cause in the last line CMD wrote:
-# addresses, then any other number (pids, sizes, counts, byte values).
+# addresses, then any other number, its sign with it (pids, sizes, counts,
+# byte values).
 _ADDRESS = re.compile(r"0x[0-9a-fA-F]+")
-_NUMBER = re.compile(r"\d+")
+_NUMBER = re.compile(r"-?\d+")
 #: Characters of CMD's last line kept in a signature.
 LAST_LINE_CHARS = 160
 

@@ -73,4 +73,5 @@ def test_a_stack_or_a_sanitizer_report_wins_over_the_last_line():
 def test_the_last_line_is_normalised():
     assert last_line("scan 1\n  planted bug x: range 70000 at 0xdeadbeef  \n\n") == \
         "planted bug x: range N at ADDR"
+    assert last_line("planted bug y: index -490\n") == last_line("planted bug y: index 120\n")
     assert last_line("") == ""
