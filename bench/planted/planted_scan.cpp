@@ -30,7 +30,7 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  if (port_options.empty() || scans < 1 || scans > 99 || !(timeout_s > 0)) {
+  if (argc % 2 == 0 || port_options.empty() || scans < 1 || scans > 99 || !(timeout_s > 0)) {
     std::cerr << "usage: planted-scan --port OPTS [--scans 1..99] [--timeout SECONDS]\n";
     return 2;
   }
