@@ -58,9 +58,10 @@ class FuzzedReplay {
   // Writes the recording mutated by `plan` as a plain .wtape session at
   // `path`, the edits appended to its header's `edits`; returns the edits.
   std::vector<std::string> write(const std::string& path, std::string_view plan) const;
-  // Whether `plan` changes nothing a driver may refuse: it only splits
-  // frames across reads or delays them within the replay's tolerance (100
-  // ms unless tolerance= says otherwise). A driver failing on an inert
+  // Whether `plan` changes nothing a driver may refuse: it only changes
+  // bytes the profile leaves out of matching, splits frames across reads or
+  // delays them within the replay's tolerance (100 ms unless tolerance=
+  // says otherwise). A driver failing on an inert
   // plan, even with a clean error, has a finding (DESIGN.md section 27).
   bool inert(std::string_view plan) const;
   // How many rx frames (with a profile) or rx records a plan's steps index.

@@ -73,9 +73,10 @@ class FuzzedRecording:
         return self._replay.edits(bytes(plan))
 
     def inert(self, plan: bytes) -> bool:
-        """Whether `plan` only splits frames across reads or delays them
-        within the replay's tolerance: a driver failing on it, even with a
-        clean error, has a finding."""
+        """Whether `plan` only changes bytes the profile leaves out of
+        matching, splits frames across reads or delays them within the
+        replay's tolerance: a driver failing on it, even with a clean
+        error, has a finding."""
         return self._replay.inert(bytes(plan))
 
     def write(self, path: PathLike, plan: bytes) -> List[str]:

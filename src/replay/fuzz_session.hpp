@@ -42,7 +42,8 @@ struct FuzzedRecords {
   std::vector<Record> records;
   std::vector<std::string> edits;
   // The plan changed nothing a driver may refuse (DESIGN.md section 27): it
-  // only split frames across reads, or delayed them within the tolerance.
+  // only changed bytes the profile leaves out of matching (match_key), split
+  // frames across reads, or delayed them within the tolerance.
   // A driver that fails on an inert plan has a finding even when it exits
   // cleanly with an error.
   bool inert = true;

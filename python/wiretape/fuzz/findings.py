@@ -26,6 +26,13 @@ _FRAME = re.compile(r"#\d+ 0x[0-9a-f]+ in (\S+)")
 _FRAME_LINE = re.compile(r"^\s*(#\d+ 0x[0-9a-f]+ in .*)$", re.MULTILINE)
 #: Frames of a finding's stack kept in index.json.
 STACK_FRAMES = 16
+# What differs between two runs of one cause in the last line CMD wrote:
+# addresses, then any other number, its sign with it (pids, sizes, counts,
+# byte values).
+_ADDRESS = re.compile(r"0x[0-9a-fA-F]+")
+_NUMBER = re.compile(r"-?\d+")
+#: Characters of CMD's last line kept in a signature.
+LAST_LINE_CHARS = 160
 
 
 class PlanFileError(FaultInputError):
@@ -48,10 +55,22 @@ def run_signal(run: Run) -> Optional[int]:
     return -run.exit if run.exit is not None and run.exit < 0 else None
 
 
+def last_line(output: str) -> str:
+    """The last line CMD wrote, normalised so that one cause gives one text:
+    addresses become ``ADDR``, other numbers ``N``, spaces one space."""
+    lines = [line for line in output.splitlines() if line.strip()]
+    if not lines:
+        return ""
+    text = _NUMBER.sub("N", _ADDRESS.sub("ADDR", lines[-1]))
+    return " ".join(text.split())[:LAST_LINE_CHARS]
+
+
 def signature(kind: str, run: Run) -> str:
     """What two findings of one cause share: a sanitizer's summary line and
     the first named frames of its stack, else the signal and the first
-    named frame CMD printed, else the kind and exit status."""
+    named frames CMD printed, else (no stack printed: every abort would be
+    one finding) the signal and CMD's last line normalised, else the kind
+    and exit status."""
     output = run.output or ""
     frames = _FRAME.findall(output)[:3]
     summary = _SUMMARY.search(output)
@@ -63,7 +82,8 @@ def signature(kind: str, run: Run) -> str:
     number = run_signal(run)
     if number is not None:
         name = signals.Signals(number).name if number in signals.valid_signals() else str(number)
-        return " | ".join([f"signal {name}"] + frames)
+        said = [] if frames else [last_line(output)]
+        return " | ".join([f"signal {name}"] + frames + [line for line in said if line])
     if kind == "hang":
         return "hang"
     return f"exit {run.exit}"

@@ -36,8 +36,6 @@ from __future__ import annotations
 import os
 from typing import Any, Callable, Dict, Iterable, List, Optional
 
-import pytest
-
 from ..urlhandler._common import PortSerial
 
 MARKER_KEY = "serial_port"
@@ -248,4 +246,6 @@ class SerialPatch:
 def fail_test(message: str) -> None:
     """A setup mistake fails the test, even inside a driver that catches
     SerialException (pytest's outcome is not an Exception)."""
+    import pytest  # here: wiretape.fuzzing patches serial.Serial without pytest
+
     pytest.fail(message, pytrace=False)

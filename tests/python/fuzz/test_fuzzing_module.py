@@ -4,6 +4,7 @@ replay; a plan written as a session that plays as it was fuzzed."""
 
 import os
 import pathlib
+import subprocess
 import sys
 
 import pytest
@@ -81,3 +82,50 @@ def test_session_without_device_bytes_is_refused_by_name(tmp_path):
     writer.close()
     with pytest.raises(wiretape.SessionError, match="no device bytes"):
         FuzzedRecording(path)
+
+
+def test_serial_works_where_pytest_cannot_be_imported():
+    # A driver fuzzed with atheris runs without pytest: FuzzedRecording.serial
+    # must not need it (pytest blocked in a fresh interpreter).
+    script = (
+        "import sys\n"
+        "sys.modules['pytest'] = None\n"
+        f"sys.path.insert(0, {str(EXAMPLE)!r})\n"
+        "from wiretape.fuzzing import FuzzedRecording\n"
+        "from thermometer import Thermometer\n"
+        f"recording = FuzzedRecording({str(RECORDING)!r})\n"
+        "with recording.serial(b''):\n"
+        "    thermometer = Thermometer()\n"
+        "    print(thermometer.identify().startswith('ACME THERMO'), thermometer.temperature())\n"
+        "    thermometer.close()\n"
+        "assert 'pytest' not in sys.modules or sys.modules['pytest'] is None\n")
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                            timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split() == ["True", "21.5"]
+
+
+def modbus_tcp_session(path):
+    """Two Modbus TCP reads (transaction ids 1 and 2), each answered."""
+    writer = wiretape.SessionWriter(str(path), wiretape.SessionHeader(port_type="tcp"))
+    for n in (1, 2):
+        request = bytes([0, n, 0, 0, 0, 6, 1, 3, 0, 0, 0, 1])
+        answer = bytes([0, n, 0, 0, 0, 5, 1, 3, 2, 0x12, 0x34])
+        writer.write("tx", n * 10_000_000, request)
+        writer.write("rx", n * 10_000_000 + 1_000_000, answer)
+    writer.close()
+    return path
+
+
+def test_a_plan_changing_only_what_the_profile_leaves_out_is_inert(tmp_path):
+    recording = FuzzedRecording(modbus_tcp_session(tmp_path / "modbus.wtape"), "modbus-tcp")
+    flip = lambda frame, offset: bytes([0, frame, offset, 0])  # noqa: E731
+    # The transaction id (bytes 0-1) is left out of matching: the replay
+    # serves the client's own, and a driver has no right to fail on it.
+    assert recording.edits(flip(0, 1)) and recording.inert(flip(0, 1))
+    assert recording.inert(flip(0, 1) + flip(1, 0) + bytes([7, 1, 4, 0]))  # and a split
+    # The register's value, the function code: a driver may refuse those.
+    assert not recording.inert(flip(0, 10))
+    assert not recording.inert(flip(0, 1) + flip(1, 7))
+    # Without a profile nothing is left out.
+    assert not FuzzedRecording(tmp_path / "modbus.wtape").inert(flip(0, 1))
