@@ -14,6 +14,8 @@
   written and when read at the far end: the 99th percentile of how late it
   arrived, untraced and while attached (the median of RELAY_ROUNDS runs of
   each, interleaved), and their ratio;
+- relay_lost_runs: relay runs taken again because their chunks did not all
+  arrive in order (socat lost bytes; seen when the machine is loaded);
 - load_average: the machine's (1 min) at the end, which the relay figures
   depend on.
 """
@@ -38,6 +40,7 @@ RATE = 1_000_000  # bytes/s
 CHUNK = 1000  # one every ms
 RELAY_S = 2.0
 RELAY_ROUNDS = 3  # of each, interleaved: the median p99 of each
+RELAY_TRIES = 3  # runs in which socat lost bytes are taken again
 
 
 def traced_program(build: Path) -> Path:
@@ -97,6 +100,7 @@ def relay_p99_ms(work: Path, attached: bool) -> float:
     while not (link_in.exists() and link_out.exists()) and time.monotonic() < deadline:
         time.sleep(0.01)  # socat makes its ptys; no event to wait on
     attachment = None
+    writer = reader = None
     try:
         writer = os.open(link_in, os.O_WRONLY | os.O_NOCTTY)
         reader = os.open(link_out, os.O_RDONLY | os.O_NOCTTY)
@@ -114,13 +118,21 @@ def relay_p99_ms(work: Path, attached: bool) -> float:
             buffered = b""
             got = 0
             while got < count:
-                buffered += os.read(reader, 65536)
+                try:
+                    data = os.read(reader, 65536)
+                except OSError:
+                    return  # socat killed: the run is over
+                if not data:
+                    return
+                if lost:
+                    continue  # drained, so that the writer is never blocked
+                buffered += data
                 now = time.perf_counter()
                 while len(buffered) >= CHUNK:
                     (sequence,) = struct.unpack_from("<I", buffered)
                     if sequence != got:
-                        lost.append(f"chunk {got} arrived as {sequence}: the relay lost bytes")
-                        return
+                        lost.append(f"chunk {got} arrived as {sequence}")
+                        break
                     late.append(now - sent[sequence])
                     buffered = buffered[CHUNK:]
                     got += 1
@@ -138,10 +150,13 @@ def relay_p99_ms(work: Path, attached: bool) -> float:
                 time.sleep(wait)
             sent[sequence] = time.perf_counter()
             os.write(writer, struct.pack("<I", sequence) + b"x" * (CHUNK - 4))
-        thread.join(30)
+        if not lost:
+            thread.join(30)
         if lost or len(late) < count:
-            sys.exit(f"relay ({'attached' if attached else 'untraced'}): "
-                     f"{lost[0] if lost else f'{len(late)} of {count} chunks arrived'}")
+            # Bytes lost by socat (seen on a loaded machine, the far reader
+            # late by more than a pty's 4 KiB of buffer): that run says
+            # nothing of the relay's lateness.
+            return None
         late.sort()
         return late[int(len(late) * 0.99) - 1] * 1e3
     finally:
@@ -149,6 +164,9 @@ def relay_p99_ms(work: Path, attached: bool) -> float:
             attachment.stop()
         socat.kill()
         socat.wait()
+        for fd in (writer, reader):
+            if fd is not None:
+                os.close(fd)
 
 
 def main() -> None:
@@ -167,9 +185,17 @@ def main() -> None:
     # Interleaved, so that both see the same machine: on a shared one the
     # load changes from second to second, more than the attach does.
     untraced, attached = [], []
+    figures["relay_lost_runs"] = 0
     for _ in range(RELAY_ROUNDS):
-        untraced.append(relay_p99_ms(work, False))
-        attached.append(relay_p99_ms(work, True))
+        for runs, traced in ((untraced, False), (attached, True)):
+            for _ in range(RELAY_TRIES):
+                p99 = relay_p99_ms(work, traced)
+                if p99 is not None:
+                    runs.append(p99)
+                    break
+                figures["relay_lost_runs"] += 1
+    if not untraced or not attached:
+        sys.exit("relay: socat lost bytes in every run (a reader late by more than a pty's buffer)")
     figures["relay_p99_ms"] = statistics.median(untraced)
     figures["relay_attached_p99_ms"] = statistics.median(attached)
     figures["relay_attached_vs_untraced_ratio"] = (figures["relay_attached_p99_ms"] /

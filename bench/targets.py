@@ -135,5 +135,6 @@ TARGETS = {
     "attach_relay_attached_p99_ms": (10, "lower", "same, socat attached"),
     "attach_relay_attached_vs_untraced_ratio": (None, "info",
                                                 "attached relay p99 / untraced, interleaved runs"),
+    "attach_relay_lost_runs": (None, "info", "relay runs taken again: socat lost bytes"),
     "attach_load_average": (None, "info", "1-min load average when the relay was measured"),
 }
