@@ -552,9 +552,13 @@ def test_a_reader_and_writer_threads_recording_replays_to_a_fresh_instance(tmp_p
     def run(handle):
         # The reader thread is sent each recorded chunk (the first at once,
         # each next one as the answer to the writer thread's line before it).
-        fresh = start_fresh("threads", link)
+        # The reader thread may print its first read before the main
+        # thread prints "ready".
+        fresh = subprocess.Popen([str(TRACED_PROGRAM), "threads", link],
+                                 stdout=subprocess.PIPE, stdin=subprocess.PIPE)
+        lines = (line for line in iter(fresh.stdout.readline, b"") if line != b"ready\n")
         for chunk in chunks:
-            assert fresh.stdout.readline() == b"read %d\n" % len(chunk)
+            assert next(lines, b"(its end)") == b"read %d\n" % len(chunk)
             fresh.stdin.write(b"x")
             fresh.stdin.flush()
         return fresh
@@ -628,5 +632,9 @@ def test_a_udp_programs_recording_replays_to_a_fresh_instance(tmp_path):
     # first here, knows where to send its first datagram.
     replay_port = free_port(socket.SOCK_DGRAM)
     fresh = start_fresh("udp", "127.0.0.1", str(replay_port))
-    replay_to_fresh_program(output, tmp_path, lambda handle: fresh,
-                            udp=f"127.0.0.1:{replay_port}", peer=f"127.0.0.1:{fresh.port}")
+    try:
+        replay_to_fresh_program(output, tmp_path, lambda handle: fresh,
+                                udp=f"127.0.0.1:{replay_port}", peer=f"127.0.0.1:{fresh.port}")
+    finally:
+        fresh.kill()
+        fresh.wait()
