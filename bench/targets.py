@@ -148,4 +148,8 @@ TARGETS = {
     "attach_detach_ms": (None, "info", "ms from stop() until every thread is detached"),
     "attach_relay_p99_ms": (None, "info", "ms late at p99, socat relaying 1 MB/s pty, untraced"),
     "attach_relay_attached_p99_ms": (10, "lower", "same, socat attached"),
+    "attach_relay_attached_vs_untraced_ratio": (None, "info",
+                                                "attached relay p99 / untraced, interleaved runs"),
+    "attach_relay_lost_runs": (None, "info", "relay runs taken again: socat lost bytes"),
+    "attach_load_average": (None, "info", "1-min load average when the relay was measured"),
 }
