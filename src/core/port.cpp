@@ -232,15 +232,18 @@ void CompoundRead::append(const char* bytes, std::size_t size) {
 
 std::size_t CompoundRead::take_from(const char* chunk, std::size_t size) const {
   if (delimiter_.empty()) return size;
-  // The delimiter may start in the bytes already read: search them too.
-  std::string window = tail_.size() >= delimiter_.size()
-                           ? tail_.substr(tail_.size() - delimiter_.size() + 1)
-                           : tail_;
+  // The delimiter may start in the bytes already read: a delimiter that
+  // does is found in them and the chunk's first bytes, a short window (no
+  // copy of the chunk, which is searched in place).
+  const std::size_t reach = delimiter_.size() - 1;
+  std::string window = tail_.size() > reach ? tail_.substr(tail_.size() - reach) : tail_;
   const std::size_t carried = window.size();
-  window.append(chunk, size);
-  const std::size_t at = window.find(delimiter_);
-  if (at == std::string::npos) return size;
-  return at + delimiter_.size() - carried;
+  window.append(chunk, std::min(size, reach));
+  const std::size_t across = window.find(delimiter_);
+  if (across != std::string::npos) return across + delimiter_.size() - carried;
+  const std::size_t at = std::string_view(chunk, size).find(delimiter_);
+  if (at == std::string_view::npos) return size;
+  return at + delimiter_.size();
 }
 
 bool CompoundRead::advance(Deadline deadline) {

@@ -46,6 +46,11 @@ FuzzedReplay::FuzzedReplay(const std::string& session, const std::string& profil
   impl_->config.member.reset();
   std::shared_ptr<const Profile> found = profile.empty() ? nullptr : find_profile(profile);
   impl_->recording = detail::read_fuzz_recording(session, std::move(found), impl_->config.channel);
+  bool recorded_flushes = false;
+  for (const Record& record : impl_->recording.records)
+    if (record.kind == RecordKind::flush_input || record.kind == RecordKind::flush_output) recorded_flushes = true;
+  // The defaults play untimed: each run's reads then read no clock.
+  impl_->config.untimed = detail::untimed_replay(impl_->config, recorded_flushes);
   impl_->recording.inert_delay_ms =
       static_cast<std::uint64_t>(std::chrono::duration_cast<std::chrono::milliseconds>(impl_->config.tolerance).count());
 }

@@ -114,7 +114,7 @@ FuzzedRecords fuzz_records(const FuzzRecording& recording, std::string_view plan
   out.records.reserve(recording.records.size() + mutated.records.size());
   std::size_t next_unit = 0;
   std::uint64_t shift_ns = 0;  // what the delays so far add to every later record
-  const auto& units = mutated.records;
+  auto& units = mutated.records;  // moved from: they are this call's own
   for (std::size_t place = 0; place < recording.records.size(); ++place) {
     const Record& recorded = recording.records[place];
     if (recorded.kind != RecordKind::rx) {
@@ -125,7 +125,8 @@ FuzzedRecords fuzz_records(const FuzzRecording& recording, std::string_view plan
     // Units keep the order of their places (fuzz_plan.hpp, RxRecord::place).
     for (; next_unit < units.size() && units[next_unit].place == place; ++next_unit) {
       shift_ns += units[next_unit].delay_ms * kNsPerMs;
-      out.records.push_back({recorded.t_ns + shift_ns, RecordKind::rx, units[next_unit].bytes, recorded.channel});
+      out.records.push_back(
+          {recorded.t_ns + shift_ns, RecordKind::rx, std::move(units[next_unit].bytes), recorded.channel});
     }
   }
   return out;

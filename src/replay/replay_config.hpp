@@ -77,7 +77,22 @@ struct ReplayConfig {
   // replay starts with them, so that a virtual device tells the client's
   // changes from them as the proxy that recorded them did.
   SerialSettings recorded_settings;
+  // Nothing this replay does depends on when (timing=none, no faults,
+  // match=sequence without check=timing, one channel, and no client flush
+  // recorded, so no flush gate waits): every record is due at the open
+  // time, so the port tells the engine that time instead of reading the
+  // clock at each call. Set by whoever checked the recording
+  // (untimed_replay()); false otherwise.
+  bool untimed = false;
 };
+
+// Whether `config` over records holding client flushes or not
+// (`recorded_flushes`) may be played untimed (ReplayConfig::untimed).
+inline bool untimed_replay(const ReplayConfig& config, bool recorded_flushes) {
+  return config.timing == ReplayTiming::none && config.faults.empty() &&
+         config.match == ReplayMatch::sequence && config.check != ReplayCheck::timing &&
+         !config.hub && !config.member && !recorded_flushes;
+}
 
 // Whether empty tx and rx records are datagrams that the replay serves and
 // checks like any other (DESIGN.md section 23): in a datagram session

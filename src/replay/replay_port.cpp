@@ -9,6 +9,7 @@
 #include <condition_variable>
 #include <cstdio>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "posix/platform.hpp"
@@ -57,11 +58,12 @@ class ReplayPort : public Port, public FaultSource {
       : description_(describe(config)),
         sources_(sources),
         config_(config),
+        frozen_now_(config_.untimed ? std::optional<ReplayTime>(open_time(config_)) : std::nullopt),
         engine_(std::make_unique<ReplayEngine>(std::move(config), std::move(sources),
-                                               open_time(config_))) {
+                                               frozen_now_ ? *frozen_now_ : open_time(config_))) {
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      update_signal(ReplayClock::now());
+      update_signal(replay_now());
     }
     // Faults (delay, stall, trickle, reconnect) make data due later even
     // under timing=none: someone must raise the pipe then.
@@ -75,7 +77,7 @@ class ReplayPort : public Port, public FaultSource {
       config_.member->set_waker([this] {
         std::lock_guard<std::mutex> lock(mutex_);
         if (closed_) return;
-        update_signal(ReplayClock::now());
+        update_signal(replay_now());
         changed_.notify_all();
       });
     }
@@ -93,7 +95,7 @@ class ReplayPort : public Port, public FaultSource {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
     if (awaiting_client_) return 0;
-    return engine_->available(ReplayClock::now());
+    return engine_->available(replay_now());
   }
 
   // A virtual device with no client: holds everything until the next client
@@ -102,7 +104,7 @@ class ReplayPort : public Port, public FaultSource {
     std::lock_guard<std::mutex> lock(mutex_);
     if (closed_) return;
     awaiting_client_ = true;
-    update_signal(ReplayClock::now());
+    update_signal(replay_now());
     changed_.notify_all();
   }
 
@@ -155,6 +157,7 @@ class ReplayPort : public Port, public FaultSource {
       if (by_request) config.client_session = served_session;
       engine_ = std::make_unique<ReplayEngine>(std::move(config), std::move(sources), start,
                                                connect_t_ns.value_or(0), fault_memory_);
+      if (frozen_now_) frozen_now_ = start;
       engine_->on_fault(fault_reporter_);  // each session's fault stage reports here
     }
     update_signal(now);
@@ -173,7 +176,7 @@ class ReplayPort : public Port, public FaultSource {
 
   bool lost_by_fault() {
     std::lock_guard<std::mutex> lock(mutex_);
-    return !closed_ && engine_->lost_by_fault(ReplayClock::now());
+    return !closed_ && engine_->lost_by_fault(replay_now());
   }
 
   std::string silenced_by_fault() {
@@ -184,7 +187,7 @@ class ReplayPort : public Port, public FaultSource {
   void flush_input() override {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
-    const auto now = ReplayClock::now();
+    const auto now = replay_now();
     engine_->flush_input(now);
     update_signal(now);
     changed_.notify_all();
@@ -237,7 +240,7 @@ class ReplayPort : public Port, public FaultSource {
   bool read_would_block_forever() {
     std::lock_guard<std::mutex> lock(mutex_);
     return !closed_ &&
-           outlook_at(ReplayClock::now()).state ==
+           outlook_at(replay_now()).state ==
                ReplayEngine::ReadState::ended &&
            engine_->config().at_end == ReplayAtEnd::silent;
   }
@@ -265,7 +268,7 @@ class ReplayPort : public Port, public FaultSource {
       const_cast<ReplayPort*>(this)->open_readiness_pipe();
       // From now on someone may poll it: it must tell the truth.
       handle_handed_out_ = true;
-      const_cast<ReplayPort*>(this)->update_signal(ReplayClock::now());
+      const_cast<ReplayPort*>(this)->update_signal(replay_now());
     }
     return signal_read_.get();
   }
@@ -276,7 +279,7 @@ class ReplayPort : public Port, public FaultSource {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
     engine_->client_event(RecordKind::settings, {{event_field::baud, std::to_string(baud)}},
-                         ReplayClock::now());
+                         replay_now());
     settings_.baud = baud;
   }
   void configure(const SerialSettings& settings) override {
@@ -288,7 +291,7 @@ class ReplayPort : public Port, public FaultSource {
                           {event_field::stopbits, std::to_string(settings.stop_bits)},
                           {event_field::parity, to_string(settings.parity)},
                           {event_field::flow, to_string(settings.flow)}},
-                         ReplayClock::now());
+                         replay_now());
     settings_ = settings;
   }
   SerialSettings serial_settings() const override {
@@ -308,7 +311,7 @@ class ReplayPort : public Port, public FaultSource {
     check_open();
     engine_->client_event(RecordKind::line_break,
                          {{event_field::duration_ms, std::to_string(duration.count())}},
-                         ReplayClock::now());
+                         replay_now());
   }
 
  protected:
@@ -317,7 +320,7 @@ class ReplayPort : public Port, public FaultSource {
     std::unique_lock<std::mutex> lock(mutex_);
     for (;;) {
       check_open();
-      const auto now = ReplayClock::now();
+      const auto now = replay_now();
       const std::size_t n =
           awaiting_client_ ? 0 : engine_->read(static_cast<char*>(buffer), size, now);
       const ReplayEngine::Outlook outlook = update_signal(now);
@@ -336,7 +339,7 @@ class ReplayPort : public Port, public FaultSource {
                            "come; a read without a timeout would block forever");
         }
       }
-      if (deadline && now >= *deadline) return 0;
+      if (deadline_passed(now, deadline)) return 0;
       wait(lock, now, deadline, outlook);
     }
   }
@@ -350,7 +353,7 @@ class ReplayPort : public Port, public FaultSource {
     std::unique_lock<std::mutex> lock(mutex_);
     for (;;) {
       check_open();
-      const auto now = ReplayClock::now();
+      const auto now = replay_now();
       std::optional<std::size_t> n =
           awaiting_client_ ? 0 : engine_->peek(static_cast<char*>(buffer), size, now);
       if (!n) return std::nullopt;
@@ -359,7 +362,7 @@ class ReplayPort : public Port, public FaultSource {
       if (outlook.state == ReplayEngine::ReadState::ended) {
         if (engine_->config().at_end == ReplayAtEnd::closed || !deadline) return std::nullopt;
       }
-      if (deadline && now >= *deadline) return 0;
+      if (deadline_passed(now, deadline)) return 0;
       wait(lock, now, deadline, outlook);
     }
   }
@@ -369,7 +372,7 @@ class ReplayPort : public Port, public FaultSource {
   std::optional<std::size_t> read_datagram(void* buffer, std::size_t size) {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
-    const auto now = ReplayClock::now();
+    const auto now = replay_now();
     const std::optional<std::size_t> n =
         awaiting_client_ ? std::nullopt
                          : engine_->read_datagram(static_cast<char*>(buffer), size, now);
@@ -397,7 +400,7 @@ class ReplayPort : public Port, public FaultSource {
   std::size_t write_locked(const void* data, std::size_t size, Deadline) {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
-    const auto now = ReplayClock::now();
+    const auto now = replay_now();
     try {
       engine_->write(static_cast<const char*>(data), size, now);
     } catch (const ReplayMismatch&) {
@@ -419,7 +422,7 @@ class ReplayPort : public Port, public FaultSource {
     std::unique_lock<std::mutex> lock(mutex_);
     for (;;) {
       if (closed_) return true;  // a read raises PortClosed at once
-      const auto now = ReplayClock::now();
+      const auto now = replay_now();
       const ReplayEngine::Outlook outlook = update_signal(now);
       switch (outlook.state) {
         case ReplayEngine::ReadState::readable:
@@ -434,7 +437,7 @@ class ReplayPort : public Port, public FaultSource {
         case ReplayEngine::ReadState::waiting:
           break;
       }
-      if (deadline && now >= *deadline) return false;
+      if (deadline_passed(now, deadline)) return false;
       wait(lock, now, deadline, outlook);
     }
   }
@@ -442,7 +445,7 @@ class ReplayPort : public Port, public FaultSource {
  private:
   void client_flushed_locked() {
     engine_->client_flushed();
-    update_signal(ReplayClock::now());
+    update_signal(replay_now());
     changed_.notify_all();
   }
 
@@ -464,6 +467,15 @@ class ReplayPort : public Port, public FaultSource {
     return engine_->outlook(now);
   }
 
+  // The time the engine is told: the clock's, or the open time of an
+  // untimed replay (ReplayConfig::untimed), whose every record is due at
+  // once and whose reads then cost no clock read.
+  ReplayTime replay_now() const { return frozen_now_ ? *frozen_now_ : ReplayClock::now(); }
+  // A deadline is the caller's, on the real clock even in an untimed replay.
+  bool deadline_passed(ReplayTime now, Deadline deadline) const {
+    return deadline && (frozen_now_ ? ReplayClock::now() : now) >= *deadline;
+  }
+
   void check_open() const {
     if (closed_) throw PortClosed(description_ + " is closed");
   }
@@ -472,7 +484,7 @@ class ReplayPort : public Port, public FaultSource {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
     if (awaiting_client_) return lines_before_client_;
-    lines_before_client_ = engine_->device_lines(ReplayClock::now());
+    lines_before_client_ = engine_->device_lines(replay_now());
     return lines_before_client_;
   }
 
@@ -480,7 +492,7 @@ class ReplayPort : public Port, public FaultSource {
     std::lock_guard<std::mutex> lock(mutex_);
     check_open();
     engine_->client_event(RecordKind::modem_lines, {{line, level ? "true" : "false"}},
-                         ReplayClock::now());
+                         replay_now());
   }
 
 
@@ -669,6 +681,8 @@ class ReplayPort : public Port, public FaultSource {
   // or lost device stays so for the next client (docs/faults.md). The
   // engine made before any client has its own: nobody was served by it.
   const std::shared_ptr<FaultMemory> fault_memory_ = std::make_shared<FaultMemory>();
+  // Set for an untimed replay: the time replay_now() tells the engine.
+  std::optional<ReplayTime> frozen_now_;
   std::unique_ptr<ReplayEngine> engine_;
   // A virtual device between client sessions: nothing is released to
   // nobody (see await_client()).

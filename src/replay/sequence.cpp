@@ -52,11 +52,17 @@ bool SequenceStrategy::more_to_release() const {
 }
 
 void SequenceStrategy::fill() {
+  const auto room = [this] {
+    return !rx_exhausted_ && released_.size() + ahead_.size() < kLookaheadRecords &&
+           released_.bytes() + ahead_bytes_ < kLookaheadBytes;
+  };
+  // Called at every read: once a short recording is all read ahead, that
+  // costs no buffer taken and given back.
+  if (!room()) return;
   Record record;
   PayloadView view;
   record.data = released_.spare_payload();
-  while (!rx_exhausted_ && released_.size() + ahead_.size() < kLookaheadRecords &&
-         released_.bytes() + ahead_bytes_ < kLookaheadBytes) {
+  while (room()) {
     if (!rx_source_->next(record, view)) {
       rx_exhausted_ = true;
       break;

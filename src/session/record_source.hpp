@@ -68,6 +68,20 @@ class VectorRecordSource final : public RecordSource {
     record = (*records_)[position_++];
     return true;
   }
+  // Every payload as a view: the records are held, unchanged, as long as
+  // any source of the factory is, so a view pins nothing more and spares
+  // the copy of each payload (a fuzzer opens a replay per run).
+  bool next(Record& record, PayloadView& view) override {
+    view = PayloadView{};
+    if (position_ >= records_->size()) return false;
+    const Record& held = (*records_)[position_++];
+    record.t_ns = held.t_ns;
+    record.kind = held.kind;
+    record.channel = held.channel;
+    record.data.clear();
+    view = PayloadView{records_, held.data};
+    return true;
+  }
   void rewind() override { position_ = 0; }
   const std::optional<SessionError>& damage() const override { return no_damage_; }
 

@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <deque>
+#include <optional>
 #include <string>
 #include <thread>
 #include <vector>
@@ -28,6 +29,8 @@ class ScriptedPort final : public Port {
   std::size_t write_limit = 1 << 20;
   std::size_t write_budget = 1 << 20;
   int read_calls = 0;
+  // Lets a compound read look ahead, a chunk at a time (as a replay does).
+  bool peeks = false;
 
   std::size_t available() override {
     return chunks.empty() ? 0 : chunks.front().size();
@@ -55,6 +58,13 @@ class ScriptedPort final : public Port {
     chunk.copy(static_cast<char*>(buffer), n);
     chunk.erase(0, n);
     if (chunk.empty()) chunks.pop_front();
+    return n;
+  }
+  std::optional<std::size_t> peek_some(void* buffer, std::size_t size, Deadline) override {
+    if (!peeks) return std::nullopt;
+    if (chunks.empty()) return 0;
+    const std::size_t n = std::min(size, chunks.front().size());
+    chunks.front().copy(static_cast<char*>(buffer), n);
     return n;
   }
   std::size_t write_some(const void* data, std::size_t size, Deadline) override {
@@ -125,6 +135,18 @@ TEST(PortApi, ReadUntilStopsAtTheDelimiterMaxOrTimeout) {
   port.chunks = {"line\nrest"};
   EXPECT_EQ(port.read_line(), "line\n");
   EXPECT_EQ(port.available(), 4u) << "nothing past the delimiter consumed";
+}
+
+TEST(PortApi, ReadUntilFindsADelimiterAcrossPeekedChunks) {
+  ScriptedPort port;
+  port.peeks = true;
+  port.chunks = {"ab\r", "\ncd\r", "\n\r\nx", "yyE", "N", "Dzz\r\n"};
+  EXPECT_EQ(port.read_until("\r\n"), "ab\r\n");
+  EXPECT_EQ(port.read_until("\r\n"), "cd\r\n");
+  EXPECT_EQ(port.read_until("\r\n"), "\r\n");
+  EXPECT_EQ(port.read_until("END"), "xyyEND");
+  EXPECT_EQ(port.read_until("\r\n"), "zz\r\n");
+  EXPECT_TRUE(port.chunks.empty()) << "every byte up to a delimiter, none past it";
 }
 
 TEST(PortApi, SkipAndSkipUntil) {

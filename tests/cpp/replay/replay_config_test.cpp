@@ -223,3 +223,19 @@ TEST(ReplayOptions, EmptyRecordsAreDatagramsInASequenceReplayWithoutAProfile) {
   profiled.datagrams = true;
   EXPECT_FALSE(detail::replays_empty_datagrams(profiled));
 }
+
+TEST(ReplayOptions, OnlyAReplayThatNothingTimesIsUntimed) {
+  EXPECT_TRUE(detail::untimed_replay(config_from("timing=none"), /*recorded_flushes=*/false));
+  // A recorded client flush gates rx for flush_wait: that wait is timed.
+  EXPECT_FALSE(detail::untimed_replay(config_from("timing=none"), /*recorded_flushes=*/true));
+  EXPECT_FALSE(detail::untimed_replay(config_from(""), false));
+  EXPECT_FALSE(detail::untimed_replay(config_from("timing=session"), false));
+  // match=request waits `gap` for a longer request.
+  EXPECT_FALSE(detail::untimed_replay(config_from("timing=none,match=request"), false));
+  ReplayConfig checked = config_from("timing=none");  // refused as keys, defended anyway
+  checked.check = detail::ReplayCheck::timing;
+  EXPECT_FALSE(detail::untimed_replay(checked, false));
+  ReplayConfig faulted = config_from("timing=none");
+  faulted.faults.faults.emplace_back();
+  EXPECT_FALSE(detail::untimed_replay(faulted, false));
+}
