@@ -176,6 +176,10 @@ std::optional<std::string> ChunkDecoder::feed(std::uint64_t offset, std::uint64_
                                               std::string_view payload, bool last) {
   if (!open_) {
     open_ = true;
+    // A chunk's first entry counts its time from 0, however the one before
+    // ended: its last part may have held no entry (a flush sent the others
+    // ahead), so next() never saw the chunk's end.
+    previous_t_ = 0;
     chunk_offset_ = offset;
     place_ = ChunkPlace{offset, 0, {}};
     counts_.clear();

@@ -171,6 +171,33 @@ TEST(Chunks, AFlushMakesWhatWasWrittenReadableInsideAnOpenChunk) {
   writer.close();
 }
 
+// A flush sends a chunk's entries ahead in a part; a record too large for a
+// chunk then ends the chunk with a last part that holds no entry. The next
+// chunk's times still count from 0 (a recorder flushing by time under load
+// writes exactly this).
+TEST(Chunks, AChunkAfterOneWhoseLastPartIsEmptyReadsItsOwnTimes) {
+  TempDir dir;
+  const std::string path = dir.file("parts.wtape");
+  std::vector<Record> written;
+  {
+    SessionWriter writer(path, SessionHeader{}, zstd_policy);
+    const std::string big(3u << 20, 'x');
+    const auto write = [&](std::uint64_t t_ns, const std::string& data) {
+      writer.write(RecordKind::rx, t_ns, data);
+      written.push_back(Record{t_ns, RecordKind::rx, data, 0});
+    };
+    write(10, sentence(0));
+    writer.flush();  // the chunk's only entry, in a part of its own
+    write(15, big);  // ends the chunk: its last part is empty
+    write(20, sentence(1));
+    write(27, sentence(2));
+    writer.close();
+  }
+  std::optional<SessionError> damage;
+  expect_same(read_all(path, std::nullopt, &damage), written);
+  EXPECT_FALSE(damage) << damage->what();
+}
+
 TEST(Chunks, DamageInAChunkIsReportedAtItsOffsetKeepingTheChunksBefore) {
   TempDir dir;
   const std::string path = dir.file("damaged.wtape");
