@@ -431,7 +431,10 @@ def test_gpsd_keeps_its_fixes_before_during_and_after_an_attach(tmp_path):
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
-    fresh = subprocess.Popen(["gpsd", "-N", "-n", "-b", "-S", str(port),
+    # Without -n gpsd opens the device at its first client's watch: the
+    # recording's few fixes are not all read before gpspipe is there to
+    # see them (on a loaded machine they were).
+    fresh = subprocess.Popen(["gpsd", "-N", "-b", "-S", str(port),
                               "-F", str(tmp_path / "fresh.sock"), handle.pty_path],
                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
