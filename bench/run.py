@@ -517,6 +517,20 @@ class Bench(RelayJobs, CountJobs, InstructionJobs):
             named = key.startswith(("fuzz_", "faults_"))
             self.results[key if named else "fuzz_" + key] = value
 
+    def fuzz_coverage(self) -> None:
+        """AFL++ coverage guidance against blind plans: seeds that reach the
+        two-step crash of tests/python/fuzz/programs/two_step_driver.c
+        (bench/fuzz_coverage_bench.py; skips without afl-clang-fast)."""
+        seeds, runs = ("5", "50") if self.quick else ("20", "100")
+        figures = self.script_figures("fuzz_coverage_bench.py", 1800, seeds, runs)
+        if "skipped" in figures:
+            raise Skip(figures["skipped"])
+        for key in ("seeds", "runs", "afl_seeds_found", "none_seeds_found",
+                    "afl_mean_first_crash_run", "none_mean_first_crash_run", "afl_mean_corpus"):
+            self.results["fuzz_coverage_" + key] = figures[key]
+        self.notes["fuzz_coverage"] = "first crashing run by seed: afl {}, blind {}".format(
+            figures["afl_first_crash_run_by_seed"], figures["none_first_crash_run_by_seed"])
+
     # --- show ----------------------------------------------------------------
     def show(self) -> None:
         """`wiretape show` of 10 MB sessions with colour (bench/show_bench.py):
@@ -602,7 +616,8 @@ class Bench(RelayJobs, CountJobs, InstructionJobs):
 FIGURES = ["replay", "replay_1gib", "timing", "record", "record_1gib", "pty_proxy",
            "tcp_proxy", "udp_proxy", "relay_counts", "relay_instructions", "replay_ready",
            "cassette_suite", "replay_as", "reserial", "gbench", "faults", "speed", "view", "show",
-           "diff", "shim", "channels", "record_channels", "rfc2217", "compress", "attach", "fuzz"]
+           "diff", "shim", "channels", "record_channels", "rfc2217", "compress", "attach", "fuzz",
+           "fuzz_coverage"]
 
 
 def machine_note() -> dict:
@@ -630,7 +645,7 @@ def build_programs(build: Path) -> None:
                    check=True, stdout=subprocess.DEVNULL)
     targets = ["wiretape_bench_tool", "wiretape_relay_bench", "wiretape_shim_bench",
                "traced_program", "planted-scan",
-               "planted_scan_fuzz"]
+               "planted_scan_fuzz", "hokuyo_scan20_fuzz"]
     # wiretape_bench exists only when Google Benchmark was found.
     listing = subprocess.run(["cmake", "--build", str(build), "--target", "help"],
                              capture_output=True, text=True).stdout

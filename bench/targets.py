@@ -135,7 +135,14 @@ TARGETS = {
     "fuzz_processes_runs_per_s_speed10": (None, "info",
                                           "plans per second, wiretape fuzz to hokuyo-scan, --speed 10"),
     "fuzz_in_process_20_runs_per_cpu_s": (10000, "higher",
-                                          "plans per CPU second in process, 20 answers (planted)"),
+                                          "plans per CPU second in process, 20 answers "
+                                          "(hokuyo_scan20_fuzz, gcc)"),
+    "fuzz_in_process_20_planted_runs_per_cpu_s": (None, "info",
+                                                  "the same plans, planted driver, restarted "
+                                                  "after each bug hit"),
+    "fuzz_coverage_afl_seeds_found": (None, "info",
+                                      "seeds reaching the two-step crash, --coverage afl"),
+    "fuzz_coverage_none_seeds_found": (None, "info", "the same, blind plans (--coverage none)"),
     "fuzz_planted_bugs_found": (None, "info", "of 8 planted bugs, wiretape fuzz in the budget"),
     "faults_planted_bugs_found": (None, "info", "of 8, wiretape faults' campaign, same budget"),
     "fuzz_vs_faults_planted_found_ratio": (None, "info", "bugs found, fuzz / faults"),

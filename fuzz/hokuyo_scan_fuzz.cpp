@@ -8,6 +8,11 @@
 // does not hold, PortClosed at the recording's end); a crash, a sanitizer
 // report or any other exception is a finding.
 //
+// Built twice: hokuyo_scan_fuzz over urg04lx_md.wtape (3 scans: 8 answers),
+// and, with WIRETAPE_BENCH, bench's hokuyo_scan20_fuzz over
+// bench/planted/urg04lx_md15.wtape (15 scans: 20 answers), the figure of
+// DESIGN §27 for a 20-exchange session (bench/fuzz_bench.py).
+//
 // The probe (Driver::open) is left out: on a reply it cannot read it waits
 // for the line to go quiet, 100 ms a time, and the decoding is the same
 // version() that the probe calls first.
@@ -19,10 +24,19 @@
 #include "wiretape/errors.hpp"
 #include "wiretape/fuzzing.hpp"
 
+#ifndef HOKUYO_FUZZ_RECORDING
+#define HOKUYO_FUZZ_RECORDING HOKUYO_RECORDINGS_DIR "/urg04lx_md.wtape"
+#endif
+#ifndef HOKUYO_FUZZ_SCANS
+#define HOKUYO_FUZZ_SCANS 3
+#endif
+
 namespace {
 
+constexpr int recorded_scans = HOKUYO_FUZZ_SCANS;
+
 const wiretape::FuzzedReplay& recording() {
-  static const wiretape::FuzzedReplay replay(HOKUYO_RECORDINGS_DIR "/urg04lx_md.wtape", "scip");
+  static const wiretape::FuzzedReplay replay(HOKUYO_FUZZ_RECORDING, "scip");
   return replay;
 }
 
@@ -38,8 +52,8 @@ void run_driver(wiretape::Port& port) {
   driver.parameters();
   driver.state();
   driver.laser_on();
-  driver.start_stream(hokuyo::ScanMode::md, 44, 725, 3, 0, 3);
-  for (int scan = 0; scan < 3; ++scan) driver.read_stream_scan();
+  driver.start_stream(hokuyo::ScanMode::md, 44, 725, 3, 0, recorded_scans);
+  for (int scan = 0; scan < recorded_scans; ++scan) driver.read_stream_scan();
 }
 
 }  // namespace
