@@ -17,7 +17,6 @@ keeps the pipe open cannot stall the caller.
 from __future__ import annotations
 
 import ctypes
-import dataclasses
 import os
 import select
 import signal
@@ -161,20 +160,52 @@ class Relay(Protocol):
     def flush(self) -> None: ...
 
 
-@dataclasses.dataclass(frozen=True)
 class Outcome:
     """How a child ended. ``returncode`` as subprocess has it (minus N for
     a death by signal N); ``timed_out``: it was still running at its
     timeout and was ended; ``stdout`` the captured output (stderr included
-    unless it was captured apart, in ``stderr``)."""
+    unless it was captured apart, in ``stderr``); ``stopped``: the caller's
+    ``stop`` event ended it before it exited or timed out.
+
+    Read-only, equal, hashed and shown by its values, as a frozen
+    dataclass; not one, because ``dataclasses`` imports ``inspect``,
+    ``ast`` and ``dis``, 7 ms of every ``-- CMD``'s start-up."""
+
+    _FIELDS = ("argv", "returncode", "timed_out", "stdout", "stderr", "stopped")
 
     argv: Sequence[str]
     returncode: int
     timed_out: bool
     stdout: Output
     stderr: Output
-    #: The caller's ``stop`` event ended it before it exited or timed out.
-    stopped: bool = False
+    stopped: bool
+
+    def __init__(self, argv: Sequence[str], returncode: int, timed_out: bool, stdout: Output,
+                 stderr: Output, stopped: bool = False):
+        for name, value in zip(self._FIELDS, (argv, returncode, timed_out, stdout, stderr,
+                                              stopped)):
+            object.__setattr__(self, name, value)
+
+    def __setattr__(self, name: str, value: object) -> None:
+        raise AttributeError(f"cannot assign to field {name!r}")
+
+    def __delattr__(self, name: str) -> None:
+        raise AttributeError(f"cannot delete field {name!r}")
+
+    def _values(self) -> tuple:
+        return tuple(getattr(self, name) for name in self._FIELDS)
+
+    def __eq__(self, other: object) -> bool:
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        return self._values() == other._values()  # type: ignore[attr-defined]
+
+    def __hash__(self) -> int:
+        return hash(self._values())
+
+    def __repr__(self) -> str:
+        return (f"{type(self).__qualname__}("
+                + ", ".join(f"{name}={getattr(self, name)!r}" for name in self._FIELDS) + ")")
 
     @property
     def exit_status(self) -> int:

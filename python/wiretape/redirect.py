@@ -28,7 +28,6 @@ import os
 import shutil
 import sys
 import tempfile
-from dataclasses import dataclass
 from typing import Dict, List, Optional, Sequence, Tuple
 
 from . import _core, scaled_clock
@@ -52,15 +51,34 @@ def device_variable(name: str, device: int) -> str:
     return name if device == 0 else f"{name}_{device}"
 
 
-@dataclass
 class RedirectedDevice:
     """One path CMD opens, redirected to `pty_path`: the recorded `identity`
-    presented for it, its serial lines told to the bridge at `line_channel`."""
+    presented for it, its serial lines told to the bridge at `line_channel`.
+    (Not a dataclass: ``dataclasses`` imports ``inspect``, ``ast`` and
+    ``dis``, 7 ms of every ``-- CMD``'s start-up; equal and shown as one.)"""
 
-    path: str
-    pty_path: str
-    identity: Optional[Dict[str, str]] = None
-    line_channel: Optional[str] = None
+    _FIELDS = ("path", "pty_path", "identity", "line_channel")
+
+    def __init__(self, path: str, pty_path: str, identity: Optional[Dict[str, str]] = None,
+                 line_channel: Optional[str] = None):
+        self.path = path
+        self.pty_path = pty_path
+        self.identity = identity
+        self.line_channel = line_channel
+
+    def _values(self) -> tuple:
+        return tuple(getattr(self, name) for name in self._FIELDS)
+
+    def __eq__(self, other: object) -> bool:
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        return self._values() == other._values()  # type: ignore[attr-defined]
+
+    __hash__ = None  # type: ignore[assignment]  # mutable and equal by value
+
+    def __repr__(self) -> str:
+        return (f"{type(self).__qualname__}("
+                + ", ".join(f"{name}={getattr(self, name)!r}" for name in self._FIELDS) + ")")
 
 
 class LineChannelPath:

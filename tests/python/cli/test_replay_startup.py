@@ -58,6 +58,14 @@ def test_a_replay_imports_neither_pyserial_nor_the_url_handlers_nor_difflib(tmp_
     assert "difflib" not in modules, sorted(modules)  # a usage error's hint needs it, nothing else
 
 
+def test_a_replay_with_a_command_imports_no_dataclasses(tmp_path):
+    # dataclasses imports inspect, ast and dis: 7 ms of the start-up of
+    # every -- CMD (replay_as_overhead_ratio, docs/benchmarks.md).
+    code, modules, err = _modules_of_a_replay(tmp_path)
+    assert "wiretape.redirect" in modules, err  # CMD was run redirected
+    assert not {"dataclasses", "inspect"} & modules, sorted(modules)
+
+
 def test_import_wiretape_registers_the_url_handlers_only_once_pyserial_is_imported():
     program = ("import sys, wiretape\n"
                "before = 'serial' in sys.modules or 'wiretape.urlhandler' in sys.modules\n"
