@@ -109,3 +109,31 @@ def test_each_commands_help_is_the_same_when_only_its_parser_is_made(capsys):
         sub = next(action for action in alone._actions if hasattr(action, "choices")
                    and isinstance(action.choices, dict)).choices[name]
         assert sub.format_help() == commands[name].format_help(), name
+
+
+def test_the_console_script_runs_the_command_line_with_the_start_up_frozen():
+    # pyproject.toml's `wiretape` script is wiretape._entry:main: the
+    # command line's imports made with the collector off, then frozen out
+    # of its way (replay_as_overhead_ratio); the command runs with
+    # collection on.
+    import pathlib
+    import tomllib
+
+    pyproject = pathlib.Path(__file__).resolve().parents[3] / "pyproject.toml"
+    scripts = tomllib.loads(pyproject.read_text())["project"]["scripts"]
+    assert scripts["wiretape"] == "wiretape._entry:main"
+    program = ("import gc, importlib, json\n"
+               "cli_main = importlib.import_module('wiretape.cli.main')  # the module\n"
+               "seen = {}\n"
+               "def main():\n"
+               "    seen.update(enabled=gc.isenabled(), frozen=gc.get_freeze_count())\n"
+               "    return 7\n"
+               "cli_main.main = main\n"
+               "from wiretape._entry import main as entry\n"
+               "code = entry()\n"
+               "print(json.dumps(dict(seen, code=code, enabled_after=gc.isenabled())))\n")
+    done = subprocess.run([sys.executable, "-c", program], capture_output=True, text=True,
+                          timeout=60)
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    assert report["code"] == 7 and report["enabled"] and report["enabled_after"], report
+    assert report["frozen"] > 1000, report  # the CLI's modules, not a handful
