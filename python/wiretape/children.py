@@ -16,11 +16,11 @@ keeps the pipe open cannot stall the caller.
 
 from __future__ import annotations
 
-import ctypes
 import os
 import select
 import signal
 import subprocess
+import sys
 import threading
 import time
 from typing import IO, Callable, Dict, List, Mapping, Optional, Protocol, Sequence, Union
@@ -109,10 +109,6 @@ class SanitizerWatch:
         return self.report
 
 
-# prctl(2): the signal a process gets when the thread that forked it ends.
-_PR_SET_PDEATHSIG = 1
-
-
 def _ending_with_parent(then: Optional[Callable[[], None]] = None
                         ) -> Optional[Callable[[], None]]:
     """What a child runs between fork and exec so that it ends (SIGKILL) when
@@ -125,14 +121,16 @@ def _ending_with_parent(then: Optional[Callable[[], None]] = None
     before the call cannot signal any more: the child then ends at once
     instead of running as an orphan. SIGKILL, not SIGTERM: nobody is left to
     escalate to SIGKILL should CMD ignore SIGTERM."""
-    try:
-        prctl = ctypes.CDLL(None, use_errno=True).prctl
-    except (OSError, AttributeError):
+    if not sys.platform.startswith("linux"):
         return then
+    # The extension's prctl, not ctypes': importing ctypes was 2 ms of the
+    # start-up of every -- CMD (replay_as_overhead_ratio).
+    from ._core import set_parent_death_signal
+
     parent = os.getpid()
 
     def preexec() -> None:
-        prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+        set_parent_death_signal(int(signal.SIGKILL))
         if os.getppid() != parent:  # the parent ended before the call
             os._exit(128 + int(signal.SIGKILL))
         if then is not None:

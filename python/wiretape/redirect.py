@@ -23,7 +23,6 @@ Unix socket made by :class:`LineChannelPath` (DESIGN §20).
 
 from __future__ import annotations
 
-import ctypes
 import os
 import shutil
 import sys
@@ -168,6 +167,8 @@ def _bind_mount_in_private_namespace(binds: Sequence[Tuple[str, str]]):
     device path. A step that fails leaves CMD to the shim alone (the kernel
     or the container may refuse namespaces); wiretape still sees whether
     CMD opened the pty."""
+    import ctypes  # as root over an existing path only: not on every -- CMD's start-up
+
     libc = ctypes.CDLL(None, use_errno=True)  # loaded before the fork
     unshare, mount = libc.unshare, libc.mount
     encoded = [(os.fsencode(pty_path), os.fsencode(device_path))
