@@ -24,9 +24,7 @@ Unix socket made by :class:`LineChannelPath` (DESIGN §20).
 from __future__ import annotations
 
 import os
-import shutil
 import sys
-import tempfile
 from typing import Dict, List, Optional, Sequence, Tuple
 
 from . import _core, scaled_clock
@@ -80,12 +78,106 @@ class RedirectedDevice:
                 + ", ".join(f"{name}={getattr(self, name)!r}" for name in self._FIELDS) + ")")
 
 
+# Private files and folders of a command's run (the side channel's folder,
+# the hits files) are made as tempfile.mkdtemp and mkstemp make them, in
+# tempfile.gettempdir(), but without importing tempfile unless the process
+# has already: it imports shutil, and shutil bz2 and lzma, 4 ms of the
+# start-up of every -- CMD (replay_as_overhead_ratio, docs/benchmarks.md).
+_TEMPORARY_FOLDER: Optional[str] = None
+
+
+def _temporary_folder() -> str:
+    """tempfile.gettempdir(): the first of $TMPDIR, $TEMP, $TMP, /tmp,
+    /var/tmp, /usr/tmp and the working directory where a file can be made
+    (tempfile's own answer, its ``tempdir`` included, once it is imported)."""
+    global _TEMPORARY_FOLDER
+    loaded = sys.modules.get("tempfile")
+    if loaded is not None:
+        return loaded.gettempdir()
+    if _TEMPORARY_FOLDER is None:
+        candidates = [os.environ[name] for name in ("TMPDIR", "TEMP", "TMP")
+                      if os.environ.get(name)]
+        candidates += ["/tmp", "/var/tmp", "/usr/tmp"]
+        try:
+            candidates.append(os.getcwd())
+        except OSError:
+            candidates.append(os.curdir)
+        for folder in candidates:
+            folder = os.path.abspath(folder) if folder != os.curdir else folder
+            try:  # tempfile's test: a file made and written there, else the next
+                fd, probe = _make_file(folder, "wiretape-probe-")
+                try:
+                    try:
+                        os.write(fd, b"blat")
+                    finally:
+                        os.close(fd)
+                finally:
+                    os.unlink(probe)
+            except OSError:
+                continue
+            _TEMPORARY_FOLDER = folder
+            break
+        else:
+            import tempfile  # none will do: tempfile's own error
+
+            return tempfile.gettempdir()
+    return _TEMPORARY_FOLDER
+
+
+def _names(prefix: str):
+    """Names to try, as tempfile's: the prefix and random characters."""
+    for _ in range(10000):
+        yield prefix + os.urandom(6).hex()
+
+
+def _make_file(folder: str, prefix: str):
+    """(descriptor, path) of a new file in `folder`, readable and writable
+    by its owner alone (tempfile.mkstemp's flags and mode)."""
+    flags = os.O_RDWR | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) | \
+        getattr(os, "O_CLOEXEC", 0)
+    for name in _names(prefix):
+        path = os.path.join(folder, name)
+        try:
+            return os.open(path, flags, 0o600), os.path.abspath(path)
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"no name left for a file {prefix}... in {folder}")
+
+
+def make_private_file(prefix: str) -> str:
+    """tempfile.mkstemp(prefix=prefix)'s file, closed: its path."""
+    loaded = sys.modules.get("tempfile")
+    if loaded is not None:
+        fd, path = loaded.mkstemp(prefix=prefix)
+    else:
+        fd, path = _make_file(_temporary_folder(), prefix)
+    os.close(fd)
+    return path
+
+
+def make_private_folder(prefix: str) -> str:
+    """tempfile.mkdtemp(prefix=prefix): a new folder that its owner alone
+    can enter; its absolute path."""
+    loaded = sys.modules.get("tempfile")
+    if loaded is not None:
+        return loaded.mkdtemp(prefix=prefix)
+    folder = _temporary_folder()
+    for name in _names(prefix):
+        path = os.path.join(folder, name)
+        try:
+            os.mkdir(path, 0o700)
+        except FileExistsError:
+            continue
+        return os.path.abspath(path)
+    raise FileExistsError(f"no name left for a folder {prefix}... in {folder}")
+
+
 class LineChannelPath:
     """A path for the side channel's socket, in a private directory of its
     own (the bridge creates the socket there); removed by :meth:`close`."""
 
     def __init__(self) -> None:
-        self._directory = tempfile.mkdtemp(prefix="wiretape-lines-")
+        self._directory = make_private_folder("wiretape-lines-")
         self.path = os.path.join(self._directory, "lines")
 
     def close(self) -> None:
@@ -248,8 +340,7 @@ class RedirectedCommand:
                              ENV_IDENTITY_SYSFS, ENV_IDENTITY_BY_ID):
                     env.pop(device_variable(name, number), None)
             for number, device in enumerate(self.devices):
-                hits_fd, hits_file = tempfile.mkstemp(prefix="wiretape-redirect-")
-                os.close(hits_fd)
+                hits_file = make_private_file("wiretape-redirect-")
                 self._hits_files.append(hits_file)
                 env[device_variable(ENV_FROM, number)] = device.path
                 env[device_variable(ENV_TO, number)] = device.pty_path
@@ -283,7 +374,7 @@ class RedirectedCommand:
         """The shim's variables that present the identity of device
         `number`, its tree written (device N's in a folder of its own)."""
         if self._identity_tree is None:
-            self._identity_tree = tempfile.mkdtemp(prefix="wiretape-identity-")
+            self._identity_tree = make_private_folder("wiretape-identity-")
         folder = self._identity_tree
         if number:
             folder = os.path.join(folder, f"device-{number}")
@@ -341,5 +432,7 @@ class RedirectedCommand:
                 pass
         self._hits_files = []
         if self._identity_tree is not None:
+            import shutil  # a presented identity's tree only
+
             shutil.rmtree(self._identity_tree, ignore_errors=True)
             self._identity_tree = None
