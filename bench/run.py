@@ -312,7 +312,9 @@ class Bench(RelayJobs, CountJobs, InstructionJobs):
         self.notes["replay_as"] = (
             f"hokuyo-scan --json on the simulator {figures['simulator_s'] * 1e3:.0f} ms, "
             f"the whole `wiretape replay --as` {figures['replay_s'] * 1e3:.0f} ms (medians; "
-            f"ratio {self.spread(figures['ratios'])})")
+            f"ratio {self.spread(figures['ratios'])}); the replayed conversation "
+            f"{figures['conversation_s'] * 1e3:.0f} ms (the median of "
+            f"{len(figures['conversations_s'])} recorded)")
 
     # --- --speed K: the Hokuyo campaign on a scaled clock ----------------
     def speed(self) -> None:

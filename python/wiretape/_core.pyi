@@ -1074,6 +1074,11 @@ def escape_bytes(data: bytes, limit: int = 64) -> str:
     The bytes as one line of terminal-safe text: printable ASCII kept, a backslash doubled, \\n \\r \\t and \\xNN for every other byte (ESC included); beyond `limit` bytes, '... (+N bytes)'.
     """
 
+def set_parent_death_signal(signum: int) -> int:
+    """
+    prctl(PR_SET_PDEATHSIG, signum): this process gets `signum` when the thread that forked it ends (Linux). 0, or the errno of the failure (ENOSYS elsewhere).
+    """
+
 class Exchange:
     """
     One exchange of a session: a request of the client's (a run of tx records; with a profile one request frame; in a udp session one datagram) and what the device sent until the next request. Numbered from 0 per file, as replay numbers them in mismatch reports and faults=exchange:N.

@@ -23,12 +23,8 @@ Unix socket made by :class:`LineChannelPath` (DESIGN §20).
 
 from __future__ import annotations
 
-import ctypes
 import os
-import shutil
 import sys
-import tempfile
-from dataclasses import dataclass
 from typing import Dict, List, Optional, Sequence, Tuple
 
 from . import _core, scaled_clock
@@ -52,15 +48,128 @@ def device_variable(name: str, device: int) -> str:
     return name if device == 0 else f"{name}_{device}"
 
 
-@dataclass
 class RedirectedDevice:
     """One path CMD opens, redirected to `pty_path`: the recorded `identity`
-    presented for it, its serial lines told to the bridge at `line_channel`."""
+    presented for it, its serial lines told to the bridge at `line_channel`.
+    (Not a dataclass: ``dataclasses`` imports ``inspect``, ``ast`` and
+    ``dis``, 7 ms of every ``-- CMD``'s start-up; equal and shown as one.)"""
 
-    path: str
-    pty_path: str
-    identity: Optional[Dict[str, str]] = None
-    line_channel: Optional[str] = None
+    _FIELDS = ("path", "pty_path", "identity", "line_channel")
+
+    def __init__(self, path: str, pty_path: str, identity: Optional[Dict[str, str]] = None,
+                 line_channel: Optional[str] = None):
+        self.path = path
+        self.pty_path = pty_path
+        self.identity = identity
+        self.line_channel = line_channel
+
+    def _values(self) -> tuple:
+        return tuple(getattr(self, name) for name in self._FIELDS)
+
+    def __eq__(self, other: object) -> bool:
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        return self._values() == other._values()  # type: ignore[attr-defined]
+
+    __hash__ = None  # type: ignore[assignment]  # mutable and equal by value
+
+    def __repr__(self) -> str:
+        return (f"{type(self).__qualname__}("
+                + ", ".join(f"{name}={getattr(self, name)!r}" for name in self._FIELDS) + ")")
+
+
+# Private files and folders of a command's run (the side channel's folder,
+# the hits files) are made as tempfile.mkdtemp and mkstemp make them, in
+# tempfile.gettempdir(), but without importing tempfile unless the process
+# has already: it imports shutil, and shutil bz2 and lzma, 4 ms of the
+# start-up of every -- CMD (replay_as_overhead_ratio, docs/benchmarks.md).
+_TEMPORARY_FOLDER: Optional[str] = None
+
+
+def _temporary_folder() -> str:
+    """tempfile.gettempdir(): the first of $TMPDIR, $TEMP, $TMP, /tmp,
+    /var/tmp, /usr/tmp and the working directory where a file can be made
+    (tempfile's own answer, its ``tempdir`` included, once it is imported)."""
+    global _TEMPORARY_FOLDER
+    loaded = sys.modules.get("tempfile")
+    if loaded is not None:
+        return loaded.gettempdir()
+    if _TEMPORARY_FOLDER is None:
+        candidates = [os.environ[name] for name in ("TMPDIR", "TEMP", "TMP")
+                      if os.environ.get(name)]
+        candidates += ["/tmp", "/var/tmp", "/usr/tmp"]
+        try:
+            candidates.append(os.getcwd())
+        except OSError:
+            candidates.append(os.curdir)
+        for folder in candidates:
+            folder = os.path.abspath(folder) if folder != os.curdir else folder
+            try:  # tempfile's test: a file made and written there, else the next
+                fd, probe = _make_file(folder, "wiretape-probe-")
+                try:
+                    try:
+                        os.write(fd, b"blat")
+                    finally:
+                        os.close(fd)
+                finally:
+                    os.unlink(probe)
+            except OSError:
+                continue
+            _TEMPORARY_FOLDER = folder
+            break
+        else:
+            import tempfile  # none will do: tempfile's own error
+
+            return tempfile.gettempdir()
+    return _TEMPORARY_FOLDER
+
+
+def _names(prefix: str):
+    """Names to try, as tempfile's: the prefix and random characters."""
+    for _ in range(10000):
+        yield prefix + os.urandom(6).hex()
+
+
+def _make_file(folder: str, prefix: str):
+    """(descriptor, path) of a new file in `folder`, readable and writable
+    by its owner alone (tempfile.mkstemp's flags and mode)."""
+    flags = os.O_RDWR | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0) | \
+        getattr(os, "O_CLOEXEC", 0)
+    for name in _names(prefix):
+        path = os.path.join(folder, name)
+        try:
+            return os.open(path, flags, 0o600), os.path.abspath(path)
+        except FileExistsError:
+            continue
+    raise FileExistsError(f"no name left for a file {prefix}... in {folder}")
+
+
+def make_private_file(prefix: str) -> str:
+    """tempfile.mkstemp(prefix=prefix)'s file, closed: its path."""
+    loaded = sys.modules.get("tempfile")
+    if loaded is not None:
+        fd, path = loaded.mkstemp(prefix=prefix)
+    else:
+        fd, path = _make_file(_temporary_folder(), prefix)
+    os.close(fd)
+    return path
+
+
+def make_private_folder(prefix: str) -> str:
+    """tempfile.mkdtemp(prefix=prefix): a new folder that its owner alone
+    can enter; its absolute path."""
+    loaded = sys.modules.get("tempfile")
+    if loaded is not None:
+        return loaded.mkdtemp(prefix=prefix)
+    folder = _temporary_folder()
+    for name in _names(prefix):
+        path = os.path.join(folder, name)
+        try:
+            os.mkdir(path, 0o700)
+        except FileExistsError:
+            continue
+        return os.path.abspath(path)
+    raise FileExistsError(f"no name left for a folder {prefix}... in {folder}")
 
 
 class LineChannelPath:
@@ -68,7 +177,7 @@ class LineChannelPath:
     own (the bridge creates the socket there); removed by :meth:`close`."""
 
     def __init__(self) -> None:
-        self._directory = tempfile.mkdtemp(prefix="wiretape-lines-")
+        self._directory = make_private_folder("wiretape-lines-")
         self.path = os.path.join(self._directory, "lines")
 
     def close(self) -> None:
@@ -150,6 +259,8 @@ def _bind_mount_in_private_namespace(binds: Sequence[Tuple[str, str]]):
     device path. A step that fails leaves CMD to the shim alone (the kernel
     or the container may refuse namespaces); wiretape still sees whether
     CMD opened the pty."""
+    import ctypes  # as root over an existing path only: not on every -- CMD's start-up
+
     libc = ctypes.CDLL(None, use_errno=True)  # loaded before the fork
     unshare, mount = libc.unshare, libc.mount
     encoded = [(os.fsencode(pty_path), os.fsencode(device_path))
@@ -229,8 +340,7 @@ class RedirectedCommand:
                              ENV_IDENTITY_SYSFS, ENV_IDENTITY_BY_ID):
                     env.pop(device_variable(name, number), None)
             for number, device in enumerate(self.devices):
-                hits_fd, hits_file = tempfile.mkstemp(prefix="wiretape-redirect-")
-                os.close(hits_fd)
+                hits_file = make_private_file("wiretape-redirect-")
                 self._hits_files.append(hits_file)
                 env[device_variable(ENV_FROM, number)] = device.path
                 env[device_variable(ENV_TO, number)] = device.pty_path
@@ -264,7 +374,7 @@ class RedirectedCommand:
         """The shim's variables that present the identity of device
         `number`, its tree written (device N's in a folder of its own)."""
         if self._identity_tree is None:
-            self._identity_tree = tempfile.mkdtemp(prefix="wiretape-identity-")
+            self._identity_tree = make_private_folder("wiretape-identity-")
         folder = self._identity_tree
         if number:
             folder = os.path.join(folder, f"device-{number}")
@@ -322,5 +432,7 @@ class RedirectedCommand:
                 pass
         self._hits_files = []
         if self._identity_tree is not None:
+            import shutil  # a presented identity's tree only
+
             shutil.rmtree(self._identity_tree, ignore_errors=True)
             self._identity_tree = None

@@ -18,12 +18,11 @@ Every refusal is a :class:`FileRefused`, an OSError: the command line exits
 from __future__ import annotations
 
 import errno
-import json
 import os
 import select
 import stat
 import sys
-from typing import IO, Any, Dict, Iterable, List, NamedTuple, Optional, Union
+from typing import IO, Any, Callable, Dict, Iterable, List, NamedTuple, Optional, Union
 
 from . import _core
 
@@ -151,10 +150,24 @@ def event_payload(data: bytes) -> Optional[Dict[str, Any]]:
     if not data:
         return {}
     try:
-        value = json.loads(data.decode("utf-8"))
+        value = _json_loads(data.decode("utf-8"))
     except (UnicodeDecodeError, ValueError):
         return None
     return value if isinstance(value, dict) else None
+
+
+_loads: Optional[Callable[[str], Any]] = None
+
+
+def _json_loads(text: str) -> Any:
+    """json.loads, imported at the first event read: json is not on the
+    start-up of a command that reads none (replay_as_overhead_ratio)."""
+    global _loads
+    if _loads is None:
+        import json
+
+        _loads = json.loads
+    return _loads(text)
 
 
 def escape_bytes(data: bytes) -> str:

@@ -1,7 +1,14 @@
 // Byte rendering shared with the Python tools, so that a mismatch report, a
-// diff and `wiretape show` print bytes the same way (src/util/hex.hpp).
+// diff and `wiretape show` print bytes the same way (src/util/hex.hpp); and
+// the parent-death signal a child of wiretape.children sets between fork and
+// exec (prctl: through ctypes, its import was 2 ms of every `-- CMD`).
+#include <cerrno>
 #include <string>
 #include <string_view>
+
+#ifdef __linux__
+#include <sys/prctl.h>
+#endif
 
 #include "python/bindings.hpp"
 #include "python/text_caster.hpp"
@@ -43,6 +50,23 @@ void bind_util(nb::module_& m) {
       "The bytes as one line of terminal-safe text: printable ASCII kept, a "
       "backslash doubled, \\n \\r \\t and \\xNN for every other byte (ESC "
       "included); beyond `limit` bytes, '... (+N bytes)'.");
+  // Called in the child between fork and exec: no allocation, no exception
+  // on failure (the result says it), so it is safe there.
+  m.def(
+      "set_parent_death_signal",
+      [](int signum) -> int {
+#ifdef __linux__
+        return prctl(PR_SET_PDEATHSIG, static_cast<unsigned long>(signum), 0UL, 0UL, 0UL) == 0
+                   ? 0
+                   : errno;
+#else
+        (void)signum;
+        return ENOSYS;
+#endif
+      },
+      "signum"_a,
+      "prctl(PR_SET_PDEATHSIG, signum): this process gets `signum` when the thread "
+      "that forked it ends (Linux). 0, or the errno of the failure (ENOSYS elsewhere).");
 }
 
 }  // namespace wiretape::python

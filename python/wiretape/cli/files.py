@@ -3,7 +3,6 @@ view (the work is in wiretape.tools)."""
 
 from __future__ import annotations
 
-import json
 import os
 import sys
 
@@ -155,6 +154,8 @@ def cmd_stats(args, out: Output) -> int:
     require_session(args.file)
     result = session_stats(args.file, profile=session_profile(args.profile, [args.file], out))
     if args.json:
+        import json  # for --json only: not on every command's start-up
+
         print(json.dumps(result.to_json(), indent=2, sort_keys=True, default=str))
     else:
         _print_stats(result, out)
@@ -175,6 +176,8 @@ def cmd_verify(args, out: Output) -> int:
         if not args.json:
             out.print(f"{args.file}: index {appended}")
     if args.json:
+        import json  # for --json only: not on every command's start-up
+
         print(json.dumps(result.to_json(), indent=2, sort_keys=True, default=str))
     elif result.ok:
         out.print(f"{args.file}: ok, {result.records} records{_per_channel(result)}",
@@ -230,6 +233,8 @@ def cmd_diff(args, out: Output) -> int:
     result = diff(args.a, args.b, profile=session_profile(args.profile, [args.a, args.b], out),
                   max_divergences=args.max_divergences)
     if args.json:
+        import json  # for --json only: not on every command's start-up
+
         print(json.dumps(result.to_json(), indent=2, sort_keys=True))
         return EXIT_OK if result.identical and not result.damaged else EXIT_CHECK_FAILED
     for line in result.report().splitlines():

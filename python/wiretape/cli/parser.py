@@ -5,6 +5,7 @@ split_command() for the CMD after ``--``."""
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from typing import Callable, List, Optional, Sequence, Tuple
 
@@ -405,13 +406,40 @@ def command_run_alone(arguments: Sequence[str]) -> Optional[str]:
     return first if first in COMMAND_NAMES else None
 
 
+def _terminal_columns() -> int:
+    """shutil.get_terminal_size().columns, as argparse's help asks it, but
+    without importing shutil (and bz2 and lzma with it) for a command line
+    that prints no help: argparse makes a formatter for every argument
+    declared (replay_as_overhead_ratio, docs/benchmarks.md)."""
+    try:
+        columns = int(os.environ["COLUMNS"])
+    except (KeyError, ValueError):
+        columns = 0
+    if columns <= 0:
+        try:
+            columns = os.get_terminal_size(sys.__stdout__.fileno()).columns  # type: ignore[union-attr]
+        except (AttributeError, ValueError, OSError):
+            columns = 0
+    return columns or 80
+
+
+class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """argparse's RawDescriptionHelpFormatter, its width found as argparse
+    finds it (the terminal's columns less 2) without importing shutil."""
+
+    def __init__(self, prog, indent_increment=2, max_help_position=24, width=None, **more):
+        if width is None:
+            width = _terminal_columns() - 2
+        super().__init__(prog, indent_increment, max_help_position, width, **more)
+
+
 def build_parser(only: Optional[str] = None) -> argparse.ArgumentParser:
     """The command line's parser. With `only`, a command's name, that
     command alone: for a command line that names it first, which needs no
     other (wiretape --help and a mistyped command's "did you mean" need
     them all)."""
     parser = _Parser(prog="wiretape", description=_DESCRIPTION, epilog=_EPILOG,
-                     formatter_class=argparse.RawDescriptionHelpFormatter)
+                     formatter_class=_HelpFormatter)
     parser.add_argument("--version", action="version", version=f"wiretape {__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     declared = []
@@ -422,7 +450,7 @@ def build_parser(only: Optional[str] = None) -> argparse.ArgumentParser:
             return _UndeclaredArguments()
         sub = commands.add_parser(name, help=help_text, description=description or help_text,
                                   epilog=_EPILOG,
-                                  formatter_class=argparse.RawDescriptionHelpFormatter)
+                                  formatter_class=_HelpFormatter)
         sub.set_defaults(handler=handler)
         declared.append(name)
         return sub

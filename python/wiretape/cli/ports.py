@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 from typing import Dict, List
 
@@ -51,6 +50,8 @@ def serial_ports() -> List[dict]:
 def cmd_ports(args, out: Output) -> int:
     ports = serial_ports()
     if args.json:
+        import json  # for --json only: not on every command's start-up
+
         print(json.dumps(ports, indent=2))
         return EXIT_OK
     if not ports:
