@@ -100,6 +100,30 @@ def stack(run: Run) -> List[str]:
     return frames[:STACK_FRAMES]
 
 
+# gdb's word that CMD stopped on a signal, and a frame of its `bt` after it
+# ("#1  0x000055d4 in decode (line=...) at scip.cpp:120", frame 0 often
+# without its address).
+_DEBUGGER_STOPPED = "Program received signal "
+_DEBUGGER_FRAME = re.compile(r"^#\d+\s+\S.*$", re.MULTILINE)
+
+
+def debugger_command(argv: List[str]) -> List[str]:
+    """CMD run under gdb in batch mode: run to the signal, print the
+    backtrace, end (gdb kills CMD when it exits)."""
+    return ["gdb", "-q", "-nx", "-batch", "-ex", "set startup-with-shell off",
+            "-ex", "run", "-ex", "bt", "--args", *argv]
+
+
+def debugger_stack(output: str) -> List[str]:
+    """The frames of gdb's backtrace in `output` (debugger_command's run),
+    after CMD stopped on a signal; none when it did not."""
+    at = output.rfind(_DEBUGGER_STOPPED)
+    if at < 0:
+        return []
+    frames = [" ".join(line.split()) for line in _DEBUGGER_FRAME.findall(output[at:])]
+    return frames[:STACK_FRAMES]
+
+
 @dataclasses.dataclass
 class Finding:
     kind: str

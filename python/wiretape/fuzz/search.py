@@ -24,12 +24,15 @@ from ..faults.run import (CleanRunFailed, _check_timeout, _quiet_stderr, check_c
                           replay_reproduction, run_case)
 from ..fuzzing import FuzzedRecording
 from .coverage import AflMap, Coverage, CoverageError, instrumented, map_size
-from .findings import Finding, finding_kind, run_signal, signature, stack, write_index
+from .findings import (Finding, debugger_command, debugger_stack, finding_kind, run_signal,
+                       signature, stack, write_index)
 
 #: Steps of a plan the search makes (four bytes a step, docs/fuzzing.md).
 MAX_STEPS = 4
 #: The runs of one search when neither --runs nor --time is given.
 DEFAULT_RUNS = 100
+#: Real seconds a finding's run under gdb may take (its symbols load first).
+DEBUGGER_TIMEOUT_S = 30.0
 #: Reproductions tried while minimizing one finding, at most.
 MAX_MINIMIZE_RUNS = 32
 #: Steps a mutation of a corpus plan grows to, at most.
@@ -198,6 +201,28 @@ class _Runner:
         run = self.run(plan)
         kind = finding_kind(run, self.recording.inert(plan))
         return run, kind, signature(kind, run) if kind else ""
+
+    def debugger_stack(self, plan: bytes) -> List[str]:
+        """The plan run once more with CMD under gdb (when it is installed):
+        the symbolized stack of a crash CMD printed none for. Generous
+        time: gdb loads CMD's symbols before it runs."""
+        if shutil.which("gdb") is None:
+            return []
+        with self._lock:
+            self._count += 1
+            path = os.path.join(self.scratch, f"plan-{self._count}.wtape")
+        self.recording.write(path, plan)
+        target = self.target
+        try:
+            run = run_case(path, None, debugger_command(list(target.argv)),
+                           max(target.timeout, DEBUGGER_TIMEOUT_S * target.speed),
+                           target.replay_options, target.listen, target.as_path, self.stop,
+                           target.speed)
+        except OSError:
+            return []
+        finally:
+            os.unlink(path)
+        return debugger_stack(run.output or "")
 
     def minimize(self, plan: bytes, kind: str, sign: str) -> bytes:
         """The plan with every step it does not need to give the same
@@ -368,8 +393,11 @@ def _keep_findings(runner: _Runner, found: Dict[Tuple[str, str], Tuple[bytes, Ru
         repro = replay_reproduction(path, [], target.argv, target.replay_options,
                                     target.as_path, target.listen,
                                     target.timeout if kind == "hang" else None, target.speed)
+        frames = stack(run)
+        if not frames and kind == "crash" and run_signal(run) is not None:
+            frames = runner.debugger_stack(plan)
         findings.append(Finding(kind, run_signal(run), sign, name, changed, repro, plan.hex(),
-                                stack(run)))
+                                frames))
     write_index(directory, findings)
     return findings, flaky, duplicates
 

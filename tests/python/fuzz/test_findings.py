@@ -75,3 +75,57 @@ def test_the_last_line_is_normalised():
         "planted bug x: range N at ADDR"
     assert last_line("planted bug y: index -490\n") == last_line("planted bug y: index 120\n")
     assert last_line("") == ""
+
+
+# Crashes on a bad first byte of the greeting's answer, printing nothing: the
+# stack comes from gdb, run once more on the minimized plan.
+SILENT_CRASH = textwrap.dedent("""
+    #include <fcntl.h>
+    #include <stdlib.h>
+    #include <termios.h>
+    #include <unistd.h>
+
+    static int decode_reply(const char* field) { return field[0] == 'R' ? 0 : *(volatile int*)0; }
+
+    int main(int argc, char** argv) {
+      int fd = open(argv[1], O_RDWR | O_NOCTTY);
+      struct termios raw;
+      if (fd < 0 || tcgetattr(fd, &raw) != 0) return 3;
+      cfmakeraw(&raw);
+      tcsetattr(fd, TCSANOW, &raw);
+      char reply[16];
+      if (write(fd, "Q0\\n", 3) != 3 || read(fd, reply, 1) != 1) return 3;
+      return decode_reply(reply);
+    }
+""")
+
+
+def test_a_crash_that_prints_no_stack_gets_one_from_the_debugger(tmp_path, session):
+    import shutil
+    import subprocess
+    compiler = shutil.which("cc") or shutil.which("gcc")
+    if compiler is None or shutil.which("gdb") is None:
+        pytest.skip("needs a C compiler and gdb (Debian packages gcc, gdb)")
+    from wiretape.fuzz.findings import debugger_command
+    probe = subprocess.run(debugger_command(["true"]), capture_output=True, text=True,
+                           timeout=120)
+    if "exited normally" not in probe.stdout + probe.stderr:
+        pytest.skip("gdb cannot run a program here (ptrace refused?): "
+                    + (probe.stdout + probe.stderr).strip()[-200:])
+    source = tmp_path / "silent_crash.c"
+    source.write_text(SILENT_CRASH)
+    program = tmp_path / "silent_crash"
+    subprocess.run([compiler, "-g", "-O0", "-o", str(program), str(source)], check=True)
+    target = fuzz.Target([str(program), "{port}"], timeout=10)
+    result = fuzz.search(str(session), target, str(tmp_path / "findings"),
+                         plans=[bytes([0, 0, 0, 1])], runs=1)
+    assert [run.outcome for run in result.runs] == ["crash"]
+    (finding,) = result.findings
+    assert finding.signature == "signal SIGSEGV"  # CMD printed nothing to tell it by
+    assert finding.stack, "gdb gave no backtrace"
+    assert "decode_reply" in finding.stack[0] and "silent_crash.c" in finding.stack[0]
+    assert any("main" in frame for frame in finding.stack[1:])
+    # index.json carries it, for whoever reads the finding without wiretape
+    import json
+    index = json.loads((tmp_path / "findings" / "index.json").read_text())
+    assert index["findings"][0]["stack"] == finding.stack
