@@ -220,7 +220,7 @@ void Bridge::Impl::read_device(Readiness ready) {
   std::array<char, kChunk> buffer;
   std::size_t filled = 0;
   const auto deliver = [&] {
-    status_.update_stats([filled](BridgeStats& s) { s.bytes_from_device += filled; });
+    status_.add_bytes_from_device(filled);
     endpoint_->deliver_from_device(buffer.data(), filled);
   };
   const bool one_read_per_delivery = endpoint_->keeps_datagram_boundaries();
@@ -314,7 +314,7 @@ std::string Bridge::Impl::why_nothing_was_served() const {
   BridgeStats stats;
   {
     std::lock_guard<std::mutex> lock(status_.mutex);
-    stats = status_.result.stats;
+    stats = status_.stats();
   }
   const std::string none = "no client was served any of the recording's rx: ";
   // A fault wiretape injected is never the client's doing.
@@ -499,12 +499,14 @@ bool Bridge::running() const {
 
 BridgeResult Bridge::result() const {
   std::lock_guard<std::mutex> lock(impl_->status_.mutex);
-  return impl_->status_.result;
+  BridgeResult result = impl_->status_.result;
+  result.stats = impl_->status_.stats();
+  return result;
 }
 
 BridgeStats Bridge::stats() const {
   std::lock_guard<std::mutex> lock(impl_->status_.mutex);
-  return impl_->status_.result.stats;
+  return impl_->status_.stats();
 }
 
 std::string Bridge::pty_path() const {

@@ -355,7 +355,7 @@ void DeviceSide::send(const char* data, std::size_t size) {
       lost(closed.what());
       return;
     }
-    if (n > 0) status_.update_stats([n](BridgeStats& s) { s.bytes_to_device += n; });
+    if (n > 0) status_.add_bytes_to_device(n);
     if (n == size) return;
     to_device_.append(data + n, size - n);
     if (n == 0) return;
@@ -376,7 +376,7 @@ void DeviceSide::flush() {
     }
     if (n == 0) return;
     to_device_.consume(n);
-    status_.update_stats([n](BridgeStats& s) { s.bytes_to_device += n; });
+    status_.add_bytes_to_device(n);
   }
 }
 
