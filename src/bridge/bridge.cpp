@@ -218,10 +218,12 @@ void Bridge::Impl::loop() {
 
 void Bridge::Impl::read_device(Readiness ready) {
   std::array<char, kChunk> buffer;
+  // What was read: in `buffer`, or in the session file's buffer.
+  const char* data = buffer.data();
   std::size_t filled = 0;
   const auto deliver = [&] {
     status_.add_bytes_from_device(filled);
-    endpoint_->deliver_from_device(buffer.data(), filled);
+    endpoint_->deliver_from_device(data, filled);
   };
   const bool one_read_per_delivery = endpoint_->keeps_datagram_boundaries();
   try {
@@ -248,8 +250,13 @@ void Bridge::Impl::read_device(Readiness ready) {
         // poll. Left for the poll, which then returns at once, the rest costs
         // less: record --pty's CPU per MB fell by a fifth (docs/benchmarks.md,
         // "Where the cycles go").
-        filled = device_.port().read(buffer.data(), buffer.size(), std::chrono::nanoseconds(0));
-        if (filled > 0) device_.record(RecordKind::rx, std::string_view(buffer.data(), filled));
+        // Read into the session file's buffer where the endpoint records
+        // nothing before it is done with the bytes: the record is the
+        // read, not a copy of it (docs/benchmarks.md).
+        const std::string_view got = device_.read_and_record(
+            buffer.data(), buffer.size(), endpoint_->delivers_without_recording());
+        data = got.data();
+        filled = got.size();
       }
     }
   } catch (const PortClosed& closed) {
