@@ -208,7 +208,7 @@ std::optional<std::size_t> FdPort::receive(void* buffer, std::size_t size,
       // A deadline already past (a read with timeout 0) was answered by the
       // read just tried: a poll would only add a system call to every read
       // that finds nothing, which the bridge makes to empty a terminal.
-      if (is_past(deadline)) return 0;
+      if (deadline && std::chrono::steady_clock::now() >= *deadline) return 0;
       if (!wait_for(POLLIN, deadline)) return 0;
       continue;
     }
@@ -230,7 +230,7 @@ std::size_t FdPort::write_some(const void* data, std::size_t size,
     if (err == EAGAIN || err == EWOULDBLOCK || err == ENOBUFS) {
       // As for a read: a deadline already past (a write with timeout 0, the
       // bridge's to a full terminal) was answered by the write just tried.
-      if (is_past(deadline)) return 0;
+      if (deadline && std::chrono::steady_clock::now() >= *deadline) return 0;
       if (!wait_for(POLLOUT, deadline)) return 0;
       continue;
     }
