@@ -36,7 +36,7 @@ class Status {
 
   // The byte counters move at every read and write of the bridge's thread,
   // which is their one writer: atomics, not the mutex (a lock and an unlock
-  // for each read of the device was 0.03 M instructions a MB of record
+  // for each read of the device were 0.015 M instructions a MB of record
   // --pty, docs/benchmarks.md). Bridge's getters merge them into the stats.
   void add_bytes_from_device(std::uint64_t n) {
     bytes_from_device_.fetch_add(n, std::memory_order_release);
