@@ -236,6 +236,23 @@ class SessionWriter {
   void write(const Record& record) {
     write(record.kind, record.t_ns, record.data, record.channel);
   }
+  // A record read straight into the writer's buffer, without a copy (the
+  // bridge's reads of its device): `fill` is called with the writer locked
+  // and room for `max_size` bytes, and returns how many it put there and
+  // their time; they become a record of `kind` (nothing for 0 bytes). An
+  // exception of `fill` leaves nothing recorded. `*bytes` is set to the
+  // record's bytes in the buffer before a flush this write makes, so that
+  // when the flush fails (thrown as by write()) the caller still has them.
+  // They stay valid and unchanged until the next write to this writer from
+  // any thread: only a writer of one writing thread may use them after
+  // this returns, and only before it writes again.
+  struct Filled {
+    std::size_t size = 0;
+    std::uint64_t t_ns = 0;
+  };
+  using Fill = Filled (*)(void* context, char* room, std::size_t max_size);
+  void write_filled(RecordKind kind, std::size_t max_size, Fill fill, void* context,
+                    std::string_view* bytes, std::uint16_t channel = 0);
   // Appends `channel` to the header's channels with the next id (returned;
   // the given id is ignored) and rewrites the header in place, padded to the
   // length reserved at construction (header_room). Thread-safe with write().

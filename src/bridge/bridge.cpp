@@ -218,10 +218,12 @@ void Bridge::Impl::loop() {
 
 void Bridge::Impl::read_device(Readiness ready) {
   std::array<char, kChunk> buffer;
+  // What was read: in `buffer`, or in the session file's buffer.
+  const char* data = buffer.data();
   std::size_t filled = 0;
   const auto deliver = [&] {
-    status_.update_stats([filled](BridgeStats& s) { s.bytes_from_device += filled; });
-    endpoint_->deliver_from_device(buffer.data(), filled);
+    status_.add_bytes_from_device(filled);
+    endpoint_->deliver_from_device(data, filled);
   };
   const bool one_read_per_delivery = endpoint_->keeps_datagram_boundaries();
   try {
@@ -248,8 +250,13 @@ void Bridge::Impl::read_device(Readiness ready) {
         // poll. Left for the poll, which then returns at once, the rest costs
         // less: record --pty's CPU per MB fell by a fifth (docs/benchmarks.md,
         // "Where the cycles go").
-        filled = device_.port().read(buffer.data(), buffer.size(), std::chrono::nanoseconds(0));
-        if (filled > 0) device_.record(RecordKind::rx, std::string_view(buffer.data(), filled));
+        // Read into the session file's buffer where the endpoint records
+        // nothing before it is done with the bytes: the record is the
+        // read, not a copy of it (docs/benchmarks.md).
+        const std::string_view got = device_.read_and_record(
+            buffer.data(), buffer.size(), endpoint_->delivers_without_recording());
+        data = got.data();
+        filled = got.size();
       }
     }
   } catch (const PortClosed& closed) {
@@ -314,7 +321,7 @@ std::string Bridge::Impl::why_nothing_was_served() const {
   BridgeStats stats;
   {
     std::lock_guard<std::mutex> lock(status_.mutex);
-    stats = status_.result.stats;
+    stats = status_.stats();
   }
   const std::string none = "no client was served any of the recording's rx: ";
   // A fault wiretape injected is never the client's doing.
@@ -499,12 +506,14 @@ bool Bridge::running() const {
 
 BridgeResult Bridge::result() const {
   std::lock_guard<std::mutex> lock(impl_->status_.mutex);
-  return impl_->status_.result;
+  BridgeResult result = impl_->status_.result;
+  result.stats = impl_->status_.stats();
+  return result;
 }
 
 BridgeStats Bridge::stats() const {
   std::lock_guard<std::mutex> lock(impl_->status_.mutex);
-  return impl_->status_.result.stats;
+  return impl_->status_.stats();
 }
 
 std::string Bridge::pty_path() const {

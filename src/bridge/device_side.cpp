@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstdio>
+#include <exception>
 
 #include "posix/device_identity.hpp"
 #include "posix/transports.hpp"
@@ -230,6 +231,57 @@ void DeviceSide::record(RecordKind kind, std::string_view data) {
   }
 }
 
+namespace {
+
+// A device read into the session writer's buffer (write_filled).
+struct DeviceRead {
+  DeviceSide* side;
+  Port* device;
+  std::exception_ptr error;  // the device's, raised once the writer is let go
+};
+
+SessionWriter::Filled read_into_record(void* context, char* room, std::size_t size) {
+  auto& read = *static_cast<DeviceRead*>(context);
+  try {
+    const std::size_t n = read.device->read(room, size, std::chrono::nanoseconds(0));
+    return {n, read.side->now_ns()};
+  } catch (...) {
+    read.error = std::current_exception();
+    return {};
+  }
+}
+
+}  // namespace
+
+std::string_view DeviceSide::read_and_record(char* buffer, std::size_t size, bool in_place) {
+  if (in_place && recording_ && owns_file_ && !recording_failed_) {
+    DeviceRead read{this, device_.get(), nullptr};
+    std::string_view bytes;
+    try {
+      RecordingChannelAccess::file(*recording_).writer.write_filled(
+          RecordKind::rx, size, &read_into_record, &read, &bytes, recording_->id());
+    } catch (const PortError& error) {
+      // The file failed (as append_record handles it): recording stops; what
+      // was read, if anything, is still the clients'.
+      recording_stopped(error);
+      count_records_written(status_, *recording_);
+      if (read.error) std::rethrow_exception(read.error);
+      if (bytes.data() != nullptr) return bytes;
+      return read_and_record(buffer, size, false);
+    }
+    if (read.error) std::rethrow_exception(read.error);
+    const std::uint64_t in_file = recording_->records_written();
+    if (in_file != records_in_status_) {
+      records_in_status_ = in_file;
+      status_.update_stats([in_file](BridgeStats& s) { s.records_written = in_file; });
+    }
+    return bytes;
+  }
+  const std::size_t n = device_->read(buffer, size, std::chrono::nanoseconds(0));
+  if (n > 0) record(RecordKind::rx, std::string_view(buffer, n));
+  return std::string_view(buffer, n);
+}
+
 void DeviceSide::record_at(RecordKind kind, std::uint64_t t_ns, std::string_view data) {
   append_record(kind, t_ns, data);
 }
@@ -355,7 +407,7 @@ void DeviceSide::send(const char* data, std::size_t size) {
       lost(closed.what());
       return;
     }
-    if (n > 0) status_.update_stats([n](BridgeStats& s) { s.bytes_to_device += n; });
+    if (n > 0) status_.add_bytes_to_device(n);
     if (n == size) return;
     to_device_.append(data + n, size - n);
     if (n == 0) return;
@@ -376,7 +428,7 @@ void DeviceSide::flush() {
     }
     if (n == 0) return;
     to_device_.consume(n);
-    status_.update_stats([n](BridgeStats& s) { s.bytes_to_device += n; });
+    status_.add_bytes_to_device(n);
   }
 }
 

@@ -83,6 +83,12 @@ class DeviceSide {
   // A recorder's channel is stamped as the record enters the file, so that
   // the channels of several bridges are in time order across channels.
   void record(RecordKind kind, std::string_view data);
+  // One read of the device now, of up to `size` bytes, recorded (rx): the
+  // bytes read, none when none wait. Where the bridge has a file of its own
+  // they are read straight into its buffer (no copy; `in_place` lets them
+  // be used until the next record, which the caller makes sure of), else
+  // into `buffer`. Raises PortClosed when the device went away.
+  std::string_view read_and_record(char* buffer, std::size_t size, bool in_place);
   void record_at(RecordKind kind, std::uint64_t t_ns, std::string_view data);
   // A client arriving and leaving, as every endpoint reports it. A
   // controlling client's arrival begins a client session of a replayed

@@ -37,6 +37,10 @@ class ClientEndpoint {
   // the device (backpressure).
   virtual bool wants_device_data() const = 0;
   virtual void deliver_from_device(const char* data, std::size_t size) = 0;
+  // Whether deliver_from_device() records nothing (DeviceSide::record)
+  // before it is done with `data`, which may then be the record itself in
+  // the session file's buffer, valid until the next record is written.
+  virtual bool delivers_without_recording() const { return false; }
   // Whether each read of the device must be delivered on its own (a
   // datagram endpoint: one read is one datagram) rather than joined with
   // the reads after it.

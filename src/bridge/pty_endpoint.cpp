@@ -119,6 +119,10 @@ class PtyEndpoint final : public ClientEndpoint {
 
   bool wants_device_data() const override { return !to_pty_.full(); }
 
+  // Every path below writes `data` to the terminal or copies it into the
+  // queue before anything (a read of the client's bytes) is recorded.
+  bool delivers_without_recording() const override { return true; }
+
   void deliver_from_device(const char* data, std::size_t size) override {
     // Written from the caller's buffer while nothing waits before it: only
     // what the terminal does not take now is copied into the queue (the

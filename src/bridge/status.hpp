@@ -2,7 +2,9 @@
 // counters, diagnostics and addresses, behind one mutex.
 #pragma once
 
+#include <atomic>
 #include <condition_variable>
+#include <cstdint>
 #include <cstdio>
 #include <deque>
 #include <mutex>
@@ -32,6 +34,24 @@ class Status {
     update(result.stats);
   }
 
+  // The byte counters move at every read and write of the bridge's thread,
+  // which is their one writer: atomics, not the mutex (a lock and an unlock
+  // for each read of the device were 0.015 M instructions a MB of record
+  // --pty, docs/benchmarks.md). Bridge's getters merge them into the stats.
+  void add_bytes_from_device(std::uint64_t n) {
+    bytes_from_device_.fetch_add(n, std::memory_order_release);
+  }
+  void add_bytes_to_device(std::uint64_t n) {
+    bytes_to_device_.fetch_add(n, std::memory_order_release);
+  }
+  // result.stats with the byte counters; call with mutex held.
+  BridgeStats stats() const {
+    BridgeStats stats = result.stats;
+    stats.bytes_from_device = bytes_from_device_.load(std::memory_order_acquire);
+    stats.bytes_to_device = bytes_to_device_.load(std::memory_order_acquire);
+    return stats;
+  }
+
   template <typename Field>
   void set(Field Status::*field, Field value) {
     std::lock_guard<std::mutex> lock(mutex);
@@ -50,6 +70,8 @@ class Status {
 
  private:
   const bool quiet_;
+  std::atomic<std::uint64_t> bytes_from_device_{0};
+  std::atomic<std::uint64_t> bytes_to_device_{0};
 };
 
 }  // namespace wiretape::detail::bridge

@@ -84,15 +84,28 @@ std::string FdPort::description() const {
 
 int FdPort::native_handle() const { return closed_ ? -1 : fd_.get(); }
 
+// Every read and write passes through here, so it takes no lock (two
+// lock/unlock pairs and a notify a call were a tenth of record --pty's
+// instructions a MB, docs/benchmarks.md): the call is counted first and closed_
+// read after, close() sets closed_ first and reads the count after (both
+// sequentially consistent), so either the call sees closed_ or close()
+// sees the call and waits for it. Only a call that leaves after close()
+// began takes the mutex, to wake it.
 FdPort::Call::Call(FdPort& port) : port_(port) {
-  std::lock_guard<std::mutex> lock(port_.mutex_);
-  if (port_.closed_) port_.raise_closed();
-  ++port_.calls_in_flight_;
+  port_.calls_in_flight_.fetch_add(1);
+  if (port_.closed_.load()) {
+    leave();
+    port_.raise_closed();
+  }
 }
 
-FdPort::Call::~Call() {
-  std::lock_guard<std::mutex> lock(port_.mutex_);
-  if (--port_.calls_in_flight_ == 0) port_.idle_.notify_all();
+FdPort::Call::~Call() { leave(); }
+
+void FdPort::Call::leave() {
+  if (port_.calls_in_flight_.fetch_sub(1) == 1 && port_.closed_.load()) {
+    std::lock_guard<std::mutex> lock(port_.mutex_);
+    port_.idle_.notify_all();
+  }
 }
 
 void FdPort::raise_closed() const {
@@ -115,7 +128,7 @@ void FdPort::close() {
   }
   {
     std::unique_lock<std::mutex> lock(mutex_);
-    idle_.wait(lock, [this] { return calls_in_flight_ == 0; });
+    idle_.wait(lock, [this] { return calls_in_flight_.load() == 0; });
   }
   on_close();
   fd_.reset();
@@ -215,6 +228,9 @@ std::size_t FdPort::write_some(const void* data, std::size_t size,
     const int err = n == 0 ? EAGAIN : errno;
     if (err == EINTR) continue;
     if (err == EAGAIN || err == EWOULDBLOCK || err == ENOBUFS) {
+      // As for a read: a deadline already past (a write with timeout 0, the
+      // bridge's to a full terminal) was answered by the write just tried.
+      if (deadline && std::chrono::steady_clock::now() >= *deadline) return 0;
       if (!wait_for(POLLOUT, deadline)) return 0;
       continue;
     }

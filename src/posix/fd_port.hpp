@@ -78,6 +78,7 @@ class FdPort : public Port {
     Call& operator=(const Call&) = delete;
 
    private:
+    void leave();
     FdPort& port_;
   };
 
@@ -99,9 +100,10 @@ class FdPort : public Port {
   sys::UniqueFd wake_write_;
   mutable std::mutex description_mutex_;
   std::string description_;
+  // close()'s wait for the calls in flight to leave (see Call).
   mutable std::mutex mutex_;
   std::condition_variable idle_;
-  int calls_in_flight_ = 0;
+  std::atomic<int> calls_in_flight_{0};
   std::atomic<bool> closed_{false};
   // The device went away (end of file, hang-up): every later call raises.
   std::atomic<bool> gone_{false};

@@ -54,6 +54,51 @@ constexpr std::size_t buffer_room = max_buffered + 64 * 1024;
 // growing the file write by write.
 constexpr std::uint64_t reserve_step = 32 * 1024 * 1024;
 
+// The records buffered for the file. Unlike a std::string, its room past the
+// end can be filled in place (a device read straight into a record:
+// write_filled) and grown into without being initialised first; and its
+// memory moves only when reserve() grows it.
+class ByteBuffer {
+ public:
+  ByteBuffer() = default;
+  ByteBuffer(const ByteBuffer&) = delete;
+  ByteBuffer& operator=(const ByteBuffer&) = delete;
+
+  std::size_t size() const { return size_; }
+  std::size_t capacity() const { return capacity_; }
+  bool empty() const { return size_ == 0; }
+  char* data() { return bytes_.get(); }
+  const char* data() const { return bytes_.get(); }
+  char& operator[](std::size_t at) { return bytes_[at]; }
+  void clear() { size_ = 0; }
+  void reserve(std::size_t capacity) {
+    if (capacity <= capacity_) return;
+    std::unique_ptr<char[]> grown(new char[capacity]);
+    if (size_ > 0) std::memcpy(grown.get(), bytes_.get(), size_);
+    bytes_ = std::move(grown);
+    capacity_ = capacity;
+  }
+  // Room for `n` more bytes at end(), which grow() then counts in.
+  char* end() { return bytes_.get() + size_; }
+  void grow(std::size_t n) { size_ += n; }
+  void append(const char* bytes, std::size_t n) {
+    if (capacity_ - size_ < n) reserve(std::max(size_ + n, capacity_ * 2));
+    if (n > 0) std::memcpy(end(), bytes, n);
+    size_ += n;
+  }
+  void append(const std::string& bytes) { append(bytes.data(), bytes.size()); }
+  void swap(ByteBuffer& other) noexcept {
+    std::swap(bytes_, other.bytes_);
+    std::swap(size_, other.size_);
+    std::swap(capacity_, other.capacity_);
+  }
+
+ private:
+  std::unique_ptr<char[]> bytes_;
+  std::size_t size_ = 0;
+  std::size_t capacity_ = 0;
+};
+
 }  // namespace
 
 struct SessionWriter::Impl {
@@ -74,8 +119,11 @@ struct SessionWriter::Impl {
   // Guards everything below.
   mutable std::mutex mutex;
   std::condition_variable wake;
-  std::string buffer;
-  std::string spare;  // a flushed buffer kept for its capacity
+  // The records of a flush stay where they were buffered until the next
+  // one is written: the flushed buffer becomes the spare, on a failure too
+  // (write_filled's caller reads its record after the lock is let go).
+  ByteBuffer buffer;
+  ByteBuffer spare;  // a flushed buffer kept for its capacity
   // End offset of each buffered record (the file header counts as one); its
   // last 4 bytes are the CRC slot, filled in by seal() before the write.
   std::vector<std::size_t> record_ends;
@@ -153,7 +201,7 @@ struct SessionWriter::Impl {
   // `final`: the last flush, which ends an open chunk.
   void flush_now(bool final = false) {
     std::lock_guard<std::mutex> io(io_mutex);
-    std::string data;
+    ByteBuffer data;
     std::vector<std::size_t> ends;
     {
       std::lock_guard<std::mutex> lock(mutex);
@@ -175,19 +223,25 @@ struct SessionWriter::Impl {
     }
     seal(data, ends);
     const std::size_t records_in = ends.size();
+    // What goes to the file: the records as buffered, or their chunks.
+    std::string chunk_bytes;
+    const char* out = data.data();
+    std::size_t out_size = data.size();
     if (chunks) {
       chunks->set_file_offset(committed);
-      data = chunked(data, ends, final);
-      ends.assign(1, data.size());  // whole or not at all (see below)
+      chunk_bytes = chunked(data, ends, final);
+      out = chunk_bytes.data();
+      out_size = chunk_bytes.size();
+      ends.assign(1, out_size);  // whole or not at all (see below)
     }
     // Past RLIMIT_FSIZE the write must fail (EFBIG) rather than the process
     // die between two pages of a record.
     const detail::FileSizeSignalBlocked no_file_size_signal;
-    reserve_ahead(committed + data.size());
+    reserve_ahead(committed + out_size);
     std::size_t written = 0;
     int error = 0;
-    while (written < data.size()) {
-      const ssize_t n = sys::write(fd, data.data() + written, data.size() - written);
+    while (written < out_size) {
+      const ssize_t n = sys::write(fd, out + written, out_size - written);
       if (n < 0) {
         if (errno == EINTR) continue;
         error = errno;
@@ -204,11 +258,10 @@ struct SessionWriter::Impl {
       written = 0;  // nothing is known to be on the disk
     }
     if (error == 0) {
-      committed += data.size();
+      committed += out_size;
       std::lock_guard<std::mutex> count(mutex);
       count_committed(records_in);
-      data.clear();
-      if (spare.capacity() < data.capacity()) spare.swap(data);
+      keep_as_spare(data);
       ends.clear();
       if (spare_ends.capacity() < ends.capacity()) spare_ends.swap(ends);
       return;
@@ -224,26 +277,35 @@ struct SessionWriter::Impl {
     {
       std::lock_guard<std::mutex> count(mutex);
       count_committed(whole_records);
+      keep_as_spare(data);
     }
     fail_and_release(error);
+  }
+
+  // Called with mutex held: the flushed buffer's memory is kept (see
+  // buffer), its records read as the writer wrote them until it is filled
+  // again, which only a write after this flush does.
+  void keep_as_spare(ByteBuffer& data) {
+    data.clear();
+    if (spare.capacity() < data.capacity()) spare.swap(data);
   }
 
   // The flushed bytes as chunk records: the file header as it is, each
   // record an entry of the open chunk (or, too large for one, as it is
   // between chunks), then the chunk's part up to here (ZSTD_e_flush), or
   // its last part when `final`.
-  std::string chunked(const std::string& data, const std::vector<std::size_t>& ends,
+  std::string chunked(const ByteBuffer& data, const std::vector<std::size_t>& ends,
                       bool final) {
     std::string out;
     std::size_t start = 0;
     for (std::size_t i = 0; i < ends.size(); ++i) {
       const std::size_t end = ends[i];
       if (committed == 0 && i == 0) {  // the file header
-        out.append(data, 0, end);
+        out.append(data.data(), end);
         start = end;
         continue;
       }
-      const char* record = &data[start];
+      const char* record = data.data() + start;
       const std::uint32_t length = detail::get_u32le(record);
       // The index is the file's structure: read from its end, never chunked.
       const bool structure = static_cast<std::uint8_t>(record[4]) == detail::index_record_code;
@@ -257,7 +319,7 @@ struct SessionWriter::Impl {
           index.add(committed + out.size(), committed + out.size() + (end - start),
                     detail::get_u16le(record + 6));
         }
-        out.append(data, start, end - start);
+        out.append(data.data() + start, end - start);
       }
       start = end;
     }
@@ -277,7 +339,7 @@ struct SessionWriter::Impl {
 
   // Fills each record's CRC slot with the CRC32C of the bytes before it (the
   // file header has the same shape: fixed part, JSON, CRC).
-  static void seal(std::string& data, const std::vector<std::size_t>& ends) {
+  static void seal(ByteBuffer& data, const std::vector<std::size_t>& ends) {
     std::size_t start = 0;
     for (const std::size_t end : ends) {
       const std::size_t covered = end - detail::crc_size - start;
@@ -318,7 +380,7 @@ struct SessionWriter::Impl {
     // there by now), not the records' as they were buffered.
     const std::uint64_t at = chunks ? committed : buffered_total;
     const std::string bytes = index.record_bytes(at, header.channels.size());
-    buffer += bytes;
+    buffer.append(bytes);
     record_ends.push_back(buffer.size());
     buffered_total += bytes.size();
     index_end = at + bytes.size();
@@ -332,6 +394,59 @@ struct SessionWriter::Impl {
       reserved = committed;
     }
 #endif
+  }
+
+  // Called with mutex held: where a record of up to `size` bytes goes (its
+  // bytes, after the room for its header), once the writer is known to
+  // take it.
+  char* room_for_record(std::size_t size) {
+    if (failure) throw *failure;
+    if (closed) {
+      throw PortError(EBADF, path + ": the session writer is closed; the record was not written");
+    }
+    const std::size_t framed = detail::record_header_size + size + detail::crc_size;
+    if (buffer.capacity() - buffer.size() < framed) {
+      buffer.reserve(std::max(buffer.size() + framed, buffer_room));
+    }
+    return buffer.end() + detail::record_header_size;
+  }
+
+  // Called with mutex held, the record's `size` bytes at room_for_record():
+  // frames the record and counts it in. True when the writing thread must
+  // flush now.
+  bool commit_record(RecordKind kind, std::uint64_t t_ns, std::size_t size,
+                     std::uint16_t channel) {
+    char* head = buffer.end();
+    detail::put_u32le(head, static_cast<std::uint32_t>(size));
+    head[4] = static_cast<char>(kind);
+    head[5] = 0;
+    detail::put_u16le(head + 6, channel);
+    detail::put_u64le(head + 8, t_ns);
+    // The CRC slot, filled in by the flusher (seal).
+    std::memset(head + detail::record_header_size + size, 0, detail::crc_size);
+    const std::size_t framed = detail::record_header_size + size + detail::crc_size;
+    buffer.grow(framed);
+    record_ends.push_back(buffer.size());
+    const std::uint64_t offset = buffered_total;
+    buffered_total += framed;
+    // A compressed file's index is of chunks, built as they are flushed.
+    if (!chunks) index.add(offset, buffered_total, channel);
+    if (!oldest_unflushed) {
+      oldest_unflushed = Clock::now();
+      wake.notify_one();
+    }
+    if (buffer.size() >= flush_threshold && !flush_requested) {
+      flush_requested = true;
+      wake.notify_one();
+    }
+    return buffer.size() >= max_buffered || flush.interval.count() == 0;
+  }
+
+  // A write's own flush (commit_record said so), without mutex.
+  void flush_here() {
+    flush_now();
+    std::lock_guard<std::mutex> lock(mutex);
+    if (failure) throw *failure;
   }
 
   void run_flusher() {
@@ -406,7 +521,7 @@ SessionWriter::SessionWriter(const std::string& path, const SessionHeader& heade
   // The CRC slot is sealed by the first flush.
   std::string file_header = file_header_bytes(impl_->header, json, impl_->header_json_room);
   // The header reaches the OS at once: a file that exists is readable.
-  impl_->buffer = file_header;
+  impl_->buffer.append(file_header);
   impl_->record_ends.push_back(file_header.size());
   impl_->buffered_total = file_header.size();
   impl_->flush_now();
@@ -432,49 +547,38 @@ void SessionWriter::write(RecordKind kind, std::uint64_t t_ns, std::string_view 
     throw PortError(EFBIG, impl_->path + ": a record of " + std::to_string(data.size()) +
                                " bytes is larger than the 4 GiB a record can hold");
   }
-  char head[detail::record_header_size] = {};
-  detail::put_u32le(head, static_cast<std::uint32_t>(data.size()));
-  head[4] = static_cast<char>(kind);
-  detail::put_u16le(head + 6, channel);
-  detail::put_u64le(head + 8, t_ns);
-  const char tail[detail::crc_size] = {};  // the flusher fills it in (seal)
-
   bool flush_here = false;
   {
     std::lock_guard<std::mutex> lock(impl_->mutex);
-    if (impl_->failure) throw *impl_->failure;
-    if (impl_->closed) {
-      throw PortError(EBADF, impl_->path +
-                                 ": the session writer is closed; the record was not written");
-    }
-    std::string& buffer = impl_->buffer;
-    const std::size_t framed = sizeof head + data.size() + sizeof tail;
-    if (buffer.capacity() - buffer.size() < framed) {
-      buffer.reserve(std::max(buffer.size() + framed, buffer_room));
-    }
-    buffer.append(head, sizeof head);
-    buffer.append(data.data(), data.size());
-    buffer.append(tail, sizeof tail);
-    impl_->record_ends.push_back(buffer.size());
-    const std::uint64_t offset = impl_->buffered_total;
-    impl_->buffered_total += framed;
-    // A compressed file's index is of chunks, built as they are flushed.
-    if (!impl_->chunks) impl_->index.add(offset, impl_->buffered_total, channel);
-    if (!impl_->oldest_unflushed) {
-      impl_->oldest_unflushed = Clock::now();
-      impl_->wake.notify_one();
-    }
-    if (buffer.size() >= flush_threshold && !impl_->flush_requested) {
-      impl_->flush_requested = true;
-      impl_->wake.notify_one();
-    }
-    flush_here = buffer.size() >= max_buffered || impl_->flush.interval.count() == 0;
+    char* room = impl_->room_for_record(data.size());
+    if (!data.empty()) std::memcpy(room, data.data(), data.size());
+    flush_here = impl_->commit_record(kind, t_ns, data.size(), channel);
   }
-  if (flush_here) {
-    impl_->flush_now();
+  if (flush_here) impl_->flush_here();
+}
+
+void SessionWriter::write_filled(RecordKind kind, std::size_t max_size, Fill fill,
+                                 void* context, std::string_view* bytes,
+                                 std::uint16_t channel) {
+  if (max_size > 0xFFFFFFFFull) {
+    throw PortError(EFBIG, impl_->path + ": a record of " + std::to_string(max_size) +
+                               " bytes is larger than the 4 GiB a record can hold");
+  }
+  *bytes = std::string_view();
+  bool flush_here = false;
+  {
     std::lock_guard<std::mutex> lock(impl_->mutex);
-    if (impl_->failure) throw *impl_->failure;
+    char* room = impl_->room_for_record(max_size);
+    const Filled filled = fill(context, room, max_size);
+    if (filled.size == 0) return;
+    const std::string_view data(room, std::min(filled.size, max_size));
+    if (const auto problem = detail::record_content_problem(kind, filled.t_ns, data)) {
+      throw std::invalid_argument(impl_->path + ": refusing to write a record: " + *problem);
+    }
+    flush_here = impl_->commit_record(kind, filled.t_ns, data.size(), channel);
+    *bytes = data;
   }
+  if (flush_here) impl_->flush_here();
 }
 
 // Writes `updated`'s JSON over the header's (its fixed part never changes),

@@ -165,6 +165,64 @@ TEST(SessionFile, LargePayloadsRoundTrip) {
   EXPECT_EQ(records[2].data, "after");
 }
 
+// write_filled: the bytes are put in the buffer by the caller's fill, and
+// are the record, in order with write()'s; none filled is no record, and a
+// fill that throws leaves nothing behind. The bytes it hands back are the
+// record's until the next write, across a flush of the writer's own.
+TEST(SessionFile, FilledRecordsAreTheBytesTheFillPutInPlace) {
+  TempDir dir;
+  const std::string path = dir.file("filled.wtape");
+  struct Source {
+    std::string next;
+    bool fail = false;
+    std::uint64_t t_ns = 10;
+  };
+  const SessionWriter::Fill fill = [](void* context, char* room, std::size_t size) {
+    auto& source = *static_cast<Source*>(context);
+    if (source.fail) throw PortClosed("the device went away");
+    const std::size_t n = std::min(size, source.next.size());
+    std::memcpy(room, source.next.data(), n);
+    return SessionWriter::Filled{n, ++source.t_ns};
+  };
+  std::string big(1536 * 1024, '\0');
+  for (std::size_t i = 0; i < big.size(); ++i) big[i] = static_cast<char>(i * 13 + 1);
+  {
+    // Flushes only when the buffer passes its bound: big's record is
+    // flushed by its own write.
+    SessionWriter writer(path, {}, FlushPolicy{std::chrono::milliseconds(60'000)});
+    writer.write(RecordKind::tx, 1, "before");
+    Source source{"filled in place"};
+    std::string_view bytes;
+    writer.write_filled(RecordKind::rx, 64, fill, &source, &bytes);
+    EXPECT_EQ(bytes, "filled in place");
+    source.next.clear();
+    writer.write_filled(RecordKind::rx, 64, fill, &source, &bytes);
+    EXPECT_TRUE(bytes.empty());
+    source.fail = true;
+    EXPECT_THROW(writer.write_filled(RecordKind::rx, 64, fill, &source, &bytes), PortClosed);
+    source.fail = false;
+    source.next = big;
+    writer.write_filled(RecordKind::rx, big.size(), fill, &source, &bytes);
+    EXPECT_EQ(bytes.size(), big.size());
+    EXPECT_TRUE(bytes == big);
+    source.next = "cut to its room";
+    writer.write_filled(RecordKind::rx, 6, fill, &source, &bytes);
+    EXPECT_EQ(bytes, "cut to");
+    writer.write(RecordKind::tx, 2, "after");
+  }
+  SessionReader reader(path);
+  const auto records = read_all(reader);
+  ASSERT_EQ(records.size(), 5u);
+  EXPECT_EQ(records[0].data, "before");
+  EXPECT_EQ(records[1].kind, RecordKind::rx);
+  EXPECT_EQ(records[1].t_ns, 11u);
+  EXPECT_EQ(records[1].data, "filled in place");
+  EXPECT_TRUE(records[2].data == big);
+  EXPECT_EQ(records[3].data, "cut to");
+  EXPECT_EQ(records[4].data, "after");
+  EXPECT_FALSE(reader.damage());
+}
+
 TEST(SessionFile, MissingEmptyAndForeignFilesAreClearErrors) {
   TempDir dir;
   auto expect_error = [](const std::string& path, const std::string& words,
