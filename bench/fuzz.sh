@@ -60,7 +60,10 @@ for source in "${sources[@]}"; do
 done
 [ -z "$python" ] || { echo "fuzz: test_combinations, $((seconds * 2)) examples"; WIRETAPE_COMBINATION_EXAMPLES=$((seconds * 2)) "$python" -m pytest -q -p no:cacheprovider "$root/tests/python/bindings/test_combinations.py" >"$build/test_combinations.log" 2>&1; } || { tail -n 40 "$build/test_combinations.log" >&2; failed+=(test_combinations); }
 [ -z "$python" ] || { echo "fuzz: test_combination_events, $((seconds * 2)) examples"; WIRETAPE_COMBINATION_EXAMPLES=$((seconds * 2)) "$python" -m pytest -q -p no:cacheprovider "$root/tests/python/bindings/test_combination_events.py" >"$build/test_combination_events.log" 2>&1; } || { tail -n 40 "$build/test_combination_events.log" >&2; failed+=(test_combination_events); }
-[ -z "$python" ] || { echo "fuzz: import damage sweep, every position (WIRETAPE_DAMAGE_SWEEP=full)"; WIRETAPE_DAMAGE_SWEEP=full "$python" -m pytest -q -s -p no:cacheprovider "$root/tests/python/tools/test_import_damage_sweep.py" >"$build/import_damage_sweep.log" 2>&1 && grep "damage sweep" "$build/import_damage_sweep.log" | sed "s/^/  /"; } || { tail -n 40 "$build/import_damage_sweep.log" >&2; failed+=(import_damage_sweep); }
+# The sweep runs a converter (tshark for captures) at every damaged
+# position, most of make fuzz's time: on two workers (-rP prints each
+# file's tally, which -s cannot under xdist).
+[ -z "$python" ] || { echo "fuzz: import damage sweep, every position (WIRETAPE_DAMAGE_SWEEP=full)"; WIRETAPE_DAMAGE_SWEEP=full "$python" -m pytest -q -n 2 -rP -p no:cacheprovider "$root/tests/python/tools/test_import_damage_sweep.py" >"$build/import_damage_sweep.log" 2>&1 && grep "damage sweep" "$build/import_damage_sweep.log" | sed "s/^/  /"; } || { tail -n 40 "$build/import_damage_sweep.log" >&2; failed+=(import_damage_sweep); }
 if [ ${#failed[@]} -gt 0 ]; then
   echo "fuzz: failed: ${failed[*]}" >&2
   exit 1
