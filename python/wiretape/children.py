@@ -158,7 +158,30 @@ class Relay(Protocol):
     def flush(self) -> None: ...
 
 
-class Outcome:
+class ValueFields:
+    """Equality and repr by the values of ``_FIELDS``, as a dataclass gives
+    them; for the classes of the ``-- CMD`` path, which cannot be
+    dataclasses (``dataclasses`` imports ``inspect``, ``ast`` and ``dis``,
+    7 ms of every ``-- CMD``'s start-up)."""
+
+    _FIELDS: tuple = ()
+
+    def _values(self) -> tuple:
+        return tuple(getattr(self, name) for name in self._FIELDS)
+
+    def __eq__(self, other: object) -> bool:
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        return self._values() == other._values()  # type: ignore[attr-defined]
+
+    __hash__ = None  # type: ignore[assignment]  # equal by value; a subclass may hash
+
+    def __repr__(self) -> str:
+        return (f"{type(self).__qualname__}("
+                + ", ".join(f"{name}={getattr(self, name)!r}" for name in self._FIELDS) + ")")
+
+
+class Outcome(ValueFields):
     """How a child ended. ``returncode`` as subprocess has it (minus N for
     a death by signal N); ``timed_out``: it was still running at its
     timeout and was ended; ``stdout`` the captured output (stderr included
@@ -190,20 +213,8 @@ class Outcome:
     def __delattr__(self, name: str) -> None:
         raise AttributeError(f"cannot delete field {name!r}")
 
-    def _values(self) -> tuple:
-        return tuple(getattr(self, name) for name in self._FIELDS)
-
-    def __eq__(self, other: object) -> bool:
-        if other.__class__ is not self.__class__:
-            return NotImplemented
-        return self._values() == other._values()  # type: ignore[attr-defined]
-
     def __hash__(self) -> int:
         return hash(self._values())
-
-    def __repr__(self) -> str:
-        return (f"{type(self).__qualname__}("
-                + ", ".join(f"{name}={getattr(self, name)!r}" for name in self._FIELDS) + ")")
 
     @property
     def exit_status(self) -> int:

@@ -28,7 +28,7 @@ import sys
 from typing import Dict, List, Optional, Sequence, Tuple
 
 from . import _core, scaled_clock
-from .children import Child, CommandNotStarted, SanitizerWatch, sanitizer_report
+from .children import Child, CommandNotStarted, SanitizerWatch, ValueFields, sanitizer_report
 
 SHIM_NAME = "_redirect_device.so"
 # The variables the shim reads (src/shim/redirect_device.c).
@@ -48,7 +48,7 @@ def device_variable(name: str, device: int) -> str:
     return name if device == 0 else f"{name}_{device}"
 
 
-class RedirectedDevice:
+class RedirectedDevice(ValueFields):
     """One path CMD opens, redirected to `pty_path`: the recorded `identity`
     presented for it, its serial lines told to the bridge at `line_channel`.
     (Not a dataclass: ``dataclasses`` imports ``inspect``, ``ast`` and
@@ -62,20 +62,6 @@ class RedirectedDevice:
         self.pty_path = pty_path
         self.identity = identity
         self.line_channel = line_channel
-
-    def _values(self) -> tuple:
-        return tuple(getattr(self, name) for name in self._FIELDS)
-
-    def __eq__(self, other: object) -> bool:
-        if other.__class__ is not self.__class__:
-            return NotImplemented
-        return self._values() == other._values()  # type: ignore[attr-defined]
-
-    __hash__ = None  # type: ignore[assignment]  # mutable and equal by value
-
-    def __repr__(self) -> str:
-        return (f"{type(self).__qualname__}("
-                + ", ".join(f"{name}={getattr(self, name)!r}" for name in self._FIELDS) + ")")
 
 
 # Private files and folders of a command's run (the side channel's folder,
